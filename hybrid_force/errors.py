@@ -1,0 +1,121 @@
+"""One exception tree for hybrid_force.
+
+Every error names what was wrong (the file, the frame, the parameter, the value)
+and, where there is a finite set of valid choices, lists them. Anything a user
+can cause with bad input is a subclass of :class:`BadInputError`; the command
+line maps those to exit status 2 and prints ``error: <message>``.
+A run that fails at run time raises :class:`SimulationError` (exit status 1).
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
+__all__ = [
+    "BadInputError",
+    "ControlError",
+    "DimensionError",
+    "DivergenceError",
+    "FrameError",
+    "GainError",
+    "HybridForceError",
+    "ReachError",
+    "ResultFileError",
+    "RobotError",
+    "ScenarioError",
+    "SimulationError",
+    "SingularConfigurationError",
+    "SurfaceError",
+    "SurfaceParameterError",
+    "UnknownRobotError",
+    "URDFError",
+    "ViewerError",
+    "did_you_mean",
+]
+
+
+class HybridForceError(Exception):
+    """Base class of every error raised by hybrid_force."""
+
+
+class BadInputError(HybridForceError, ValueError):
+    """Input given by the user (file, parameter, option) is invalid."""
+
+
+# --- robot model -----------------------------------------------------------
+class RobotError(BadInputError):
+    """A robot model could not be loaded or used."""
+
+
+class UnknownRobotError(RobotError):
+    """A robot name is neither bundled, in example-robot-data, nor a file."""
+
+
+class URDFError(RobotError):
+    """A URDF file is missing, malformed or physically impossible."""
+
+
+class FrameError(RobotError):
+    """A frame name does not exist in the model."""
+
+
+class DimensionError(BadInputError):
+    """An array has the wrong length or shape (e.g. q of the wrong size)."""
+
+
+# --- surfaces and constraints ----------------------------------------------
+class SurfaceError(BadInputError):
+    """A surface or constraint is invalid."""
+
+
+class SurfaceParameterError(SurfaceError):
+    """A surface parameter (radius, axis, normal, ...) is invalid."""
+
+
+class SingularConfigurationError(SurfaceError):
+    """∇Φ vanishes, or J_Φ is (near) zero, so J_Φn is undefined."""
+
+
+# --- control -----------------------------------------------------------------
+class ControlError(BadInputError):
+    """A controller or desired path cannot be built or evaluated."""
+
+
+class GainError(ControlError):
+    """A gain breaks the paper's assumptions (K_d > 0, Λ > 0, β ≥ 0, γ > 0)."""
+
+
+class ReachError(ControlError):
+    """A task-space point is out of reach, or the Jacobian is singular on the path."""
+
+
+# --- simulation, results, edges ----------------------------------------------
+class SimulationError(HybridForceError):
+    """A simulation failed at run time (not bad input)."""
+
+
+class DivergenceError(SimulationError):
+    """Non-finite state or a runaway; ``result`` holds the run up to the failure."""
+
+    def __init__(self, message: str, result: object | None = None) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+class ScenarioError(BadInputError):
+    """A scenario file is invalid; the message names the file, table.key and value."""
+
+
+class ResultFileError(BadInputError):
+    """A result file is missing, truncated or not a hybrid_force result."""
+
+
+class ViewerError(BadInputError):
+    """The 3D replay cannot be produced (missing model, port in use, ...)."""
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """Return ``" (did you mean 'x'?)"`` for the closest choice, or ``""``."""
+    close = difflib.get_close_matches(word, list(choices), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
