@@ -1,0 +1,595 @@
+"""Desired task-space paths p_d(t) and a check that a path lies on a surface.
+
+A path gives the desired tool position p_d(t) (3,) [m] together with its velocity
+ṗ_d(t) (3,) [m/s] and acceleration p̈_d(t) (3,) [m/s²]; the closed-loop inverse
+kinematics of the paper (eq. 27) turns it into a desired joint path q_d(t).
+
+* :class:`Helix` – a circular helix about an arbitrary axis; :func:`paper_helix` is
+  the helix of eq. 25, (0.4 cos t, 0.4 sin t, 10 + t/10).
+* :class:`Circle` – a circle in an arbitrary plane (a helix that does not rise).
+* :class:`FunctionPath` – any path given as Python callables of t; missing
+  derivatives come from fourth-order central finite differences.
+* :func:`check_on_surface` – the worst |d| of a path against a surface over a time
+  span, so a scenario can verify that its desired path lies on the obstacle (the
+  paper requires p_d to lie on Φ(p) = 0, eq. 26).
+
+Helix and circle share one parametrisation (section 6.1 generalised)::
+
+    p(t) = c + rise·t·a + r (cos θ e1 + sin θ e2),   θ = phase + omega·t,
+
+with a the unit axis (the circle's plane normal) and (e1, e2, a) the right-handed
+orthonormal frame of :func:`axis_frame`: e1 is world x projected onto the plane ⟂ a
+and normalised (world y if a is (anti)parallel to x), e2 = a × e1. The phase is
+measured from e1, and omega > 0 turns counter-clockwise seen from the tip of a.
+For a = z, phase 0 starts on +x and the motion matches eq. 25.
+
+Paths round-trip through plain dictionaries (:meth:`Path.to_dict`,
+:func:`path_from_dict`) so that scenario and result files can store them.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import KW_ONLY, dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from hybrid_force.errors import BadInputError, SurfaceError, did_you_mean
+
+__all__ = [
+    "Circle",
+    "FunctionPath",
+    "Helix",
+    "OnSurfaceReport",
+    "Path",
+    "PathParameterError",
+    "axis_frame",
+    "check_on_surface",
+    "paper_helix",
+    "path_from_dict",
+]
+
+_AXIS_MIN_NORM = 1e-12
+"""An axis or normal shorter than this [any unit] counts as zero."""
+
+_PARALLEL_TOL = 1e-6
+"""If world x projected onto the plane ⟂ a is shorter than this, a counts as ∥ x."""
+
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 0.618...
+
+
+class PathParameterError(BadInputError):
+    """A path parameter (radius, axis, omega, ...) or a check_on_surface argument is invalid."""
+
+
+# --- helpers -------------------------------------------------------------------------------------
+def _finite_float(owner: str, name: str, value: object) -> float:
+    """Return ``value`` as a finite float or raise :class:`PathParameterError`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise PathParameterError(
+            f"{owner}.{name} must be a finite real number, got {value!r} ({type(value).__name__})"
+        )
+    out = float(value)
+    if not math.isfinite(out):
+        raise PathParameterError(f"{owner}.{name} must be finite, got {value!r}")
+    return out
+
+
+def _vector3(owner: str, name: str, value: object) -> tuple[float, float, float]:
+    """Return ``value`` as a finite 3-vector (tuple of floats) or raise."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise PathParameterError(
+            f"{owner}.{name} must be 3 finite numbers, got {value!r} ({exc})"
+        ) from None
+    if arr.shape != (3,):
+        raise PathParameterError(
+            f"{owner}.{name} must be 3 finite numbers (shape (3,)), got {value!r} "
+            f"with shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise PathParameterError(f"{owner}.{name} must be finite, got {value!r}")
+    return (float(arr[0]), float(arr[1]), float(arr[2]))
+
+
+def _unit3(owner: str, name: str, value: object) -> np.ndarray:
+    """Return ``value`` normalised to unit length (3,) or raise if zero or non-finite."""
+    vec = np.array(_vector3(owner, name, value))
+    norm = float(np.linalg.norm(vec))
+    if not norm >= _AXIS_MIN_NORM:
+        raise PathParameterError(
+            f"{owner}.{name} must be a non-zero direction (length >= {_AXIS_MIN_NORM:g}), "
+            f"got {value!r} with length {norm:g}"
+        )
+    return vec / norm
+
+
+def axis_frame(axis: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Right-handed orthonormal frame (e1, e2, a) for a direction ``axis``.
+
+    axis: (3,) any non-zero finite vector (it is normalised to a).
+    e1 = world x projected onto the plane ⟂ a and normalised; if a is (anti)parallel to
+    world x (projection shorter than 1e-6) world y is used instead. e2 = a × e1, so
+    e1 × e2 = a. Returns three (3,) unit vectors [-].
+
+    Raises PathParameterError for a zero or non-finite axis.
+    """
+    a = _unit3("axis_frame", "axis", axis)
+    ref = np.array([1.0, 0.0, 0.0])
+    e1 = ref - float(a @ ref) * a
+    if float(np.linalg.norm(e1)) < _PARALLEL_TOL:
+        ref = np.array([0.0, 1.0, 0.0])
+        e1 = ref - float(a @ ref) * a
+    e1 /= np.linalg.norm(e1)
+    # A second Gram-Schmidt pass keeps e1 ⟂ a to rounding even when x is nearly ∥ a.
+    e1 -= float(a @ e1) * a
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    e2 /= np.linalg.norm(e2)
+    return e1, e2, a
+
+
+# --- the path interface --------------------------------------------------------------------------
+class Path(abc.ABC):
+    """A desired task-space path p_d(t) with its first two time derivatives."""
+
+    @abc.abstractmethod
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (p_d (3,) [m], ṗ_d (3,) [m/s], p̈_d (3,) [m/s²]) at time t [s].
+
+        The arrays are fresh copies; the caller may modify them.
+        """
+
+    def position(self, t: float) -> np.ndarray:
+        """Return p_d(t) (3,) [m] only."""
+        return self.evaluate(t)[0]
+
+    @abc.abstractmethod
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-able dict ``{"type": ..., <parameters>}`` for :func:`path_from_dict`."""
+
+
+class _CircularPath(Path):
+    """Shared evaluation of Helix and Circle: p = c + rise·t·a + r(cos θ e1 + sin θ e2)."""
+
+    # Set in _setup(): B (4, 3) with rows r·e1, r·e2, rise·a, c, so that
+    # p = [cos θ, sin θ, t, 1] @ B, ṗ = [−ω sin θ, ω cos θ, 1, 0] @ B,
+    # p̈ = [−ω² cos θ, −ω² sin θ, 0, 0] @ B.
+    _basis: np.ndarray
+    _frame: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+    omega: float
+    phase: float
+
+    def _setup(
+        self, center: tuple[float, float, float], radius: float, axis: np.ndarray, rise: float
+    ) -> None:
+        e1, e2, a = axis_frame(axis)
+        for v in (e1, e2, a):
+            v.setflags(write=False)
+        basis = np.vstack([radius * e1, radius * e2, rise * a, np.asarray(center)])
+        basis.setflags(write=False)
+        object.__setattr__(self, "_frame", (e1, e2, a))
+        object.__setattr__(self, "_basis", basis)
+
+    @property
+    def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The right-handed orthonormal frame (e1, e2, a), each (3,) [-], read-only arrays."""
+        return self._frame
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (p (3,) [m], ṗ (3,) [m/s], p̈ (3,) [m/s²]) at t [s], analytically."""
+        t = float(t)
+        w = self.omega
+        th = self.phase + w * t
+        co = math.cos(th)
+        si = math.sin(th)
+        wc = w * co
+        ws = w * si
+        coeff = np.array(((co, si, t, 1.0), (-ws, wc, 1.0, 0.0), (-w * wc, -w * ws, 0.0, 0.0)))
+        p, v, acc = coeff @ self._basis
+        return p, v, acc
+
+    def position(self, t: float) -> np.ndarray:
+        """Return p(t) (3,) [m]."""
+        t = float(t)
+        th = self.phase + self.omega * t
+        return np.array((math.cos(th), math.sin(th), t, 1.0)) @ self._basis
+
+
+@dataclass(frozen=True)
+class Helix(_CircularPath):
+    """Circular helix p(t) = c + rise·t·a + r(cos θ e1 + sin θ e2), θ = phase + omega·t.
+
+    center: (3,) [m] the point on the axis at t = 0.
+    radius: [m] > 0.
+    axis: (3,) [-] direction of the helix axis (any non-zero length, normalised to a).
+    omega: [rad/s] angular rate; > 0 turns counter-clockwise seen from the tip of a.
+    rise: [m/s] speed along a (may be 0 or negative).
+    phase: [rad] angle at t = 0, measured from e1 (see :func:`axis_frame`).
+
+    Eq. 25 is ``Helix((0, 0, 10), 0.4, omega=1, rise=0.1)`` (:func:`paper_helix`).
+    """
+
+    TYPE: ClassVar[str] = "helix"
+
+    center: tuple[float, float, float]
+    radius: float
+    _: KW_ONLY
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    omega: float
+    rise: float
+    phase: float = 0.0
+    _basis: np.ndarray = field(init=False, repr=False, compare=False)
+    _frame: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        owner = "Helix"
+        center = _vector3(owner, "center", self.center)
+        radius = _finite_float(owner, "radius", self.radius)
+        if radius <= 0.0:
+            raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
+        axis = _vector3(owner, "axis", self.axis)
+        unit = _unit3(owner, "axis", axis)
+        for name in ("omega", "rise", "phase"):
+            object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
+        object.__setattr__(self, "center", center)
+        object.__setattr__(self, "radius", radius)
+        object.__setattr__(self, "axis", axis)
+        self._setup(center, radius, unit, self.rise)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type": "helix", "center", "radius", "axis", "omega", "rise", "phase"}``."""
+        return {
+            "type": self.TYPE,
+            "center": list(self.center),
+            "radius": self.radius,
+            "axis": list(self.axis),
+            "omega": self.omega,
+            "rise": self.rise,
+            "phase": self.phase,
+        }
+
+
+@dataclass(frozen=True)
+class Circle(_CircularPath):
+    """Circle p(t) = c + r(cos θ e1 + sin θ e2), θ = phase + omega·t, in the plane ⟂ normal.
+
+    center: (3,) [m]; radius: [m] > 0; normal: (3,) [-] normal of the circle's plane
+    (any non-zero length); omega: [rad/s], > 0 turns counter-clockwise seen from the tip
+    of the normal; phase: [rad] angle at t = 0 measured from e1 (see :func:`axis_frame`).
+    """
+
+    TYPE: ClassVar[str] = "circle"
+
+    center: tuple[float, float, float]
+    radius: float
+    normal: tuple[float, float, float]
+    omega: float
+    phase: float = 0.0
+    _basis: np.ndarray = field(init=False, repr=False, compare=False)
+    _frame: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        owner = "Circle"
+        center = _vector3(owner, "center", self.center)
+        radius = _finite_float(owner, "radius", self.radius)
+        if radius <= 0.0:
+            raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
+        normal = _vector3(owner, "normal", self.normal)
+        unit = _unit3(owner, "normal", normal)
+        for name in ("omega", "phase"):
+            object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
+        object.__setattr__(self, "center", center)
+        object.__setattr__(self, "radius", radius)
+        object.__setattr__(self, "normal", normal)
+        self._setup(center, radius, unit, 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type": "circle", "center", "radius", "normal", "omega", "phase"}``."""
+        return {
+            "type": self.TYPE,
+            "center": list(self.center),
+            "radius": self.radius,
+            "normal": list(self.normal),
+            "omega": self.omega,
+            "phase": self.phase,
+        }
+
+
+def paper_helix() -> Helix:
+    """The desired path of eq. 25: p_d(t) = (0.4 cos t, 0.4 sin t, 10 + t/10) [m].
+
+    It lies on the cylinder x² + y² = 0.4² of eq. 26.
+    """
+    return Helix(center=(0.0, 0.0, 10.0), radius=0.4, axis=(0.0, 0.0, 1.0), omega=1.0, rise=0.1)
+
+
+# --- paths given as Python functions -------------------------------------------------------------
+_VecFn = Callable[[float], Any]
+
+DEFAULT_FD_STEP = 1e-3
+"""Default finite-difference step h [s] of :class:`FunctionPath`."""
+
+
+class FunctionPath(Path):
+    """A path given by Python callables of t [s], each returning a (3,) array-like.
+
+    position(t) -> p (3,) [m]; velocity(t) -> ṗ (3,) [m/s] and acceleration(t) -> p̈
+    (3,) [m/s²] are optional. A missing derivative is computed by fourth-order
+    central finite differences with step h = ``step`` [s] (default 1e-3 s):
+
+    * ṗ ≈ [p(t−2h) − 8p(t−h) + 8p(t+h) − p(t+2h)] / (12h),
+      error ≤ h⁴/30·max|p⁽⁵⁾| + 1.5·ε·max|p|/h  (ε = 2.2e-16);
+    * p̈, if ``velocity`` is given, by the same stencil applied to ṗ,
+      error ≤ h⁴/30·max|p⁽⁶⁾| + 1.5·ε·max|ṗ|/h;
+    * p̈, if only ``position`` is given,
+      ≈ [−p(t−2h) + 16p(t−h) − 30p(t) + 16p(t+h) − p(t+2h)] / (12h²),
+      error ≤ h⁴/90·max|p⁽⁶⁾| + 5.4·ε·max|p|/h².
+
+    The maxima are over [t−2h, t+2h]. With the default h = 1e-3 s and the paper's helix
+    (|p| ≈ 10 m, derivatives ≤ 1) that is about 4e-12 m/s for ṗ and 1.2e-8 m/s² for p̈
+    (rounding-dominated; measured errors are smaller). The callables must be defined on
+    [t−2h, t+2h], also for t near the start of a run. Each evaluation costs up to 9 calls
+    of ``position`` plus the given derivatives, so give analytic derivatives in hot loops.
+
+    A non-finite or wrongly shaped result raises :class:`PathParameterError` naming the
+    callable and t. A FunctionPath cannot be written to a dict (:meth:`to_dict` raises).
+    """
+
+    TYPE: ClassVar[str] = "function"
+
+    def __init__(
+        self,
+        position: _VecFn,
+        velocity: _VecFn | None = None,
+        acceleration: _VecFn | None = None,
+        *,
+        step: float = DEFAULT_FD_STEP,
+    ) -> None:
+        for name, fn, required in (
+            ("position", position, True),
+            ("velocity", velocity, False),
+            ("acceleration", acceleration, False),
+        ):
+            if (fn is not None or required) and not callable(fn):
+                raise PathParameterError(
+                    f"FunctionPath.{name} must be a callable of t returning 3 numbers, "
+                    f"got {fn!r} ({type(fn).__name__})"
+                )
+        h = _finite_float("FunctionPath", "step", step)
+        if h <= 0.0:
+            raise PathParameterError(f"FunctionPath.step must be > 0 [s], got {step!r}")
+        self._position_fn = position
+        self._velocity_fn = velocity
+        self._acceleration_fn = acceleration
+        self.step = h
+
+    def __repr__(self) -> str:
+        def name(fn: object) -> str:
+            return "None" if fn is None else getattr(fn, "__qualname__", repr(fn))
+
+        return (
+            f"FunctionPath(position={name(self._position_fn)}, "
+            f"velocity={name(self._velocity_fn)}, "
+            f"acceleration={name(self._acceleration_fn)}, step={self.step!r})"
+        )
+
+    @staticmethod
+    def _call(kind: str, fn: _VecFn, t: float) -> np.ndarray:
+        raw = fn(t)
+        try:
+            out = np.array(raw, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise PathParameterError(
+                f"FunctionPath.{kind}({t!r}) must return 3 numbers, got {raw!r} ({exc})"
+            ) from exc
+        if out.shape != (3,):
+            raise PathParameterError(
+                f"FunctionPath.{kind}({t!r}) must return shape (3,), got shape {out.shape}"
+            )
+        if not np.all(np.isfinite(out)):
+            raise PathParameterError(
+                f"FunctionPath.{kind}({t!r}) returned a non-finite value {out.tolist()}"
+            )
+        return out
+
+    def _first_derivative(self, kind: str, fn: _VecFn, t: float) -> np.ndarray:
+        h = self.step
+        fm2 = self._call(kind, fn, t - 2.0 * h)
+        fm1 = self._call(kind, fn, t - h)
+        fp1 = self._call(kind, fn, t + h)
+        fp2 = self._call(kind, fn, t + 2.0 * h)
+        return (fm2 - fp2 + 8.0 * (fp1 - fm1)) / (12.0 * h)
+
+    def position(self, t: float) -> np.ndarray:
+        """Return p_d(t) (3,) [m]."""
+        return self._call("position", self._position_fn, t)
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (p (3,) [m], ṗ (3,) [m/s], p̈ (3,) [m/s²]); see the class doc for accuracy."""
+        p = self._call("position", self._position_fn, t)
+        if self._velocity_fn is not None:
+            v = self._call("velocity", self._velocity_fn, t)
+        else:
+            v = self._first_derivative("position", self._position_fn, t)
+        if self._acceleration_fn is not None:
+            a = self._call("acceleration", self._acceleration_fn, t)
+        elif self._velocity_fn is not None:
+            a = self._first_derivative("velocity", self._velocity_fn, t)
+        else:
+            h = self.step
+            fn = self._position_fn
+            fm2 = self._call("position", fn, t - 2.0 * h)
+            fm1 = self._call("position", fn, t - h)
+            fp1 = self._call("position", fn, t + h)
+            fp2 = self._call("position", fn, t + 2.0 * h)
+            a = (16.0 * (fm1 + fp1) - (fm2 + fp2) - 30.0 * p) / (12.0 * h * h)
+        return p, v, a
+
+    def to_dict(self) -> dict[str, Any]:
+        """Not available: Python callables cannot be stored in a scenario or result file."""
+        raise PathParameterError(
+            f"{self!r} holds Python callables and cannot be written to a dict; "
+            f"serialisable path types are {sorted(_PATH_TYPES)}"
+        )
+
+
+# --- dictionaries --------------------------------------------------------------------------------
+_PATH_TYPES: dict[str, type[Helix] | type[Circle]] = {"helix": Helix, "circle": Circle}
+_REQUIRED: dict[str, tuple[str, ...]] = {
+    "helix": ("center", "radius", "omega", "rise"),
+    "circle": ("center", "radius", "normal", "omega"),
+}
+_OPTIONAL: dict[str, tuple[str, ...]] = {
+    "helix": ("axis", "phase"),
+    "circle": ("phase",),
+}
+
+
+def path_from_dict(d: Mapping[str, Any]) -> Path:
+    """Build a path from ``{"type": "helix" | "circle", <parameters>}`` (inverse of to_dict).
+
+    Raises PathParameterError for an unknown type, missing or unknown keys, or bad values.
+    """
+    if not isinstance(d, Mapping):
+        raise PathParameterError(
+            f"path must be a table/dict with a 'type' key, got {d!r} ({type(d).__name__})"
+        )
+    if "type" not in d:
+        raise PathParameterError(
+            f"path dict has no 'type' key; valid types: {sorted(_PATH_TYPES)}; got {dict(d)!r}"
+        )
+    kind = d["type"]
+    if not isinstance(kind, str) or kind not in _PATH_TYPES:
+        hint = did_you_mean(kind, _PATH_TYPES) if isinstance(kind, str) else ""
+        raise PathParameterError(
+            f"path.type {kind!r} is unknown{hint}; valid types: {sorted(_PATH_TYPES)}"
+        )
+    valid = (*_REQUIRED[kind], *_OPTIONAL[kind])
+    params = {k: v for k, v in d.items() if k != "type"}
+    for key in params:
+        if key not in valid:
+            raise PathParameterError(
+                f"path.{key} is not a parameter of a {kind} path{did_you_mean(str(key), valid)}; "
+                f"valid keys: {['type', *valid]}"
+            )
+    missing = [k for k in _REQUIRED[kind] if k not in params]
+    if missing:
+        raise PathParameterError(
+            f"{kind} path is missing {missing}; required keys: {list(_REQUIRED[kind])}, "
+            f"optional: {list(_OPTIONAL[kind])}"
+        )
+    return _PATH_TYPES[kind](**params)
+
+
+# --- is a path on a surface? ---------------------------------------------------------------------
+@dataclass(frozen=True)
+class OnSurfaceReport:
+    """Result of :func:`check_on_surface`.
+
+    worst_distance: [m] max over the span of |d(p_d(t))|, d the surface's signed distance.
+    time_of_worst: [s] the t where it occurs.
+    point_of_worst: (3,) [m] p_d(time_of_worst).
+    """
+
+    worst_distance: float
+    time_of_worst: float
+    point_of_worst: np.ndarray = field(compare=False)
+
+
+def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray]:
+    p = np.asarray(path.position(t), dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise PathParameterError(
+            f"path {path!r} gives a non-finite or wrongly shaped position {p.tolist()} at t={t!r}"
+        )
+    d = float(surface.distance(p))
+    if not math.isfinite(d):
+        raise SurfaceError(
+            f"surface {surface!r} returned a non-finite distance {d!r} at p={p.tolist()} "
+            f"(path time t={t!r})"
+        )
+    return abs(d), p
+
+
+def check_on_surface(
+    path: Path, surface: Any, t0: float, t1: float, samples: int = 2001
+) -> OnSurfaceReport:
+    """Worst |d| [m] of ``path`` on ``surface`` over t ∈ [t0, t1] [s].
+
+    surface: any object with ``distance(p: (3,) ndarray) -> float``, the signed metric
+    distance [m] (e.g. hybrid_force.surfaces.Cylinder). The span is sampled at
+    ``samples`` (≥ 2) uniform times; the bracket around the worst sample is then refined
+    by a golden-section search for the maximum of |d| (to a time tolerance of
+    1e-12·max(1, |t|) s), so the reported value is accurate even between samples as long
+    as |d| has a single peak within one sample spacing of the worst sample.
+
+    Raises PathParameterError if t0, t1 are not finite, t1 <= t0, or samples < 2;
+    SurfaceError if the surface returns a non-finite distance.
+    """
+    a = _finite_float("check_on_surface", "t0", t0)
+    b = _finite_float("check_on_surface", "t1", t1)
+    if not b > a:
+        raise PathParameterError(f"check_on_surface.t1 must be > t0, got t0={t0!r}, t1={t1!r}")
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 2:
+        raise PathParameterError(
+            f"check_on_surface.samples must be an integer >= 2, got {samples!r}"
+        )
+    if not callable(getattr(surface, "distance", None)):
+        raise PathParameterError(
+            f"check_on_surface.surface must have a method distance(p) -> float, got {surface!r}"
+        )
+    times = np.linspace(a, b, int(samples))
+    best_t = a
+    best_d = -1.0
+    best_p = np.zeros(3)
+    best_k = 0
+    for k, t in enumerate(times):
+        d, p = _abs_distance(path, surface, float(t))
+        if d > best_d:
+            best_t, best_d, best_p, best_k = float(t), d, p, k
+    lo = float(times[max(best_k - 1, 0)])
+    hi = float(times[min(best_k + 1, len(times) - 1)])
+    best_t, best_d, best_p = _golden_max(path, surface, lo, hi, best_t, best_d, best_p)
+    return OnSurfaceReport(worst_distance=best_d, time_of_worst=best_t, point_of_worst=best_p)
+
+
+def _golden_max(
+    path: Path,
+    surface: Any,
+    lo: float,
+    hi: float,
+    best_t: float,
+    best_d: float,
+    best_p: np.ndarray,
+) -> tuple[float, float, np.ndarray]:
+    """Golden-section search for max |d| on [lo, hi]; keeps the best point ever evaluated."""
+    x1 = hi - _GOLDEN * (hi - lo)
+    x2 = lo + _GOLDEN * (hi - lo)
+    f1, p1 = _abs_distance(path, surface, x1)
+    f2, p2 = _abs_distance(path, surface, x2)
+    for x, f, p in ((x1, f1, p1), (x2, f2, p2)):
+        if f > best_d:
+            best_t, best_d, best_p = x, f, p
+    tol = 1e-12 * max(1.0, abs(lo), abs(hi))
+    for _ in range(200):
+        if hi - lo <= tol:
+            break
+        if f1 >= f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - _GOLDEN * (hi - lo)
+            f1, p1 = _abs_distance(path, surface, x1)
+            if f1 > best_d:
+                best_t, best_d, best_p = x1, f1, p1
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + _GOLDEN * (hi - lo)
+            f2, p2 = _abs_distance(path, surface, x2)
+            if f2 > best_d:
+                best_t, best_d, best_p = x2, f2, p2
+    return best_t, best_d, best_p
