@@ -1,0 +1,656 @@
+"""One simulation run on disk and in memory: the :class:`Result` object and its metrics.
+
+A :class:`Result` holds the time series of one closed-loop run (issue 5 item 4)
+and a JSON-able ``meta`` dict (scenario, robot, surfaces, path, gains, settings, events, status,
+software versions, speed).  It is saved to, and loaded from, a single ``.npz`` file with exactly
+the arrays ``t q v q_d u p p_d f f_d phi V phase`` plus ``meta`` (the JSON text as a 0-d numpy
+unicode array); no pickle is involved, so ``np.load(path, allow_pickle=False)`` reads it.
+
+Saving is atomic: the archive is written to a temporary file in the target's directory, flushed
+and fsync'ed, then moved onto the target with :func:`os.replace`.  A crash or Ctrl-C during the
+write leaves any earlier file at the target untouched and removes the temporary file.
+
+:meth:`Result.metrics` computes the numbers the paper (section 6) and issue 5 report: position
+error per axis and its norm, force error ``|f - f_d|`` while in contact, worst constraint drift,
+contact time, impact impulse and speed, and the time to converge.
+
+Units: SI throughout (s, m, rad, N, N·m, J, N·s).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import math
+import os
+import tempfile
+import zipfile
+import zlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.lib.npyio import NpzFile
+
+from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
+
+__all__ = [
+    "ARRAY_NAMES",
+    "CONVERGE_TOLERANCE",
+    "DEFAULT_SETTLE_TIME",
+    "EVENT_KINDS",
+    "PHASE_CONTACT",
+    "PHASE_FREE",
+    "PHASE_NEAR",
+    "Metrics",
+    "Result",
+    "load_result",
+]
+
+#: The arrays of a result file, in schema order (``meta`` is stored beside them).
+ARRAY_NAMES: tuple[str, ...] = (
+    "t",
+    "q",
+    "v",
+    "q_d",
+    "u",
+    "p",
+    "p_d",
+    "f",
+    "f_d",
+    "phi",
+    "V",
+    "phase",
+)
+#: Phase codes of the ``phase`` array.
+PHASE_FREE = 0
+PHASE_NEAR = 1
+PHASE_CONTACT = 2
+_PHASES = (PHASE_FREE, PHASE_NEAR, PHASE_CONTACT)
+#: Event kinds the simulator records in ``meta["events"]`` (other kinds are accepted as well).
+EVENT_KINDS: tuple[str, ...] = ("near", "contact", "impact", "release", "branch", "diverged")
+#: Settling time [s] used by :meth:`Result.metrics` when ``meta["settings"]`` has none.
+DEFAULT_SETTLE_TIME = 5.0
+#: ``time_to_converge`` is the first time after which ``||p - p_d||`` stays below this [m].
+CONVERGE_TOLERANCE = 1e-3
+_STATUSES = ("ok", "failed")
+_META_KEY = "meta"
+
+
+# --------------------------------------------------------------------------- helpers
+def _json_default(obj: Any) -> Any:
+    """Turn numpy scalars/arrays and paths into plain JSON values (used by ``json.dumps``)."""
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, (tuple, set, frozenset)):
+        return list(obj)
+    raise TypeError(f"{type(obj).__name__} is not JSON-able")
+
+
+def _meta_to_json(meta: Mapping[str, Any]) -> str:
+    """Serialise ``meta`` to strict JSON text (no NaN/inf); BadInputError if impossible."""
+    try:
+        return json.dumps(meta, default=_json_default, allow_nan=False, sort_keys=False)
+    except (TypeError, ValueError) as exc:
+        raise BadInputError(
+            f"Result meta must be JSON-able without NaN/inf (use None): {exc}"
+        ) from exc
+
+
+def _as_float_array(name: str, value: Any) -> np.ndarray:
+    """Return ``value`` as a new read-only float64 array; BadInputError for non-real data."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iuf":
+        raise BadInputError(
+            f"Result array '{name}' must hold real numbers (float64), got dtype {arr.dtype}"
+        )
+    out = np.array(arr, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def _as_phase_array(value: Any) -> np.ndarray:
+    """Return ``value`` as a new read-only int64 array of phase codes 0/1/2."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iu":
+        raise BadInputError(
+            f"Result array 'phase' must hold integers (int64: 0 free, 1 near, 2 contact), "
+            f"got dtype {arr.dtype}"
+        )
+    out = np.array(arr, dtype=np.int64, copy=True)
+    bad = ~np.isin(out, _PHASES)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise BadInputError(
+            f"Result array 'phase' has value {int(out.flat[i])} at sample {i}; "
+            f"valid phases are 0 (free), 1 (near), 2 (contact)"
+        )
+    out.setflags(write=False)
+    return out
+
+
+def _check_shape(name: str, arr: np.ndarray, expected: tuple[int, ...]) -> None:
+    """Raise DimensionError naming ``name`` unless ``arr.shape == expected``."""
+    if arr.shape != expected:
+        raise DimensionError(
+            f"Result array '{name}' must have shape {expected}, got shape {tuple(arr.shape)}"
+        )
+
+
+def _finite_rows(*arrays: np.ndarray) -> np.ndarray:
+    """Boolean mask (N,) of samples where every given array is finite."""
+    mask = np.ones(arrays[0].shape[0], dtype=bool)
+    for a in arrays:
+        fin = np.isfinite(a)
+        mask &= fin if fin.ndim == 1 else np.all(fin.reshape(fin.shape[0], -1), axis=1)
+    return mask
+
+
+def _max_or_none(x: np.ndarray) -> float | None:
+    return float(np.max(x)) if x.size else None
+
+
+def _rms_or_none(x: np.ndarray) -> float | None:
+    return float(np.sqrt(np.mean(np.square(x)))) if x.size else None
+
+
+def _fsync_directory(directory: Path) -> None:
+    """Best-effort fsync of a directory so a completed rename survives a power cut (POSIX)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+# --------------------------------------------------------------------------- metrics
+@dataclass(frozen=True)
+class Metrics:
+    """Error and contact metrics of one run (issue 5 item 4; paper section 6).
+
+    Position error ``e = p - p_d`` [m]; force error ``|f - f_d|`` [N] over contact samples
+    (phase 2) only (with k > 1 constraints, the Euclidean norm over the k components).
+    "Settled" values use the samples with ``t >= settle_time``.  A value that does not apply
+    (no samples after ``settle_time``, never in contact, no impact, never converged) is ``None``,
+    never NaN.  Samples with non-finite values (e.g. the last sample of a diverged run) are
+    skipped; the run's ``status`` says it failed.
+
+    Attributes:
+        settle_time: time [s] from which the "settled" metrics are taken.
+        position_error_max_axis: (3,) max ``|e_x|, |e_y|, |e_z|`` for t ≥ settle_time [m].
+        position_error_rms_axis: (3,) RMS of ``e_x, e_y, e_z`` for t ≥ settle_time [m].
+        position_error_max: max ``||e||`` over the whole run [m].
+        position_error_max_settled: max ``||e||`` for t ≥ settle_time [m].
+        position_error_rms_settled: RMS of ``||e||`` for t ≥ settle_time [m].
+        final_position_error: ``||e||`` at the last sample [m].
+        force_error_max_settled: max ``|f - f_d|`` over contact samples with t ≥ settle_time [N].
+        force_error_rms_settled: RMS of ``|f - f_d|`` over the same samples [N].
+        final_force_error: ``|f - f_d|`` at the last sample if it is in contact, else None [N].
+        worst_constraint_violation: max ``|phi|`` over all contact samples [m].
+        contact_time: time of the first "contact" event, else of the first phase-2 sample [s].
+        impact_impulse: sum of ``|impulse|`` of the "impact" events (0.0 if none) [N·s].
+        impact_speed: max ``speed`` of the "impact" events (None if none) [m/s].
+        n_impacts: number of "impact" events.
+        time_to_converge: first time after which ``||e||`` stays below ``converge_tolerance``
+            until the end of the run [s].
+        converge_tolerance: the tolerance used for ``time_to_converge`` [m].
+    """
+
+    settle_time: float
+    position_error_max_axis: tuple[float, float, float] | None
+    position_error_rms_axis: tuple[float, float, float] | None
+    position_error_max: float | None
+    position_error_max_settled: float | None
+    position_error_rms_settled: float | None
+    final_position_error: float | None
+    force_error_max_settled: float | None
+    force_error_rms_settled: float | None
+    final_force_error: float | None
+    worst_constraint_violation: float | None
+    contact_time: float | None
+    impact_impulse: float
+    impact_speed: float | None
+    n_impacts: int
+    time_to_converge: float | None
+    converge_tolerance: float = CONVERGE_TOLERANCE
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able dict (floats, ints, lists, None) with the attribute names as keys."""
+        out: dict[str, Any] = {}
+        for fld in dataclasses.fields(self):
+            value = getattr(self, fld.name)
+            out[fld.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+# --------------------------------------------------------------------------- result
+@dataclass(frozen=True, eq=False, repr=False)
+class Result:
+    """Time series and metadata of one run (the result schema of issue 5 item 4).
+
+    N samples, n joints, k constraints (k = 1 in the paper).  Arrays are copied on
+    construction, converted to float64 (``phase``: int64) and made read-only.
+
+    Attributes:
+        t: (N,) time [s], strictly increasing.
+        q: (N, nq) joint configuration [rad or m].
+        v: (N, n) joint velocity [rad/s or m/s].
+        q_d: (N, nq) desired configuration [rad or m].
+        u: (N, n) joint torque/force [N·m or N].
+        p, p_d: (N, 3) actual / desired tip position [m].
+        f, f_d: (N,) (or (N, k) for k > 1) contact force along the unit surface normal pointing to
+            the free side, > 0 when the tool presses on the surface, 0 out of contact [N].
+        phi: (N,) (or (N, k)) signed metric distance of the tip to the surface, > 0 free side [m].
+        V: (N,) Lyapunov function ½ sᵀ M s + ½ β e_F² of paper section 5.1 [J].
+        phase: (N,) int64 phase code: 0 free, 1 near, 2 contact.
+        meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
+            status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
+
+    For all-revolute/prismatic arms nq = n.  For arms with continuous or spherical joints
+    (Pinocchio's nq > nv) ``q`` and ``q_d`` may have nq columns and ``v``, ``u`` n = nv columns.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    q_d: np.ndarray
+    u: np.ndarray
+    p: np.ndarray
+    p_d: np.ndarray
+    f: np.ndarray
+    f_d: np.ndarray
+    phi: np.ndarray
+    V: np.ndarray
+    phase: np.ndarray
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ validation
+    def __post_init__(self) -> None:
+        """Copy, convert and validate every array and ``meta`` (DimensionError/BadInputError)."""
+        arrays = {
+            name: _as_phase_array(getattr(self, name))
+            if name == "phase"
+            else _as_float_array(name, getattr(self, name))
+            for name in ARRAY_NAMES
+        }
+        t = arrays["t"]
+        if t.ndim != 1:
+            raise DimensionError(
+                f"Result array 't' must have shape (N,), got shape {tuple(t.shape)}"
+            )
+        n_samples = t.shape[0]
+        q = arrays["q"]
+        if q.ndim != 2 or q.shape[0] != n_samples or q.shape[1] < 1:
+            raise DimensionError(
+                f"Result array 'q' must have shape (N, nq) = ({n_samples}, nq ≥ 1), "
+                f"got shape {tuple(q.shape)}"
+            )
+        nq = q.shape[1]
+        v = arrays["v"]
+        if v.ndim != 2 or v.shape[0] != n_samples or not 1 <= v.shape[1] <= nq:
+            raise DimensionError(
+                f"Result array 'v' must have shape (N, n) = ({n_samples}, {nq}) "
+                f"(n ≤ nq = {nq} for continuous/spherical joints), got shape {tuple(v.shape)}"
+            )
+        n = v.shape[1]
+        _check_shape("q_d", arrays["q_d"], (n_samples, nq))
+        _check_shape("u", arrays["u"], (n_samples, n))
+        _check_shape("p", arrays["p"], (n_samples, 3))
+        _check_shape("p_d", arrays["p_d"], (n_samples, 3))
+        _check_shape("V", arrays["V"], (n_samples,))
+        _check_shape("phase", arrays["phase"], (n_samples,))
+        f = arrays["f"]
+        if f.ndim == 2 and f.shape[0] == n_samples and f.shape[1] >= 2:
+            constraint_shape: tuple[int, ...] = (n_samples, f.shape[1])
+        else:
+            constraint_shape = (n_samples,)
+        for name in ("f", "f_d", "phi"):
+            arr = arrays[name]
+            if arr.shape != constraint_shape:
+                raise DimensionError(
+                    f"Result array '{name}' must have shape {constraint_shape} like 'f' "
+                    f"((N,) for one constraint, (N, k) for k ≥ 2), got shape {tuple(arr.shape)}"
+                )
+        if not np.all(np.isfinite(t)):
+            raise BadInputError("Result array 't' must be finite")
+        if n_samples > 1 and not np.all(np.diff(t) > 0.0):
+            i = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
+            raise BadInputError(
+                f"Result array 't' must be strictly increasing; t[{i}] = {t[i]!r} and "
+                f"t[{i + 1}] = {t[i + 1]!r}"
+            )
+        meta = self._normalise_meta(self.meta)
+        for name, arr in arrays.items():
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "meta", meta)
+
+    @staticmethod
+    def _normalise_meta(meta: Any) -> dict[str, Any]:
+        """Return a JSON round-tripped copy of ``meta`` after checking status and events."""
+        if not isinstance(meta, Mapping):
+            raise BadInputError(f"Result meta must be a dict, got {type(meta).__name__}")
+        out = json.loads(_meta_to_json(meta))
+        status = out.get("status", "ok")
+        if status not in _STATUSES:
+            raise BadInputError(
+                f"Result meta 'status' is {status!r}; valid values are {', '.join(_STATUSES)}"
+            )
+        events = out.get("events", [])
+        if not isinstance(events, list):
+            raise BadInputError(f"Result meta 'events' must be a list, got {type(events).__name__}")
+        for i, ev in enumerate(events):
+            if not isinstance(ev, dict):
+                raise BadInputError(f"Result meta events[{i}] must be a dict, got {ev!r}")
+            if not isinstance(ev.get("kind"), str):
+                raise BadInputError(
+                    f"Result meta events[{i}] needs a string 'kind' (one of "
+                    f"{', '.join(EVENT_KINDS)}), got {ev!r}"
+                )
+            t_ev = ev.get("t")
+            if isinstance(t_ev, bool) or not isinstance(t_ev, (int, float)):
+                raise BadInputError(f"Result meta events[{i}] needs a numeric 't' [s], got {ev!r}")
+        return out
+
+    def __repr__(self) -> str:
+        return (
+            f"Result(name={self.meta.get('name')!r}, status={self.status!r}, "
+            f"n_samples={self.n_samples}, n_joints={self.n_joints}, "
+            f"n_constraints={self.n_constraints}, events={len(self.events)})"
+        )
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def n_samples(self) -> int:
+        """Number of samples N."""
+        return int(self.t.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints n (columns of ``v`` and ``u``; equals nq for revolute/prismatic)."""
+        return int(self.v.shape[1])
+
+    @property
+    def nq(self) -> int:
+        """Number of configuration coordinates (columns of ``q`` and ``q_d``)."""
+        return int(self.q.shape[1])
+
+    @property
+    def n_constraints(self) -> int:
+        """Number of stacked surface constraints k (1 when ``f`` is (N,))."""
+        return 1 if self.f.ndim == 1 else int(self.f.shape[1])
+
+    @property
+    def events(self) -> list[dict[str, Any]]:
+        """Copies of the events of ``meta["events"]`` (dicts with at least "t" and "kind")."""
+        return [dict(ev) for ev in self.meta.get("events", [])]
+
+    @property
+    def status(self) -> str:
+        """``"ok"`` or ``"failed"`` (``meta["status"]``, ``"ok"`` if absent)."""
+        return str(self.meta.get("status", "ok"))
+
+    @property
+    def failed(self) -> bool:
+        """True if the run failed (it then holds the samples up to the failure)."""
+        return self.status == "failed"
+
+    # ------------------------------------------------------------------ derived results
+    def truncated(self, n: int) -> Result:
+        """Return a new Result with the first ``n`` samples (0 ≤ n ≤ N); meta is kept as is."""
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+            raise BadInputError(f"truncated(n): n must be an int, got {n!r}")
+        if not 0 <= n <= self.n_samples:
+            raise BadInputError(
+                f"truncated(n): n must be in [0, {self.n_samples}] (the number of samples), got {n}"
+            )
+        stop = int(n)
+        return Result(
+            **{name: getattr(self, name)[:stop] for name in ARRAY_NAMES},
+            meta=self.meta,
+        )
+
+    def slice(self, stop: int) -> Result:
+        """Return a new Result with the first ``stop`` samples (same as :meth:`truncated`)."""
+        return self.truncated(stop)
+
+    def with_meta(self, **updates: Any) -> Result:
+        """Return a copy whose meta has the given top-level keys replaced (e.g. ``status``)."""
+        meta = dict(self.meta)
+        meta.update(updates)
+        return dataclasses.replace(self, meta=meta)
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write this result atomically to ``path`` (one uncompressed ``.npz``); return the path.
+
+        The archive is written to a temporary file in the same directory, flushed and
+        fsync'ed, then moved onto ``path`` with :func:`os.replace`.  On any exception,
+        including KeyboardInterrupt, the temporary file is removed and the exception re-raised;
+        an existing file at ``path`` is untouched until the final replace.  The parent
+        directory is created if missing.  The file name is used as given (no suffix added).
+        """
+        target = Path(path)
+        if target.is_dir():
+            raise ResultFileError(f"cannot save result to '{target}': it is a directory")
+        meta_text = _meta_to_json(self.meta)
+        payload: dict[str, np.ndarray] = {name: getattr(self, name) for name in ARRAY_NAMES}
+        payload[_META_KEY] = np.array(meta_text, dtype=np.str_)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ResultFileError(
+                f"cannot save result to '{target}': cannot create directory "
+                f"'{target.parent}': {exc}"
+            ) from exc
+        tmp_name: str | None = None
+        try:
+            with tempfile.NamedTemporaryFile(
+                dir=target.parent,
+                prefix=f".{target.name}.",
+                suffix=".npz.tmp",
+                delete=False,
+            ) as tmp:
+                tmp_name = tmp.name
+                np.savez(tmp, **payload)
+                tmp.flush()
+                os.fsync(tmp.fileno())
+            os.replace(tmp_name, target)
+            tmp_name = None
+        except BaseException:
+            if tmp_name is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp_name)
+            raise
+        _fsync_directory(target.parent)
+        return target
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Result:
+        """Read a result saved by :meth:`save`.
+
+        Raises:
+            ResultFileError: naming the file, if it is missing, not an npz archive (truncated or
+                garbage), lacks arrays (listed), has no or bad ``meta`` JSON, or holds arrays of
+                inconsistent shapes or dtypes.
+        """
+        src = Path(path)
+        if not src.exists():
+            raise ResultFileError(f"result file '{src}' does not exist")
+        if not src.is_file():
+            raise ResultFileError(f"result file '{src}' is not a regular file")
+        data: dict[str, np.ndarray] = {}
+        try:
+            # open the file ourselves: np.load leaks its handle when the zip is corrupt
+            with src.open("rb") as fh:
+                loaded = np.load(fh, allow_pickle=False)
+                if not isinstance(loaded, NpzFile):
+                    raise ResultFileError(
+                        f"result file '{src}' holds a single numpy array, not an .npz result "
+                        f"archive"
+                    )
+                with loaded as npz:
+                    names = set(npz.files)
+                    missing = [n for n in (*ARRAY_NAMES, _META_KEY) if n not in names]
+                    if missing:
+                        found = ", ".join(sorted(names)) or "none"
+                        raise ResultFileError(
+                            f"result file '{src}' is not a complete hybrid_force result: "
+                            f"missing array(s) {', '.join(missing)} (found: {found})"
+                        )
+                    for name in (*ARRAY_NAMES, _META_KEY):
+                        data[name] = npz[name]
+        except ResultFileError:
+            raise
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+            raise ResultFileError(
+                f"result file '{src}' is not a readable .npz archive (truncated or not a "
+                f"hybrid_force result): {type(exc).__name__}: {exc}"
+            ) from exc
+        meta_arr = data.pop(_META_KEY)
+        if meta_arr.shape != () or meta_arr.dtype.kind != "U":
+            raise ResultFileError(
+                f"result file '{src}': 'meta' must be a 0-d unicode string array of JSON text, "
+                f"got dtype {meta_arr.dtype} shape {meta_arr.shape}"
+            )
+        try:
+            meta = json.loads(str(meta_arr))
+        except json.JSONDecodeError as exc:
+            raise ResultFileError(f"result file '{src}': 'meta' is not valid JSON: {exc}") from exc
+        if not isinstance(meta, dict):
+            raise ResultFileError(
+                f"result file '{src}': 'meta' must be a JSON object, got {type(meta).__name__}"
+            )
+        try:
+            return cls(**data, meta=meta)
+        except BadInputError as exc:
+            raise ResultFileError(f"result file '{src}' is inconsistent: {exc}") from exc
+
+    # ------------------------------------------------------------------ metrics
+    def metrics(
+        self,
+        settle_time: float | None = None,
+        converge_tolerance: float = CONVERGE_TOLERANCE,
+    ) -> Metrics:
+        """Compute the run's :class:`Metrics`.
+
+        Args:
+            settle_time: start [s] of the "settled" window; defaults to
+                ``meta["settings"]["settle_time"]``, else 5.0 s.
+            converge_tolerance: position error norm [m] for ``time_to_converge`` (1e-3 m).
+        """
+        if settle_time is None:
+            settings = self.meta.get("settings") or {}
+            settle_time = settings.get("settle_time", DEFAULT_SETTLE_TIME)
+        if isinstance(settle_time, bool) or not isinstance(settle_time, (int, float)):
+            raise BadInputError(f"metrics: settle_time must be a number [s], got {settle_time!r}")
+        settle = float(settle_time)
+        if not math.isfinite(settle):
+            raise BadInputError(f"metrics: settle_time must be finite, got {settle_time!r}")
+        tol = float(converge_tolerance)
+        if not (math.isfinite(tol) and tol > 0.0):
+            raise BadInputError(
+                f"metrics: converge_tolerance must be a positive number [m], got "
+                f"{converge_tolerance!r}"
+            )
+
+        t = self.t
+        e = self.p - self.p_d  # (N, 3) [m]
+        e_ok = _finite_rows(e)
+        e_norm = np.linalg.norm(e, axis=1)  # (N,) [m]
+        settled = t >= settle
+        pos_win = e_ok & settled
+        e_set = e[pos_win]
+        if e_set.shape[0]:
+            max_axis = tuple(float(x) for x in np.max(np.abs(e_set), axis=0))
+            rms_axis = tuple(float(x) for x in np.sqrt(np.mean(np.square(e_set), axis=0)))
+        else:
+            max_axis = rms_axis = None
+        final_pos = float(e_norm[-1]) if self.n_samples and e_ok[-1] else None
+
+        # force error over contact samples; k > 1: Euclidean norm over the k constraints
+        df = self.f - self.f_d
+        ef = np.abs(df) if df.ndim == 1 else np.linalg.norm(df, axis=1)  # (N,) [N]
+        contact = self.phase == PHASE_CONTACT
+        f_ok = _finite_rows(ef)
+        f_win = contact & settled & f_ok
+        last_contact = self.n_samples > 0 and bool(contact[-1]) and bool(f_ok[-1])
+        final_force = float(ef[-1]) if last_contact else None
+
+        phi_abs = np.abs(self.phi) if self.phi.ndim == 1 else np.max(np.abs(self.phi), axis=1)
+        viol = phi_abs[contact & _finite_rows(phi_abs)]
+
+        events = self.events
+        contact_events = [float(ev["t"]) for ev in events if ev["kind"] == "contact"]
+        if contact_events:
+            contact_time: float | None = min(contact_events)
+        elif np.any(contact):
+            contact_time = float(t[int(np.argmax(contact))])
+        else:
+            contact_time = None
+        impacts = [ev for ev in events if ev["kind"] == "impact"]
+        impulse = 0.0
+        speeds: list[float] = []
+        for ev in impacts:
+            if ev.get("impulse") is not None:
+                impulse += float(np.linalg.norm(np.atleast_1d(np.asarray(ev["impulse"], float))))
+            if ev.get("speed") is not None:
+                speeds.append(abs(float(ev["speed"])))
+
+        # first time after which ||e|| < tol until the end (non-finite counts as "not below")
+        above = ~(e_ok & (e_norm < tol))
+        if self.n_samples == 0 or above[-1]:
+            converge: float | None = None
+        elif not np.any(above):
+            converge = float(t[0])
+        else:
+            converge = float(t[int(np.flatnonzero(above)[-1]) + 1])
+
+        return Metrics(
+            settle_time=settle,
+            position_error_max_axis=max_axis,  # type: ignore[arg-type]
+            position_error_rms_axis=rms_axis,  # type: ignore[arg-type]
+            position_error_max=_max_or_none(e_norm[e_ok]),
+            position_error_max_settled=_max_or_none(e_norm[pos_win]),
+            position_error_rms_settled=_rms_or_none(e_norm[pos_win]),
+            final_position_error=final_pos,
+            force_error_max_settled=_max_or_none(ef[f_win]),
+            force_error_rms_settled=_rms_or_none(ef[f_win]),
+            final_force_error=final_force,
+            worst_constraint_violation=_max_or_none(viol),
+            contact_time=contact_time,
+            impact_impulse=impulse,
+            impact_speed=max(speeds) if speeds else None,
+            n_impacts=len(impacts),
+            time_to_converge=converge,
+            converge_tolerance=tol,
+        )
+
+    def summary(self, settle_time: float | None = None) -> dict[str, Any]:
+        """JSON-able dict: name, status, error, steps_per_second, sample/event counts, metrics."""
+        out: dict[str, Any] = {
+            "name": self.meta.get("name"),
+            "status": self.status,
+            "error": self.meta.get("error"),
+            "steps_per_second": self.meta.get("steps_per_second"),
+            "n_samples": self.n_samples,
+            "n_events": len(self.events),
+        }
+        out.update(self.metrics(settle_time).to_dict())
+        return out
+
+
+def load_result(path: str | os.PathLike[str]) -> Result:
+    """Read a result file; same as :meth:`Result.load` (ResultFileError naming the file)."""
+    return Result.load(path)
