@@ -1,0 +1,217 @@
+"""Surfaces seen in joint space: J_Φ, its normalised rows, the projection Q and the drift.
+
+For one surface Φ(p) = 0 (paper eq. 1) and an arm with tip p(q), the constraint row is
+
+    J_Φ = ∇Φ(p)ᵀ J(q)                          (1, n)     (section 2)
+
+The toolkit works with scaled rows A = J_Φ / s. Two scalings are offered:
+
+* ``"joint"`` — the paper's J_Φn = J_Φ / ‖J_Φ‖ (section 2), a unit row in joint space. The
+  multiplier f of eq. 2 is then a generalised force along that row, not newtons.
+* ``"tip"`` (default) — A = n̂ᵀ J with n̂ = ∇Φ / ‖∇Φ‖ the unit surface normal. Then the
+  multiplier f of ``M q̈ + C q̇ + g = u + Aᵀ f`` IS the normal contact force at the tip in
+  newtons (the tool pushes on the surface with f n̂ … and the surface pushes back with −f n̂).
+
+Both rows point the same way, so the projection (eq. 5, generalised to k rows)
+
+    Q = I − A⁺ A,   A⁺ = Aᵀ (A Aᵀ)⁻¹
+
+is the same matrix for either scaling; with k = 1 and the "joint" scaling, A⁺ = J_Φnᵀ and Q
+is literally eq. 5. The sign convention: every surface has Φ > 0 on its free side (where the
+tool is), so f > 0 means the surface pushes the tool back, i.e. the tool presses on it.
+
+The acceleration-level constraint used by the simulator is the exact second time derivative
+Φ̈ = J_Φ q̈ + J̇_Φ q̇ = 0 divided by s: A q̈ + γ = 0 with the drift
+
+    γ = (q̇ᵀ Jᵀ ∇²Φ J q̇ + ∇Φᵀ J̇ q̇) / s       (issue 3: d(J_Φ)/dt · q̇, scaled)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from hybrid_force.errors import SingularConfigurationError, SurfaceError
+from hybrid_force.robot import Robot, RobotTerms
+from hybrid_force.surfaces import Surface
+
+__all__ = ["Constraint", "ConstraintTerms", "Normalization"]
+
+Normalization = Literal["tip", "joint"]
+_NORMALIZATIONS = ("tip", "joint")
+_GRAD_TOL = 1e-12  # ‖∇Φ‖ below this (relative to the surface's scale) is a singular point
+_ROW_TOL = 1e-9  # ‖J_Φ‖ / (‖∇Φ‖ (1 + ‖J‖)) below this: the arm is singular w.r.t. the surface
+_COND_TOL = 1e12  # cond(A Aᵀ) above this for k > 1: the stacked rows are dependent
+
+
+@dataclass(frozen=True)
+class ConstraintTerms:
+    """Joint-space view of k surfaces at one state (q, v).
+
+    Attributes:
+        phi: (k,) Φ_i(p) [surface units, e.g. m² for the paper's cylinder].
+        distance: (k,) signed metric distance d_i(p) [m], > 0 on the free side.
+        J_phi: (k, n) raw rows J_Φ = ∇Φᵀ J.
+        J_phi_n: (k, n) the paper's unit rows J_Φ / ‖J_Φ‖.
+        scale: (k,) s_i, with A = J_Φ / s.
+        A: (k, n) scaled constraint rows (see module docstring).
+        Adot: (k, n) Ȧ.
+        A_pinv: (n, k) A⁺ = Aᵀ (A Aᵀ)⁻¹.
+        A_pinv_dot: (n, k) d(A⁺)/dt.
+        Q: (n, n) projection I − A⁺A onto the tangent space (eq. 5).
+        Qdot: (n, n) Q̇.
+        rate: (k,) A v = Φ̇ / s.
+        raw_drift: (k,) d(J_Φ)/dt · v = vᵀJᵀ∇²ΦJv + ∇ΦᵀJ̇v.
+        drift: (k,) raw_drift / s: with it, A q̈ + drift = Φ̈ / s.
+    """
+
+    phi: np.ndarray
+    distance: np.ndarray
+    J_phi: np.ndarray
+    J_phi_n: np.ndarray
+    scale: np.ndarray
+    A: np.ndarray
+    Adot: np.ndarray
+    A_pinv: np.ndarray
+    A_pinv_dot: np.ndarray
+    Q: np.ndarray
+    Qdot: np.ndarray
+    rate: np.ndarray
+    raw_drift: np.ndarray
+    drift: np.ndarray
+
+
+class Constraint:
+    """k rigid surfaces acting on one tip, as stacked joint-space rows.
+
+    Args:
+        surfaces: one surface or a sequence of k surfaces (all touched by the same tip).
+        normalization: ``"tip"`` (default, f in newtons) or ``"joint"`` (the paper's J_Φn).
+    """
+
+    def __init__(
+        self, surfaces: Surface | Sequence[Surface], normalization: Normalization = "tip"
+    ) -> None:
+        items = (surfaces,) if isinstance(surfaces, Surface) else tuple(surfaces)
+        if not items:
+            raise SurfaceError("a constraint needs at least one surface, got none")
+        for i, s in enumerate(items):
+            if not isinstance(s, Surface):
+                raise SurfaceError(f"surface {i} is not a hybrid_force Surface: {s!r}")
+        if normalization not in _NORMALIZATIONS:
+            raise SurfaceError(
+                f"normalization must be one of {', '.join(_NORMALIZATIONS)}, got {normalization!r}"
+            )
+        self.surfaces: tuple[Surface, ...] = items
+        self.normalization: Normalization = normalization
+
+    @property
+    def k(self) -> int:
+        """Number of stacked constraints."""
+        return len(self.surfaces)
+
+    def distance(self, p: np.ndarray) -> np.ndarray:
+        """(k,) signed metric distances of the point p (3,) to each surface [m]."""
+        return np.array([s.distance(p) for s in self.surfaces])
+
+    def evaluate(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+        """Joint-space quantities from the robot terms of one step.
+
+        Args:
+            terms: the robot's terms at (q, v) (:meth:`Robot.terms`).
+            v: (n,) joint velocity.
+
+        Raises:
+            SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
+                stacked rows are dependent.
+        """
+        k = self.k
+        n = terms.J.shape[1]
+        p, J, Jdot, pdot = terms.p, terms.J, terms.Jdot, terms.pdot
+        phi = np.empty(k)
+        dist = np.empty(k)
+        J_phi = np.empty((k, n))
+        J_phi_dot = np.empty((k, n))
+        raw_drift = np.empty(k)
+        scale = np.empty(k)
+        scale_dot = np.empty(k)
+        J_norm = np.empty(k)
+        for i, surface in enumerate(self.surfaces):
+            value, grad, hess = surface.evaluate(p)
+            grad_norm = float(np.sqrt(grad @ grad))
+            if grad_norm < _GRAD_TOL:
+                raise SingularConfigurationError(
+                    f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): "
+                    "the surface normal is undefined there (e.g. on a cylinder's axis or at a "
+                    "sphere's centre)"
+                )
+            h_pdot = hess @ pdot
+            row = grad @ J
+            row_dot = h_pdot @ J + grad @ Jdot
+            row_norm = float(np.sqrt(row @ row))
+            if row_norm < _ROW_TOL * grad_norm * (1.0 + float(np.abs(J).max())):
+                raise SingularConfigurationError(
+                    f"J_Φ is (near) zero for surface {i} ({surface!r}) at tip {p.tolist()}: "
+                    "the arm cannot move its tip along the surface normal in this configuration, "
+                    "so J_Φn is undefined"
+                )
+            phi[i] = value
+            dist[i] = surface.distance(p)
+            J_phi[i] = row
+            J_phi_dot[i] = row_dot
+            J_norm[i] = row_norm
+            raw_drift[i] = pdot @ h_pdot + grad @ terms.Jdot_v
+            if self.normalization == "tip":
+                scale[i] = grad_norm
+                scale_dot[i] = (grad @ h_pdot) / grad_norm
+            else:
+                scale[i] = row_norm
+                scale_dot[i] = (row @ row_dot) / row_norm
+        inv_s = 1.0 / scale
+        A = J_phi * inv_s[:, None]
+        Adot = J_phi_dot * inv_s[:, None] - J_phi * (scale_dot * inv_s * inv_s)[:, None]
+        gram = A @ A.T
+        if k == 1:
+            W = np.array([[1.0 / gram[0, 0]]])
+        else:
+            cond = np.linalg.cond(gram)
+            if not np.isfinite(cond) or cond > _COND_TOL:
+                raise SingularConfigurationError(
+                    f"the {k} stacked constraint rows are (nearly) dependent at tip {p.tolist()} "
+                    f"(cond(A Aᵀ) = {cond:.3g}): the surfaces are tangent there or the arm cannot "
+                    "move independently along their normals"
+                )
+            W = np.linalg.inv(gram)
+        A_pinv = A.T @ W
+        W_dot = -W @ (Adot @ A.T + A @ Adot.T) @ W
+        A_pinv_dot = Adot.T @ W + A.T @ W_dot
+        Q = np.eye(n) - A_pinv @ A
+        Qdot = -(A_pinv_dot @ A + A_pinv @ Adot)
+        return ConstraintTerms(
+            phi=phi,
+            distance=dist,
+            J_phi=J_phi,
+            J_phi_n=J_phi / J_norm[:, None],
+            scale=scale,
+            A=A,
+            Adot=Adot,
+            A_pinv=A_pinv,
+            A_pinv_dot=A_pinv_dot,
+            Q=Q,
+            Qdot=Qdot,
+            rate=A @ v,
+            raw_drift=raw_drift,
+            drift=raw_drift * inv_s,
+        )
+
+    def at(self, robot: Robot, q: object, v: object | None = None) -> ConstraintTerms:
+        """Convenience: validate (q, v) and evaluate for ``robot`` (v defaults to zero)."""
+        q = robot.check_q(q)
+        v = np.zeros(robot.nv) if v is None else robot.check_v(v)
+        return self.evaluate(robot.terms(q, v, robot.new_data()), v)
+
+    def __repr__(self) -> str:
+        return f"Constraint({list(self.surfaces)!r}, normalization={self.normalization!r})"

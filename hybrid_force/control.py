@@ -1,0 +1,241 @@
+"""The paper's control laws: free-space law (eq. 29–30) and modified Arimoto law (eq. 4, 11).
+
+Both are plain functions of one step's quantities; they integrate nothing. A command is
+affine in the contact force f that the dynamics will produce from it:
+
+    u = u0 + B f,       u0: (n,), B: (n, k)
+
+because the hybrid law's q̈_r contains ė_F = f − f_d (the algebraic loop of issue 4). The
+simulator resolves u and f together, exactly (see :mod:`hybrid_force.dynamics`).
+
+Derivation of the loop (generalised to k rows A with A⁺ = Aᵀ(AAᵀ)⁻¹, see
+:mod:`hybrid_force.constraint`; with the paper's unit row J_Φn, A⁺ = J_Φnᵀ):
+
+    x      = q̇_d − Λ e_q,                  ẋ = q̈_d − Λ (q̇ − q̇_d)
+    q̇_r   = Q x + β A⁺ e_F                                           (eq. 4)
+    q̈_r   = Q̇ x + Q ẋ + β Ȧ⁺ e_F + β A⁺ (f − f_d)                    (d/dt of eq. 4)
+    u      = M q̈_r + C q̇_r + g − K_d s − Aᵀ (f_d − γ e_F)              (eq. 11)
+           = [M (q̈_r − β A⁺ f) + C q̇_r + g − K_d s − Aᵀ(f_d − γ e_F)] + (β M A⁺) f
+           =              u0                                          +    B   f
+
+Closed loop (eq. 13): M ṡ + C s + K_d s = Aᵀ (ė_F + γ e_F); with V = ½ sᵀMs + ½ β e_Fᵀe_F
+one finds V̇ = −sᵀK_d s − βγ e_Fᵀe_F (eq. 16) for any row scaling, because A s₁ = −β e_F.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hybrid_force.constraint import ConstraintTerms
+from hybrid_force.errors import GainError
+from hybrid_force.robot import RobotTerms
+
+__all__ = [
+    "Command",
+    "ControlTrace",
+    "Desired",
+    "Gains",
+    "arimoto_law",
+    "default_damping_gain",
+    "free_space_law",
+    "make_gains",
+]
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Gains of the paper's laws.
+
+    Attributes:
+        Kd: (n, n) symmetric positive definite damping gain K_d [N·m·s/rad …] (eq. 11, 30).
+        Lambda: Λ > 0 [1/s] position-error gain (eq. 4, 29).
+        beta: β ≥ 0 [(m/s)/(N·s) for the "tip" scaling] momentum-error gain (eq. 4).
+        gamma: γ > 0 [1/s] force gain (eq. 11).
+    """
+
+    Kd: np.ndarray
+    Lambda: float
+    beta: float
+    gamma: float
+
+
+def default_damping_gain(M0: np.ndarray, rate: float = 20.0) -> np.ndarray:
+    """Default K_d = rate · M(q0): scales with the arm's own inertia.
+
+    With K_d = κ M(q0), M⁻¹K_d = κ I at the start configuration, so the sliding variable
+    decays at about κ [1/s] for any arm (a 20 kg RTR link and a Panda wrist alike) and the
+    explicit-integration bound dt·λ_max(M⁻¹K_d) ≈ κ dt is known in advance.
+
+    Args:
+        M0: (n, n) mass matrix at the start configuration.
+        rate: κ [1/s].
+    """
+    return rate * 0.5 * (M0 + M0.T)
+
+
+def make_gains(
+    Kd: float | np.ndarray | list[float],
+    Lambda: float,
+    beta: float,
+    gamma: float,
+    n: int,
+) -> Gains:
+    """Validate the gains against the paper's assumptions and return :class:`Gains`.
+
+    Args:
+        Kd: a scalar (K_d = Kd·I), a vector (diagonal) of length n, or an (n, n) matrix.
+
+    Raises:
+        GainError: K_d not symmetric positive definite, Λ ≤ 0, β < 0, γ ≤ 0, non-finite values.
+    """
+    K = np.asarray(Kd, dtype=float)
+    if K.ndim == 0:
+        K = float(K) * np.eye(n)
+    elif K.shape == (n,):
+        K = np.diag(K)
+    elif K.shape != (n, n):
+        raise GainError(f"Kd must be a scalar, a vector of {n} or an {n}x{n} matrix, got shape {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise GainError(f"Kd has non-finite entries: {K.tolist()}")
+    if not np.allclose(K, K.T, rtol=1e-12, atol=1e-12 * float(np.abs(K).max() + 1)):
+        raise GainError(f"Kd must be symmetric (paper eq. 11: K_d = K_dᵀ > 0), got {K.tolist()}")
+    eig_min = float(np.linalg.eigvalsh(K).min())
+    if eig_min <= 0:
+        raise GainError(f"Kd must be positive definite; its smallest eigenvalue is {eig_min:.6g}")
+    for name, value, ok, rule in (
+        ("Lambda", Lambda, lambda x: x > 0, "> 0"),
+        ("beta", beta, lambda x: x >= 0, ">= 0"),
+        ("gamma", gamma, lambda x: x > 0, "> 0"),
+    ):
+        if not (np.isfinite(value) and ok(value)):
+            raise GainError(f"{name} must be finite and {rule} (paper eq. 4, 11), got {value!r}")
+    return Gains(Kd=K, Lambda=float(Lambda), beta=float(beta), gamma=float(gamma))
+
+
+@dataclass(frozen=True)
+class Desired:
+    """Desired joint motion at one instant: q_d, q̇_d, q̈_d, each (n,)."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+
+@dataclass(frozen=True)
+class Command:
+    """Joint command u = u0 + B f (u0: (n,) [N or N·m]; B: (n, k) or None when u ignores f)."""
+
+    u0: np.ndarray
+    B: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class ControlTrace:
+    """What a law computed at one step (for logging and tests).
+
+    e_q (n,), s (n,), s0 (n,), s1 (n,), e_F (k,) [N·s], qdot_r (n,), qddot_r0 (n,) = q̈_r at f = 0,
+    qddot_r_f (n, k) with q̈_r = qddot_r0 + qddot_r_f f, V [J] (section 5.1), f_d (k,) [N].
+    """
+
+    e_q: np.ndarray
+    s: np.ndarray
+    s0: np.ndarray
+    s1: np.ndarray
+    e_F: np.ndarray
+    qdot_r: np.ndarray
+    qddot_r0: np.ndarray
+    qddot_r_f: np.ndarray | None
+    V: float
+    f_d: np.ndarray
+
+
+def free_space_law(
+    gains: Gains, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+) -> tuple[Command, ControlTrace]:
+    """Free-space law, eq. 29–30.
+
+    q̇_r = q̇_d − Λ e_q,  s = q̇ − q̇_r,  u = M q̈_r + C q̇_r + g − K_d s.
+
+    Args:
+        robot: the controller's model terms (M, C, g) at (q, v).
+        v: (n,) joint velocity. e_q: (n,) position error q − q_d.
+    """
+    lam = gains.Lambda
+    qdot_r = desired.qd - lam * e_q
+    qddot_r = desired.qdd - lam * (v - desired.qd)
+    s = v - qdot_r
+    u = robot.M @ qddot_r + robot.C @ qdot_r + robot.g - gains.Kd @ s
+    trace = ControlTrace(
+        e_q=e_q,
+        s=s,
+        s0=s,
+        s1=np.zeros_like(s),
+        e_F=np.zeros(0),
+        qdot_r=qdot_r,
+        qddot_r0=qddot_r,
+        qddot_r_f=None,
+        V=0.5 * float(s @ robot.M @ s),
+        f_d=np.zeros(0),
+    )
+    return Command(u0=u, B=None), trace
+
+
+def arimoto_law(
+    gains: Gains,
+    robot: RobotTerms,
+    cons: ConstraintTerms,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    desired: Desired,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray | None = None,
+) -> tuple[Command, ControlTrace]:
+    """Modified Arimoto hybrid law, eq. 4, 8, 11, with the loop in f kept explicit.
+
+    Args:
+        robot: the controller's model terms (M, C, g) at (q, v).
+        cons: the constraint terms (A, A⁺, Ȧ⁺, Q, Q̇) at (q, v).
+        v: (n,) joint velocity. e_q: (n,) q − q_d.
+        e_F: (k,) momentum error F − F_d [N·s] (eq. 3).
+        f_d: (k,) desired force [N].
+        approach: optional (k,) normal reference velocity [m/s] added as A⁺·approach to q̇_r
+            (near phase only, see :mod:`hybrid_force.supervisor`); None in contact.
+
+    Returns:
+        The command u = u0 + B f and the trace (s₀ = Q(ė_q + Λe_q), s₁ = −βA⁺e_F, eq. 9).
+    """
+    lam, beta = gains.Lambda, gains.beta
+    Q, Qdot, Ap, Apd = cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot
+    x = desired.qd - lam * e_q
+    xdot = desired.qdd - lam * (v - desired.qd)
+    qdot_r = Q @ x + beta * (Ap @ e_F)
+    qddot_r0 = Qdot @ x + Q @ xdot + beta * (Apd @ e_F) - beta * (Ap @ f_d)
+    if approach is not None:
+        qdot_r = qdot_r + Ap @ approach
+        qddot_r0 = qddot_r0 + Apd @ approach
+    s = v - qdot_r
+    M = robot.M
+    u0 = (
+        M @ qddot_r0
+        + robot.C @ qdot_r
+        + robot.g
+        - gains.Kd @ s
+        - cons.A.T @ (f_d - gains.gamma * e_F)
+    )
+    B = beta * (M @ Ap) if beta > 0 else None
+    trace = ControlTrace(
+        e_q=e_q,
+        s=s,
+        s0=Q @ (v - x),
+        s1=-beta * (Ap @ e_F),
+        e_F=e_F,
+        qdot_r=qdot_r,
+        qddot_r0=qddot_r0,
+        qddot_r_f=beta * Ap,
+        V=0.5 * float(s @ M @ s) + 0.5 * beta * float(e_F @ e_F),
+        f_d=f_d,
+    )
+    return Command(u0=u0, B=B), trace

@@ -1,0 +1,275 @@
+"""A URDF arm and its tip: the robot-model layer (paper eq. 2, 21–24).
+
+:func:`load_robot` builds a :class:`Robot` from a bundled name (``"rtr"``), an arm of
+example-robot-data (``"ur5"``, ``"panda"``, …) or any URDF file. The robot answers, from
+Pinocchio, the terms of the manipulator equation
+
+    M(q) q̈ + C(q, q̇) q̇ + g(q) = u + J_Φnᵀ f        (paper eq. 2, D(q) there is g(q) here)
+
+and the kinematics of its tip frame: p(q), J(q) = ∂p/∂q (world-aligned, 3×n), J̇(q, q̇) and
+J̇ q̇. :meth:`Robot.terms` computes everything one control/simulation step needs in one pass.
+
+Conventions: SI units; q and v are Pinocchio's configuration and velocity vectors (nq, nv);
+for the arms here nq = nv = n. Revolute joints in rad, prismatic in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from hybrid_force.errors import DimensionError, FrameError, URDFError
+
+__all__ = ["Robot", "RobotTerms", "load_robot"]
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+@dataclass(frozen=True)
+class RobotTerms:
+    """Everything one step needs about the arm at (q, v), computed in one pass.
+
+    Attributes:
+        M: (n, n) mass matrix [kg, kg·m, kg·m²].
+        C: (n, n) Coriolis matrix, Ṁ − 2C skew-symmetric.
+        g: (n,) gravity torques [N or N·m] (the paper's D(q), eq. 23).
+        nle: (n,) C(q, v) v + g(q).
+        p: (3,) tip position [m].
+        J: (3, n) tip position Jacobian, world-aligned [m/rad or m/m].
+        Jdot: (3, n) its time derivative J̇(q, v).
+        Jdot_v: (3,) tip drift acceleration J̇ v [m/s²].
+        pdot: (3,) tip velocity J v [m/s].
+    """
+
+    M: np.ndarray
+    C: np.ndarray
+    g: np.ndarray
+    nle: np.ndarray
+    p: np.ndarray
+    J: np.ndarray
+    Jdot: np.ndarray
+    Jdot_v: np.ndarray
+    pdot: np.ndarray
+
+
+class Robot:
+    """A fixed-base arm from a URDF file, with a tip frame that touches the surface.
+
+    Attributes:
+        name: registry name, or the URDF path as given.
+        urdf_path: the URDF file.
+        package_dirs: folders that resolve ``package://`` mesh URIs.
+        model: the Pinocchio model (gravity (0, 0, −9.81) m/s²).
+        data: a Pinocchio data object owned by this robot (one per purpose: the simulator
+            and viewer make their own with :meth:`new_data`).
+        tip: tip frame name; tip_id its frame index.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        *,
+        name: str,
+        urdf_path: Path,
+        package_dirs: tuple[str, ...] = (),
+        tip: str | None = None,
+    ) -> None:
+        self.model = model
+        self.data = model.createData()
+        self.name = name
+        self.urdf_path = Path(urdf_path)
+        self.package_dirs = tuple(package_dirs)
+        if tip is None:
+            tip = _default_tip(model)
+        if not model.existFrame(tip):
+            frames = [f.name for f in model.frames]
+            raise FrameError(
+                f"tip frame '{tip}' not found in {self.urdf_path}; frames are: {', '.join(frames)}"
+            )
+        self.tip = tip
+        self.tip_id = model.getFrameId(tip)
+
+    # --- sizes and validation ------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Size of the configuration vector q."""
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        """Size of the velocity vector v (= number of degrees of freedom n)."""
+        return self.model.nv
+
+    def frames(self) -> list[str]:
+        """Names of all frames of the model."""
+        return [f.name for f in self.model.frames]
+
+    def neutral(self) -> np.ndarray:
+        """The neutral configuration (nq,)."""
+        return pin.neutral(self.model)
+
+    def new_data(self) -> pin.Data:
+        """A fresh Pinocchio data object for this model."""
+        return self.model.createData()
+
+    def check_q(self, q: object, what: str = "q") -> np.ndarray:
+        """Return q as a float (nq,) array; DimensionError if its length or values are wrong."""
+        return _check_vector(q, self.nq, what, self.name)
+
+    def check_v(self, v: object, what: str = "v") -> np.ndarray:
+        """Return v as a float (nv,) array; DimensionError if its length or values are wrong."""
+        return _check_vector(v, self.nv, what, self.name)
+
+    # --- dynamics (eq. 2, 21–23) ----------------------------------------------
+    def mass_matrix(self, q: object) -> np.ndarray:
+        """M(q): (n, n) symmetric positive definite mass matrix (eq. 21)."""
+        q = self.check_q(q)
+        M = pin.crba(self.model, self.data, q)
+        return _symmetrize(M)
+
+    def coriolis(self, q: object, v: object) -> np.ndarray:
+        """C(q, v): (n, n) Coriolis matrix with Ṁ − 2C skew-symmetric (eq. 22)."""
+        q, v = self.check_q(q), self.check_v(v)
+        return pin.computeCoriolisMatrix(self.model, self.data, q, v).copy()
+
+    def gravity(self, q: object) -> np.ndarray:
+        """g(q): (n,) gravity torques [N or N·m] (the paper's D(q), eq. 23)."""
+        q = self.check_q(q)
+        return pin.computeGeneralizedGravity(self.model, self.data, q).copy()
+
+    # --- tip kinematics (p(q), eq. 24) -------------------------------------------
+    def tip_position(self, q: object) -> np.ndarray:
+        """p(q): (3,) tip position in the world frame [m]."""
+        q = self.check_q(q)
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, self.tip_id).translation.copy()
+
+    def jacobian(self, q: object) -> np.ndarray:
+        """J(q) = ∂p/∂q: (3, n) world-aligned tip position Jacobian [m/rad or m/m] (eq. 24)."""
+        q = self.check_q(q)
+        J = pin.computeFrameJacobian(self.model, self.data, q, self.tip_id, _LWA)
+        return J[:3].copy()
+
+    def drift(self, q: object, v: object) -> np.ndarray:
+        """J̇(q, v) v: (3,) tip acceleration at zero joint acceleration [m/s²]."""
+        q, v = self.check_q(q), self.check_v(v)
+        pin.forwardKinematics(self.model, self.data, q, v, np.zeros(self.nv))
+        acc = pin.getFrameClassicalAcceleration(self.model, self.data, self.tip_id, _LWA)
+        return acc.linear.copy()
+
+    def terms(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> RobotTerms:
+        """All terms of one step at (q, v) in one Pinocchio pass (no validation: hot path).
+
+        Args:
+            q: (nq,) configuration. v: (nv,) velocity.
+            data: the Pinocchio data to use (default: this robot's own).
+        """
+        model = self.model
+        data = self.data if data is None else data
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        p = pin.updateFramePlacement(model, data, self.tip_id).translation.copy()
+        J = pin.getFrameJacobian(model, data, self.tip_id, _LWA)[:3].copy()
+        Jdot = pin.getFrameJacobianTimeVariation(model, data, self.tip_id, _LWA)[:3].copy()
+        M = _symmetrize(pin.crba(model, data, q))
+        C = pin.computeCoriolisMatrix(model, data, q, v).copy()
+        g = pin.computeGeneralizedGravity(model, data, q).copy()
+        nle = C @ v + g
+        return RobotTerms(M=M, C=C, g=g, nle=nle, p=p, J=J, Jdot=Jdot, Jdot_v=Jdot @ v, pdot=J @ v)
+
+    def with_mass_factor(self, factor: float) -> Robot:
+        """A copy whose link masses and inertias are scaled by ``factor`` (model mismatch).
+
+        The kinematics are unchanged; M, C and g scale by ``factor``.
+        """
+        if not (np.isfinite(factor) and factor > 0):
+            raise DimensionError(f"mass factor must be a positive finite number, got {factor!r}")
+        model = self.model.copy()
+        for i in range(model.njoints):
+            inertia = model.inertias[i]
+            model.inertias[i] = pin.Inertia(
+                inertia.mass * factor, inertia.lever.copy(), inertia.inertia * factor
+            )
+        return Robot(
+            model,
+            name=self.name,
+            urdf_path=self.urdf_path,
+            package_dirs=self.package_dirs,
+            tip=self.tip,
+        )
+
+    def __repr__(self) -> str:
+        return f"Robot(name={self.name!r}, n={self.nv}, tip={self.tip!r})"
+
+
+def load_robot(model: str | Path, tip: str | None = None) -> Robot:
+    """Load an arm by name or URDF path.
+
+    Args:
+        model: a bundled name (``"rtr"``), an example-robot-data arm (``"ur5"``, ``"panda"``,
+            … see ``hybrid-force robots``), or a path to a URDF file.
+        tip: frame touching the surface; default: the arm's documented default tip, or for a
+            plain URDF file the last frame of the model.
+
+    Raises:
+        UnknownRobotError: the name is neither known nor an existing file (lists known names).
+        URDFError: the file is missing, malformed, or physically impossible.
+        FrameError: ``tip`` is not a frame of the model (lists the frames).
+    """
+    from hybrid_force._registry import resolve_robot
+    from hybrid_force.urdf_check import check_urdf
+
+    text = str(model)
+    path = Path(text)
+    if text.endswith(".urdf") or path.is_file() or "/" in text:
+        if not path.is_file():
+            raise URDFError(f"URDF file not found: {path}")
+        check_urdf(path)
+        name, package_dirs, default_tip = text, (str(path.resolve().parent),), None
+    else:
+        entry = resolve_robot(text)
+        path, package_dirs, default_tip, name = (
+            entry.urdf_path,
+            tuple(entry.package_dirs),
+            entry.default_tip,
+            entry.name,
+        )
+        check_urdf(path)
+    try:
+        pin_model = pin.buildModelFromUrdf(str(path))
+    except (RuntimeError, ValueError) as exc:
+        raise URDFError(f"Pinocchio cannot parse {path}: {exc}") from exc
+    return Robot(
+        pin_model,
+        name=name,
+        urdf_path=path,
+        package_dirs=package_dirs,
+        tip=tip if tip is not None else default_tip,
+    )
+
+
+def _default_tip(model: pin.Model) -> str:
+    """The last body frame of the model (the end of the last link in the URDF)."""
+    for frame in reversed(model.frames):
+        if frame.type == pin.FrameType.BODY:
+            return frame.name
+    return model.frames[-1].name
+
+
+def _symmetrize(M: np.ndarray) -> np.ndarray:
+    """Mirror the upper triangle that crba fills onto the lower one."""
+    upper = np.triu(M)
+    return upper + np.triu(M, 1).T
+
+
+def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
+    arr = np.asarray(x, dtype=float)
+    if arr.shape != (size,):
+        raise DimensionError(
+            f"{what} for robot '{robot}' must have shape ({size},), got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise DimensionError(f"{what} for robot '{robot}' has non-finite values: {arr}")
+    return arr
