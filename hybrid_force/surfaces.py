@@ -142,8 +142,11 @@ def _boolean(owner: str, name: str, value: object) -> bool:
     return bool(value)
 
 
-def _xyz(p: ArrayLike, where: str) -> Vec3:
-    """Return the point p as three finite Python floats, or raise naming ``where``."""
+def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
+    """Return the point p as three finite Python floats, or raise naming ``owner.method``.
+
+    The message (with the owner's repr) is only built on error: this runs on every call.
+    """
     if type(p) is np.ndarray and p.shape == (3,) and p.dtype == np.float64:
         x, y, z = p.tolist()
     else:
@@ -151,15 +154,16 @@ def _xyz(p: ArrayLike, where: str) -> Vec3:
             array = np.asarray(p, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise DimensionError(
-                f"{where}: point p must be 3 numbers [m], got {_fmt(p)} ({exc})"
+                f"{owner!r}.{method}: point p must be 3 numbers [m], got {_fmt(p)} ({exc})"
             ) from exc
         if array.shape != (3,):
             raise DimensionError(
-                f"{where}: point p must have shape (3,), got shape {array.shape}: {_fmt(p)}"
+                f"{owner!r}.{method}: point p must have shape (3,), got shape {array.shape}: "
+                f"{_fmt(p)}"
             )
         x, y, z = array.tolist()
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise SurfaceError(f"{where}: point p must be finite, got [{x}, {y}, {z}]")
+        raise SurfaceError(f"{owner!r}.{method}: point p must be finite, got [{x}, {y}, {z}]")
     return (x, y, z)
 
 
@@ -309,29 +313,29 @@ class Cylinder(Surface):
 
     def phi(self, p: ArrayLike) -> float:
         """Φ(p) = ±(ρ² − r²) [m²]."""
-        ux, uy, uz = self._radial(*_xyz(p, f"{self!r}.phi"))
+        ux, uy, uz = self._radial(*_xyz(p, self, "phi"))
         return self._sign * (ux * ux + uy * uy + uz * uz - self._r2)
 
     def gradient(self, p: ArrayLike) -> np.ndarray:
         """∇Φ(p) = ±2 w⊥: (3,) [m]."""
-        ux, uy, uz = self._radial(*_xyz(p, f"{self!r}.gradient"))
+        ux, uy, uz = self._radial(*_xyz(p, self, "gradient"))
         g = 2.0 * self._sign
         return np.array((g * ux, g * uy, g * uz))
 
     def hessian(self, p: ArrayLike) -> np.ndarray:
         """∇²Φ = ±2 (I − a aᵀ): (3, 3), constant."""
-        _xyz(p, f"{self!r}.hessian")
+        _xyz(p, self, "hessian")
         return self._hess.copy()
 
     def distance(self, p: ArrayLike) -> float:
         """d = ±(ρ − r) [m], computed as Φ / (ρ + r) so that d = 0 exactly where Φ = 0."""
-        ux, uy, uz = self._radial(*_xyz(p, f"{self!r}.distance"))
+        ux, uy, uz = self._radial(*_xyz(p, self, "distance"))
         rho2 = ux * ux + uy * uy + uz * uz
         return self._sign * (rho2 - self._r2) / (math.sqrt(rho2) + self.radius)
 
     def _unit_radial(self, p: ArrayLike, method: str) -> tuple[Vec3, Vec3, float]:
         """(p as floats, w⊥ / ρ, ρ); raises on the axis."""
-        x, y, z = _xyz(p, f"{self!r}.{method}")
+        x, y, z = _xyz(p, self, method)
         ux, uy, uz = self._radial(x, y, z)
         rho = math.hypot(ux, uy, uz)
         if rho <= _SINGULAR_RTOL * self.radius:
@@ -425,28 +429,28 @@ class Sphere(Surface):
 
     def phi(self, p: ArrayLike) -> float:
         """Φ(p) = ±(‖p − c‖² − r²) [m²]."""
-        wx, wy, wz = self._offset(*_xyz(p, f"{self!r}.phi"))
+        wx, wy, wz = self._offset(*_xyz(p, self, "phi"))
         return self._sign * (wx * wx + wy * wy + wz * wz - self._r2)
 
     def gradient(self, p: ArrayLike) -> np.ndarray:
         """∇Φ(p) = ±2 (p − c): (3,) [m]."""
-        wx, wy, wz = self._offset(*_xyz(p, f"{self!r}.gradient"))
+        wx, wy, wz = self._offset(*_xyz(p, self, "gradient"))
         g = 2.0 * self._sign
         return np.array((g * wx, g * wy, g * wz))
 
     def hessian(self, p: ArrayLike) -> np.ndarray:
         """∇²Φ = ±2 I: (3, 3), constant."""
-        _xyz(p, f"{self!r}.hessian")
+        _xyz(p, self, "hessian")
         return self._hess.copy()
 
     def distance(self, p: ArrayLike) -> float:
         """d = ±(‖p − c‖ − r) [m], computed as Φ / (‖p − c‖ + r): d = 0 exactly where Φ = 0."""
-        wx, wy, wz = self._offset(*_xyz(p, f"{self!r}.distance"))
+        wx, wy, wz = self._offset(*_xyz(p, self, "distance"))
         rho2 = wx * wx + wy * wy + wz * wz
         return self._sign * (rho2 - self._r2) / (math.sqrt(rho2) + self.radius)
 
     def _unit_offset(self, p: ArrayLike, method: str) -> tuple[Vec3, Vec3, float]:
-        x, y, z = _xyz(p, f"{self!r}.{method}")
+        x, y, z = _xyz(p, self, method)
         wx, wy, wz = self._offset(x, y, z)
         rho = math.hypot(wx, wy, wz)
         if rho <= _SINGULAR_RTOL * self.radius:
@@ -525,30 +529,30 @@ class Plane(Surface):
 
     def phi(self, p: ArrayLike) -> float:
         """Φ(p) = n·(p − point) [m]."""
-        return self._phi(*_xyz(p, f"{self!r}.phi"))
+        return self._phi(*_xyz(p, self, "phi"))
 
     def gradient(self, p: ArrayLike) -> np.ndarray:
         """∇Φ = n: (3,), constant."""
-        _xyz(p, f"{self!r}.gradient")
+        _xyz(p, self, "gradient")
         return self._grad.copy()
 
     def hessian(self, p: ArrayLike) -> np.ndarray:
         """∇²Φ = 0: (3, 3)."""
-        _xyz(p, f"{self!r}.hessian")
+        _xyz(p, self, "hessian")
         return np.zeros((3, 3))
 
     def distance(self, p: ArrayLike) -> float:
         """d = Φ = n·(p − point) [m]."""
-        return self._phi(*_xyz(p, f"{self!r}.distance"))
+        return self._phi(*_xyz(p, self, "distance"))
 
     def normal(self, p: ArrayLike) -> np.ndarray:
         """n: (3,), the same everywhere."""
-        _xyz(p, f"{self!r}.normal")
+        _xyz(p, self, "normal")
         return self._grad.copy()
 
     def closest_point(self, p: ArrayLike) -> np.ndarray:
         """Foot point p − d n: (3,) [m]."""
-        x, y, z = _xyz(p, f"{self!r}.closest_point")
+        x, y, z = _xyz(p, self, "closest_point")
         d = self._phi(x, y, z)
         nx, ny, nz = self.normal_vector
         return np.array((x - d * nx, y - d * ny, z - d * nz))
@@ -758,9 +762,8 @@ class FunctionSurface(Surface):
             return self._fd_hessian_from_gradient(p)
         return self._fd_hessian_from_phi(p, self._call_phi(p) if phi0 is None else phi0)
 
-    @staticmethod
-    def _point(p: ArrayLike, where: str) -> np.ndarray:
-        return np.array(_xyz(p, where))
+    def _point(self, p: ArrayLike, method: str) -> np.ndarray:
+        return np.array(_xyz(p, self, method))
 
     # -- interface --
     def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -770,15 +773,15 @@ class FunctionSurface(Surface):
 
     def phi(self, p: ArrayLike) -> float:
         """Φ(p), the user's function."""
-        return self._call_phi(self._point(p, f"{self!r}.phi"))
+        return self._call_phi(self._point(p, "phi"))
 
     def gradient(self, p: ArrayLike) -> np.ndarray:
         """∇Φ(p): (3,), supplied or by central differences."""
-        return self._gradient_at(self._point(p, f"{self!r}.gradient"))
+        return self._gradient_at(self._point(p, "gradient"))
 
     def hessian(self, p: ArrayLike) -> np.ndarray:
         """∇²Φ(p): (3, 3), supplied or by finite differences."""
-        return self._hessian_at(self._point(p, f"{self!r}.hessian"))
+        return self._hessian_at(self._point(p, "hessian"))
 
     def _unit_gradient(self, q: np.ndarray, method: str) -> tuple[np.ndarray, float]:
         grad = self._gradient_at(q)
@@ -792,7 +795,7 @@ class FunctionSurface(Surface):
 
     def distance(self, p: ArrayLike) -> float:
         """Signed distance [m]: the user's, or Φ/‖∇Φ‖ (first order, see the class docstring)."""
-        q = self._point(p, f"{self!r}.distance")
+        q = self._point(p, "distance")
         if self.distance_function is not None:
             value = float(self.distance_function(q))
             if not math.isfinite(value):
@@ -808,12 +811,12 @@ class FunctionSurface(Surface):
 
     def normal(self, p: ArrayLike) -> np.ndarray:
         """∇Φ/‖∇Φ‖: (3,), to the free side."""
-        unit, _ = self._unit_gradient(self._point(p, f"{self!r}.normal"), "normal")
+        unit, _ = self._unit_gradient(self._point(p, "normal"), "normal")
         return unit
 
     def closest_point(self, p: ArrayLike) -> np.ndarray:
         """First-order foot point p − Φ ∇Φ/‖∇Φ‖²: (3,) [m]; on the surface to O(d²)."""
-        q = self._point(p, f"{self!r}.closest_point")
+        q = self._point(p, "closest_point")
         phi0 = self._call_phi(q)
         unit, norm = self._unit_gradient(q, "closest_point")
         return q - (phi0 / norm) * unit
