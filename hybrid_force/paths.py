@@ -234,7 +234,7 @@ class Helix(_CircularPath):
         if radius <= 0.0:
             raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
         axis = _vector3(owner, "axis", self.axis)
-        unit = _unit3(owner, "axis", axis)
+        unit = _unit3(owner, "axis", self.axis)
         for name in ("omega", "rise", "phase"):
             object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
         object.__setattr__(self, "center", center)
@@ -281,7 +281,7 @@ class Circle(_CircularPath):
         if radius <= 0.0:
             raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
         normal = _vector3(owner, "normal", self.normal)
-        unit = _unit3(owner, "normal", normal)
+        unit = _unit3(owner, "normal", self.normal)
         for name in ("omega", "phase"):
             object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
         object.__setattr__(self, "center", center)
