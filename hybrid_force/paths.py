@@ -525,9 +525,10 @@ def check_on_surface(
     surface: any object with ``distance(p: (3,) ndarray) -> float``, the signed metric
     distance [m] (e.g. hybrid_force.surfaces.Cylinder). The span is sampled at
     ``samples`` (≥ 2) uniform times; the bracket around the worst sample is then refined
-    by a golden-section search for the maximum of |d| (to a time tolerance of
-    1e-12·max(1, |t|) s), so the reported value is accurate even between samples as long
-    as |d| has a single peak within one sample spacing of the worst sample.
+    by a golden-section search for the maximum of |d|, so the reported value is accurate
+    to rounding even between samples as long as |d| has a single peak within one sample
+    spacing of the worst sample. The time of the worst is less precise (about 1e-8·scale
+    s, since |d| is flat at its peak: the golden search resolves t to ~√ε).
 
     Raises PathParameterError if t0, t1 are not finite, t1 <= t0, or samples < 2;
     SurfaceError if the surface returns a non-finite distance.
