@@ -1,0 +1,466 @@
+"""The closed loop: controller + constrained dynamics + contact events + integration.
+
+:func:`simulate` runs a :class:`Scenario` (a plain Python description of one run, which the
+TOML loader of :mod:`hybrid_force.scenario` also produces) and returns a
+:class:`~hybrid_force.result.Result`.
+
+One step (dt, 1 ms by default):
+
+1. the plant's terms at (q, v), once (:meth:`Robot.terms`), and the constraint terms;
+2. the controller's command u = u0 + B f (the simulator does not know which law made it);
+3. in contact, the constrained dynamics resolve q̈ and f together
+   (:func:`~hybrid_force.dynamics.constrained_acceleration`); if the surface would have to
+   pull (f < 0) the contact is released (unilateral surface) and the step is free;
+4. the controller advances its integrators with f; the plant is integrated by semi-implicit
+   Euler with ``pinocchio.integrate`` (or RK4 with the command held over the step);
+5. in contact, post-stabilisation: one Gauss–Newton step puts the tip back on the surface and
+   the velocity is projected onto the tangent space (removes the O(dt²) drift that the
+   Baumgarte terms alone would leave, so the distance stays at round-off);
+6. out of contact, a crossing of the surface between two steps (d changing sign) is detected,
+   the tip is placed on the surface at the crossing, and a plastic impact (A q̇⁺ = 0) is
+   applied: the tool never passes through the surface.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import pinocchio as pin
+
+from hybrid_force.constraint import Constraint
+from hybrid_force.dynamics import (
+    Baumgarte,
+    constrained_acceleration,
+    free_acceleration,
+    plastic_impact,
+)
+from hybrid_force.errors import (
+    BadInputError,
+    DivergenceError,
+    SimulationError,
+    SingularConfigurationError,
+)
+from hybrid_force.paths import Path
+from hybrid_force.result import Result
+from hybrid_force.robot import Robot
+from hybrid_force.supervisor import CONTACT, ControlSettings, HybridController
+from hybrid_force.surfaces import Surface
+
+__all__ = ["Scenario", "SimSettings", "simulate"]
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+Integrator = Literal["euler", "rk4"]
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Settings of the simulation.
+
+    Attributes:
+        duration: simulated time [s].
+        dt: time step [s] (1 ms by default).
+        integrator: "euler" (semi-implicit) or "rk4" (command held over the step).
+        baumgarte: stabilisation gains (section 6.2).
+        unilateral: release the contact when the surface would have to pull (f < 0).
+        release_tol: f below −release_tol [N] releases.
+        max_velocity: |q̇_i| beyond this [rad/s or m/s] is a runaway.
+        max_force: |f| beyond this [N] is a runaway.
+        settle_time: metrics "after settling" start here [s].
+        normalization: constraint row scaling, "tip" (f in N) or "joint" (the paper's J_Φn).
+    """
+
+    duration: float = 20.0
+    dt: float = 1e-3
+    integrator: Integrator = "euler"
+    baumgarte: Baumgarte = field(default_factory=Baumgarte)
+    unilateral: bool = True
+    release_tol: float = 1e-9
+    max_velocity: float = 1e3
+    max_force: float = 1e7
+    settle_time: float = 5.0
+    normalization: Literal["tip", "joint"] = "tip"
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise BadInputError(f"sim.dt must be a positive number of seconds, got {self.dt!r}")
+        if not (np.isfinite(self.duration) and self.duration > 0):
+            raise BadInputError(f"sim.duration must be positive, got {self.duration!r}")
+        if self.dt > self.duration:
+            raise BadInputError(
+                f"sim.dt = {self.dt} s is larger than sim.duration = {self.duration} s"
+            )
+        if self.duration / self.dt > 5e7:
+            raise BadInputError(
+                f"sim.duration / sim.dt = {self.duration / self.dt:.3g} steps is absurd (max 5e7)"
+            )
+        if self.integrator not in ("euler", "rk4"):
+            raise BadInputError(
+                f"sim.integrator must be 'euler' or 'rk4', got {self.integrator!r}"
+            )
+        if self.normalization not in ("tip", "joint"):
+            raise BadInputError(
+                f"sim.normalization must be 'tip' or 'joint', got {self.normalization!r}"
+            )
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One run, described in Python (the TOML loader builds the same object).
+
+    Attributes:
+        robot: the plant (the controller's model is the same arm, masses × mass_factor).
+        surfaces: one or more surfaces touched by the tip.
+        path: desired task-space path (on the surface).
+        q0: (nq,) start configuration. v0: (nv,) start velocity (default 0).
+        control: controller settings. sim: simulation settings.
+        name: a short name (used for output folders). description: free text.
+        source: the scenario as loaded from a file (JSON-able), stored in the result.
+    """
+
+    robot: Robot
+    surfaces: Sequence[Surface]
+    path: Path
+    q0: np.ndarray
+    v0: np.ndarray | None = None
+    control: ControlSettings = field(default_factory=ControlSettings)
+    sim: SimSettings = field(default_factory=SimSettings)
+    name: str = "run"
+    description: str = ""
+    source: dict | None = None
+
+
+class _Log:
+    """Preallocated result arrays."""
+
+    def __init__(self, N: int, nq: int, nv: int, k: int) -> None:
+        self.t = np.zeros(N)
+        self.q = np.zeros((N, nq))
+        self.v = np.zeros((N, nv))
+        self.q_d = np.zeros((N, nq))
+        self.u = np.zeros((N, nv))
+        self.p = np.zeros((N, 3))
+        self.p_d = np.zeros((N, 3))
+        self.f = np.zeros((N, k))
+        self.f_d = np.zeros((N, k))
+        self.phi = np.zeros((N, k))
+        self.V = np.zeros(N)
+        self.phase = np.zeros(N, dtype=np.int64)
+
+    def result(self, n: int, meta: dict, k: int) -> Result:
+        def col(a: np.ndarray) -> np.ndarray:
+            return a[:n, 0] if k == 1 else a[:n]
+
+        return Result(
+            t=self.t[:n],
+            q=self.q[:n],
+            v=self.v[:n],
+            q_d=self.q_d[:n],
+            u=self.u[:n],
+            p=self.p[:n],
+            p_d=self.p_d[:n],
+            f=col(self.f),
+            f_d=col(self.f_d),
+            phi=col(self.phi),
+            V=self.V[:n],
+            phase=self.phase[:n],
+            meta=meta,
+        )
+
+
+def _versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        own = version("hybrid_force")
+    except PackageNotFoundError:
+        own = "0+unknown"
+    return {
+        "hybrid_force": own,
+        "pinocchio": pin.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def _jsonable(x: object) -> object:
+    return json.loads(json.dumps(x, default=lambda o: np.asarray(o).tolist()))
+
+
+class _Plant:
+    """Geometry helpers of the plant: distances, projection onto the surfaces."""
+
+    def __init__(self, robot: Robot, constraint: Constraint) -> None:
+        self.robot = robot
+        self.constraint = constraint
+        self.data = robot.new_data()
+
+    def tip(self, q: np.ndarray) -> np.ndarray:
+        pin.forwardKinematics(self.robot.model, self.data, q)
+        return pin.updateFramePlacement(self.robot.model, self.data, self.robot.tip_id).translation
+
+    def distance(self, q: np.ndarray) -> np.ndarray:
+        return self.constraint.distance(self.tip(q))
+
+    def _rows(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Metric rows n̂ᵀJ (k, n) and distances (k,) at q."""
+        model, data, fid = self.robot.model, self.data, self.robot.tip_id
+        pin.computeJointJacobians(model, data, q)
+        p = pin.updateFramePlacement(model, data, fid).translation
+        J = pin.getFrameJacobian(model, data, fid, _LWA)[:3]
+        surfaces = self.constraint.surfaces
+        rows = np.array([s.normal(p) @ J for s in surfaces])
+        dist = np.array([s.distance(p) for s in surfaces])
+        return rows, dist
+
+    def project(self, q: np.ndarray, v: np.ndarray, iterations: int = 1) -> tuple:
+        """Gauss–Newton steps putting the tip on the surfaces, then v onto the tangent space."""
+        model = self.robot.model
+        for _ in range(iterations):
+            A, d = self._rows(q)
+            q = pin.integrate(model, q, -A.T @ np.linalg.solve(A @ A.T, d))
+        A, _ = self._rows(q)
+        v = v - A.T @ np.linalg.solve(A @ A.T, A @ v)
+        return q, v
+
+    def normal_speed(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        A, _ = self._rows(q)
+        return A @ v
+
+
+def simulate(
+    scenario: Scenario, *, progress: Callable[[float], None] | None = None
+) -> Result:
+    """Run a scenario and return its result.
+
+    Args:
+        scenario: the run.
+        progress: optional callback called with the fraction done (0..1) about 100 times.
+
+    Raises:
+        DivergenceError: non-finite state or a runaway; ``err.result`` holds the run so far,
+            marked ``status = "failed"``.
+        BadInputError subclasses: bad settings, start out of reach, …
+    """
+    sc, sim = scenario, scenario.sim
+    robot = sc.robot
+    constraint = Constraint(sc.surfaces, normalization=sim.normalization)
+    model, data = robot.model, robot.new_data()
+    k, nq, nv = constraint.k, robot.nq, robot.nv
+    dt = sim.dt
+    N = int(round(sim.duration / dt)) + 1
+    q = robot.check_q(sc.q0, "initial q").copy()
+    v = np.zeros(nv) if sc.v0 is None else robot.check_v(sc.v0, "initial v").copy()
+    plant = _Plant(robot, constraint)
+    controller = HybridController(robot, constraint, sc.path, q, sc.control, dt=dt)
+    events: list[dict] = []
+    in_contact = False
+    if float(plant.distance(q).max()) <= sc.control.contact_tol:
+        q, v, in_contact = _touch(plant, q, v, 0.0, events)
+    log = _Log(N, nq, nv, k)
+    baum = sim.baumgarte
+    zeros_k = np.zeros(k)
+    meta = {
+        "name": sc.name,
+        "description": sc.description,
+        "scenario": _jsonable(sc.source) if sc.source is not None else None,
+        "robot": {"model": robot.name, "tip": robot.tip, "nq": nq},
+        "surfaces": [s.to_dict() for s in sc.surfaces],
+        "path": sc.path.to_dict(),
+        "gains": {
+            "Kd": controller.gains.Kd.tolist(),
+            "Lambda": controller.gains.Lambda,
+            "beta": controller.gains.beta,
+            "gamma": controller.gains.gamma,
+            "f_d": controller.f_d_contact.tolist(),
+            "clik_gain": sc.control.clik_gain,
+            "max_dist": sc.control.max_dist,
+            "contact_tol": sc.control.contact_tol,
+            "P": sc.control.P,
+            "approach_rate": controller.approach_rate,
+            "mass_factor": sc.control.mass_factor,
+            "supervisor": sc.control.supervisor,
+        },
+        "settings": {
+            "dt": dt,
+            "duration": sim.duration,
+            "integrator": sim.integrator,
+            "settle_time": sim.settle_time,
+            "baumgarte_alpha": baum.alpha,
+            "baumgarte_beta": baum.beta,
+            "unilateral": sim.unilateral,
+            "normalization": sim.normalization,
+        },
+        "versions": _versions(),
+    }
+    report_every = max(1, N // 100)
+    wall0 = time.perf_counter()
+    t = 0.0
+    i = 0
+    try:
+        for i in range(N):
+            t = i * dt
+            terms = robot.terms(q, v, data)
+            try:
+                cons = constraint.evaluate(terms, v)
+            except SingularConfigurationError:
+                if in_contact:
+                    raise
+                cons = None
+            cmd = controller.command(t, q, v, terms, cons)
+            f = zeros_k
+            if in_contact:
+                gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
+                ddq, f = constrained_acceleration(
+                    model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma
+                )
+                if sim.unilateral and float(f.min()) < -sim.release_tol:
+                    events.append({"t": t, "kind": "release", "force": float(f.min())})
+                    in_contact = False
+                    f = zeros_k
+                    ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
+            else:
+                ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
+            u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
+            # --- log sample i
+            log.t[i] = t
+            log.q[i] = q
+            log.v[i] = v
+            log.q_d[i] = controller.clik.q
+            log.u[i] = u
+            log.p[i] = terms.p
+            log.p_d[i] = sc.path.position(t)
+            log.f[i] = f
+            log.f_d[i] = controller.f_d
+            log.phi[i] = cons.distance if cons is not None else plant.distance(q)
+            log.V[i] = controller.trace.V
+            log.phase[i] = controller.phase
+            _check_finite(t, q, v, f, sim)
+            if i == N - 1:
+                break
+            controller.update(dt, f)
+            if sim.integrator == "euler":
+                v = v + ddq * dt
+                q_new = pin.integrate(model, q, v * dt)
+            else:
+                q_new, v = _rk4(robot, constraint, baum, cmd, q, v, ddq, dt, in_contact)
+            if in_contact:
+                q, v = plant.project(q_new, v)
+            else:
+                d_new = plant.distance(q_new)
+                if float(d_new.max()) <= sc.control.contact_tol:
+                    d_old = log.phi[i]
+                    q_new = _crossing(model, q, q_new, float(d_old.max()), float(d_new.max()))
+                    q_new, v, in_contact = _touch(plant, q_new, v, t + dt, events)
+                q = q_new
+            if progress is not None and i % report_every == 0:
+                progress(i / N)
+    except (DivergenceError, SimulationError, SingularConfigurationError, np.linalg.LinAlgError) as exc:
+        wall = time.perf_counter() - wall0
+        meta.update(
+            status="failed",
+            error=f"{type(exc).__name__}: {exc}",
+            events=_merge(controller.events, events + [{"t": t, "kind": "diverged"}]),
+            steps_per_second=i / wall if wall > 0 else 0.0,
+            wall_time=wall,
+        )
+        result = log.result(max(i, 1), meta, k)
+        raise DivergenceError(
+            f"run '{sc.name}' failed at t = {t:.6g} s: {exc}", result=result
+        ) from exc
+    wall = time.perf_counter() - wall0
+    meta.update(
+        status="ok",
+        error=None,
+        events=_merge(controller.events, events),
+        steps_per_second=(N - 1) / wall if wall > 0 else 0.0,
+        wall_time=wall,
+    )
+    if progress is not None:
+        progress(1.0)
+    return log.result(N, meta, k)
+
+
+def _merge(a: list[dict], b: list[dict]) -> list[dict]:
+    return sorted(_jsonable(a + b), key=lambda e: e["t"])
+
+
+def _check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: SimSettings) -> None:
+    vmax = float(np.abs(v).max())
+    fmax = float(np.abs(f).max()) if f.size else 0.0
+    if not (np.isfinite(vmax) and np.isfinite(fmax) and np.all(np.isfinite(q))):
+        raise DivergenceError(f"non-finite state at t = {t:.6g} s: q = {q.tolist()}, v = {v.tolist()}")
+    if vmax > sim.max_velocity:
+        raise DivergenceError(
+            f"runaway at t = {t:.6g} s: |q̇| = {vmax:.3g} > {sim.max_velocity:.3g} "
+            f"(q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()})"
+        )
+    if fmax > sim.max_force:
+        raise DivergenceError(
+            f"runaway at t = {t:.6g} s: |f| = {fmax:.3g} N > {sim.max_force:.3g} N "
+            f"(q = {np.round(q, 6).tolist()})"
+        )
+
+
+def _crossing(model: pin.Model, q0: np.ndarray, q1: np.ndarray, d0: float, d1: float) -> np.ndarray:
+    """Configuration where the distance crosses 0 between q0 (d0 > 0) and q1 (d1 ≤ 0), linearly."""
+    if d1 >= 0 or d0 <= d1:
+        return q1
+    tau = d0 / (d0 - d1)
+    return pin.interpolate(model, q0, q1, tau)
+
+
+def _touch(plant: _Plant, q: np.ndarray, v: np.ndarray, t: float, events: list[dict]) -> tuple:
+    """Place the tip on the surface and apply a plastic impact if it moves into it."""
+    q, _ = plant.project(q, np.zeros_like(v), iterations=3)
+    A, _ = plant._rows(q)
+    speed = A @ v
+    if float(speed.min()) < 0.0:
+        data = plant.robot.new_data()
+        v_after, impulse = plastic_impact(plant.robot.model, data, q, v, A)
+        events.append(
+            {
+                "t": t,
+                "kind": "impact",
+                "impulse": float(np.abs(impulse).sum()),
+                "speed": float(-speed.min()),
+            }
+        )
+        v = v_after
+    return q, v, True
+
+
+def _rk4(robot, constraint, baum, cmd, q, v, a1, dt, in_contact):
+    """One RK4 step of the plant with the command (u0, B) held over the step."""
+    model = robot.model
+    data = robot.new_data()
+
+    def acc(qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
+        terms = robot.terms(qs, vs, data)
+        if not in_contact:
+            return free_acceleration(terms.M, terms.nle, cmd.u0)
+        cons = constraint.evaluate(terms, vs)
+        gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
+        ddq, _ = constrained_acceleration(model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+        return ddq
+
+    k1v, k1a = v, a1
+    q2 = pin.integrate(model, q, k1v * (dt / 2))
+    k2v = v + k1a * (dt / 2)
+    k2a = acc(q2, k2v)
+    q3 = pin.integrate(model, q, k2v * (dt / 2))
+    k3v = v + k2a * (dt / 2)
+    k3a = acc(q3, k3v)
+    q4 = pin.integrate(model, q, k3v * dt)
+    k4v = v + k3a * dt
+    k4a = acc(q4, k4v)
+    q_new = pin.integrate(model, q, (k1v + 2 * k2v + 2 * k3v + k4v) * (dt / 6))
+    v_new = v + (k1a + 2 * k2a + 2 * k3a + k4a) * (dt / 6)
+    return q_new, v_new
+
+

@@ -1,0 +1,302 @@
+"""The phase supervisor (section 6.4): free space → near → contact, around the two laws.
+
+:class:`HybridController` is the complete controller the simulator runs. It owns the
+controller-side integrators (the desired joint path q_d of eq. 27, the momenta F = ∫f and
+F_d = ∫f_d of eq. 3) and advances them in :meth:`HybridController.update`, in step with the
+plant; it never integrates the arm's dynamics.
+
+Phases, by the metric distance d of the tip to the surface (the largest d over stacked
+surfaces):
+
+* free (0), d > max_dist: free-space law (eq. 29–30) tracking q_d.
+* near (1), contact_tol < d ≤ max_dist: the hybrid law (eq. 11) with f_d = max(P·f, 0)
+  (eq. 31). **Interpretation.** f in eq. 31 is the *measured* contact force, which is 0
+  before contact, so f_d = 0 and F = F_d = 0 there. The paper's Fig. 4a shows a non-zero f_d
+  before contact, which is only possible with a *virtual* force: their Simulink computed the
+  Lagrange multiplier of section 6.2 off the surface too (with the Baumgarte terms), a
+  quantity no sensor measures. With f_d = 0 the projection Q removes every normal component
+  of q̇_r, so the tool would hover where it entered the near zone. We therefore add an
+  explicit approach term to the nominal reference, q̇_r += −λ_a A⁺ φ (φ the scaled distance,
+  λ_a the approach rate, default Λ): the tip closes in on the surface exponentially and
+  touches it at a normal speed of about λ_a·contact_tol (≈ 1e-4 m/s), i.e. it "slows down to
+  avoid sudden collision" as the paper asks. This is a documented departure from eq. 4.
+* contact (2), d ≤ contact_tol: the hybrid law with the constant f_d. F and F_d restart from
+  0 at the contact instant, after the impact (the impulse is not counted in F).
+
+Model mismatch: the controller's model is the plant's with every link mass and inertia
+multiplied by ``mass_factor`` (M, C, g scale by it; kinematics are exact).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from hybrid_force.clik import ClikSettings, DesiredJointPath, inverse_kinematics
+from hybrid_force.constraint import Constraint, ConstraintTerms
+from hybrid_force.control import (
+    Command,
+    ControlTrace,
+    Desired,
+    Gains,
+    arimoto_law,
+    default_damping_gain,
+    free_space_law,
+    make_gains,
+)
+from hybrid_force.errors import ControlError, GainError
+from hybrid_force.paths import Path
+from hybrid_force.robot import Robot, RobotTerms
+
+__all__ = ["FREE", "NEAR", "CONTACT", "ControlSettings", "HybridController", "PHASE_NAMES"]
+
+FREE, NEAR, CONTACT = 0, 1, 2
+PHASE_NAMES = ("free", "near", "contact")
+
+
+@dataclass(frozen=True)
+class ControlSettings:
+    """Settings of the controller (defaults documented in the README).
+
+    Attributes:
+        Kd: K_d as scalar, (n,) or (n, n); None → ``kd_rate`` · M(q0) (scales with the arm).
+        kd_rate: κ [1/s] of the default K_d = κ M(q0).
+        Lambda: Λ [1/s] (eq. 4, 29).
+        beta: β (eq. 4) [(m/s)/(N·s)].
+        gamma: γ [1/s] force gain (eq. 11).
+        f_d: desired contact force [N] (section 6.3: 10 N); a float or one per surface.
+        clik_gain: γ of the CLIK (eq. 27), paper: 7.
+        max_dist: near-phase distance [m] (paper: 0.05).
+        contact_tol: contact distance [m] (paper: 1e-5).
+        P: proportionality factor of eq. 31, in (0, 1) (paper: 0.5).
+        approach_rate: λ_a [1/s] of the near-phase approach term (None → Λ).
+        supervisor: True: phases by distance (section 6.4); False: always the hybrid law
+            (section 6.3, the arm starts and stays on the surface).
+        mass_factor: controller's link masses / plant's (model mismatch), default 1.
+        branch_check_time: in contact for longer than this [s] with a task error above
+            ``branch_error`` that no longer decreases → "branch" event and a warning.
+        branch_error: [m].
+    """
+
+    Kd: float | tuple | list | np.ndarray | None = None
+    kd_rate: float = 20.0
+    Lambda: float = 10.0
+    beta: float = 0.01
+    gamma: float = 20.0
+    f_d: float | tuple = 10.0
+    clik_gain: float = 7.0
+    max_dist: float = 0.05
+    contact_tol: float = 1e-5
+    P: float = 0.5
+    approach_rate: float | None = None
+    supervisor: bool = True
+    mass_factor: float = 1.0
+    branch_check_time: float = 1.0
+    branch_error: float = 1e-2
+
+    def __post_init__(self) -> None:
+        if not (0 < self.P < 1):
+            raise GainError(f"P must be in (0, 1) (paper eq. 31), got {self.P!r}")
+        if not (self.max_dist > self.contact_tol > 0):
+            raise GainError(
+                f"need max_dist > contact_tol > 0, got max_dist={self.max_dist!r}, "
+                f"contact_tol={self.contact_tol!r}"
+            )
+        if not (np.isfinite(self.mass_factor) and self.mass_factor > 0):
+            raise GainError(f"mass_factor must be > 0, got {self.mass_factor!r}")
+        if not (np.isfinite(self.kd_rate) and self.kd_rate > 0):
+            raise GainError(f"kd_rate must be > 0, got {self.kd_rate!r}")
+        if self.approach_rate is not None and not self.approach_rate > 0:
+            raise GainError(f"approach_rate must be > 0, got {self.approach_rate!r}")
+
+
+@dataclass
+class _Integrators:
+    F: np.ndarray
+    F_d: np.ndarray
+    f_d: np.ndarray
+    contact_since: float | None = None
+    best_error: float = np.inf
+    best_error_time: float = 0.0
+    branch_reported: bool = False
+    events: list[dict] = field(default_factory=list)
+
+
+class HybridController:
+    """The paper's controller: CLIK + free-space law + hybrid law + phase supervisor.
+
+    Args:
+        robot: the arm (kinematics; the dynamics terms come from the simulator's pass).
+        constraint: the surfaces.
+        path: desired task-space path p_d(t) (on the surface).
+        q0: (nq,) start configuration; q_d(0) is found by inverse kinematics from it, so it
+            lies on the same branch.
+        settings: see :class:`ControlSettings`.
+        dt: time step [s] (used to check dt·λ_max(M⁻¹K_d)).
+        t0: start time [s].
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        constraint: Constraint,
+        path: Path,
+        q0: np.ndarray,
+        settings: ControlSettings | None = None,
+        dt: float = 1e-3,
+        t0: float = 0.0,
+    ) -> None:
+        self.robot = robot
+        self.constraint = constraint
+        self.path = path
+        self.settings = s = settings or ControlSettings()
+        k, n = constraint.k, robot.nv
+        q0 = robot.check_q(q0, "q0")
+        qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
+        self.clik = DesiredJointPath(robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0)
+        M0 = robot.mass_matrix(q0) * s.mass_factor
+        Kd = default_damping_gain(M0, s.kd_rate) if s.Kd is None else s.Kd
+        self.gains: Gains = make_gains(Kd, s.Lambda, s.beta, s.gamma, n)
+        self.stiffness = float(np.linalg.eigvals(np.linalg.solve(M0, self.gains.Kd)).real.max())
+        if self.stiffness * dt > 0.5:
+            raise GainError(
+                f"dt·λ_max(M⁻¹K_d) = {self.stiffness * dt:.3g} at q0 is too large for explicit "
+                f"integration (must stay well below 2; limit here 0.5): lower Kd or dt = {dt}"
+            )
+        f_d = np.broadcast_to(np.asarray(s.f_d, dtype=float), (k,)).copy()
+        if not np.all(np.isfinite(f_d)):
+            raise GainError(f"f_d must be finite, got {s.f_d!r}")
+        self.f_d_contact = f_d
+        self.approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
+        self._int = _Integrators(F=np.zeros(k), F_d=np.zeros(k), f_d=np.zeros(k))
+        self.phase = FREE
+        self.trace: ControlTrace | None = None
+        self._first = True
+        self.t = t0
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def events(self) -> list[dict]:
+        """Phase changes and warnings, each {"t": s, "kind": ...}."""
+        return self._int.events
+
+    @property
+    def desired(self) -> Desired:
+        """q_d, q̇_d, q̈_d now."""
+        c = self.clik
+        return Desired(q=c.q, qd=c.qd, qdd=c.qdd)
+
+    @property
+    def f_d(self) -> np.ndarray:
+        """(k,) desired force of the current step [N]."""
+        return self._int.f_d
+
+    def _phase_of(self, distance: np.ndarray) -> int:
+        d = float(distance.max())
+        if not self.settings.supervisor or d <= self.settings.contact_tol:
+            return CONTACT
+        return NEAR if d <= self.settings.max_dist else FREE
+
+    def _model_terms(self, terms: RobotTerms) -> RobotTerms:
+        m = self.settings.mass_factor
+        if m == 1.0:
+            return terms
+        return RobotTerms(
+            M=terms.M * m,
+            C=terms.C * m,
+            g=terms.g * m,
+            nle=terms.nle * m,
+            p=terms.p,
+            J=terms.J,
+            Jdot=terms.Jdot,
+            Jdot_v=terms.Jdot_v,
+            pdot=terms.pdot,
+        )
+
+    # ------------------------------------------------------------------ one step
+    def command(
+        self, t: float, q: np.ndarray, v: np.ndarray, terms: RobotTerms, cons: ConstraintTerms | None
+    ) -> Command:
+        """The command for the state (q, v) at time t.
+
+        Args:
+            terms: the plant's robot terms at (q, v) (the controller scales its dynamics by
+                ``mass_factor``).
+            cons: constraint terms at (q, v), or None when they are undefined (free phase
+                far from the surface, e.g. the tip on the cylinder's axis).
+        """
+        if cons is None:
+            if self.settings.supervisor is False:
+                raise ControlError(f"constraint undefined at t = {t:.6g} s, q = {q.tolist()}")
+            phase = FREE
+        else:
+            phase = self._phase_of(cons.distance)
+        st = self._int
+        if phase != self.phase or self._first:
+            if not self._first or phase != FREE:
+                st.events.append({"t": float(t), "kind": PHASE_NAMES[phase]})
+            if phase == CONTACT:
+                st.F[:] = 0.0
+                st.F_d[:] = 0.0
+                st.contact_since = t
+                st.best_error, st.best_error_time = np.inf, t
+            elif self.phase == CONTACT:
+                st.contact_since = None
+            self.phase = phase
+            self._first = False
+        self.t = t
+        model = self._model_terms(terms)
+        desired = self.desired
+        e_q = pin.difference(self.robot.model, desired.q, q)
+        if phase == FREE:
+            st.f_d = np.zeros(self.constraint.k)
+            command, self.trace = free_space_law(self.gains, model, v, e_q, desired)
+            return command
+        if phase == NEAR:
+            # eq. 31 with the measured force, which is 0 before contact (see module docstring).
+            st.f_d = np.zeros(self.constraint.k)
+            approach = -self.approach_rate * cons.distance
+        else:
+            st.f_d = self.f_d_contact
+            approach = None
+            self._check_branch(t, terms)
+        e_F = st.F - st.F_d
+        command, self.trace = arimoto_law(
+            self.gains, model, cons, v, e_q, desired, e_F, st.f_d, approach
+        )
+        return command
+
+    def _check_branch(self, t: float, terms: RobotTerms) -> None:
+        st, s = self._int, self.settings
+        err = float(np.linalg.norm(terms.p - self.path.position(t)))
+        if err < 0.5 * st.best_error:
+            st.best_error, st.best_error_time = err, t
+        if (
+            not st.branch_reported
+            and err > s.branch_error
+            and t - st.best_error_time > s.branch_check_time
+        ):
+            st.branch_reported = True
+            msg = (
+                f"task-space error {err:.3g} m has not decreased for {t - st.best_error_time:.3g} s "
+                "in contact: the projection Q removes every error along the surface normal, so "
+                "the arm is probably on another inverse-kinematics branch than q_d and the hybrid "
+                "law cannot bring it back (change the start configuration or the gains)"
+            )
+            st.events.append({"t": float(t), "kind": "branch", "error": err})
+            warnings.warn(msg, RuntimeWarning, stacklevel=2)
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Advance the controller's integrators over one step with the force f (k,) [N]."""
+        st = self._int
+        if self.phase == CONTACT:
+            st.F += f * dt
+            st.F_d += st.f_d * dt
+        self.clik.advance(dt)
+
+    def record_event(self, event: dict) -> None:
+        """Add an event reported by the simulator (impact, release) to the timeline."""
+        self._int.events.append(event)
