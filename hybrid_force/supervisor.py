@@ -21,7 +21,8 @@ surfaces):
   touches it at a normal speed of about λ_a·contact_tol (≈ 1e-4 m/s), i.e. it "slows down to
   avoid sudden collision" as the paper asks. This is a documented departure from eq. 4.
 * contact (2), d ≤ contact_tol: the hybrid law with the constant f_d. F and F_d restart from
-  0 at the contact instant, after the impact (the impulse is not counted in F).
+  0 at the contact instant, after the impact (the impulse is not counted in F), and at every
+  other phase change (a stale e_F would keep pushing through γ e_F after a release).
 
 Model mismatch: the controller's model is the plant's with every link mass and inertia
 multiplied by ``mass_factor`` (M, C, g scale by it; kinematics are exact).
@@ -82,7 +83,7 @@ class ControlSettings:
     """
 
     Kd: float | tuple | list | np.ndarray | None = None
-    kd_rate: float = 20.0
+    kd_rate: float = 100.0
     Lambda: float = 10.0
     beta: float = 0.01
     gamma: float = 20.0
@@ -238,9 +239,11 @@ class HybridController:
         if phase != self.phase or self._first:
             if not self._first or phase != FREE:
                 st.events.append({"t": float(t), "kind": PHASE_NAMES[phase]})
+            # F and F_d restart at every phase change: they only mean something in contact,
+            # and a stale e_F would keep pushing (γ e_F) after a release.
+            st.F[:] = 0.0
+            st.F_d[:] = 0.0
             if phase == CONTACT:
-                st.F[:] = 0.0
-                st.F_d[:] = 0.0
                 st.contact_since = t
                 st.best_error, st.best_error_time = np.inf, t
             elif self.phase == CONTACT:
