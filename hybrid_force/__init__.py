@@ -1,0 +1,145 @@
+"""hybrid_force: hybrid position–force control of robot arms on known rigid surfaces.
+
+Reproduces and extends *Modified position-force control for a manipulator geometrically
+constrained by round obstacles* (modified Arimoto law with joint-space orthogonalisation),
+on Pinocchio and URDF. The public names are re-exported here; see README.md.
+"""
+
+from __future__ import annotations
+
+from hybrid_force.clik import ClikSettings, DesiredJointPath, inverse_kinematics
+from hybrid_force.constraint import Constraint, ConstraintTerms
+from hybrid_force.control import (
+    Command,
+    ControlTrace,
+    Desired,
+    Gains,
+    arimoto_law,
+    default_damping_gain,
+    free_space_law,
+    make_gains,
+)
+from hybrid_force.dynamics import (
+    Baumgarte,
+    constrained_acceleration,
+    free_acceleration,
+    kkt_reference,
+    plastic_impact,
+)
+from hybrid_force.errors import (
+    BadInputError,
+    ControlError,
+    DimensionError,
+    DivergenceError,
+    FrameError,
+    GainError,
+    HybridForceError,
+    ReachError,
+    ResultFileError,
+    RobotError,
+    ScenarioError,
+    SimulationError,
+    SingularConfigurationError,
+    SurfaceError,
+    SurfaceParameterError,
+    UnknownRobotError,
+    URDFError,
+    ViewerError,
+)
+from hybrid_force.paths import (
+    Circle,
+    FunctionPath,
+    Helix,
+    OnSurfaceReport,
+    Path,
+    PathParameterError,
+    check_on_surface,
+    paper_helix,
+    path_from_dict,
+)
+from hybrid_force.result import Metrics, Result, load_result
+from hybrid_force.robot import Robot, RobotTerms, load_robot
+from hybrid_force.simulate import Scenario, SimSettings, simulate
+from hybrid_force.supervisor import (
+    CONTACT,
+    FREE,
+    NEAR,
+    ControlSettings,
+    HybridController,
+)
+from hybrid_force.surfaces import (
+    Cylinder,
+    FunctionSurface,
+    Plane,
+    Sphere,
+    Surface,
+    surface_from_dict,
+)
+
+__all__ = [
+    "CONTACT",
+    "FREE",
+    "NEAR",
+    "BadInputError",
+    "Baumgarte",
+    "Circle",
+    "ClikSettings",
+    "Command",
+    "Constraint",
+    "ConstraintTerms",
+    "ControlError",
+    "ControlSettings",
+    "ControlTrace",
+    "Cylinder",
+    "Desired",
+    "DesiredJointPath",
+    "DimensionError",
+    "DivergenceError",
+    "FrameError",
+    "FunctionPath",
+    "FunctionSurface",
+    "GainError",
+    "Gains",
+    "Helix",
+    "HybridController",
+    "HybridForceError",
+    "Metrics",
+    "OnSurfaceReport",
+    "Path",
+    "PathParameterError",
+    "Plane",
+    "ReachError",
+    "Result",
+    "ResultFileError",
+    "Robot",
+    "RobotError",
+    "RobotTerms",
+    "Scenario",
+    "ScenarioError",
+    "SimSettings",
+    "SimulationError",
+    "SingularConfigurationError",
+    "Sphere",
+    "Surface",
+    "SurfaceError",
+    "SurfaceParameterError",
+    "URDFError",
+    "UnknownRobotError",
+    "ViewerError",
+    "arimoto_law",
+    "check_on_surface",
+    "constrained_acceleration",
+    "default_damping_gain",
+    "free_acceleration",
+    "free_space_law",
+    "inverse_kinematics",
+    "kkt_reference",
+    "load_result",
+    "load_robot",
+    "make_gains",
+    "paper_helix",
+    "path_from_dict",
+    "plastic_impact",
+    "simulate",
+    "surface_from_dict",
+]
