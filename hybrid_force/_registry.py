@@ -46,6 +46,8 @@ class RobotEntry:
         default_tip: frame used as the tool tip when the caller names none.
         source: ``"bundled"`` or ``"example-robot-data"``.
         description: one line for humans.
+        locked_joints: joints held at their neutral value (e.g. the Panda's fingers), so the
+            model is the arm alone.
     """
 
     name: str
@@ -54,6 +56,7 @@ class RobotEntry:
     default_tip: str
     source: Source
     description: str
+    locked_joints: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,7 @@ class _ERDModel:
     relative_urdf: str
     default_tip: str
     description: str
+    locked_joints: tuple[str, ...] = ()
 
 
 # Default tips chosen after listing the frames of each model (tool flange or hand TCP).
@@ -81,7 +85,8 @@ _ERD_MODELS: tuple[_ERDModel, ...] = (
         "panda",
         "panda_description/urdf/panda.urdf",
         "panda_hand_tcp",
-        "Franka Emika Panda, 7 arm joints + 2 finger joints",
+        "Franka Emika Panda, 7 joints (the 2 finger joints are locked)",
+        ("panda_finger_joint1", "panda_finger_joint2"),
     ),
     _ERDModel(
         "z1",
@@ -165,6 +170,7 @@ def _erd_entries() -> list[RobotEntry]:
                     default_tip=model.default_tip,
                     source="example-robot-data",
                     description=model.description,
+                    locked_joints=model.locked_joints,
                 )
             )
     return entries

@@ -228,6 +228,7 @@ def load_robot(model: str | Path, tip: str | None = None) -> Robot:
             raise URDFError(f"URDF file not found: {path}")
         check_urdf(path)
         name, package_dirs, default_tip = text, (str(path.resolve().parent),), None
+        locked: tuple[str, ...] = ()
     else:
         entry = resolve_robot(text)
         path, package_dirs, default_tip, name = (
@@ -236,11 +237,15 @@ def load_robot(model: str | Path, tip: str | None = None) -> Robot:
             entry.default_tip,
             entry.name,
         )
+        locked = entry.locked_joints
         check_urdf(path)
     try:
         pin_model = pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as exc:
         raise URDFError(f"Pinocchio cannot parse {path}: {exc}") from exc
+    if locked:
+        ids = [pin_model.getJointId(j) for j in locked]
+        pin_model = pin.buildReducedModel(pin_model, ids, pin.neutral(pin_model))
     return Robot(
         pin_model,
         name=name,

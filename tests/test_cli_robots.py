@@ -32,7 +32,7 @@ def test_robots_table() -> None:
     rows = {line.split()[0]: line.split() for line in lines[1:]}
     assert rows["rtr"][1:] == ["3", "tip", "bundled"]
     assert rows["ur5"][1:] == ["6", "tool0", "example-robot-data"]
-    assert rows["panda"][1:] == ["9", "panda_hand_tcp", "example-robot-data"]  # 7 arm + 2 fingers
+    assert rows["panda"][1:] == ["7", "panda_hand_tcp", "example-robot-data"]  # fingers locked
     assert proc.stderr == ""
 
 

@@ -36,7 +36,15 @@ def test_required_names_are_present() -> None:
 
 def test_entries_are_frozen_with_the_documented_fields() -> None:
     fields = [f.name for f in dataclasses.fields(RobotEntry)]
-    assert fields == ["name", "urdf_path", "package_dirs", "default_tip", "source", "description"]
+    assert fields == [
+        "name",
+        "urdf_path",
+        "package_dirs",
+        "default_tip",
+        "source",
+        "description",
+        "locked_joints",
+    ]
     entry = resolve_robot("rtr")
     with pytest.raises(dataclasses.FrozenInstanceError):
         entry.name = "other"  # type: ignore[misc]
@@ -80,10 +88,12 @@ def test_entry_loads_and_has_its_tip(entry: RobotEntry) -> None:
 
 
 def test_expected_joint_counts() -> None:
-    counts = {e.name: pin.buildModelFromUrdf(str(e.urdf_path)).nv for e in ENTRIES}
+    counts = {
+        e.name: pin.buildModelFromUrdf(str(e.urdf_path)).nv - len(e.locked_joints) for e in ENTRIES
+    }
     assert counts["rtr"] == 3
     assert counts["ur5"] == counts["ur3"] == counts["ur10"] == 6
-    assert counts["panda"] == 9  # 7 arm joints + 2 finger joints in panda.urdf
+    assert counts["panda"] == 7  # 7 arm joints; the 2 finger joints are locked
     assert max(counts.values()) >= 25  # a big model for benchmarks
 
 
