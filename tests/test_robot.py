@@ -1,0 +1,289 @@
+"""Robot-model layer (hybrid_force.robot) beyond the RTR closed forms: any URDF arm.
+
+References used here are independent of the code under test:
+- J(q) against central finite differences of the tip position p(q);
+- J̇(q, v) v against a central finite difference of J(q + v t) v in t;
+- g(q) against finite differences of the potential energy, nle against RNEA at q̈ = 0;
+- Ṁ − 2C skew-symmetric with Ṁ from finite differences of M along v;
+- M symmetric positive definite; mass scaling is linear in M, C and g and leaves p and J alone.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from hybrid_force.errors import DimensionError, FrameError, UnknownRobotError, URDFError
+from hybrid_force.robot import Robot, RobotTerms, load_robot
+
+ARMS = ("rtr", "ur5", "panda")
+
+
+@pytest.fixture(scope="module")
+def arms() -> dict[str, Robot]:
+    """The three arms of this file, loaded once."""
+    return {name: load_robot(name) for name in ARMS}
+
+
+def _random_state(robot: Robot, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A random (q, v) within the joint limits (clipped to ±3 for wide/unbounded joints)."""
+    lo = np.maximum(robot.model.lowerPositionLimit, -3.0)
+    hi = np.minimum(robot.model.upperPositionLimit, 3.0)
+    q = lo + (hi - lo) * rng.uniform(0.05, 0.95, robot.nq)
+    v = rng.uniform(-1.5, 1.5, robot.nv)
+    return q, v
+
+
+def _fd_jacobian(robot: Robot, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """(3, n) central differences of the tip position."""
+    cols = []
+    for j in range(robot.nv):
+        dq = np.zeros(robot.nv)
+        dq[j] = h
+        cols.append((robot.tip_position(q + dq) - robot.tip_position(q - dq)) / (2 * h))
+    return np.column_stack(cols)
+
+
+# --- loading -------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("name", "n", "tip"), [("rtr", 3, "tip"), ("ur5", 6, "tool0"), ("panda", 7, "panda_hand_tcp")]
+)
+def test_load_by_name(arms: dict[str, Robot], name: str, n: int, tip: str) -> None:
+    robot = arms[name]
+    assert robot.nq == robot.nv == n
+    assert robot.tip == tip
+    assert robot.model.frames[robot.tip_id].name == tip
+    assert robot.urdf_path.is_file()
+    assert robot.neutral().shape == (n,)
+
+
+def test_load_rtr_by_path_and_tmp_copy(rtr_urdf: Path, tmp_path: Path) -> None:
+    """The bundled file by path, and a copy elsewhere, give the same arm as the name."""
+    rng = np.random.default_rng(1)
+    ref = load_robot("rtr")
+    copy = tmp_path / "my_arm.urdf"
+    shutil.copy(rtr_urdf, copy)
+    for source in (rtr_urdf, str(rtr_urdf), copy, str(copy)):
+        robot = load_robot(source)
+        assert robot.nv == 3
+        # the default tip of a plain URDF is its last body frame: the "tip" link of rtr.urdf
+        assert robot.tip == "tip"
+        for _ in range(3):
+            q, _v = _random_state(ref, rng)
+            np.testing.assert_allclose(robot.tip_position(q), ref.tip_position(q), atol=1e-15)
+            np.testing.assert_allclose(robot.mass_matrix(q), ref.mass_matrix(q), atol=1e-12)
+    assert load_robot(copy).urdf_path == copy
+
+
+def test_tip_keyword_picks_frame() -> None:
+    """tip="link3" is the elbow end of link 3's frame: at the q3 joint, p = (c1 l2, s1 l2, q2)."""
+    robot = load_robot("rtr", tip="link3")
+    assert robot.tip == "link3"
+    q = np.array([0.7, 3.0, 0.4])
+    np.testing.assert_allclose(
+        robot.tip_position(q), [0.9 * np.cos(0.7), 0.9 * np.sin(0.7), 3.0], atol=1e-14
+    )
+    ur5 = load_robot("ur5", tip="wrist_3_link")
+    assert ur5.tip == "wrist_3_link"
+
+
+# --- kinematics ------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ARMS)
+def test_jacobian_matches_finite_differences(arms: dict[str, Robot], name: str) -> None:
+    robot = arms[name]
+    rng = np.random.default_rng(11)
+    worst = 0.0
+    for _ in range(10):
+        q, _ = _random_state(robot, rng)
+        J = robot.jacobian(q)
+        assert J.shape == (3, robot.nv)
+        err = np.abs(J - _fd_jacobian(robot, q)).max()
+        worst = max(worst, err)
+    assert worst < 1e-8, worst
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_drift_matches_finite_difference_of_jacobian(arms: dict[str, Robot], name: str) -> None:
+    """J̇ v = d/dt [J(q + v t)] v at t = 0 (central difference, h = 1e-5)."""
+    robot = arms[name]
+    rng = np.random.default_rng(12)
+    h = 1e-5
+    for _ in range(10):
+        q, v = _random_state(robot, rng)
+        fd = (robot.jacobian(q + h * v) - robot.jacobian(q - h * v)) / (2 * h) @ v
+        drift = robot.drift(q, v)
+        assert drift.shape == (3,)
+        np.testing.assert_allclose(drift, fd, atol=1e-7 * (1 + np.abs(fd).max()))
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_drift_is_second_derivative_of_tip_at_zero_acceleration(
+    arms: dict[str, Robot], name: str
+) -> None:
+    """p(q + v t) has second derivative J̇ v at t = 0 (second central difference)."""
+    robot = arms[name]
+    rng = np.random.default_rng(13)
+    h = 1e-4
+    for _ in range(5):
+        q, v = _random_state(robot, rng)
+        fd = (
+            robot.tip_position(q + h * v)
+            - 2 * robot.tip_position(q)
+            + robot.tip_position(q - h * v)
+        ) / h**2
+        np.testing.assert_allclose(robot.drift(q, v), fd, atol=2e-5 * (1 + np.abs(fd).max()))
+
+
+# --- dynamics ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ARMS)
+def test_terms_agree_with_single_methods(arms: dict[str, Robot], name: str) -> None:
+    robot = arms[name]
+    rng = np.random.default_rng(14)
+    for use_own_data in (True, False):
+        q, v = _random_state(robot, rng)
+        data = None if use_own_data else robot.new_data()
+        t = robot.terms(q, v, data)
+        assert isinstance(t, RobotTerms)
+        np.testing.assert_allclose(t.M, robot.mass_matrix(q), atol=1e-12)
+        np.testing.assert_allclose(t.C, robot.coriolis(q, v), atol=1e-12)
+        np.testing.assert_allclose(t.g, robot.gravity(q), atol=1e-12)
+        np.testing.assert_allclose(t.p, robot.tip_position(q), atol=1e-14)
+        np.testing.assert_allclose(t.J, robot.jacobian(q), atol=1e-13)
+        np.testing.assert_allclose(t.Jdot_v, robot.drift(q, v), atol=1e-11)
+        np.testing.assert_allclose(t.Jdot @ v, t.Jdot_v, atol=1e-12)
+        np.testing.assert_allclose(t.pdot, t.J @ v, atol=1e-13)
+        np.testing.assert_allclose(t.nle, t.C @ v + t.g, atol=1e-11)
+        # nle is the RNEA torque at zero acceleration (an independent algorithm)
+        rnea = pin.rnea(robot.model, robot.new_data(), q, v, np.zeros(robot.nv))
+        np.testing.assert_allclose(t.nle, rnea, atol=1e-9 * (1 + np.abs(rnea).max()))
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_mass_matrix_symmetric_positive_definite(arms: dict[str, Robot], name: str) -> None:
+    robot = arms[name]
+    rng = np.random.default_rng(15)
+    for _ in range(10):
+        q, v = _random_state(robot, rng)
+        M = robot.mass_matrix(q)
+        assert np.array_equal(M, M.T)
+        assert np.linalg.eigvalsh(M).min() > 0
+        # kinetic energy ½ vᵀMv equals Pinocchio's independent energy computation
+        T = pin.computeKineticEnergy(robot.model, robot.new_data(), q, v)
+        assert 0.5 * v @ M @ v == pytest.approx(T, rel=1e-12)
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_gravity_is_gradient_of_potential_energy(arms: dict[str, Robot], name: str) -> None:
+    robot = arms[name]
+    rng = np.random.default_rng(16)
+    data = robot.new_data()
+    h = 1e-6
+    q, _ = _random_state(robot, rng)
+    grad = np.empty(robot.nv)
+    for j in range(robot.nv):
+        dq = np.zeros(robot.nv)
+        dq[j] = h
+        up = pin.computePotentialEnergy(robot.model, data, q + dq)
+        down = pin.computePotentialEnergy(robot.model, data, q - dq)
+        grad[j] = (up - down) / (2 * h)
+    np.testing.assert_allclose(robot.gravity(q), grad, atol=1e-6 * (1 + np.abs(grad).max()))
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_mdot_minus_2c_is_skew(arms: dict[str, Robot], name: str) -> None:
+    robot = arms[name]
+    rng = np.random.default_rng(17)
+    h = 1e-6
+    for _ in range(5):
+        q, v = _random_state(robot, rng)
+        Mdot = (robot.mass_matrix(q + h * v) - robot.mass_matrix(q - h * v)) / (2 * h)
+        N = Mdot - 2 * robot.coriolis(q, v)
+        assert np.abs(N + N.T).max() < 1e-6 * (1 + np.abs(Mdot).max())
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_with_mass_factor_scales_dynamics_not_kinematics(arms: dict[str, Robot], name: str) -> None:
+    robot = arms[name]
+    rng = np.random.default_rng(18)
+    factor = 1.7
+    heavy = robot.with_mass_factor(factor)
+    assert heavy is not robot and heavy.tip == robot.tip and heavy.nv == robot.nv
+    for _ in range(3):
+        q, v = _random_state(robot, rng)
+        M = robot.mass_matrix(q)
+        np.testing.assert_allclose(heavy.mass_matrix(q), factor * M, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(
+            heavy.coriolis(q, v), factor * robot.coriolis(q, v), rtol=1e-12, atol=1e-13
+        )
+        np.testing.assert_allclose(heavy.gravity(q), factor * robot.gravity(q), atol=1e-11)
+        np.testing.assert_allclose(heavy.tip_position(q), robot.tip_position(q), atol=1e-15)
+        np.testing.assert_allclose(heavy.jacobian(q), robot.jacobian(q), atol=1e-15)
+        np.testing.assert_allclose(heavy.drift(q, v), robot.drift(q, v), atol=1e-13)
+        # the original is untouched
+        np.testing.assert_allclose(robot.mass_matrix(q), M, atol=0)
+    total = sum(inertia.mass for inertia in robot.model.inertias)
+    assert sum(i.mass for i in heavy.model.inertias) == pytest.approx(factor * total)
+
+
+@pytest.mark.parametrize("factor", [0.0, -1.0, float("nan"), float("inf")])
+def test_with_mass_factor_rejects_bad_factor(arms: dict[str, Robot], factor: float) -> None:
+    with pytest.raises(DimensionError, match="mass factor"):
+        arms["rtr"].with_mass_factor(factor)
+
+
+# --- bad input ----------------------------------------------------------------------------------
+def test_unknown_name_lists_known_robots() -> None:
+    with pytest.raises(UnknownRobotError) as info:
+        load_robot("nosuch_arm")
+    message = str(info.value)
+    assert "nosuch_arm" in message
+    for name in ARMS:
+        assert name in message
+
+
+def test_unknown_tip_lists_frames(rtr_urdf: Path) -> None:
+    for source in ("rtr", rtr_urdf):
+        with pytest.raises(FrameError) as info:
+            load_robot(source, tip="no_such_frame")
+        message = str(info.value)
+        assert "no_such_frame" in message
+        for frame in ("tip", "link3", "link2"):
+            assert frame in message
+
+
+def test_missing_file_is_urdf_error(tmp_path: Path) -> None:
+    missing = tmp_path / "absent.urdf"
+    with pytest.raises(URDFError, match=r"absent\.urdf"):
+        load_robot(missing)
+    with pytest.raises(URDFError, match=r"absent\.urdf"):
+        load_robot(str(missing))
+
+
+@pytest.mark.parametrize(
+    "bad", [np.zeros(2), np.zeros(4), np.zeros((3, 1)), [0.0, np.nan, 0.0], [np.inf, 0, 0]]
+)
+def test_bad_q_or_v_is_dimension_error(arms: dict[str, Robot], bad: object) -> None:
+    robot = arms["rtr"]
+    good = np.array([0.1, 2.0, 0.3])
+    calls = [
+        lambda: robot.mass_matrix(bad),
+        lambda: robot.gravity(bad),
+        lambda: robot.tip_position(bad),
+        lambda: robot.jacobian(bad),
+        lambda: robot.coriolis(bad, good),
+        lambda: robot.coriolis(good, bad),
+        lambda: robot.drift(bad, good),
+        lambda: robot.drift(good, bad),
+    ]
+    for call in calls:
+        with pytest.raises(DimensionError, match="rtr"):
+            call()
+
+
+def test_dimension_error_message_names_shape(arms: dict[str, Robot]) -> None:
+    with pytest.raises(DimensionError, match=r"\(6,\).*\(5,\)"):
+        arms["ur5"].jacobian(np.zeros(5))
