@@ -466,22 +466,31 @@ def _switches(run: _Run) -> list[tuple[float, str]]:
     return marked if marked else _phase_switches(run.t, run.phase)
 
 
+def _intervals(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
+    """(start [s], width [s]) of each run of true samples of mask (N,) over time t (N,).
+
+    A run of samples i..j covers [t[i], t[j + 1]) (up to t[-1] for a run reaching the end).
+    """
+    m = np.concatenate([[False], mask.astype(bool), [False]])
+    edges = np.flatnonzero(np.diff(m.astype(np.int8)))
+    starts, stops = edges[0::2], edges[1::2]  # stops: one past the last true sample
+    ends = t[np.minimum(stops, t.size - 1)]
+    return [(float(t[a]), float(e - t[a])) for a, e in zip(starts, ends, strict=True)]
+
+
 def _shade(ax: Axes, t: np.ndarray, mask: np.ndarray, colour: str, label: str) -> None:
     """Shade the time intervals where mask (N,) is true over the full height of ax."""
-    if not np.any(mask):
-        return
-    ax.fill_between(
-        t,
-        0.0,
-        1.0,
-        where=mask,
-        step="post",
-        transform=ax.get_xaxis_transform(),
-        color=colour,
-        alpha=0.15,
-        linewidth=0,
-        label=label,
-    )
+    spans = _intervals(t, mask)
+    if spans:
+        ax.broken_barh(
+            spans,
+            (0.0, 1.0),
+            transform=ax.get_xaxis_transform(),
+            facecolors=colour,
+            alpha=0.15,
+            linewidth=0,
+            label=label,
+        )
 
 
 def _positive(a: np.ndarray) -> np.ndarray:
@@ -497,6 +506,31 @@ def _semilog(ax: Axes, t: np.ndarray, y: np.ndarray, **kw: Any) -> bool:
     ax.plot(t, yp, **kw)
     ax.set_yscale("log")
     return True
+
+
+def _legend_right(ax: Axes) -> None:
+    """A legend outside ax on its right (inside, it could hide data such as a divergence)."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+
+
+def _mark_nonfinite(axes: Sequence[Axes], t: np.ndarray, a: np.ndarray, what: str) -> None:
+    """A red dotted line on every axes at the first sample where a (N, ...) is not finite."""
+    bad = ~np.all(np.isfinite(a.reshape(a.shape[0], -1)), axis=1)
+    if not np.any(bad):
+        return
+    t_bad = float(t[int(np.argmax(bad))])
+    for ax in axes:
+        ax.axvline(t_bad, color="red", ls=":", lw=1.2)
+    axes[-1].text(
+        t_bad,
+        0.9,
+        f"{what} not finite from t = {t_bad:.4g} s ",
+        color="red",
+        transform=axes[-1].get_xaxis_transform(),
+        ha="right",
+        va="center",
+        fontsize=8,
+    )
 
 
 def _note(ax: Axes, text: str) -> None:
@@ -607,10 +641,20 @@ def _fig_position_errors(run: _Run) -> Figure:
     ax = axes[3]
     norm = np.linalg.norm(e, axis=1)
     if _semilog(ax, run.t, norm, color="k", lw=1.0, label=r"$\|e\|$"):
-        ax.axhline(1e-6, color="tab:green", ls=":", lw=1.0, label="1 µm")
-        ax.legend(loc="upper right", fontsize=8)
+        ax.axhline(1e-6, color="tab:green", ls=":", lw=1.0)
+        ax.text(
+            0.005,
+            1e-6,
+            "1 µm",
+            transform=ax.get_yaxis_transform(),
+            ha="left",
+            va="bottom",
+            fontsize=8,
+            color="tab:green",
+        )
     else:
         _note(ax, "‖e‖ has no positive finite value")
+    _mark_nonfinite(axes, run.t, e, "e")
     ax.set_ylabel(r"$\|p - p_d\|$ [m]")
     ax.set_xlabel("t [s]")
     ax.grid(True, which="both", alpha=0.3)
@@ -650,7 +694,13 @@ def _fig_force_error(run: _Run) -> Figure:
         ax.set_xlabel("t [s]")
         ax.grid(True, alpha=0.3)
     axes[0].set_title("whole run")
-    axes[0].legend(loc="best", fontsize=8)
+    # one legend for the three panels, outside them (a legend inside could hide a divergence)
+    fig.legend(
+        handles=axes[0].get_legend_handles_labels()[0],
+        loc="outside lower center",
+        ncol=min(3, run.k + 1),
+        fontsize=8,
+    )
     axes[1].set_title(f"first {t_zoom - run.t[0]:.3g} s")
     ax = axes[2]
     drawn = False
@@ -663,10 +713,9 @@ def _fig_force_error(run: _Run) -> Figure:
             lw=1.0,
             label=_column_label("$|e_f|$ in contact", j, run.k),
         )
-    if drawn:
-        ax.legend(loc="best", fontsize=8)
-    else:
+    if not drawn:
         _note(ax, "never in contact, or |e_f| = 0 throughout contact")
+    _mark_nonfinite([axes[0], axes[2]], run.t, ef, "e_f")
     ax.set_ylabel("$|e_f|$ [N]")
     ax.set_xlabel("t [s]")
     ax.set_xlim(run.t[0], run.t[-1])
@@ -742,7 +791,7 @@ def _fig_desired_force(run: _Run) -> Figure:
     ax.set_xlabel("t [s]")
     ax.set_ylabel("force along the surface normal [N]")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="center right", fontsize=8)
+    _legend_right(ax)
     ax.set_title(f"{run.name}: desired force, first {t_end - run.t[0]:.3g} s")
     return fig
 
@@ -760,7 +809,7 @@ def _fig_lyapunov(run: _Run) -> Figure:
     ax.set_xlabel("t [s]")
     ax.set_ylabel(r"$V = \frac{1}{2}s^T M s + \frac{1}{2}\beta e_F^2$ [J]")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    _legend_right(ax)
     ax.set_title(f"{run.name}: Lyapunov function")
     return fig
 
@@ -851,6 +900,15 @@ class _Sweep:
     def numbers(self, column: str) -> np.ndarray:
         """(R,) float: column parsed as numbers; empty or non-numeric cells become NaN."""
         return np.array([_to_float(r.get(column)) for r in self.rows], dtype=float)
+
+
+def _is_number(s: str) -> bool:
+    """Whether s parses as a float ("nan" and "inf" included: a run may report them)."""
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
 
 
 def _to_float(s: str | None) -> float:
@@ -1076,7 +1134,7 @@ def plot_sweep(
     colour (or y) scale is logarithmic when the positive metric spans more than 2 decades.
     Writes a PNG to out_path atomically (parent directories created) and returns out_path.
     Raises :class:`PlotError` naming the file and listing the columns when x, y or metric is not
-    a column, and when the file is missing or empty.
+    a column, when the metric holds text in an ok row, and when the file is missing or empty.
     """
     sweep = _read_sweep(csv_path)
     sweep.require(x, "x")
@@ -1087,11 +1145,14 @@ def plot_sweep(
             raise PlotError(f"x and y are both {x!r}; a heat map needs two different parameters")
     if metric in (x, y):
         raise PlotError(f"metric {metric!r} is also a swept parameter; choose another column")
-    if not np.any(np.isfinite(sweep.numbers(metric))):
-        raise PlotError(
-            f"metric column {metric!r} of {str(sweep.path)!r} has no numeric value; "
-            "available columns: " + ", ".join(sweep.columns)
-        )
+    ok = sweep.ok()
+    for i, row in enumerate(sweep.rows):
+        cell = (row.get(metric) or "").strip()
+        if ok[i] and cell and not _is_number(cell):
+            raise PlotError(
+                f"metric column {metric!r} of {str(sweep.path)!r} is not numeric (data row "
+                f"{i + 1} has {cell!r}); available columns: " + ", ".join(sweep.columns)
+            )
     fig = _sweep_line(sweep, x, metric) if y is None else _sweep_heatmap(sweep, x, y, metric)
     out = Path(out_path)
     _out_dir(out.parent)

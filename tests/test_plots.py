@@ -7,6 +7,7 @@ here comes from how the test built its data, not from the plotting code.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import struct
 from pathlib import Path
 from typing import Any
@@ -227,6 +228,46 @@ def test_phase_switches_fallback() -> None:
     ]
 
 
+def test_intervals_of_a_mask() -> None:
+    t = np.arange(8.0) * 0.5
+    mask = np.array([1, 1, 0, 0, 1, 0, 1, 1], dtype=bool)
+    # runs 0..1 -> [0, 1.0), 4..4 -> [2.0, 2.5), 6..7 reaches the end -> [3.0, 3.5]
+    assert plots._intervals(t, mask) == [(0.0, 1.0), (2.0, 0.5), (3.0, 0.5)]
+    assert plots._intervals(t, np.zeros(8, dtype=bool)) == []
+    assert plots._intervals(t, np.ones(8, dtype=bool)) == [(0.0, 3.5)]
+
+
+def test_diverged_run_marks_first_non_finite_sample() -> None:
+    result = _synthetic()
+    p = result.p.copy()
+    f = result.f.copy()
+    i_bad = 1200
+    p[i_bad:] = np.nan
+    f[i_bad + 5 :] = np.inf
+    bad = dataclasses.replace(result, p=p, f=f, meta=dict(result.meta, status="failed"))
+    run = plots._load_run(bad)
+    for build, t_expected in (
+        (plots._fig_position_errors, result.t[i_bad]),
+        (plots._fig_force_error, result.t[i_bad + 5]),
+    ):
+        fig = build(run)
+        fig.canvas.draw()  # rendering must not warn (pytest turns warnings into errors)
+        red = [
+            ln.get_xdata()[0]
+            for ln in fig.axes[0].get_lines()
+            if ln.get_color() == "red" and ln.get_linestyle() == ":"
+        ]
+        assert red == [pytest.approx(t_expected)]
+
+
+def test_log_scale_rule() -> None:
+    assert plots._use_log(np.array([1e-3, 1.0, np.nan]))  # 3 decades
+    assert not plots._use_log(np.array([1.0, 100.0]))  # exactly 2: not more than 2
+    assert plots._use_log(np.array([1.0, 100.0]), at_least=True)
+    assert not plots._use_log(np.array([-1.0, 1e3]))  # not all positive
+    assert not plots._use_log(np.array([5.0]))
+
+
 def test_zoom_windows() -> None:
     assert plots._zoom_end(np.linspace(1.0, 21.0, 5)) == pytest.approx(11.0)
     assert plots._zoom_end(np.linspace(0.0, 6.0, 5)) == pytest.approx(3.0)
@@ -361,6 +402,21 @@ def test_sweep_linear_scale_when_narrow(tmp_path: Path) -> None:
     np.testing.assert_allclose(fig.axes[0].get_lines()[0].get_ydata(), [1.001, 1.002, 1.004])
 
 
+def test_sweep_where_every_run_failed_still_draws(tmp_path: Path) -> None:
+    rows = [
+        {"control.Kd": kd, "sim.integrator": integ, "status": "failed", "rms": ""}
+        for kd in (1, 2)
+        for integ in ("euler", "rk4")
+    ]
+    sweep = plots._read_sweep(_write_csv(tmp_path / "s.csv", rows))
+    values, failed = plots._sweep_grid(sweep, "sim.integrator", "control.Kd", "rms")
+    assert failed.all() and np.isnan(values).all() and values.shape == (2, 2)
+    fig = plots._sweep_heatmap(sweep, "sim.integrator", "control.Kd", "rms")
+    fig.canvas.draw()
+    assert [t.get_text() for t in fig.axes[0].get_xticklabels()] == ["euler", "rk4"]
+    assert len(fig.axes[0].patches) == 4  # four hatched cells
+
+
 def test_plot_sweep_wrong_column_lists_columns(sweep_csv: Path, tmp_path: Path) -> None:
     with pytest.raises(PlotError) as info:
         plot_sweep(sweep_csv, tmp_path / "x.png", x="control.kd", metric="final_position_error")
@@ -371,6 +427,8 @@ def test_plot_sweep_wrong_column_lists_columns(sweep_csv: Path, tmp_path: Path) 
     assert "did you mean 'control.Kd'" in msg
     with pytest.raises(PlotError, match="available columns"):
         plot_sweep(sweep_csv, tmp_path / "x.png", x="control.Kd", y="nope", metric="status")
+    with pytest.raises(PlotError, match=r"not numeric \(data row 1 has 'ok'\)"):
+        plot_sweep(sweep_csv, tmp_path / "x.png", x="control.Kd", metric="status")
     with pytest.raises(PlotError, match="does not exist"):
         plot_sweep(tmp_path / "missing.csv", tmp_path / "x.png", x="a", metric="b")
     assert not (tmp_path / "x.png").exists()
