@@ -2,9 +2,9 @@
 
 q̇_d = J⁻¹(q_d) [ṗ_d − γ (k(q_d) − p_d)],   γ = 7 by default (section 6.1)
 
-integrated with RK4 in step with the simulation, so that its error (which becomes the arm's
-tracking error) stays at round-off. q_d(0) solves k(q_d(0)) = p_d(0) by Newton iterations
-from a seed (:func:`inverse_kinematics`). For arms with more than three joints J⁻¹ is a
+solved in step with the simulation to round-off (a predictor and one Newton correction per step,
+see :class:`DesiredJointPath`), because its error becomes the arm's tracking error.
+q_d(0) solves k(q_d(0)) = p_d(0) by Newton iterations from a seed (:func:`inverse_kinematics`). For arms with more than three joints J⁻¹ is a
 damped pseudo-inverse and a null-space term pulls q_d towards a posture (the seed):
 
 q̇_d = J⁺ x + (I − J⁺J)(−k_n (q_d − q_posture)),   x = ṗ_d − γ (k(q_d) − p_d).
@@ -52,15 +52,6 @@ class ClikSettings:
             raise GainError(f"clik damping must be >= 0, got {self.damping!r}")
         if not (np.isfinite(self.posture_gain) and self.posture_gain >= 0):
             raise GainError(f"clik posture_gain must be >= 0, got {self.posture_gain!r}")
-
-
-def _solve_task(J: np.ndarray, x: np.ndarray, damping: float) -> np.ndarray:
-    """J⁺ x for a (3, n) J: exact inverse when n = 3, damped pseudo-inverse otherwise."""
-    JJt = J @ J.T
-    if J.shape[1] == 3:
-        return np.linalg.solve(J, x)
-    JJt[np.diag_indices(3)] += damping * damping
-    return J.T @ np.linalg.solve(JJt, x)
 
 
 def _check_conditioning(J: np.ndarray, t: float, q: np.ndarray, robot: Robot) -> None:
@@ -117,7 +108,14 @@ def inverse_kinematics(
 
 
 class DesiredJointPath:
-    """q_d(t), q̇_d(t), q̈_d(t) for a task-space path, integrated in step with a simulation.
+    """q_d(t), q̇_d(t), q̈_d(t) for a task-space path, advanced in step with a simulation.
+
+    Each step predicts q_d(t + dt) by a second-order Taylor step and corrects it with one
+    Newton step on k(q_d) = p_d(t + dt) (quadratic convergence: the residual after it is at
+    round-off). Since k(q_d(0)) = p_d(0), the exact solution of eq. 27 keeps
+    k(q_d(t)) = p_d(t) for all t (its γ-term stays zero), so this is the solution of eq. 27
+    to round-off, at the price of three Pinocchio passes per step. q̇_d is then eq. 27 itself
+    and q̈_d its exact time derivative (module docstring).
 
     Args:
         robot: the arm (its own Pinocchio data is created here).
@@ -140,62 +138,66 @@ class DesiredJointPath:
         self.settings = settings or ClikSettings()
         self._data = robot.new_data()
         self._redundant = robot.nv > 3
+        self._eye = np.eye(robot.nv)
         self.posture = robot.check_q(q0, "q_d(0)").copy()
         self.t = float(t0)
         self.q = self.posture.copy()
-        self.qd, self.qdd = self._derivatives(self.t, self.q)
+        self.p_d, self.pdot_d, self.pddot_d = path.evaluate(self.t)
+        self.qd, self.qdd = self._derivatives()
 
-    def _kinematics(self, q: np.ndarray, qd: np.ndarray | None = None):
+    def _tip_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         model, data, fid = self.robot.model, self._data, self.robot.tip_id
-        if qd is None:
-            pin.computeJointJacobians(model, data, q)
-            pin.updateFramePlacement(model, data, fid)
-            return data.oMf[fid].translation, pin.getFrameJacobian(model, data, fid, _LWA)[:3]
-        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
-        pin.updateFramePlacement(model, data, fid)
-        J = pin.getFrameJacobian(model, data, fid, _LWA)[:3]
-        Jdot = pin.getFrameJacobianTimeVariation(model, data, fid, _LWA)[:3]
-        return data.oMf[fid].translation, J, Jdot
+        pin.computeJointJacobians(model, data, q)
+        p = pin.updateFramePlacement(model, data, fid).translation
+        return p, pin.getFrameJacobian(model, data, fid, _LWA)[:3]
 
-    def _velocity(self, t: float, q: np.ndarray) -> np.ndarray:
-        """q̇_d of eq. 27 at (t, q)."""
-        p_d, pdot_d, _ = self.path.evaluate(t)
-        p, J = self._kinematics(q)
-        x = pdot_d - self.settings.gamma * (p - p_d)
-        if not self._redundant:
-            _check_conditioning(J, t, q, self.robot)
-            return np.linalg.solve(J, x)
-        qd = _solve_task(J, x, self.settings.damping)
-        if self.settings.posture_gain > 0:
-            z = -self.settings.posture_gain * pin.difference(self.robot.model, self.posture, q)
-            qd += z - _solve_task(J, J @ z, self.settings.damping)
-        return qd
+    def _pinv(self, J: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """J⁻¹ (n = 3) or the damped pseudo-inverse (n > 3); ReachError when singular."""
+        try:
+            if self._redundant:
+                JJt = J @ J.T
+                JJt[np.diag_indices(3)] += self.settings.damping**2
+                inv = np.linalg.inv(JJt)
+                cond = float(np.abs(JJt).max() * np.abs(inv).max())
+                Jp = J.T @ inv
+            else:
+                Jp = np.linalg.inv(J)
+                cond = float(np.abs(J).max() * np.abs(Jp).max()) ** 2
+        except np.linalg.LinAlgError:
+            cond = np.inf
+        if not cond < _COND_MAX:  # a cheap upper bound of cond(J Jᵀ); the SVD names the values
+            _check_conditioning(J, self.t, q, self.robot)
+        return Jp
 
-    def _derivatives(self, t: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        qd = self._velocity(t, q)
-        _, pdot_d, pddot_d = self.path.evaluate(t)
-        _, J, Jdot = self._kinematics(q, qd)
-        x = pddot_d - self.settings.gamma * (J @ qd - pdot_d) - Jdot @ qd
-        if not self._redundant:
-            return qd, np.linalg.solve(J, x)
-        qdd = _solve_task(J, x, self.settings.damping)
-        if self.settings.posture_gain > 0:
-            z = -self.settings.posture_gain * qd
-            qdd += z - _solve_task(J, J @ z, self.settings.damping)
+    def _derivatives(self) -> tuple[np.ndarray, np.ndarray]:
+        """q̇_d (eq. 27) and q̈_d at the current (t, q_d)."""
+        model, data, fid = self.robot.model, self._data, self.robot.tip_id
+        q, gamma = self.q, self.settings.gamma
+        p, J = self._tip_and_jacobian(q)
+        Jp = self._pinv(J, q)
+        qd = Jp @ (self.pdot_d - gamma * (p - self.p_d))
+        N = None
+        if self._redundant and self.settings.posture_gain > 0:
+            N = self._eye - Jp @ J
+            qd += N @ (-self.settings.posture_gain * pin.difference(model, self.posture, q))
+        pin.forwardKinematics(model, data, q, qd, np.zeros(self.robot.nv))
+        Jdot_qd = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).linear
+        qdd = Jp @ (self.pddot_d - gamma * (J @ qd - self.pdot_d) - Jdot_qd)
+        if N is not None:
+            qdd += N @ (-self.settings.posture_gain * qd)
         return qd, qdd
 
     def advance(self, dt: float) -> None:
-        """Integrate q_d over one step dt [s] with RK4 and update q̇_d, q̈_d."""
-        model, t, q = self.robot.model, self.t, self.q
-        k1 = self._velocity(t, q)
-        k2 = self._velocity(t + dt / 2, pin.integrate(model, q, k1 * (dt / 2)))
-        k3 = self._velocity(t + dt / 2, pin.integrate(model, q, k2 * (dt / 2)))
-        k4 = self._velocity(t + dt, pin.integrate(model, q, k3 * dt))
-        self.q = pin.integrate(model, q, (k1 + 2 * k2 + 2 * k3 + k4) * (dt / 6))
-        self.t = t + dt
-        self.qd, self.qdd = self._derivatives(self.t, self.q)
+        """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction)."""
+        model = self.robot.model
+        self.t += dt
+        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
+        q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
+        p, J = self._tip_and_jacobian(q)
+        self.q = pin.integrate(model, q, self._pinv(J, q) @ (self.p_d - p))
+        self.qd, self.qdd = self._derivatives()
 
     def task_error(self) -> float:
         """‖k(q_d) − p_d‖ at the current time [m]."""
-        p, _ = self._kinematics(self.q)
-        return float(np.linalg.norm(p - self.path.position(self.t)))
+        p, _ = self._tip_and_jacobian(self.q)
+        return float(np.linalg.norm(p - self.p_d))

@@ -107,6 +107,7 @@ class Constraint:
             )
         self.surfaces: tuple[Surface, ...] = items
         self.normalization: Normalization = normalization
+        self._eyes: dict[int, np.ndarray] = {}
 
     @property
     def k(self) -> int:
@@ -128,6 +129,8 @@ class Constraint:
             SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
                 stacked rows are dependent.
         """
+        if self.k == 1:
+            return self._evaluate_one(terms, v)
         k = self.k
         n = terms.J.shape[1]
         p, J, Jdot, pdot = terms.p, terms.J, terms.Jdot, terms.pdot
@@ -206,6 +209,69 @@ class Constraint:
             raw_drift=raw_drift,
             drift=raw_drift * inv_s,
         )
+
+    def _evaluate_one(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+        """The k = 1 case of :meth:`evaluate`, with scalars instead of k×k algebra (hot path)."""
+        surface = self.surfaces[0]
+        p, J, pdot = terms.p, terms.J, terms.pdot
+        value, grad, hess = surface.evaluate(p)
+        grad_norm = float(np.sqrt(grad @ grad))
+        if grad_norm < _GRAD_TOL:
+            raise SingularConfigurationError(
+                f"∇Φ vanishes at tip position {p.tolist()} on surface 0 ({surface!r}): the "
+                "surface normal is undefined there (e.g. on a cylinder's axis or at a sphere's "
+                "centre)"
+            )
+        h_pdot = hess @ pdot
+        row = grad @ J
+        row_dot = h_pdot @ J + grad @ terms.Jdot
+        row_sq = float(row @ row)
+        row_norm = np.sqrt(row_sq)
+        if row_norm < _ROW_TOL * grad_norm * (1.0 + float(np.abs(J).max())):
+            raise SingularConfigurationError(
+                f"J_Φ is (near) zero for surface 0 ({surface!r}) at tip {p.tolist()}: the arm "
+                "cannot move its tip along the surface normal in this configuration, so J_Φn "
+                "is undefined"
+            )
+        if self.normalization == "tip":
+            scale = grad_norm
+            scale_dot = float(grad @ h_pdot) / grad_norm
+        else:
+            scale = row_norm
+            scale_dot = float(row @ row_dot) / row_norm
+        A = row / scale
+        Adot = row_dot / scale - row * (scale_dot / (scale * scale))
+        w = 1.0 / float(A @ A)
+        w_dot = -2.0 * w * w * float(Adot @ A)
+        A_pinv = A * w
+        A_pinv_dot = Adot * w + A * w_dot
+        outer = np.outer(A_pinv, A)
+        Q = self._eye(A.shape[0]) - outer
+        Qdot = -(np.outer(A_pinv_dot, A) + np.outer(A_pinv, Adot))
+        raw_drift = float(pdot @ h_pdot + grad @ terms.Jdot_v)
+        return ConstraintTerms(
+            phi=np.array([value]),
+            distance=np.array([surface.distance(p)]),
+            J_phi=row[None, :],
+            J_phi_n=(row / row_norm)[None, :],
+            scale=np.array([scale]),
+            A=A[None, :],
+            Adot=Adot[None, :],
+            A_pinv=A_pinv[:, None],
+            A_pinv_dot=A_pinv_dot[:, None],
+            Q=Q,
+            Qdot=Qdot,
+            rate=np.array([float(A @ v)]),
+            raw_drift=np.array([raw_drift]),
+            drift=np.array([raw_drift / scale]),
+        )
+
+    def _eye(self, n: int) -> np.ndarray:
+        eye = self._eyes.get(n)
+        if eye is None:
+            eye = self._eyes[n] = np.eye(n)
+            eye.flags.writeable = False
+        return eye
 
     def at(self, robot: Robot, q: object, v: object | None = None) -> ConstraintTerms:
         """Convenience: validate (q, v) and evaluate for ``robot`` (v defaults to zero)."""

@@ -96,7 +96,9 @@ def make_gains(
     elif K.shape == (n,):
         K = np.diag(K)
     elif K.shape != (n, n):
-        raise GainError(f"Kd must be a scalar, a vector of {n} or an {n}x{n} matrix, got shape {K.shape}")
+        raise GainError(
+            f"Kd must be a scalar, a vector of {n} or an {n}x{n} matrix, got shape {K.shape}"
+        )
     if not np.all(np.isfinite(K)):
         raise GainError(f"Kd has non-finite entries: {K.tolist()}")
     if not np.allclose(K, K.T, rtol=1e-12, atol=1e-12 * float(np.abs(K).max() + 1)):

@@ -16,7 +16,8 @@ The command may depend on f itself: u = u0 + B f (the hybrid law's algebraic loo
 solution is affine in the torque, f(τ) = f(u0) + L τ', so two (k + 1) calls of
 forwardDynamics resolve the loop exactly:
 
-    f = (I − L B)⁻¹ f(u0),    L B = [f(u0 + B e_j) − f(u0)]_j,    q̈ = q̈(u0) + [q̈(u0 + B e_j) − q̈(u0)] f.
+    f = (I − L B)⁻¹ f(u0),      L B = [f(u0 + B e_j) − f(u0)]_j,
+    q̈ = q̈(u0) + [q̈(u0 + B e_j) − q̈(u0)]_j f.
 
 Impacts: a plastic impact (restitution 0) at contact with the tool moving into the surface
 sets A q̇⁺ = 0 with ``pin.impulseDynamics``; the impulse [N·s] is in the same convention as f.
@@ -101,10 +102,7 @@ def constrained_acceleration(
         ddq_j = pin.forwardDynamics(model, data, u0 + B[:, j], A, gamma)
         DB[:, j] = ddq_j - ddq0
         LB[:, j] = data.lambda_c - f0
-    if k == 1:
-        f = f0 / (1.0 - LB[0, 0])
-    else:
-        f = np.linalg.solve(np.eye(k) - LB, f0)
+    f = f0 / (1.0 - LB[0, 0]) if k == 1 else np.linalg.solve(np.eye(k) - LB, f0)
     return ddq0 + DB @ f, f
 
 

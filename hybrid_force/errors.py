@@ -28,8 +28,8 @@ __all__ = [
     "SingularConfigurationError",
     "SurfaceError",
     "SurfaceParameterError",
-    "UnknownRobotError",
     "URDFError",
+    "UnknownRobotError",
     "ViewerError",
     "did_you_mean",
 ]

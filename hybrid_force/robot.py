@@ -91,6 +91,7 @@ class Robot:
             )
         self.tip = tip
         self.tip_id = model.getFrameId(tip)
+        self._lower = np.tril_indices(model.nv, -1)
 
     # --- sizes and validation ------------------------------------------------
     @property
@@ -173,7 +174,8 @@ class Robot:
         p = pin.updateFramePlacement(model, data, self.tip_id).translation.copy()
         J = pin.getFrameJacobian(model, data, self.tip_id, _LWA)[:3].copy()
         Jdot = pin.getFrameJacobianTimeVariation(model, data, self.tip_id, _LWA)[:3].copy()
-        M = _symmetrize(pin.crba(model, data, q))
+        M = pin.crba(model, data, q).copy()
+        M[self._lower] = M.T[self._lower]
         C = pin.computeCoriolisMatrix(model, data, q, v).copy()
         g = pin.computeGeneralizedGravity(model, data, q).copy()
         nle = C @ v + g

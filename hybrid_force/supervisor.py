@@ -52,7 +52,7 @@ from hybrid_force.errors import ControlError, GainError
 from hybrid_force.paths import Path
 from hybrid_force.robot import Robot, RobotTerms
 
-__all__ = ["FREE", "NEAR", "CONTACT", "ControlSettings", "HybridController", "PHASE_NAMES"]
+__all__ = ["CONTACT", "FREE", "NEAR", "PHASE_NAMES", "ControlSettings", "HybridController"]
 
 FREE, NEAR, CONTACT = 0, 1, 2
 PHASE_NAMES = ("free", "near", "contact")
@@ -219,7 +219,12 @@ class HybridController:
 
     # ------------------------------------------------------------------ one step
     def command(
-        self, t: float, q: np.ndarray, v: np.ndarray, terms: RobotTerms, cons: ConstraintTerms | None
+        self,
+        t: float,
+        q: np.ndarray,
+        v: np.ndarray,
+        terms: RobotTerms,
+        cons: ConstraintTerms | None,
     ) -> Command:
         """The command for the state (q, v) at time t.
 
@@ -284,7 +289,8 @@ class HybridController:
         ):
             st.branch_reported = True
             msg = (
-                f"task-space error {err:.3g} m has not decreased for {t - st.best_error_time:.3g} s "
+                f"task-space error {err:.3g} m has not decreased for "
+                f"{t - st.best_error_time:.3g} s "
                 "in contact: the projection Q removes every error along the surface normal, so "
                 "the arm is probably on another inverse-kinematics branch than q_d and the hybrid "
                 "law cannot bring it back (change the start configuration or the gains)"
