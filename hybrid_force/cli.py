@@ -2,6 +2,12 @@
 
 Subcommands:
 
+* ``run SCENARIO``: load a scenario file (with ``--set table.key=value`` overrides), simulate
+  it, print a short summary, write ``DIR/result.npz`` and ``DIR/summary.json`` (and with
+  ``--plot`` the figures, ``--html`` a 3D replay, ``--view`` a live viewer).
+* ``plot FILE``: the figures of a saved run (``.npz``) or a plot of a sweep (``.csv``).
+* ``replay RESULT.npz``: the 3D replay of a saved run (hybrid_force.replay).
+* ``sweep SCENARIO ...``: a parameter sweep (hybrid_force.sweep defines its options).
 * ``robots``: list the robot models known by name, with joint count, default tip frame and
   source.
 
@@ -15,11 +21,21 @@ functions, so ``--help`` stays fast.
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
+import tempfile
+import time
 from collections.abc import Callable, Sequence
-from typing import NoReturn
+from pathlib import Path
+from typing import Any, NoReturn, TextIO
 
-from hybrid_force.errors import BadInputError, SimulationError
+from hybrid_force.errors import (
+    BadInputError,
+    DivergenceError,
+    HybridForceError,
+    SimulationError,
+)
 
 __all__ = ["build_parser", "main"]
 
@@ -42,6 +58,228 @@ def _cmd_robots(args: argparse.Namespace) -> int:
     return 0
 
 
+class FeatureUnavailableError(HybridForceError):
+    """A subcommand's module (e.g. hybrid_force.replay) is not installed in this checkout."""
+
+
+def _import_feature(module: str, feature: str) -> Any:
+    """Import ``module`` for ``feature``; FeatureUnavailableError if the module is missing."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name == module:
+            raise FeatureUnavailableError(
+                f"{feature} is not available: the module {module} is missing from this install"
+            ) from None
+        raise
+
+
+class _Progress:
+    """A one-line text progress bar with ETA on a terminal stream (shown after 1 s)."""
+
+    WIDTH = 30
+
+    def __init__(self, stream: TextIO, label: str, delay: float = 1.0) -> None:
+        self.stream = stream
+        self.label = label
+        self.delay = delay
+        self.start = time.perf_counter()
+        self.shown = False
+        self.length = 0
+
+    def __call__(self, fraction: float) -> None:
+        elapsed = time.perf_counter() - self.start
+        if elapsed < self.delay:
+            return
+        fraction = min(max(float(fraction), 0.0), 1.0)
+        filled = round(self.WIDTH * fraction)
+        eta = elapsed * (1.0 - fraction) / fraction if fraction > 0 else float("nan")
+        eta_text = f"ETA {eta:5.0f} s" if eta == eta else "ETA     ? s"
+        line = (
+            f"\r{self.label} [{'#' * filled}{'.' * (self.WIDTH - filled)}] "
+            f"{100 * fraction:3.0f}%  {eta_text}"
+        )
+        self.length = max(self.length, len(line))
+        self.stream.write(line)
+        self.stream.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        """Erase the bar (the summary follows on stdout)."""
+        if self.shown:
+            self.stream.write("\r" + " " * self.length + "\r")
+            self.stream.flush()
+            self.shown = False
+
+
+def _write_json_atomic(data: Any, path: Path) -> None:
+    """Write ``data`` as JSON to ``path`` via a temporary file and os.replace."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(data, fh, indent=2, allow_nan=False)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _output_dir(text: str | os.PathLike[str]) -> Path:
+    out = Path(text)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BadInputError(f"cannot create output directory {str(out)!r}: {exc}") from None
+    return out
+
+
+def _save(result: Any, out: Path) -> dict[str, Any]:
+    """Write out/result.npz and out/summary.json; return the summary."""
+    try:
+        result.save(out / "result.npz")
+        summary = result.summary()
+        _write_json_atomic(summary, out / "summary.json")
+    except OSError as exc:
+        raise BadInputError(f"cannot write the results into {str(out)!r}: {exc}") from None
+    return summary
+
+
+def _num(x: object, unit: str, fmt: str = ".3g") -> str:
+    return "-" if x is None else f"{format(float(x), fmt)} {unit}"  # type: ignore[arg-type]
+
+
+def _print_summary(summary: dict[str, Any], out: Path, stream: TextIO) -> None:
+    """A few lines for humans: errors, contact, impact, speed, where the files are."""
+    settle = summary.get("settle_time")
+    sps = summary.get("steps_per_second")
+    lines = [
+        f"{summary.get('name')}: {summary.get('status')}, {summary.get('n_samples')} samples, "
+        f"{_num(sps, 'steps/s', '.0f')}",
+        f"  position error: final {_num(summary.get('final_position_error'), 'm')}, "
+        f"worst {_num(summary.get('position_error_max'), 'm')}, "
+        f"worst after t = {settle:g} s {_num(summary.get('position_error_max_settled'), 'm')}",
+        f"  force error |f - f_d|: final {_num(summary.get('final_force_error'), 'N')}, "
+        f"worst after t = {settle:g} s {_num(summary.get('force_error_max_settled'), 'N')}",
+        f"  contact at t = {_num(summary.get('contact_time'), 's', '.4g')}, "
+        f"impact speed {_num(summary.get('impact_speed'), 'm/s')}, "
+        f"worst distance in contact {_num(summary.get('worst_constraint_violation'), 'm')}",
+        f"  wrote {out / 'result.npz'} and {out / 'summary.json'}",
+    ]
+    print("\n".join(lines), file=stream)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    """Load, run, summarise and save a scenario (see the module docstring)."""
+    from hybrid_force.scenario import load_scenario, parse_override
+    from hybrid_force.simulate import simulate
+
+    overrides: dict[str, object] = {}
+    for text in args.set or []:
+        key, value = parse_override(text)
+        overrides[key] = value
+    scenario = load_scenario(args.scenario, overrides)
+    out = _output_dir(args.out if args.out is not None else Path("runs") / scenario.name)
+    show = not args.quiet and sys.stderr.isatty()
+    progress = _Progress(sys.stderr, scenario.name) if show else None
+    try:
+        result = simulate(scenario, progress=progress)
+    except DivergenceError as exc:
+        if progress is not None:
+            progress.close()
+        if exc.result is not None:
+            _save(exc.result, out)
+            if args.plot:
+                _plot_result(exc.result, out, quiet=True)
+            where = f" (partial result saved in {out / 'result.npz'})"
+        else:
+            where = ""
+        print(f"error: run failed: {_one_line(exc)}{where}", file=sys.stderr)
+        return 1
+    finally:
+        if progress is not None:
+            progress.close()
+    summary = _save(result, out)
+    if not args.quiet:
+        _print_summary(summary, out, sys.stdout)
+    if args.plot:
+        _plot_result(result, out, quiet=args.quiet)
+    if args.html is not None:
+        replay = _import_feature("hybrid_force.replay", "the 3D replay (--html)")
+        replay.write_html(result, args.html)
+        if not args.quiet:
+            print(f"  wrote {args.html}")
+    if args.view:
+        replay = _import_feature("hybrid_force.replay", "the 3D viewer (--view)")
+        replay.serve(result)
+    return 0
+
+
+def _plot_result(result: Any, out: Path, *, quiet: bool) -> list[Path]:
+    from hybrid_force.plots import plot_result
+
+    files = plot_result(result, out)
+    if not quiet:
+        print(f"  wrote {len(files)} figures: {', '.join(str(f) for f in files)}")
+    return files
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    """Figures of a saved run (.npz) or a sweep plot (.csv)."""
+    path = Path(args.file)
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        if args.x is not None or args.y is not None or args.metric is not None:
+            raise BadInputError(
+                f"--x, --y and --metric apply to a sweep CSV, not to a run result ({path})"
+            )
+        from hybrid_force.result import Result
+
+        result = Result.load(path)
+        out = _output_dir(args.out if args.out is not None else path.parent)
+        _plot_result(result, out, quiet=False)
+        return 0
+    if suffix == ".csv":
+        if args.x is None or args.metric is None:
+            raise BadInputError(
+                f"plotting the sweep {path} needs --x <table.key> and --metric <name> "
+                "(and optionally --y <table.key> for a heat map)"
+            )
+        from hybrid_force.plots import plot_sweep
+
+        out = _output_dir(args.out if args.out is not None else path.parent)
+        ys = f"_{args.y}" if args.y is not None else ""
+        png = out / f"{path.stem}_{args.metric}_vs_{args.x}{ys}.png"
+        written = plot_sweep(path, png, x=args.x, y=args.y, metric=args.metric)
+        print(f"wrote {written}")
+        return 0
+    raise BadInputError(
+        f"cannot plot {str(path)!r}: expected a run result (.npz) or a sweep table (.csv)"
+    )
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    """3D replay of a saved run (delegated to hybrid_force.replay)."""
+    replay = _import_feature("hybrid_force.replay", "the 3D replay")
+    return int(replay.replay_command(args))
+
+
+def _cmd_sweep_missing(args: argparse.Namespace) -> int:
+    _import_feature("hybrid_force.sweep", "the sweep command")
+    raise FeatureUnavailableError("the sweep command is not available")  # pragma: no cover
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    """A parameter sweep (delegated to hybrid_force.sweep)."""
+    sweep = _import_feature("hybrid_force.sweep", "the sweep command")
+    return int(sweep.sweep_command(args))
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line ``error: ...`` (exit status 2)."""
 
@@ -49,8 +287,12 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message} (see '{self.prog} --help')\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every subcommand (each sets ``handler``)."""
+def build_parser(*, sweep_options: bool = True) -> argparse.ArgumentParser:
+    """The argument parser with every subcommand (each sets ``handler``).
+
+    sweep_options: let hybrid_force.sweep add the options of ``sweep`` (imports that module;
+    :func:`main` does so only when the command is ``sweep``, so ``--help`` stays fast).
+    """
     parser = _Parser(
         prog="hybrid-force",
         description="Hybrid position-force control of robot arms on known rigid surfaces.",
@@ -63,14 +305,98 @@ def build_parser() -> argparse.ArgumentParser:
         description="List the robot models known by name (joint count, default tip, source).",
     )
     robots.set_defaults(handler=_cmd_robots)
+    _add_run(sub)
+    _add_plot(sub)
+    _add_replay(sub)
+    _add_sweep(sub, sweep_options)
     return parser
+
+
+def _add_run(sub: Any) -> None:
+    run = sub.add_parser(
+        "run",
+        help="run a scenario file and save its result",
+        description=(
+            "Load a scenario file (TOML, see docs/scenarios.md), simulate it, print a short "
+            "summary and write DIR/result.npz and DIR/summary.json. Exit status: 0 ok, "
+            "1 the run failed (its partial result is saved), 2 bad input."
+        ),
+    )
+    run.add_argument("scenario", metavar="SCENARIO", help="scenario file (.toml)")
+    run.add_argument(
+        "--out", metavar="DIR", default=None, help="output folder (default: runs/<name>/)"
+    )
+    run.add_argument(
+        "--set",
+        metavar="TABLE.KEY=VALUE",
+        action="append",
+        default=[],
+        help="override a key of the file (TOML value), e.g. --set sim.duration=2; repeatable",
+    )
+    run.add_argument("--plot", action="store_true", help="also write the figures (PNG) into DIR")
+    run.add_argument("--html", metavar="FILE", default=None, help="write a 3D replay (HTML)")
+    run.add_argument("--view", action="store_true", help="open the 3D viewer after the run")
+    run.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    run.set_defaults(handler=_cmd_run)
+
+
+def _add_plot(sub: Any) -> None:
+    plot = sub.add_parser(
+        "plot",
+        help="figures of a saved run (.npz) or of a sweep (.csv)",
+        description=(
+            "FILE.npz (a run): the paper's figures as PNGs. FILE.csv (a sweep): a metric "
+            "against one swept parameter (--x), or a heat map over two (--x and --y)."
+        ),
+    )
+    plot.add_argument("file", metavar="FILE", help="result.npz of a run, or a sweep .csv")
+    plot.add_argument(
+        "--out", metavar="DIR", default=None, help="output folder (default: FILE's folder)"
+    )
+    plot.add_argument("--x", metavar="TABLE.KEY", default=None, help="sweep: x parameter")
+    plot.add_argument("--y", metavar="TABLE.KEY", default=None, help="sweep: y parameter")
+    plot.add_argument("--metric", metavar="NAME", default=None, help="sweep: metric column")
+    plot.set_defaults(handler=_cmd_plot)
+
+
+def _add_replay(sub: Any) -> None:
+    replay = sub.add_parser(
+        "replay",
+        help="3D replay of a saved run",
+        description="Replay a saved run in 3D: in the browser, or as a self-contained HTML file.",
+    )
+    replay.add_argument("result", metavar="RESULT.npz", help="result file of a run")
+    replay.add_argument("--html", metavar="FILE", default=None, help="write an HTML file")
+    replay.add_argument("--port", metavar="N", type=int, default=None, help="viewer port")
+    replay.set_defaults(handler=_cmd_replay)
+
+
+def _add_sweep(sub: Any, with_options: bool) -> None:
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a scenario over a grid of parameter values",
+        description="Run a scenario over a grid of parameter values and write a CSV table.",
+    )
+    if not with_options:
+        sweep.set_defaults(handler=_cmd_sweep)
+        return
+    try:
+        module = _import_feature("hybrid_force.sweep", "the sweep command")
+    except FeatureUnavailableError:
+        sweep.add_argument("args", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+        sweep.set_defaults(handler=_cmd_sweep_missing)
+        return
+    module.add_sweep_arguments(sweep)
+    sweep.set_defaults(handler=_cmd_sweep)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status (0 ok, 1 run-time failure, 2 bad input)."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(sweep_options=command == "sweep")
     try:
-        args = parser.parse_args(None if argv is None else list(argv))
+        args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0) or a usage error (2, already printed)
         return exc.code if isinstance(exc.code, int) else 0
     handler: Handler = args.handler
@@ -79,9 +405,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BadInputError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    except SimulationError as exc:
+    except (SimulationError, FeatureUnavailableError) as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
 
 
 def _one_line(exc: BaseException) -> str:

@@ -1,0 +1,757 @@
+"""Scenario files: one TOML file describes one run (robot, surfaces, path, start, gains, sim).
+
+:func:`load_scenario` reads a file, applies ``--set``-style overrides, validates every table
+and key, and returns the :class:`hybrid_force.simulate.Scenario` that
+:func:`hybrid_force.simulate.simulate` runs. The format is documented in docs/scenarios.md.
+
+Validation is done up front so a bad file fails in milliseconds, not after a long run. Every
+problem raises :class:`~hybrid_force.errors.ScenarioError` whose message names the file, the
+``table.key`` and the offending value, e.g.::
+
+    scenarios/x.toml: surface.radius = "0.4": must be a number [m], got a string
+
+Checked: TOML syntax (with tomllib's line and column), unknown tables and keys (with a
+did-you-mean), missing required keys, types and shapes, parameter ranges (by the constructors
+of the surfaces, paths and settings), the desired path lying on every surface over
+[0, sim.duration] (within 1e-6 m), the start in reach (inverse kinematics), the start on the
+surface when the run starts in contact (``control.supervisor = false``), and the gains.
+
+No Python code or expression is ever evaluated: values are plain TOML data, and a string
+where a number is expected is an error, whatever it contains.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hybrid_force.errors import (
+    BadInputError,
+    FrameError,
+    ReachError,
+    RobotError,
+    ScenarioError,
+    did_you_mean,
+)
+
+__all__ = ["ON_SURFACE_TOL", "load_scenario", "parse_override"]
+
+ON_SURFACE_TOL = 1e-6
+"""Largest |d| [m] of the desired path from a surface over [0, duration] accepted."""
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
+
+
+# --- schema --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Key:
+    """One key of a table: its kind of value and whether it is required.
+
+    kinds: "str", "number", "bool", "vec3" (3 numbers), "vector" (a list of numbers),
+    "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
+    "choice" (one of ``choices``).
+    """
+
+    kind: str
+    required: bool = False
+    choices: tuple[str, ...] = ()
+
+
+_TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
+_TABLES = ("robot", "surface", "surfaces", "trajectory", "initial", "control", "sim")
+
+_ROBOT: dict[str, _Key] = {"model": _Key("str", True), "tip": _Key("str")}
+
+_SURFACE_TYPES = ("cylinder", "sphere", "plane")
+_SURFACE: dict[str, dict[str, _Key]] = {
+    "cylinder": {
+        "radius": _Key("number", True),
+        "center": _Key("vec3"),
+        "axis": _Key("vec3"),
+        "inside": _Key("bool"),
+    },
+    "sphere": {"radius": _Key("number", True), "center": _Key("vec3"), "inside": _Key("bool")},
+    "plane": {"point": _Key("vec3", True), "normal": _Key("vec3", True)},
+}
+
+_PATH_TYPES = ("helix", "circle")
+_TRAJECTORY: dict[str, dict[str, _Key]] = {
+    "helix": {
+        "center": _Key("vec3", True),
+        "radius": _Key("number", True),
+        "axis": _Key("vec3"),
+        "omega": _Key("number", True),
+        "rise": _Key("number", True),
+        "phase": _Key("number"),
+    },
+    "circle": {
+        "center": _Key("vec3", True),
+        "radius": _Key("number", True),
+        "normal": _Key("vec3", True),
+        "omega": _Key("number", True),
+        "phase": _Key("number"),
+    },
+}
+
+_INITIAL: dict[str, _Key] = {
+    "tip": _Key("vec3"),
+    "seed": _Key("vector"),
+    "q": _Key("vector"),
+    "v": _Key("vector"),
+}
+
+_CONTROL: dict[str, _Key] = {
+    "Kd": _Key("matrix"),
+    "kd_rate": _Key("number"),
+    "Lambda": _Key("number"),
+    "beta": _Key("number"),
+    "gamma": _Key("number"),
+    "f_d": _Key("number_or_vector"),
+    "clik_gain": _Key("number"),
+    "max_dist": _Key("number"),
+    "contact_tol": _Key("number"),
+    "P": _Key("number"),
+    "approach_rate": _Key("number"),
+    "supervisor": _Key("bool"),
+}
+
+_SIM: dict[str, _Key] = {
+    "duration": _Key("number"),
+    "dt": _Key("number"),
+    "integrator": _Key("choice", choices=("euler", "rk4")),
+    "baumgarte_alpha": _Key("number"),
+    "baumgarte_beta": _Key("number"),
+    "model_mass_factor": _Key("number"),
+    "settle_time": _Key("number"),
+    "unilateral": _Key("bool"),
+    "normalization": _Key("choice", choices=("tip", "joint")),
+}
+
+
+# --- messages ------------------------------------------------------------------------------------
+def _fmt(value: object) -> str:
+    """A value as it would be written in TOML (JSON is close enough), shortened."""
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= 100 else text[:97] + "..."
+
+
+def _type_name(value: object) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (int, float)):
+        return "a number"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, list):
+        return "an array"
+    if isinstance(value, dict):
+        return "a table"
+    return f"a {type(value).__name__}"
+
+
+class _Context:
+    """Builds error messages for one file: ``<file>: <table.key> = <value>: <problem>``."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+
+    def error(self, key: str, value: object, problem: str) -> ScenarioError:
+        return ScenarioError(f"{self.file}: {key} = {_fmt(value)}: {problem}")
+
+    def table_error(self, key: str, problem: str) -> ScenarioError:
+        return ScenarioError(f"{self.file}: {key}: {problem}")
+
+
+# --- overrides -----------------------------------------------------------------------------------
+def parse_override(text: str) -> tuple[str, object]:
+    """Split ``"table.key=value"`` into ``("table.key", value)``.
+
+    The value is parsed as a TOML value (``tomllib.loads(f"v = {value}")``), so ``0.5``,
+    ``1e-3``, ``true``, ``[1, 2, 3]`` and ``"text"`` have their TOML types; anything that is
+    not valid TOML (``rk4``, ``__import__('os')``) stays the raw string. Nothing is evaluated.
+
+    Raises ScenarioError when there is no ``=`` or the key is empty.
+    """
+    if not isinstance(text, str) or "=" not in text:
+        raise ScenarioError(f"override {text!r} must look like table.key=value (e.g. sim.dt=1e-3)")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key or any(not part for part in key.split(".")):
+        raise ScenarioError(f"override {text!r} has an empty key; use table.key=value")
+    raw = raw.strip()
+    try:
+        value: object = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value
+
+
+def _apply_overrides(doc: dict[str, Any], overrides: Mapping[str, object], ctx: _Context) -> None:
+    """Set ``doc[table][key] = value`` for each ``"table.key"`` (in place).
+
+    ``"name"`` sets a top-level key; ``"surfaces.<i>.key"`` a key of the i-th [[surfaces]].
+    A missing table is created (validation then reports it if it is unknown).
+    """
+    for dotted, value in overrides.items():
+        parts = str(dotted).split(".")
+        node: Any = doc
+        where: list[str] = []
+        for part in parts[:-1]:
+            where.append(part)
+            if isinstance(node, list):
+                if not part.isdigit() or int(part) >= len(node):
+                    raise ctx.table_error(
+                        ".".join(where),
+                        f"override {dotted!r}: index {part!r} is not one of "
+                        f"0..{len(node) - 1} of this array of tables",
+                    )
+                node = node[int(part)]
+                continue
+            if not isinstance(node, dict):
+                raise ctx.table_error(
+                    ".".join(where[:-1]), f"override {dotted!r}: this is not a table"
+                )
+            node = node.setdefault(part, {})
+        if not isinstance(node, dict):
+            raise ctx.table_error(".".join(where), f"override {dotted!r}: this is not a table")
+        node[parts[-1]] = value
+
+
+# --- type checks ---------------------------------------------------------------------------------
+def _is_number(x: object) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
+    """Check one value against its spec; return it as Python data (floats for numbers)."""
+    kind = spec.kind
+    if kind == "str":
+        if not isinstance(value, str):
+            raise ctx.error(key, value, f"must be a string, got {_type_name(value)}")
+        return value
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ctx.error(key, value, f"must be true or false, got {_type_name(value)}")
+        return value
+    if kind == "choice":
+        if not isinstance(value, str) or value not in spec.choices:
+            hint = did_you_mean(value, spec.choices) if isinstance(value, str) else ""
+            raise ctx.error(key, value, f"must be one of {list(spec.choices)}{hint}")
+        return value
+    if kind == "number":
+        return _number(ctx, key, value)
+    if kind == "vec3":
+        vec = _vector(ctx, key, value, "3 numbers")
+        if len(vec) != 3:
+            raise ctx.error(key, value, f"must be 3 numbers [x, y, z], got {len(vec)}")
+        return vec
+    if kind == "vector":
+        return _vector(ctx, key, value, "an array of numbers")
+    if kind == "number_or_vector":
+        if _is_number(value) or isinstance(value, bool):
+            return _number(ctx, key, value)
+        return _vector(ctx, key, value, "a number or an array of numbers")
+    if kind == "matrix":
+        if isinstance(value, list) and value and all(isinstance(r, list) for r in value):
+            rows = [_vector(ctx, key, r, "a matrix (array of arrays of numbers)") for r in value]
+            if len({len(r) for r in rows}) != 1:
+                raise ctx.error(key, value, "the rows of the matrix have different lengths")
+            return rows
+        if isinstance(value, list):
+            return _vector(ctx, key, value, "a number, an array or a matrix of numbers")
+        return _number(ctx, key, value)
+    raise AssertionError(kind)  # pragma: no cover
+
+
+def _number(ctx: _Context, key: str, value: object) -> float:
+    if isinstance(value, bool):
+        raise ctx.error(key, value, "must be a number, got a boolean")
+    if not _is_number(value):
+        raise ctx.error(key, value, f"must be a number, got {_type_name(value)}")
+    out = float(value)  # type: ignore[arg-type]
+    if not math.isfinite(out):
+        raise ctx.error(key, value, "must be a finite number")
+    return out
+
+
+def _vector(ctx: _Context, key: str, value: object, what: str) -> list[float]:
+    if not isinstance(value, list):
+        raise ctx.error(key, value, f"must be {what}, got {_type_name(value)}")
+    out: list[float] = []
+    for i, x in enumerate(value):
+        if isinstance(x, bool) or not _is_number(x):
+            raise ctx.error(key, value, f"must be {what}; element {i} is {_type_name(x)}")
+        xf = float(x)
+        if not math.isfinite(xf):
+            raise ctx.error(key, value, f"must be {what}; element {i} is not finite")
+        out.append(xf)
+    return out
+
+
+def _check_table(
+    ctx: _Context, name: str, table: object, schema: Mapping[str, _Key]
+) -> dict[str, Any]:
+    """Check a table's keys (unknown, missing) and values; return the checked values."""
+    if not isinstance(table, dict):
+        raise ctx.error(name, table, f"must be a table [{name}], got {_type_name(table)}")
+    prefix = f"{name}." if name else ""
+    label = f"[{name}]" if name else "the top level"
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        if key not in schema:
+            raise ctx.error(
+                f"{prefix}{key}",
+                value,
+                f"unknown key{did_you_mean(key, schema)}; valid keys of {label}: "
+                f"{', '.join(schema)}",
+            )
+        out[key] = _check_value(ctx, f"{prefix}{key}", value, schema[key])
+    for key, spec in schema.items():
+        if spec.required and key not in table:
+            raise ctx.table_error(
+                f"{prefix}{key}",
+                f"missing required key; {label} has {_fmt(sorted(table))}, required: "
+                f"{', '.join(k for k, s in schema.items() if s.required)}",
+            )
+    return out
+
+
+def _typed_table(
+    ctx: _Context, name: str, table: object, types: Mapping[str, Mapping[str, _Key]]
+) -> tuple[str, dict[str, Any]]:
+    """A table with a ``type`` key selecting its schema; returns (type, checked values)."""
+    if not isinstance(table, dict):
+        raise ctx.error(name, table, f"must be a table, got {_type_name(table)}")
+    if "type" not in table:
+        raise ctx.table_error(
+            f"{name}.type", f"missing required key; valid types: {', '.join(types)}"
+        )
+    kind = table["type"]
+    if not isinstance(kind, str) or kind not in types:
+        hint = did_you_mean(kind, types) if isinstance(kind, str) else ""
+        raise ctx.error(
+            f"{name}.type", kind, f"unknown type{hint}; valid types: {', '.join(types)}"
+        )
+    rest = {k: v for k, v in table.items() if k != "type"}
+    schema = types[kind]
+    for key in rest:
+        if key not in schema:
+            raise ctx.error(
+                f"{name}.{key}",
+                rest[key],
+                f"unknown key for a {kind}{did_you_mean(key, schema)}; valid keys: type, "
+                f"{', '.join(schema)}",
+            )
+    return kind, _check_table(ctx, name, rest, schema)
+
+
+def _wrap(
+    ctx: _Context, table: str, values: Mapping[str, Any], exc: BaseException
+) -> ScenarioError:
+    """Re-raise a constructor's BadInputError naming the file and the key it is about."""
+    message = " ".join(str(exc).split())
+    for key in sorted(values, key=len, reverse=True):
+        if re.search(rf"(?<![A-Za-z_]){re.escape(key)}(?![A-Za-z_])", message):
+            return ctx.error(f"{table}.{key}", values[key], message)
+    shown = ", ".join(f"{table}.{k} = {_fmt(v)}" for k, v in values.items())
+    return ScenarioError(f"{ctx.file}: {shown or table}: {message}")
+
+
+# --- the loader ----------------------------------------------------------------------------------
+def _read(path: Path, ctx: _Context) -> dict[str, Any]:
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise ScenarioError(f"scenario file not found: {ctx.file}") from None
+    except OSError as exc:
+        raise ScenarioError(f"cannot read scenario file {ctx.file}: {exc}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{ctx.file}: not UTF-8 text ({exc})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{ctx.file}: TOML syntax error: {exc}") from None
+
+
+def load_scenario(
+    path: str | Path, overrides: Mapping[str, object] | None = None
+) -> Any:  # -> hybrid_force.simulate.Scenario
+    """Read, override, validate a scenario file and return a ``Scenario`` ready to simulate.
+
+    Args:
+        path: the TOML file (format: docs/scenarios.md).
+        overrides: ``{"table.key": value}`` (e.g. from :func:`parse_override`), applied to
+            the file's data before validation; they replace or add keys.
+
+    Returns:
+        :class:`hybrid_force.simulate.Scenario` with ``source`` = the file's data with the
+        overrides applied (JSON-able).
+
+    Raises:
+        ScenarioError: any problem with the file; the message names the file, the
+            ``table.key`` and the value.
+    """
+    file = Path(path)
+    ctx = _Context(str(path))
+    doc = _read(file, ctx)
+    if overrides:
+        _apply_overrides(doc, overrides, ctx)
+    return _build(doc, file, ctx)
+
+
+def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
+    from hybrid_force.simulate import Scenario
+
+    for key, value in doc.items():
+        if key not in _TOP and key not in _TABLES:
+            raise ctx.error(
+                key,
+                value,
+                f"unknown top-level key or table{did_you_mean(key, [*_TOP, *_TABLES])}; valid: "
+                f"{', '.join([*_TOP, *_TABLES])}",
+            )
+    top = _check_table(ctx, "", {k: v for k, v in doc.items() if k in _TOP}, _TOP)
+    name = top["name"]
+    if not _NAME_RE.match(name):
+        raise ctx.error(
+            "name",
+            name,
+            "must be a simple name (letters, digits, '_', '-', '.'; not starting with '.'): "
+            "it names the output folder runs/<name>/",
+        )
+    for table in ("robot", "trajectory", "initial"):
+        if table not in doc:
+            raise ctx.table_error(f"[{table}]", "missing required table")
+
+    robot = _robot(doc["robot"], file, ctx)
+    surfaces, surface_tables = _surfaces(doc, ctx)
+    path, traj = _trajectory(doc["trajectory"], ctx)
+    control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
+    sim_values = _check_table(ctx, "sim", doc.get("sim", {}), _SIM)
+    sim = _sim_settings(sim_values, ctx)
+    control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
+    _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
+    q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
+    _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
+    _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx)
+    return Scenario(
+        robot=robot,
+        surfaces=surfaces,
+        path=path,
+        q0=q0,
+        v0=v0,
+        control=control,
+        sim=sim,
+        name=name,
+        description=top.get("description", ""),
+        source=json.loads(json.dumps(doc)),
+    )
+
+
+def _robot(table: object, file: Path, ctx: _Context) -> Any:
+    from hybrid_force.robot import load_robot
+
+    values = _check_table(ctx, "robot", table, _ROBOT)
+    model: str = values["model"]
+    target: str | Path = model
+    if model.endswith(".urdf") or "/" in model or "\\" in model:
+        candidate = Path(model)
+        target = candidate if candidate.is_absolute() else file.parent / candidate
+        if not Path(target).is_file():
+            raise ctx.error(
+                "robot.model",
+                model,
+                f"URDF file not found (paths are relative to the scenario file): {target}",
+            )
+    try:
+        return load_robot(target, tip=values.get("tip"))
+    except FrameError as exc:
+        raise ctx.error("robot.tip", values.get("tip"), " ".join(str(exc).split())) from None
+    except RobotError as exc:
+        raise ctx.error("robot.model", model, " ".join(str(exc).split())) from None
+
+
+def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
+    from hybrid_force.surfaces import Cylinder, Plane, Sphere
+
+    if "surface" in doc and "surfaces" in doc:
+        raise ctx.table_error(
+            "surface, surfaces", "give either one [surface] table or [[surfaces]], not both"
+        )
+    if "surface" in doc:
+        tables = [("surface", doc["surface"])]
+    elif "surfaces" in doc:
+        items = doc["surfaces"]
+        if not isinstance(items, list) or not items:
+            raise ctx.error("surfaces", items, "must be a non-empty array of tables [[surfaces]]")
+        tables = [(f"surfaces.{i}", t) for i, t in enumerate(items)]
+    else:
+        raise ctx.table_error("[surface]", "missing required table ([surface] or [[surfaces]])")
+    surfaces: list[Any] = []
+    checked: list[tuple[str, dict]] = []
+    for name, table in tables:
+        kind, values = _typed_table(ctx, name, table, _SURFACE)
+        try:
+            if kind == "cylinder":
+                s = Cylinder(
+                    values["radius"],
+                    values.get("center", [0.0, 0.0, 0.0]),
+                    values.get("axis", [0.0, 0.0, 1.0]),
+                    inside=values.get("inside", False),
+                )
+            elif kind == "sphere":
+                s = Sphere(
+                    values["radius"],
+                    values.get("center", [0.0, 0.0, 0.0]),
+                    inside=values.get("inside", False),
+                )
+            else:
+                s = Plane(values["point"], values["normal"])
+        except BadInputError as exc:
+            raise _wrap(ctx, name, values, exc) from None
+        surfaces.append(s)
+        checked.append((name, {"type": kind, **values}))
+    return surfaces, checked
+
+
+def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
+    from hybrid_force.paths import Circle, Helix
+
+    kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
+    try:
+        if kind == "helix":
+            path = Helix(
+                values["center"],
+                values["radius"],
+                axis=values.get("axis", [0.0, 0.0, 1.0]),
+                omega=values["omega"],
+                rise=values["rise"],
+                phase=values.get("phase", 0.0),
+            )
+        else:
+            path = Circle(
+                values["center"],
+                values["radius"],
+                values["normal"],
+                values["omega"],
+                phase=values.get("phase", 0.0),
+            )
+    except BadInputError as exc:
+        raise _wrap(ctx, "trajectory", values, exc) from None
+    return path, {"type": kind, **values}
+
+
+def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
+    from hybrid_force.dynamics import Baumgarte
+    from hybrid_force.simulate import SimSettings
+
+    for key in ("baumgarte_alpha", "baumgarte_beta", "settle_time"):
+        if key in values and values[key] < 0:
+            raise ctx.error(f"sim.{key}", values[key], "must be >= 0")
+    for key in ("duration", "dt", "model_mass_factor"):
+        if key in values and values[key] <= 0:
+            raise ctx.error(f"sim.{key}", values[key], "must be > 0")
+    defaults = Baumgarte()
+    kwargs: dict[str, Any] = {
+        k: values[k]
+        for k in ("duration", "dt", "integrator", "settle_time", "unilateral", "normalization")
+        if k in values
+    }
+    kwargs["baumgarte"] = Baumgarte(
+        alpha=values.get("baumgarte_alpha", defaults.alpha),
+        beta=values.get("baumgarte_beta", defaults.beta),
+    )
+    try:
+        return SimSettings(**kwargs)
+    except BadInputError as exc:
+        raise _wrap(ctx, "sim", values, exc) from None
+
+
+def _control_settings(
+    values: Mapping[str, Any],
+    sim_values: Mapping[str, Any],
+    robot: Any,
+    k: int,
+    ctx: _Context,
+) -> Any:
+    from hybrid_force.control import make_gains
+    from hybrid_force.supervisor import ControlSettings
+
+    defaults = ControlSettings()
+    kwargs = dict(values)
+    n = robot.nv
+    if "Kd" in kwargs:
+        try:
+            make_gains(
+                kwargs["Kd"],
+                kwargs.get("Lambda", defaults.Lambda),
+                kwargs.get("beta", defaults.beta),
+                kwargs.get("gamma", defaults.gamma),
+                n,
+            )
+        except BadInputError as exc:
+            raise _wrap(ctx, "control", values, exc) from None
+        kwargs["Kd"] = np.asarray(kwargs["Kd"], dtype=float)
+    if "f_d" in kwargs:
+        f_d = kwargs["f_d"]
+        if isinstance(f_d, list):
+            if len(f_d) != k:
+                raise ctx.error(
+                    "control.f_d", f_d, f"must be a number or {k} numbers (one per surface)"
+                )
+            kwargs["f_d"] = tuple(f_d)
+    for key in ("Lambda", "gamma", "clik_gain", "max_dist", "contact_tol", "kd_rate"):
+        if key in kwargs and kwargs[key] <= 0:
+            raise ctx.error(f"control.{key}", kwargs[key], "must be > 0")
+    if "beta" in kwargs and kwargs["beta"] < 0:
+        raise ctx.error("control.beta", kwargs["beta"], "must be >= 0")
+    if "model_mass_factor" in sim_values:
+        kwargs["mass_factor"] = sim_values["model_mass_factor"]
+    try:
+        return ControlSettings(**kwargs)
+    except BadInputError as exc:
+        merged = dict(values)
+        if "model_mass_factor" in sim_values and "mass_factor" in str(exc):
+            raise ctx.error(
+                "sim.model_mass_factor", sim_values["model_mass_factor"], str(exc)
+            ) from None
+        raise _wrap(ctx, "control", merged, exc) from None
+
+
+def _check_path_on_surfaces(
+    path: Any,
+    traj: Mapping[str, Any],
+    surfaces: list[Any],
+    tables: list[tuple[str, dict]],
+    duration: float,
+    ctx: _Context,
+) -> None:
+    from hybrid_force.paths import check_on_surface
+
+    for surface, (name, table) in zip(surfaces, tables, strict=True):
+        report = check_on_surface(path, surface, 0.0, duration)
+        if report.worst_distance > ON_SURFACE_TOL:
+            shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
+            where = ", ".join(f"{k} = {_fmt(v)}" for k, v in table.items())
+            p = [round(float(x), 6) for x in report.point_of_worst]
+            raise ScenarioError(
+                f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "
+                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
+                f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
+                f"[0, sim.duration = {duration:g} s]"
+            )
+
+
+def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:
+    from hybrid_force.clik import inverse_kinematics
+
+    values = _check_table(ctx, "initial", table, _INITIAL)
+    raw = table if isinstance(table, dict) else {}
+    if "tip" in values and "q" in values:
+        raise ctx.table_error(
+            "initial.tip, initial.q", "give either the start tip position or the joints q, not both"
+        )
+    if "tip" not in values and "q" not in values:
+        raise ctx.table_error(
+            "initial.tip", "missing required key: give initial.tip = [x, y, z] or initial.q"
+        )
+    if "seed" in values and "tip" not in values:
+        raise ctx.error("initial.seed", raw["seed"], "a seed is only used with initial.tip")
+    nq, nv = robot.nq, robot.nv
+    for key, size in (("seed", nq), ("q", nq), ("v", nv)):
+        if key in values and len(values[key]) != size:
+            raise ctx.error(
+                f"initial.{key}",
+                raw[key],
+                f"must have {size} numbers for robot '{robot.name}', got {len(values[key])}",
+            )
+    v0 = np.array(values["v"]) if "v" in values else None
+    if "q" in values:
+        return np.array(values["q"]), v0, "initial.q", raw["q"]
+    seed = np.array(values["seed"]) if "seed" in values else None
+    try:
+        q0 = inverse_kinematics(robot, np.array(values["tip"]), seed=seed)
+    except ReachError as exc:
+        extra = f" (initial.seed = {_fmt(raw['seed'])})" if "seed" in values else ""
+        raise ctx.error(
+            "initial.tip", raw["tip"], f"start out of reach{extra}: {' '.join(str(exc).split())}"
+        ) from None
+    return q0, v0, "initial.tip", raw["tip"]
+
+
+def _check_start(
+    robot: Any,
+    q0: Any,
+    surfaces: list[Any],
+    control: Any,
+    key: str,
+    value: object,
+    ctx: _Context,
+) -> None:
+    p = robot.tip_position(q0)
+    d = np.array([float(s.distance(p)) for s in surfaces])
+    where = f"tip at {[round(float(x), 6) for x in p]}"
+    if not control.supervisor:
+        worst = float(np.abs(d).max())
+        if worst > control.contact_tol:
+            raise ctx.error(
+                key,
+                value,
+                f"the run starts in contact (control.supervisor = false) but the start is "
+                f"{worst:.3g} m from the surface ({where}); it must be within control.contact_tol "
+                f"= {control.contact_tol:g} m",
+            )
+    elif float(d.min()) < -control.contact_tol:
+        raise ctx.error(
+            key,
+            value,
+            f"the start is {-float(d.min()):.3g} m behind the surface, inside the solid "
+            f"({where}); start on the free side",
+        )
+
+
+def _check_controller(
+    robot: Any,
+    surfaces: list[Any],
+    path: Any,
+    q0: Any,
+    control: Any,
+    sim: Any,
+    control_values: Mapping[str, Any],
+    ctx: _Context,
+) -> None:
+    """Build the controller once: checks q_d(0) in reach and dt·λ_max(M⁻¹K_d)."""
+    from hybrid_force.constraint import Constraint
+    from hybrid_force.supervisor import HybridController
+
+    try:
+        constraint = Constraint(surfaces, normalization=sim.normalization)
+        HybridController(robot, constraint, path, q0, control, dt=sim.dt)
+    except ReachError as exc:
+        raise ctx.error(
+            "trajectory.center",
+            path.to_dict().get("center"),
+            f"the start of the trajectory is out of reach from the start configuration: "
+            f"{' '.join(str(exc).split())}",
+        ) from None
+    except BadInputError as exc:
+        message = " ".join(str(exc).split())
+        if "dt" in message and "Kd" in message:
+            value = control_values.get(
+                "Kd", f"default kd_rate · M(q0), kd_rate = {control.kd_rate}"
+            )
+            raise ctx.error("control.Kd", value, f"{message} (sim.dt = {sim.dt:g})") from None
+        raise _wrap(ctx, "control", control_values, exc) from None
