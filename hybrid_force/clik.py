@@ -4,8 +4,9 @@ q̇_d = J⁻¹(q_d) [ṗ_d − γ (k(q_d) − p_d)],   γ = 7 by default (sectio
 
 solved in step with the simulation to round-off (a predictor and one Newton correction per step,
 see :class:`DesiredJointPath`), because its error becomes the arm's tracking error.
-q_d(0) solves k(q_d(0)) = p_d(0) by Newton iterations from a seed (:func:`inverse_kinematics`). For arms with more than three joints J⁻¹ is a
-damped pseudo-inverse and a null-space term pulls q_d towards a posture (the seed):
+q_d(0) solves k(q_d(0)) = p_d(0) by Newton iterations from a seed (:func:`inverse_kinematics`).
+For arms with more than three joints J⁻¹ is a damped pseudo-inverse and a null-space term
+pulls q_d towards a posture (the seed):
 
 q̇_d = J⁺ x + (I − J⁺J)(−k_n (q_d − q_posture)),   x = ṗ_d − γ (k(q_d) − p_d).
 
