@@ -588,11 +588,15 @@ def _fig_path3d(run: _Run) -> Figure:
 
 
 def _box_aspect(ax: Any) -> None:
-    """Box proportional to the data ranges (true shape); no side below a quarter of the largest."""
+    """Box proportional to the data ranges (true shape); no side below 0.4 of the largest."""
     lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
     spans = lims[:, 1] - lims[:, 0]
     if np.all(np.isfinite(spans)) and spans.max() > 0:
-        ax.set_box_aspect(tuple(np.clip(spans / spans.max(), 0.25, 1.0)), zoom=0.9)
+        ax.set_box_aspect(tuple(np.clip(spans / spans.max(), 0.4, 1.0)), zoom=0.9)
+    from matplotlib.ticker import MaxNLocator
+
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(nbins=5))
 
 
 def _fig_projection(run: _Run) -> Figure:
@@ -775,13 +779,15 @@ def _fig_desired_force(run: _Run) -> Figure:
     groups = _group_switches(switches, 0.01 * (t_end - run.t[0]))
     if len(groups) <= 8:
         for te, kinds in groups:
+            # labels left of their line, except near the left edge where they would leave the axes
+            left_edge = te - run.t[0] < 0.08 * (t_end - run.t[0])
             ax.text(
                 te,
                 0.97,
                 f" {', '.join(kinds)} {te:.3g} s",
                 transform=ax.get_xaxis_transform(),
                 rotation=90,
-                ha="right",
+                ha="left" if left_edge else "right",
                 va="top",
                 fontsize=8,
                 color=_KIND_COLOURS.get(kinds[0], "tab:gray"),
