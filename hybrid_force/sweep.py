@@ -1,0 +1,856 @@
+"""Parameter sweeps and Monte-Carlo studies of a scenario, resumable, on a process pool or Dask.
+
+A sweep runs one scenario file many times with different overrides (``"table.key"`` → value,
+the same keys as ``hybrid-force run --set``) and writes one row per run to ``DIR/sweep.csv``.
+
+* :func:`expand` turns a grid (Cartesian product) and uniform random samples into variants,
+  each a dict of overrides with a stable run id (a hash of its sorted parameters).
+* :func:`run_one` runs one variant and returns a flat row; it never raises.
+* :func:`run_sweep` runs the variants that ``DIR/sweep.csv`` does not hold yet, on local worker
+  processes (:class:`concurrent.futures.ProcessPoolExecutor`, "spawn" start method) or on a
+  Dask distributed cluster, and rewrites ``sweep.csv`` atomically after every finished run.
+* :func:`add_sweep_arguments` / :func:`sweep_command`: the ``hybrid-force sweep`` command.
+
+Row statuses: ``"ok"``; ``"diverged"`` (the simulation failed at run time; the metrics are those
+of the partial run); ``"bad input"`` (the variant is not a valid scenario, e.g. a negative
+gain); ``"error"`` (an unexpected exception: a bug, not a verdict on the variant). Rows with
+status ``"error"`` are run again when the sweep is resumed; all others are final.
+
+Resuming: run again with the same arguments and ``--out DIR``. Rows already in
+``DIR/sweep.csv`` (matched by run id) are kept and not run again; ``DIR/sweep.json`` records
+the arguments and a hash of the scenario file, and a sweep refuses to resume in a DIR made
+from a different scenario file content.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import hashlib
+import io
+import itertools
+import json
+import math
+import multiprocessing
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import as_completed as _futures_as_completed
+from pathlib import Path
+from typing import Any, Literal
+
+from hybrid_force.errors import BadInputError, SimulationError
+
+__all__ = [
+    "METRIC_COLUMNS",
+    "STATUSES",
+    "TIMING_COLUMNS",
+    "SweepError",
+    "add_sweep_arguments",
+    "expand",
+    "read_sweep_csv",
+    "run_id",
+    "run_one",
+    "run_sweep",
+    "split_values",
+    "sweep_command",
+]
+
+STATUSES = ("ok", "diverged", "bad input", "error")
+"""Possible values of the ``status`` column (see the module docstring)."""
+
+METRIC_COLUMNS: tuple[str, ...] = (
+    "t_end",
+    "final_position_error",
+    "position_error_max",
+    "position_error_max_settled",
+    "position_error_rms_settled",
+    "position_error_max_axis_x",
+    "position_error_max_axis_y",
+    "position_error_max_axis_z",
+    "final_force_error",
+    "force_error_max_settled",
+    "force_error_rms_settled",
+    "worst_constraint_violation",
+    "contact_time",
+    "impact_speed",
+    "impact_impulse",
+    "n_impacts",
+    "time_to_converge",
+    "n_events",
+)
+"""Deterministic metric columns: identical for the same variant on any engine.
+
+t_end [s] is the last simulated time (the failure time of a diverged run); position errors
+[m] (``*_settled``: over t ≥ sim.settle_time), force errors [N] over contact samples,
+worst_constraint_violation [m], contact_time [s], impact_speed [m/s], impact_impulse [N·s],
+time_to_converge [s] (first time after which ‖e‖ < 1 mm for good). Empty cell: not defined
+(e.g. no contact, or the run did not start).
+"""
+
+TIMING_COLUMNS: tuple[str, ...] = ("steps_per_second", "wall_time")
+"""Machine-dependent columns (steps/s of the control loop, wall time [s] of the whole run)."""
+
+_FIXED_HEAD = ("run_id",)
+_STATUS_COLUMNS = ("status", "error")
+_CSV_NAME = "sweep.csv"
+_JSON_NAME = "sweep.json"
+
+Progress = bool | Literal["force"]
+
+
+class SweepError(BadInputError):
+    """A sweep specification (grid, random range, samples, output directory) is invalid."""
+
+
+# ----------------------------------------------------------------------------- variants
+def _canonical(value: Any) -> Any:
+    """A JSON-able canonical form of a parameter value (numpy scalars → Python numbers)."""
+    if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_canonical(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): _canonical(v) for k, v in value.items()}
+    if isinstance(value, (bool, int, str)) or value is None:
+        return value
+    if isinstance(value, float):
+        return value
+    return str(value)
+
+
+def run_id(params: Mapping[str, Any]) -> str:
+    """Stable id of a variant: the first 16 hex digits of the SHA-1 of its sorted-key JSON.
+
+    Independent of the order of the keys, of the process and of the machine; numpy scalars
+    hash like the equal Python numbers. (1 and 1.0 differ: ``{"a": 1}`` ≠ ``{"a": 1.0}``.)
+    """
+    text = json.dumps(
+        {str(k): _canonical(v) for k, v in params.items()},
+        sort_keys=True,
+        separators=(",", ":"),
+        allow_nan=True,
+    )
+    return hashlib.sha1(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _check_key(key: str, option: str) -> None:
+    table, dot, name = key.partition(".")
+    if not (dot and table and name):
+        raise SweepError(
+            f"{option} key {key!r} must be of the form table.key (e.g. control.Lambda)"
+        )
+
+
+def expand(
+    grid: Mapping[str, Sequence[Any]],
+    random: Mapping[str, tuple[float, float]],
+    samples: int,
+    seed: int,
+) -> list[dict[str, Any]]:
+    """Expand a grid and random ranges into the list of variants (dicts of overrides).
+
+    Args:
+        grid: ``"table.key"`` → list of values. Variants are the Cartesian product, in the order
+            of the keys as given, the last key varying fastest.
+        random: ``"table.key"`` → (lo, hi): uniform samples in [lo, hi). Drawn with
+            ``numpy.random.default_rng(seed)``, a (samples, m) matrix of the keys in sorted
+            order (so the draws do not depend on the order of the options); the SAME samples are
+            combined with every grid point (common random numbers: the grid effect is not
+            confounded with sampling noise). Ignored when empty.
+        samples: number of random samples per grid point (≥ 1 when ``random`` is given; not used
+            otherwise).
+        seed: seed of the random generator.
+
+    Returns:
+        ``len(product) × samples`` dicts (grid keys first, then random keys), grid-major.
+        An empty grid and no random ranges give one variant, ``{}`` (the scenario as is).
+
+    Raises:
+        SweepError: a key not of the form table.key, a key both in grid and random, an empty
+            value list, a value listed twice, a range with lo > hi or not finite, samples < 1.
+    """
+    import numpy as np
+
+    for key, values in grid.items():
+        _check_key(key, "--grid")
+        if len(values) == 0:
+            raise SweepError(f"--grid {key} has no values")
+        seen: set[str] = set()
+        for v in values:
+            text = json.dumps(_canonical(v), sort_keys=True)
+            if text in seen:
+                raise SweepError(f"--grid {key} lists the value {v!r} twice")
+            seen.add(text)
+    both = sorted(set(grid) & set(random))
+    if both:
+        raise SweepError(f"{', '.join(both)} is given both as --grid and as --random")
+    for key, rng_range in random.items():
+        _check_key(key, "--random")
+        try:
+            lo, hi = (float(x) for x in rng_range)
+        except (TypeError, ValueError) as exc:
+            raise SweepError(f"--random {key} must be a pair lo:hi, got {rng_range!r}") from exc
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise SweepError(f"--random {key}={lo}:{hi} needs finite lo <= hi")
+    points = [dict(zip(grid, combo, strict=True)) for combo in itertools.product(*grid.values())]
+    if not random:
+        return [{k: _canonical(v) for k, v in p.items()} for p in points]
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise SweepError(f"--samples must be a positive integer with --random, got {samples!r}")
+    keys = sorted(random)
+    gen = np.random.default_rng(seed)
+    unit = gen.random((samples, len(keys)))  # (samples, m) in [0, 1)
+    lows = np.array([float(random[k][0]) for k in keys])
+    highs = np.array([float(random[k][1]) for k in keys])
+    draws = lows + unit * (highs - lows)
+    order = [k for k in random]  # column order of the rows: as given
+    out: list[dict[str, Any]] = []
+    for p in points:
+        for row in draws:
+            sample = {k: float(row[keys.index(k)]) for k in order}
+            out.append({**{k: _canonical(v) for k, v in p.items()}, **sample})
+    return out
+
+
+def split_values(text: str) -> list[str]:
+    """Split ``"v1,v2,[1,2],'a,b'"`` at the commas that are not inside brackets or quotes."""
+    parts: list[str] = []
+    depth = 0
+    quote: str | None = None
+    current: list[str] = []
+    for ch in text:
+        if quote is not None:
+            current.append(ch)
+            if ch == quote:
+                quote = None
+            continue
+        if ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append("".join(current).strip())
+            current = []
+            continue
+        current.append(ch)
+    parts.append("".join(current).strip())
+    return parts
+
+
+# ----------------------------------------------------------------------------- one run
+def _cell(value: Any) -> str:
+    """CSV text of a value: '' for None, repr for floats (round-trips exactly), JSON for lists."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (int, str)):
+        return str(value)
+    return json.dumps(_canonical(value), separators=(", ", ": "))
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _metrics_row(result: Any) -> dict[str, Any]:
+    """The metric and timing columns of a (possibly partial) Result."""
+    summary = result.summary()
+    row: dict[str, Any] = {name: summary.get(name) for name in METRIC_COLUMNS}
+    axis = summary.get("position_error_max_axis")
+    for i, suffix in enumerate("xyz"):
+        row[f"position_error_max_axis_{suffix}"] = None if axis is None else float(axis[i])
+    row["t_end"] = float(result.t[-1]) if result.n_samples else None
+    row["steps_per_second"] = result.meta.get("steps_per_second")
+    return row
+
+
+def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) -> dict[str, Any]:
+    """Run one variant of a scenario; never raises (failures become the row's status).
+
+    Args:
+        scenario_path: the scenario TOML file.
+        params: overrides ``"table.key"`` → value (as for ``hybrid-force run --set``).
+        keep_dir: if given, the run's Result (partial for a diverged run) is saved atomically to
+            ``keep_dir/<run_id>.npz``.
+
+    Returns:
+        A flat dict: ``run_id``, the params (keys ``"table.key"``), ``status`` (see
+        :data:`STATUSES`), ``error`` (one-line message or None), the :data:`METRIC_COLUMNS`
+        (None when undefined) and the :data:`TIMING_COLUMNS`. Top-level, so it pickles for a
+        process pool or a Dask worker.
+    """
+    rid = run_id(params)
+    row: dict[str, Any] = {"run_id": rid, **params, "status": "ok", "error": None}
+    for name in (*METRIC_COLUMNS, *TIMING_COLUMNS):
+        row[name] = None
+    wall0 = time.perf_counter()
+    result: Any = None
+    try:
+        from hybrid_force.errors import DivergenceError
+        from hybrid_force.scenario import load_scenario
+        from hybrid_force.simulate import simulate
+
+        try:
+            scenario = load_scenario(scenario_path, overrides=params)
+            result = simulate(scenario)
+        except DivergenceError as exc:
+            row["status"] = "diverged"
+            row["error"] = _one_line(str(exc))
+            result = exc.result
+        except SimulationError as exc:
+            row["status"] = "diverged"
+            row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
+        except BadInputError as exc:
+            row["status"] = "bad input"
+            row["error"] = _one_line(str(exc))
+        if result is not None:
+            row.update(_metrics_row(result))
+            if keep_dir is not None:
+                result.save(Path(keep_dir) / f"{rid}.npz")
+    except Exception as exc:
+        row["status"] = "error"
+        row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
+    row["wall_time"] = time.perf_counter() - wall0
+    return row
+
+
+# ----------------------------------------------------------------------------- CSV files
+def read_sweep_csv(path: str | os.PathLike[str]) -> tuple[list[str], list[dict[str, str]]]:
+    """Read a sweep CSV: (columns, rows as dicts of strings). Raises SweepError if unreadable."""
+    src = Path(path)
+    try:
+        with src.open(newline="", encoding="utf-8") as fh:
+            reader = csv.DictReader(fh)
+            rows = [dict(r) for r in reader]
+            columns = list(reader.fieldnames or [])
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise SweepError(f"cannot read sweep file '{src}': {exc}") from exc
+    if columns and "run_id" not in columns:
+        raise SweepError(
+            f"'{src}' is not a sweep CSV (no run_id column; columns: {', '.join(columns)}); "
+            "choose another --out"
+        )
+    for i, r in enumerate(rows):
+        if None in r or any(v is None for v in r.values()):
+            raise SweepError(f"'{src}' row {i + 2} has the wrong number of cells")
+    return columns, rows
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Write text to path atomically: temp file in the same directory, fsync, os.replace."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, str]]) -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({c: r.get(c, "") for c in columns})
+    return buf.getvalue()
+
+
+def _file_sha256(path: Path) -> str:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError as exc:
+        raise SweepError(f"cannot read scenario file '{path}': {exc}") from exc
+
+
+# ----------------------------------------------------------------------------- progress
+class _Bar:
+    """A one-line text progress bar with ETA on stderr."""
+
+    def __init__(self, total: int, done: int, enabled: bool) -> None:
+        self.total, self.done0, self.done = total, done, done
+        self.enabled = enabled
+        self.t0 = time.monotonic()
+        self.failed = 0
+
+    def update(self, status: str) -> None:
+        self.done += 1
+        if status != "ok":
+            self.failed += 1
+        self.draw()
+
+    def draw(self) -> None:
+        if not self.enabled:
+            return
+        width = 30
+        frac = self.done / self.total if self.total else 1.0
+        filled = round(frac * width)
+        elapsed = time.monotonic() - self.t0
+        new = self.done - self.done0
+        if new > 0 and self.done < self.total:
+            eta = _hms(elapsed / new * (self.total - self.done))
+        elif self.done >= self.total:
+            eta = "done"
+        else:
+            eta = "--:--"
+        text = (
+            f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
+            f"{100 * frac:3.0f}%  elapsed {_hms(elapsed)}  ETA {eta}  not ok: {self.failed} "
+        )
+        sys.stderr.write(text)
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def _hms(seconds: float) -> str:
+    s = round(seconds)
+    h, rem = divmod(s, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m:02d}:{s:02d}"
+
+
+# ----------------------------------------------------------------------------- the sweep
+class _Table:
+    """The rows of a sweep, kept as strings, written atomically in variant order."""
+
+    def __init__(self, path: Path, variants: Sequence[Mapping[str, Any]]) -> None:
+        self.path = path
+        self.ids = [run_id(v) for v in variants]
+        self.index = {rid: i for i, rid in enumerate(self.ids)}
+        params: list[str] = []
+        for v in variants:
+            params.extend(k for k in v if k not in params)
+        fixed = {*_FIXED_HEAD, *_STATUS_COLUMNS, *METRIC_COLUMNS, *TIMING_COLUMNS}
+        clash = [k for k in params if k in fixed]
+        if clash:
+            raise SweepError(f"parameter name(s) {', '.join(clash)} clash with sweep columns")
+        self.rows: dict[str, dict[str, str]] = {}
+        self.foreign: list[dict[str, str]] = []  # rows of run ids not in this sweep: kept
+        if path.exists():
+            columns, old = read_sweep_csv(path)
+            params.extend(c for c in columns if c not in fixed and c not in params)
+            for r in old:
+                if r["run_id"] in self.index:
+                    self.rows[r["run_id"]] = r
+                else:
+                    self.foreign.append(r)
+        self.columns = [
+            *_FIXED_HEAD,
+            *params,
+            *_STATUS_COLUMNS,
+            *METRIC_COLUMNS,
+            *TIMING_COLUMNS,
+        ]
+        self.last_write = 0.0
+        self.write_cost = 0.0
+
+    def finished(self, rid: str) -> bool:
+        row = self.rows.get(rid)
+        return row is not None and row.get("status") != "error"
+
+    def add(self, row: Mapping[str, Any]) -> None:
+        self.rows[str(row["run_id"])] = {k: _cell(v) for k, v in row.items()}
+
+    def write(self, force: bool = True) -> None:
+        """Rewrite the CSV; unless forced, skip when writing would cost > 10 % of the time."""
+        now = time.monotonic()
+        if not force and (now - self.last_write) < 10.0 * self.write_cost:
+            return
+        ordered = [self.rows[rid] for rid in self.ids if rid in self.rows]
+        t0 = time.monotonic()
+        _write_atomic(self.path, _csv_text(self.columns, ordered + self.foreign))
+        self.last_write = time.monotonic()
+        self.write_cost = self.last_write - t0
+
+
+def run_sweep(
+    scenario_path: str | os.PathLike[str],
+    variants: Sequence[Mapping[str, Any]],
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    out_dir: str | os.PathLike[str],
+    keep_results: bool = False,
+    progress: Progress = True,
+    arguments: Mapping[str, Any] | None = None,
+    on_row: Callable[[dict[str, Any]], None] | None = None,
+) -> Path:
+    """Run every variant not yet in ``out_dir/sweep.csv``; return the CSV path.
+
+    Args:
+        scenario_path: the scenario TOML file (workers of a Dask cluster must see it at the
+            same path, e.g. on a shared file system, and have hybrid_force installed).
+        variants: dicts of overrides, e.g. from :func:`expand`; run ids must be distinct.
+        workers: local worker processes (default ``os.cpu_count()``), or the number of workers
+            of a ``"local"`` Dask cluster (default 2).
+        scheduler: None: a process pool ("spawn" start method, safe with Pinocchio);
+            ``"local"``: a Dask LocalCluster (processes, one thread each) started and closed
+            here; anything else: the address of a running Dask scheduler ("tcp://host:8786").
+        out_dir: output directory (created). Holds sweep.csv, sweep.json and, with
+            keep_results, results/<run_id>.npz.
+        keep_results: save every run's Result.
+        progress: text progress bar with ETA on stderr, when stderr is a terminal (True), never
+            (False) or always ("force").
+        arguments: extra JSON-able description of the sweep stored in sweep.json.
+        on_row: called in this process with every new row (after it is written).
+
+    Returns:
+        ``out_dir/sweep.csv``: one row per variant in variant order (plus rows of earlier
+        sweeps in the same directory whose run ids are not among the variants, at the end).
+
+    The CSV is rewritten atomically (temp file + os.replace) after every finished run (when the
+    sweep has so many rows that rewriting costs more than 10 % of the time, at most that often,
+    and always at the end), so an interruption never leaves it half-written; a rerun skips the
+    run ids it holds (except rows with status "error").
+
+    Raises:
+        SweepError: duplicate variants, a bad out_dir, a DIR made from another scenario file.
+        SimulationError: runs were lost (a worker process died); the finished rows are saved
+            and rerunning the same sweep runs the missing ones.
+    """
+    scenario = Path(scenario_path)
+    if not scenario.is_file():
+        raise SweepError(f"scenario file '{scenario}' does not exist")
+    variants = [dict(v) for v in variants]
+    ids = [run_id(v) for v in variants]
+    if len(set(ids)) != len(ids):
+        dup = next(v for v, rid in zip(variants, ids, strict=True) if ids.count(rid) > 1)
+        raise SweepError(f"the variant {dup!r} appears more than once")
+    if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
+        raise SweepError(f"--workers must be a positive integer, got {workers!r}")
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepError(f"cannot create output directory '{out}': {exc}") from exc
+    sha = _file_sha256(scenario)
+    info_path = out / _JSON_NAME
+    if info_path.exists() and (out / _CSV_NAME).exists():
+        try:
+            old = json.loads(info_path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            old = {}
+        if old.get("scenario_sha256") not in (None, sha):
+            raise SweepError(
+                f"'{out}' holds a sweep of a different version of the scenario "
+                f"(sha256 {old.get('scenario_sha256')}, now {sha} for '{scenario}'); "
+                "use another --out or delete that directory"
+            )
+    table = _Table(out / _CSV_NAME, variants)
+    keep_dir = str((out / "results").resolve()) if keep_results else None
+    info = {
+        "scenario": str(scenario.resolve()),
+        "scenario_sha256": sha,
+        "n_variants": len(variants),
+        "workers": workers,
+        "scheduler": scheduler,
+        "keep_results": keep_results,
+        "columns": table.columns,
+        "arguments": dict(arguments or {}),
+        "variants": [{"run_id": rid, **v} for rid, v in zip(ids, variants, strict=True)],
+    }
+    _write_atomic(info_path, json.dumps(info, indent=1, default=str) + "\n")
+    todo = [(rid, v) for rid, v in zip(ids, variants, strict=True) if not table.finished(rid)]
+    table.write()
+    enabled = progress == "force" or (bool(progress) and sys.stderr.isatty())
+    bar = _Bar(len(variants), len(variants) - len(todo), enabled)
+    if not todo:
+        bar.draw()
+        bar.close()
+        return table.path
+    bar.draw()
+    lost: list[str] = []
+
+    def finish(row: dict[str, Any]) -> None:
+        table.add(row)
+        table.write(force=False)
+        bar.update(str(row.get("status")))
+        if on_row is not None:
+            on_row(row)
+
+    try:
+        if scheduler is None:
+            _run_pool(str(scenario), todo, workers, keep_dir, finish, lost)
+        else:
+            _run_dask(str(scenario), todo, workers, scheduler, keep_dir, finish, lost)
+    finally:
+        table.write()
+        bar.close()
+    if lost:
+        raise SimulationError(
+            f"{len(lost)} run(s) were lost ({lost[0]}); the {len(table.rows)} finished rows are "
+            f"in '{table.path}'; run the same sweep again to run the missing ones"
+        )
+    return table.path
+
+
+def _run_pool(
+    scenario: str,
+    todo: Sequence[tuple[str, dict[str, Any]]],
+    workers: int | None,
+    keep_dir: str | None,
+    finish: Callable[[dict[str, Any]], None],
+    lost: list[str],
+) -> None:
+    """Run on a local process pool ("spawn": no fork of a process holding Pinocchio state)."""
+    n = min(int(workers or os.cpu_count() or 1), len(todo))
+    ctx = multiprocessing.get_context("spawn")
+    pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx)
+    try:
+        futures: dict[Future[dict[str, Any]], str] = {
+            pool.submit(run_one, scenario, params, keep_dir): rid for rid, params in todo
+        }
+        for fut in _futures_as_completed(futures):
+            try:
+                row = fut.result()
+            except Exception as exc:
+                lost.append(f"{futures[fut]}: {type(exc).__name__}: {_one_line(str(exc))}")
+                continue
+            finish(row)
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _run_dask(
+    scenario: str,
+    todo: Sequence[tuple[str, dict[str, Any]]],
+    workers: int | None,
+    scheduler: str,
+    keep_dir: str | None,
+    finish: Callable[[dict[str, Any]], None],
+    lost: list[str],
+) -> None:
+    """Run on a Dask cluster: a LocalCluster for "local", else the scheduler at that address."""
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError as exc:  # pragma: no cover - dask is a dependency
+        raise SweepError(f"--scheduler needs dask.distributed: {exc}") from exc
+    with contextlib.ExitStack() as stack:
+        if scheduler == "local":
+            cluster = stack.enter_context(
+                LocalCluster(
+                    n_workers=int(workers or 2),
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                )
+            )
+            client = stack.enter_context(Client(cluster))
+        else:
+            try:
+                client = stack.enter_context(Client(scheduler, timeout=30))
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise SweepError(
+                    f"cannot connect to the Dask scheduler at {scheduler!r}: {exc} "
+                    "(give tcp://host:port of a running scheduler, or 'local')"
+                ) from exc
+        futures = {
+            client.submit(run_one, scenario, params, keep_dir, key=f"run-{rid}", pure=False): rid
+            for rid, params in todo
+        }
+        try:
+            for fut in as_completed(list(futures)):
+                try:
+                    row = fut.result()
+                except Exception as exc:
+                    lost.append(f"{futures[fut]}: {type(exc).__name__}: {_one_line(str(exc))}")
+                    continue
+                finish(row)
+        except BaseException:
+            client.cancel(list(futures))
+            raise
+
+
+# ----------------------------------------------------------------------------- command line
+def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
+    """Define the options of ``hybrid-force sweep`` on the given (sub)parser."""
+    parser.add_argument("scenario", help="scenario TOML file")
+    parser.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="TABLE.KEY=V1,V2,...",
+        help="swept values of a scenario key (TOML values; repeat for a Cartesian product)",
+    )
+    parser.add_argument(
+        "--random",
+        action="append",
+        default=[],
+        metavar="TABLE.KEY=LO:HI",
+        help="uniform random values in [LO, HI) (repeatable; needs --samples)",
+    )
+    parser.add_argument(
+        "--samples", type=int, default=None, metavar="N", help="random samples per grid point"
+    )
+    parser.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (0)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes (default: one per core; 2 for --scheduler local)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS|local",
+        help="run on a Dask cluster: a scheduler address (tcp://host:8786) or 'local' "
+        "(a LocalCluster on this machine); default: a local process pool",
+    )
+    parser.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="output directory (default runs/<scenario stem>_sweep); rerun to resume",
+    )
+    parser.add_argument(
+        "--keep-results",
+        action="store_true",
+        help="save every run's result to DIR/results/<run_id>.npz",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _parse_grid(items: Sequence[str]) -> dict[str, list[Any]]:
+    from hybrid_force.scenario import parse_override
+
+    grid: dict[str, list[Any]] = {}
+    for item in items:
+        key, sep, values = item.partition("=")
+        key = key.strip()
+        if not sep or not key or not values.strip():
+            raise SweepError(f"--grid {item!r} must be table.key=v1,v2,...")
+        if key in grid:
+            raise SweepError(f"--grid {key} is given twice; list all its values in one option")
+        parsed = []
+        for text in split_values(values):
+            if not text:
+                raise SweepError(f"--grid {item!r} has an empty value")
+            parsed.append(parse_override(f"{key}={text}")[1])
+        grid[key] = parsed
+    return grid
+
+
+def _parse_random(items: Sequence[str]) -> dict[str, tuple[float, float]]:
+    out: dict[str, tuple[float, float]] = {}
+    for item in items:
+        key, sep, rng = item.partition("=")
+        key = key.strip()
+        lo_text, colon, hi_text = rng.partition(":")
+        try:
+            if not (sep and key and colon):
+                raise ValueError
+            lo, hi = float(lo_text), float(hi_text)
+        except ValueError:
+            raise SweepError(f"--random {item!r} must be table.key=lo:hi (two numbers)") from None
+        if key in out:
+            raise SweepError(f"--random {key} is given twice")
+        out[key] = (lo, hi)
+    return out
+
+
+def sweep_command(args: argparse.Namespace) -> int:
+    """``hybrid-force sweep``: 0 when every variant has a row (even failed runs), 2 bad input.
+
+    Returns 1 if runs were lost (a worker died) and 130 on Ctrl-C; in both cases the finished
+    rows are saved and rerunning the same command completes the sweep.
+    """
+    from hybrid_force.scenario import load_scenario
+
+    scenario = Path(args.scenario)
+    if not scenario.is_file():
+        raise SweepError(f"scenario file '{scenario}' does not exist")
+    grid = _parse_grid(args.grid)
+    random = _parse_random(args.random)
+    if random and args.samples is None:
+        raise SweepError("--random needs --samples N (random samples per grid point)")
+    if args.samples is not None and not random:
+        raise SweepError("--samples needs at least one --random table.key=lo:hi")
+    if args.workers is not None and args.workers < 1:
+        raise SweepError(f"--workers must be a positive integer, got {args.workers}")
+    variants = expand(grid, random, args.samples or 0, args.seed)
+    load_scenario(scenario)  # a broken scenario file is bad input, before any run starts
+    out = Path(args.out) if args.out else Path("runs") / f"{scenario.stem}_sweep"
+    arguments = {
+        "grid": grid,
+        "random": {k: list(v) for k, v in random.items()},
+        "samples": args.samples,
+        "seed": args.seed,
+    }
+    t0 = time.monotonic()
+    n_new = 0
+
+    def count(_row: dict[str, Any]) -> None:
+        nonlocal n_new
+        n_new += 1
+
+    try:
+        path = run_sweep(
+            scenario,
+            variants,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            out_dir=out,
+            keep_results=args.keep_results,
+            progress=not args.quiet,
+            arguments=arguments,
+            on_row=count,
+        )
+    except KeyboardInterrupt:
+        print(
+            f"interrupted after {n_new} new run(s); the finished rows are in "
+            f"'{out / _CSV_NAME}'; run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 130
+    except SimulationError as exc:
+        print(f"error: {_one_line(str(exc))}", file=sys.stderr)
+        return 1
+    _print_summary(path, variants, n_new, time.monotonic() - t0)
+    return 0
+
+
+def _print_summary(
+    path: Path, variants: Sequence[Mapping[str, Any]], n_new: int, wall: float
+) -> None:
+    _, rows = read_sweep_csv(path)
+    ids = {run_id(v) for v in variants}
+    mine = [r for r in rows if r["run_id"] in ids]
+    counts = {s: sum(r["status"] == s for r in mine) for s in STATUSES}
+    parts = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
+    print(
+        f"sweep: {len(mine)} runs ({parts}); {n_new} run now in {_hms(wall)}, "
+        f"{len(mine) - n_new} from before"
+    )
+    failed = [r for r in mine if r["status"] != "ok"]
+    if failed:
+        print(f"first failure: {failed[0]['run_id']} {failed[0]['status']}: {failed[0]['error']}")
+    ok = [r for r in mine if r["status"] == "ok" and r["final_position_error"]]
+    if ok:
+        best = min(ok, key=lambda r: float(r["final_position_error"]))
+        params = {k: best[k] for k in variants[0] if k in best}
+        print(
+            f"best final position error: {float(best['final_position_error']):.3g} m "
+            f"at {params or 'the scenario as is'}"
+        )
+    print(f"wrote {path}")

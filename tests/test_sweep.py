@@ -1,0 +1,306 @@
+"""Tests of hybrid_force.sweep: variants, engines (process pool, Dask), failures, resuming."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybrid_force.sweep import (
+    METRIC_COLUMNS,
+    TIMING_COLUMNS,
+    SweepError,
+    add_sweep_arguments,
+    expand,
+    read_sweep_csv,
+    run_id,
+    run_one,
+    run_sweep,
+    split_values,
+    sweep_command,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+
+# Paper section 6.3 (RTR arm on the cylinder r = 0.4, starting in contact), shortened.
+SCENARIO = """\
+name = "tiny_contact"
+[robot]
+model = "rtr"
+[surface]
+type = "cylinder"
+radius = 0.4
+center = [0.0, 0.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+[trajectory]
+type = "helix"
+center = [0.0, 0.0, 10.0]
+radius = 0.4
+axis = [0.0, 0.0, 1.0]
+omega = 1.0
+rise = 0.1
+phase = 0.0
+[initial]
+tip = [0.4, 0.0, 7.0]
+seed = [0.0, 6.0, 2.0]
+[control]
+supervisor = false
+f_d = 10.0
+[sim]
+duration = {duration}
+dt = 1e-3
+"""
+
+
+@pytest.fixture()
+def scenario(tmp_path: Path) -> Path:
+    path = tmp_path / "tiny.toml"
+    path.write_text(SCENARIO.format(duration=0.15))
+    return path
+
+
+def _deterministic(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows]
+
+
+# ----------------------------------------------------------------------------- variants
+def test_expand_grid_is_the_cartesian_product_in_order() -> None:
+    variants = expand({"a.x": [1, 2], "b.y": ["u", "v", "w"]}, {}, 0, 0)
+    expected = [
+        {"a.x": 1, "b.y": "u"},
+        {"a.x": 1, "b.y": "v"},
+        {"a.x": 1, "b.y": "w"},
+        {"a.x": 2, "b.y": "u"},
+        {"a.x": 2, "b.y": "v"},
+        {"a.x": 2, "b.y": "w"},
+    ]
+    assert variants == expected
+    assert expand({}, {}, 0, 0) == [{}]
+
+
+def test_expand_random_samples_are_shared_by_grid_points_and_in_range() -> None:
+    variants = expand({"a.x": [1, 2, 3]}, {"s.m": (0.8, 1.2), "c.k": (-5.0, 5.0)}, 50, 7)
+    assert len(variants) == 150
+    per_point = [[(v["s.m"], v["c.k"]) for v in variants if v["a.x"] == g] for g in (1, 2, 3)]
+    assert per_point[0] == per_point[1] == per_point[2]  # common random numbers
+    m = np.array([p[0] for p in per_point[0]])
+    k = np.array([p[1] for p in per_point[0]])
+    assert np.all((m >= 0.8) & (m < 1.2)) and np.all((k >= -5) & (k < 5))
+    assert len(set(m.tolist())) == 50  # distinct draws
+    # same seed: same samples whatever the option order; another seed: other samples
+    again = expand({"a.x": [1, 2, 3]}, {"c.k": (-5.0, 5.0), "s.m": (0.8, 1.2)}, 50, 7)
+    assert [(v["s.m"], v["c.k"]) for v in again] == [(v["s.m"], v["c.k"]) for v in variants]
+    other = expand({}, {"s.m": (0.8, 1.2), "c.k": (-5.0, 5.0)}, 50, 8)
+    assert other[0]["s.m"] != per_point[0][0][0]
+    # uniform: the mean of 2000 draws on [0.8, 1.2) is 1.0 within 4 standard errors
+    big = np.array([v["s.m"] for v in expand({}, {"s.m": (0.8, 1.2)}, 2000, 1)])
+    assert abs(big.mean() - 1.0) < 4 * (0.4 / np.sqrt(12)) / np.sqrt(2000)
+
+
+@pytest.mark.parametrize(
+    ("grid", "random", "samples", "match"),
+    [
+        ({"Lambda": [1]}, {}, 0, "table.key"),
+        ({"c.L": []}, {}, 0, "no values"),
+        ({"c.L": [1, 2, 1]}, {}, 0, "twice"),
+        ({"c.L": [1]}, {"c.L": (0, 1)}, 3, "both"),
+        ({}, {"c.L": (2.0, 1.0)}, 3, "lo <= hi"),
+        ({}, {"c.L": (0.0, float("inf"))}, 3, "finite"),
+        ({}, {"c.L": (0.0, 1.0)}, 0, "samples"),
+    ],
+)
+def test_expand_rejects_bad_specs(grid, random, samples, match) -> None:
+    with pytest.raises(SweepError, match=match):
+        expand(grid, random, samples, 0)
+
+
+def test_run_id_is_sha1_of_sorted_json_and_order_independent() -> None:
+    params = {"control.Lambda": 5.0, "sim.duration": 0.2}
+    text = '{"control.Lambda":5.0,"sim.duration":0.2}'
+    assert run_id(params) == hashlib.sha1(text.encode()).hexdigest()[:16]
+    assert run_id({"sim.duration": 0.2, "control.Lambda": 5.0}) == run_id(params)
+    assert run_id({"control.Lambda": np.float64(5.0), "sim.duration": 0.2}) == run_id(params)
+    assert run_id({"control.Lambda": 5.1, "sim.duration": 0.2}) != run_id(params)
+
+
+def test_split_values_keeps_lists_and_quoted_commas() -> None:
+    assert split_values("1, 2.5,3e-2") == ["1", "2.5", "3e-2"]
+    assert split_values('[0.4, 0, 7],[1,2,3],"a,b"') == ["[0.4, 0, 7]", "[1,2,3]", '"a,b"']
+
+
+# ----------------------------------------------------------------------------- runs
+def test_run_one_never_raises(tmp_path: Path, scenario: Path) -> None:
+    ok = run_one(str(scenario), {"control.Lambda": 5.0}, str(tmp_path / "keep"))
+    assert ok["status"] == "ok" and ok["error"] is None
+    assert ok["t_end"] == pytest.approx(0.15)
+    # starts on the surface and stays on it (post-stabilised): violation at round-off
+    assert ok["worst_constraint_violation"] < 1e-12
+    from hybrid_force.result import Result
+
+    kept = Result.load(tmp_path / "keep" / f"{run_id({'control.Lambda': 5.0})}.npz")
+    e = np.linalg.norm(kept.p[-1] - kept.p_d[-1])
+    assert ok["final_position_error"] == pytest.approx(e, rel=1e-12)
+    bad = run_one(str(scenario), {"control.Lambda": -1.0}, None)
+    assert bad["status"] == "bad input" and "control.Lambda" in bad["error"]
+    wild = run_one(str(scenario), {"control.Lambda": 1e4}, None)
+    assert wild["status"] == "diverged" and "runaway" in wild["error"]
+    assert wild["t_end"] is not None and wild["t_end"] < 0.15
+    missing = run_one(str(tmp_path / "nope.toml"), {}, None)
+    assert missing["status"] in ("bad input", "error") and "nope.toml" in missing["error"]
+    assert set(METRIC_COLUMNS) <= set(ok) and set(TIMING_COLUMNS) <= set(ok)
+
+
+def test_pool_and_dask_give_identical_rows(tmp_path: Path, scenario: Path) -> None:
+    variants = expand({"control.Lambda": [5.0, 1e4, -1.0, 20.0]}, {}, 0, 0)
+    pool_csv = run_sweep(scenario, variants, workers=2, out_dir=tmp_path / "pool", progress=False)
+    dask_csv = run_sweep(
+        scenario, variants, workers=2, scheduler="local", out_dir=tmp_path / "dask", progress=False
+    )
+    cols_p, rows_p = read_sweep_csv(pool_csv)
+    cols_d, rows_d = read_sweep_csv(dask_csv)
+    assert cols_p == cols_d
+    assert cols_p[:2] == ["run_id", "control.Lambda"]
+    assert _deterministic(rows_p) == _deterministic(rows_d)
+    assert [r["run_id"] for r in rows_p] == [run_id(v) for v in variants]  # variant order
+    assert [r["status"] for r in rows_p] == ["ok", "diverged", "bad input", "ok"]
+    assert float(rows_p[0]["final_position_error"]) > 0
+    info = json.loads((tmp_path / "pool" / "sweep.json").read_text())
+    assert info["n_variants"] == 4 and info["columns"] == cols_p
+    assert not [p for p in (tmp_path / "pool").iterdir() if p.name.endswith(".tmp")]
+    # a heat map / line plot of the CSV
+    from hybrid_force.plots import plot_sweep
+
+    png = plot_sweep(pool_csv, tmp_path / "line.png", x="control.Lambda", metric="t_end")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
+
+
+_KILL_SCRIPT = """
+import sys
+from hybrid_force.sweep import run_sweep
+if __name__ == "__main__":
+    variants = [{{"control.Lambda": float(x)}} for x in {lambdas}]
+    run_sweep(sys.argv[1], variants, workers=1, out_dir=sys.argv[2], progress=False)
+"""
+
+
+def test_killed_sweep_resumes_without_redoing_finished_runs(tmp_path: Path) -> None:
+    scenario = tmp_path / "slow.toml"
+    scenario.write_text(SCENARIO.format(duration=0.4))
+    lambdas = [2.0, 3.0, 5.0, 8.0, 10.0, 15.0, 20.0, 30.0]
+    script = tmp_path / "sweep_script.py"
+    script.write_text(textwrap.dedent(_KILL_SCRIPT.format(lambdas=lambdas)))
+    out = tmp_path / "out"
+    csv_path = out / "sweep.csv"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    log = tmp_path / "stderr.txt"
+    with log.open("wb") as err:
+        proc = subprocess.Popen(
+            [sys.executable, str(script), str(scenario), str(out)],
+            env=env,
+            start_new_session=True,
+            stderr=err,
+        )
+    seen = 0
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            if csv_path.exists():
+                _, rows = read_sweep_csv(csv_path)  # always parseable, even mid-sweep
+                seen = len(rows)
+                if seen >= 2:
+                    break
+            time.sleep(0.05)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the script and its worker process
+        proc.wait()
+    assert 2 <= seen < len(lambdas), log.read_text()
+    with csv_path.open(newline="") as fh:
+        before = list(csv.DictReader(fh))
+    assert before and all(r["status"] == "ok" for r in before)
+    new_rows: list[dict] = []
+    variants = [{"control.Lambda": x} for x in lambdas]
+    run_sweep(scenario, variants, workers=2, out_dir=out, progress=False, on_row=new_rows.append)
+    _, after = read_sweep_csv(csv_path)
+    assert [r["run_id"] for r in after] == [run_id(v) for v in variants]
+    assert len(new_rows) == len(lambdas) - len(before)  # only the missing runs ran
+    assert {r["run_id"] for r in new_rows}.isdisjoint({r["run_id"] for r in before})
+    by_id = {r["run_id"]: r for r in after}
+    for r in before:  # finished rows kept verbatim (wall_time included: not rerun)
+        assert by_id[r["run_id"]] == r
+    # a third run has nothing left to do
+    again: list[dict] = []
+    run_sweep(scenario, variants, workers=1, out_dir=out, progress=False, on_row=again.append)
+    assert again == []
+    assert read_sweep_csv(csv_path)[1] == after
+
+
+def test_resume_refuses_another_scenario(tmp_path: Path, scenario: Path) -> None:
+    run_sweep(
+        scenario, [{"control.Lambda": -1.0}], workers=1, out_dir=tmp_path / "o", progress=False
+    )
+    scenario.write_text(SCENARIO.format(duration=0.25))
+    with pytest.raises(SweepError, match="different version"):
+        run_sweep(scenario, [{"control.Lambda": -1.0}], out_dir=tmp_path / "o", progress=False)
+    (tmp_path / "x.csv").write_text("a,b\n1,2\n")
+    with pytest.raises(SweepError, match="not a sweep CSV"):
+        read_sweep_csv(tmp_path / "x.csv")
+
+
+# ----------------------------------------------------------------------------- command
+def _args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    add_sweep_arguments(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_sweep_command(tmp_path: Path, scenario: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "cmd"
+    args = _args(
+        str(scenario),
+        "--grid",
+        "control.Lambda=5,-1",
+        "--random",
+        "sim.model_mass_factor=0.9:1.1",
+        "--samples",
+        "2",
+        "--seed",
+        "3",
+        "--workers",
+        "2",
+        "--out",
+        str(out),
+        "--keep-results",
+        "--quiet",
+    )
+    assert sweep_command(args) == 0
+    text = capsys.readouterr().out
+    assert "4 runs (2 ok, 2 bad input)" in text
+    _, rows = read_sweep_csv(out / "sweep.csv")
+    assert [r["control.Lambda"] for r in rows] == ["5", "5", "-1", "-1"]
+    masses = [float(r["sim.model_mass_factor"]) for r in rows]
+    assert masses[0] == masses[2] and masses[1] == masses[3] and min(masses) >= 0.9
+    assert len(list((out / "results").glob("*.npz"))) == 2  # bad input: no result
+    info = json.loads((out / "sweep.json").read_text())
+    assert info["arguments"]["grid"] == {"control.Lambda": [5, -1]}
+    for bad, match in [
+        (("--random", "sim.model_mass_factor=0.9:1.1"), "--samples"),
+        (("--samples", "3"), "--random"),
+        (("--grid", "control.Lambda"), "table.key=v1"),
+        (("--random", "sim.model_mass_factor=0.9"), "lo:hi"),
+        (("--grid", "Lambda=1,2"), "table.key"),
+    ]:
+        with pytest.raises(SweepError, match=match):
+            sweep_command(_args(str(scenario), *bad, "--out", str(out)))
+    with pytest.raises(SweepError, match="does not exist"):
+        sweep_command(_args(str(tmp_path / "missing.toml")))
