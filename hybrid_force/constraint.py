@@ -118,18 +118,19 @@ class Constraint:
         """(k,) signed metric distances of the point p (3,) to each surface [m]."""
         return np.array([s.distance(p) for s in self.surfaces])
 
-    def evaluate(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+    def evaluate(self, terms: RobotTerms, v: np.ndarray, fast: bool = True) -> ConstraintTerms:
         """Joint-space quantities from the robot terms of one step.
 
         Args:
             terms: the robot's terms at (q, v) (:meth:`Robot.terms`).
             v: (n,) joint velocity.
+            fast: use the scalar algebra when k = 1 (False: the general k-row algebra).
 
         Raises:
             SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
                 stacked rows are dependent.
         """
-        if self.k == 1:
+        if fast and self.k == 1:
             return self._evaluate_one(terms, v)
         k = self.k
         n = terms.J.shape[1]

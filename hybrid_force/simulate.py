@@ -38,6 +38,7 @@ from hybrid_force.dynamics import (
     Baumgarte,
     constrained_acceleration,
     free_acceleration,
+    kkt_reference,
     plastic_impact,
 )
 from hybrid_force.errors import (
@@ -48,7 +49,7 @@ from hybrid_force.errors import (
 )
 from hybrid_force.paths import Path
 from hybrid_force.result import Result
-from hybrid_force.robot import Robot
+from hybrid_force.robot import Robot, RobotTerms
 from hybrid_force.supervisor import ControlSettings, HybridController
 from hybrid_force.surfaces import Surface
 
@@ -73,6 +74,9 @@ class SimSettings:
         max_force: |f| beyond this [N] is a runaway.
         settle_time: metrics "after settling" start here [s].
         normalization: constraint row scaling, "tip" (f in N) or "joint" (the paper's J_Φn).
+        reference: use the straightforward step instead of the fast one: every robot term
+            from its own Pinocchio call, the general k-row constraint algebra, and a dense
+            numpy solve of the KKT system instead of pin.forwardDynamics. Slow; for tests.
     """
 
     duration: float = 20.0
@@ -85,6 +89,7 @@ class SimSettings:
     max_force: float = 1e7
     settle_time: float = 5.0
     normalization: Literal["tip", "joint"] = "tip"
+    reference: bool = False
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.dt) and self.dt > 0):
@@ -306,9 +311,9 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     try:
         for i in range(N):
             t = i * dt
-            terms = robot.terms(q, v, data)
+            terms = _reference_terms(robot, q, v) if sim.reference else robot.terms(q, v, data)
             try:
-                cons = constraint.evaluate(terms, v)
+                cons = constraint.evaluate(terms, v, fast=not sim.reference)
             except SingularConfigurationError:
                 if in_contact:
                     raise
@@ -317,9 +322,12 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             f = zeros_k
             if in_contact:
                 gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-                ddq, f = constrained_acceleration(
-                    model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma
-                )
+                if sim.reference:
+                    ddq, f = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+                else:
+                    ddq, f = constrained_acceleration(
+                        model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma
+                    )
                 if sim.unilateral and float(f.min()) < -sim.release_tol:
                     events.append({"t": t, "kind": "release", "force": float(f.min())})
                     in_contact = False
@@ -392,6 +400,26 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     if progress is not None:
         progress(1.0)
     return log.result(N, meta, k)
+
+
+def _reference_terms(robot: Robot, q: np.ndarray, v: np.ndarray) -> RobotTerms:
+    """The robot terms from one public method each (the reference for the fast pass)."""
+    M, C, g = robot.mass_matrix(q), robot.coriolis(q, v), robot.gravity(q)
+    J = robot.jacobian(q)
+    data = robot.new_data()
+    pin.computeJointJacobiansTimeVariation(robot.model, data, q, v)
+    Jdot = pin.getFrameJacobianTimeVariation(robot.model, data, robot.tip_id, _LWA)[:3].copy()
+    return RobotTerms(
+        M=M,
+        C=C,
+        g=g,
+        nle=C @ v + g,
+        p=robot.tip_position(q),
+        J=J,
+        Jdot=Jdot,
+        Jdot_v=robot.drift(q, v),
+        pdot=J @ v,
+    )
 
 
 def _merge(a: list[dict], b: list[dict]) -> list[dict]:
