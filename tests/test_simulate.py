@@ -1,4 +1,4 @@
-"""Closed-loop simulation: the paper's two experiments (sections 6.3, 6.4) and the loop's guarantees.
+"""Closed-loop simulation: the paper's two experiments (sections 6.3, 6.4) and the loop's rules.
 
 The targets are those of issue 5, checked on full 20 s runs at dt = 1 ms.
 """
