@@ -1,0 +1,609 @@
+"""Benchmark of the closed simulation loop against the floor of its Pinocchio calls (issue 8).
+
+Run from the repository root:
+
+    python benchmarks/bench_loop.py [--quick] [--json PATH]
+
+Reports, in one run on one machine:
+
+1. steps per second of the full closed loop (:func:`hybrid_force.simulate.simulate`: control
+   law, constrained dynamics, integration, projection, logging), median over repetitions of a
+   2 s simulated run, for the paper_contact setup (RTR arm on the cylinder, section 6.3) and for
+   UR5 / Panda on a plane z = 0.3 m;
+2. the floor: the time per step of the Pinocchio calls alone that one step makes (same calls,
+   same counts, same argument shapes, in a tight loop with no other Python logic). The call
+   counts are measured on the real loop by wrapping every ``pinocchio`` function with a counter
+   and checked against the list the floor loop makes;
+3. the overhead factor (loop time / floor time) and the real-time factor at dt = 1 ms;
+4. cost per step versus number of joints (rtr 3, ur5 6, panda 7, g1 29);
+5. linearity in simulated time (RTR, 1, 2, 4 s simulated);
+6. a cProfile of 1 s of the RTR loop (top 15 functions by tottime).
+
+Not part of the test suite. Timings depend on machine load: the JSON records ``uptime``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import cProfile
+import io
+import json
+import os
+import platform
+import pstats
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from hybrid_force.clik import inverse_kinematics
+from hybrid_force.paths import Circle, paper_helix
+from hybrid_force.robot import Robot, load_robot
+from hybrid_force.simulate import Scenario, SimSettings, simulate
+from hybrid_force.supervisor import ControlSettings
+from hybrid_force.surfaces import Cylinder, Plane
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_DT = 1e-3
+_ROOT = Path(__file__).resolve().parents[1]
+
+# Pinocchio calls per contact step (k = 1), read from simulate.py / robot.py / clik.py /
+# dynamics.py / supervisor.py and confirmed by counting (see _count_calls):
+#   Robot.terms: computeJointJacobiansTimeVariation, updateFramePlacement, getFrameJacobian,
+#                getFrameJacobianTimeVariation, crba, computeCoriolisMatrix,
+#                computeGeneralizedGravity
+#   HybridController.command: difference (e_q)
+#   constrained_acceleration: forwardDynamics × 2 (k + 1, the algebraic loop u = u0 + B f)
+#   DesiredJointPath.advance: integrate (predictor), computeJointJacobians + updateFramePlacement
+#                + getFrameJacobian, integrate (Newton correction), computeJointJacobians +
+#                updateFramePlacement + getFrameJacobian, [difference if n > 3 (posture term)],
+#                forwardKinematics(q, v, a) + getFrameClassicalAcceleration
+#   plant: integrate (semi-implicit Euler)
+#   _Plant.project: computeJointJacobians + updateFramePlacement + getFrameJacobian, integrate
+_EXPECTED = {
+    "computeJointJacobiansTimeVariation": 1,
+    "getFrameJacobianTimeVariation": 1,
+    "crba": 1,
+    "computeCoriolisMatrix": 1,
+    "computeGeneralizedGravity": 1,
+    "forwardDynamics": 2,
+    "computeJointJacobians": 3,
+    "updateFramePlacement": 4,
+    "getFrameJacobian": 4,
+    "forwardKinematics": 1,
+    "getFrameClassicalAcceleration": 1,
+    "integrate": 4,
+    "difference": 1,  # + 1 for redundant arms (n > 3)
+}
+
+
+@dataclass(frozen=True)
+class Setup:
+    """A closed-loop benchmark case: a scenario factory for a given duration [s]."""
+
+    name: str
+    robot: Robot
+    make: Callable[[float], Scenario] | None
+    note: str = ""
+
+
+# ---------------------------------------------------------------------------- scenarios
+def _rtr_setup() -> Setup:
+    robot = load_robot("rtr")
+    q0 = inverse_kinematics(robot, [0.4, 0, 7], seed=[0, 6, 2.0])
+
+    def make(duration: float) -> Scenario:
+        return Scenario(
+            robot,
+            [Cylinder(0.4)],
+            paper_helix(),
+            q0,
+            control=ControlSettings(supervisor=False),
+            sim=SimSettings(duration=duration, dt=_DT),
+            name="paper_contact",
+        )
+
+    return Setup("rtr", robot, make, "paper_contact (6.3): cylinder r = 0.4 m, paper helix")
+
+
+def _plane_setup(name: str, seed: list[float], tip: str | None = None) -> Setup:
+    robot = load_robot(name, tip=tip)
+    plane = Plane(point=(0.0, 0.0, 0.3), normal=(0.0, 0.0, 1.0))
+    circle = Circle(center=(0.4, 0.1, 0.3), radius=0.1, normal=(0, 0, 1), omega=1)
+    q0 = inverse_kinematics(robot, circle.position(0), seed=np.array(seed))
+
+    def make(duration: float) -> Scenario:
+        return Scenario(
+            robot,
+            [plane],
+            circle,
+            q0,
+            control=ControlSettings(supervisor=False),
+            sim=SimSettings(duration=duration, dt=_DT),
+            name=f"{name}_plane",
+        )
+
+    return Setup(name, robot, make, "plane z = 0.3 m, circle r = 0.1 m at (0.4, 0.1), ω = 1")
+
+
+def _g1_setup() -> Setup:
+    """G1 (29 joints, fixed pelvis), right hand on a horizontal plane at its own height."""
+    robot = load_robot("g1", tip="right_rubber_hand")
+    seed = robot.neutral()
+    model = robot.model
+    for joint, value in (
+        ("right_shoulder_pitch_joint", -0.6),
+        ("right_shoulder_roll_joint", -0.3),
+        ("right_elbow_joint", 0.8),
+    ):
+        seed[model.joints[model.getJointId(joint)].idx_q] = value
+    p = robot.tip_position(seed)
+    radius = 0.03
+    plane = Plane(point=(0.0, 0.0, float(p[2])), normal=(0.0, 0.0, 1.0))
+    circle = Circle(
+        center=(float(p[0]) - radius, float(p[1]), float(p[2])),
+        radius=radius,
+        normal=(0, 0, 1),
+        omega=1,
+    )
+    q0 = inverse_kinematics(robot, circle.position(0), seed=seed)
+
+    def make(duration: float) -> Scenario:
+        return Scenario(
+            robot,
+            [plane],
+            circle,
+            q0,
+            control=ControlSettings(supervisor=False),
+            sim=SimSettings(duration=duration, dt=_DT),
+            name="g1_plane",
+        )
+
+    return Setup("g1", robot, make, f"right hand on plane z = {p[2]:.3f} m, circle r = 3 cm")
+
+
+# ---------------------------------------------------------------------------- floor
+def _count_calls(setup: Setup) -> dict[str, float]:
+    """Pinocchio calls per step of the real loop (difference of two run lengths)."""
+    counts: collections.Counter[str] = collections.Counter()
+    originals: dict[str, object] = {}
+    for name in dir(pin):
+        obj = getattr(pin, name)
+        if callable(obj) and name[:1].islower() and not isinstance(obj, type):
+            originals[name] = obj
+
+            def wrapper(*a: object, _f: Callable = obj, _n: str = name, **k: object) -> object:
+                counts[_n] += 1
+                return _f(*a, **k)
+
+            setattr(pin, name, wrapper)
+    try:
+        per_run = []
+        for duration in (0.05, 0.1):
+            counts.clear()
+            simulate(setup.make(duration))
+            per_run.append(dict(counts))
+    finally:
+        for name, obj in originals.items():
+            setattr(pin, name, obj)
+    steps = round(0.1 / _DT) - round(0.05 / _DT)
+    names = set(per_run[0]) | set(per_run[1])
+    out = {n: (per_run[1].get(n, 0) - per_run[0].get(n, 0)) / steps for n in sorted(names)}
+    return {n: c for n, c in out.items() if c > 0}
+
+
+def _floor_step(robot: Robot) -> Callable[[], None]:
+    """One step's Pinocchio calls with realistic arguments, as a closure (no other logic)."""
+    model, fid, n = robot.model, robot.tip_id, robot.nv
+    rng = np.random.default_rng(8)
+    q = pin.neutral(model) + 0.3 * rng.standard_normal(robot.nq)
+    v = 0.2 * rng.standard_normal(n)
+    qd = 0.2 * rng.standard_normal(n)
+    a0 = np.zeros(n)
+    tau = rng.standard_normal(n)
+    tau_b = tau + rng.standard_normal(n)
+    dq = 1e-4 * rng.standard_normal(n)
+    q_post = q.copy()
+    d_plant, d_clik, d_proj = model.createData(), model.createData(), model.createData()
+    pin.computeJointJacobians(model, d_plant, q)
+    A = pin.getFrameJacobian(model, d_plant, fid, _LWA)[2:3].copy()  # a plane row n̂ᵀJ (1, n)
+    gamma = np.array([0.01])
+    pin.crba(model, d_plant, q)
+    extra_difference = n > 3
+
+    def step() -> None:
+        # Robot.terms
+        pin.computeJointJacobiansTimeVariation(model, d_plant, q, v)
+        pin.updateFramePlacement(model, d_plant, fid)
+        pin.getFrameJacobian(model, d_plant, fid, _LWA)
+        pin.getFrameJacobianTimeVariation(model, d_plant, fid, _LWA)
+        pin.crba(model, d_plant, q)
+        pin.computeCoriolisMatrix(model, d_plant, q, v)
+        pin.computeGeneralizedGravity(model, d_plant, q)
+        # controller: e_q
+        pin.difference(model, q_post, q)
+        # constrained dynamics, algebraic loop (k + 1 = 2 solves)
+        pin.forwardDynamics(model, d_plant, tau, A, gamma)
+        pin.forwardDynamics(model, d_plant, tau_b, A, gamma)
+        # desired path: predictor, Newton correction, derivatives
+        pin.integrate(model, q, dq)
+        pin.computeJointJacobians(model, d_clik, q)
+        pin.updateFramePlacement(model, d_clik, fid)
+        pin.getFrameJacobian(model, d_clik, fid, _LWA)
+        pin.integrate(model, q, dq)
+        pin.computeJointJacobians(model, d_clik, q)
+        pin.updateFramePlacement(model, d_clik, fid)
+        pin.getFrameJacobian(model, d_clik, fid, _LWA)
+        if extra_difference:
+            pin.difference(model, q_post, q)
+        pin.forwardKinematics(model, d_clik, q, qd, a0)
+        pin.getFrameClassicalAcceleration(model, d_clik, fid, _LWA)
+        # plant: semi-implicit Euler
+        pin.integrate(model, q, dq)
+        # projection onto the surface
+        pin.computeJointJacobians(model, d_proj, q)
+        pin.updateFramePlacement(model, d_proj, fid)
+        pin.getFrameJacobian(model, d_proj, fid, _LWA)
+        pin.integrate(model, q, dq)
+
+    return step
+
+
+def _floor_expected(n: int) -> dict[str, int]:
+    out = dict(_EXPECTED)
+    if n > 3:
+        out["difference"] += 1
+    return out
+
+
+def _time_floor(robot: Robot, batches: int, iters: int) -> dict:
+    """Median and min time per step [µs] of the floor loop, over ``batches`` batches."""
+    step = _floor_step(robot)
+    for _ in range(200):
+        step()
+    per_step = []
+    for _ in range(batches):
+        t0 = time.perf_counter()
+        for _ in range(iters):
+            step()
+        per_step.append((time.perf_counter() - t0) / iters * 1e6)
+    # the bare Python loop + closure call, subtracted from nothing (it is < 0.1 µs)
+    return {"us_median": statistics.median(per_step), "us_min": min(per_step)}
+
+
+def _time_each_call(robot: Robot, iters: int) -> dict[str, float]:
+    """Time per call [µs] of each Pinocchio function of the floor, for the cost breakdown."""
+    model, fid, n = robot.model, robot.tip_id, robot.nv
+    rng = np.random.default_rng(8)
+    q = pin.neutral(model) + 0.3 * rng.standard_normal(robot.nq)
+    v, a0, tau = 0.2 * rng.standard_normal(n), np.zeros(n), rng.standard_normal(n)
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    A = pin.getFrameJacobian(model, data, fid, _LWA)[2:3].copy()
+    gamma = np.array([0.01])
+    pin.crba(model, data, q)
+    calls: dict[str, Callable[[], object]] = {
+        "computeJointJacobiansTimeVariation": lambda: pin.computeJointJacobiansTimeVariation(
+            model, data, q, v
+        ),
+        "getFrameJacobianTimeVariation": lambda: pin.getFrameJacobianTimeVariation(
+            model, data, fid, _LWA
+        ),
+        "crba": lambda: pin.crba(model, data, q),
+        "computeCoriolisMatrix": lambda: pin.computeCoriolisMatrix(model, data, q, v),
+        "computeGeneralizedGravity": lambda: pin.computeGeneralizedGravity(model, data, q),
+        "forwardDynamics": lambda: pin.forwardDynamics(model, data, tau, A, gamma),
+        "computeJointJacobians": lambda: pin.computeJointJacobians(model, data, q),
+        "updateFramePlacement": lambda: pin.updateFramePlacement(model, data, fid),
+        "getFrameJacobian": lambda: pin.getFrameJacobian(model, data, fid, _LWA),
+        "forwardKinematics": lambda: pin.forwardKinematics(model, data, q, v, a0),
+        "getFrameClassicalAcceleration": lambda: pin.getFrameClassicalAcceleration(
+            model, data, fid, _LWA
+        ),
+        "integrate": lambda: pin.integrate(model, q, v),
+        "difference": lambda: pin.difference(model, q, q),
+    }
+    out = {}
+    for name, call in calls.items():
+        for _ in range(100):
+            call()
+        best = np.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            for _ in range(iters):
+                call()
+            best = min(best, (time.perf_counter() - t0) / iters * 1e6)
+        out[name] = best
+    return out
+
+
+# ---------------------------------------------------------------------------- loop
+def _time_loop(setup: Setup, duration: float, reps: int) -> dict:
+    """Median steps per second (meta['steps_per_second']) and wall time of simulate()."""
+    sps, walls, totals = [], [], []
+    status = "ok"
+    for _ in range(reps):
+        scenario = setup.make(duration)
+        t0 = time.perf_counter()
+        result = simulate(scenario)
+        totals.append(time.perf_counter() - t0)
+        sps.append(float(result.meta["steps_per_second"]))
+        walls.append(float(result.meta["wall_time"]))
+        status = result.meta["status"]
+        err = float(np.abs(result.phi).max())
+    return {
+        "duration_s": duration,
+        "reps": reps,
+        "steps_per_second_median": statistics.median(sps),
+        "steps_per_second_all": sps,
+        "loop_wall_s_median": statistics.median(walls),
+        "simulate_call_s_median": statistics.median(totals),
+        "us_per_step_median": 1e6 / statistics.median(sps),
+        "steps_per_second_best": max(sps),
+        "us_per_step_best": 1e6 / max(sps),
+        "status": status,
+        "max_abs_distance_m": err,
+    }
+
+
+def _profile(
+    setup: Setup, duration: float, top: int = 15
+) -> tuple[str, list[dict], dict[str, float]]:
+    scenario = setup.make(duration)
+    prof = cProfile.Profile()
+    prof.enable()
+    simulate(scenario)
+    prof.disable()
+    stream = io.StringIO()
+    stats = pstats.Stats(prof, stream=stream).sort_stats("tottime")
+    stats.print_stats(top)
+    stream.write("--- the same profile by cumulative time ---\n")
+    stats.sort_stats("cumulative").print_stats(top + 10)
+    stats.sort_stats("tottime")
+    rows = []
+    entries = sorted(stats.stats.items(), key=lambda kv: kv[1][2], reverse=True)[:top]
+    for (file, line, func), (_cc, nc, tt, ct, _) in entries:
+        rows.append(
+            {
+                "function": f"{Path(file).name}:{line}({func})",
+                "ncalls": nc,
+                "tottime_s": tt,
+                "cumtime_s": ct,
+            }
+        )
+    categories = {"pinocchio": 0.0, "numpy": 0.0, "hybrid_force (Python)": 0.0, "other": 0.0}
+    for (file, _line, func), (_cc, _nc, tt, _ct, _) in stats.stats.items():
+        if "pinocchio" in func or "pinocchio" in file:
+            categories["pinocchio"] += tt
+        elif "numpy" in file or "numpy" in func:
+            categories["numpy"] += tt
+        elif "hybrid_force" in file:
+            categories["hybrid_force (Python)"] += tt
+        else:
+            categories["other"] += tt
+    text = (
+        stream.getvalue()
+        + "tottime by origin: "
+        + ", ".join(f"{k} {v:.3f} s" for k, v in categories.items())
+    )
+    return text, rows, categories
+
+
+# ---------------------------------------------------------------------------- machine
+def _machine() -> dict:
+    cpu = "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        uptime = ""
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(_ROOT), "rev-parse", "HEAD"], capture_output=True, text=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(_ROOT), "status", "--porcelain", "hybrid_force"],
+            capture_output=True,
+            text=True,
+        ).stdout.split()
+    except OSError:
+        commit, dirty = "", []
+    return {
+        "nproc": os.cpu_count(),
+        "cpu": cpu,
+        "python": platform.python_version(),
+        "pinocchio": pin.__version__,
+        "numpy": np.__version__,
+        "platform": platform.platform(),
+        "uptime": uptime,
+        "loadavg": list(os.getloadavg()),
+        "git_commit": commit,
+        "hybrid_force_uncommitted_changes": [d for d in dirty if d.endswith(".py")],
+    }
+
+
+# ---------------------------------------------------------------------------- main
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark, print the table, write JSON; returns the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="3 repetitions instead of 5")
+    parser.add_argument(
+        "--json", default=str(_ROOT / "benchmarks" / "results" / "latest.json"), help="output"
+    )
+    args = parser.parse_args(argv)
+    reps = 3 if args.quick else 5
+    batches, iters = (3, 2000) if args.quick else (5, 5000)
+    out: dict = {"command": " ".join(["python", *sys.argv]), "machine_start": _machine()}
+    out["dt_s"] = _DT
+
+    setups: dict[str, Setup] = {"rtr": _rtr_setup()}
+    setups["ur5"] = _plane_setup("ur5", [0, -1.0, 1.5, -2.0, -1.57, 0])
+    setups["panda"] = _plane_setup("panda", [0, -0.3, 0, -2.2, 0, 1.9, 0.785])
+    g1_note = ""
+    try:
+        setups["g1"] = _g1_setup()
+    except Exception as exc:  # report, do not abort the benchmark
+        g1_note = f"closed loop not set up: {type(exc).__name__}: {exc}"
+        setups["g1"] = Setup("g1", load_robot("g1", tip="right_rubber_hand"), None, g1_note)
+
+    rows = []
+    for name, setup in setups.items():
+        robot = setup.robot
+        print(f"[{name}] n = {robot.nv}: floor ...", flush=True)
+        floor = _time_floor(robot, batches, iters if robot.nv < 20 else iters // 4)
+        row: dict = {
+            "robot": name,
+            "n": robot.nv,
+            "tip": robot.tip,
+            "setup": setup.note,
+            "floor_us_per_step": floor["us_median"],
+            "floor_us_per_step_min": floor["us_min"],
+            "floor_steps_per_second": 1e6 / floor["us_median"],
+        }
+        if setup.make is not None:
+            try:
+                calls = _count_calls(setup)
+                row["pinocchio_calls_per_step_measured"] = calls
+                expected = _floor_expected(robot.nv)
+                row["floor_call_list_matches"] = {k: round(v, 3) for k, v in calls.items()} == {
+                    k: float(v) for k, v in expected.items()
+                }
+                print(f"[{name}] closed loop {reps} x 2 s ...", flush=True)
+                loop = _time_loop(setup, 2.0, reps)
+                row["loop"] = loop
+                row["loop_steps_per_second"] = loop["steps_per_second_median"]
+                row["loop_us_per_step"] = loop["us_per_step_median"]
+                row["overhead_factor"] = loop["us_per_step_median"] / floor["us_median"]
+                row["real_time_factor"] = loop["steps_per_second_median"] * _DT
+                row["overhead_factor_best"] = loop["us_per_step_best"] / floor["us_min"]
+            except Exception as exc:
+                row["loop_error"] = f"{type(exc).__name__}: {exc}"
+                print(f"[{name}] closed loop failed: {row['loop_error']}", flush=True)
+        else:
+            row["loop_error"] = setup.note
+        rows.append(row)
+    out["per_robot"] = rows
+    out["per_call_us"] = {
+        name: _time_each_call(setups[name].robot, 2000 if setups[name].robot.nv < 20 else 500)
+        for name in setups
+    }
+    for row in rows:  # cross-check: Σ count × best time per call
+        costs = out["per_call_us"][row["robot"]]
+        row["floor_us_per_step_from_call_costs"] = sum(
+            c * costs[k] for k, c in _floor_expected(row["n"]).items()
+        )
+
+    print("[rtr] linearity 1, 2, 4 s ...", flush=True)
+    runs: dict[float, list[float]] = {1.0: [], 2.0: [], 4.0: []}
+    for _ in range(reps):  # interleaved, so a load burst does not hit one duration only
+        for duration in runs:
+            runs[duration].append(_time_loop(setups["rtr"], duration, 1)["loop_wall_s_median"])
+    lin = [
+        {
+            "duration_s": d,
+            "loop_wall_s_all": w,
+            "wall_per_simulated_second_s_median": statistics.median(w) / d,
+            "wall_per_simulated_second_s_best": min(w) / d,
+        }
+        for d, w in runs.items()
+    ]
+    best = [x["wall_per_simulated_second_s_best"] for x in lin]
+    spread = (max(best) - min(best)) / statistics.median(best)
+    # noise: the spread between repetitions of the same run, on this (loaded) machine
+    noise = statistics.median((max(w) - min(w)) / statistics.median(w) for w in runs.values())
+    out["linearity_rtr"] = {
+        "runs": lin,
+        "relative_spread_of_best": spread,
+        "repetition_noise": noise,
+        "linear_within_noise": spread <= max(0.15, noise),
+    }
+
+    print("[rtr] cProfile of 1 s ...", flush=True)
+    text, prof_rows, categories = _profile(setups["rtr"], 1.0)
+    out["profile_rtr_1s"] = {
+        "top15_tottime": prof_rows,
+        "tottime_by_origin_s": categories,
+        "text": text,
+    }
+    out["machine_end"] = {"uptime": _machine()["uptime"], "loadavg": list(os.getloadavg())}
+
+    _print_table(out)
+    print(text)
+    path = Path(args.json)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2, default=float) + "\n")
+    print(f"wrote {path}")
+    return 0
+
+
+def _print_table(out: dict) -> None:
+    m = out["machine_start"]
+    print()
+    print(
+        f"machine: {m['nproc']} CPUs, {m['cpu']}, Python {m['python']}, "
+        f"pinocchio {m['pinocchio']}, numpy {m['numpy']}"
+    )
+    print(f"load at start: {m['uptime']}")
+    print(f"load at end:   {out['machine_end']['uptime']}")
+    head = (
+        f"{'robot':<6}{'n':>4}{'floor µs/step':>15}{'floor steps/s':>15}"
+        f"{'loop µs/step':>14}{'loop steps/s':>14}{'overhead':>10}{'RT factor':>11}"
+        f"{'best: floor µs':>16}{'loop µs':>9}{'overhead':>10}{'Σcalls µs':>11}"
+    )
+    print("median columns, then best-of (min time) columns; Σcalls = Σ count × µs per call")
+    print(head)
+    print("-" * len(head))
+    for r in out["per_robot"]:
+        if "loop_us_per_step" in r:
+            tail = (
+                f"{r['loop_us_per_step']:>14.1f}{r['loop_steps_per_second']:>14.0f}"
+                f"{r['overhead_factor']:>9.1f}x{r['real_time_factor']:>10.2f}x"
+                f"{r['floor_us_per_step_min']:>16.1f}{r['loop']['us_per_step_best']:>9.1f}"
+                f"{r['overhead_factor_best']:>9.1f}x"
+                f"{r['floor_us_per_step_from_call_costs']:>11.1f}"
+            )
+        else:
+            tail = f"   closed loop: {r.get('loop_error', 'n/a')}"
+        print(
+            f"{r['robot']:<6}{r['n']:>4}{r['floor_us_per_step']:>15.1f}"
+            f"{r['floor_steps_per_second']:>15.0f}{tail}"
+        )
+    print()
+    print("linearity (rtr): simulated s -> wall s per simulated s")
+    for x in out["linearity_rtr"]["runs"]:
+        print(
+            f"  {x['duration_s']:>4.0f} s -> best {x['wall_per_simulated_second_s_best']:.4f}, "
+            f"median {x['wall_per_simulated_second_s_median']:.4f} wall s per simulated s"
+        )
+    lin = out["linearity_rtr"]
+    print(
+        f"  spread of best {lin['relative_spread_of_best']:.1%} "
+        f"across durations, repetition noise {lin['repetition_noise']:.1%} "
+        f"(linear within noise: {lin['linear_within_noise']})"
+    )
+    print()
+    print("Pinocchio call cost [µs per call], rtr / ur5 / panda / g1:")
+    names = list(out["per_call_us"])
+    for call in out["per_call_us"][names[0]]:
+        vals = " / ".join(f"{out['per_call_us'][n][call]:.2f}" for n in names)
+        print(f"  {call:<36}{vals}")
+    print()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
