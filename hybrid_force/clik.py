@@ -29,6 +29,7 @@ from hybrid_force.robot import Robot
 __all__ = ["ClikSettings", "DesiredJointPath", "inverse_kinematics"]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_START_TOL = 1e-9  # [m] accepted ‖k(q_d(0)) − p_d(0)‖
 _COND_MAX = 1e8  # condition number of J J^T beyond which J is treated as singular
 
 
@@ -144,6 +145,13 @@ class DesiredJointPath:
         self.t = float(t0)
         self.q = self.posture.copy()
         self.p_d, self.pdot_d, self.pddot_d = path.evaluate(self.t)
+        p0, _ = self._tip_and_jacobian(self.q)
+        if np.linalg.norm(p0 - self.p_d) > _START_TOL:
+            raise ReachError(
+                f"q_d(0) = {np.round(self.q, 6).tolist()} puts the tip at {np.round(p0, 6).tolist()}, "
+                f"not on the path at p_d({self.t:g}) = {np.round(self.p_d, 6).tolist()}: eq. 27 "
+                "needs k(q_d(0)) = p_d(0); use inverse_kinematics to find q_d(0)"
+            )
         self.qd, self.qdd = self._derivatives()
 
     def _tip_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
