@@ -148,7 +148,8 @@ class DesiredJointPath:
         p0, _ = self._tip_and_jacobian(self.q)
         if np.linalg.norm(p0 - self.p_d) > _START_TOL:
             raise ReachError(
-                f"q_d(0) = {np.round(self.q, 6).tolist()} puts the tip at {np.round(p0, 6).tolist()}, "
+                f"q_d(0) = {np.round(self.q, 6).tolist()} puts the tip at "
+                f"{np.round(p0, 6).tolist()}, "
                 f"not on the path at p_d({self.t:g}) = {np.round(self.p_d, 6).tolist()}: eq. 27 "
                 "needs k(q_d(0)) = p_d(0); use inverse_kinematics to find q_d(0)"
             )
