@@ -26,7 +26,7 @@ import json
 import math
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -160,6 +160,20 @@ def _type_name(value: object) -> str:
     return f"a {type(value).__name__}"
 
 
+def _suggest(word: str, choices: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"``: difflib's match, else a case-insensitive or prefix one."""
+    options = list(choices)
+    hint = did_you_mean(word, options)
+    if hint:
+        return hint
+    low = word.lower()
+    for option in options:
+        o = option.lower()
+        if o == low or (len(o) >= 3 and low.startswith(o)) or (len(low) >= 3 and o.startswith(low)):
+            return f" (did you mean '{option}'?)"
+    return ""
+
+
 class _Context:
     """Builds error messages for one file: ``<file>: <table.key> = <value>: <problem>``."""
 
@@ -246,7 +260,7 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
         return value
     if kind == "choice":
         if not isinstance(value, str) or value not in spec.choices:
-            hint = did_you_mean(value, spec.choices) if isinstance(value, str) else ""
+            hint = _suggest(value, spec.choices) if isinstance(value, str) else ""
             raise ctx.error(key, value, f"must be one of {list(spec.choices)}{hint}")
         return value
     if kind == "number":
@@ -313,8 +327,7 @@ def _check_table(
             raise ctx.error(
                 f"{prefix}{key}",
                 value,
-                f"unknown key{did_you_mean(key, schema)}; valid keys of {label}: "
-                f"{', '.join(schema)}",
+                f"unknown key{_suggest(key, schema)}; valid keys of {label}: {', '.join(schema)}",
             )
         out[key] = _check_value(ctx, f"{prefix}{key}", value, schema[key])
     for key, spec in schema.items():
@@ -339,7 +352,7 @@ def _typed_table(
         )
     kind = table["type"]
     if not isinstance(kind, str) or kind not in types:
-        hint = did_you_mean(kind, types) if isinstance(kind, str) else ""
+        hint = _suggest(kind, types) if isinstance(kind, str) else ""
         raise ctx.error(
             f"{name}.type", kind, f"unknown type{hint}; valid types: {', '.join(types)}"
         )
@@ -350,7 +363,7 @@ def _typed_table(
             raise ctx.error(
                 f"{name}.{key}",
                 rest[key],
-                f"unknown key for a {kind}{did_you_mean(key, schema)}; valid keys: type, "
+                f"unknown key for a {kind}{_suggest(key, schema)}; valid keys: type, "
                 f"{', '.join(schema)}",
             )
     return kind, _check_table(ctx, name, rest, schema)
@@ -420,7 +433,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             raise ctx.error(
                 key,
                 value,
-                f"unknown top-level key or table{did_you_mean(key, [*_TOP, *_TABLES])}; valid: "
+                f"unknown top-level key or table{_suggest(key, [*_TOP, *_TABLES])}; valid: "
                 f"{', '.join([*_TOP, *_TABLES])}",
             )
     top = _check_table(ctx, "", {k: v for k, v in doc.items() if k in _TOP}, _TOP)

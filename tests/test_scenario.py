@@ -1,0 +1,516 @@
+"""Scenario files: the shipped scenarios load, every broken file gives a precise error."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybrid_force.errors import ScenarioError
+from hybrid_force.scenario import load_scenario, parse_override
+from hybrid_force.simulate import Scenario
+from hybrid_force.surfaces import Cylinder, Plane, Sphere
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = sorted((REPO_ROOT / "scenarios").glob("*.toml"))
+
+# A valid base file (paper section 6.3); broken variants are built by editing its text.
+BASE = """\
+name = "base"
+description = "paper 6.3"
+
+[robot]
+model = "rtr"
+
+[surface]
+type = "cylinder"
+radius = 0.4
+center = [0.0, 0.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+
+[trajectory]
+type = "helix"
+center = [0.0, 0.0, 10.0]
+radius = 0.4
+axis = [0.0, 0.0, 1.0]
+omega = 1.0
+rise = 0.1
+phase = 0.0
+
+[initial]
+tip = [0.4, 0.0, 7.0]
+seed = [0.0, 6.0, 2.0]
+
+[control]
+supervisor = false
+f_d = 10.0
+
+[sim]
+duration = 2.0
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "broken.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _error(path: Path, overrides: dict[str, object] | None = None) -> str:
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, overrides)
+    return str(info.value)
+
+
+# --- shipped scenarios --------------------------------------------------------------------------
+def test_shipped_scenarios_exist() -> None:
+    names = {p.stem for p in SHIPPED}
+    assert {"paper_contact", "paper_approach", "rtr_sphere", "rtr_plane"} <= names
+    assert any(n.startswith(("ur5_", "panda_")) for n in names)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_shipped_scenario_loads(path: Path) -> None:
+    sc = load_scenario(path)
+    assert isinstance(sc, Scenario)
+    assert sc.name == path.stem  # the output folder runs/<name>/ matches the file name
+    # the start is the configuration the file asks for: on the tip given, or q given
+    raw = sc.source
+    assert raw is not None
+    if "tip" in raw["initial"]:
+        np.testing.assert_allclose(sc.robot.tip_position(sc.q0), raw["initial"]["tip"], atol=1e-9)
+    # the desired path lies on every surface at a few times (independent of check_on_surface)
+    for t in np.linspace(0.0, sc.sim.duration, 7):
+        p = sc.path.position(float(t))
+        for s in sc.surfaces:
+            assert abs(s.distance(p)) < 1e-9
+    json.dumps(raw)  # JSON-able
+
+
+def test_paper_contact_matches_section_6_3() -> None:
+    sc = load_scenario(REPO_ROOT / "scenarios" / "paper_contact.toml")
+    (cyl,) = sc.surfaces
+    assert isinstance(cyl, Cylinder) and cyl.radius == 0.4 and cyl.inside is False
+    # eq. 25: p_d(t) = (0.4 cos t, 0.4 sin t, 10 + t/10)
+    for t in (0.0, 1.3, 7.0):
+        np.testing.assert_allclose(
+            sc.path.position(t), [0.4 * math.cos(t), 0.4 * math.sin(t), 10 + t / 10], atol=1e-12
+        )
+    np.testing.assert_allclose(sc.robot.tip_position(sc.q0), [0.4, 0.0, 7.0], atol=1e-10)
+    assert sc.q0[2] > 0  # the elbow branch of the seed [0, 6, 2.0]
+    assert sc.control.supervisor is False and sc.control.f_d == 10.0
+    assert sc.sim.duration == 20.0 and sc.sim.dt == 1e-3
+
+
+def test_paper_approach_is_inside_and_off_the_surface() -> None:
+    sc = load_scenario(REPO_ROOT / "scenarios" / "paper_approach.toml")
+    (cyl,) = sc.surfaces
+    assert cyl.inside is True
+    p0 = sc.robot.tip_position(sc.q0)
+    np.testing.assert_allclose(p0, [0.1, 0.1, 2.0], atol=1e-10)
+    # inside the pipe the free-side distance is r − ρ = 0.4 − √0.02 > 0
+    assert cyl.distance(p0) == pytest.approx(0.4 - math.sqrt(0.02), abs=1e-12)
+    assert sc.control.supervisor is True
+
+
+def test_defaults_are_the_dataclass_defaults(tmp_path: Path) -> None:
+    from hybrid_force.dynamics import Baumgarte
+    from hybrid_force.simulate import SimSettings
+    from hybrid_force.supervisor import ControlSettings
+
+    # no [control] and no [sim]; the start 0.1 m off the cylinder (the supervisor, on by
+    # default, approaches it)
+    text = BASE[: BASE.index("[control]")].replace("tip = [0.4, 0.0, 7.0]", "tip = [0.5, 0.0, 7.0]")
+    sc = load_scenario(_write(tmp_path, text, "defaults.toml"))
+    assert sc.control == ControlSettings()
+    sim = SimSettings()
+    assert (sc.sim.duration, sc.sim.dt, sc.sim.integrator) == (sim.duration, sim.dt, "euler")
+    assert sc.sim.baumgarte == Baumgarte()
+    assert (sc.sim.settle_time, sc.sim.unilateral, sc.sim.normalization) == (
+        sim.settle_time,
+        sim.unilateral,
+        sim.normalization,
+    )
+
+
+def test_every_key_maps_to_the_settings(tmp_path: Path) -> None:
+    text = BASE.replace(
+        "[control]\nsupervisor = false\nf_d = 10.0\n",
+        "[control]\nsupervisor = false\nf_d = 12.5\nKd = [100, 200, 300]\nkd_rate = 50\n"
+        "Lambda = 8\nbeta = 0.02\ngamma = 15\nclik_gain = 6\nmax_dist = 0.04\n"
+        "contact_tol = 2e-5\nP = 0.4\napproach_rate = 5\n",
+    ).replace(
+        "[sim]\nduration = 2.0\n",
+        '[sim]\nduration = 2.0\ndt = 5e-4\nintegrator = "rk4"\nbaumgarte_alpha = 40\n'
+        "baumgarte_beta = 30\nmodel_mass_factor = 1.1\nsettle_time = 1\nunilateral = false\n"
+        'normalization = "joint"\n',
+    )
+    sc = load_scenario(_write(tmp_path, text, "all.toml"))
+    c, s = sc.control, sc.sim
+    np.testing.assert_array_equal(np.asarray(c.Kd), [100.0, 200.0, 300.0])
+    assert (c.kd_rate, c.Lambda, c.beta, c.gamma, c.f_d) == (50, 8, 0.02, 15, 12.5)
+    assert (c.clik_gain, c.max_dist, c.contact_tol, c.P, c.approach_rate) == (6, 0.04, 2e-5, 0.4, 5)
+    assert c.mass_factor == 1.1
+    assert (s.dt, s.integrator, s.baumgarte.alpha, s.baumgarte.beta) == (5e-4, "rk4", 40, 30)
+    assert (s.settle_time, s.unilateral, s.normalization) == (1, False, "joint")
+
+
+def test_surfaces_list_and_initial_q(tmp_path: Path) -> None:
+    # the start on the edge of two planes x = 0.4 (free side +x) and z = 7 (free side +z)
+    text = """\
+name = "two"
+[robot]
+model = "rtr"
+[[surfaces]]
+type = "plane"
+point = [0.4, 0.0, 0.0]
+normal = [1.0, 0.0, 0.0]
+[[surfaces]]
+type = "plane"
+point = [0.0, 0.0, 7.0]
+normal = [0.0, 0.0, 2.0]
+[trajectory]
+type = "circle"
+center = [0.3, 0.0, 7.0]
+radius = 0.1
+normal = [0.0, 0.0, 1.0]
+omega = 0.0  # stands still at center + radius·x = [0.4, 0, 7], on both planes
+[initial]
+q = [0.0, 6.1339746, 2.0943951]
+v = [0.0, 0.0, 0.0]
+[sim]
+duration = 1.0
+"""
+    sc = load_scenario(_write(tmp_path, text, "two.toml"))
+    assert [type(s) for s in sc.surfaces] == [Plane, Plane]
+    np.testing.assert_allclose(sc.surfaces[1].normal([0, 0, 9]), [0, 0, 1])
+    np.testing.assert_array_equal(sc.q0, [0.0, 6.1339746, 2.0943951])
+    np.testing.assert_array_equal(sc.v0, [0.0, 0.0, 0.0])
+
+
+def test_sphere_and_relative_urdf_path(tmp_path: Path) -> None:
+    import shutil
+
+    (tmp_path / "arms").mkdir()
+    shutil.copy(REPO_ROOT / "robots" / "rtr.urdf", tmp_path / "arms" / "my_rtr.urdf")
+    text = BASE.replace('model = "rtr"', 'model = "arms/my_rtr.urdf"\ntip = "tip"')
+    text = text.replace(
+        'type = "cylinder"\nradius = 0.4\ncenter = [0.0, 0.0, 0.0]\naxis = [0.0, 0.0, 1.0]',
+        'type = "sphere"\nradius = 0.5\ncenter = [0.0, 0.0, 5.0]',
+    ).replace(
+        'type = "helix"\ncenter = [0.0, 0.0, 10.0]\nradius = 0.4\naxis = [0.0, 0.0, 1.0]\n'
+        "omega = 1.0\nrise = 0.1\n",
+        'type = "circle"\ncenter = [0.0, 0.0, 5.3]\nradius = 0.4\nnormal = [0.0, 0.0, 1.0]\n'
+        "omega = 0.5\n",
+    )
+    text = text.replace("tip = [0.4, 0.0, 7.0]", "tip = [0.4, 0.0, 5.3]")
+    sc = load_scenario(_write(tmp_path, text, "sphere.toml"))
+    assert isinstance(sc.surfaces[0], Sphere)
+    assert Path(sc.robot.urdf_path).name == "my_rtr.urdf"
+
+
+# --- overrides ------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("text", "key", "value"),
+    [
+        ("sim.duration=0.2", "sim.duration", 0.2),
+        ("control.Kd=5", "control.Kd", 5),
+        ("control.supervisor=true", "control.supervisor", True),
+        ("initial.tip=[0.4, 0, 7]", "initial.tip", [0.4, 0, 7]),
+        ("sim.dt=1e-3", "sim.dt", 1e-3),
+        ('name="x"', "name", "x"),
+        ("sim.integrator=rk4", "sim.integrator", "rk4"),  # not TOML: the raw string
+        ("  sim.integrator = euler ", "sim.integrator", "euler"),
+        ("robot.model=a=b", "robot.model", "a=b"),
+    ],
+)
+def test_parse_override(text: str, key: str, value: object) -> None:
+    k, v = parse_override(text)
+    assert k == key
+    assert v == value and type(v) is type(value)
+
+
+@pytest.mark.parametrize("text", ["sim.duration", "=3", "sim..dt=1", ".dt=1"])
+def test_parse_override_rejects(text: str) -> None:
+    with pytest.raises(ScenarioError, match=r"table\.key=value"):
+        parse_override(text)
+
+
+def test_overrides_replace_and_add(tmp_path: Path) -> None:
+    path = _write(tmp_path, BASE, "ok.toml")
+    sc = load_scenario(
+        path,
+        {
+            "sim.duration": 0.5,
+            "sim.integrator": "rk4",
+            "control.Kd": 300,
+            "control.f_d": 4,
+            "name": "renamed",
+        },
+    )
+    assert sc.sim.duration == 0.5 and sc.sim.integrator == "rk4"
+    assert float(sc.control.Kd) == 300.0 and sc.control.f_d == 4
+    assert sc.name == "renamed"
+    assert sc.source["sim"]["duration"] == 0.5 and sc.source["control"]["Kd"] == 300
+    assert sc.source["name"] == "renamed"
+    # the file is unchanged
+    assert load_scenario(path).sim.duration == 2.0
+
+
+def test_override_into_surfaces_list(tmp_path: Path) -> None:
+    text = BASE.replace("[surface]", "[[surfaces]]")
+    sc = load_scenario(_write(tmp_path, text, "list.toml"), {"surfaces.0.inside": False})
+    assert sc.surfaces[0].inside is False
+    msg = _error(_write(tmp_path, text, "list2.toml"), {"surfaces.3.radius": 1.0})
+    assert "surfaces.3" in msg and "list2.toml" in msg
+
+
+def test_unknown_override_key_is_an_error(tmp_path: Path) -> None:
+    path = _write(tmp_path, BASE, "ok.toml")
+    msg = _error(path, {"control.Lamda": 3})
+    assert "ok.toml" in msg and "control.Lamda = 3" in msg and "did you mean 'Lambda'" in msg
+    msg = _error(path, {"contrl.Kd": 3})
+    assert "contrl" in msg and "did you mean 'control'" in msg
+
+
+def test_no_eval(tmp_path: Path) -> None:
+    path = _write(tmp_path, BASE, "ok.toml")
+    key, value = parse_override("sim.duration=__import__('os').system('false')")
+    assert value == "__import__('os').system('false')"
+    msg = _error(path, {key: value})
+    assert "sim.duration" in msg and "must be a number, got a string" in msg
+    text = BASE.replace("radius = 0.4\ncenter", "radius = \"__import__('os')\"\ncenter")
+    msg = _error(_write(tmp_path, text))
+    assert "surface.radius" in msg and "__import__" in msg and "got a string" in msg
+
+
+# --- broken files ---------------------------------------------------------------------------------
+_BROKEN = [
+    # (id, old text, new text, key named, value named, words in the problem)
+    (
+        "unknown key",
+        "rise = 0.1",
+        "rise = 0.1\nphse = 0.0",
+        "trajectory.phse",
+        "0.0",
+        "did you mean 'phase'",
+    ),
+    ("unknown table", "[sim]", "[simulation]", "simulation", "duration", "did you mean"),
+    (
+        "unknown top key",
+        'name = "base"',
+        'name = "base"\nnmae = "x"',
+        "nmae",
+        '"x"',
+        "did you mean 'name'",
+    ),
+    ("missing key", "rise = 0.1\n", "", "trajectory.rise", "", "missing required key"),
+    ("missing model", 'model = "rtr"', 'tip = "tip"', "robot.model", "", "missing required key"),
+    (
+        "missing table",
+        "[initial]\ntip = [0.4, 0.0, 7.0]\nseed = [0.0, 6.0, 2.0]\n",
+        "",
+        "[initial]",
+        "",
+        "missing required table",
+    ),
+    (
+        "2-vector",
+        "center = [0.0, 0.0, 10.0]",
+        "center = [0.0, 10.0]",
+        "trajectory.center",
+        "[0.0, 10.0]",
+        "3 numbers",
+    ),
+    (
+        "radius string",
+        "radius = 0.4\ncenter = [0.0, 0.0, 0.0]",
+        'radius = "0.4"\ncenter = [0.0, 0.0, 0.0]',
+        "surface.radius",
+        '"0.4"',
+        "got a string",
+    ),
+    ("bool for number", "omega = 1.0", "omega = true", "trajectory.omega", "true", "got a boolean"),
+    (
+        "number for bool",
+        "supervisor = false",
+        "supervisor = 0",
+        "control.supervisor",
+        "0",
+        "true or false",
+    ),
+    ("nan", "f_d = 10.0", "f_d = nan", "control.f_d", "NaN", "finite"),
+    (
+        "negative radius",
+        "radius = 0.4\ncenter = [0.0, 0.0, 0.0]",
+        "radius = -0.4\ncenter = [0.0, 0.0, 0.0]",
+        "surface.radius",
+        "-0.4",
+        "positive",
+    ),
+    (
+        "zero axis",
+        "axis = [0.0, 0.0, 1.0]\n\n",
+        "axis = [0.0, 0.0, 0.0]\n\n",
+        "surface.axis",
+        "[0.0, 0.0, 0.0]",
+        "non-zero",
+    ),
+    (
+        "surface type",
+        'type = "cylinder"',
+        'type = "cylindre"',
+        "surface.type",
+        '"cylindre"',
+        "did you mean 'cylinder'",
+    ),
+    (
+        "path type",
+        'type = "helix"',
+        'type = "spiral"',
+        "trajectory.type",
+        '"spiral"',
+        "helix, circle",
+    ),
+    (
+        "integrator",
+        "duration = 2.0",
+        'duration = 2.0\nintegrator = "rk5"',
+        "sim.integrator",
+        '"rk5"',
+        "did you mean 'rk4'",
+    ),
+    ("negative dt", "duration = 2.0", "duration = 2.0\ndt = -1e-3", "sim.dt", "-0.001", "> 0"),
+    ("dt > duration", "duration = 2.0", "duration = 2.0\ndt = 3.0", "sim.dt", "3.0", "larger than"),
+    (
+        "bad Kd",
+        "f_d = 10.0",
+        "f_d = 10.0\nKd = [1.0, -2.0, 3.0]",
+        "control.Kd",
+        "[1.0, -2.0, 3.0]",
+        "positive definite",
+    ),
+    (
+        "Kd shape",
+        "f_d = 10.0",
+        "f_d = 10.0\nKd = [1.0, 2.0]",
+        "control.Kd",
+        "[1.0, 2.0]",
+        "vector of 3",
+    ),
+    ("bad P", "f_d = 10.0", "f_d = 10.0\nP = 1.5", "control.P", "1.5", "(0, 1)"),
+    (
+        "seed length",
+        "seed = [0.0, 6.0, 2.0]",
+        "seed = [0.0, 6.0]",
+        "initial.seed",
+        "[0.0, 6.0]",
+        "3 numbers",
+    ),
+    (
+        "both tip and q",
+        "seed = [0.0, 6.0, 2.0]",
+        "q = [0.0, 6.0, 2.0]",
+        "initial.tip, initial.q",
+        "",
+        "not both",
+    ),
+    (
+        "out of reach",
+        "tip = [0.4, 0.0, 7.0]",
+        "tip = [5.0, 0.0, 7.0]",
+        "initial.tip",
+        "[5.0, 0.0, 7.0]",
+        "out of reach",
+    ),
+    ("unknown robot", 'model = "rtr"', 'model = "ur55"', "robot.model", '"ur55"', "ur5"),
+    ("bad tip frame", 'model = "rtr"', 'model = "rtr"\ntip = "nib"', "robot.tip", '"nib"', "nib"),
+    (
+        "missing urdf",
+        'model = "rtr"',
+        'model = "arms/none.urdf"',
+        "robot.model",
+        '"arms/none.urdf"',
+        "not found",
+    ),
+    (
+        "both surface forms",
+        "[trajectory]",
+        '[[surfaces]]\ntype = "plane"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n'
+        "\n[trajectory]",
+        "surface, surfaces",
+        "",
+        "not both",
+    ),
+    ("bad name", 'name = "base"', 'name = "../up"', "name", '"../up"', "simple name"),
+]
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "value", "problem"),
+    [case[1:] for case in _BROKEN],
+    ids=[case[0] for case in _BROKEN],
+)
+def test_broken_file(
+    tmp_path: Path, old: str, new: str, key: str, value: str, problem: str
+) -> None:
+    assert old in BASE
+    path = _write(tmp_path, BASE.replace(old, new, 1))
+    msg = _error(path)
+    assert str(path) in msg
+    assert key in msg
+    assert value in msg
+    assert problem in msg
+
+
+def test_toml_syntax_error_gives_line_and_column(tmp_path: Path) -> None:
+    path = _write(tmp_path, BASE.replace("omega = 1.0", "omega = = 1.0"))
+    msg = _error(path)
+    line = BASE.splitlines().index("omega = 1.0") + 1
+    assert str(path) in msg and "TOML syntax error" in msg
+    assert f"line {line}" in msg and "column" in msg
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    msg = _error(tmp_path / "nope.toml")
+    assert "nope.toml" in msg and "not found" in msg
+
+
+def test_trajectory_off_the_surface_says_how_far_and_when(tmp_path: Path) -> None:
+    # radius 0.4 + 1e-3: 1 mm off the cylinder at every time
+    path = _write(tmp_path, BASE.replace("radius = 0.4\naxis", "radius = 0.401\naxis"))
+    msg = _error(path)
+    assert str(path) in msg and "trajectory.radius = 0.401" in msg and "not on [surface]" in msg
+    assert "0.001 m away" in msg
+    # a helix tilted off the cylinder axis leaves it: the worst |d| is at the end (t = 2)
+    tilted = BASE.replace(
+        "radius = 0.4\naxis = [0.0, 0.0, 1.0]\nomega",
+        "radius = 0.4\naxis = [0.0, 0.01, 1.0]\nomega",
+    )
+    msg = _error(_write(tmp_path, tilted, "tilted.toml"))
+    assert "trajectory.axis = [0.0, 0.01, 1.0]" in msg and "at t = 2 s" in msg
+
+
+def test_start_not_on_surface_when_starting_in_contact(tmp_path: Path) -> None:
+    path = _write(tmp_path, BASE.replace("tip = [0.4, 0.0, 7.0]", "tip = [0.41, 0.0, 7.0]"))
+    msg = _error(path)
+    assert str(path) in msg and "initial.tip = [0.41, 0.0, 7.0]" in msg
+    assert "0.01 m from the surface" in msg and "control.supervisor = false" in msg
+    # the same start is fine with the supervisor (the arm approaches the surface)
+    sc = load_scenario(path, {"control.supervisor": True})
+    assert sc.surfaces[0].distance(sc.robot.tip_position(sc.q0)) == pytest.approx(0.01)
+
+
+def test_start_inside_the_solid(tmp_path: Path) -> None:
+    path = _write(tmp_path, BASE.replace("tip = [0.4, 0.0, 7.0]", "tip = [0.3, 0.0, 7.0]"))
+    msg = _error(path, {"control.supervisor": True})
+    assert "initial.tip = [0.3, 0.0, 7.0]" in msg and "0.1 m behind the surface" in msg
+
+
+def test_stiff_default_gain_names_kd_and_dt(tmp_path: Path) -> None:
+    path = _write(tmp_path, BASE)
+    msg = _error(path, {"control.kd_rate": 1000.0, "sim.dt": 0.002})
+    assert "control.Kd" in msg and "dt" in msg
