@@ -37,6 +37,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as _futures_as_completed
@@ -96,7 +97,7 @@ TIMING_COLUMNS: tuple[str, ...] = ("steps_per_second", "wall_time")
 """Machine-dependent columns (steps/s of the control loop, wall time [s] of the whole run)."""
 
 _FIXED_HEAD = ("run_id",)
-_STATUS_COLUMNS = ("status", "error")
+_STATUS_COLUMNS = ("status", "error", "warnings")
 _CSV_NAME = "sweep.csv"
 _JSON_NAME = "sweep.json"
 
@@ -285,15 +286,31 @@ def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) ->
 
     Returns:
         A flat dict: ``run_id``, the params (keys ``"table.key"``), ``status`` (see
-        :data:`STATUSES`), ``error`` (one-line message or None), the :data:`METRIC_COLUMNS`
+        :data:`STATUSES`), ``error`` (one-line message or None), ``warnings`` (the distinct
+        warnings the run raised, joined by " | ", or None), the :data:`METRIC_COLUMNS`
         (None when undefined) and the :data:`TIMING_COLUMNS`. Top-level, so it pickles for a
         process pool or a Dask worker.
     """
     rid = run_id(params)
     row: dict[str, Any] = {"run_id": rid, **params, "status": "ok", "error": None}
+    row["warnings"] = None
     for name in (*METRIC_COLUMNS, *TIMING_COLUMNS):
         row[name] = None
     wall0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _run_into(row, scenario_path, params, keep_dir)
+    messages = list(dict.fromkeys(_one_line(str(w.message)) for w in caught))
+    row["warnings"] = " | ".join(messages) if messages else None
+    row["wall_time"] = time.perf_counter() - wall0
+    return row
+
+
+def _run_into(
+    row: dict[str, Any], scenario_path: str, params: dict[str, Any], keep_dir: str | None
+) -> None:
+    """Load, simulate and fill ``row`` in place (status, error, metrics); never raises."""
+    rid = row["run_id"]
     result: Any = None
     try:
         from hybrid_force.errors import DivergenceError
@@ -320,8 +337,6 @@ def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) ->
     except Exception as exc:
         row["status"] = "error"
         row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
-    row["wall_time"] = time.perf_counter() - wall0
-    return row
 
 
 # ----------------------------------------------------------------------------- CSV files
@@ -839,8 +854,8 @@ def _print_summary(
     counts = {s: sum(r["status"] == s for r in mine) for s in STATUSES}
     parts = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
     print(
-        f"sweep: {len(mine)} runs ({parts}); {n_new} run now in {_hms(wall)}, "
-        f"{len(mine) - n_new} from before"
+        f"sweep: {len(mine)} runs ({parts}); {n_new} new in {_hms(wall)}, "
+        f"{len(mine) - n_new} kept from before"
     )
     failed = [r for r in mine if r["status"] != "ok"]
     if failed:
@@ -848,7 +863,7 @@ def _print_summary(
     ok = [r for r in mine if r["status"] == "ok" and r["final_position_error"]]
     if ok:
         best = min(ok, key=lambda r: float(r["final_position_error"]))
-        params = {k: best[k] for k in variants[0] if k in best}
+        params = ", ".join(f"{k}={best[k]}" for k in variants[0] if k in best)
         print(
             f"best final position error: {float(best['final_position_error']):.3g} m "
             f"at {params or 'the scenario as is'}"
