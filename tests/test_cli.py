@@ -1,0 +1,226 @@
+"""``hybrid-force run`` and ``hybrid-force plot`` end to end, in a subprocess."""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybrid_force.cli import FeatureUnavailableError, _import_feature, _Progress
+from hybrid_force.result import Metrics, Result
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = sorted((REPO_ROOT / "scenarios").glob("*.toml"))
+METRIC_KEYS = {f.name for f in dataclasses.fields(Metrics)}
+FIGURES = {
+    "path3d.png",
+    "projection.png",
+    "position_errors.png",
+    "force_error.png",
+    "desired_force.png",
+    "lyapunov.png",
+}
+
+
+def _cli(*args: str | Path, cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hybrid_force.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=300,
+        check=False,
+    )
+
+
+def _assert_one_error_line(proc: subprocess.CompletedProcess[str], status: int) -> str:
+    assert proc.returncode == status, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("error: ")
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def saved_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short paper_contact run saved by the command line (its output folder)."""
+    out = tmp_path_factory.mktemp("saved") / "paper_contact"
+    proc = _cli(
+        "run", SHIPPED[0].parent / "paper_contact.toml", "--set", "sim.duration=0.2", "--out", out
+    )
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.mark.parametrize("scenario", SHIPPED, ids=lambda p: p.stem)
+def test_run_every_shipped_scenario(scenario: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    proc = _cli("run", scenario, "--set", "sim.duration=0.2", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""  # not a terminal: no progress bar
+    assert "position error" in proc.stdout and "steps/s" in proc.stdout
+    result = Result.load(out / "result.npz")
+    assert result.status == "ok"
+    assert result.t[-1] == pytest.approx(0.2)
+    assert result.n_samples == 201  # dt = 1 ms in every shipped file
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary) >= METRIC_KEYS
+    assert summary["status"] == "ok" and summary["name"] == scenario.stem
+    # the summary agrees with the arrays: final position error = ‖p − p_d‖ at the end
+    e_end = float(np.linalg.norm(result.p[-1] - result.p_d[-1]))
+    assert summary["final_position_error"] == pytest.approx(e_end, rel=1e-12, abs=1e-300)
+    # the scenario as loaded (with the override) is stored in the result
+    assert result.meta["scenario"]["sim"]["duration"] == 0.2
+    assert not list(out.glob("*.tmp")) and not list(out.glob(".*"))
+
+
+def test_default_output_folder_is_runs_name(tmp_path: Path) -> None:
+    proc = _cli(
+        "run",
+        REPO_ROOT / "scenarios" / "rtr_plane.toml",
+        "--set",
+        "sim.duration=0.05",
+        "--quiet",
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == ""  # --quiet
+    assert (tmp_path / "runs" / "rtr_plane" / "result.npz").is_file()
+    assert (tmp_path / "runs" / "rtr_plane" / "summary.json").is_file()
+
+
+def test_broken_scenario_exit_2(tmp_path: Path) -> None:
+    text = (REPO_ROOT / "scenarios" / "paper_contact.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        text.replace(
+            "radius = 0.4\ncenter = [0.0, 0.0, 0.0]", 'radius = "big"\ncenter = [0.0, 0.0, 0.0]'
+        )
+    )
+    line = _assert_one_error_line(_cli("run", bad, "--out", tmp_path / "o"), 2)
+    assert str(bad) in line and 'surface.radius = "big"' in line
+    assert not (tmp_path / "o" / "result.npz").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (("--set", "control.Kp=3"), "control.Kp = 3"),
+        (("--set", "sim.duration=0"), "sim.duration = 0"),
+        (("--set", "nokey"), "table.key=value"),
+        (("--bogus",), "unrecognized arguments"),
+    ],
+)
+def test_bad_options_exit_2(tmp_path: Path, args: tuple[str, ...], words: str) -> None:
+    proc = _cli("run", REPO_ROOT / "scenarios" / "paper_contact.toml", *args, "--out", tmp_path)
+    line = _assert_one_error_line(proc, 2)
+    assert words in line
+
+
+def test_missing_scenario_file_exit_2(tmp_path: Path) -> None:
+    line = _assert_one_error_line(_cli("run", tmp_path / "nope.toml"), 2)
+    assert "nope.toml" in line and "not found" in line
+
+
+def test_diverging_run_exit_1_saves_failed_result(tmp_path: Path) -> None:
+    # f_d = 1e9 N is beyond the simulator's runaway bound on |f| (1e7 N)
+    out = tmp_path / "div"
+    proc = _cli(
+        "run",
+        REPO_ROOT / "scenarios" / "paper_contact.toml",
+        "--set",
+        "control.f_d=1e9",
+        "--set",
+        "sim.duration=0.2",
+        "--out",
+        out,
+    )
+    line = _assert_one_error_line(proc, 1)
+    assert line.startswith("error: run failed: ") and "runaway" in line
+    result = Result.load(out / "result.npz")
+    assert result.meta["status"] == "failed" and result.meta["error"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed"
+
+
+def test_plot_saved_result(saved_run: Path, tmp_path: Path) -> None:
+    proc = _cli("plot", saved_run / "result.npz", "--out", tmp_path / "figs")
+    assert proc.returncode == 0, proc.stderr
+    written = {p.name for p in (tmp_path / "figs").glob("*.png")}
+    assert written == FIGURES
+    for name in FIGURES:
+        assert (tmp_path / "figs" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_run_with_plot_writes_figures(tmp_path: Path) -> None:
+    out = tmp_path / "o"
+    proc = _cli(
+        "run",
+        REPO_ROOT / "scenarios" / "paper_contact.toml",
+        "--set",
+        "sim.duration=0.02",
+        "--plot",
+        "--quiet",
+        "--out",
+        out,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert {p.name for p in out.glob("*.png")} == FIGURES
+
+
+@pytest.mark.parametrize(
+    ("name", "args", "words"),
+    [
+        ("sweep.csv", (), "--x"),
+        ("sweep.csv", ("--x", "control.Kd"), "--metric"),
+        ("notes.txt", (), ".npz"),
+        ("missing.npz", (), "missing.npz"),
+    ],
+)
+def test_plot_bad_input_exit_2(
+    tmp_path: Path, name: str, args: tuple[str, ...], words: str
+) -> None:
+    path = tmp_path / name
+    if not name.startswith("missing"):
+        path.write_text("control.Kd,final_position_error\n1,2\n")
+    line = _assert_one_error_line(_cli("plot", path, *args), 2)
+    assert words in line
+
+
+def test_plot_npz_rejects_sweep_options(saved_run: Path) -> None:
+    line = _assert_one_error_line(_cli("plot", saved_run / "result.npz", "--x", "sim.dt"), 2)
+    assert "sweep" in line
+
+
+@pytest.mark.parametrize("command", ["run", "plot", "replay", "robots"])
+def test_help_of_every_command(command: str) -> None:
+    proc = _cli(command, "--help")
+    assert proc.returncode == 0
+    assert proc.stdout.startswith("usage: hybrid-force " + command)
+
+
+def test_missing_feature_module_is_a_clear_error() -> None:
+    with pytest.raises(FeatureUnavailableError, match="the thing is not available"):
+        _import_feature("hybrid_force.no_such_module", "the thing")
+
+
+def test_progress_bar_text() -> None:
+    stream = io.StringIO()
+    bar = _Progress(stream, "demo", delay=0.0)
+    bar(0.5)
+    text = stream.getvalue()
+    assert text.startswith("\rdemo [") and "50%" in text and "ETA" in text
+    assert text.count("#") == _Progress.WIDTH // 2
+    bar.close()
+    assert stream.getvalue().endswith("\r")
+    # before the delay nothing is shown (runs shorter than a second stay quiet)
+    quiet = io.StringIO()
+    _Progress(quiet, "demo", delay=60.0)(0.5)
+    assert quiet.getvalue() == ""
