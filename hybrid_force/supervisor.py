@@ -279,7 +279,7 @@ class HybridController:
 
     def _check_branch(self, t: float, terms: RobotTerms) -> None:
         st, s = self._int, self.settings
-        err = float(np.linalg.norm(terms.p - self.path.position(t)))
+        err = float(np.linalg.norm(terms.p - self.clik.p_d))  # clik is at time t
         if err < 0.5 * st.best_error:
             st.best_error, st.best_error_time = err, t
         if (
