@@ -57,8 +57,11 @@ from hybrid_force.paths import (
     paper_helix,
     path_from_dict,
 )
+from hybrid_force.plots import PlotError, plot_result, plot_sweep
+from hybrid_force.replay import Replay, ReplaySettings, serve, write_html
 from hybrid_force.result import Metrics, Result, load_result
 from hybrid_force.robot import Robot, RobotTerms, load_robot
+from hybrid_force.scenario import load_scenario, parse_override
 from hybrid_force.simulate import Scenario, SimSettings, simulate
 from hybrid_force.supervisor import (
     CONTACT,
@@ -75,6 +78,7 @@ from hybrid_force.surfaces import (
     Surface,
     surface_from_dict,
 )
+from hybrid_force.sweep import expand, run_sweep
 
 __all__ = [
     "CONTACT",
@@ -108,7 +112,10 @@ __all__ = [
     "Path",
     "PathParameterError",
     "Plane",
+    "PlotError",
     "ReachError",
+    "Replay",
+    "ReplaySettings",
     "Result",
     "ResultFileError",
     "Robot",
@@ -130,16 +137,24 @@ __all__ = [
     "check_on_surface",
     "constrained_acceleration",
     "default_damping_gain",
+    "expand",
     "free_acceleration",
     "free_space_law",
     "inverse_kinematics",
     "kkt_reference",
     "load_result",
     "load_robot",
+    "load_scenario",
     "make_gains",
     "paper_helix",
+    "parse_override",
     "path_from_dict",
     "plastic_impact",
+    "plot_result",
+    "plot_sweep",
+    "run_sweep",
+    "serve",
     "simulate",
     "surface_from_dict",
+    "write_html",
 ]
