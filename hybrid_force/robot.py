@@ -128,8 +128,7 @@ class Robot:
     def mass_matrix(self, q: object) -> np.ndarray:
         """M(q): (n, n) symmetric positive definite mass matrix (eq. 21)."""
         q = self.check_q(q)
-        M = pin.crba(self.model, self.data, q)
-        return _symmetrize(M)
+        return self._full(pin.crba(self.model, self.data, q))
 
     def coriolis(self, q: object, v: object) -> np.ndarray:
         """C(q, v): (n, n) Coriolis matrix with Ṁ − 2C skew-symmetric (eq. 22)."""
@@ -174,12 +173,17 @@ class Robot:
         p = pin.updateFramePlacement(model, data, self.tip_id).translation.copy()
         J = pin.getFrameJacobian(model, data, self.tip_id, _LWA)[:3].copy()
         Jdot = pin.getFrameJacobianTimeVariation(model, data, self.tip_id, _LWA)[:3].copy()
-        M = pin.crba(model, data, q).copy()
-        M[self._lower] = M.T[self._lower]
+        M = self._full(pin.crba(model, data, q))
         C = pin.computeCoriolisMatrix(model, data, q, v).copy()
         g = pin.computeGeneralizedGravity(model, data, q).copy()
         nle = C @ v + g
         return RobotTerms(M=M, C=C, g=g, nle=nle, p=p, J=J, Jdot=Jdot, Jdot_v=Jdot @ v, pdot=J @ v)
+
+    def _full(self, M_upper: np.ndarray) -> np.ndarray:
+        """A copy of crba's result with its upper triangle mirrored onto the lower one."""
+        M = M_upper.copy()
+        M[self._lower] = M.T[self._lower]
+        return M
 
     def with_mass_factor(self, factor: float) -> Robot:
         """A copy whose link masses and inertias are scaled by ``factor`` (model mismatch).
@@ -263,12 +267,6 @@ def _default_tip(model: pin.Model) -> str:
         if frame.type == pin.FrameType.BODY:
             return frame.name
     return model.frames[-1].name
-
-
-def _symmetrize(M: np.ndarray) -> np.ndarray:
-    """Mirror the upper triangle that crba fills onto the lower one."""
-    upper = np.triu(M)
-    return upper + np.triu(M, 1).T
 
 
 def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
