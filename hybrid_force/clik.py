@@ -10,9 +10,8 @@ pulls q_d towards a posture (the seed):
 
 q̇_d = J⁺ x + (I − J⁺J)(−k_n (q_d − q_posture)),   x = ṗ_d − γ (k(q_d) − p_d).
 
-The joint acceleration is the exact derivative of the task-space part (J q̈_d + J̇ q̇_d =
-p̈_d − γ (J q̇_d − ṗ_d)); for redundant arms the null-space part of q̈_d is approximated by
-(I − J⁺J)(−k_n q̇_d), which does not affect the tip.
+The joint acceleration q̈_d is the exact time derivative of q̇_d, null-space part included
+(see :meth:`DesiredJointPath._derivatives`).
 """
 
 from __future__ import annotations
@@ -161,15 +160,17 @@ class DesiredJointPath:
         p = pin.updateFramePlacement(model, data, fid).translation
         return p, pin.getFrameJacobian(model, data, fid, _LWA)[:3]
 
-    def _pinv(self, J: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """J⁻¹ (n = 3) or the damped pseudo-inverse (n > 3); ReachError when singular."""
+    def _pinv(self, J: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """J⁻¹ (n = 3) or the damped pseudo-inverse Jᵀ W (n > 3), and W = (JJᵀ + λ²I)⁻¹
+        (None for n = 3); ReachError when J is singular."""
+        W = None
         try:
             if self._redundant:
                 JJt = J @ J.T
                 JJt[np.diag_indices(3)] += self.settings.damping**2
-                inv = np.linalg.inv(JJt)
-                cond = float(np.abs(JJt).max() * np.abs(inv).max())
-                Jp = J.T @ inv
+                W = np.linalg.inv(JJt)
+                cond = float(np.abs(JJt).max() * np.abs(W).max())
+                Jp = J.T @ W
             else:
                 Jp = np.linalg.inv(J)
                 cond = float(np.abs(J).max() * np.abs(Jp).max()) ** 2
@@ -177,24 +178,38 @@ class DesiredJointPath:
             cond = np.inf
         if not cond < _COND_MAX:  # a cheap upper bound of cond(J Jᵀ); the SVD names the values
             _check_conditioning(J, self.t, q, self.robot)
-        return Jp
+        return Jp, W
 
     def _derivatives(self) -> tuple[np.ndarray, np.ndarray]:
-        """q̇_d (eq. 27) and q̈_d at the current (t, q_d)."""
+        """q̇_d (eq. 27) and q̈_d, its exact time derivative, at the current (t, q_d).
+
+        With x = ṗ_d − γ(k(q_d) − p_d): n = 3, q̇_d = J⁻¹x and q̈_d = J⁻¹(ẋ − J̇q̇_d).
+        n > 3, q̇_d = J⁺x + N z with N = I − J⁺J and z = −k_n (q_d − q_posture), so
+        q̈_d = J̇⁺x + J⁺ẋ + Ṅz + Nż, where J̇⁺ = J̇ᵀW + JᵀẆ, Ẇ = −W(J̇Jᵀ + JJ̇ᵀ)W,
+        Ṅ = −(J̇⁺J + J⁺J̇), ż = −k_n q̇_d and ẋ = p̈_d − γ(J q̇_d − ṗ_d).
+        """
         model, data, fid = self.robot.model, self._data, self.robot.tip_id
         q, gamma = self.q, self.settings.gamma
         p, J = self._tip_and_jacobian(q)
-        Jp = self._pinv(J, q)
-        qd = Jp @ (self.pdot_d - gamma * (p - self.p_d))
-        N = None
+        Jp, W = self._pinv(J, q)
+        x = self.pdot_d - gamma * (p - self.p_d)
+        qd = Jp @ x
+        z = None
         if self._redundant and self.settings.posture_gain > 0:
             N = self._eye - Jp @ J
-            qd += N @ (-self.settings.posture_gain * pin.difference(model, self.posture, q))
-        pin.forwardKinematics(model, data, q, qd, np.zeros(self.robot.nv))
-        Jdot_qd = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).linear
-        qdd = Jp @ (self.pddot_d - gamma * (J @ qd - self.pdot_d) - Jdot_qd)
-        if N is not None:
-            qdd += N @ (-self.settings.posture_gain * qd)
+            z = -self.settings.posture_gain * pin.difference(model, self.posture, q)
+            qd += N @ z
+        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
+        Jdot = pin.getFrameJacobianTimeVariation(model, data, fid, _LWA)[:3]
+        xdot = self.pddot_d - gamma * (J @ qd - self.pdot_d)
+        if W is None:
+            return qd, Jp @ (xdot - Jdot @ qd)
+        Wdot = -W @ (Jdot @ J.T + J @ Jdot.T) @ W
+        Jp_dot = Jdot.T @ W + J.T @ Wdot
+        qdd = Jp_dot @ x + Jp @ xdot
+        if z is not None:
+            N_dot = -(Jp_dot @ J + Jp @ Jdot)
+            qdd += N_dot @ z + N @ (-self.settings.posture_gain * qd)
         return qd, qdd
 
     def advance(self, dt: float) -> None:
@@ -204,7 +219,7 @@ class DesiredJointPath:
         self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
         q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
         p, J = self._tip_and_jacobian(q)
-        self.q = pin.integrate(model, q, self._pinv(J, q) @ (self.p_d - p))
+        self.q = pin.integrate(model, q, self._pinv(J, q)[0] @ (self.p_d - p))
         self.qd, self.qdd = self._derivatives()
 
     def task_error(self) -> float:

@@ -136,19 +136,14 @@ def test_qd_task_part_matches_finite_differences_of_q_panda(panda_run) -> None:
         assert np.abs(J @ (fd[i - 1] - qds[i])).max() < 1e-6
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="redundant arms: DesiredJointPath.advance predicts with the approximate null-space "
-    "q̈_d (Ṅz omitted), so FD(q_d) − q̇_d is O(dt) (3.2e-5 rad/s at dt = 1e-3, halves with dt) "
-    "instead of O(dt²); reported to the lead",
-)
 def test_qd_matches_finite_differences_of_q_panda(panda_run) -> None:
     assert _qd_fd_error(panda_run) < 1e-5
 
 
-def test_qdd_matches_finite_differences_of_qd_rtr(rtr_run) -> None:
-    """Non-redundant arm: q̈_d is the exact time derivative of q̇_d."""
-    _, _, _, _, qds, qdds = rtr_run
+@pytest.mark.parametrize("which", ["rtr_run", "panda_run"])
+def test_qdd_matches_finite_differences_of_qd(which: str, request: pytest.FixtureRequest) -> None:
+    """q̈_d is the exact time derivative of q̇_d (null-space part included for the Panda)."""
+    _, _, _, _, qds, qdds = request.getfixturevalue(which)
     fd = (qds[2:] - qds[:-2]) / (2 * DT)
     err = np.abs(fd - qdds[1:-1]).max() / (1 + np.abs(qdds).max())
     assert err < 1e-5
