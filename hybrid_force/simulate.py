@@ -235,7 +235,10 @@ class _Plant:
         model = self.robot.model
         for _ in range(iterations):
             A, d = self._rows(q)
-            A_pinv = A.T @ np.linalg.inv(A @ A.T)
+            if A.shape[0] == 1:
+                A_pinv = A.T / float(A[0] @ A[0])
+            else:
+                A_pinv = A.T @ np.linalg.inv(A @ A.T)
             q = pin.integrate(model, q, -(A_pinv @ d))
         v = v - A_pinv @ (A @ v)
         return q, v
