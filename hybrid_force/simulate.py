@@ -235,10 +235,8 @@ class _Plant:
         model = self.robot.model
         for _ in range(iterations):
             A, d = self._rows(q)
-            if A.shape[0] == 1:
-                A_pinv = A.T / float(A[0] @ A[0])
-            else:
-                A_pinv = A.T @ np.linalg.inv(A @ A.T)
+            gram = A @ A.T
+            A_pinv = A.T / gram[0, 0] if A.shape[0] == 1 else A.T @ np.linalg.inv(gram)
             q = pin.integrate(model, q, -(A_pinv @ d))
         v = v - A_pinv @ (A @ v)
         return q, v
