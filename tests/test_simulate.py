@@ -214,3 +214,28 @@ def test_result_round_trip_of_a_real_run(rtr, tmp_path) -> None:
 def test_bad_time_settings_are_rejected_up_front(kwargs: dict, word: str) -> None:
     with pytest.raises(BadInputError, match=word):
         SimSettings(**kwargs)
+
+
+def test_wrong_branch_is_detected_recorded_and_warned(rtr, monkeypatch) -> None:
+    """Issue 5's second trap: Q removes every error along J_Φn, so an arm on the mirrored RTR
+    elbow (q3 → −q3) can never reach a q_d on the other branch; the controller must say so."""
+    import hybrid_force.supervisor as supervisor
+
+    p0 = np.array([0.4, 0.0, 10.0])  # on the cylinder and on the helix at t = 0
+    mirrored = inverse_kinematics(rtr, p0, seed=np.array([0.0, 11.0, -2.0]))
+    upright = inverse_kinematics(rtr, p0, seed=np.array([0.0, 9.0, 2.0]))
+    assert mirrored[2] < 0 < upright[2]  # the two elbow branches of the same tip position
+    monkeypatch.setattr(supervisor, "inverse_kinematics", lambda *a, **k: upright.copy())
+    sc = Scenario(
+        robot=rtr,
+        surfaces=[Cylinder(0.4)],
+        path=paper_helix(),
+        q0=mirrored,
+        control=ControlSettings(supervisor=False),
+        sim=SimSettings(duration=2.5),
+    )
+    with pytest.warns(RuntimeWarning, match="branch"):
+        r = simulate(sc)
+    branch = [e for e in r.meta["events"] if e["kind"] == "branch"]
+    assert len(branch) == 1 and 1.0 <= branch[0]["t"] <= 2.5
+    assert np.linalg.norm(r.p[-1] - r.p_d[-1]) > 1.0  # the error really persists
