@@ -304,3 +304,25 @@ def test_sweep_command(tmp_path: Path, scenario: Path, capsys: pytest.CaptureFix
             sweep_command(_args(str(scenario), *bad, "--out", str(out)))
     with pytest.raises(SweepError, match="does not exist"):
         sweep_command(_args(str(tmp_path / "missing.toml")))
+
+
+def test_rows_of_other_sweeps_are_kept_and_error_rows_retried(
+    tmp_path: Path, scenario: Path
+) -> None:
+    out = tmp_path / "o"
+    first = [{"control.Lambda": -1.0}, {"control.Lambda": -2.0}]
+    run_sweep(scenario, first, workers=1, out_dir=out, progress=False)
+    columns, rows = read_sweep_csv(out / "sweep.csv")
+    rows[0]["status"] = "error"  # as if the run had hit a bug: retried on resume
+    with (out / "sweep.csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=columns, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    second = [{"control.Lambda": -3.0}, {"control.Lambda": -1.0}]
+    new: list[dict] = []
+    run_sweep(scenario, second, workers=1, out_dir=out, progress=False, on_row=new.append)
+    assert sorted(r["control.Lambda"] for r in new) == [-3.0, -1.0]
+    _, after = read_sweep_csv(out / "sweep.csv")
+    # this sweep's variants in its order, then the row of the earlier sweep
+    assert [r["control.Lambda"] for r in after] == ["-3.0", "-1.0", "-2.0"]
+    assert [r["status"] for r in after] == ["bad input"] * 3
