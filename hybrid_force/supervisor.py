@@ -270,14 +270,23 @@ class HybridController:
         else:
             st.f_d = self.f_d_contact
             approach = None
-            self._check_branch(t, terms)
+            self._check_branch(t, terms, cons, e_q)
         e_F = st.F - st.F_d
         command, self.trace = arimoto_law(
             self.gains, model, cons, v, e_q, desired, e_F, st.f_d, approach
         )
         return command
 
-    def _check_branch(self, t: float, terms: RobotTerms) -> None:
+    def _check_branch(
+        self, t: float, terms: RobotTerms, cons: ConstraintTerms, e_q: np.ndarray
+    ) -> None:
+        """Flag a task error that persists and lies along the constraint normal in joint space.
+
+        Q removes the part (I − Q) e_q = A⁺A e_q of the joint error, so if that part carries
+        most of e_q (‖A⁺A e_q‖ > 0.9 ‖e_q‖) while the tip error stays above ``branch_error``
+        for ``branch_check_time``, no gain can correct it: the arm is on another IK branch.
+        A steady offset from model error lies along the surface (Q e_q) and is not flagged.
+        """
         st, s = self._int, self.settings
         err = float(np.linalg.norm(terms.p - self.clik.p_d))  # clik is at time t
         if err < 0.5 * st.best_error:
@@ -287,6 +296,9 @@ class HybridController:
             and err > s.branch_error
             and t - st.best_error_time > s.branch_check_time
         ):
+            normal_part = cons.A_pinv @ (cons.A @ e_q)
+            if float(normal_part @ normal_part) <= 0.81 * float(e_q @ e_q):
+                return
             st.branch_reported = True
             msg = (
                 f"task-space error {err:.3g} m has not decreased for "
