@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.constraint import Constraint
+from hybrid_force.control import Command
 from hybrid_force.dynamics import (
     Baumgarte,
     constrained_acceleration,
@@ -358,7 +359,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 v = v + ddq * dt
                 q_new = pin.integrate(model, q, v * dt)
             else:
-                q_new, v = _rk4(robot, constraint, baum, cmd, q, v, ddq, dt, in_contact)
+                q_new, v = _rk4(robot, data, constraint, baum, cmd, q, v, ddq, dt, in_contact)
             if in_contact:
                 q, v = plant.project(q_new, v)
             else:
@@ -475,10 +476,24 @@ def _touch(plant: _Plant, q: np.ndarray, v: np.ndarray, t: float, events: list[d
     return q, v, True
 
 
-def _rk4(robot, constraint, baum, cmd, q, v, a1, dt, in_contact):
-    """One RK4 step of the plant with the command (u0, B) held over the step."""
+def _rk4(
+    robot: Robot,
+    data: pin.Data,
+    constraint: Constraint,
+    baum: Baumgarte,
+    cmd: Command,
+    q: np.ndarray,
+    v: np.ndarray,
+    a1: np.ndarray,
+    dt: float,
+    in_contact: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One RK4 step of the plant with the command (u0, B) held over the step.
+
+    a1: (n,) the acceleration already solved at (q, v); the stages reuse ``data``.
+    Returns (q, v) at t + dt.
+    """
     model = robot.model
-    data = robot.new_data()
 
     def acc(qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
         terms = robot.terms(qs, vs, data)
