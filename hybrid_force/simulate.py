@@ -310,6 +310,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     wall0 = time.perf_counter()
     t = 0.0
     i = 0
+    n_logged = 0  # rows of the log filled so far (kept in a failed run's partial result)
     try:
         for i in range(N):
             t = i * dt
@@ -351,6 +352,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             log.phi[i] = cons.distance if cons is not None else plant.distance(q)
             log.V[i] = controller.trace.V
             log.phase[i] = controller.phase
+            n_logged = i + 1
             _check_finite(t, q, v, f, sim)
             if i == N - 1:
                 break
@@ -387,7 +389,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             steps_per_second=i / wall if wall > 0 else 0.0,
             wall_time=wall,
         )
-        result = log.result(max(i, 1), meta, k)
+        result = log.result(n_logged, meta, k)
         raise DivergenceError(
             f"run '{sc.name}' failed at t = {t:.6g} s: {exc}", result=result
         ) from exc
