@@ -30,7 +30,6 @@ from __future__ import annotations
 import csv
 import math
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, did_you_mean
 
 if TYPE_CHECKING:
@@ -832,14 +832,8 @@ _BUILDERS = {
 
 def _save_atomic(fig: Figure, path: Path) -> None:
     """Write fig as PNG to path via a temporary file in the same directory and os.replace."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=_DPI)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_file(path) as fh:
+        fig.savefig(fh, format="png", dpi=_DPI)
 
 
 def _out_dir(out_dir: str | os.PathLike[str]) -> Path:

@@ -51,7 +51,6 @@ import select
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -61,6 +60,7 @@ from typing import Any
 
 import numpy as np
 
+from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, HybridForceError, ViewerError
 from hybrid_force.result import Result
 
@@ -732,28 +732,11 @@ def _atomic_write_text(target: Path, text: str) -> Path:
         raise ViewerError(
             f"cannot write HTML to '{target}': cannot create directory '{target.parent}': {exc}"
         ) from exc
-    tmp_name: str | None = None
     try:
-        with tempfile.NamedTemporaryFile(
-            "w",
-            encoding="utf-8",
-            dir=target.parent,
-            prefix=f".{target.name}.",
-            suffix=".tmp",
-            delete=False,
-        ) as tmp:
-            tmp_name = tmp.name
-            tmp.write(text)
-            tmp.flush()
-            os.fsync(tmp.fileno())
-        os.replace(tmp_name, target)
-        tmp_name = None
+        with atomic_file(target, "w", encoding="utf-8") as fh:
+            fh.write(text)
     except OSError as exc:
         raise ViewerError(f"cannot write HTML to '{target}': {exc}") from exc
-    finally:
-        if tmp_name is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp_name)
     return target
 
 

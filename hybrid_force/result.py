@@ -19,12 +19,10 @@ Units: SI throughout (s, m, rad, N, N·m, J, N·s).
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import math
 import os
-import tempfile
 import zipfile
 import zlib
 from collections.abc import Mapping
@@ -35,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.lib.npyio import NpzFile
 
+from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
 
 __all__ = [
@@ -454,25 +453,8 @@ class Result:
                 f"cannot save result to '{target}': cannot create directory "
                 f"'{target.parent}': {exc}"
             ) from exc
-        tmp_name: str | None = None
-        try:
-            with tempfile.NamedTemporaryFile(
-                dir=target.parent,
-                prefix=f".{target.name}.",
-                suffix=".npz.tmp",
-                delete=False,
-            ) as tmp:
-                tmp_name = tmp.name
-                np.savez(tmp, **payload)
-                tmp.flush()
-                os.fsync(tmp.fileno())
-            os.replace(tmp_name, target)
-            tmp_name = None
-        except BaseException:
-            if tmp_name is not None:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp_name)
-            raise
+        with atomic_file(target) as fh:
+            np.savez(fh, **payload)
         _fsync_directory(target.parent)
         return target
 

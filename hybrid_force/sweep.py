@@ -35,7 +35,6 @@ import math
 import multiprocessing
 import os
 import sys
-import tempfile
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -44,6 +43,7 @@ from concurrent.futures import as_completed as _futures_as_completed
 from pathlib import Path
 from typing import Any, Literal
 
+from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, SimulationError
 
 __all__ = [
@@ -363,17 +363,8 @@ def read_sweep_csv(path: str | os.PathLike[str]) -> tuple[list[str], list[dict[s
 
 def _write_atomic(path: Path, text: str) -> None:
     """Write text to path atomically: temp file in the same directory, fsync, os.replace."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    with atomic_file(path, "w", encoding="utf-8", newline="") as fh:
+        fh.write(text)
 
 
 def _csv_text(columns: Sequence[str], rows: Sequence[Mapping[str, str]]) -> str:
