@@ -252,3 +252,25 @@ def test_model_error_offset_is_not_mistaken_for_a_branch(rtr) -> None:
     g = 9.81
     assert offset == pytest.approx((1 - 0.8) * g / (0.8 * 10.0 * 2.0), rel=0.05)  # (1−f)g/(fκΛ)
     assert not [e for e in r.meta["events"] if e["kind"] == "branch"]
+
+
+def test_off_axis_circle_error_is_first_order_in_dt(rtr) -> None:
+    """On a path whose joint accelerations do not vanish (a circle on the plane z = 5 off the
+    base axis) a small steady error remains; it halves with dt, so it is the O(dt) error of
+    the explicit integration of the plant, not a missing term of the control law."""
+    circle = Circle(center=(0.5, 0.3, 5.0), radius=0.3, normal=(0, 0, 1), omega=0.5)
+    q0 = inverse_kinematics(rtr, circle.position(0.0), seed=np.array([0.3, 5.0, 1.0]))
+    errors = []
+    for dt in (1e-3, 5e-4):
+        sc = Scenario(
+            robot=rtr,
+            surfaces=[Plane(point=(0, 0, 5.0), normal=(0, 0, 1))],
+            path=circle,
+            q0=q0,
+            control=ControlSettings(supervisor=False),
+            sim=SimSettings(duration=5.0, dt=dt),
+        )
+        r = simulate(sc)
+        errors.append(np.linalg.norm(r.p[-1] - r.p_d[-1]))
+    assert 1e-7 < errors[0] < 1e-4
+    assert errors[0] / errors[1] == pytest.approx(2.0, rel=0.1)
