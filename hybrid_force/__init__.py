@@ -57,8 +57,6 @@ from hybrid_force.paths import (
     paper_helix,
     path_from_dict,
 )
-from hybrid_force.plots import PlotError, plot_result, plot_sweep
-from hybrid_force.replay import Replay, ReplaySettings, serve, write_html
 from hybrid_force.result import Metrics, Result, load_result
 from hybrid_force.robot import Robot, RobotTerms, load_robot
 from hybrid_force.scenario import load_scenario, parse_override
@@ -78,7 +76,36 @@ from hybrid_force.surfaces import (
     Surface,
     surface_from_dict,
 )
-from hybrid_force.sweep import expand, run_sweep
+
+# The edges (figures, 3D replay, sweeps) load on first use, so `import hybrid_force` and a plain
+# `hybrid-force run` do not pay for them (PEP 562 module __getattr__).
+_LAZY = {
+    "PlotError": "hybrid_force.plots",
+    "plot_result": "hybrid_force.plots",
+    "plot_sweep": "hybrid_force.plots",
+    "Replay": "hybrid_force.replay",
+    "ReplaySettings": "hybrid_force.replay",
+    "serve": "hybrid_force.replay",
+    "write_html": "hybrid_force.replay",
+    "expand": "hybrid_force.sweep",
+    "run_sweep": "hybrid_force.sweep",
+}
+
+
+def __getattr__(name: str) -> object:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hybrid_force' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "CONTACT",
