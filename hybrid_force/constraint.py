@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -84,6 +84,18 @@ class ConstraintTerms:
     drift: np.ndarray
 
 
+class _Row(NamedTuple):
+    """One surface's joint-space row at a state (see :meth:`Constraint._row`)."""
+
+    phi: float
+    row: np.ndarray
+    row_dot: np.ndarray
+    row_norm: float
+    scale: float
+    scale_dot: float
+    raw_drift: float
+
+
 class Constraint:
     """k rigid surfaces acting on one tip, as stacked joint-space rows.
 
@@ -132,73 +144,35 @@ class Constraint:
         """
         if fast and self.k == 1:
             return self._evaluate_one(terms, v)
-        k = self.k
-        n = terms.J.shape[1]
-        p, J, Jdot, pdot = terms.p, terms.J, terms.Jdot, terms.pdot
-        phi = np.empty(k)
-        dist = np.empty(k)
-        J_phi = np.empty((k, n))
-        J_phi_dot = np.empty((k, n))
-        raw_drift = np.empty(k)
-        scale = np.empty(k)
-        scale_dot = np.empty(k)
-        J_norm = np.empty(k)
-        for i, surface in enumerate(self.surfaces):
-            value, grad, hess = surface.evaluate(p)
-            grad_norm = float(np.sqrt(grad @ grad))
-            if grad_norm < _GRAD_TOL:
-                raise SingularConfigurationError(
-                    f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): "
-                    "the surface normal is undefined there (e.g. on a cylinder's axis or at a "
-                    "sphere's centre)"
-                )
-            h_pdot = hess @ pdot
-            row = grad @ J
-            row_dot = h_pdot @ J + grad @ Jdot
-            row_norm = float(np.sqrt(row @ row))
-            if row_norm < _ROW_TOL * grad_norm * (1.0 + float(np.abs(J).max())):
-                raise SingularConfigurationError(
-                    f"J_Φ is (near) zero for surface {i} ({surface!r}) at tip {p.tolist()}: "
-                    "the arm cannot move its tip along the surface normal in this configuration, "
-                    "so J_Φn is undefined"
-                )
-            phi[i] = value
-            dist[i] = surface.distance(p)
-            J_phi[i] = row
-            J_phi_dot[i] = row_dot
-            J_norm[i] = row_norm
-            raw_drift[i] = pdot @ h_pdot + grad @ terms.Jdot_v
-            if self.normalization == "tip":
-                scale[i] = grad_norm
-                scale_dot[i] = (grad @ h_pdot) / grad_norm
-            else:
-                scale[i] = row_norm
-                scale_dot[i] = (row @ row_dot) / row_norm
+        rows = [self._row(i, s, terms) for i, s in enumerate(self.surfaces)]
+        k, n = self.k, terms.J.shape[1]
+        J_phi = np.array([r.row for r in rows])
+        J_phi_dot = np.array([r.row_dot for r in rows])
+        scale = np.array([r.scale for r in rows])
+        scale_dot = np.array([r.scale_dot for r in rows])
+        raw_drift = np.array([r.raw_drift for r in rows])
         inv_s = 1.0 / scale
         A = J_phi * inv_s[:, None]
         Adot = J_phi_dot * inv_s[:, None] - J_phi * (scale_dot * inv_s * inv_s)[:, None]
         gram = A @ A.T
-        if k == 1:
-            W = np.array([[1.0 / gram[0, 0]]])
-        else:
-            cond = np.linalg.cond(gram)
-            if not np.isfinite(cond) or cond > _COND_TOL:
-                raise SingularConfigurationError(
-                    f"the {k} stacked constraint rows are (nearly) dependent at tip {p.tolist()} "
-                    f"(cond(A Aᵀ) = {cond:.3g}): the surfaces are tangent there or the arm cannot "
-                    "move independently along their normals"
-                )
-            W = np.linalg.inv(gram)
+        cond = np.linalg.cond(gram)
+        if not np.isfinite(cond) or cond > _COND_TOL:
+            raise SingularConfigurationError(
+                f"the {k} stacked constraint rows are (nearly) dependent at tip {terms.p.tolist()} "
+                f"(cond(A Aᵀ) = {cond:.3g}): the surfaces are tangent there or the arm cannot "
+                "move independently along their normals"
+            )
+        W = np.linalg.inv(gram)
         A_pinv = A.T @ W
         W_dot = -W @ (Adot @ A.T + A @ Adot.T) @ W
         A_pinv_dot = Adot.T @ W + A.T @ W_dot
         Q = np.eye(n) - A_pinv @ A
         Qdot = -(A_pinv_dot @ A + A_pinv @ Adot)
         return ConstraintTerms(
-            phi=phi,
-            distance=dist,
+            phi=np.array([r.phi for r in rows]),
+            distance=np.array([s.distance(terms.p) for s in self.surfaces]),
             J_phi=J_phi,
-            J_phi_n=J_phi / J_norm[:, None],
+            J_phi_n=J_phi / np.array([r.row_norm for r in rows])[:, None],
             scale=scale,
             A=A,
             Adot=Adot,
@@ -211,50 +185,58 @@ class Constraint:
             drift=raw_drift * inv_s,
         )
 
-    def _evaluate_one(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
-        """The k = 1 case of :meth:`evaluate`, with scalars instead of k×k algebra (hot path)."""
-        surface = self.surfaces[0]
+    def _row(self, i: int, surface: Surface, terms: RobotTerms) -> _Row:
+        """One surface's row J_Φ = ∇ΦᵀJ (1, n), its derivative, scale and raw drift."""
         p, J, pdot = terms.p, terms.J, terms.pdot
         value, grad, hess = surface.evaluate(p)
         grad_norm = float(np.sqrt(grad @ grad))
         if grad_norm < _GRAD_TOL:
             raise SingularConfigurationError(
-                f"∇Φ vanishes at tip position {p.tolist()} on surface 0 ({surface!r}): the "
+                f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): the "
                 "surface normal is undefined there (e.g. on a cylinder's axis or at a sphere's "
                 "centre)"
             )
         h_pdot = hess @ pdot
         row = grad @ J
         row_dot = h_pdot @ J + grad @ terms.Jdot
-        row_sq = float(row @ row)
-        row_norm = np.sqrt(row_sq)
+        row_norm = float(np.sqrt(row @ row))
         if row_norm < _ROW_TOL * grad_norm * (1.0 + float(np.abs(J).max())):
             raise SingularConfigurationError(
-                f"J_Φ is (near) zero for surface 0 ({surface!r}) at tip {p.tolist()}: the arm "
+                f"J_Φ is (near) zero for surface {i} ({surface!r}) at tip {p.tolist()}: the arm "
                 "cannot move its tip along the surface normal in this configuration, so J_Φn "
                 "is undefined"
             )
         if self.normalization == "tip":
-            scale = grad_norm
-            scale_dot = float(grad @ h_pdot) / grad_norm
+            scale, scale_dot = grad_norm, float(grad @ h_pdot) / grad_norm
         else:
-            scale = row_norm
-            scale_dot = float(row @ row_dot) / row_norm
+            scale, scale_dot = row_norm, float(row @ row_dot) / row_norm
+        return _Row(
+            phi=float(value),
+            row=row,
+            row_dot=row_dot,
+            row_norm=row_norm,
+            scale=scale,
+            scale_dot=scale_dot,
+            raw_drift=float(pdot @ h_pdot + grad @ terms.Jdot_v),
+        )
+
+    def _evaluate_one(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+        """The k = 1 case of :meth:`evaluate`, with scalars instead of k×k algebra (hot path)."""
+        r = self._row(0, self.surfaces[0], terms)
+        scale, row = r.scale, r.row
         A = row / scale
-        Adot = row_dot / scale - row * (scale_dot / (scale * scale))
+        Adot = r.row_dot / scale - row * (r.scale_dot / (scale * scale))
         w = 1.0 / float(A @ A)
         w_dot = -2.0 * w * w * float(Adot @ A)
         A_pinv = A * w
         A_pinv_dot = Adot * w + A * w_dot
-        outer = np.outer(A_pinv, A)
-        Q = self._eye(A.shape[0]) - outer
+        Q = self._eye(A.shape[0]) - np.outer(A_pinv, A)
         Qdot = -(np.outer(A_pinv_dot, A) + np.outer(A_pinv, Adot))
-        raw_drift = float(pdot @ h_pdot + grad @ terms.Jdot_v)
         return ConstraintTerms(
-            phi=np.array([value]),
-            distance=np.array([surface.distance(p)]),
+            phi=np.array([r.phi]),
+            distance=np.array([self.surfaces[0].distance(terms.p)]),
             J_phi=row[None, :],
-            J_phi_n=(row / row_norm)[None, :],
+            J_phi_n=(row / r.row_norm)[None, :],
             scale=np.array([scale]),
             A=A[None, :],
             Adot=Adot[None, :],
@@ -263,8 +245,8 @@ class Constraint:
             Q=Q,
             Qdot=Qdot,
             rate=np.array([float(A @ v)]),
-            raw_drift=np.array([raw_drift]),
-            drift=np.array([raw_drift / scale]),
+            raw_drift=np.array([r.raw_drift]),
+            drift=np.array([r.raw_drift / scale]),
         )
 
     def _eye(self, n: int) -> np.ndarray:
