@@ -37,7 +37,7 @@ import os
 import sys
 import time
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as _futures_as_completed
 from pathlib import Path
@@ -624,17 +624,28 @@ def _run_pool(
         futures: dict[Future[dict[str, Any]], str] = {
             pool.submit(run_one, scenario, params, keep_dir): rid for rid, params in todo
         }
-        for fut in _futures_as_completed(futures):
-            try:
-                row = fut.result()
-            except Exception as exc:
-                lost.append(f"{futures[fut]}: {type(exc).__name__}: {_one_line(str(exc))}")
-                continue
-            finish(row)
+        _drain(_futures_as_completed(futures), futures, finish, lost)
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     pool.shutdown(wait=True)
+
+
+def _drain(
+    done: Iterable[Any],
+    run_ids: Mapping[Any, str],
+    finish: Callable[[dict[str, Any]], None],
+    lost: list[str],
+) -> None:
+    """Hand each finished future's row to ``finish``; a future that raised (a lost worker, not a
+    failed run: run_one never raises) is recorded in ``lost`` with its run id."""
+    for fut in done:
+        try:
+            row = fut.result()
+        except Exception as exc:
+            lost.append(f"{run_ids[fut]}: {type(exc).__name__}: {_one_line(str(exc))}")
+            continue
+        finish(row)
 
 
 def _run_dask(
@@ -675,13 +686,7 @@ def _run_dask(
             for rid, params in todo
         }
         try:
-            for fut in as_completed(list(futures)):
-                try:
-                    row = fut.result()
-                except Exception as exc:
-                    lost.append(f"{futures[fut]}: {type(exc).__name__}: {_one_line(str(exc))}")
-                    continue
-                finish(row)
+            _drain(as_completed(list(futures)), futures, finish, lost)
         except BaseException:
             client.cancel(list(futures))
             raise
