@@ -119,7 +119,6 @@ class _Integrators:
     F: np.ndarray
     F_d: np.ndarray
     f_d: np.ndarray
-    contact_since: float | None = None
     best_error: float = np.inf
     best_error_time: float = 0.0
     branch_reported: bool = False
@@ -249,10 +248,7 @@ class HybridController:
             st.F[:] = 0.0
             st.F_d[:] = 0.0
             if phase == CONTACT:
-                st.contact_since = t
                 st.best_error, st.best_error_time = np.inf, t
-            elif self.phase == CONTACT:
-                st.contact_since = None
             self.phase = phase
             self._first = False
         self.t = t
@@ -317,7 +313,3 @@ class HybridController:
             st.F += f * dt
             st.F_d += st.f_d * dt
         self.clik.advance(dt)
-
-    def record_event(self, event: dict) -> None:
-        """Add an event reported by the simulator (impact, release) to the timeline."""
-        self._int.events.append(event)
