@@ -175,7 +175,6 @@ class HybridController:
         self.phase = FREE
         self.trace: ControlTrace | None = None
         self._first = True
-        self.t = t0
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -251,7 +250,6 @@ class HybridController:
                 st.best_error, st.best_error_time = np.inf, t
             self.phase = phase
             self._first = False
-        self.t = t
         model = self._model_terms(terms)
         desired = self.desired
         e_q = pin.difference(self.robot.model, desired.q, q)
