@@ -258,6 +258,12 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     sc, sim = scenario, scenario.sim
     robot = sc.robot
     constraint = Constraint(sc.surfaces, normalization=sim.normalization)
+    if constraint.k > 1 and sc.control.supervisor:
+        raise BadInputError(
+            f"{constraint.k} stacked surfaces need a run that starts in contact with all of them "
+            "(control.supervisor = false): contact with a subset of the surfaces, as an approach "
+            "would make, is not implemented"
+        )
     model, data = robot.model, robot.new_data()
     k, nq, nv = constraint.k, robot.nq, robot.nv
     dt = sim.dt

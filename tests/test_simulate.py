@@ -274,3 +274,17 @@ def test_off_axis_circle_error_is_first_order_in_dt(rtr) -> None:
         errors.append(np.linalg.norm(r.p[-1] - r.p_d[-1]))
     assert 1e-7 < errors[0] < 1e-4
     assert errors[0] / errors[1] == pytest.approx(2.0, rel=0.1)
+
+
+def test_stacked_surfaces_with_an_approach_are_refused(rtr) -> None:
+    q0 = inverse_kinematics(rtr, np.array([0.4, 0.0, 10.0]), seed=np.array([0.0, 9.0, 2.0]))
+    sc = Scenario(
+        robot=rtr,
+        surfaces=[Cylinder(0.4), Plane(point=(0, 0, 10), normal=(0, 0, -1))],
+        path=Circle(center=(0, 0, 10), radius=0.4, normal=(0, 0, 1), omega=1.0),
+        q0=q0,
+        control=ControlSettings(supervisor=True),
+        sim=SimSettings(duration=0.1),
+    )
+    with pytest.raises(BadInputError, match="supervisor = false"):
+        simulate(sc)
