@@ -225,8 +225,90 @@ class Surface(abc.ABC):
 
 
 # --- cylinder --------------------------------------------------------------------------------
+class _RoundSurface(Surface):
+    """A surface at distance r from a centre (sphere) or an axis (cylinder).
+
+    With w the offset of p from the centre or axis (:meth:`_offset`) and ρ = ‖w‖:
+    Φ = ±(ρ² − r²), ∇Φ = ±2w, d = ±(ρ − r) (+ when the outside is free, − when ``inside``);
+    the Hessian ±2I or ±2(I − aaᵀ) is constant and stored as ``_hess``. ``normal`` and
+    ``closest_point`` raise SingularConfigurationError within 1e-9 · r of the centre or axis.
+    Subclasses set radius, inside, _sign, _r2, _hess, _singular_where and :meth:`_offset`.
+    """
+
+    radius: float
+    _sign: float
+    _r2: float
+    _hess: np.ndarray
+    _singular_where: ClassVar[str]
+
+    @abc.abstractmethod
+    def _offset(self, x: float, y: float, z: float) -> Vec3:
+        """w: (3,) [m], the offset of p from the centre or the axis."""
+
+    def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """(Φ, ∇Φ: (3,), ∇²Φ: (3, 3)) at p: float64 (3,) [m] (eq. 26 for the default cylinder).
+
+        Not validated; the Hessian is a shared read-only array.
+        """
+        wx, wy, wz = self._offset(*p.tolist())
+        s = self._sign
+        g = 2.0 * s
+        return (
+            s * (wx * wx + wy * wy + wz * wz - self._r2),
+            np.array((g * wx, g * wy, g * wz)),
+            self._hess,
+        )
+
+    def phi(self, p: ArrayLike) -> float:
+        """Φ(p) = ±(ρ² − r²) [m²]."""
+        wx, wy, wz = self._offset(*_xyz(p, self, "phi"))
+        return self._sign * (wx * wx + wy * wy + wz * wz - self._r2)
+
+    def gradient(self, p: ArrayLike) -> np.ndarray:
+        """∇Φ(p) = ±2 w: (3,) [m]."""
+        wx, wy, wz = self._offset(*_xyz(p, self, "gradient"))
+        g = 2.0 * self._sign
+        return np.array((g * wx, g * wy, g * wz))
+
+    def hessian(self, p: ArrayLike) -> np.ndarray:
+        """∇²Φ: (3, 3), constant."""
+        _xyz(p, self, "hessian")
+        return self._hess.copy()
+
+    def distance(self, p: ArrayLike) -> float:
+        """d = ±(ρ − r) [m], computed as Φ / (ρ + r) so that d = 0 exactly where Φ = 0."""
+        wx, wy, wz = self._offset(*_xyz(p, self, "distance"))
+        rho2 = wx * wx + wy * wy + wz * wz
+        return self._sign * (rho2 - self._r2) / (math.sqrt(rho2) + self.radius)
+
+    def _unit_offset(self, p: ArrayLike, method: str) -> tuple[Vec3, Vec3, float]:
+        """(p as floats, w / ρ, ρ); raises at the centre or on the axis."""
+        x, y, z = _xyz(p, self, method)
+        wx, wy, wz = self._offset(x, y, z)
+        rho = math.hypot(wx, wy, wz)
+        if rho <= _SINGULAR_RTOL * self.radius:
+            raise SingularConfigurationError(
+                f"{self!r}.{method}: p = [{x:.9g}, {y:.9g}, {z:.9g}] {self._singular_where} "
+                f"(distance {rho:.3g} m <= {_SINGULAR_RTOL:g} * radius), where ∇Φ = 0 "
+                "and the normal is undefined"
+            )
+        return (x, y, z), (wx / rho, wy / rho, wz / rho), rho
+
+    def normal(self, p: ArrayLike) -> np.ndarray:
+        """Unit normal ±w/ρ: (3,), to the free side (towards the centre or axis when ``inside``)."""
+        _, (nx, ny, nz), _ = self._unit_offset(p, "normal")
+        s = self._sign
+        return np.array((s * nx, s * ny, s * nz))
+
+    def closest_point(self, p: ArrayLike) -> np.ndarray:
+        """Foot point p + (r − ρ) w/ρ: (3,) [m] (exact up to rounding)."""
+        (x, y, z), (nx, ny, nz), rho = self._unit_offset(p, "closest_point")
+        step = self.radius - rho
+        return np.array((x + step * nx, y + step * ny, z + step * nz))
+
+
 @dataclass(frozen=True, init=False)
-class Cylinder(Surface):
+class Cylinder(_RoundSurface):
     """Infinite circular cylinder of radius r [m] around the line through ``center`` along ``axis``.
 
     With w = p − c and w⊥ = w − (w·a)a its component across the unit axis a, ρ = ‖w⊥‖:
@@ -244,6 +326,7 @@ class Cylinder(Surface):
     """
 
     kind: ClassVar[str] = "cylinder"
+    _singular_where: ClassVar[str] = "lies on the cylinder axis"
 
     radius: float
     center: Vec3
@@ -278,7 +361,7 @@ class Cylinder(Surface):
         ):
             object.__setattr__(self, name, value)
 
-    def _radial(self, x: float, y: float, z: float) -> Vec3:
+    def _offset(self, x: float, y: float, z: float) -> Vec3:
         """w⊥ = (p − c) − ((p − c)·a) a: (3,) [m], the component of p − c across the axis."""
         cx, cy, cz = self.center
         ax, ay, az = self.axis
@@ -287,76 +370,6 @@ class Cylinder(Surface):
         wz = z - cz
         t = wx * ax + wy * ay + wz * az
         return (wx - t * ax, wy - t * ay, wz - t * az)
-
-    def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """(Φ, ∇Φ: (3,), ∇²Φ: (3, 3)) at p: float64 (3,) [m]; eq. 26 for the defaults.
-
-        Not validated; the Hessian is a shared read-only array.
-        """
-        x, y, z = p.tolist()
-        cx, cy, cz = self.center
-        ax, ay, az = self.axis
-        wx = x - cx
-        wy = y - cy
-        wz = z - cz
-        t = wx * ax + wy * ay + wz * az
-        ux = wx - t * ax
-        uy = wy - t * ay
-        uz = wz - t * az
-        s = self._sign
-        g = 2.0 * s
-        return (
-            s * (ux * ux + uy * uy + uz * uz - self._r2),
-            np.array((g * ux, g * uy, g * uz)),
-            self._hess,
-        )
-
-    def phi(self, p: ArrayLike) -> float:
-        """Φ(p) = ±(ρ² − r²) [m²]."""
-        ux, uy, uz = self._radial(*_xyz(p, self, "phi"))
-        return self._sign * (ux * ux + uy * uy + uz * uz - self._r2)
-
-    def gradient(self, p: ArrayLike) -> np.ndarray:
-        """∇Φ(p) = ±2 w⊥: (3,) [m]."""
-        ux, uy, uz = self._radial(*_xyz(p, self, "gradient"))
-        g = 2.0 * self._sign
-        return np.array((g * ux, g * uy, g * uz))
-
-    def hessian(self, p: ArrayLike) -> np.ndarray:
-        """∇²Φ = ±2 (I − a aᵀ): (3, 3), constant."""
-        _xyz(p, self, "hessian")
-        return self._hess.copy()
-
-    def distance(self, p: ArrayLike) -> float:
-        """d = ±(ρ − r) [m], computed as Φ / (ρ + r) so that d = 0 exactly where Φ = 0."""
-        ux, uy, uz = self._radial(*_xyz(p, self, "distance"))
-        rho2 = ux * ux + uy * uy + uz * uz
-        return self._sign * (rho2 - self._r2) / (math.sqrt(rho2) + self.radius)
-
-    def _unit_radial(self, p: ArrayLike, method: str) -> tuple[Vec3, Vec3, float]:
-        """(p as floats, w⊥ / ρ, ρ); raises on the axis."""
-        x, y, z = _xyz(p, self, method)
-        ux, uy, uz = self._radial(x, y, z)
-        rho = math.hypot(ux, uy, uz)
-        if rho <= _SINGULAR_RTOL * self.radius:
-            raise SingularConfigurationError(
-                f"{self!r}.{method}: p = [{x:.9g}, {y:.9g}, {z:.9g}] lies on the cylinder axis "
-                f"(distance {rho:.3g} m <= {_SINGULAR_RTOL:g} * radius), where ∇Φ = 0 "
-                "and the normal is undefined"
-            )
-        return (x, y, z), (ux / rho, uy / rho, uz / rho), rho
-
-    def normal(self, p: ArrayLike) -> np.ndarray:
-        """Unit normal ±w⊥/ρ: (3,), to the free side (towards the axis when ``inside``)."""
-        _, (nx, ny, nz), _ = self._unit_radial(p, "normal")
-        s = self._sign
-        return np.array((s * nx, s * ny, s * nz))
-
-    def closest_point(self, p: ArrayLike) -> np.ndarray:
-        """Foot point p − w⊥ + r w⊥/ρ: (3,) [m] (exact up to rounding)."""
-        (x, y, z), (nx, ny, nz), rho = self._unit_radial(p, "closest_point")
-        step = self.radius - rho
-        return np.array((x + step * nx, y + step * ny, z + step * nz))
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type": "cylinder", "radius", "center", "axis" (unit), "inside"}``."""
@@ -371,7 +384,7 @@ class Cylinder(Surface):
 
 # --- sphere ----------------------------------------------------------------------------------
 @dataclass(frozen=True, init=False)
-class Sphere(Surface):
+class Sphere(_RoundSurface):
     """Sphere of radius r [m] around ``center``.
 
     With w = p − c: ``inside=False`` (outside free): Φ = ‖w‖² − r², d = ‖w‖ − r;
@@ -380,6 +393,7 @@ class Sphere(Surface):
     """
 
     kind: ClassVar[str] = "sphere"
+    _singular_where: ClassVar[str] = "is at the sphere's centre"
 
     radius: float
     center: Vec3
@@ -409,69 +423,9 @@ class Sphere(Surface):
             object.__setattr__(self, name, value)
 
     def _offset(self, x: float, y: float, z: float) -> Vec3:
+        """w = p − c: (3,) [m]."""
         cx, cy, cz = self.center
         return (x - cx, y - cy, z - cz)
-
-    def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """(Φ, ∇Φ: (3,), ∇²Φ: (3, 3)) at p: float64 (3,) [m]; not validated, Hessian read-only."""
-        x, y, z = p.tolist()
-        cx, cy, cz = self.center
-        wx = x - cx
-        wy = y - cy
-        wz = z - cz
-        s = self._sign
-        g = 2.0 * s
-        return (
-            s * (wx * wx + wy * wy + wz * wz - self._r2),
-            np.array((g * wx, g * wy, g * wz)),
-            self._hess,
-        )
-
-    def phi(self, p: ArrayLike) -> float:
-        """Φ(p) = ±(‖p − c‖² − r²) [m²]."""
-        wx, wy, wz = self._offset(*_xyz(p, self, "phi"))
-        return self._sign * (wx * wx + wy * wy + wz * wz - self._r2)
-
-    def gradient(self, p: ArrayLike) -> np.ndarray:
-        """∇Φ(p) = ±2 (p − c): (3,) [m]."""
-        wx, wy, wz = self._offset(*_xyz(p, self, "gradient"))
-        g = 2.0 * self._sign
-        return np.array((g * wx, g * wy, g * wz))
-
-    def hessian(self, p: ArrayLike) -> np.ndarray:
-        """∇²Φ = ±2 I: (3, 3), constant."""
-        _xyz(p, self, "hessian")
-        return self._hess.copy()
-
-    def distance(self, p: ArrayLike) -> float:
-        """d = ±(‖p − c‖ − r) [m], computed as Φ / (‖p − c‖ + r): d = 0 exactly where Φ = 0."""
-        wx, wy, wz = self._offset(*_xyz(p, self, "distance"))
-        rho2 = wx * wx + wy * wy + wz * wz
-        return self._sign * (rho2 - self._r2) / (math.sqrt(rho2) + self.radius)
-
-    def _unit_offset(self, p: ArrayLike, method: str) -> tuple[Vec3, Vec3, float]:
-        x, y, z = _xyz(p, self, method)
-        wx, wy, wz = self._offset(x, y, z)
-        rho = math.hypot(wx, wy, wz)
-        if rho <= _SINGULAR_RTOL * self.radius:
-            raise SingularConfigurationError(
-                f"{self!r}.{method}: p = [{x:.9g}, {y:.9g}, {z:.9g}] is at the sphere's centre "
-                f"(distance {rho:.3g} m <= {_SINGULAR_RTOL:g} * radius), where ∇Φ = 0 "
-                "and the normal is undefined"
-            )
-        return (x, y, z), (wx / rho, wy / rho, wz / rho), rho
-
-    def normal(self, p: ArrayLike) -> np.ndarray:
-        """Unit normal ±(p − c)/‖p − c‖: (3,), to the free side."""
-        _, (nx, ny, nz), _ = self._unit_offset(p, "normal")
-        s = self._sign
-        return np.array((s * nx, s * ny, s * nz))
-
-    def closest_point(self, p: ArrayLike) -> np.ndarray:
-        """Foot point c + r (p − c)/‖p − c‖: (3,) [m] (exact up to rounding)."""
-        (x, y, z), (nx, ny, nz), rho = self._unit_offset(p, "closest_point")
-        step = self.radius - rho
-        return np.array((x + step * nx, y + step * ny, z + step * nz))
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type": "sphere", "radius", "center", "inside"}``."""
