@@ -249,6 +249,30 @@ class Constraint:
             drift=np.array([r.raw_drift / scale]),
         )
 
+    def normal_rows(self, p: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unit-normal rows and first-order distances, for placing the tip on the surfaces.
+
+        Args:
+            p: (3,) tip position [m]. J: (3, n) tip Jacobian.
+
+        Returns:
+            rows: (k, n) n̂ᵀJ (the "tip" scaling, whatever ``normalization`` is);
+            dist: (k,) Φ / ‖∇Φ‖ [m], the Newton step length along n̂ to the surface.
+        """
+        rows = np.empty((self.k, J.shape[1]))
+        dist = np.empty(self.k)
+        for i, surface in enumerate(self.surfaces):
+            phi, grad, _ = surface.evaluate(p)
+            norm = float(np.sqrt(grad @ grad))
+            if norm < _GRAD_TOL:
+                raise SingularConfigurationError(
+                    f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): "
+                    "no normal to place the tip along"
+                )
+            rows[i] = (grad / norm) @ J
+            dist[i] = phi / norm
+        return rows, dist
+
     def _eye(self, n: int) -> np.ndarray:
         eye = self._eyes.get(n)
         if eye is None:

@@ -212,20 +212,11 @@ class _Plant:
         return self.constraint.distance(self.tip(q))
 
     def _rows(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rows ∇Φᵀ J / ‖∇Φ‖ (k, n) and first-order distances Φ / ‖∇Φ‖ (k,) at q."""
+        """Rows n̂ᵀJ (k, n) and first-order distances Φ / ‖∇Φ‖ (k,) at q."""
         model, data, fid = self.robot.model, self.data, self.robot.tip_id
         pin.computeJointJacobians(model, data, q)
         p = pin.updateFramePlacement(model, data, fid).translation
-        J = pin.getFrameJacobian(model, data, fid, _LWA)[:3]
-        k = self.constraint.k
-        rows = np.empty((k, J.shape[1]))
-        dist = np.empty(k)
-        for i, surface in enumerate(self.constraint.surfaces):
-            phi, grad, _ = surface.evaluate(p)
-            norm = float(np.sqrt(grad @ grad))
-            rows[i] = (grad / norm) @ J
-            dist[i] = phi / norm
-        return rows, dist
+        return self.constraint.normal_rows(p, pin.getFrameJacobian(model, data, fid, _LWA)[:3])
 
     def project(self, q: np.ndarray, v: np.ndarray, iterations: int = 1) -> tuple:
         """Gauss–Newton steps putting the tip on the surfaces, then v onto the tangent space.

@@ -382,3 +382,18 @@ def test_bad_construction() -> None:
     with pytest.raises(SurfaceError, match="surface 1"):
         Constraint([Cylinder(0.4), "plane"])  # type: ignore[list-item]
     assert Constraint([Cylinder(0.4), Sphere(1.0)]).k == 2
+
+
+def test_normal_rows_are_unit_normal_rows_and_first_order_distances() -> None:
+    """normal_rows(p, J): n̂ᵀJ and Φ/‖∇Φ‖, checked against the cylinder's geometry by hand."""
+    rng = np.random.default_rng(31)
+    cons = Constraint([Cylinder(0.4), Plane(point=(0, 0, 1.0), normal=(0, 0, 1))])
+    J = rng.standard_normal((3, 5))
+    p = np.array([0.3, 0.4, 1.2])  # ρ = 0.5 from the z axis, 0.2 above the plane
+    rows, dist = cons.normal_rows(p, J)
+    n_cyl = np.array([0.6, 0.8, 0.0])
+    np.testing.assert_allclose(rows[0], n_cyl @ J, atol=1e-15)
+    np.testing.assert_allclose(rows[1], J[2], atol=1e-15)
+    np.testing.assert_allclose(dist, [(0.25 - 0.16) / (2 * 0.5), 0.2], atol=1e-15)
+    with pytest.raises(SingularConfigurationError):
+        cons.normal_rows(np.array([0.0, 0.0, 2.0]), J)  # on the cylinder's axis
