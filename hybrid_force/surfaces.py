@@ -241,6 +241,16 @@ class _RoundSurface(Surface):
     _hess: np.ndarray
     _singular_where: ClassVar[str]
 
+    def _freeze(
+        self, radius: float, center: Vec3, inside: bool, shape: np.ndarray, **extra: object
+    ) -> None:
+        """Set the validated parameters and the derived sign, r² and Hessian ±2·shape."""
+        sign = -1.0 if inside else 1.0
+        values = {"radius": radius, "center": center, **extra, "inside": inside}
+        values.update(_sign=sign, _r2=radius * radius, _hess=_read_only(2.0 * sign * shape))
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+
     @abc.abstractmethod
     def _offset(self, x: float, y: float, z: float) -> Vec3:
         """w: (3,) [m], the offset of p from the centre or the axis."""
@@ -347,19 +357,8 @@ class Cylinder(_RoundSurface):
         c = _vector3("Cylinder", "center", center)
         a = _direction("Cylinder", "axis", axis)
         side = _boolean("Cylinder", "inside", inside)
-        sign = -1.0 if side else 1.0
         aa = np.asarray(a)
-        hess = 2.0 * sign * (np.eye(3) - np.outer(aa, aa))
-        for name, value in (
-            ("radius", r),
-            ("center", c),
-            ("axis", a),
-            ("inside", side),
-            ("_sign", sign),
-            ("_r2", r * r),
-            ("_hess", _read_only(hess)),
-        ):
-            object.__setattr__(self, name, value)
+        self._freeze(r, c, side, np.eye(3) - np.outer(aa, aa), axis=a)
 
     def _offset(self, x: float, y: float, z: float) -> Vec3:
         """w⊥ = (p − c) − ((p − c)·a) a: (3,) [m], the component of p − c across the axis."""
@@ -411,16 +410,7 @@ class Sphere(_RoundSurface):
         r = _positive_float("Sphere", "radius", radius)
         c = _vector3("Sphere", "center", center)
         side = _boolean("Sphere", "inside", inside)
-        sign = -1.0 if side else 1.0
-        for name, value in (
-            ("radius", r),
-            ("center", c),
-            ("inside", side),
-            ("_sign", sign),
-            ("_r2", r * r),
-            ("_hess", _read_only(2.0 * sign * np.eye(3))),
-        ):
-            object.__setattr__(self, name, value)
+        self._freeze(r, c, side, np.eye(3))
 
     def _offset(self, x: float, y: float, z: float) -> Vec3:
         """w = p − c: (3,) [m]."""
