@@ -119,6 +119,14 @@ def _plane_setup(name: str, seed: list[float], tip: str | None = None) -> Setup:
     plane = Plane(point=(0.0, 0.0, 0.3), normal=(0.0, 0.0, 1.0))
     circle = Circle(center=(0.4, 0.1, 0.3), radius=0.1, normal=(0, 0, 1), omega=1)
     q0 = inverse_kinematics(robot, circle.position(0), seed=np.array(seed))
+    make = _plane_scenarios(robot, plane, circle, q0, f"{name}_plane")
+    return Setup(name, robot, make, "plane z = 0.3 m, circle r = 0.1 m at (0.4, 0.1), ω = 1")
+
+
+def _plane_scenarios(
+    robot: Robot, plane: Plane, circle: Circle, q0: np.ndarray, name: str
+) -> Callable[[float], Scenario]:
+    """Scenario factory for a tool in contact with ``plane`` tracing ``circle`` from q0."""
 
     def make(duration: float) -> Scenario:
         return Scenario(
@@ -128,10 +136,10 @@ def _plane_setup(name: str, seed: list[float], tip: str | None = None) -> Setup:
             q0,
             control=ControlSettings(supervisor=False),
             sim=SimSettings(duration=duration, dt=_DT),
-            name=f"{name}_plane",
+            name=name,
         )
 
-    return Setup(name, robot, make, "plane z = 0.3 m, circle r = 0.1 m at (0.4, 0.1), ω = 1")
+    return make
 
 
 def _g1_setup() -> Setup:
@@ -155,18 +163,7 @@ def _g1_setup() -> Setup:
         omega=1,
     )
     q0 = inverse_kinematics(robot, circle.position(0), seed=seed)
-
-    def make(duration: float) -> Scenario:
-        return Scenario(
-            robot,
-            [plane],
-            circle,
-            q0,
-            control=ControlSettings(supervisor=False),
-            sim=SimSettings(duration=duration, dt=_DT),
-            name="g1_plane",
-        )
-
+    make = _plane_scenarios(robot, plane, circle, q0, "g1_plane")
     return Setup("g1", robot, make, f"right hand on plane z = {p[2]:.3f} m, circle r = 3 cm")
 
 
