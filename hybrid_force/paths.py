@@ -162,8 +162,28 @@ class _CircularPath(Path):
     _basis: np.ndarray
     _frame: tuple[np.ndarray, np.ndarray, np.ndarray]
 
+    center: tuple[float, float, float]
+    radius: float
     omega: float
     phase: float
+
+    def _validate(self, direction: str, scalars: tuple[str, ...]) -> None:
+        """Check center, radius > 0, the direction field and the scalar fields, store them as
+        floats, and build the frame and basis (rise along the direction: 0 for a circle)."""
+        owner = type(self).__name__
+        center = _vector3(owner, "center", self.center)
+        radius = _finite_float(owner, "radius", self.radius)
+        if radius <= 0.0:
+            raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
+        raw = getattr(self, direction)
+        vector = _vector3(owner, direction, raw)
+        unit = _unit3(owner, direction, raw)
+        for name in scalars:
+            object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
+        object.__setattr__(self, "center", center)
+        object.__setattr__(self, "radius", radius)
+        object.__setattr__(self, direction, vector)
+        self._setup(center, radius, unit, getattr(self, "rise", 0.0))
 
     def _setup(
         self, center: tuple[float, float, float], radius: float, axis: np.ndarray, rise: float
@@ -228,19 +248,7 @@ class Helix(_CircularPath):
     _frame: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        owner = "Helix"
-        center = _vector3(owner, "center", self.center)
-        radius = _finite_float(owner, "radius", self.radius)
-        if radius <= 0.0:
-            raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
-        axis = _vector3(owner, "axis", self.axis)
-        unit = _unit3(owner, "axis", self.axis)
-        for name in ("omega", "rise", "phase"):
-            object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
-        object.__setattr__(self, "center", center)
-        object.__setattr__(self, "radius", radius)
-        object.__setattr__(self, "axis", axis)
-        self._setup(center, radius, unit, self.rise)
+        self._validate("axis", ("omega", "rise", "phase"))
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type": "helix", "center", "radius", "axis", "omega", "rise", "phase"}``."""
@@ -275,19 +283,7 @@ class Circle(_CircularPath):
     _frame: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        owner = "Circle"
-        center = _vector3(owner, "center", self.center)
-        radius = _finite_float(owner, "radius", self.radius)
-        if radius <= 0.0:
-            raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
-        normal = _vector3(owner, "normal", self.normal)
-        unit = _unit3(owner, "normal", self.normal)
-        for name in ("omega", "phase"):
-            object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
-        object.__setattr__(self, "center", center)
-        object.__setattr__(self, "radius", radius)
-        object.__setattr__(self, "normal", normal)
-        self._setup(center, radius, unit, 0.0)
+        self._validate("normal", ("omega", "phase"))
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type": "circle", "center", "radius", "normal", "omega", "phase"}``."""
