@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._lazy import kernels
 from hybrid_force.errors import GainError, ReachError
 from hybrid_force.paths import Path
 from hybrid_force.robot import Robot
@@ -144,6 +145,10 @@ class DesiredJointPath:
         q0: (nq,) q_d(0); must satisfy k(q_d(0)) = p_d(0) (see :func:`inverse_kinematics`).
         settings: the CLIK gains.
         t0: start time [s].
+        fast: do the algebra of each step in two compiled calls
+            (:func:`hybrid_force._kernels.clik_velocity` and ``clik_acceleration``) and update
+            q, qd and qdd in place; False: the numpy reference (:meth:`_derivatives`), new
+            arrays every step.
     """
 
     def __init__(
@@ -153,16 +158,28 @@ class DesiredJointPath:
         q0: np.ndarray,
         settings: ClikSettings | None = None,
         t0: float = 0.0,
+        fast: bool = True,
     ) -> None:
         self.robot = robot
         self.path = path
         self.settings = settings or ClikSettings()
+        self.fast = fast
         self._data = robot.new_data()
-        self._redundant = robot.nv > 3
-        self._eye = np.eye(robot.nv)
+        n = robot.nv
+        self._redundant = n > 3
+        self._eye = np.eye(n)
         self.posture = robot.check_q(q0, "q_d(0)").copy()
         self.t = float(t0)
         self.q = self.posture.copy()
+        if fast:
+            self._Jp = np.zeros((n, 3))
+            self._W = np.zeros((3, 3))
+            self._N = np.zeros((n, n))
+            self._x = np.zeros(3)
+            self._dq_post = np.zeros(n)
+            self._q_pred = np.zeros(robot.nq)
+            self.qd = np.zeros(n)
+            self.qdd = np.zeros(n)
         self.p_d, self.pdot_d, self.pddot_d = path.evaluate(self.t)
         p0, _ = self._tip_and_jacobian(self.q)
         if np.linalg.norm(p0 - self.p_d) > _START_TOL:
@@ -172,7 +189,10 @@ class DesiredJointPath:
                 f"not on the path at p_d({self.t:g}) = {np.round(self.p_d, 6).tolist()}: eq. 27 "
                 "needs k(q_d(0)) = p_d(0); use inverse_kinematics to find q_d(0)"
             )
-        self.qd, self.qdd = self._derivatives()
+        if fast:
+            self._derivatives_fast()
+        else:
+            self.qd, self.qdd = self._derivatives()
 
     def _tip_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         model, data, fid = self.robot.model, self._data, self.robot.tip_id
@@ -233,10 +253,41 @@ class DesiredJointPath:
             qdd += N_dot @ z + N @ (-self.settings.posture_gain * qd)
         return qd, qdd
 
+    def _derivatives_fast(self) -> None:
+        """:meth:`_derivatives` with its algebra compiled, written into q̇_d and q̈_d in place."""
+        robot, data, cfg = self.robot, self._data, self.settings
+        model, fid, q = robot.model, robot.tip_id, self.q
+        K = kernels()
+        pin.computeJointJacobians(model, data, q)
+        p = pin.updateFramePlacement(model, data, fid).translation
+        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+        gain = cfg.posture_gain if self._redundant else 0.0
+        if gain > 0.0:
+            if robot.euclidean:
+                np.subtract(q, self.posture, out=self._dq_post)
+            else:
+                self._dq_post[:] = pin.difference(model, self.posture, q)
+        cond = K.clik_velocity(
+            J6, p, self.p_d, self.pdot_d, cfg.gamma, cfg.damping**2, self._redundant, gain,
+            self._dq_post, self._Jp, self._W, self._N, self._x, self.qd,
+        )  # fmt: skip
+        if not cond < _COND_MAX:  # the cheap bound of cond(J Jᵀ); the SVD names the values
+            _check_conditioning(J6[:3], self.t, q, robot)
+        pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
+        K.clik_acceleration(
+            J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), self._Jp, self._W,
+            self._N, self._x, self.qd, self.pdot_d, self.pddot_d, cfg.gamma, self._redundant,
+            gain, self._dq_post, self.qdd,
+        )  # fmt: skip
+
     def advance(self, dt: float) -> None:
         """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction)."""
         model = self.robot.model
         self.t += dt
+        if self.fast:
+            self.path.evaluate_into(self.t, self.p_d, self.pdot_d, self.pddot_d)
+            self._advance_fast(dt)
+            return
         self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
         q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
         # Newton correction with the pseudo-inverse of the previous step: J changes by O(dt)
@@ -245,6 +296,23 @@ class DesiredJointPath:
         p = pin.updateFramePlacement(model, self._data, self.robot.tip_id).translation
         self.q = pin.integrate(model, q, self._Jp @ (self.p_d - p))
         self.qd, self.qdd = self._derivatives()
+
+    def _advance_fast(self, dt: float) -> None:
+        """:meth:`advance` after the path sample, updating q_d in place."""
+        robot, data = self.robot, self._data
+        model, q_pred = robot.model, self._q_pred
+        K = kernels()
+        if robot.euclidean:
+            K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
+        else:
+            q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
+        pin.forwardKinematics(model, data, q_pred)
+        p = pin.updateFramePlacement(model, data, robot.tip_id).translation
+        if robot.euclidean:
+            K.newton_step(q_pred, self._Jp, self.p_d, p, self.q)
+        else:
+            self.q[:] = pin.integrate(model, q_pred, self._Jp @ (self.p_d - p))
+        self._derivatives_fast()
 
     def task_error(self) -> float:
         """‖k(q_d) − p_d‖ at the current time [m]."""

@@ -34,6 +34,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
+from hybrid_force._lazy import kernels
 from hybrid_force.errors import SingularConfigurationError, SurfaceError
 from hybrid_force.robot import Robot, RobotTerms
 from hybrid_force.surfaces import Surface
@@ -83,6 +84,26 @@ class ConstraintTerms:
     raw_drift: np.ndarray
     drift: np.ndarray
 
+    @classmethod
+    def zeros(cls, k: int, n: int) -> ConstraintTerms:
+        """Terms of k rows and n joints, every array zero (a buffer for ``evaluate``)."""
+        return cls(
+            phi=np.zeros(k),
+            distance=np.zeros(k),
+            J_phi=np.zeros((k, n)),
+            J_phi_n=np.zeros((k, n)),
+            scale=np.zeros(k),
+            A=np.zeros((k, n)),
+            Adot=np.zeros((k, n)),
+            A_pinv=np.zeros((n, k)),
+            A_pinv_dot=np.zeros((n, k)),
+            Q=np.zeros((n, n)),
+            Qdot=np.zeros((n, n)),
+            rate=np.zeros(k),
+            raw_drift=np.zeros(k),
+            drift=np.zeros(k),
+        )
+
 
 class _Row(NamedTuple):
     """One surface's joint-space row at a state (see :meth:`Constraint._row`)."""
@@ -119,7 +140,6 @@ class Constraint:
             )
         self.surfaces: tuple[Surface, ...] = items
         self.normalization: Normalization = normalization
-        self._eyes: dict[int, np.ndarray] = {}
 
     @property
     def k(self) -> int:
@@ -130,20 +150,29 @@ class Constraint:
         """(k,) signed metric distances of the point p (3,) to each surface [m]."""
         return np.array([s.distance(p) for s in self.surfaces])
 
-    def evaluate(self, terms: RobotTerms, v: np.ndarray, fast: bool = True) -> ConstraintTerms:
+    def evaluate(
+        self,
+        terms: RobotTerms,
+        v: np.ndarray,
+        fast: bool = True,
+        out: ConstraintTerms | None = None,
+    ) -> ConstraintTerms:
         """Joint-space quantities from the robot terms of one step.
 
         Args:
             terms: the robot's terms at (q, v) (:meth:`Robot.terms`).
             v: (n,) joint velocity.
-            fast: use the scalar algebra when k = 1 (False: the general k-row algebra).
+            fast: when k = 1, one compiled call (:func:`hybrid_force._kernels.constraint_one`)
+                instead of the general k-row numpy algebra below, which is its reference.
+            out: with ``fast`` and k = 1, terms whose arrays are overwritten (see
+                :meth:`ConstraintTerms.zeros`); default: fresh arrays. Ignored otherwise.
 
         Raises:
             SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
                 stacked rows are dependent.
         """
         if fast and self.k == 1:
-            return self._evaluate_one(terms, v)
+            return self._evaluate_one(terms, v, out)
         rows = [self._row(i, s, terms) for i, s in enumerate(self.surfaces)]
         k, n = self.k, terms.J.shape[1]
         J_phi = np.array([r.row for r in rows])
@@ -220,34 +249,41 @@ class Constraint:
             raw_drift=float(pdot @ h_pdot + grad @ terms.Jdot_v),
         )
 
-    def _evaluate_one(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
-        """The k = 1 case of :meth:`evaluate`, with scalars instead of k×k algebra (hot path)."""
-        r = self._row(0, self.surfaces[0], terms)
-        scale, row = r.scale, r.row
-        A = row / scale
-        Adot = r.row_dot / scale - row * (r.scale_dot / (scale * scale))
-        w = 1.0 / float(A @ A)
-        w_dot = -2.0 * w * w * float(Adot @ A)
-        A_pinv = A * w
-        A_pinv_dot = Adot * w + A * w_dot
-        Q = self._eye(A.shape[0]) - np.outer(A_pinv, A)
-        Qdot = -(np.outer(A_pinv_dot, A) + np.outer(A_pinv, Adot))
-        return ConstraintTerms(
-            phi=np.array([r.phi]),
-            distance=np.array([self.surfaces[0].distance(terms.p)]),
-            J_phi=row[None, :],
-            J_phi_n=(row / r.row_norm)[None, :],
-            scale=np.array([scale]),
-            A=A[None, :],
-            Adot=Adot[None, :],
-            A_pinv=A_pinv[:, None],
-            A_pinv_dot=A_pinv_dot[:, None],
-            Q=Q,
-            Qdot=Qdot,
-            rate=np.array([float(A @ v)]),
-            raw_drift=np.array([r.raw_drift]),
-            drift=np.array([r.raw_drift / scale]),
+    def _evaluate_one(
+        self, terms: RobotTerms, v: np.ndarray, out: ConstraintTerms | None
+    ) -> ConstraintTerms:
+        """The k = 1 case of :meth:`evaluate` in one compiled call (hot path)."""
+        surface = self.surfaces[0]
+        p = terms.p
+        value, grad, hess, distance = surface.evaluate_with_distance(p)
+        c = ConstraintTerms.zeros(1, terms.J.shape[1]) if out is None else out
+        grad_norm, row_norm, jmax, scale, rate, raw_drift = kernels().constraint_one(
+            grad,
+            hess,
+            terms.J,
+            terms.Jdot,
+            terms.Jdot_v,
+            terms.pdot,
+            v,
+            self.normalization == "tip",
+            c.J_phi,
+            c.J_phi_n,
+            c.A,
+            c.Adot,
+            c.A_pinv,
+            c.A_pinv_dot,
+            c.Q,
+            c.Qdot,
         )
+        if not grad_norm >= _GRAD_TOL or not row_norm >= _ROW_TOL * grad_norm * (1.0 + jmax):
+            self._row(0, surface, terms)  # raises the precise SingularConfigurationError
+        c.phi[0] = value
+        c.distance[0] = distance
+        c.scale[0] = scale
+        c.rate[0] = rate
+        c.raw_drift[0] = raw_drift
+        c.drift[0] = raw_drift / scale
+        return c
 
     def normal_rows(self, p: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unit-normal rows and first-order distances, for placing the tip on the surfaces.
@@ -272,13 +308,6 @@ class Constraint:
             rows[i] = (grad / norm) @ J
             dist[i] = phi / norm
         return rows, dist
-
-    def _eye(self, n: int) -> np.ndarray:
-        eye = self._eyes.get(n)
-        if eye is None:
-            eye = self._eyes[n] = np.eye(n)
-            eye.flags.writeable = False
-        return eye
 
     def at(self, robot: Robot, q: object, v: object | None = None) -> ConstraintTerms:
         """Convenience: validate (q, v) and evaluate for ``robot`` (v defaults to zero)."""

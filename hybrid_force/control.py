@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hybrid_force._lazy import kernels
 from hybrid_force.constraint import ConstraintTerms
 from hybrid_force.errors import GainError
 from hybrid_force.robot import RobotTerms
@@ -37,6 +38,7 @@ __all__ = [
     "ControlTrace",
     "Desired",
     "Gains",
+    "LawWorkspace",
     "arimoto_law",
     "default_damping_gain",
     "free_space_law",
@@ -241,3 +243,137 @@ def arimoto_law(
         f_d=f_d,
     )
     return Command(u0=u0, B=B), trace
+
+
+class LawWorkspace:
+    """Both laws as one compiled call each, writing into arrays preallocated here (hot path).
+
+    :func:`arimoto_law` and :func:`free_space_law` above are the readable references; this
+    computes the same numbers (:func:`hybrid_force._kernels.arimoto`; the free-space law is
+    the same kernel with Q = I, Q̇ = 0 and no constraint rows) without allocating. The
+    command returned and the arrays below are overwritten at every call: copy to keep.
+
+    Attributes:
+        u0, s, s0, s1, qdot_r, qddot_r0: (n,) as in :class:`ControlTrace`.
+        B, qddot_r_f: (n, k) of the hybrid law. V: [J] of the last call.
+        hybrid: True when the last call was the hybrid law.
+    """
+
+    def __init__(self, n: int, k: int, gains: Gains) -> None:
+        self.gains = gains
+        self.u0 = np.zeros(n)
+        self.s = np.zeros(n)
+        self.s0 = np.zeros(n)
+        self.s1 = np.zeros(n)
+        self.qdot_r = np.zeros(n)
+        self.qddot_r0 = np.zeros(n)
+        self.B = np.zeros((n, k))
+        self.qddot_r_f = np.zeros((n, k))
+        self.V = 0.0
+        self.hybrid = False
+        self._zeros_k = np.zeros(k)
+        self._eye = np.eye(n)
+        self._zeros_nn = np.zeros((n, n))
+        self._no_cols = np.zeros((n, 0))
+        self._no_rows = np.zeros((0, n))
+        self._no_force = np.zeros(0)
+        self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
+        self._free = Command(u0=self.u0, B=None)
+
+    def arimoto(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None = None,
+    ) -> Command:
+        """:func:`arimoto_law` (eq. 4, 8, 11); same arguments, the gains are this workspace's."""
+        g = self.gains
+        self.V = kernels().arimoto(
+            robot.M,
+            robot.C,
+            robot.g,
+            g.Kd,
+            cons.Q,
+            cons.Qdot,
+            cons.A_pinv,
+            cons.A_pinv_dot,
+            cons.A,
+            v,
+            e_q,
+            desired.qd,
+            desired.qdd,
+            e_F,
+            f_d,
+            self._zeros_k if approach is None else approach,
+            g.Lambda,
+            g.beta,
+            g.gamma,
+            self.u0,
+            self.B,
+            self.s,
+            self.s0,
+            self.s1,
+            self.qdot_r,
+            self.qddot_r0,
+            self.qddot_r_f,
+        )
+        self.hybrid = True
+        return self._hybrid
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """:func:`free_space_law` (eq. 29–30); same arguments, the gains are this workspace's."""
+        g = self.gains
+        none = self._no_force
+        self.V = kernels().arimoto(
+            robot.M,
+            robot.C,
+            robot.g,
+            g.Kd,
+            self._eye,
+            self._zeros_nn,
+            self._no_cols,
+            self._no_cols,
+            self._no_rows,
+            v,
+            e_q,
+            desired.qd,
+            desired.qdd,
+            none,
+            none,
+            none,
+            g.Lambda,
+            g.beta,
+            g.gamma,
+            self.u0,
+            self._no_cols,
+            self.s,
+            self.s0,
+            self.s1,
+            self.qdot_r,
+            self.qddot_r0,
+            self._no_cols,
+        )
+        self.hybrid = False
+        return self._free
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
+        """A :class:`ControlTrace` of the last call (copies of the buffers)."""
+        return ControlTrace(
+            e_q=e_q.copy(),
+            s=self.s.copy(),
+            s0=self.s0.copy(),
+            s1=self.s1.copy(),
+            e_F=e_F.copy() if self.hybrid else np.zeros(0),
+            qdot_r=self.qdot_r.copy(),
+            qddot_r0=self.qddot_r0.copy(),
+            qddot_r_f=self.qddot_r_f.copy() if self.hybrid else None,
+            V=self.V,
+            f_d=f_d.copy() if self.hybrid else np.zeros(0),
+        )

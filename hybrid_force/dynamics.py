@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._lazy import kernels
 from hybrid_force.errors import SimulationError
 
 __all__ = [
@@ -61,6 +62,10 @@ class Baumgarte:
 
     def gamma(self, drift: np.ndarray, rate: np.ndarray, phi: np.ndarray) -> np.ndarray:
         """γ (k,) for pin.forwardDynamics: drift + 2α φ̇ + β² φ."""
+        return drift + 2.0 * self.alpha * rate + (self.beta * self.beta) * phi
+
+    def gamma_one(self, drift: float, rate: float, phi: float) -> float:
+        """:meth:`gamma` for one constraint, in floats (the same operations, in order)."""
         return drift + 2.0 * self.alpha * rate + (self.beta * self.beta) * phi
 
 
@@ -96,13 +101,18 @@ def constrained_acceleration(
     if B is None:
         return ddq0, f0
     k = A.shape[0]
+    if k == 1:  # one compiled call for the scalar case of the lines below
+        ddq1 = pin.forwardDynamics(model, data, u0 + B[:, 0], A, gamma)
+        ddq = np.empty_like(ddq0)
+        f0[0] = kernels().loop_one(ddq0, f0[0], ddq1, data.lambda_c[0], ddq)
+        return ddq, f0
     LB = np.empty((k, k))
     DB = np.empty((ddq0.shape[0], k))
     for j in range(k):
         ddq_j = pin.forwardDynamics(model, data, u0 + B[:, j], A, gamma)
         DB[:, j] = ddq_j - ddq0
         LB[:, j] = data.lambda_c - f0
-    f = f0 / (1.0 - LB[0, 0]) if k == 1 else np.linalg.solve(np.eye(k) - LB, f0)
+    f = np.linalg.solve(np.eye(k) - LB, f0)
     return ddq0 + DB @ f, f
 
 

@@ -37,6 +37,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from hybrid_force._lazy import kernels
 from hybrid_force.errors import BadInputError, SurfaceError, did_you_mean
 
 __all__ = [
@@ -148,6 +149,13 @@ class Path(abc.ABC):
         """Return p_d(t) (3,) [m] only."""
         return self.evaluate(t)[0]
 
+    def evaluate_into(self, t: float, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
+        """Write p_d, ṗ_d, p̈_d at t [s] into the (3,) arrays p, v, a (hot path).
+
+        The default copies the result of :meth:`evaluate`; analytic paths override it.
+        """
+        p[:], v[:], a[:] = self.evaluate(t)
+
     @abc.abstractmethod
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-able dict ``{"type": ..., <parameters>}`` for :func:`path_from_dict`."""
@@ -213,6 +221,10 @@ class _CircularPath(Path):
         coeff = np.array(((co, si, t, 1.0), (-ws, wc, 1.0, 0.0), (-w * wc, -w * ws, 0.0, 0.0)))
         p, v, acc = coeff @ self._basis
         return p, v, acc
+
+    def evaluate_into(self, t: float, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
+        """:meth:`evaluate` written into p, v, a (3,) in one compiled call (hot path)."""
+        kernels().circular_path(self._basis, self.phase, self.omega, float(t), p, v, a)
 
     def position(self, t: float) -> np.ndarray:
         """Return p(t) (3,) [m]."""

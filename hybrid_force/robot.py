@@ -21,11 +21,18 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._lazy import kernels
 from hybrid_force.errors import DimensionError, FrameError, URDFError
 
 __all__ = ["Robot", "RobotTerms", "load_robot"]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+# Joints whose configuration space is R (bounded revolute, prismatic): for them
+# pinocchio.integrate(q, dq) is exactly q + dq and difference(q0, q1) is q1 − q0.
+_VECTOR_SPACE_JOINTS = frozenset(
+    f"JointModel{kind}"
+    for kind in ("RX", "RY", "RZ", "PX", "PY", "PZ", "RevoluteUnaligned", "PrismaticUnaligned")
+)
 
 
 @dataclass(frozen=True)
@@ -54,6 +61,21 @@ class RobotTerms:
     Jdot_v: np.ndarray
     pdot: np.ndarray
 
+    @classmethod
+    def zeros(cls, n: int) -> RobotTerms:
+        """Terms of an n-joint arm with every array zero (a buffer for :meth:`Robot.terms`)."""
+        return cls(
+            M=np.zeros((n, n)),
+            C=np.zeros((n, n)),
+            g=np.zeros(n),
+            nle=np.zeros(n),
+            p=np.zeros(3),
+            J=np.zeros((3, n)),
+            Jdot=np.zeros((3, n)),
+            Jdot_v=np.zeros(3),
+            pdot=np.zeros(3),
+        )
+
 
 class Robot:
     """A fixed-base arm from a URDF file, with a tip frame that touches the surface.
@@ -66,6 +88,8 @@ class Robot:
         data: a Pinocchio data object owned by this robot (one per purpose: the simulator
             and viewer make their own with :meth:`new_data`).
         tip: tip frame name; tip_id its frame index.
+        euclidean: True when every joint is a bounded revolute or prismatic joint, so that
+            q ⊕ dq = q + dq (the fast loop then integrates without Pinocchio calls).
     """
 
     def __init__(
@@ -92,6 +116,7 @@ class Robot:
         self.tip = tip
         self.tip_id = model.getFrameId(tip)
         self._lower = np.tril_indices(model.nv, -1)
+        self.euclidean = all(j.shortname() in _VECTOR_SPACE_JOINTS for j in list(model.joints)[1:])
 
     # --- sizes and validation ------------------------------------------------
     @property
@@ -160,24 +185,53 @@ class Robot:
         acc = pin.getFrameClassicalAcceleration(self.model, self.data, self.tip_id, _LWA)
         return acc.linear.copy()
 
-    def terms(self, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None) -> RobotTerms:
+    def terms(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        data: pin.Data | None = None,
+        out: RobotTerms | None = None,
+    ) -> RobotTerms:
         """All terms of one step at (q, v) in one Pinocchio pass (no validation: hot path).
+
+        Six Pinocchio calls: crba, computeGeneralizedGravity, computeCoriolisMatrix (which
+        also fills the joint Jacobians, their time variation and the placements),
+        updateFramePlacement, getFrameJacobian, getFrameJacobianTimeVariation; the rest
+        (symmetric M, nle = C v + g, J v, J̇ v) is one compiled call
+        (:func:`hybrid_force._kernels.robot_terms`). The reference, one public method per
+        term, is ``hybrid_force.simulate._reference_terms``; the tests compare the two.
 
         Args:
             q: (nq,) configuration. v: (nv,) velocity.
             data: the Pinocchio data to use (default: this robot's own).
+            out: terms whose arrays are overwritten (see :meth:`RobotTerms.zeros`); default:
+                fresh arrays.
         """
-        model = self.model
+        model, fid = self.model, self.tip_id
         data = self.data if data is None else data
-        pin.computeJointJacobiansTimeVariation(model, data, q, v)
-        p = pin.updateFramePlacement(model, data, self.tip_id).translation.copy()
-        J = pin.getFrameJacobian(model, data, self.tip_id, _LWA)[:3].copy()
-        Jdot = pin.getFrameJacobianTimeVariation(model, data, self.tip_id, _LWA)[:3].copy()
-        M = self._full(pin.crba(model, data, q))
-        C = pin.computeCoriolisMatrix(model, data, q, v).copy()
-        g = pin.computeGeneralizedGravity(model, data, q).copy()
-        nle = C @ v + g
-        return RobotTerms(M=M, C=C, g=g, nle=nle, p=p, J=J, Jdot=Jdot, Jdot_v=Jdot @ v, pdot=J @ v)
+        if out is None:
+            out = RobotTerms.zeros(model.nv)
+        Mu = pin.crba(model, data, q)
+        g = pin.computeGeneralizedGravity(model, data, q)
+        C = pin.computeCoriolisMatrix(model, data, q, v)
+        out.p[:] = pin.updateFramePlacement(model, data, fid).translation
+        kernels().robot_terms(
+            Mu,
+            C,
+            g,
+            pin.getFrameJacobian(model, data, fid, _LWA),
+            pin.getFrameJacobianTimeVariation(model, data, fid, _LWA),
+            v,
+            out.M,
+            out.C,
+            out.g,
+            out.nle,
+            out.J,
+            out.Jdot,
+            out.Jdot_v,
+            out.pdot,
+        )
+        return out
 
     def _full(self, M_upper: np.ndarray) -> np.ndarray:
         """A copy of crba's result with its upper triangle mirrored onto the lower one."""

@@ -24,6 +24,7 @@ One step (dt, 1 ms by default):
 from __future__ import annotations
 
 import json
+import math
 import platform
 import time
 from collections.abc import Callable, Sequence
@@ -33,7 +34,8 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force.constraint import Constraint
+from hybrid_force._lazy import kernels
+from hybrid_force.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control import Command
 from hybrid_force.dynamics import (
     Baumgarte,
@@ -203,6 +205,10 @@ class _Plant:
         self.robot = robot
         self.constraint = constraint
         self.data = robot.new_data()
+        n = robot.nv
+        # two (q, v) pairs for contact_step: its output is never its input
+        self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
+        self._tmp = (np.zeros(n), np.zeros(n))
 
     def tip(self, q: np.ndarray) -> np.ndarray:
         pin.forwardKinematics(self.robot.model, self.data, q)
@@ -233,6 +239,29 @@ class _Plant:
         v = v - A_pinv @ (A @ v)
         return q, v
 
+    def contact_step(
+        self, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Semi-implicit Euler then :meth:`project`, for one surface and a Euclidean arm.
+
+        The same arithmetic as ``v + ddq dt``, ``pin.integrate`` and :meth:`project` in two
+        compiled calls (:func:`hybrid_force._kernels.euler_step`, ``project_one``). Returns
+        arrays owned by the plant, never q or v themselves; the next call may reuse them.
+        """
+        K = kernels()
+        model, data, fid = self.robot.model, self.data, self.robot.tip_id
+        q_tmp, v_tmp = self._tmp
+        K.euler_step(q, v, ddq, dt, True, v_tmp, q_tmp)
+        pin.computeJointJacobians(model, data, q_tmp)
+        phi, grad, _ = self.constraint.surfaces[0].evaluate(
+            pin.updateFramePlacement(model, data, fid).translation
+        )
+        q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
+        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+        if not K.project_one(grad, phi, J6, q_tmp, v_tmp, True, q_out, v_out) >= _GRAD_TOL:
+            self._rows(q_tmp)  # raises the precise SingularConfigurationError
+        return q_out, v_out
+
 
 def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = None) -> Result:
     """Run a scenario and return its result.
@@ -262,7 +291,14 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     q = robot.check_q(sc.q0, "initial q").copy()
     v = np.zeros(nv) if sc.v0 is None else robot.check_v(sc.v0, "initial v").copy()
     plant = _Plant(robot, constraint)
-    controller = HybridController(robot, constraint, sc.path, q, sc.control, dt=dt)
+    fast = not sim.reference
+    controller = HybridController(robot, constraint, sc.path, q, sc.control, dt=dt, fast=fast)
+    terms_buf = RobotTerms.zeros(nv)
+    u_buf = np.zeros(nv)
+    gamma_buf = np.zeros(1)
+    cons_buf = ConstraintTerms.zeros(k, nv)
+    # the compiled Euler + projection step of the plant (one surface, q ⊕ dq = q + dq)
+    fast_contact = fast and k == 1 and robot.euclidean and sim.integrator == "euler"
     events: list[dict] = []
     in_contact = False
     if float(plant.distance(q).max()) <= sc.control.contact_tol:
@@ -311,9 +347,12 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     try:
         for i in range(N):
             t = i * dt
-            terms = _reference_terms(robot, q, v) if sim.reference else robot.terms(q, v, data)
+            if fast:
+                terms = robot.terms(q, v, data, out=terms_buf)
+            else:
+                terms = _reference_terms(robot, q, v)
             try:
-                cons = constraint.evaluate(terms, v, fast=not sim.reference)
+                cons = constraint.evaluate(terms, v, fast=fast, out=cons_buf)
             except SingularConfigurationError:
                 if in_contact:
                     raise
@@ -321,21 +360,33 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             cmd = controller.command(t, q, v, terms, cons)
             f = zeros_k
             if in_contact:
-                gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
+                if fast and k == 1:  # the k = 1 case of baum.gamma, without temporaries
+                    gamma_buf[0] = baum.gamma_one(
+                        float(cons.drift[0]), float(cons.rate[0]), cons.phi[0] / cons.scale[0]
+                    )
+                    gamma = gamma_buf
+                else:
+                    gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
                 if sim.reference:
                     ddq, f = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
                 else:
                     ddq, f = constrained_acceleration(
                         model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma
                     )
-                if sim.unilateral and float(f.min()) < -sim.release_tol:
+                if sim.unilateral and float(f[0] if k == 1 else f.min()) < -sim.release_tol:
                     events.append({"t": t, "kind": "release", "force": float(f.min())})
                     in_contact = False
                     f = zeros_k
                     ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
             else:
                 ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
-            u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
+            if cmd.B is None:
+                u = cmd.u0
+            elif fast:
+                u = u_buf
+                kernels().affine(cmd.u0, cmd.B, f, u)
+            else:
+                u = cmd.u0 + cmd.B @ f
             # --- log sample i
             log.t[i] = t
             log.q[i] = q
@@ -347,13 +398,18 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             log.f[i] = f
             log.f_d[i] = controller.f_d
             log.phi[i] = cons.distance if cons is not None else plant.distance(q)
-            log.V[i] = controller.trace.V
+            log.V[i] = controller.V
             log.phase[i] = controller.phase
             n_logged = i + 1
             _check_finite(t, q, v, f, sim)
             if i == N - 1:
                 break
             controller.update(dt, f)
+            if in_contact and fast_contact:
+                q, v = plant.contact_step(q, v, ddq, dt)
+                if progress is not None and i % report_every == 0:
+                    progress(i / N)
+                continue
             if sim.integrator == "euler":
                 v = v + ddq * dt
                 q_new = pin.integrate(model, q, v * dt)
@@ -428,10 +484,18 @@ def _merge(a: list[dict], b: list[dict]) -> list[dict]:
 
 
 def _check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: SimSettings) -> None:
+    # The common case first, with norms (‖v‖ ≤ max implies every |v_i| ≤ max; NaN fails
+    # every comparison); the exact per-component test only when it fails.
+    if (
+        float(v @ v) <= sim.max_velocity * sim.max_velocity
+        and float(f @ f) <= sim.max_force * sim.max_force
+        and math.isfinite(float(q @ q))
+    ):
+        return
     vmax = float(np.abs(v).max())
     fmax = float(np.abs(f).max()) if f.size else 0.0
     if vmax <= sim.max_velocity and fmax <= sim.max_force and np.isfinite(q @ q):
-        return  # the common case: one comparison chain (NaN fails every comparison)
+        return
     if not (np.isfinite(vmax) and np.isfinite(fmax) and np.all(np.isfinite(q))):
         raise DivergenceError(
             f"non-finite state at t = {t:.6g} s: q = {q.tolist()}, v = {v.tolist()}"

@@ -30,12 +30,14 @@ multiplied by ``mass_factor`` (M, C, g scale by it; kinematics are exact).
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._lazy import kernels
 from hybrid_force.clik import ClikSettings, DesiredJointPath, inverse_kinematics
 from hybrid_force.constraint import Constraint, ConstraintTerms
 from hybrid_force.control import (
@@ -43,6 +45,7 @@ from hybrid_force.control import (
     ControlTrace,
     Desired,
     Gains,
+    LawWorkspace,
     arimoto_law,
     default_damping_gain,
     free_space_law,
@@ -137,6 +140,9 @@ class HybridController:
         settings: see :class:`ControlSettings`.
         dt: time step [s] (used to check dt·λ_max(M⁻¹K_d)).
         t0: start time [s].
+        fast: compiled CLIK and laws writing into preallocated arrays
+            (:class:`~hybrid_force.control.LawWorkspace`); False: the numpy references
+            (:func:`~hybrid_force.control.arimoto_law` and ``free_space_law``).
     """
 
     def __init__(
@@ -148,15 +154,19 @@ class HybridController:
         settings: ControlSettings | None = None,
         dt: float = 1e-3,
         t0: float = 0.0,
+        fast: bool = True,
     ) -> None:
         self.robot = robot
+        self.fast = fast
         self.constraint = constraint
         self.path = path
         self.settings = s = settings or ControlSettings()
         k, n = constraint.k, robot.nv
         q0 = robot.check_q(q0, "q0")
         qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
-        self.clik = DesiredJointPath(robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0)
+        self.clik = DesiredJointPath(
+            robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0, fast=fast
+        )
         M0 = robot.mass_matrix(q0) * s.mass_factor
         Kd = default_damping_gain(M0, s.kd_rate) if s.Kd is None else s.Kd
         self.gains: Gains = make_gains(Kd, s.Lambda, s.beta, s.gamma, n)
@@ -173,8 +183,18 @@ class HybridController:
         self.approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
         self._int = _Integrators(F=np.zeros(k), F_d=np.zeros(k), f_d=np.zeros(k))
         self.phase = FREE
-        self.trace: ControlTrace | None = None
+        self.V = 0.0  # V of the last step [J] (section 5.1)
+        self._trace: ControlTrace | None = None
         self._first = True
+        self._zeros_k = np.zeros(k)
+        self._e_q = np.zeros(n)
+        self._e_F = np.zeros(k)
+        self._law = LawWorkspace(n, k, self.gains) if fast else None
+        self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._scaled = RobotTerms.zeros(n)
+        if fast:
+            c = self.clik
+            self._desired = Desired(q=c.q, qd=c.qd, qdd=c.qdd)  # c updates them in place
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -184,9 +204,18 @@ class HybridController:
 
     @property
     def desired(self) -> Desired:
-        """q_d, q̇_d, q̈_d now."""
+        """q_d, q̇_d, q̈_d now (with ``fast``, arrays that the next step overwrites)."""
+        if self.fast:
+            return self._desired
         c = self.clik
         return Desired(q=c.q, qd=c.qd, qdd=c.qdd)
+
+    @property
+    def trace(self) -> ControlTrace | None:
+        """What the law computed at the last step (None before the first step)."""
+        if not self.fast or self._last is None:
+            return self._trace
+        return self._law.trace(*self._last)
 
     @property
     def f_d(self) -> np.ndarray:
@@ -200,20 +229,16 @@ class HybridController:
         return NEAR if d <= self.settings.max_dist else FREE
 
     def _model_terms(self, terms: RobotTerms) -> RobotTerms:
+        """The controller's model: the plant's terms with M, C, g, nle × mass_factor."""
         m = self.settings.mass_factor
         if m == 1.0:
             return terms
-        return RobotTerms(
-            M=terms.M * m,
-            C=terms.C * m,
-            g=terms.g * m,
-            nle=terms.nle * m,
-            p=terms.p,
-            J=terms.J,
-            Jdot=terms.Jdot,
-            Jdot_v=terms.Jdot_v,
-            pdot=terms.pdot,
-        )
+        out = self._scaled
+        for name in ("M", "C", "g", "nle"):
+            np.multiply(getattr(terms, name), m, out=getattr(out, name))
+        for name in ("p", "J", "Jdot", "Jdot_v", "pdot"):
+            getattr(out, name)[...] = getattr(terms, name)
+        return out
 
     # ------------------------------------------------------------------ one step
     def command(
@@ -252,23 +277,39 @@ class HybridController:
             self._first = False
         model = self._model_terms(terms)
         desired = self.desired
-        e_q = pin.difference(self.robot.model, desired.q, q)
+        if self.fast and self.robot.euclidean:
+            e_q = np.subtract(q, desired.q, out=self._e_q)
+        else:
+            e_q = pin.difference(self.robot.model, desired.q, q)
+        law = self._law
         if phase == FREE:
-            st.f_d = np.zeros(self.constraint.k)
-            command, self.trace = free_space_law(self.gains, model, v, e_q, desired)
+            st.f_d = self._zeros_k
+            if law is not None:
+                self._last = (e_q, self._zeros_k, st.f_d)
+                command = law.free_space(model, v, e_q, desired)
+                self.V = law.V
+                return command
+            command, self._trace = free_space_law(self.gains, model, v, e_q, desired)
+            self.V = self._trace.V
             return command
         if phase == NEAR:
             # eq. 31 with the measured force, which is 0 before contact (see module docstring).
-            st.f_d = np.zeros(self.constraint.k)
+            st.f_d = self._zeros_k
             approach = -self.approach_rate * cons.distance
         else:
             st.f_d = self.f_d_contact
             approach = None
             self._check_branch(t, terms, cons, e_q)
-        e_F = st.F - st.F_d
-        command, self.trace = arimoto_law(
+        e_F = np.subtract(st.F, st.F_d, out=self._e_F)
+        if law is not None:
+            self._last = (e_q, e_F, st.f_d)
+            command = law.arimoto(model, cons, v, e_q, desired, e_F, st.f_d, approach)
+            self.V = law.V
+            return command
+        command, self._trace = arimoto_law(
             self.gains, model, cons, v, e_q, desired, e_F, st.f_d, approach
         )
+        self.V = self._trace.V
         return command
 
     def _check_branch(
@@ -282,7 +323,7 @@ class HybridController:
         A steady offset from model error lies along the surface (Q e_q) and is not flagged.
         """
         st, s = self._int, self.settings
-        err = float(np.linalg.norm(terms.p - self.clik.p_d))  # clik is at time t
+        err = math.dist(terms.p.tolist(), self.clik.p_d.tolist())  # clik is at time t
         if err < 0.5 * st.best_error:
             st.best_error, st.best_error_time = err, t
         if (
@@ -308,6 +349,9 @@ class HybridController:
         """Advance the controller's integrators over one step with the force f (k,) [N]."""
         st = self._int
         if self.phase == CONTACT:
-            st.F += f * dt
-            st.F_d += st.f_d * dt
+            if self.fast:
+                kernels().accumulate(st.F, f, st.F_d, st.f_d, dt)
+            else:
+                st.F += f * dt
+                st.F_d += st.f_d * dt
         self.clik.advance(dt)

@@ -192,6 +192,13 @@ class Surface(abc.ABC):
         gradient) are returned as shared *read-only* arrays: copy them before writing.
         """
 
+    def evaluate_with_distance(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
+        """:meth:`evaluate` and :meth:`distance` at p in one call (hot path, not validated).
+
+        Returns (Φ, ∇Φ: (3,), ∇²Φ: (3, 3), d [m]); shared arrays as in :meth:`evaluate`.
+        """
+        return (*self.evaluate(p), self.distance(p))
+
     @abc.abstractmethod
     def phi(self, p: ArrayLike) -> float:
         """Φ(p) at p: (3,) [m]; > 0 on the free side."""
@@ -267,6 +274,20 @@ class _RoundSurface(Surface):
             s * (wx * wx + wy * wy + wz * wz - self._r2),
             np.array((g * wx, g * wy, g * wz)),
             self._hess,
+        )
+
+    def evaluate_with_distance(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
+        """(Φ, ∇Φ, ∇²Φ, d) at p: float64 (3,) [m], sharing the arithmetic of Φ and d."""
+        wx, wy, wz = self._offset(*p.tolist())
+        s = self._sign
+        g = 2.0 * s
+        rho2 = wx * wx + wy * wy + wz * wz
+        value = s * (rho2 - self._r2)
+        return (
+            value,
+            np.array((g * wx, g * wy, g * wz)),
+            self._hess,
+            value / (math.sqrt(rho2) + self.radius),
         )
 
     def phi(self, p: ArrayLike) -> float:
@@ -466,10 +487,12 @@ class Plane(Surface):
 
         ∇Φ and ∇²Φ are shared read-only arrays.
         """
-        x, y, z = p.tolist()
-        ox, oy, oz = self.point
-        nx, ny, nz = self.normal_vector
-        return nx * (x - ox) + ny * (y - oy) + nz * (z - oz), self._grad, self._hess
+        return self._phi(*p.tolist()), self._grad, self._hess
+
+    def evaluate_with_distance(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
+        """(Φ, ∇Φ, ∇²Φ, d = Φ) at p: float64 (3,) [m]; not validated."""
+        value = self._phi(*p.tolist())
+        return value, self._grad, self._hess, value
 
     def phi(self, p: ArrayLike) -> float:
         """Φ(p) = n·(p − point) [m]."""

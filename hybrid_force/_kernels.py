@@ -1,0 +1,527 @@
+"""Compiled arithmetic of the fast simulation step (Numba), one section per concept module.
+
+The hot loop of :func:`hybrid_force.simulate` spends its time in a few hundred operations on
+arrays of 3 to 30 numbers; from numpy each costs about a microsecond of call overhead, far
+more than the arithmetic. Here the same formulas are written as loops and compiled once by
+Numba (cached on disk), so each concept's algebra costs one call per step.
+
+Every kernel here has a readable numpy definition in its concept module, which stays the
+reference: :mod:`hybrid_force.robot` (terms), :mod:`hybrid_force.constraint` (k = 1 rows),
+:mod:`hybrid_force.control` (eq. 4, 11), :mod:`hybrid_force.clik` (eq. 27),
+:mod:`hybrid_force.dynamics` (the algebraic loop). The tests check each kernel against its
+reference, and the whole fast step against the reference step, to round-off.
+
+This module is imported only by the fast paths (Numba takes about 0.5 s to import); nothing
+here knows which law, surface or arm it serves: kernels take arrays and return arrays.
+Conventions: outputs are preallocated arrays passed last and written in place.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+# error_model="numpy": a division by zero gives inf/nan (checked by the caller) instead of
+# raising inside compiled code. No fastmath: the IEEE operation order is kept.
+_jit = numba.njit(cache=True, error_model="numpy")
+
+
+# --- robot (hybrid_force.robot.Robot.terms) --------------------------------------------------
+@_jit
+def robot_terms(Mu, C_in, g_in, J6, Jd6, v, M, C, g, nle, J, Jdot, Jdot_v, pdot):
+    """Copy one step's Pinocchio outputs into the terms' arrays and derive the rest.
+
+    Mu: (n, n) crba output (upper triangle valid). C_in: (n, n). g_in: (n,). J6, Jd6: (6, n)
+    frame Jacobian and its time variation (rows 0..2 used). v: (n,).
+    Writes M (symmetric), C, g, nle = C v + g, J, Jdot (3, n), Jdot_v = J̇ v, pdot = J v.
+    """
+    n = v.shape[0]
+    for i in range(n):
+        acc = g_in[i]
+        for j in range(n):
+            M[i, j] = Mu[i, j] if i <= j else Mu[j, i]
+            c = C_in[i, j]
+            C[i, j] = c
+            acc += c * v[j]
+        g[i] = g_in[i]
+        nle[i] = acc
+    for r in range(3):
+        a = 0.0
+        b = 0.0
+        for j in range(n):
+            x = J6[r, j]
+            y = Jd6[r, j]
+            J[r, j] = x
+            Jdot[r, j] = y
+            a += x * v[j]
+            b += y * v[j]
+        pdot[r] = a
+        Jdot_v[r] = b
+
+
+# --- constraint (hybrid_force.constraint.Constraint, k = 1) ----------------------------------
+@_jit
+def constraint_one(
+    grad,
+    hess,
+    J,
+    Jdot,
+    Jdot_v,
+    pdot,
+    v,
+    tip_scaling,
+    J_phi,
+    J_phi_n,
+    A,
+    Adot,
+    A_pinv,
+    A_pinv_dot,
+    Q,
+    Qdot,
+):
+    """One surface's joint-space terms: the k = 1 case of ``Constraint.evaluate``.
+
+    grad: (3,) ∇Φ. hess: (3, 3) ∇²Φ. J, Jdot: (3, n). Jdot_v, pdot: (3,). v: (n,).
+    tip_scaling: True → s = ‖∇Φ‖ ("tip"), False → s = ‖J_Φ‖ ("joint").
+    Writes the (1, n) rows J_Φ, J_Φn, A, Ȧ, the (n, 1) columns A⁺, Ȧ⁺, and Q, Q̇ (n, n).
+    Returns (‖∇Φ‖, ‖J_Φ‖, max|J|, s, A v, raw drift); the caller checks the first two.
+    """
+    n = J.shape[1]
+    hp0 = hess[0, 0] * pdot[0] + hess[0, 1] * pdot[1] + hess[0, 2] * pdot[2]
+    hp1 = hess[1, 0] * pdot[0] + hess[1, 1] * pdot[1] + hess[1, 2] * pdot[2]
+    hp2 = hess[2, 0] * pdot[0] + hess[2, 1] * pdot[1] + hess[2, 2] * pdot[2]
+    g0, g1, g2 = grad[0], grad[1], grad[2]
+    grad_norm = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+    row_sq = 0.0
+    row_rowdot = 0.0
+    jmax = 0.0
+    for j in range(n):
+        r = g0 * J[0, j] + g1 * J[1, j] + g2 * J[2, j]
+        rd = (
+            hp0 * J[0, j]
+            + hp1 * J[1, j]
+            + hp2 * J[2, j]
+            + g0 * Jdot[0, j]
+            + g1 * Jdot[1, j]
+            + g2 * Jdot[2, j]
+        )
+        J_phi[0, j] = r
+        Adot[0, j] = rd  # row_dot for now
+        row_sq += r * r
+        row_rowdot += r * rd
+        for i in range(3):
+            a = abs(J[i, j])
+            if a > jmax:
+                jmax = a
+    row_norm = math.sqrt(row_sq)
+    if tip_scaling:
+        scale = grad_norm
+        scale_dot = (g0 * hp0 + g1 * hp1 + g2 * hp2) / grad_norm
+    else:
+        scale = row_norm
+        scale_dot = row_rowdot / row_norm
+    inv_s = 1.0 / scale
+    k_dot = scale_dot / (scale * scale)
+    aa = 0.0
+    ada = 0.0
+    rate = 0.0
+    for j in range(n):
+        r = J_phi[0, j]
+        J_phi_n[0, j] = r / row_norm
+        a = r * inv_s
+        ad = Adot[0, j] * inv_s - r * k_dot
+        A[0, j] = a
+        Adot[0, j] = ad
+        aa += a * a
+        ada += ad * a
+        rate += a * v[j]
+    w = 1.0 / aa
+    w_dot = -2.0 * w * w * ada
+    for j in range(n):
+        A_pinv[j, 0] = A[0, j] * w
+        A_pinv_dot[j, 0] = Adot[0, j] * w + A[0, j] * w_dot
+    for i in range(n):
+        for j in range(n):
+            Q[i, j] = (1.0 if i == j else 0.0) - A_pinv[i, 0] * A[0, j]
+            Qdot[i, j] = -(A_pinv_dot[i, 0] * A[0, j] + A_pinv[i, 0] * Adot[0, j])
+    raw_drift = (
+        pdot[0] * hp0
+        + pdot[1] * hp1
+        + pdot[2] * hp2
+        + g0 * Jdot_v[0]
+        + g1 * Jdot_v[1]
+        + g2 * Jdot_v[2]
+    )
+    return grad_norm, row_norm, jmax, scale, rate, raw_drift
+
+
+# --- control (hybrid_force.control.arimoto_law) ----------------------------------------------
+@_jit
+def arimoto(
+    M,
+    C,
+    g,
+    Kd,
+    Q,
+    Qdot,
+    Ap,
+    Apd,
+    A,
+    v,
+    e_q,
+    qd,
+    qdd,
+    e_F,
+    f_d,
+    approach,
+    lam,
+    beta,
+    gamma,
+    u0,
+    B,
+    s,
+    s0,
+    s1,
+    qdot_r,
+    qddot_r0,
+    qddot_r_f,
+):
+    """The modified Arimoto law, eq. 4, 8, 11, as ``control.arimoto_law`` (k rows).
+
+    M, C, Kd, Q, Qdot: (n, n). g, v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). A: (k, n).
+    e_F, f_d, approach: (k,) (approach all zeros when unused). lam, beta, gamma: Λ, β, γ.
+    Writes u0, s, s0, s1, q̇_r, q̈_r0 (n,) and B = β M A⁺, q̈_r,f = β A⁺ (n, k).
+    Returns V = ½ sᵀMs + ½ β e_Fᵀe_F [J].
+    """
+    n = v.shape[0]
+    k = e_F.shape[0]
+    x = np.empty(n)
+    xdot = np.empty(n)
+    for i in range(n):
+        x[i] = qd[i] - lam * e_q[i]
+        xdot[i] = qdd[i] - lam * (v[i] - qd[i])
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        c = 0.0
+        for j in range(n):
+            a += Q[i, j] * x[j]
+            b += Qdot[i, j] * x[j] + Q[i, j] * xdot[j]
+            c += Q[i, j] * (v[j] - x[j])
+        for m in range(k):
+            a += beta * Ap[i, m] * e_F[m] + Ap[i, m] * approach[m]
+            b += beta * Apd[i, m] * e_F[m] - beta * Ap[i, m] * f_d[m] + Apd[i, m] * approach[m]
+        s1i = 0.0
+        for m in range(k):
+            s1i -= beta * Ap[i, m] * e_F[m]
+            qddot_r_f[i, m] = beta * Ap[i, m]
+        s1[i] = s1i
+        qdot_r[i] = a
+        qddot_r0[i] = b
+        s0[i] = c
+        s[i] = v[i] - a
+    for i in range(n):
+        acc = g[i]
+        for j in range(n):
+            acc += M[i, j] * qddot_r0[j] + C[i, j] * qdot_r[j] - Kd[i, j] * s[j]
+        for m in range(k):
+            acc -= A[m, i] * (f_d[m] - gamma * e_F[m])
+        u0[i] = acc
+        for m in range(k):
+            b = 0.0
+            for j in range(n):
+                b += M[i, j] * Ap[j, m]
+            B[i, m] = beta * b
+    V = 0.0
+    for i in range(n):
+        ms = 0.0
+        for j in range(n):
+            ms += M[i, j] * s[j]
+        V += s[i] * ms
+    eF2 = 0.0
+    for m in range(k):
+        eF2 += e_F[m] * e_F[m]
+    return 0.5 * V + 0.5 * beta * eF2
+
+
+# --- clik (hybrid_force.clik.DesiredJointPath) ------------------------------------------------
+@_jit
+def _inv3_into(a, out):
+    """out = a⁻¹ for a (3, 3) by the adjugate; returns the determinant (0 → out unchanged)."""
+    c0 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    c1 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    c2 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    det = a[0, 0] * c0 + a[0, 1] * c1 + a[0, 2] * c2
+    if det == 0.0:
+        return det
+    r = 1.0 / det
+    out[0, 0] = c0 * r
+    out[0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) * r
+    out[0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) * r
+    out[1, 0] = c1 * r
+    out[1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) * r
+    out[1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) * r
+    out[2, 0] = c2 * r
+    out[2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) * r
+    out[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) * r
+    return det
+
+
+@_jit
+def clik_velocity(
+    J6,
+    p,
+    p_d,
+    pdot_d,
+    gamma,
+    damping2,
+    redundant,
+    posture_gain,
+    dq_post,
+    Jp,
+    W,
+    N,
+    x,
+    qd,
+):
+    """q̇_d of eq. 27 at the current q_d, as ``DesiredJointPath._derivatives`` (first half).
+
+    J6: (6, n) tip Jacobian (rows 0..2 used). p, p_d, pdot_d: (3,). dq_post: (n,) q_d ⊖
+    posture. Writes J⁻¹ or Jᵀ W into Jp (n, 3), W = (JJᵀ + λ²I)⁻¹ (redundant), N = I − JpJ,
+    x = ṗ_d − γ(p − p_d) and q̇_d. Returns the cheap bound of cond(J Jᵀ) (inf if singular).
+    """
+    n = qd.shape[0]
+    for r in range(3):
+        x[r] = pdot_d[r] - gamma * (p[r] - p_d[r])
+    if not redundant:
+        Jn = np.empty((3, 3))
+        for r in range(3):
+            for j in range(3):
+                Jn[r, j] = J6[r, j]
+        if _inv3_into(Jn, Jp) == 0.0:
+            return np.inf
+        cond = np.abs(Jn).max() * np.abs(Jp).max()
+        cond = cond * cond
+    else:
+        JJt = np.empty((3, 3))
+        for r in range(3):
+            for c in range(3):
+                acc = 0.0
+                for j in range(n):
+                    acc += J6[r, j] * J6[c, j]
+                JJt[r, c] = acc + (damping2 if r == c else 0.0)
+        if _inv3_into(JJt, W) == 0.0:
+            return np.inf
+        cond = np.abs(JJt).max() * np.abs(W).max()
+        for j in range(n):
+            for c in range(3):
+                Jp[j, c] = J6[0, j] * W[0, c] + J6[1, j] * W[1, c] + J6[2, j] * W[2, c]
+    for j in range(n):
+        qd[j] = Jp[j, 0] * x[0] + Jp[j, 1] * x[1] + Jp[j, 2] * x[2]
+    if redundant and posture_gain > 0.0:
+        for i in range(n):
+            for j in range(n):
+                N[i, j] = (1.0 if i == j else 0.0) - (
+                    Jp[i, 0] * J6[0, j] + Jp[i, 1] * J6[1, j] + Jp[i, 2] * J6[2, j]
+                )
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += N[i, j] * (-posture_gain * dq_post[j])
+            qd[i] += acc
+    return cond
+
+
+@_jit
+def clik_acceleration(
+    J6,
+    Jd6,
+    Jp,
+    W,
+    N,
+    x,
+    qd,
+    pdot_d,
+    pddot_d,
+    gamma,
+    redundant,
+    posture_gain,
+    dq_post,
+    qdd,
+):
+    """q̈_d, the exact time derivative of q̇_d (second half of ``_derivatives``).
+
+    Jd6: (6, n) J̇(q_d, q̇_d). Other inputs as written by :func:`clik_velocity`. Writes q̈_d.
+    """
+    n = qd.shape[0]
+    xdot = np.empty(3)
+    for r in range(3):
+        acc = 0.0
+        for j in range(n):
+            acc += J6[r, j] * qd[j]
+        xdot[r] = pddot_d[r] - gamma * (acc - pdot_d[r])
+    if not redundant:
+        y = np.empty(3)
+        for r in range(3):
+            acc = xdot[r]
+            for j in range(n):
+                acc -= Jd6[r, j] * qd[j]
+            y[r] = acc
+        for j in range(n):
+            qdd[j] = Jp[j, 0] * y[0] + Jp[j, 1] * y[1] + Jp[j, 2] * y[2]
+        return
+    # Ẇ = −W (J̇Jᵀ + JJ̇ᵀ) W;  J̇⁺ = J̇ᵀW + JᵀẆ
+    S = np.empty((3, 3))
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for j in range(n):
+                acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
+            S[r, c] = acc
+    WS = W @ S
+    Wdot = -(WS @ W)
+    Jpd = np.empty((n, 3))
+    for j in range(n):
+        for c in range(3):
+            acc = 0.0
+            for r in range(3):
+                acc += Jd6[r, j] * W[r, c] + J6[r, j] * Wdot[r, c]
+            Jpd[j, c] = acc
+    for j in range(n):
+        qdd[j] = (
+            Jpd[j, 0] * x[0]
+            + Jpd[j, 1] * x[1]
+            + Jpd[j, 2] * x[2]
+            + Jp[j, 0] * xdot[0]
+            + Jp[j, 1] * xdot[1]
+            + Jp[j, 2] * xdot[2]
+        )
+    if posture_gain > 0.0:
+        # Ṅ = −(J̇⁺J + J⁺J̇);  q̈_d += Ṅ z + N (−k_n q̇_d),  z = −k_n dq_post
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                nd = -(
+                    Jpd[i, 0] * J6[0, j]
+                    + Jpd[i, 1] * J6[1, j]
+                    + Jpd[i, 2] * J6[2, j]
+                    + Jp[i, 0] * Jd6[0, j]
+                    + Jp[i, 1] * Jd6[1, j]
+                    + Jp[i, 2] * Jd6[2, j]
+                )
+                acc += nd * (-posture_gain * dq_post[j]) + N[i, j] * (-posture_gain * qd[j])
+            qdd[i] += acc
+
+
+@_jit
+def taylor_step(q, qd, qdd, dt, out):
+    """out = q + q̇ dt + q̈ dt²/2 (Euclidean configuration spaces only)."""
+    h = 0.5 * dt * dt
+    for i in range(q.shape[0]):
+        out[i] = q[i] + (qd[i] * dt + qdd[i] * h)
+
+
+@_jit
+def newton_step(q, Jp, target, p, out):
+    """out = q + Jp (target − p) (Euclidean configuration spaces only). Jp: (n, 3)."""
+    e0, e1, e2 = target[0] - p[0], target[1] - p[1], target[2] - p[2]
+    for i in range(q.shape[0]):
+        out[i] = q[i] + (Jp[i, 0] * e0 + Jp[i, 1] * e1 + Jp[i, 2] * e2)
+
+
+# --- dynamics (hybrid_force.dynamics.constrained_acceleration, k = 1) -------------------------
+@_jit
+def loop_one(ddq0, f0, ddq1, f1, ddq):
+    """Resolve u = u0 + B f for k = 1 from two KKT solves (u0 and u0 + B).
+
+    f = f0 / (1 − (f1 − f0)),  q̈ = q̈0 + (q̈1 − q̈0) f. Writes q̈ (n,), returns f [N].
+    """
+    f = f0 / (1.0 - (f1 - f0))
+    for i in range(ddq.shape[0]):
+        ddq[i] = ddq0[i] + (ddq1[i] - ddq0[i]) * f
+    return f
+
+
+# --- simulate (hybrid_force.simulate: semi-implicit Euler and post-stabilisation, k = 1) -----
+@_jit
+def euler_step(q, v, ddq, dt, euclidean, v_out, q_out):
+    """Semi-implicit Euler: v⁺ = v + q̈ dt, then q⁺ = q + v⁺ dt when ``euclidean``.
+
+    Writes v_out; writes q_out only for a Euclidean configuration space (otherwise the caller
+    uses pinocchio.integrate with v_out·dt).
+    """
+    for i in range(v.shape[0]):
+        vi = v[i] + ddq[i] * dt
+        v_out[i] = vi
+        if euclidean:
+            q_out[i] = q[i] + vi * dt
+
+
+@_jit
+def project_one(grad, phi, J6, q, v, euclidean, q_out, v_out):
+    """One Gauss–Newton step onto a surface and the velocity onto its tangent space, k = 1.
+
+    grad: (3,) ∇Φ at the tip. phi: Φ. J6: (6, n) tip Jacobian (rows 0..2 used). The row is
+    A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
+    ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out = q − A⁺ Φ/‖∇Φ‖
+    (Euclidean; otherwise the step itself, for pinocchio.integrate) and
+    v_out = v − A⁺ (A v). Returns ‖∇Φ‖ (the caller checks it is not zero).
+    """
+    n = q.shape[0]
+    gn = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+    n0, n1, n2 = grad[0] / gn, grad[1] / gn, grad[2] / gn
+    dist = phi / gn
+    row = np.empty(n)
+    rr = 0.0
+    rv = 0.0
+    for j in range(n):
+        r = n0 * J6[0, j] + n1 * J6[1, j] + n2 * J6[2, j]
+        row[j] = r
+        rr += r * r
+        rv += r * v[j]
+    for j in range(n):
+        ap = row[j] / rr
+        step = -(ap * dist)
+        q_out[j] = q[j] + step if euclidean else step
+        v_out[j] = v[j] - ap * rv
+    return gn
+
+
+# --- paths (hybrid_force.paths._CircularPath.evaluate) ---------------------------------------
+@_jit
+def circular_path(basis, phase, omega, t, p, v, a):
+    """p = [cos θ, sin θ, t, 1] B, ṗ = [−ω sin θ, ω cos θ, 1, 0] B, p̈ = −ω² [cos θ, sin θ] B.
+
+    basis: (4, 3) rows r·e1, r·e2, rise·a, c. θ = phase + ω t. Writes p, v, a (3,).
+    """
+    th = phase + omega * t
+    co = math.cos(th)
+    si = math.sin(th)
+    wc = omega * co
+    ws = omega * si
+    for j in range(3):
+        b0, b1 = basis[0, j], basis[1, j]
+        p[j] = co * b0 + si * b1 + t * basis[2, j] + basis[3, j]
+        v[j] = -ws * b0 + wc * b1 + basis[2, j]
+        a[j] = -omega * wc * b0 - omega * ws * b1
+
+
+# --- small affine updates ---------------------------------------------------------------------
+@_jit
+def affine(u0, B, f, out):
+    """out = u0 + B f. u0: (n,), B: (n, k), f: (k,)."""
+    for i in range(u0.shape[0]):
+        acc = u0[i]
+        for m in range(f.shape[0]):
+            acc += B[i, m] * f[m]
+        out[i] = acc
+
+
+@_jit
+def accumulate(x, dx, y, dy, dt):
+    """x += dx dt and y += dy dt (the controller's momenta F and F_d, eq. 3)."""
+    for m in range(x.shape[0]):
+        x[m] += dx[m] * dt
+        y[m] += dy[m] * dt
