@@ -431,20 +431,108 @@ def newton_step(q, Jp, target, p, out):
         out[i] = q[i] + (Jp[i, 0] * e0 + Jp[i, 1] * e1 + Jp[i, 2] * e2)
 
 
-# --- dynamics (hybrid_force.dynamics.constrained_acceleration, k = 1) -------------------------
+# --- dynamics (hybrid_force.dynamics.constrained_acceleration) --------------------------------
 @_jit
-def loop_one(ddq0, f0, ddq1, f1, ddq):
-    """Resolve u = u0 + B f for k = 1 from two KKT solves (u0 and u0 + B).
+def _solve_udut(U, D, b, x):
+    """x = (U D Uᵀ)⁻¹ b with U (n, n) unit upper triangular and D (n,): Pinocchio's M."""
+    n = b.shape[0]
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= U[i, j] * x[j]
+        x[i] = acc
+    for i in range(n):
+        x[i] /= D[i]
+    for i in range(n):
+        acc = x[i]
+        for j in range(i):
+            acc -= U[j, i] * x[j]
+        x[i] = acc
 
-    f = f0 / (1 − (f1 − f0)),  q̈ = q̈0 + (q̈1 − q̈0) f. Writes q̈ (n,), returns f [N].
+
+@_jit
+def loop_resolve(U, D, A, B, ddq0, f0, ddq, f):
+    """Resolve the command u = u0 + B f from the KKT solution (q̈0, f0) at u = u0.
+
+    With M = U D Uᵀ (the factorisation pinocchio.forwardDynamics leaves in data.U, data.D),
+    X = M⁻¹Aᵀ, Y = M⁻¹B (n, k), G = A X and H = A Y (k, k), the constraint A q̈ = −γ gives
+    (G + H) f = G f0 and q̈ = q̈0 + X (f − f0) + Y f. A: (k, n). B: (n, k). Writes q̈ (n,)
+    and f (k,) [N]. Returns False when G + H is singular (no pivot above 1e-300).
     """
-    f = f0 / (1.0 - (f1 - f0))
-    for i in range(ddq.shape[0]):
-        ddq[i] = ddq0[i] + (ddq1[i] - ddq0[i]) * f
-    return f
+    n = ddq0.shape[0]
+    k = f0.shape[0]
+    X = np.empty((n, k))
+    Y = np.empty((n, k))
+    col = np.empty(n)
+    sol = np.empty(n)
+    for m in range(k):
+        for i in range(n):
+            col[i] = A[m, i]
+        _solve_udut(U, D, col, sol)
+        X[:, m] = sol
+        for i in range(n):
+            col[i] = B[i, m]
+        _solve_udut(U, D, col, sol)
+        Y[:, m] = sol
+    S = np.empty((k, k))
+    rhs = np.empty(k)
+    for a in range(k):
+        r = 0.0
+        for c in range(k):
+            g = 0.0
+            h = 0.0
+            for i in range(n):
+                g += A[a, i] * X[i, c]
+                h += A[a, i] * Y[i, c]
+            S[a, c] = g + h
+            r += g * f0[c]
+        rhs[a] = r
+    # Gaussian elimination with partial pivoting on the k × k system S f = rhs
+    for c in range(k):
+        piv = c
+        for a in range(c + 1, k):
+            if abs(S[a, c]) > abs(S[piv, c]):
+                piv = a
+        if not abs(S[piv, c]) > 1e-300:
+            return False
+        if piv != c:
+            for j in range(k):
+                S[c, j], S[piv, j] = S[piv, j], S[c, j]
+            rhs[c], rhs[piv] = rhs[piv], rhs[c]
+        for a in range(c + 1, k):
+            ratio = S[a, c] / S[c, c]
+            for j in range(c, k):
+                S[a, j] -= ratio * S[c, j]
+            rhs[a] -= ratio * rhs[c]
+    for c in range(k - 1, -1, -1):
+        acc = rhs[c]
+        for j in range(c + 1, k):
+            acc -= S[c, j] * f[j]
+        f[c] = acc / S[c, c]
+    for i in range(n):
+        acc = ddq0[i]
+        for m in range(k):
+            acc += X[i, m] * (f[m] - f0[m]) + Y[i, m] * f[m]
+        ddq[i] = acc
+    return True
 
 
 # --- simulate (hybrid_force.simulate: semi-implicit Euler and post-stabilisation, k = 1) -----
+@_jit
+def within_limits(q, v, f, max_velocity, max_force):
+    """True when q, v, f are finite, every |v_i| ≤ max_velocity and every |f_m| ≤ max_force."""
+    for i in range(q.shape[0]):
+        if not math.isfinite(q[i]):
+            return False
+    for i in range(v.shape[0]):
+        if not abs(v[i]) <= max_velocity:
+            return False
+    for m in range(f.shape[0]):  # noqa: SIM110 (a generator in all() does not compile)
+        if not abs(f[m]) <= max_force:
+            return False
+    return True
+
+
 @_jit
 def euler_step(q, v, ddq, dt, euclidean, v_out, q_out):
     """Semi-implicit Euler: v⁺ = v + q̈ dt, then q⁺ = q + v⁺ dt when ``euclidean``.

@@ -12,12 +12,15 @@ with the Mills & Goldenberg stabilisation of section 6.2 (φ̈ + 2α φ̇ + β_b
 (``data.lambda_c``) is f. f > 0: the surface pushes the tool towards the free side (the tool
 presses on it). With the "tip" scaling f is the normal force at the tip in newtons.
 
-The command may depend on f itself: u = u0 + B f (the hybrid law's algebraic loop). The KKT
-solution is affine in the torque, f(τ) = f(u0) + L τ', so two (k + 1) calls of
-forwardDynamics resolve the loop exactly:
+The command may depend on f itself: u = u0 + B f (the hybrid law's algebraic loop). One
+call of forwardDynamics at u = u0 gives (q̈0, f0) and leaves the factorisation
+M = U D Uᵀ in ``data.U``, ``data.D``. With X = M⁻¹Aᵀ, Y = M⁻¹B, G = A X, H = A Y, the
+constraint A q̈ = −γ (which q̈0 already satisfies) resolves the loop exactly:
 
-    f = (I − L B)⁻¹ f(u0),      L B = [f(u0 + B e_j) − f(u0)]_j,
-    q̈ = q̈(u0) + [q̈(u0 + B e_j) − q̈(u0)]_j f.
+    (G + H) f = G f0,      q̈ = q̈0 + X (f − f0) + Y f
+
+(:func:`hybrid_force._kernels.loop_resolve`; :func:`kkt_reference` solves the same system
+densely and the tests compare the two).
 
 Impacts: a plastic impact (restitution 0) at contact with the tool moving into the surface
 sets A q̇⁺ = 0 with ``pin.impulseDynamics``; the impulse [N·s] is in the same convention as f.
@@ -96,24 +99,17 @@ def constrained_acceleration(
         q̈ (n,) and f (k,) [N].
     """
     data.nle[:] = nle
-    ddq0 = pin.forwardDynamics(model, data, u0, A, gamma).copy()
-    f0 = data.lambda_c.copy()
+    ddq0 = pin.forwardDynamics(model, data, u0, A, gamma)
+    f0 = data.lambda_c
     if B is None:
-        return ddq0, f0
-    k = A.shape[0]
-    if k == 1:  # one compiled call for the scalar case of the lines below
-        ddq1 = pin.forwardDynamics(model, data, u0 + B[:, 0], A, gamma)
-        ddq = np.empty_like(ddq0)
-        f0[0] = kernels().loop_one(ddq0, f0[0], ddq1, data.lambda_c[0], ddq)
-        return ddq, f0
-    LB = np.empty((k, k))
-    DB = np.empty((ddq0.shape[0], k))
-    for j in range(k):
-        ddq_j = pin.forwardDynamics(model, data, u0 + B[:, j], A, gamma)
-        DB[:, j] = ddq_j - ddq0
-        LB[:, j] = data.lambda_c - f0
-    f = np.linalg.solve(np.eye(k) - LB, f0)
-    return ddq0 + DB @ f, f
+        return ddq0.copy(), f0.copy()
+    ddq = np.empty_like(ddq0)
+    f = np.empty_like(f0)
+    if not kernels().loop_resolve(data.U, data.D, A, B, ddq0, f0, ddq, f):
+        raise np.linalg.LinAlgError(
+            "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
+        )
+    return ddq, f
 
 
 def kkt_reference(

@@ -24,7 +24,6 @@ One step (dt, 1 ms by default):
 from __future__ import annotations
 
 import json
-import math
 import platform
 import time
 from collections.abc import Callable, Sequence
@@ -484,14 +483,8 @@ def _merge(a: list[dict], b: list[dict]) -> list[dict]:
 
 
 def _check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: SimSettings) -> None:
-    # The common case first, with norms (‖v‖ ≤ max implies every |v_i| ≤ max; NaN fails
-    # every comparison); the exact per-component test only when it fails.
-    if (
-        float(v @ v) <= sim.max_velocity * sim.max_velocity
-        and float(f @ f) <= sim.max_force * sim.max_force
-        and math.isfinite(float(q @ q))
-    ):
-        return
+    if kernels().within_limits(q, v, f, sim.max_velocity, sim.max_force):
+        return  # the common case, one compiled call; the messages below say what failed
     vmax = float(np.abs(v).max())
     fmax = float(np.abs(f).max()) if f.size else 0.0
     if vmax <= sim.max_velocity and fmax <= sim.max_force and np.isfinite(q @ q):
