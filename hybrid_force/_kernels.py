@@ -519,6 +519,31 @@ def loop_resolve(U, D, A, B, ddq0, f0, ddq, f):
 
 # --- simulate (hybrid_force.simulate: semi-implicit Euler and post-stabilisation, k = 1) -----
 @_jit
+def _put(row, start, x):
+    for j in range(x.shape[0]):
+        row[start + j] = x[j]
+    return start + x.shape[0]
+
+
+@_jit
+def record_row(table, i, t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase):
+    """Write one sample into row i of the run's table, fields in this order (simulate._Log)."""
+    row = table[i]
+    row[0] = t
+    c = _put(row, 1, q)
+    c = _put(row, c, v)
+    c = _put(row, c, q_d)
+    c = _put(row, c, u)
+    c = _put(row, c, p)
+    c = _put(row, c, p_d)
+    c = _put(row, c, f)
+    c = _put(row, c, f_d)
+    c = _put(row, c, phi)
+    row[c] = V
+    row[c + 1] = phase
+
+
+@_jit
 def within_limits(q, v, f, max_velocity, max_force):
     """True when q, v, f are finite, every |v_i| ≤ max_velocity and every |f_m| ≤ max_force."""
     for i in range(q.shape[0]):

@@ -141,39 +141,63 @@ class Scenario:
 
 
 class _Log:
-    """Preallocated result arrays."""
+    """The run's samples, preallocated as one (N, width) table; one compiled call per row.
+
+    The fields (t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase) are column views of the table,
+    in that order (:func:`hybrid_force._kernels.record_row` writes a row in the same order).
+    """
 
     def __init__(self, N: int, nq: int, nv: int, k: int) -> None:
-        self.t = np.zeros(N)
-        self.q = np.zeros((N, nq))
-        self.v = np.zeros((N, nv))
-        self.q_d = np.zeros((N, nq))
-        self.u = np.zeros((N, nv))
-        self.p = np.zeros((N, 3))
-        self.p_d = np.zeros((N, 3))
-        self.f = np.zeros((N, k))
-        self.f_d = np.zeros((N, k))
-        self.phi = np.zeros((N, k))
-        self.V = np.zeros(N)
-        self.phase = np.zeros(N, dtype=np.int64)
+        widths = (1, nq, nv, nq, nv, 3, 3, k, k, k, 1, 1)
+        self.table = np.zeros((N, sum(widths)))
+        views = []
+        start = 0
+        for w in widths:
+            views.append(self.table[:, start : start + w])
+            start += w
+        (t, self.q, self.v, self.q_d, self.u, self.p, self.p_d, self.f, self.f_d, self.phi, V,
+         phase) = views  # fmt: skip
+        self.t, self.V, self.phase = t[:, 0], V[:, 0], phase[:, 0]
+
+    def record(
+        self,
+        i: int,
+        t: float,
+        q: np.ndarray,
+        v: np.ndarray,
+        q_d: np.ndarray,
+        u: np.ndarray,
+        p: np.ndarray,
+        p_d: np.ndarray,
+        f: np.ndarray,
+        f_d: np.ndarray,
+        phi: np.ndarray,
+        V: float,
+        phase: int,
+    ) -> None:
+        """Write sample i (arrays are copied)."""
+        kernels().record_row(self.table, i, t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase)
 
     def result(self, n: int, meta: dict, k: int) -> Result:
+        def own(a: np.ndarray) -> np.ndarray:
+            return np.ascontiguousarray(a[:n])
+
         def col(a: np.ndarray) -> np.ndarray:
-            return a[:n, 0] if k == 1 else a[:n]
+            return own(a[:, 0] if k == 1 else a)
 
         return Result(
-            t=self.t[:n],
-            q=self.q[:n],
-            v=self.v[:n],
-            q_d=self.q_d[:n],
-            u=self.u[:n],
-            p=self.p[:n],
-            p_d=self.p_d[:n],
+            t=own(self.t),
+            q=own(self.q),
+            v=own(self.v),
+            q_d=own(self.q_d),
+            u=own(self.u),
+            p=own(self.p),
+            p_d=own(self.p_d),
             f=col(self.f),
             f_d=col(self.f_d),
             phi=col(self.phi),
-            V=self.V[:n],
-            phase=self.phase[:n],
+            V=own(self.V),
+            phase=self.phase[:n].astype(np.int64),
             meta=meta,
         )
 
@@ -387,18 +411,21 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             else:
                 u = cmd.u0 + cmd.B @ f
             # --- log sample i
-            log.t[i] = t
-            log.q[i] = q
-            log.v[i] = v
-            log.q_d[i] = controller.clik.q
-            log.u[i] = u
-            log.p[i] = terms.p
-            log.p_d[i] = controller.clik.p_d
-            log.f[i] = f
-            log.f_d[i] = controller.f_d
-            log.phi[i] = cons.distance if cons is not None else plant.distance(q)
-            log.V[i] = controller.V
-            log.phase[i] = controller.phase
+            log.record(
+                i,
+                t,
+                q,
+                v,
+                controller.clik.q,
+                u,
+                terms.p,
+                controller.clik.p_d,
+                f,
+                controller.f_d,
+                cons.distance if cons is not None else plant.distance(q),
+                controller.V,
+                controller.phase,
+            )
             n_logged = i + 1
             _check_finite(t, q, v, f, sim)
             if i == N - 1:

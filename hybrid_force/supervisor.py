@@ -261,6 +261,8 @@ class HybridController:
             if self.settings.supervisor is False:
                 raise ControlError(f"constraint undefined at t = {t:.6g} s, q = {q.tolist()}")
             phase = FREE
+        elif not self.settings.supervisor:
+            phase = CONTACT
         else:
             phase = self._phase_of(cons.distance)
         st = self._int
@@ -275,8 +277,8 @@ class HybridController:
                 st.best_error, st.best_error_time = np.inf, t
             self.phase = phase
             self._first = False
-        model = self._model_terms(terms)
-        desired = self.desired
+        model = terms if self.settings.mass_factor == 1.0 else self._model_terms(terms)
+        desired = self._desired if self.fast else self.desired
         if self.fast and self.robot.euclidean:
             e_q = np.subtract(q, desired.q, out=self._e_q)
         else:
