@@ -56,32 +56,30 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _DT = 1e-3
 _ROOT = Path(__file__).resolve().parents[1]
 
-# Pinocchio calls per contact step (k = 1), read from simulate.py / robot.py / clik.py /
-# dynamics.py / supervisor.py and confirmed by counting (see _count_calls):
-#   Robot.terms: computeJointJacobiansTimeVariation, updateFramePlacement, getFrameJacobian,
-#                getFrameJacobianTimeVariation, crba, computeCoriolisMatrix,
-#                computeGeneralizedGravity
-#   HybridController.command: difference (e_q)
-#   constrained_acceleration: forwardDynamics × 2 (k + 1, the algebraic loop u = u0 + B f)
-#   DesiredJointPath.advance: integrate (predictor), forwardKinematics(q) + updateFramePlacement
-#                (Newton residual), integrate (correction), computeJointJacobians +
-#                updateFramePlacement + getFrameJacobian, [difference if n > 3 (posture term)],
-#                computeJointJacobiansTimeVariation + getFrameJacobianTimeVariation (J̇ at q_d)
-#   plant: integrate (semi-implicit Euler)
-#   _Plant.project: computeJointJacobians + updateFramePlacement + getFrameJacobian, integrate
+# Pinocchio calls per contact step (k = 1, an arm whose joints are all bounded revolute or
+# prismatic, so that q ⊕ dq = q + dq is done without Pinocchio), read from simulate.py /
+# robot.py / clik.py / dynamics.py / supervisor.py and confirmed by counting (_count_calls):
+#   Robot.terms: crba, computeGeneralizedGravity, computeCoriolisMatrix (also fills J, J̇ and
+#                the placements), updateFramePlacement, getFrameJacobian,
+#                getFrameJacobianTimeVariation
+#   constrained_acceleration: forwardDynamics × 1 (the algebraic loop u = u0 + B f is resolved
+#                with the factorisation it leaves in data.U, data.D)
+#   DesiredJointPath.advance: forwardKinematics(q) + updateFramePlacement (Newton residual),
+#                computeJointJacobians + updateFramePlacement + getFrameJacobian (q̇_d),
+#                computeJointJacobiansTimeVariation + getFrameJacobianTimeVariation (q̈_d)
+#   _Plant.contact_step: computeJointJacobians + updateFramePlacement + getFrameJacobian
+#                (projection rows at the Euler-integrated q)
 _EXPECTED = {
-    "computeJointJacobiansTimeVariation": 2,
-    "getFrameJacobianTimeVariation": 2,
     "crba": 1,
-    "computeCoriolisMatrix": 1,
     "computeGeneralizedGravity": 1,
-    "forwardDynamics": 2,
-    "computeJointJacobians": 2,
-    "updateFramePlacement": 4,
-    "getFrameJacobian": 3,
+    "computeCoriolisMatrix": 1,
+    "updateFramePlacement": 3,
+    "getFrameJacobian": 2,
+    "getFrameJacobianTimeVariation": 2,
+    "forwardDynamics": 1,
     "forwardKinematics": 1,
-    "integrate": 4,
-    "difference": 1,  # + 1 for redundant arms (n > 3)
+    "computeJointJacobians": 2,
+    "computeJointJacobiansTimeVariation": 1,
 }
 
 
@@ -205,58 +203,42 @@ def _floor_step(robot: Robot) -> Callable[[], None]:
     v = 0.2 * rng.standard_normal(n)
     qd = 0.2 * rng.standard_normal(n)
     tau = rng.standard_normal(n)
-    tau_b = tau + rng.standard_normal(n)
-    dq = 1e-4 * rng.standard_normal(n)
-    q_post = q.copy()
     d_plant, d_clik, d_proj = model.createData(), model.createData(), model.createData()
     pin.computeJointJacobians(model, d_plant, q)
     A = pin.getFrameJacobian(model, d_plant, fid, _LWA)[2:3].copy()  # a plane row n̂ᵀJ (1, n)
     gamma = np.array([0.01])
     pin.crba(model, d_plant, q)
-    extra_difference = n > 3
 
     def step() -> None:
         # Robot.terms
-        pin.computeJointJacobiansTimeVariation(model, d_plant, q, v)
+        pin.crba(model, d_plant, q)
+        pin.computeGeneralizedGravity(model, d_plant, q)
+        pin.computeCoriolisMatrix(model, d_plant, q, v)
         pin.updateFramePlacement(model, d_plant, fid)
         pin.getFrameJacobian(model, d_plant, fid, _LWA)
         pin.getFrameJacobianTimeVariation(model, d_plant, fid, _LWA)
-        pin.crba(model, d_plant, q)
-        pin.computeCoriolisMatrix(model, d_plant, q, v)
-        pin.computeGeneralizedGravity(model, d_plant, q)
-        # controller: e_q
-        pin.difference(model, q_post, q)
-        # constrained dynamics, algebraic loop (k + 1 = 2 solves)
+        # constrained dynamics (one KKT solve; the loop uses its factorisation)
         pin.forwardDynamics(model, d_plant, tau, A, gamma)
-        pin.forwardDynamics(model, d_plant, tau_b, A, gamma)
-        # desired path: predictor, Newton correction, derivatives
-        pin.integrate(model, q, dq)
+        # desired path: Newton residual, then q̇_d and q̈_d
         pin.forwardKinematics(model, d_clik, q)
         pin.updateFramePlacement(model, d_clik, fid)
-        pin.integrate(model, q, dq)
         pin.computeJointJacobians(model, d_clik, q)
         pin.updateFramePlacement(model, d_clik, fid)
         pin.getFrameJacobian(model, d_clik, fid, _LWA)
-        if extra_difference:
-            pin.difference(model, q_post, q)
         pin.computeJointJacobiansTimeVariation(model, d_clik, q, qd)
         pin.getFrameJacobianTimeVariation(model, d_clik, fid, _LWA)
-        # plant: semi-implicit Euler
-        pin.integrate(model, q, dq)
-        # projection onto the surface
+        # plant: projection rows at the integrated q
         pin.computeJointJacobians(model, d_proj, q)
         pin.updateFramePlacement(model, d_proj, fid)
         pin.getFrameJacobian(model, d_proj, fid, _LWA)
-        pin.integrate(model, q, dq)
 
     return step
 
 
 def _floor_expected(n: int) -> dict[str, int]:
-    out = dict(_EXPECTED)
-    if n > 3:
-        out["difference"] += 1
-    return out
+    """The floor's call counts (the same for every n on arms with vector-space joints)."""
+    del n
+    return dict(_EXPECTED)
 
 
 def _time_floor(robot: Robot, batches: int, iters: int) -> dict:
@@ -300,8 +282,6 @@ def _time_each_call(robot: Robot, iters: int) -> dict[str, float]:
         "updateFramePlacement": lambda: pin.updateFramePlacement(model, data, fid),
         "getFrameJacobian": lambda: pin.getFrameJacobian(model, data, fid, _LWA),
         "forwardKinematics": lambda: pin.forwardKinematics(model, data, q),
-        "integrate": lambda: pin.integrate(model, q, v),
-        "difference": lambda: pin.difference(model, q, q),
     }
     out = {}
     for name, call in calls.items():
@@ -322,6 +302,7 @@ def _time_loop(setup: Setup, duration: float, reps: int) -> dict:
     """Median steps per second (meta['steps_per_second']) and wall time of simulate()."""
     sps, walls, totals = [], [], []
     status = "ok"
+    simulate(setup.make(0.01))  # compiled kernels loaded (or compiled) before timing
     for _ in range(reps):
         scenario = setup.make(duration)
         t0 = time.perf_counter()
@@ -344,6 +325,64 @@ def _time_loop(setup: Setup, duration: float, reps: int) -> dict:
         "status": status,
         "max_abs_distance_m": err,
     }
+
+
+def _startup(reps: int) -> dict:
+    """Start-up costs, each in a fresh interpreter (median of ``reps``) [s].
+
+    * ``import_hybrid_force``: ``import hybrid_force`` (Numba, plotting and the viewer are not
+      imported by it);
+    * ``kernels_cold`` / ``kernels_warm``: importing Numba and getting the compiled kernels
+      ready for a 10 ms RTR run, with an empty kernel cache (NUMBA_CACHE_DIR pointed at a new
+      folder: compilation) and then with that cache filled (loading);
+    * ``cli_run_0.1s``: the whole ``hybrid-force run scenarios/paper_contact.toml`` with
+      ``--set sim.duration=0.1`` (warm cache), process start to exit.
+    """
+    import tempfile
+
+    exe = sys.executable
+    code_import = (
+        "import time; t=time.perf_counter(); import hybrid_force; print(time.perf_counter()-t)"
+    )
+    here = str(Path(__file__).resolve().parent)
+    code_kernels = (
+        f"import time, sys; sys.path.insert(0, {here!r}); import bench_loop as b; "
+        "s = b._rtr_setup(); "
+        "from hybrid_force.simulate import simulate; t=time.perf_counter(); "
+        "simulate(s.make(0.01)); print(time.perf_counter()-t)"
+    )
+
+    def run(code: str, env: dict[str, str]) -> float:
+        res = subprocess.run(
+            [exe, "-c", code], capture_output=True, text=True, env=env, check=True, cwd=_ROOT
+        )
+        return float(res.stdout.strip().splitlines()[-1])
+
+    env = dict(os.environ)
+    out: dict[str, float] = {}
+    out["import_hybrid_force"] = statistics.median(run(code_import, env) for _ in range(reps))
+    cold, warm = [], []
+    for _ in range(reps):
+        with tempfile.TemporaryDirectory() as cache:
+            env_c = {**env, "NUMBA_CACHE_DIR": cache}
+            cold.append(run(code_kernels, env_c))
+            warm.append(run(code_kernels, env_c))
+    out["kernels_cold"] = statistics.median(cold)
+    out["kernels_warm"] = statistics.median(warm)
+    cli = Path(exe).with_name("hybrid-force")
+    if cli.exists():
+        walls = []
+        with tempfile.TemporaryDirectory() as tmp:
+            for _ in range(reps):
+                t0 = time.perf_counter()
+                subprocess.run(
+                    [str(cli), "run", "scenarios/paper_contact.toml", "--set", "sim.duration=0.1",
+                     "--out", tmp, "--quiet"],
+                    check=True, cwd=_ROOT, env=env, capture_output=True,
+                )  # fmt: skip
+                walls.append(time.perf_counter() - t0)
+        out["cli_run_0.1s"] = statistics.median(walls)
+    return out
 
 
 def _profile(
@@ -523,6 +562,9 @@ def main(argv: list[str] | None = None) -> int:
         "repetition_noise": noise,
         "linear_within_noise": spread <= max(0.15, noise),
     }
+
+    print("start-up ...", flush=True)
+    out["startup_s"] = _startup(3)
 
     print("[rtr] cProfile of 1 s ...", flush=True)
     text, prof_rows, categories = _profile(setups["rtr"], 1.0)

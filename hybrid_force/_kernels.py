@@ -380,8 +380,19 @@ def clik_acceleration(
             for j in range(n):
                 acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
             S[r, c] = acc
-    WS = W @ S
-    Wdot = -(WS @ W)
+    # (explicit loops: numba's matmul would need SciPy's BLAS, which is not a dependency)
+    WS = np.zeros((3, 3))
+    for r in range(3):
+        for c in range(3):
+            for m in range(3):
+                WS[r, c] += W[r, m] * S[m, c]
+    Wdot = np.zeros((3, 3))
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for m in range(3):
+                acc += WS[r, m] * W[m, c]
+            Wdot[r, c] = -acc
     Jpd = np.empty((n, 3))
     for j in range(n):
         for c in range(3):
