@@ -537,36 +537,40 @@ def _put(row, start, x):
 
 
 @_jit
-def record_row(table, i, t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase):
-    """Write one sample into row i of the run's table, fields in this order (simulate._Log)."""
+def record_row(
+    table, i, t, q, v, q_d, u0, B, f, p, p_d, f_d, phi, V, phase, max_velocity, max_force
+):
+    """Write one sample into row i of the run's table (fields in the order of simulate._Log).
+
+    The command column is u = u0 + B f (B: (n, k)). Returns True when q, v, f are finite,
+    every |v_i| ≤ max_velocity and every |f_m| ≤ max_force.
+    """
     row = table[i]
     row[0] = t
     c = _put(row, 1, q)
     c = _put(row, c, v)
     c = _put(row, c, q_d)
-    c = _put(row, c, u)
-    c = _put(row, c, p)
+    n = u0.shape[0]
+    for j in range(n):
+        acc = u0[j]
+        for m in range(f.shape[0]):
+            acc += B[j, m] * f[m]
+        row[c + j] = acc
+    c = _put(row, c + n, p)
     c = _put(row, c, p_d)
     c = _put(row, c, f)
     c = _put(row, c, f_d)
     c = _put(row, c, phi)
     row[c] = V
     row[c + 1] = phase
-
-
-@_jit
-def within_limits(q, v, f, max_velocity, max_force):
-    """True when q, v, f are finite, every |v_i| ≤ max_velocity and every |f_m| ≤ max_force."""
-    for i in range(q.shape[0]):
-        if not math.isfinite(q[i]):
-            return False
-    for i in range(v.shape[0]):
-        if not abs(v[i]) <= max_velocity:
-            return False
-    for m in range(f.shape[0]):  # noqa: SIM110 (a generator in all() does not compile)
-        if not abs(f[m]) <= max_force:
-            return False
-    return True
+    ok = True
+    for j in range(q.shape[0]):
+        ok = ok and math.isfinite(q[j])
+    for j in range(v.shape[0]):
+        ok = ok and abs(v[j]) <= max_velocity
+    for m in range(f.shape[0]):
+        ok = ok and abs(f[m]) <= max_force
+    return ok
 
 
 @_jit
@@ -632,17 +636,7 @@ def circular_path(basis, phase, omega, t, p, v, a):
         a[j] = -omega * wc * b0 - omega * ws * b1
 
 
-# --- small affine updates ---------------------------------------------------------------------
-@_jit
-def affine(u0, B, f, out):
-    """out = u0 + B f. u0: (n,), B: (n, k), f: (k,)."""
-    for i in range(u0.shape[0]):
-        acc = u0[i]
-        for m in range(f.shape[0]):
-            acc += B[i, m] * f[m]
-        out[i] = acc
-
-
+# --- controller momenta -----------------------------------------------------------------------
 @_jit
 def accumulate(x, dx, y, dy, dt):
     """x += dx dt and y += dy dt (the controller's momenta F and F_d, eq. 3)."""

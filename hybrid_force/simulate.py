@@ -147,7 +147,10 @@ class _Log:
     in that order (:func:`hybrid_force._kernels.record_row` writes a row in the same order).
     """
 
-    def __init__(self, N: int, nq: int, nv: int, k: int) -> None:
+    def __init__(
+        self, N: int, nq: int, nv: int, k: int, max_velocity: float, max_force: float
+    ) -> None:
+        self.max_velocity, self.max_force = max_velocity, max_force
         widths = (1, nq, nv, nq, nv, 3, 3, k, k, k, 1, 1)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -166,17 +169,25 @@ class _Log:
         q: np.ndarray,
         v: np.ndarray,
         q_d: np.ndarray,
-        u: np.ndarray,
+        u0: np.ndarray,
+        B: np.ndarray,
+        f: np.ndarray,
         p: np.ndarray,
         p_d: np.ndarray,
-        f: np.ndarray,
         f_d: np.ndarray,
         phi: np.ndarray,
         V: float,
         phase: int,
-    ) -> None:
-        """Write sample i (arrays are copied)."""
-        kernels().record_row(self.table, i, t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase)
+    ) -> bool:
+        """Write sample i, with the command u = u0 + B f (B: (n, k), zeros when u ignores f).
+
+        Returns True when q, v, f are finite, |v_i| ≤ max_velocity and |f_m| ≤ max_force
+        (otherwise :func:`_check_finite` says which and raises).
+        """
+        return kernels().record_row(
+            self.table, i, t, q, v, q_d, u0, B, f, p, p_d, f_d, phi, V, phase,
+            self.max_velocity, self.max_force,
+        )  # fmt: skip
 
     def result(self, n: int, meta: dict, k: int) -> Result:
         def own(a: np.ndarray) -> np.ndarray:
@@ -317,7 +328,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     fast = not sim.reference
     controller = HybridController(robot, constraint, sc.path, q, sc.control, dt=dt, fast=fast)
     terms_buf = RobotTerms.zeros(nv)
-    u_buf = np.zeros(nv)
+    no_B = np.zeros((nv, k))
     gamma_buf = np.zeros(1)
     cons_buf = ConstraintTerms.zeros(k, nv)
     # the compiled Euler + projection step of the plant (one surface, q ⊕ dq = q + dq)
@@ -326,7 +337,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     in_contact = False
     if float(plant.distance(q).max()) <= sc.control.contact_tol:
         q, v, in_contact = _touch(plant, q, v, 0.0, events)
-    log = _Log(N, nq, nv, k)
+    log = _Log(N, nq, nv, k, sim.max_velocity, sim.max_force)
     baum = sim.baumgarte
     zeros_k = np.zeros(k)
     meta = {
@@ -403,31 +414,26 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                     ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
             else:
                 ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
-            if cmd.B is None:
-                u = cmd.u0
-            elif fast:
-                u = u_buf
-                kernels().affine(cmd.u0, cmd.B, f, u)
-            else:
-                u = cmd.u0 + cmd.B @ f
-            # --- log sample i
-            log.record(
+            # --- log sample i (with u = u0 + B f) and check the state
+            ok = log.record(
                 i,
                 t,
                 q,
                 v,
                 controller.clik.q,
-                u,
+                cmd.u0,
+                no_B if cmd.B is None else cmd.B,
+                f,
                 terms.p,
                 controller.clik.p_d,
-                f,
                 controller.f_d,
                 cons.distance if cons is not None else plant.distance(q),
                 controller.V,
                 controller.phase,
             )
             n_logged = i + 1
-            _check_finite(t, q, v, f, sim)
+            if not ok:
+                _check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
             if i == N - 1:
                 break
             controller.update(dt, f)
@@ -510,8 +516,6 @@ def _merge(a: list[dict], b: list[dict]) -> list[dict]:
 
 
 def _check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: SimSettings) -> None:
-    if kernels().within_limits(q, v, f, sim.max_velocity, sim.max_force):
-        return  # the common case, one compiled call; the messages below say what failed
     vmax = float(np.abs(v).max())
     fmax = float(np.abs(f).max()) if f.size else 0.0
     if vmax <= sim.max_velocity and fmax <= sim.max_force and np.isfinite(q @ q):
