@@ -30,14 +30,16 @@ _jit = numba.njit(cache=True, error_model="numpy")
 
 # --- robot (hybrid_force.robot.Robot.terms) --------------------------------------------------
 @_jit
-def robot_terms(Mu, C_in, g_in, J6, Jd6, v, M, C, g, nle, J, Jdot, Jdot_v, pdot):
+def robot_terms(Mu, C_in, g_in, p_in, J6, Jd6, v, M, C, g, nle, p, J, Jdot, Jdot_v, pdot):
     """Copy one step's Pinocchio outputs into the terms' arrays and derive the rest.
 
-    Mu: (n, n) crba output (upper triangle valid). C_in: (n, n). g_in: (n,). J6, Jd6: (6, n)
-    frame Jacobian and its time variation (rows 0..2 used). v: (n,).
-    Writes M (symmetric), C, g, nle = C v + g, J, Jdot (3, n), Jdot_v = J̇ v, pdot = J v.
+    Mu: (n, n) crba output (upper triangle valid). C_in: (n, n). g_in: (n,). p_in: (3,) tip
+    position. J6, Jd6: (6, n) frame Jacobian and its time variation (rows 0..2 used). v: (n,).
+    Writes M (symmetric), C, g, nle = C v + g, p, J, Jdot (3, n), Jdot_v = J̇ v, pdot = J v.
     """
     n = v.shape[0]
+    for r in range(3):
+        p[r] = p_in[r]
     for i in range(n):
         acc = g_in[i]
         for j in range(n):

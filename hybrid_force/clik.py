@@ -165,6 +165,8 @@ class DesiredJointPath:
         self.settings = settings or ClikSettings()
         self.fast = fast
         self._data = robot.new_data()
+        # a view of the tip translation in self._data (updated in place by updateFramePlacement)
+        self._tip = self._data.oMf[robot.tip_id].translation
         n = robot.nv
         self._redundant = n > 3
         self._eye = np.eye(n)
@@ -259,7 +261,8 @@ class DesiredJointPath:
         model, fid, q = robot.model, robot.tip_id, self.q
         K = kernels()
         pin.computeJointJacobians(model, data, q)
-        p = pin.updateFramePlacement(model, data, fid).translation
+        pin.updateFramePlacement(model, data, fid)
+        p = self._tip
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
         gain = cfg.posture_gain if self._redundant else 0.0
         if gain > 0.0:
@@ -307,7 +310,8 @@ class DesiredJointPath:
         else:
             q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
         pin.forwardKinematics(model, data, q_pred)
-        p = pin.updateFramePlacement(model, data, robot.tip_id).translation
+        pin.updateFramePlacement(model, data, robot.tip_id)
+        p = self._tip
         if robot.euclidean:
             K.newton_step(q_pred, self._Jp, self.p_d, p, self.q)
         else:

@@ -38,6 +38,7 @@ from hybrid_force.errors import SimulationError
 
 __all__ = [
     "Baumgarte",
+    "ConstrainedDynamics",
     "constrained_acceleration",
     "free_acceleration",
     "kkt_reference",
@@ -110,6 +111,46 @@ def constrained_acceleration(
             "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
         )
     return ddq, f
+
+
+class ConstrainedDynamics:
+    """:func:`constrained_acceleration` for one (model, data) pair, called every step.
+
+    The same computation, with the views of ``data``'s arrays (nle, U, D) taken once and the
+    outputs preallocated: the arrays returned by :meth:`solve` are overwritten by the next
+    call. The multiplier ``data.lambda_c`` is read at every call (forwardDynamics resizes it).
+
+    Args:
+        model, data: the Pinocchio model and the data that ``pin.crba`` fills each step.
+        k: number of constraint rows.
+    """
+
+    def __init__(self, model: pin.Model, data: pin.Data, k: int) -> None:
+        self.model, self.data = model, data
+        self._nle, self._U, self._D = data.nle, data.U, data.D
+        self.ddq = np.zeros(model.nv)
+        self.f = np.zeros(k)
+
+    def solve(
+        self,
+        nle: np.ndarray,
+        u0: np.ndarray,
+        B: np.ndarray | None,
+        A: np.ndarray,
+        gamma: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """q̈ (n,) and f (k,) [N] for u = u0 + B f; arguments as :func:`constrained_acceleration`."""
+        self._nle[:] = nle
+        ddq0 = pin.forwardDynamics(self.model, self.data, u0, A, gamma)
+        f0 = self.data.lambda_c
+        if B is None:
+            self.ddq[:] = ddq0
+            self.f[:] = f0
+        elif not kernels().loop_resolve(self._U, self._D, A, B, ddq0, f0, self.ddq, self.f):
+            raise np.linalg.LinAlgError(
+                "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
+            )
+        return self.ddq, self.f
 
 
 def kkt_reference(

@@ -214,11 +214,11 @@ class Robot:
         Mu = pin.crba(model, data, q)
         g = pin.computeGeneralizedGravity(model, data, q)
         C = pin.computeCoriolisMatrix(model, data, q, v)
-        out.p[:] = pin.updateFramePlacement(model, data, fid).translation
         kernels().robot_terms(
             Mu,
             C,
             g,
+            pin.updateFramePlacement(model, data, fid).translation,
             pin.getFrameJacobian(model, data, fid, _LWA),
             pin.getFrameJacobianTimeVariation(model, data, fid, _LWA),
             v,
@@ -226,6 +226,7 @@ class Robot:
             out.C,
             out.g,
             out.nle,
+            out.p,
             out.J,
             out.Jdot,
             out.Jdot_v,

@@ -38,6 +38,7 @@ from hybrid_force.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control import Command
 from hybrid_force.dynamics import (
     Baumgarte,
+    ConstrainedDynamics,
     constrained_acceleration,
     free_acceleration,
     kkt_reference,
@@ -243,6 +244,8 @@ class _Plant:
         # two (q, v) pairs for contact_step: its output is never its input
         self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
         self._tmp = (np.zeros(n), np.zeros(n))
+        # a view of the tip translation in self.data (updated in place by updateFramePlacement)
+        self._tip = self.data.oMf[robot.tip_id].translation
 
     def tip(self, q: np.ndarray) -> np.ndarray:
         pin.forwardKinematics(self.robot.model, self.data, q)
@@ -287,9 +290,8 @@ class _Plant:
         q_tmp, v_tmp = self._tmp
         K.euler_step(q, v, ddq, dt, True, v_tmp, q_tmp)
         pin.computeJointJacobians(model, data, q_tmp)
-        phi, grad, _ = self.constraint.surfaces[0].evaluate(
-            pin.updateFramePlacement(model, data, fid).translation
-        )
+        pin.updateFramePlacement(model, data, fid)
+        phi, grad, _ = self.constraint.surfaces[0].evaluate(self._tip)
         q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
         if not K.project_one(grad, phi, J6, q_tmp, v_tmp, True, q_out, v_out) >= _GRAD_TOL:
@@ -329,6 +331,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     controller = HybridController(robot, constraint, sc.path, q, sc.control, dt=dt, fast=fast)
     terms_buf = RobotTerms.zeros(nv)
     no_B = np.zeros((nv, k))
+    solver = ConstrainedDynamics(model, data, k)
     gamma_buf = np.zeros(1)
     cons_buf = ConstraintTerms.zeros(k, nv)
     # the compiled Euler + projection step of the plant (one surface, q ⊕ dq = q + dq)
@@ -404,9 +407,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 if sim.reference:
                     ddq, f = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
                 else:
-                    ddq, f = constrained_acceleration(
-                        model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma
-                    )
+                    ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
                 if sim.unilateral and float(f[0] if k == 1 else f.min()) < -sim.release_tol:
                     events.append({"t": t, "kind": "release", "force": float(f.min())})
                     in_contact = False
