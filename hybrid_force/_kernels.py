@@ -619,6 +619,28 @@ def project_one(grad, phi, J6, q, v, euclidean, q_out, v_out):
     return gn
 
 
+# --- surfaces (hybrid_force.surfaces._RoundSurface) -------------------------------------------
+@_jit
+def round_surface(center, axis, sign, r2, radius, p, grad):
+    """Φ, ∇Φ and d of a cylinder (axis a unit) or a sphere (axis = 0) at p, as the Python code.
+
+    w = p − c, minus (w·a) a for a cylinder; Φ = ±(‖w‖² − r²), ∇Φ = ±2w, d = Φ / (‖w‖ + r).
+    Writes grad (3,); returns (Φ, d).
+    """
+    wx = p[0] - center[0]
+    wy = p[1] - center[1]
+    wz = p[2] - center[2]
+    t = wx * axis[0] + wy * axis[1] + wz * axis[2]
+    wx, wy, wz = wx - t * axis[0], wy - t * axis[1], wz - t * axis[2]
+    g = 2.0 * sign
+    grad[0] = g * wx
+    grad[1] = g * wy
+    grad[2] = g * wz
+    rho2 = wx * wx + wy * wy + wz * wz
+    value = sign * (rho2 - r2)
+    return value, value / (math.sqrt(rho2) + radius)
+
+
 # --- paths (hybrid_force.paths._CircularPath.evaluate) ---------------------------------------
 @_jit
 def circular_path(basis, phase, omega, t, p, v, a):

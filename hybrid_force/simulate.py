@@ -291,7 +291,7 @@ class _Plant:
         K.euler_step(q, v, ddq, dt, True, v_tmp, q_tmp)
         pin.computeJointJacobians(model, data, q_tmp)
         pin.updateFramePlacement(model, data, fid)
-        phi, grad, _ = self.constraint.surfaces[0].evaluate(self._tip)
+        phi, grad, _, _ = self.constraint.surfaces[0].evaluate_with_distance(self._tip)
         q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
         if not K.project_one(grad, phi, J6, q_tmp, v_tmp, True, q_out, v_out) >= _GRAD_TOL:
