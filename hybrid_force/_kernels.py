@@ -181,22 +181,20 @@ def arimoto(
     lam,
     beta,
     gamma,
-    u0,
-    B,
-    s,
-    s0,
-    s1,
-    qdot_r,
-    qddot_r0,
-    qddot_r_f,
+    vectors,
+    matrices,
 ):
     """The modified Arimoto law, eq. 4, 8, 11, as ``control.arimoto_law`` (k rows).
 
     M, C, Kd, Q, Qdot: (n, n). g, v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). A: (k, n).
     e_F, f_d, approach: (k,) (approach all zeros when unused). lam, beta, gamma: Λ, β, γ.
-    Writes u0, s, s0, s1, q̇_r, q̈_r0 (n,) and B = β M A⁺, q̈_r,f = β A⁺ (n, k).
-    Returns V = ½ sᵀMs + ½ β e_Fᵀe_F [J].
+    Writes the rows of vectors (6, n): u0, s, s0, s1, q̇_r, q̈_r0, and of matrices (2, n, k):
+    B = β M A⁺, q̈_r,f = β A⁺. Returns V = ½ sᵀMs + ½ β e_Fᵀe_F [J].
     """
+    u0, s, s0, s1, qdot_r, qddot_r0 = (
+        vectors[0], vectors[1], vectors[2], vectors[3], vectors[4], vectors[5]
+    )  # fmt: skip
+    B, qddot_r_f = matrices[0], matrices[1]
     n = v.shape[0]
     k = e_F.shape[0]
     x = np.empty(n)
@@ -352,11 +350,26 @@ def clik_acceleration(
     posture_gain,
     dq_post,
     qdd,
+    q,
+    dt_pred,
+    q_pred,
 ):
     """q̈_d, the exact time derivative of q̇_d (second half of ``_derivatives``).
 
-    Jd6: (6, n) J̇(q_d, q̇_d). Other inputs as written by :func:`clik_velocity`. Writes q̈_d.
+    Jd6: (6, n) J̇(q_d, q̇_d). Other inputs as written by :func:`clik_velocity`. Writes q̈_d
+    and, when dt_pred > 0, the next step's predictor q_pred = q + q̇_d dt + q̈_d dt²/2 (as
+    :func:`taylor_step`; Euclidean configuration spaces only).
     """
+    _clik_qdd(J6, Jd6, Jp, W, N, x, qd, pdot_d, pddot_d, gamma, redundant, posture_gain,
+              dq_post, qdd)  # fmt: skip
+    if dt_pred > 0.0:
+        taylor_step(q, qd, qdd, dt_pred, q_pred)
+
+
+@_jit
+def _clik_qdd(
+    J6, Jd6, Jp, W, N, x, qd, pdot_d, pddot_d, gamma, redundant, posture_gain, dq_post, qdd
+):
     n = qd.shape[0]
     xdot = np.empty(3)
     for r in range(3):

@@ -180,6 +180,7 @@ class DesiredJointPath:
             self._x = np.zeros(3)
             self._dq_post = np.zeros(n)
             self._q_pred = np.zeros(robot.nq)
+            self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
             self.qd = np.zeros(n)
             self.qdd = np.zeros(n)
         self.p_d, self.pdot_d, self.pddot_d = path.evaluate(self.t)
@@ -280,7 +281,7 @@ class DesiredJointPath:
         K.clik_acceleration(
             J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), self._Jp, self._W,
             self._N, self._x, self.qd, self.pdot_d, self.pddot_d, cfg.gamma, self._redundant,
-            gain, self._dq_post, self.qdd,
+            gain, self._dq_post, self.qdd, q, self._dt_pred, self._q_pred,
         )  # fmt: skip
 
     def advance(self, dt: float) -> None:
@@ -306,7 +307,9 @@ class DesiredJointPath:
         model, q_pred = robot.model, self._q_pred
         K = kernels()
         if robot.euclidean:
-            K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
+            if dt != self._dt_pred:  # otherwise the last step's kernel made the predictor
+                K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
+                self._dt_pred = dt
         else:
             q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
         pin.forwardKinematics(model, data, q_pred)

@@ -261,14 +261,12 @@ class LawWorkspace:
 
     def __init__(self, n: int, k: int, gains: Gains) -> None:
         self.gains = gains
-        self.u0 = np.zeros(n)
-        self.s = np.zeros(n)
-        self.s0 = np.zeros(n)
-        self.s1 = np.zeros(n)
-        self.qdot_r = np.zeros(n)
-        self.qddot_r0 = np.zeros(n)
-        self.B = np.zeros((n, k))
-        self.qddot_r_f = np.zeros((n, k))
+        # the outputs as rows of two arrays, so the kernel takes two arguments, not eight
+        self._vectors = np.zeros((6, n))
+        self._matrices = np.zeros((2, n, k))
+        self._free_matrices = np.zeros((2, n, 0))
+        self.u0, self.s, self.s0, self.s1, self.qdot_r, self.qddot_r0 = self._vectors
+        self.B, self.qddot_r_f = self._matrices
         self.V = 0.0
         self.hybrid = False
         self._zeros_k = np.zeros(k)
@@ -313,14 +311,8 @@ class LawWorkspace:
             g.Lambda,
             g.beta,
             g.gamma,
-            self.u0,
-            self.B,
-            self.s,
-            self.s0,
-            self.s1,
-            self.qdot_r,
-            self.qddot_r0,
-            self.qddot_r_f,
+            self._vectors,
+            self._matrices,
         )
         self.hybrid = True
         return self._hybrid
@@ -351,14 +343,8 @@ class LawWorkspace:
             g.Lambda,
             g.beta,
             g.gamma,
-            self.u0,
-            self._no_cols,
-            self.s,
-            self.s0,
-            self.s1,
-            self.qdot_r,
-            self.qddot_r0,
-            self._no_cols,
+            self._vectors,
+            self._free_matrices,
         )
         self.hybrid = False
         return self._free
