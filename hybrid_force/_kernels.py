@@ -66,30 +66,25 @@ def robot_terms(Mu, C_in, g_in, p_in, J6, Jd6, v, M, C, g, nle, p, J, Jdot, Jdot
 # --- constraint (hybrid_force.constraint.Constraint, k = 1) ----------------------------------
 @_jit
 def constraint_one(
-    grad,
-    hess,
-    J,
-    Jdot,
-    Jdot_v,
-    pdot,
-    v,
-    tip_scaling,
-    J_phi,
-    J_phi_n,
-    A,
-    Adot,
-    A_pinv,
-    A_pinv_dot,
-    Q,
-    Qdot,
+    desc, p, grad, hess, J, Jdot, Jdot_v, pdot, v, tip_scaling, rows, cols, squares, scalars
 ):
     """One surface's joint-space terms: the k = 1 case of ``Constraint.evaluate``.
 
-    grad: (3,) ∇Φ. hess: (3, 3) ∇²Φ. J, Jdot: (3, n). Jdot_v, pdot: (3,). v: (n,).
+    desc: the surface's descriptor (see :func:`surface_eval`); when it is empty, grad (3,),
+    hess (3, 3) and scalars[0, 0] = Φ, scalars[1, 0] = d are given, otherwise they are
+    written here from p (3,). J, Jdot: (3, n). Jdot_v, pdot: (3,). v: (n,).
     tip_scaling: True → s = ‖∇Φ‖ ("tip"), False → s = ‖J_Φ‖ ("joint").
-    Writes the (1, n) rows J_Φ, J_Φn, A, Ȧ, the (n, 1) columns A⁺, Ȧ⁺, and Q, Q̇ (n, n).
-    Returns (‖∇Φ‖, ‖J_Φ‖, max|J|, s, A v, raw drift); the caller checks the first two.
+    Writes rows (4, 1, n) = J_Φ, J_Φn, A, Ȧ; cols (2, n, 1) = A⁺, Ȧ⁺; squares (2, n, n) =
+    Q, Q̇; scalars (6, 1) = Φ, d, s, A v, raw drift, drift (``ConstraintTerms.zeros``).
+    Returns (‖∇Φ‖, ‖J_Φ‖, max|J|); the caller checks them (singular configurations).
     """
+    if desc.shape[0] > 0:
+        value, dist = surface_eval(desc, p, grad, hess)
+        scalars[0, 0] = value
+        scalars[1, 0] = dist
+    J_phi, J_phi_n, A, Adot = rows[0], rows[1], rows[2], rows[3]
+    A_pinv, A_pinv_dot = cols[0], cols[1]
+    Q, Qdot = squares[0], squares[1]
     n = J.shape[1]
     hp0 = hess[0, 0] * pdot[0] + hess[0, 1] * pdot[1] + hess[0, 2] * pdot[2]
     hp1 = hess[1, 0] * pdot[0] + hess[1, 1] * pdot[1] + hess[1, 2] * pdot[2]
@@ -156,7 +151,11 @@ def constraint_one(
         + g1 * Jdot_v[1]
         + g2 * Jdot_v[2]
     )
-    return grad_norm, row_norm, jmax, scale, rate, raw_drift
+    scalars[2, 0] = scale
+    scalars[3, 0] = rate
+    scalars[4, 0] = raw_drift
+    scalars[5, 0] = raw_drift / scale
+    return grad_norm, row_norm, jmax
 
 
 # --- control (hybrid_force.control.arimoto_law) ----------------------------------------------
@@ -603,15 +602,18 @@ def euler_step(q, v, ddq, dt, euclidean, v_out, q_out):
 
 
 @_jit
-def project_one(grad, phi, J6, q, v, euclidean, q_out, v_out):
+def project_one(desc, p, grad, phi, J6, q, v, euclidean, q_out, v_out):
     """One Gauss–Newton step onto a surface and the velocity onto its tangent space, k = 1.
 
-    grad: (3,) ∇Φ at the tip. phi: Φ. J6: (6, n) tip Jacobian (rows 0..2 used). The row is
-    A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
+    desc: the surface's descriptor (:func:`surface_eval`), evaluated here at the tip p (3,);
+    when empty, grad (3,) = ∇Φ and phi = Φ are given. J6: (6, n) tip Jacobian (rows 0..2).
+    The row is A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
     ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out = q − A⁺ Φ/‖∇Φ‖
     (Euclidean; otherwise the step itself, for pinocchio.integrate) and
     v_out = v − A⁺ (A v). Returns ‖∇Φ‖ (the caller checks it is not zero).
     """
+    if desc.shape[0] > 0:
+        phi, _ = surface_eval(desc, p, grad, np.zeros((0, 0)))
     n = q.shape[0]
     gn = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
     n0, n1, n2 = grad[0] / gn, grad[1] / gn, grad[2] / gn
@@ -632,26 +634,45 @@ def project_one(grad, phi, J6, q, v, euclidean, q_out, v_out):
     return gn
 
 
-# --- surfaces (hybrid_force.surfaces._RoundSurface) -------------------------------------------
+# --- surfaces (hybrid_force.surfaces: Cylinder, Sphere, Plane) --------------------------------
 @_jit
-def round_surface(center, axis, sign, r2, radius, p, grad):
-    """Φ, ∇Φ and d of a cylinder (axis a unit) or a sphere (axis = 0) at p, as the Python code.
+def surface_eval(desc, p, grad, hess):
+    """Φ, ∇Φ, ∇²Φ and d of a surface from its descriptor (``Surface._descriptor``) at p.
 
-    w = p − c, minus (w·a) a for a cylinder; Φ = ±(‖w‖² − r²), ∇Φ = ±2w, d = Φ / (‖w‖ + r).
-    Writes grad (3,); returns (Φ, d).
+    desc[0] = 0: cylinder or sphere, desc = [0, c (3), a (3), sign, r², r] (a = 0 for a
+    sphere): w = p − c minus (w·a) a, Φ = ±(‖w‖² − r²), ∇Φ = ±2w, ∇²Φ = ±2(I − aaᵀ),
+    d = Φ / (‖w‖ + r). desc[0] = 1: plane, desc = [1, o (3), n (3)]: Φ = d = n·(p − o),
+    ∇Φ = n, ∇²Φ = 0. The same operations as the Python methods. Writes grad (3,) and, unless
+    hess is (0, 0), hess (3, 3). Returns (Φ, d).
     """
-    wx = p[0] - center[0]
-    wy = p[1] - center[1]
-    wz = p[2] - center[2]
-    t = wx * axis[0] + wy * axis[1] + wz * axis[2]
-    wx, wy, wz = wx - t * axis[0], wy - t * axis[1], wz - t * axis[2]
+    if desc[0] == 1.0:
+        value = desc[4] * (p[0] - desc[1]) + desc[5] * (p[1] - desc[2]) + desc[6] * (p[2] - desc[3])
+        for r in range(3):
+            grad[r] = desc[4 + r]
+        if hess.shape[0] == 3:
+            for r in range(3):
+                for c in range(3):
+                    hess[r, c] = 0.0
+        return value, value
+    ax, ay, az = desc[4], desc[5], desc[6]
+    sign = desc[7]
+    wx = p[0] - desc[1]
+    wy = p[1] - desc[2]
+    wz = p[2] - desc[3]
+    t = wx * ax + wy * ay + wz * az
+    wx, wy, wz = wx - t * ax, wy - t * ay, wz - t * az
     g = 2.0 * sign
     grad[0] = g * wx
     grad[1] = g * wy
     grad[2] = g * wz
+    if hess.shape[0] == 3:
+        a = (ax, ay, az)
+        for r in range(3):
+            for c in range(3):
+                hess[r, c] = g * ((1.0 if r == c else 0.0) - a[r] * a[c])
     rho2 = wx * wx + wy * wy + wz * wz
-    value = sign * (rho2 - r2)
-    return value, value / (math.sqrt(rho2) + radius)
+    value = sign * (rho2 - desc[8])
+    return value, value / (math.sqrt(rho2) + desc[9])
 
 
 # --- paths (hybrid_force.paths._CircularPath.evaluate) ---------------------------------------

@@ -29,7 +29,7 @@ The acceleration-level constraint used by the simulator is the exact second time
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -83,25 +83,35 @@ class ConstraintTerms:
     rate: np.ndarray
     raw_drift: np.ndarray
     drift: np.ndarray
+    # (rows (4, k, n), cols (2, n, k), squares (2, n, n), scalars (6, k)) whose slices are
+    # the fields above, when made by zeros(): what the compiled evaluation writes
+    _packs: tuple[np.ndarray, ...] | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def zeros(cls, k: int, n: int) -> ConstraintTerms:
-        """Terms of k rows and n joints, every array zero (a buffer for ``evaluate``)."""
+        """Terms of k rows and n joints, every array zero (a buffer for ``evaluate``).
+
+        The fields are views of four arrays: rows = [J_Φ, J_Φn, A, Ȧ], cols = [A⁺, Ȧ⁺],
+        squares = [Q, Q̇], scalars = [Φ, d, s, A v, raw drift, drift].
+        """
+        rows, cols = np.zeros((4, k, n)), np.zeros((2, n, k))
+        squares, scalars = np.zeros((2, n, n)), np.zeros((6, k))
         return cls(
-            phi=np.zeros(k),
-            distance=np.zeros(k),
-            J_phi=np.zeros((k, n)),
-            J_phi_n=np.zeros((k, n)),
-            scale=np.zeros(k),
-            A=np.zeros((k, n)),
-            Adot=np.zeros((k, n)),
-            A_pinv=np.zeros((n, k)),
-            A_pinv_dot=np.zeros((n, k)),
-            Q=np.zeros((n, n)),
-            Qdot=np.zeros((n, n)),
-            rate=np.zeros(k),
-            raw_drift=np.zeros(k),
-            drift=np.zeros(k),
+            phi=scalars[0],
+            distance=scalars[1],
+            J_phi=rows[0],
+            J_phi_n=rows[1],
+            scale=scalars[2],
+            A=rows[2],
+            Adot=rows[3],
+            A_pinv=cols[0],
+            A_pinv_dot=cols[1],
+            Q=squares[0],
+            Qdot=squares[1],
+            rate=scalars[3],
+            raw_drift=scalars[4],
+            drift=scalars[5],
+            _packs=(rows, cols, squares, scalars),
         )
 
 
@@ -140,6 +150,9 @@ class Constraint:
             )
         self.surfaces: tuple[Surface, ...] = items
         self.normalization: Normalization = normalization
+        self._tip_scaling = normalization == "tip"
+        # scratch ∇Φ and ∇²Φ written by the compiled evaluation (k = 1)
+        self._grad, self._hess = np.zeros(3), np.zeros((3, 3))
 
     @property
     def k(self) -> int:
@@ -252,37 +265,28 @@ class Constraint:
     def _evaluate_one(
         self, terms: RobotTerms, v: np.ndarray, out: ConstraintTerms | None
     ) -> ConstraintTerms:
-        """The k = 1 case of :meth:`evaluate` in one compiled call (hot path)."""
+        """The k = 1 case of :meth:`evaluate` in one compiled call (hot path).
+
+        Surfaces with a closed form (``Surface._descriptor``) are evaluated inside the call;
+        others (FunctionSurface) in Python first.
+        """
         surface = self.surfaces[0]
-        p = terms.p
-        value, grad, hess, distance = surface.evaluate_with_distance(p)
         c = ConstraintTerms.zeros(1, terms.J.shape[1]) if out is None else out
-        grad_norm, row_norm, jmax, scale, rate, raw_drift = kernels().constraint_one(
-            grad,
-            hess,
-            terms.J,
-            terms.Jdot,
-            terms.Jdot_v,
-            terms.pdot,
-            v,
-            self.normalization == "tip",
-            c.J_phi,
-            c.J_phi_n,
-            c.A,
-            c.Adot,
-            c.A_pinv,
-            c.A_pinv_dot,
-            c.Q,
-            c.Qdot,
-        )
+        if c._packs is None:
+            raise SurfaceError("out must come from ConstraintTerms.zeros(k, n)")
+        rows, cols, squares, scalars = c._packs
+        desc = surface._descriptor
+        grad, hess = self._grad, self._hess
+        if desc.shape[0] == 0:
+            value, grad, hess, distance = surface.evaluate_with_distance(terms.p)
+            scalars[0, 0] = value
+            scalars[1, 0] = distance
+        grad_norm, row_norm, jmax = kernels().constraint_one(
+            desc, terms.p, grad, hess, terms.J, terms.Jdot, terms.Jdot_v, terms.pdot, v,
+            self._tip_scaling, rows, cols, squares, scalars,
+        )  # fmt: skip
         if not grad_norm >= _GRAD_TOL or not row_norm >= _ROW_TOL * grad_norm * (1.0 + jmax):
             self._row(0, surface, terms)  # raises the precise SingularConfigurationError
-        c.phi[0] = value
-        c.distance[0] = distance
-        c.scale[0] = scale
-        c.rate[0] = rate
-        c.raw_drift[0] = raw_drift
-        c.drift[0] = raw_drift / scale
         return c
 
     def normal_rows(self, p: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -246,6 +246,7 @@ class _Plant:
         self._tmp = (np.zeros(n), np.zeros(n))
         # a view of the tip translation in self.data (updated in place by updateFramePlacement)
         self._tip = self.data.oMf[robot.tip_id].translation
+        self._grad = np.zeros(3)  # scratch ∇Φ of contact_step
 
     def tip(self, q: np.ndarray) -> np.ndarray:
         pin.forwardKinematics(self.robot.model, self.data, q)
@@ -291,10 +292,14 @@ class _Plant:
         K.euler_step(q, v, ddq, dt, True, v_tmp, q_tmp)
         pin.computeJointJacobians(model, data, q_tmp)
         pin.updateFramePlacement(model, data, fid)
-        phi, grad, _, _ = self.constraint.surfaces[0].evaluate_with_distance(self._tip)
+        surface = self.constraint.surfaces[0]
+        desc, grad, phi = surface._descriptor, self._grad, 0.0
+        if desc.shape[0] == 0:  # no closed form: evaluate in Python
+            phi, grad, _ = surface.evaluate(self._tip)
         q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        if not K.project_one(grad, phi, J6, q_tmp, v_tmp, True, q_out, v_out) >= _GRAD_TOL:
+        gn = K.project_one(desc, self._tip, grad, phi, J6, q_tmp, v_tmp, True, q_out, v_out)
+        if not gn >= _GRAD_TOL:
             self._rows(q_tmp)  # raises the precise SingularConfigurationError
         return q_out, v_out
 

@@ -56,6 +56,7 @@ __all__ = [
 _MIN_DIRECTION_NORM = 1e-12
 #: A cylinder's normal is undefined within ``_SINGULAR_RTOL * radius`` of its axis, a sphere's
 #: within ``_SINGULAR_RTOL * radius`` of its centre (there ‖∇Φ‖ = 2ρ < 2e-9 · radius).
+_NO_HESSIAN = np.zeros((0, 0))  # tells surface_eval not to write ∇²Φ
 _SINGULAR_RTOL = 1e-9
 #: Default finite-difference steps of :class:`FunctionSurface` [m], see its docstring.
 _DEFAULT_STEP = 6.0e-6
@@ -183,6 +184,10 @@ class Surface(abc.ABC):
     """
 
     kind: ClassVar[str]
+    # The closed form as a small read-only float array that compiled code evaluates
+    # (hybrid_force._kernels.surface_eval): [0, c (3), a (3), sign, r², r] for a cylinder
+    # or sphere (a = 0), [1, point (3), n (3)] for a plane; empty when there is none (Python).
+    _descriptor: ClassVar[np.ndarray] = np.zeros(0)
 
     @abc.abstractmethod
     def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -256,9 +261,9 @@ class _RoundSurface(Surface):
         sign = -1.0 if inside else 1.0
         values = {"radius": radius, "center": center, **extra, "inside": inside}
         values.update(_sign=sign, _r2=radius * radius, _hess=_read_only(2.0 * sign * shape))
-        # for the compiled evaluate_with_distance: centre, axis (zeros for a sphere)
         axis = extra.get("axis", (0.0, 0.0, 0.0))
-        values.update(_c_arr=_read_only(np.array(center)), _a_arr=_read_only(np.array(axis)))
+        desc = np.array([0.0, *center, *axis, sign, radius * radius, radius])
+        values.update(_descriptor=_read_only(desc))
         for name, value in values.items():
             object.__setattr__(self, name, value)
 
@@ -284,12 +289,10 @@ class _RoundSurface(Surface):
         """(Φ, ∇Φ, ∇²Φ, d) at p: float64 (3,) [m] in one compiled call (hot path).
 
         The same operations as :meth:`evaluate` and :meth:`distance`
-        (:func:`hybrid_force._kernels.round_surface`); ∇²Φ is the shared read-only array.
+        (:func:`hybrid_force._kernels.surface_eval`); ∇²Φ is the shared read-only array.
         """
         grad = np.empty(3)
-        value, dist = kernels().round_surface(
-            self._c_arr, self._a_arr, self._sign, self._r2, self.radius, p, grad
-        )
+        value, dist = kernels().surface_eval(self._descriptor, p, grad, _NO_HESSIAN)
         return value, grad, self._hess, dist
 
     def phi(self, p: ArrayLike) -> float:
@@ -473,6 +476,7 @@ class Plane(Surface):
             ("normal_vector", n),
             ("_grad", _read_only(np.array(n))),
             ("_hess", _read_only(np.zeros((3, 3)))),
+            ("_descriptor", _read_only(np.array([1.0, *o, *n]))),
         ):
             object.__setattr__(self, name, value)
 

@@ -112,7 +112,8 @@ def _random_state(robot: Robot, rng: np.random.Generator) -> tuple[np.ndarray, n
 def _fill_nan(obj: RobotTerms | ConstraintTerms) -> None:
     """Poison every array of a buffer, so an entry the fast path forgets to write shows."""
     for value in vars(obj).values():
-        value[...] = np.nan
+        if isinstance(value, np.ndarray):  # the fields (private packs are views' owners)
+            value[...] = np.nan
 
 
 # --- 1. robot terms ------------------------------------------------------------------------------
