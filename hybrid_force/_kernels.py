@@ -30,13 +30,16 @@ _jit = numba.njit(cache=True, error_model="numpy")
 
 # --- robot (hybrid_force.robot.Robot.terms) --------------------------------------------------
 @_jit
-def robot_terms(Mu, C_in, g_in, p_in, J6, Jd6, v, M, C, g, nle, p, J, Jdot, Jdot_v, pdot):
+def robot_terms(Mu, C_in, g_in, p_in, J6, Jd6, v, mats, vecs, jac, tip):
     """Copy one step's Pinocchio outputs into the terms' arrays and derive the rest.
 
     Mu: (n, n) crba output (upper triangle valid). C_in: (n, n). g_in: (n,). p_in: (3,) tip
     position. J6, Jd6: (6, n) frame Jacobian and its time variation (rows 0..2 used). v: (n,).
-    Writes M (symmetric), C, g, nle = C v + g, p, J, Jdot (3, n), Jdot_v = J̇ v, pdot = J v.
+    Writes (``RobotTerms.zeros``) mats = [M (symmetric), C], vecs = [g, nle = C v + g],
+    jac = [J, J̇] (3, n), tip = [p, J̇ v, J v].
     """
+    M, C, g, nle = mats[0], mats[1], vecs[0], vecs[1]
+    J, Jdot, p, Jdot_v, pdot = jac[0], jac[1], tip[0], tip[1], tip[2]
     n = v.shape[0]
     for r in range(3):
         p[r] = p_in[r]
@@ -65,19 +68,19 @@ def robot_terms(Mu, C_in, g_in, p_in, J6, Jd6, v, M, C, g, nle, p, J, Jdot, Jdot
 
 # --- constraint (hybrid_force.constraint.Constraint, k = 1) ----------------------------------
 @_jit
-def constraint_one(
-    desc, p, grad, hess, J, Jdot, Jdot_v, pdot, v, tip_scaling, rows, cols, squares, scalars
-):
+def constraint_one(desc, grad, hess, jac, tip, v, tip_scaling, rows, cols, squares, scalars):
     """One surface's joint-space terms: the k = 1 case of ``Constraint.evaluate``.
 
     desc: the surface's descriptor (see :func:`surface_eval`); when it is empty, grad (3,),
     hess (3, 3) and scalars[0, 0] = Φ, scalars[1, 0] = d are given, otherwise they are
-    written here from p (3,). J, Jdot: (3, n). Jdot_v, pdot: (3,). v: (n,).
+    written here. jac (2, 3, n) = [J, J̇], tip (3, 3) = [p, J̇ v, J v]: the robot terms'
+    packs (``RobotTerms.zeros``). v: (n,).
     tip_scaling: True → s = ‖∇Φ‖ ("tip"), False → s = ‖J_Φ‖ ("joint").
     Writes rows (4, 1, n) = J_Φ, J_Φn, A, Ȧ; cols (2, n, 1) = A⁺, Ȧ⁺; squares (2, n, n) =
     Q, Q̇; scalars (6, 1) = Φ, d, s, A v, raw drift, drift (``ConstraintTerms.zeros``).
     Returns (‖∇Φ‖, ‖J_Φ‖, max|J|); the caller checks them (singular configurations).
     """
+    J, Jdot, p, Jdot_v, pdot = jac[0], jac[1], tip[0], tip[1], tip[2]
     if desc.shape[0] > 0:
         value, dist = surface_eval(desc, p, grad, hess)
         scalars[0, 0] = value
@@ -269,28 +272,16 @@ def _inv3_into(a, out):
 
 
 @_jit
-def clik_velocity(
-    J6,
-    p,
-    p_d,
-    pdot_d,
-    gamma,
-    damping2,
-    redundant,
-    posture_gain,
-    dq_post,
-    Jp,
-    W,
-    N,
-    x,
-    qd,
-):
+def clik_velocity(J6, p, sample, cfg, dq_post, Jp, W, N, x, qd):
     """q̇_d of eq. 27 at the current q_d, as ``DesiredJointPath._derivatives`` (first half).
 
-    J6: (6, n) tip Jacobian (rows 0..2 used). p, p_d, pdot_d: (3,). dq_post: (n,) q_d ⊖
-    posture. Writes J⁻¹ or Jᵀ W into Jp (n, 3), W = (JJᵀ + λ²I)⁻¹ (redundant), N = I − JpJ,
+    J6: (6, n) tip Jacobian (rows 0..2 used). p: (3,) tip position. sample: (3, 3) rows
+    p_d, ṗ_d, p̈_d. cfg: (4,) γ, λ², redundant (0 or 1), k_n. dq_post: (n,) q_d ⊖ posture.
+    Writes J⁻¹ or Jᵀ W into Jp (n, 3), W = (JJᵀ + λ²I)⁻¹ (redundant), N = I − JpJ,
     x = ṗ_d − γ(p − p_d) and q̇_d. Returns the cheap bound of cond(J Jᵀ) (inf if singular).
     """
+    p_d, pdot_d = sample[0], sample[1]
+    gamma, damping2, redundant, posture_gain = cfg[0], cfg[1], cfg[2] != 0.0, cfg[3]
     n = qd.shape[0]
     for r in range(3):
         x[r] = pdot_d[r] - gamma * (p[r] - p_d[r])
@@ -334,31 +325,15 @@ def clik_velocity(
 
 
 @_jit
-def clik_acceleration(
-    J6,
-    Jd6,
-    Jp,
-    W,
-    N,
-    x,
-    qd,
-    pdot_d,
-    pddot_d,
-    gamma,
-    redundant,
-    posture_gain,
-    dq_post,
-    qdd,
-    q,
-    dt_pred,
-    q_pred,
-):
+def clik_acceleration(J6, Jd6, Jp, W, N, x, qd, sample, cfg, dq_post, qdd, q, dt_pred, q_pred):
     """q̈_d, the exact time derivative of q̇_d (second half of ``_derivatives``).
 
-    Jd6: (6, n) J̇(q_d, q̇_d). Other inputs as written by :func:`clik_velocity`. Writes q̈_d
-    and, when dt_pred > 0, the next step's predictor q_pred = q + q̇_d dt + q̈_d dt²/2 (as
-    :func:`taylor_step`; Euclidean configuration spaces only).
+    Jd6: (6, n) J̇(q_d, q̇_d). Other inputs as written by or given to :func:`clik_velocity`.
+    Writes q̈_d and, when dt_pred > 0, the next step's predictor
+    q_pred = q + q̇_d dt + q̈_d dt²/2 (as :func:`taylor_step`; Euclidean spaces only).
     """
+    pdot_d, pddot_d = sample[1], sample[2]
+    gamma, redundant, posture_gain = cfg[0], cfg[2] != 0.0, cfg[3]
     _clik_qdd(J6, Jd6, Jp, W, N, x, qd, pdot_d, pddot_d, gamma, redundant, posture_gain,
               dq_post, qdd)  # fmt: skip
     if dt_pred > 0.0:
@@ -457,6 +432,13 @@ def newton_step(q, Jp, target, p, out):
 
 
 # --- dynamics (hybrid_force.dynamics.constrained_acceleration) --------------------------------
+@_jit
+def baumgarte(drift, rate, value, scale, two_alpha, beta_sq, out):
+    """γ = drift + 2α A q̇ + β² Φ/s (k,), as ``Baumgarte.gamma`` (section 6.2)."""
+    for m in range(out.shape[0]):
+        out[m] = drift[m] + two_alpha * rate[m] + beta_sq * (value[m] / scale[m])
+
+
 @_jit
 def _solve_udut(U, D, b, x):
     """x = (U D Uᵀ)⁻¹ b with U (n, n) unit upper triangular and D (n,): Pinocchio's M."""

@@ -183,7 +183,15 @@ class DesiredJointPath:
             self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
             self.qd = np.zeros(n)
             self.qdd = np.zeros(n)
-        self.p_d, self.pdot_d, self.pddot_d = path.evaluate(self.t)
+            # settings and path sample as small arrays (fewer kernel arguments)
+            cfg = self.settings
+            gain = cfg.posture_gain if self._redundant else 0.0
+            self._cfg = np.array([cfg.gamma, cfg.damping**2, float(self._redundant), gain])
+            self._sample = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
+            self._sample[:] = path.evaluate(self.t)
+            self.p_d, self.pdot_d, self.pddot_d = self._sample
+        else:
+            self.p_d, self.pdot_d, self.pddot_d = path.evaluate(self.t)
         p0, _ = self._tip_and_jacobian(self.q)
         if np.linalg.norm(p0 - self.p_d) > _START_TOL:
             raise ReachError(
@@ -265,23 +273,22 @@ class DesiredJointPath:
         pin.updateFramePlacement(model, data, fid)
         p = self._tip
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        gain = cfg.posture_gain if self._redundant else 0.0
-        if gain > 0.0:
+        if self._redundant and cfg.posture_gain > 0.0:
             if robot.euclidean:
                 np.subtract(q, self.posture, out=self._dq_post)
             else:
                 self._dq_post[:] = pin.difference(model, self.posture, q)
         cond = K.clik_velocity(
-            J6, p, self.p_d, self.pdot_d, cfg.gamma, cfg.damping**2, self._redundant, gain,
-            self._dq_post, self._Jp, self._W, self._N, self._x, self.qd,
+            J6, p, self._sample, self._cfg, self._dq_post, self._Jp, self._W, self._N, self._x,
+            self.qd,
         )  # fmt: skip
         if not cond < _COND_MAX:  # the cheap bound of cond(J Jᵀ); the SVD names the values
             _check_conditioning(J6[:3], self.t, q, robot)
         pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
         K.clik_acceleration(
             J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), self._Jp, self._W,
-            self._N, self._x, self.qd, self.pdot_d, self.pddot_d, cfg.gamma, self._redundant,
-            gain, self._dq_post, self.qdd, q, self._dt_pred, self._q_pred,
+            self._N, self._x, self.qd, self._sample, self._cfg, self._dq_post, self.qdd, q,
+            self._dt_pred, self._q_pred,
         )  # fmt: skip
 
     def advance(self, dt: float) -> None:

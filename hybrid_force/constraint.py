@@ -281,10 +281,10 @@ class Constraint:
             value, grad, hess, distance = surface.evaluate_with_distance(terms.p)
             scalars[0, 0] = value
             scalars[1, 0] = distance
+        _, _, jac, tip = terms.packed()._packs
         grad_norm, row_norm, jmax = kernels().constraint_one(
-            desc, terms.p, grad, hess, terms.J, terms.Jdot, terms.Jdot_v, terms.pdot, v,
-            self._tip_scaling, rows, cols, squares, scalars,
-        )  # fmt: skip
+            desc, grad, hess, jac, tip, v, self._tip_scaling, rows, cols, squares, scalars
+        )
         if not grad_norm >= _GRAD_TOL or not row_norm >= _ROW_TOL * grad_norm * (1.0 + jmax):
             self._row(0, surface, terms)  # raises the precise SingularConfigurationError
         return c

@@ -68,9 +68,17 @@ class Baumgarte:
         """γ (k,) for pin.forwardDynamics: drift + 2α φ̇ + β² φ."""
         return drift + 2.0 * self.alpha * rate + (self.beta * self.beta) * phi
 
-    def gamma_one(self, drift: float, rate: float, phi: float) -> float:
-        """:meth:`gamma` for one constraint, in floats (the same operations, in order)."""
-        return drift + 2.0 * self.alpha * rate + (self.beta * self.beta) * phi
+    def gamma_into(
+        self,
+        drift: np.ndarray,
+        rate: np.ndarray,
+        value: np.ndarray,
+        scale: np.ndarray,
+        out: np.ndarray,
+    ) -> np.ndarray:
+        """:meth:`gamma` with φ = value / scale, written into out (k,) in one compiled call."""
+        kernels().baumgarte(drift, rate, value, scale, 2.0 * self.alpha, self.beta * self.beta, out)
+        return out
 
 
 def free_acceleration(M: np.ndarray, nle: np.ndarray, u: np.ndarray) -> np.ndarray:

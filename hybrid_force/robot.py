@@ -15,7 +15,7 @@ for the arms here nq = nv = n. Revolute joints in rad, prismatic in m.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -60,21 +60,44 @@ class RobotTerms:
     Jdot: np.ndarray
     Jdot_v: np.ndarray
     pdot: np.ndarray
+    # (mats (2, n, n), vecs (2, n), jac (2, 3, n), tip (3, 3)) whose slices are the fields
+    # above, when made by zeros(): what the compiled code reads and writes
+    _packs: tuple[np.ndarray, ...] | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def zeros(cls, n: int) -> RobotTerms:
-        """Terms of an n-joint arm with every array zero (a buffer for :meth:`Robot.terms`)."""
-        return cls(
-            M=np.zeros((n, n)),
-            C=np.zeros((n, n)),
-            g=np.zeros(n),
-            nle=np.zeros(n),
-            p=np.zeros(3),
-            J=np.zeros((3, n)),
-            Jdot=np.zeros((3, n)),
-            Jdot_v=np.zeros(3),
-            pdot=np.zeros(3),
+        """Terms of an n-joint arm with every array zero (a buffer for :meth:`Robot.terms`).
+
+        The fields are views of four arrays: mats = [M, C], vecs = [g, nle], jac = [J, J̇],
+        tip = [p, J̇ v, J v].
+        """
+        mats, vecs, jac, tip = (
+            np.zeros((2, n, n)),
+            np.zeros((2, n)),
+            np.zeros((2, 3, n)),
+            np.zeros((3, 3)),
         )
+        return cls(
+            M=mats[0],
+            C=mats[1],
+            g=vecs[0],
+            nle=vecs[1],
+            p=tip[0],
+            J=jac[0],
+            Jdot=jac[1],
+            Jdot_v=tip[1],
+            pdot=tip[2],
+            _packs=(mats, vecs, jac, tip),
+        )
+
+    def packed(self) -> RobotTerms:
+        """These terms with their packs: self when made by :meth:`zeros`, else a copy."""
+        if self._packs is not None:
+            return self
+        out = RobotTerms.zeros(self.M.shape[0])
+        for name in ("M", "C", "g", "nle", "p", "J", "Jdot", "Jdot_v", "pdot"):
+            getattr(out, name)[...] = getattr(self, name)
+        return out
 
 
 class Robot:
@@ -211,27 +234,17 @@ class Robot:
         data = self.data if data is None else data
         if out is None:
             out = RobotTerms.zeros(model.nv)
+        elif out._packs is None:
+            raise DimensionError("out must come from RobotTerms.zeros(n)")
+        mats, vecs, jac, tip = out._packs
         Mu = pin.crba(model, data, q)
         g = pin.computeGeneralizedGravity(model, data, q)
         C = pin.computeCoriolisMatrix(model, data, q, v)
         kernels().robot_terms(
-            Mu,
-            C,
-            g,
-            pin.updateFramePlacement(model, data, fid).translation,
+            Mu, C, g, pin.updateFramePlacement(model, data, fid).translation,
             pin.getFrameJacobian(model, data, fid, _LWA),
-            pin.getFrameJacobianTimeVariation(model, data, fid, _LWA),
-            v,
-            out.M,
-            out.C,
-            out.g,
-            out.nle,
-            out.p,
-            out.J,
-            out.Jdot,
-            out.Jdot_v,
-            out.pdot,
-        )
+            pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), v, mats, vecs, jac, tip,
+        )  # fmt: skip
         return out
 
     def _full(self, M_upper: np.ndarray) -> np.ndarray:

@@ -337,7 +337,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     terms_buf = RobotTerms.zeros(nv)
     no_B = np.zeros((nv, k))
     solver = ConstrainedDynamics(model, data, k)
-    gamma_buf = np.zeros(1)
+    gamma_buf = np.zeros(k)
     cons_buf = ConstraintTerms.zeros(k, nv)
     # the compiled Euler + projection step of the plant (one surface, q ⊕ dq = q + dq)
     fast_contact = fast and k == 1 and robot.euclidean and sim.integrator == "euler"
@@ -402,11 +402,8 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             cmd = controller.command(t, q, v, terms, cons)
             f = zeros_k
             if in_contact:
-                if fast and k == 1:  # the k = 1 case of baum.gamma, without temporaries
-                    gamma_buf[0] = baum.gamma_one(
-                        float(cons.drift[0]), float(cons.rate[0]), cons.phi[0] / cons.scale[0]
-                    )
-                    gamma = gamma_buf
+                if fast:
+                    gamma = baum.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, gamma_buf)
                 else:
                     gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
                 if sim.reference:

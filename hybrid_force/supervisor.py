@@ -192,6 +192,10 @@ class HybridController:
         self._law = LawWorkspace(n, k, self.gains) if fast else None
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._scaled = RobotTerms.zeros(n)
+        # per-step tests, decided once
+        self._supervised = s.supervisor
+        self._exact_model = s.mass_factor == 1.0
+        self._subtract = fast and robot.euclidean  # e_q = q − q_d (else pin.difference)
         if fast:
             c = self.clik
             self._desired = Desired(q=c.q, qd=c.qd, qdd=c.qdd)  # c updates them in place
@@ -261,7 +265,7 @@ class HybridController:
             if self.settings.supervisor is False:
                 raise ControlError(f"constraint undefined at t = {t:.6g} s, q = {q.tolist()}")
             phase = FREE
-        elif not self.settings.supervisor:
+        elif not self._supervised:
             phase = CONTACT
         else:
             phase = self._phase_of(cons.distance)
@@ -277,9 +281,9 @@ class HybridController:
                 st.best_error, st.best_error_time = np.inf, t
             self.phase = phase
             self._first = False
-        model = terms if self.settings.mass_factor == 1.0 else self._model_terms(terms)
+        model = terms if self._exact_model else self._model_terms(terms)
         desired = self._desired if self.fast else self.desired
-        if self.fast and self.robot.euclidean:
+        if self._subtract:
             e_q = np.subtract(q, desired.q, out=self._e_q)
         else:
             e_q = pin.difference(self.robot.model, desired.q, q)
