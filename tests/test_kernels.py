@@ -14,7 +14,10 @@ signature, and compared with the readable numpy definition kept next to it:
    (k = 1 and 2, β = 0 and > 0, with and without the approach term);
 7. ``DesiredJointPath(fast=True)`` against ``fast=False`` over 500 steps of 1 ms;
 8. ``_Plant.contact_step`` against Euler + ``pinocchio.integrate`` + ``_Plant.project``;
-9. ``HybridController(fast=True)`` against ``fast=False`` through free, near and contact.
+9. ``HybridController(fast=True)`` against ``fast=False`` through free, near and contact;
+10. ``ConstrainedDynamics.solve`` (one forwardDynamics, the loop resolved with its U D Uᵀ
+    factorisation) against a dense KKT solve and the defining equations, k = 1, 2, 3;
+    ``Baumgarte.gamma_into`` against the formula; the run table's row layout and limits.
 
 (constrained_acceleration with k = 1 and B given is already checked against kkt_reference in
 tests/test_control.py::test_loop_resolved_force_and_closed_loop.)
@@ -688,3 +691,82 @@ def test_hybrid_controller_fast_equals_reference(
         _compare_clik(fast.clik, ref.clik)
     assert phases[0] == FREE and NEAR in phases and phases[-1] == CONTACT
     assert [e["kind"] for e in fast.events] == [e["kind"] for e in ref.events]
+
+
+# --- 11. constrained dynamics with its factorisation, Baumgarte γ, the run's table -------------
+@pytest.mark.parametrize("k", [1, 2, 3])
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_constrained_dynamics_solver_equals_dense_kkt(
+    arms: dict[str, Robot], arm: str, k: int
+) -> None:
+    """ConstrainedDynamics.solve (one forwardDynamics + loop_resolve with U D Uᵀ) against a
+    dense solve of the coupled KKT system, for arbitrary B (not a law's β M A⁺), B = None,
+    and two calls in a row (the second overwrites the first's outputs)."""
+    from hybrid_force.dynamics import ConstrainedDynamics, kkt_reference
+
+    robot = arms[arm]
+    rng = np.random.default_rng(31 + k)
+    data = robot.new_data()
+    solver = ConstrainedDynamics(robot.model, data, k)
+    for trial in range(3):
+        q, v = _random_state(robot, rng)
+        terms = robot.terms(q, v, data)  # runs crba on data, as the loop does
+        n = robot.nv
+        A = rng.standard_normal((k, n))
+        gamma = rng.standard_normal(k)
+        u0 = 10.0 * rng.standard_normal(n)
+        B = None if trial == 0 else 0.1 * rng.standard_normal((n, k))
+        ddq, f = solver.solve(terms.nle, u0, B, A, gamma)
+        ddq_ref, f_ref = kkt_reference(terms.M, terms.nle, u0, B, A, gamma)
+        scale = float(np.abs(ddq_ref).max() + np.abs(terms.nle).max())
+        assert np.abs(ddq - ddq_ref).max() <= 1e-9 * scale
+        assert np.abs(f - f_ref).max() <= 1e-9 * float(np.abs(f_ref).max() + 1.0)
+        # and the defining equations: A q̈ + γ = 0, M q̈ + nle = u0 + B f + Aᵀ f
+        assert np.abs(A @ ddq + gamma).max() <= 1e-9 * scale
+        tau = u0 + (0.0 if B is None else B @ f) + A.T @ f
+        assert np.abs(terms.M @ ddq + terms.nle - tau).max() <= 1e-9 * float(
+            np.abs(tau).max() + np.abs(terms.nle).max()
+        )
+
+
+def test_baumgarte_gamma_into_equals_gamma() -> None:
+    from hybrid_force.dynamics import Baumgarte
+
+    rng = np.random.default_rng(5)
+    baum = Baumgarte(alpha=37.0, beta=12.5)
+    for k in (1, 2, 3):
+        drift, rate, value = rng.standard_normal((3, k))
+        scale = rng.uniform(0.5, 2.0, k)
+        out = np.full(k, np.nan)
+        got = baum.gamma_into(drift, rate, value, scale, out)
+        assert got is out
+        ref = drift + 2 * 37.0 * rate + 12.5**2 * (value / scale)  # section 6.2, by hand
+        assert np.abs(out - ref).max() <= 1e-14 * float(np.abs(ref).max() + 1.0)
+
+
+def test_log_row_holds_the_fields_and_the_applied_command() -> None:
+    """_Log.record writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] and reports
+    NaN in q, |v_i| above max_velocity and |f| above max_force."""
+    from hybrid_force.simulate import _Log
+
+    rng = np.random.default_rng(9)
+    nq = nv = 4
+    k = 2
+    log = _Log(3, nq, nv, k, max_velocity=5.0, max_force=100.0)
+    q, v, q_d, u0 = rng.standard_normal((4, nq))
+    B = rng.standard_normal((nv, k))
+    f, f_d, phi = rng.standard_normal((3, k))
+    p, p_d = rng.standard_normal((2, 3))
+    assert log.record(1, 0.25, q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2)
+    expected = np.concatenate([[0.25], q, v, q_d, u0 + B @ f, p, p_d, f, f_d, phi, [3.5, 2.0]])
+    assert np.abs(log.table[1] - expected).max() <= 1e-15 * float(np.abs(expected).max())
+    assert np.array_equal(log.q[1], q) and np.array_equal(log.phi[1], phi)
+    assert log.V[1] == 3.5 and log.phase[1] == 2 and log.t[1] == 0.25
+    assert not np.any(log.table[0]) and not np.any(log.table[2])  # other rows untouched
+    bad_q = q.copy()
+    bad_q[2] = np.nan
+    assert not log.record(0, 0.0, bad_q, v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
+    fast_v = v.copy()
+    fast_v[1] = -5.5
+    assert not log.record(0, 0.0, q, fast_v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
+    assert not log.record(0, 0.0, q, v, q_d, u0, B, np.array([0.0, 101.0]), p, p_d, f_d, phi, 0, 0)
