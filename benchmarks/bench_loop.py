@@ -385,6 +385,90 @@ def _startup(reps: int) -> dict:
     return out
 
 
+def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
+    """Cost [µs] of each part of one contact step, each timed alone in a tight loop.
+
+    The state is the last one of a 0.2 s run; every part is called with the objects the loop
+    uses (its own controller, plant, buffers), best of ``batches`` batches of ``iters``
+    calls. Parts in the loop run interleaved, with colder caches, so their sum is below the
+    loop's time per step; the shares say what dominates.
+    """
+    from hybrid_force.constraint import Constraint, ConstraintTerms
+    from hybrid_force.dynamics import ConstrainedDynamics
+    from hybrid_force.robot import RobotTerms
+    from hybrid_force.simulate import _Log, _Plant
+    from hybrid_force.supervisor import HybridController
+
+    sc = setup.make(0.2)
+    res = simulate(sc)
+    robot, sim = sc.robot, sc.sim
+    q, v = res.q[-1].copy(), res.v[-1].copy()
+    n = robot.nv
+    data = robot.new_data()
+    constraint = Constraint(sc.surfaces, normalization=sim.normalization)
+    k = constraint.k
+    terms = robot.terms(q, v, data, out=RobotTerms.zeros(n))
+    cbuf = ConstraintTerms.zeros(k, n)
+    cons = constraint.evaluate(terms, v, out=cbuf)
+    ctrl = HybridController(robot, constraint, sc.path, sc.q0, sc.control, dt=sim.dt)
+    cmd = ctrl.command(0.0, q, v, terms, cons)
+    gamma = np.zeros(k)
+    sim.baumgarte.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, gamma)
+    solver = ConstrainedDynamics(robot.model, data, k)
+    ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+    log = _Log(2, robot.nq, n, k, sim.max_velocity, sim.max_force)
+    plant = _Plant(robot, constraint)
+    no_B = np.zeros((n, k))
+    parts: dict[str, Callable[[], object]] = {
+        "robot terms (6 Pinocchio calls + 1 kernel)": lambda: robot.terms(q, v, data, out=terms),
+        "constraint rows, Q, drift (1 kernel)": lambda: constraint.evaluate(terms, v, out=cbuf),
+        "controller command (supervisor + law kernel)": lambda: ctrl.command(
+            0.0, q, v, terms, cons
+        ),
+        "Baumgarte γ (1 kernel)": lambda: sim.baumgarte.gamma_into(
+            cons.drift, cons.rate, cons.phi, cons.scale, gamma
+        ),
+        "constrained dynamics (forwardDynamics + loop kernel)": lambda: solver.solve(
+            terms.nle, cmd.u0, cmd.B, cons.A, gamma
+        ),
+        "sample row (1 kernel)": lambda: log.record(
+            0,
+            0.0,
+            q,
+            v,
+            q,
+            cmd.u0,
+            no_B if cmd.B is None else cmd.B,
+            f,
+            terms.p,
+            terms.p,
+            f,
+            cons.distance,
+            0.0,
+            2,
+        ),
+        # dt = 1 ns: the state stays put, and the CLIK's predictor is made ahead as in the loop
+        "controller update (momenta + CLIK: 7 Pinocchio calls + 5 kernels)": lambda: ctrl.update(
+            1e-9, f
+        ),
+        "plant Euler + projection (3 Pinocchio calls + 2 kernels)": lambda: plant.contact_step(
+            q, v, ddq, 0.0
+        ),
+    }
+    out = {}
+    for name, call in parts.items():
+        for _ in range(200):
+            call()
+        best = np.inf
+        for _ in range(batches):
+            t0 = time.perf_counter()
+            for _ in range(iters):
+                call()
+            best = min(best, (time.perf_counter() - t0) / iters * 1e6)
+        out[name] = best
+    return out
+
+
 def _profile(
     setup: Setup, duration: float, top: int = 15
 ) -> tuple[str, list[dict], dict[str, float]]:
@@ -563,6 +647,9 @@ def main(argv: list[str] | None = None) -> int:
         "linear_within_noise": spread <= max(0.15, noise),
     }
 
+    print("[rtr] parts of one step ...", flush=True)
+    out["parts_rtr_us"] = _parts(setups["rtr"], 2000, 5)
+
     print("start-up ...", flush=True)
     out["startup_s"] = _startup(3)
 
@@ -635,6 +722,21 @@ def _print_table(out: dict) -> None:
     for call in out["per_call_us"][names[0]]:
         vals = " / ".join(f"{out['per_call_us'][n][call]:.2f}" for n in names)
         print(f"  {call:<36}{vals}")
+    print()
+    parts = out["parts_rtr_us"]
+    total = sum(parts.values())
+    print("rtr: parts of one contact step, each timed alone [µs] (best of 5 batches):")
+    for name, us in parts.items():
+        print(f"  {name:<70}{us:>7.2f}  {us / total:>5.1%}")
+    print(f"  {'sum':<70}{total:>7.2f}")
+    print()
+    st = out["startup_s"]
+    print("start-up [s], fresh interpreters, median of 3:")
+    print(f"  import hybrid_force                       {st['import_hybrid_force']:.2f}")
+    print(f"  kernels for a 10 ms RTR run, empty cache  {st['kernels_cold']:.2f}  (compilation)")
+    print(f"  kernels for a 10 ms RTR run, cached       {st['kernels_warm']:.2f}")
+    if "cli_run_0.1s" in st:
+        print(f"  hybrid-force run paper_contact, 0.1 s     {st['cli_run_0.1s']:.2f}")
     print()
 
 
