@@ -678,8 +678,9 @@ def circular_path(basis, phase, omega, t, p, v, a):
 
 # --- controller momenta -----------------------------------------------------------------------
 @_jit
-def accumulate(x, dx, y, dy, dt):
-    """x += dx dt and y += dy dt (the controller's momenta F and F_d, eq. 3)."""
+def accumulate(x, dx, y, dy, dt, diff):
+    """x += dx dt, y += dy dt, diff = x − y (the momenta F, F_d and e_F = F − F_d, eq. 3)."""
     for m in range(x.shape[0]):
         x[m] += dx[m] * dt
         y[m] += dy[m] * dt
+        diff[m] = x[m] - y[m]

@@ -337,6 +337,8 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     terms_buf = RobotTerms.zeros(nv)
     no_B = np.zeros((nv, k))
     solver = ConstrainedDynamics(model, data, k)
+    clik = controller.clik
+    unilateral, release_tol = sim.unilateral, sim.release_tol
     gamma_buf = np.zeros(k)
     cons_buf = ConstraintTerms.zeros(k, nv)
     # the compiled Euler + projection step of the plant (one surface, q ⊕ dq = q + dq)
@@ -406,11 +408,11 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                     gamma = baum.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, gamma_buf)
                 else:
                     gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-                if sim.reference:
-                    ddq, f = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
-                else:
+                if fast:
                     ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
-                if sim.unilateral and float(f[0] if k == 1 else f.min()) < -sim.release_tol:
+                else:
+                    ddq, f = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+                if unilateral and float(f[0] if k == 1 else f.min()) < -release_tol:
                     events.append({"t": t, "kind": "release", "force": float(f.min())})
                     in_contact = False
                     f = zeros_k
@@ -423,12 +425,12 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 t,
                 q,
                 v,
-                controller.clik.q,
+                clik.q,
                 cmd.u0,
                 no_B if cmd.B is None else cmd.B,
                 f,
                 terms.p,
-                controller.clik.p_d,
+                clik.p_d,
                 controller.f_d,
                 cons.distance if cons is not None else plant.distance(q),
                 controller.V,

@@ -58,6 +58,7 @@ from hybrid_force.robot import Robot, RobotTerms
 __all__ = ["CONTACT", "FREE", "NEAR", "PHASE_NAMES", "ControlSettings", "HybridController"]
 
 FREE, NEAR, CONTACT = 0, 1, 2
+_BRANCH_PERIOD = 0.01  # [s] the wrong-branch check runs at most this often (seconds-long test)
 PHASE_NAMES = ("free", "near", "contact")
 
 
@@ -196,6 +197,7 @@ class HybridController:
         self._supervised = s.supervisor
         self._exact_model = s.mass_factor == 1.0
         self._subtract = fast and robot.euclidean  # e_q = q − q_d (else pin.difference)
+        self._next_branch_check = -np.inf
         if fast:
             c = self.clik
             self._desired = Desired(q=c.q, qd=c.qd, qdd=c.qdd)  # c updates them in place
@@ -277,6 +279,7 @@ class HybridController:
             # and a stale e_F would keep pushing (γ e_F) after a release.
             st.F[:] = 0.0
             st.F_d[:] = 0.0
+            self._e_F[:] = 0.0
             if phase == CONTACT:
                 st.best_error, st.best_error_time = np.inf, t
             self.phase = phase
@@ -305,8 +308,11 @@ class HybridController:
         else:
             st.f_d = self.f_d_contact
             approach = None
-            self._check_branch(t, terms, cons, e_q)
-        e_F = np.subtract(st.F, st.F_d, out=self._e_F)
+            if t >= self._next_branch_check:
+                self._next_branch_check = t + _BRANCH_PERIOD
+                self._check_branch(t, terms, cons, e_q)
+        # e_F = F − F_d, kept up to date by update() on the fast path
+        e_F = self._e_F if self.fast else np.subtract(st.F, st.F_d, out=self._e_F)
         if law is not None:
             self._last = (e_q, e_F, st.f_d)
             command = law.arimoto(model, cons, v, e_q, desired, e_F, st.f_d, approach)
@@ -327,6 +333,7 @@ class HybridController:
         most of e_q (‖A⁺A e_q‖ > 0.9 ‖e_q‖) while the tip error stays above ``branch_error``
         for ``branch_check_time``, no gain can correct it: the arm is on another IK branch.
         A steady offset from model error lies along the surface (Q e_q) and is not flagged.
+        Runs at most every 10 ms of simulated time (``_BRANCH_PERIOD``): the test spans seconds.
         """
         st, s = self._int, self.settings
         err = math.dist(terms.p.tolist(), self.clik.p_d.tolist())  # clik is at time t
@@ -356,7 +363,7 @@ class HybridController:
         st = self._int
         if self.phase == CONTACT:
             if self.fast:
-                kernels().accumulate(st.F, f, st.F_d, st.f_d, dt)
+                kernels().accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
             else:
                 st.F += f * dt
                 st.F_d += st.f_d * dt
