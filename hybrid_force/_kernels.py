@@ -424,8 +424,16 @@ def taylor_step(q, qd, qdd, dt, out):
 
 
 @_jit
-def newton_step(q, Jp, target, p, out):
-    """out = q + Jp (target − p) (Euclidean configuration spaces only). Jp: (n, 3)."""
+def newton_step(desc, t, sample, q, Jp, p, out):
+    """out = q + Jp (p_d − p), p_d = sample[0] (Euclidean configuration spaces only).
+
+    desc: the path's descriptor (:func:`path_sample`); when it is not empty the path is
+    evaluated here first, at t [s], into sample (3, 3) = [p_d, ṗ_d, p̈_d]; otherwise sample
+    is given. Jp: (n, 3). p: (3,) tip at q.
+    """
+    if desc.shape[0] > 0:
+        path_sample(desc, t, sample)
+    target = sample[0]
     e0, e1, e2 = target[0] - p[0], target[1] - p[1], target[2] - p[2]
     for i in range(q.shape[0]):
         out[i] = q[i] + (Jp[i, 0] * e0 + Jp[i, 1] * e1 + Jp[i, 2] * e2)
@@ -674,6 +682,16 @@ def circular_path(basis, phase, omega, t, p, v, a):
         p[j] = co * b0 + si * b1 + t * basis[2, j] + basis[3, j]
         v[j] = -ws * b0 + wc * b1 + basis[2, j]
         a[j] = -omega * wc * b0 - omega * ws * b1
+
+
+@_jit
+def path_sample(desc, t, sample):
+    """p_d, ṗ_d, p̈_d at t [s] into the rows of sample (3, 3), from ``Path._descriptor``.
+
+    desc = [0, phase, ω, B (4 × 3, row-major)]: a helix or a circle (:func:`circular_path`).
+    """
+    basis = desc[3:15].reshape((4, 3))
+    circular_path(basis, desc[1], desc[2], t, sample[0], sample[1], sample[2])
 
 
 # --- controller momenta -----------------------------------------------------------------------

@@ -31,6 +31,7 @@ __all__ = ["ClikSettings", "DesiredJointPath", "inverse_kinematics"]
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _START_TOL = 1e-9  # [m] accepted ‖k(q_d(0)) − p_d(0)‖
 _COND_MAX = 1e8  # condition number of J J^T beyond which J is treated as singular
+_NO_DESCRIPTOR = np.zeros(0)  # "the path sample is already there" for the Newton kernel
 
 
 @dataclass(frozen=True)
@@ -296,7 +297,6 @@ class DesiredJointPath:
         model = self.robot.model
         self.t += dt
         if self.fast:
-            self.path.evaluate_into(self.t, self.p_d, self.pdot_d, self.pddot_d)
             self._advance_fast(dt)
             return
         self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
@@ -322,8 +322,13 @@ class DesiredJointPath:
         pin.forwardKinematics(model, data, q_pred)
         pin.updateFramePlacement(model, data, robot.tip_id)
         p = self._tip
+        desc = self.path._descriptor
+        if desc.shape[0] == 0 or not robot.euclidean:  # the path sample in Python
+            self.path.evaluate_into(self.t, self.p_d, self.pdot_d, self.pddot_d)
+            desc = _NO_DESCRIPTOR
         if robot.euclidean:
-            K.newton_step(q_pred, self._Jp, self.p_d, p, self.q)
+            # (a path with a descriptor is sampled at t inside this call)
+            K.newton_step(desc, self.t, self._sample, q_pred, self._Jp, p, self.q)
         else:
             self.q[:] = pin.integrate(model, q_pred, self._Jp @ (self.p_d - p))
         self._derivatives_fast()

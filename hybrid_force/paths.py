@@ -138,6 +138,11 @@ def axis_frame(axis: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 class Path(abc.ABC):
     """A desired task-space path p_d(t) with its first two time derivatives."""
 
+    # The closed form as a small read-only float array that compiled code evaluates
+    # (hybrid_force._kernels.path_sample): [0, phase, ω, basis (12)] for a helix or a circle;
+    # empty when there is none (evaluated in Python).
+    _descriptor: ClassVar[np.ndarray] = np.zeros(0)
+
     @abc.abstractmethod
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (p_d (3,) [m], ṗ_d (3,) [m/s], p̈_d (3,) [m/s²]) at time t [s].
@@ -203,6 +208,9 @@ class _CircularPath(Path):
         basis.setflags(write=False)
         object.__setattr__(self, "_frame", (e1, e2, a))
         object.__setattr__(self, "_basis", basis)
+        desc = np.array([0.0, self.phase, self.omega, *basis.ravel()])
+        desc.setflags(write=False)
+        object.__setattr__(self, "_descriptor", desc)
 
     @property
     def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
