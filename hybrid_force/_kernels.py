@@ -30,7 +30,19 @@ _jit = numba.njit(cache=True, error_model="numpy")
 
 # --- robot (hybrid_force.robot.Robot.terms) --------------------------------------------------
 @_jit
-def robot_terms(Mu, C_in, g_in, p_in, J6, Jd6, v, mats, vecs, jac, tip):
+def robot_terms(
+    Mu: np.ndarray,
+    C_in: np.ndarray,
+    g_in: np.ndarray,
+    p_in: np.ndarray,
+    J6: np.ndarray,
+    Jd6: np.ndarray,
+    v: np.ndarray,
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+) -> None:
     """Copy one step's Pinocchio outputs into the terms' arrays and derive the rest.
 
     Mu: (n, n) crba output (upper triangle valid). C_in: (n, n). g_in: (n,). p_in: (3,) tip
@@ -68,7 +80,19 @@ def robot_terms(Mu, C_in, g_in, p_in, J6, Jd6, v, mats, vecs, jac, tip):
 
 # --- constraint (hybrid_force.constraint.Constraint, k = 1) ----------------------------------
 @_jit
-def constraint_one(desc, grad, hess, jac, tip, v, tip_scaling, rows, cols, squares, scalars):
+def constraint_one(
+    desc: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+    v: np.ndarray,
+    tip_scaling: bool,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    squares: np.ndarray,
+    scalars: np.ndarray,
+) -> tuple[float, float, float]:
     """One surface's joint-space terms: the k = 1 case of ``Constraint.evaluate``.
 
     desc: the surface's descriptor (see :func:`surface_eval`); when it is empty, grad (3,),
@@ -164,28 +188,28 @@ def constraint_one(desc, grad, hess, jac, tip, v, tip_scaling, rows, cols, squar
 # --- control (hybrid_force.control.arimoto_law) ----------------------------------------------
 @_jit
 def arimoto(
-    M,
-    C,
-    g,
-    Kd,
-    Q,
-    Qdot,
-    Ap,
-    Apd,
-    A,
-    v,
-    e_q,
-    qd,
-    qdd,
-    e_F,
-    f_d,
-    approach,
-    lam,
-    beta,
-    gamma,
-    vectors,
-    matrices,
-):
+    M: np.ndarray,
+    C: np.ndarray,
+    g: np.ndarray,
+    Kd: np.ndarray,
+    Q: np.ndarray,
+    Qdot: np.ndarray,
+    Ap: np.ndarray,
+    Apd: np.ndarray,
+    A: np.ndarray,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray,
+    lam: float,
+    beta: float,
+    gamma: float,
+    vectors: np.ndarray,
+    matrices: np.ndarray,
+) -> float:
     """The modified Arimoto law, eq. 4, 8, 11, as ``control.arimoto_law`` (k rows).
 
     M, C, Kd, Q, Qdot: (n, n). g, v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). A: (k, n).
@@ -250,7 +274,7 @@ def arimoto(
 
 # --- clik (hybrid_force.clik.DesiredJointPath) ------------------------------------------------
 @_jit
-def _inv3_into(a, out):
+def _inv3_into(a: np.ndarray, out: np.ndarray) -> float:
     """out = a⁻¹ for a (3, 3) by the adjugate; returns the determinant (0 → out unchanged)."""
     c0 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
     c1 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
@@ -272,7 +296,18 @@ def _inv3_into(a, out):
 
 
 @_jit
-def clik_velocity(J6, p, sample, cfg, dq_post, Jp, W, N, x, qd):
+def clik_velocity(
+    J6: np.ndarray,
+    p: np.ndarray,
+    sample: np.ndarray,
+    cfg: np.ndarray,
+    dq_post: np.ndarray,
+    Jp: np.ndarray,
+    W: np.ndarray,
+    N: np.ndarray,
+    x: np.ndarray,
+    qd: np.ndarray,
+) -> float:
     """q̇_d of eq. 27 at the current q_d, as ``DesiredJointPath._derivatives`` (first half).
 
     J6: (6, n) tip Jacobian (rows 0..2 used). p: (3,) tip position. sample: (3, 3) rows
@@ -325,7 +360,22 @@ def clik_velocity(J6, p, sample, cfg, dq_post, Jp, W, N, x, qd):
 
 
 @_jit
-def clik_acceleration(J6, Jd6, Jp, W, N, x, qd, sample, cfg, dq_post, qdd, q, dt_pred, q_pred):
+def clik_acceleration(
+    J6: np.ndarray,
+    Jd6: np.ndarray,
+    Jp: np.ndarray,
+    W: np.ndarray,
+    N: np.ndarray,
+    x: np.ndarray,
+    qd: np.ndarray,
+    sample: np.ndarray,
+    cfg: np.ndarray,
+    dq_post: np.ndarray,
+    qdd: np.ndarray,
+    q: np.ndarray,
+    dt_pred: float,
+    q_pred: np.ndarray,
+) -> None:
     """q̈_d, the exact time derivative of q̇_d (second half of ``_derivatives``).
 
     Jd6: (6, n) J̇(q_d, q̇_d). Other inputs as written by or given to :func:`clik_velocity`.
@@ -342,8 +392,21 @@ def clik_acceleration(J6, Jd6, Jp, W, N, x, qd, sample, cfg, dq_post, qdd, q, dt
 
 @_jit
 def _clik_qdd(
-    J6, Jd6, Jp, W, N, x, qd, pdot_d, pddot_d, gamma, redundant, posture_gain, dq_post, qdd
-):
+    J6: np.ndarray,
+    Jd6: np.ndarray,
+    Jp: np.ndarray,
+    W: np.ndarray,
+    N: np.ndarray,
+    x: np.ndarray,
+    qd: np.ndarray,
+    pdot_d: np.ndarray,
+    pddot_d: np.ndarray,
+    gamma: float,
+    redundant: np.ndarray,
+    posture_gain: np.ndarray,
+    dq_post: np.ndarray,
+    qdd: np.ndarray,
+) -> None:
     n = qd.shape[0]
     xdot = np.empty(3)
     for r in range(3):
@@ -416,7 +479,7 @@ def _clik_qdd(
 
 
 @_jit
-def taylor_step(q, qd, qdd, dt, out):
+def taylor_step(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, dt: float, out: np.ndarray) -> None:
     """out = q + q̇ dt + q̈ dt²/2 (Euclidean configuration spaces only)."""
     h = 0.5 * dt * dt
     for i in range(q.shape[0]):
@@ -424,7 +487,15 @@ def taylor_step(q, qd, qdd, dt, out):
 
 
 @_jit
-def newton_step(desc, t, sample, q, Jp, p, out):
+def newton_step(
+    desc: np.ndarray,
+    t: float,
+    sample: np.ndarray,
+    q: np.ndarray,
+    Jp: np.ndarray,
+    p: np.ndarray,
+    out: np.ndarray,
+) -> None:
     """out = q + Jp (p_d − p), p_d = sample[0] (Euclidean configuration spaces only).
 
     desc: the path's descriptor (:func:`path_sample`); when it is not empty the path is
@@ -441,14 +512,22 @@ def newton_step(desc, t, sample, q, Jp, p, out):
 
 # --- dynamics (hybrid_force.dynamics.constrained_acceleration) --------------------------------
 @_jit
-def baumgarte(drift, rate, value, scale, two_alpha, beta_sq, out):
+def baumgarte(
+    drift: np.ndarray,
+    rate: np.ndarray,
+    value: np.ndarray,
+    scale: np.ndarray,
+    two_alpha: float,
+    beta_sq: float,
+    out: np.ndarray,
+) -> None:
     """γ = drift + 2α A q̇ + β² Φ/s (k,), as ``Baumgarte.gamma`` (section 6.2)."""
     for m in range(out.shape[0]):
         out[m] = drift[m] + two_alpha * rate[m] + beta_sq * (value[m] / scale[m])
 
 
 @_jit
-def _solve_udut(U, D, b, x):
+def _solve_udut(U: np.ndarray, D: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
     """x = (U D Uᵀ)⁻¹ b with U (n, n) unit upper triangular and D (n,): Pinocchio's M."""
     n = b.shape[0]
     for i in range(n - 1, -1, -1):
@@ -466,7 +545,16 @@ def _solve_udut(U, D, b, x):
 
 
 @_jit
-def loop_resolve(U, D, A, B, ddq0, f0, ddq, f):
+def loop_resolve(
+    U: np.ndarray,
+    D: np.ndarray,
+    A: np.ndarray,
+    B: np.ndarray,
+    ddq0: np.ndarray,
+    f0: np.ndarray,
+    ddq: np.ndarray,
+    f: np.ndarray,
+) -> bool:
     """Resolve the command u = u0 + B f from the KKT solution (q̈0, f0) at u = u0.
 
     With M = U D Uᵀ (the factorisation pinocchio.forwardDynamics leaves in data.U, data.D),
@@ -534,7 +622,7 @@ def loop_resolve(U, D, A, B, ddq0, f0, ddq, f):
 
 # --- simulate (hybrid_force.simulate: semi-implicit Euler and post-stabilisation, k = 1) -----
 @_jit
-def _put(row, start, x):
+def _put(row: np.ndarray, start: int, x: np.ndarray) -> int:
     for j in range(x.shape[0]):
         row[start + j] = x[j]
     return start + x.shape[0]
@@ -542,8 +630,24 @@ def _put(row, start, x):
 
 @_jit
 def record_row(
-    table, i, t, q, v, q_d, u0, B, f, p, p_d, f_d, phi, V, phase, max_velocity, max_force
-):
+    table: np.ndarray,
+    i: int,
+    t: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    q_d: np.ndarray,
+    u0: np.ndarray,
+    B: np.ndarray,
+    f: np.ndarray,
+    p: np.ndarray,
+    p_d: np.ndarray,
+    f_d: np.ndarray,
+    phi: np.ndarray,
+    V: float,
+    phase: int,
+    max_velocity: float,
+    max_force: float,
+) -> bool:
     """Write one sample into row i of the run's table (fields in the order of simulate._Log).
 
     The command column is u = u0 + B f (B: (n, k)). Returns True when q, v, f are finite,
@@ -578,7 +682,15 @@ def record_row(
 
 
 @_jit
-def euler_step(q, v, ddq, dt, euclidean, v_out, q_out):
+def euler_step(
+    q: np.ndarray,
+    v: np.ndarray,
+    ddq: np.ndarray,
+    dt: float,
+    euclidean: bool,
+    v_out: np.ndarray,
+    q_out: np.ndarray,
+) -> None:
     """Semi-implicit Euler: v⁺ = v + q̈ dt, then q⁺ = q + v⁺ dt when ``euclidean``.
 
     Writes v_out; writes q_out only for a Euclidean configuration space (otherwise the caller
@@ -592,7 +704,18 @@ def euler_step(q, v, ddq, dt, euclidean, v_out, q_out):
 
 
 @_jit
-def project_one(desc, p, grad, phi, J6, q, v, euclidean, q_out, v_out):
+def project_one(
+    desc: np.ndarray,
+    p: np.ndarray,
+    grad: np.ndarray,
+    phi: float,
+    J6: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    euclidean: bool,
+    q_out: np.ndarray,
+    v_out: np.ndarray,
+) -> float:
     """One Gauss–Newton step onto a surface and the velocity onto its tangent space, k = 1.
 
     desc: the surface's descriptor (:func:`surface_eval`), evaluated here at the tip p (3,);
@@ -626,7 +749,9 @@ def project_one(desc, p, grad, phi, J6, q, v, euclidean, q_out, v_out):
 
 # --- surfaces (hybrid_force.surfaces: Cylinder, Sphere, Plane) --------------------------------
 @_jit
-def surface_eval(desc, p, grad, hess):
+def surface_eval(
+    desc: np.ndarray, p: np.ndarray, grad: np.ndarray, hess: np.ndarray
+) -> tuple[float, float]:
     """Φ, ∇Φ, ∇²Φ and d of a surface from its descriptor (``Surface._descriptor``) at p.
 
     desc[0] = 0: cylinder or sphere, desc = [0, c (3), a (3), sign, r², r] (a = 0 for a
@@ -667,7 +792,15 @@ def surface_eval(desc, p, grad, hess):
 
 # --- paths (hybrid_force.paths._CircularPath.evaluate) ---------------------------------------
 @_jit
-def circular_path(basis, phase, omega, t, p, v, a):
+def circular_path(
+    basis: np.ndarray,
+    phase: float,
+    omega: float,
+    t: float,
+    p: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+) -> None:
     """p = [cos θ, sin θ, t, 1] B, ṗ = [−ω sin θ, ω cos θ, 1, 0] B, p̈ = −ω² [cos θ, sin θ] B.
 
     basis: (4, 3) rows r·e1, r·e2, rise·a, c. θ = phase + ω t. Writes p, v, a (3,).
@@ -685,7 +818,7 @@ def circular_path(basis, phase, omega, t, p, v, a):
 
 
 @_jit
-def path_sample(desc, t, sample):
+def path_sample(desc: np.ndarray, t: float, sample: np.ndarray) -> None:
     """p_d, ṗ_d, p̈_d at t [s] into the rows of sample (3, 3), from ``Path._descriptor``.
 
     desc = [0, phase, ω, B (4 × 3, row-major)]: a helix or a circle (:func:`circular_path`).
@@ -696,7 +829,9 @@ def path_sample(desc, t, sample):
 
 # --- controller momenta -----------------------------------------------------------------------
 @_jit
-def accumulate(x, dx, y, dy, dt, diff):
+def accumulate(
+    x: np.ndarray, dx: np.ndarray, y: np.ndarray, dy: np.ndarray, dt: float, diff: np.ndarray
+) -> None:
     """x += dx dt, y += dy dt, diff = x − y (the momenta F, F_d and e_F = F − F_d, eq. 3)."""
     for m in range(x.shape[0]):
         x[m] += dx[m] * dt
