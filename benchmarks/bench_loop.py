@@ -283,18 +283,20 @@ def _time_each_call(robot: Robot, iters: int) -> dict[str, float]:
         "getFrameJacobian": lambda: pin.getFrameJacobian(model, data, fid, _LWA),
         "forwardKinematics": lambda: pin.forwardKinematics(model, data, q),
     }
-    out = {}
-    for name, call in calls.items():
-        for _ in range(100):
+    return {name: _best_us(call, 100, iters, 3) for name, call in calls.items()}
+
+
+def _best_us(call: Callable[[], object], warmup: int, iters: int, batches: int) -> float:
+    """Best time per call [µs] of ``call`` over ``batches`` batches of ``iters`` calls."""
+    for _ in range(warmup):
+        call()
+    best = np.inf
+    for _ in range(batches):
+        t0 = time.perf_counter()
+        for _ in range(iters):
             call()
-        best = np.inf
-        for _ in range(3):
-            t0 = time.perf_counter()
-            for _ in range(iters):
-                call()
-            best = min(best, (time.perf_counter() - t0) / iters * 1e6)
-        out[name] = best
-    return out
+        best = min(best, (time.perf_counter() - t0) / iters * 1e6)
+    return best
 
 
 # ---------------------------------------------------------------------------- loop
@@ -455,18 +457,7 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
             q, v, ddq, 0.0
         ),
     }
-    out = {}
-    for name, call in parts.items():
-        for _ in range(200):
-            call()
-        best = np.inf
-        for _ in range(batches):
-            t0 = time.perf_counter()
-            for _ in range(iters):
-                call()
-            best = min(best, (time.perf_counter() - t0) / iters * 1e6)
-        out[name] = best
-    return out
+    return {name: _best_us(call, 200, iters, batches) for name, call in parts.items()}
 
 
 def _profile(

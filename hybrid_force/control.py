@@ -270,11 +270,10 @@ class LawWorkspace:
         self.V = 0.0
         self.hybrid = False
         self._zeros_k = np.zeros(k)
-        self._eye = np.eye(n)
-        self._zeros_nn = np.zeros((n, n))
-        self._no_cols = np.zeros((n, 0))
-        self._no_rows = np.zeros((0, n))
         self._no_force = np.zeros(0)
+        # the free-space law is the hybrid law with no constraint rows: Q = I, Q̇ = 0
+        self._free_space = ConstraintTerms.zeros(0, n)
+        self._free_space.Q[:] = np.eye(n)
         self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
         self._free = Command(u0=self.u0, B=None)
 
@@ -290,30 +289,9 @@ class LawWorkspace:
         approach: np.ndarray | None = None,
     ) -> Command:
         """:func:`arimoto_law` (eq. 4, 8, 11); same arguments, the gains are this workspace's."""
-        g = self.gains
-        self.V = kernels().arimoto(
-            robot.M,
-            robot.C,
-            robot.g,
-            g.Kd,
-            cons.Q,
-            cons.Qdot,
-            cons.A_pinv,
-            cons.A_pinv_dot,
-            cons.A,
-            v,
-            e_q,
-            desired.qd,
-            desired.qdd,
-            e_F,
-            f_d,
-            self._zeros_k if approach is None else approach,
-            g.Lambda,
-            g.beta,
-            g.gamma,
-            self._vectors,
-            self._matrices,
-        )
+        if approach is None:
+            approach = self._zeros_k
+        self._run(robot, cons, v, e_q, desired, e_F, f_d, approach, self._matrices)
         self.hybrid = True
         return self._hybrid
 
@@ -321,33 +299,29 @@ class LawWorkspace:
         self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
     ) -> Command:
         """:func:`free_space_law` (eq. 29–30); same arguments, the gains are this workspace's."""
-        g = self.gains
         none = self._no_force
-        self.V = kernels().arimoto(
-            robot.M,
-            robot.C,
-            robot.g,
-            g.Kd,
-            self._eye,
-            self._zeros_nn,
-            self._no_cols,
-            self._no_cols,
-            self._no_rows,
-            v,
-            e_q,
-            desired.qd,
-            desired.qdd,
-            none,
-            none,
-            none,
-            g.Lambda,
-            g.beta,
-            g.gamma,
-            self._vectors,
-            self._free_matrices,
-        )
+        self._run(robot, self._free_space, v, e_q, desired, none, none, none, self._free_matrices)
         self.hybrid = False
         return self._free
+
+    def _run(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray,
+        matrices: np.ndarray,
+    ) -> None:
+        g = self.gains
+        self.V = kernels().arimoto(
+            robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
+            cons.A, v, e_q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda, g.beta,
+            g.gamma, self._vectors, matrices,
+        )  # fmt: skip
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
         """A :class:`ControlTrace` of the last call (copies of the buffers)."""

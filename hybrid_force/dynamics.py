@@ -107,18 +107,7 @@ def constrained_acceleration(
     Returns:
         q̈ (n,) and f (k,) [N].
     """
-    data.nle[:] = nle
-    ddq0 = pin.forwardDynamics(model, data, u0, A, gamma)
-    f0 = data.lambda_c
-    if B is None:
-        return ddq0.copy(), f0.copy()
-    ddq = np.empty_like(ddq0)
-    f = np.empty_like(f0)
-    if not kernels().loop_resolve(data.U, data.D, A, B, ddq0, f0, ddq, f):
-        raise np.linalg.LinAlgError(
-            "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
-        )
-    return ddq, f
+    return ConstrainedDynamics(model, data, A.shape[0]).solve(nle, u0, B, A, gamma)
 
 
 class ConstrainedDynamics:
