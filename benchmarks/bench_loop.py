@@ -300,12 +300,24 @@ def _best_us(call: Callable[[], object], warmup: int, iters: int, batches: int) 
 
 
 # ---------------------------------------------------------------------------- loop
-def _time_loop(setup: Setup, duration: float, reps: int) -> dict:
-    """Median steps per second (meta['steps_per_second']) and wall time of simulate()."""
-    sps, walls, totals = [], [], []
+def _time_loop(
+    setup: Setup,
+    duration: float,
+    reps: int,
+    floor_step: Callable[[], None] | None = None,
+    floor_iters: int = 2000,
+) -> dict:
+    """Median steps per second (meta['steps_per_second']) and wall time of simulate().
+
+    With ``floor_step``, a batch of the floor loop is timed right before each repetition, so
+    each repetition has its own floor measured in the same machine state ("pairs").
+    """
+    sps, walls, totals, pairs = [], [], [], []
     status = "ok"
     simulate(setup.make(0.01))  # compiled kernels loaded (or compiled) before timing
     for _ in range(reps):
+        if floor_step is not None:
+            floor_us = _best_us(floor_step, 100, floor_iters, 1)
         scenario = setup.make(duration)
         t0 = time.perf_counter()
         result = simulate(scenario)
@@ -314,7 +326,12 @@ def _time_loop(setup: Setup, duration: float, reps: int) -> dict:
         walls.append(float(result.meta["wall_time"]))
         status = result.meta["status"]
         err = float(np.abs(result.phi).max())
+        if floor_step is not None:
+            pairs.append({"floor_us": floor_us, "loop_us": 1e6 / sps[-1]})
+    paired = [x["loop_us"] / x["floor_us"] for x in pairs]
     return {
+        "pairs": pairs,
+        "overhead_paired_median": statistics.median(paired) if paired else None,
         "duration_s": duration,
         "reps": reps,
         "steps_per_second_median": statistics.median(sps),
@@ -589,7 +606,7 @@ def main(argv: list[str] | None = None) -> int:
                     k: float(v) for k, v in expected.items()
                 }
                 print(f"[{name}] closed loop {reps} x 2 s ...", flush=True)
-                loop = _time_loop(setup, 2.0, reps)
+                loop = _time_loop(setup, 2.0, reps, _floor_step(robot), iters // 2)
                 row["loop"] = loop
                 row["loop_steps_per_second"] = loop["steps_per_second_median"]
                 row["loop_us_per_step"] = loop["us_per_step_median"]
@@ -694,6 +711,18 @@ def _print_table(out: dict) -> None:
             f"{r['robot']:<6}{r['n']:>4}{r['floor_us_per_step']:>15.1f}"
             f"{r['floor_steps_per_second']:>15.0f}{tail}"
         )
+    print()
+    print("each repetition with a floor batch timed just before it: floor µs -> loop µs (ratio)")
+    for r in out["per_robot"]:
+        pairs = r.get("loop", {}).get("pairs") or []
+        if pairs:
+            text = ", ".join(
+                f"{x['floor_us']:.1f}->{x['loop_us']:.1f} ({x['loop_us'] / x['floor_us']:.1f}x)"
+                for x in pairs
+            )
+            print(
+                f"  {r['robot']:<6}{text}; median ratio {r['loop']['overhead_paired_median']:.1f}x"
+            )
     print()
     print("linearity (rtr): simulated s -> wall s per simulated s")
     for x in out["linearity_rtr"]["runs"]:

@@ -134,6 +134,49 @@ def test_fast_loop_equals_the_reference_step(rtr, which: str) -> None:
     np.testing.assert_array_equal(fast.phase, ref.phase)
 
 
+def _panda_plane_scenario(duration: float, **sim) -> Scenario:
+    """A 7-joint arm (redundant CLIK, posture term) tracing a circle on the plane z = 0.3 m."""
+    panda = load_robot("panda")
+    circle = Circle(center=(0.4, 0.1, 0.3), radius=0.1, normal=(0, 0, 1), omega=1.0)
+    seed = np.array([0, -0.3, 0, -2.2, 0, 1.9, 0.785])
+    return Scenario(
+        robot=panda,
+        surfaces=[Plane(point=(0, 0, 0.3), normal=(0, 0, 1))],
+        path=circle,
+        q0=inverse_kinematics(panda, circle.position(0.0), seed=seed),
+        control=ControlSettings(supervisor=False),
+        sim=SimSettings(duration=duration, **sim),
+    )
+
+
+def _groove_scenario(robot, duration: float, **sim) -> Scenario:
+    """k = 2: the groove between the plane z = 10 and the cylinder r = 0.4, model mass × 1.1."""
+    q0 = inverse_kinematics(robot, np.array([0.4, 0.0, 10.0]), seed=np.array([0.0, 9.0, 2.0]))
+    return Scenario(
+        robot=robot,
+        surfaces=[Cylinder(0.4), Plane(point=(0, 0, 10), normal=(0, 0, -1))],
+        path=Circle(center=(0, 0, 10), radius=0.4, normal=(0, 0, 1), omega=1.0),
+        q0=q0,
+        control=ControlSettings(supervisor=False, f_d=(10.0, 5.0), mass_factor=1.1),
+        sim=SimSettings(duration=duration, **sim),
+    )
+
+
+@pytest.mark.parametrize("which", ["panda_plane", "groove_mass_error"])
+def test_fast_loop_equals_the_reference_step_beyond_the_paper(rtr, which: str) -> None:
+    """The same equality for a redundant 7-joint arm on a plane, and for two stacked surfaces
+    (k = 2: general constraint algebra, the k × k loop solve) with a controller model error."""
+    if which == "panda_plane":
+        fast, ref = (simulate(_panda_plane_scenario(0.3, reference=r)) for r in (False, True))
+    else:
+        fast, ref = (simulate(_groove_scenario(rtr, 0.3, reference=r)) for r in (False, True))
+    np.testing.assert_allclose(fast.q, ref.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.v, ref.v, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(fast.u, ref.u, rtol=0, atol=1e-7 * (1 + np.abs(ref.u).max()))
+    np.testing.assert_allclose(fast.f, ref.f, rtol=0, atol=1e-6 * (1 + np.abs(ref.f).max()))
+    assert np.abs(fast.f).min() > 1.0  # in contact, pressing, the whole run
+
+
 def test_rk4_integrator_also_converges(rtr) -> None:
     r = simulate(_contact_scenario(rtr, 4.0, integrator="rk4"))
     assert np.linalg.norm(r.p - r.p_d, axis=1)[-1] < 1e-9
