@@ -467,7 +467,7 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
             2,
         ),
         # dt = 1 ns: the state stays put, and the CLIK's predictor is made ahead as in the loop
-        "controller update (momenta + CLIK: 7 Pinocchio calls + 5 kernels)": lambda: ctrl.update(
+        "controller update (momenta + CLIK: 7 Pinocchio calls + 4 kernels)": lambda: ctrl.update(
             1e-9, f
         ),
         "plant Euler + projection (3 Pinocchio calls + 2 kernels)": lambda: plant.contact_step(
