@@ -256,6 +256,8 @@ class Result:
         phase: (N,) int64 phase code: 0 free, 1 near, 2 contact.
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
+            steps_per_second counts the loop from its second step on (the first steps load
+            or, after installation, compile the kernels); wall_time is the whole loop [s].
 
     For all-revolute/prismatic arms nq = n.  For arms with continuous or spherical joints
     (Pinocchio's nq > nv) ``q`` and ``q_d`` may have nq columns and ``v``, ``u`` n = nv columns.
