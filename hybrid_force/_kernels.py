@@ -5,14 +5,18 @@ arrays of 3 to 30 numbers; from numpy each costs about a microsecond of call ove
 more than the arithmetic. Here the same formulas are written as loops and compiled once by
 Numba (cached on disk), so each concept's algebra costs one call per step.
 
-Every kernel here has a readable numpy definition in its concept module, which stays the
-reference: :mod:`hybrid_force.robot` (terms), :mod:`hybrid_force.constraint` (k = 1 rows),
-:mod:`hybrid_force.control` (eq. 4, 11), :mod:`hybrid_force.clik` (eq. 27),
-:mod:`hybrid_force.dynamics` (the algebraic loop). The tests check each kernel against its
-reference, and the whole fast step against the reference step, to round-off.
+Every kernel here has a readable numpy or Python definition in its concept module, which stays
+the reference: :mod:`hybrid_force.robot` (terms), :mod:`hybrid_force.surfaces` (Φ, ∇Φ, ∇²Φ,
+d), :mod:`hybrid_force.constraint` (k = 1 rows), :mod:`hybrid_force.control` (eq. 4, 11,
+29–30), :mod:`hybrid_force.clik` (eq. 27), :mod:`hybrid_force.paths` (helix, circle),
+:mod:`hybrid_force.dynamics` (Baumgarte, the algebraic loop) and :mod:`hybrid_force.simulate`
+(Euler, projection, the sample row). ``tests/test_kernels.py`` checks each kernel against its
+reference, and ``tests/test_simulate.py`` the whole fast step against the reference step.
 
-This module is imported only by the fast paths (Numba takes about 0.5 s to import); nothing
-here knows which law, surface or arm it serves: kernels take arrays and return arrays.
+Each concept module calls only its own kernels (the simulator never calls the law's, the
+controller never the plant's). Built-in surfaces and paths describe their closed form by a
+small array (``_descriptor``) that kernels evaluate; user-defined ones stay in Python. This
+module is imported only by the fast paths (Numba takes about 0.5 s to import).
 Conventions: outputs are preallocated arrays passed last and written in place.
 """
 
