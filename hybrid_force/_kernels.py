@@ -13,9 +13,10 @@ d), :mod:`hybrid_force.constraint` (k = 1 rows), :mod:`hybrid_force.control` (eq
 (Euler, projection, the sample row). ``tests/test_kernels.py`` checks each kernel against its
 reference, and ``tests/test_simulate.py`` the whole fast step against the reference step.
 
-Each concept module calls only its own kernels (the simulator never calls the law's, the
-controller never the plant's). Built-in surfaces and paths describe their closed form by a
-small array (``_descriptor``) that kernels evaluate; user-defined ones stay in Python. This
+The simulator never calls the law's kernel, nor the controller the plant's. Built-in surfaces
+and paths describe their closed form by a small array (``_descriptor``) that a kernel evaluates
+where the Python code would call ``surface.evaluate`` or ``path.evaluate``; user-defined
+surfaces and paths stay in Python. This
 module is imported only by the fast paths (Numba takes about 0.5 s to import).
 Conventions: outputs are preallocated arrays passed last and written in place.
 """
