@@ -14,6 +14,7 @@ from hybrid_force.control import (
     ControlTrace,
     Desired,
     Gains,
+    LawWorkspace,
     arimoto_law,
     default_damping_gain,
     free_space_law,
@@ -21,6 +22,7 @@ from hybrid_force.control import (
 )
 from hybrid_force.dynamics import (
     Baumgarte,
+    ConstrainedDynamics,
     constrained_acceleration,
     free_acceleration,
     kkt_reference,
@@ -116,6 +118,7 @@ __all__ = [
     "Circle",
     "ClikSettings",
     "Command",
+    "ConstrainedDynamics",
     "Constraint",
     "ConstraintTerms",
     "ControlError",
@@ -134,6 +137,7 @@ __all__ = [
     "Helix",
     "HybridController",
     "HybridForceError",
+    "LawWorkspace",
     "Metrics",
     "OnSurfaceReport",
     "Path",
