@@ -9,16 +9,23 @@ One step (dt, 1 ms by default):
 1. the plant's terms at (q, v), once (:meth:`Robot.terms`), and the constraint terms;
 2. the controller's command u = u0 + B f (the simulator does not know which law made it);
 3. in contact, the constrained dynamics resolve q̈ and f together
-   (:func:`~hybrid_force.dynamics.constrained_acceleration`); if the surface would have to
+   (:class:`~hybrid_force.dynamics.ConstrainedDynamics`); if the surface would have to
    pull (f < 0) the contact is released (unilateral surface) and the step is free;
-4. the controller advances its integrators with f; the plant is integrated by semi-implicit
-   Euler with ``pinocchio.integrate`` (or RK4 with the command held over the step);
+4. the sample is recorded; the controller advances its integrators with f; the plant is
+   integrated by semi-implicit Euler with ``pinocchio.integrate`` (q + v dt directly for arms
+   whose joints are all bounded revolute or prismatic), or RK4 with the command held over the
+   step;
 5. in contact, post-stabilisation: one Gauss–Newton step puts the tip back on the surface and
    the velocity is projected onto the tangent space (removes the O(dt²) drift that the
    Baumgarte terms alone would leave, so the distance stays at round-off);
 6. out of contact, a crossing of the surface between two steps (d changing sign) is detected,
    the tip is placed on the surface at the crossing, and a plastic impact (A q̇⁺ = 0) is
    applied: the tool never passes through the surface.
+
+Two implementations of the step: the default calls compiled kernels between the Pinocchio
+calls (:mod:`hybrid_force._kernels`); ``SimSettings(reference=True)`` runs the readable numpy
+code they mirror (one public method per robot term, the general constraint algebra, the numpy
+laws and CLIK, a dense KKT solve). The tests compare the two.
 """
 
 from __future__ import annotations
