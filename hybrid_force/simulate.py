@@ -85,8 +85,10 @@ class SimSettings:
         settle_time: metrics "after settling" start here [s].
         normalization: constraint row scaling, "tip" (f in N) or "joint" (the paper's J_Φn).
         reference: use the straightforward step instead of the fast one: every robot term
-            from its own Pinocchio call, the general k-row constraint algebra, and a dense
-            numpy solve of the KKT system instead of pin.forwardDynamics. Slow; for tests.
+            from its own Pinocchio call, the general k-row constraint algebra, the numpy laws
+            and CLIK, and a dense numpy solve of the KKT system instead of
+            pin.forwardDynamics; no compiled kernel but the recorder's (the sample row is
+            written the same way in both). About 10× slower; for tests.
     """
 
     duration: float = 20.0
