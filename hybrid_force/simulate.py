@@ -57,7 +57,7 @@ from hybrid_force.errors import (
     SimulationError,
     SingularConfigurationError,
 )
-from hybrid_force.paths import Path
+from hybrid_force.paths import Path, PathParameterError
 from hybrid_force.result import Result
 from hybrid_force.robot import Robot, RobotTerms
 from hybrid_force.supervisor import ControlSettings, HybridController
@@ -365,7 +365,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         "scenario": _jsonable(sc.source) if sc.source is not None else None,
         "robot": {"model": robot.name, "tip": robot.tip, "nq": nq},
         "surfaces": [s.to_dict() for s in sc.surfaces],
-        "path": sc.path.to_dict(),
+        "path": _path_meta(sc.path),
         "gains": {
             "Kd": controller.gains.Kd.tolist(),
             "Lambda": controller.gains.Lambda,
@@ -530,6 +530,15 @@ def _reference_terms(robot: Robot, q: np.ndarray, v: np.ndarray) -> RobotTerms:
         Jdot_v=robot.drift(q, v),
         pdot=J @ v,
     )
+
+
+def _path_meta(path: Path) -> dict:
+    """The path for the result's metadata: its dict, or its type and repr for a FunctionPath
+    (Python callables cannot be stored; the run itself is not affected)."""
+    try:
+        return path.to_dict()
+    except PathParameterError:
+        return {"type": "function", "repr": repr(path)}
 
 
 def _merge(a: list[dict], b: list[dict]) -> list[dict]:
