@@ -58,8 +58,8 @@ from hybrid_force.robot import Robot, RobotTerms
 __all__ = ["CONTACT", "FREE", "NEAR", "PHASE_NAMES", "ControlSettings", "HybridController"]
 
 FREE, NEAR, CONTACT = 0, 1, 2
-_BRANCH_PERIOD = 0.01  # [s] the wrong-branch check runs at most this often (seconds-long test)
 PHASE_NAMES = ("free", "near", "contact")
+_BRANCH_PERIOD = 0.01  # [s] the wrong-branch check runs at most this often (seconds-long test)
 
 
 @dataclass(frozen=True)
