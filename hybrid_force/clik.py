@@ -146,10 +146,11 @@ class DesiredJointPath:
         q0: (nq,) q_d(0); must satisfy k(q_d(0)) = p_d(0) (see :func:`inverse_kinematics`).
         settings: the CLIK gains.
         t0: start time [s].
-        fast: do the algebra of each step in two compiled calls
-            (:func:`hybrid_force._kernels.clik_velocity` and ``clik_acceleration``) and update
-            q, qd and qdd in place; False: the numpy reference (:meth:`_derivatives`), new
-            arrays every step.
+        fast: do the algebra of each step in compiled calls
+            (:func:`hybrid_force._kernels.newton_step`, ``clik_velocity``,
+            ``clik_acceleration``; a helix or circle is sampled inside the first) and update
+            q, qd, qdd, p_d, pdot_d and pddot_d in place; False: the numpy reference
+            (:meth:`_derivatives`), new arrays every step.
     """
 
     def __init__(
@@ -309,7 +310,7 @@ class DesiredJointPath:
         self.qd, self.qdd = self._derivatives()
 
     def _advance_fast(self, dt: float) -> None:
-        """:meth:`advance` after the path sample, updating q_d in place."""
+        """:meth:`advance` once t is updated: path sample, predictor, Newton, derivatives."""
         robot, data = self.robot, self._data
         model, q_pred = robot.model, self._q_pred
         K = kernels()
