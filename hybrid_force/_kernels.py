@@ -692,20 +692,14 @@ def euler_step(
     v: np.ndarray,
     ddq: np.ndarray,
     dt: float,
-    euclidean: bool,
     v_out: np.ndarray,
     q_out: np.ndarray,
 ) -> None:
-    """Semi-implicit Euler: v⁺ = v + q̈ dt, then q⁺ = q + v⁺ dt when ``euclidean``.
-
-    Writes v_out; writes q_out only for a Euclidean configuration space (otherwise the caller
-    uses pinocchio.integrate with v_out·dt).
-    """
+    """Semi-implicit Euler v⁺ = v + q̈ dt, q⁺ = q + v⁺ dt (Euclidean configuration spaces)."""
     for i in range(v.shape[0]):
         vi = v[i] + ddq[i] * dt
         v_out[i] = vi
-        if euclidean:
-            q_out[i] = q[i] + vi * dt
+        q_out[i] = q[i] + vi * dt
 
 
 @_jit
@@ -717,7 +711,6 @@ def project_one(
     J6: np.ndarray,
     q: np.ndarray,
     v: np.ndarray,
-    euclidean: bool,
     q_out: np.ndarray,
     v_out: np.ndarray,
 ) -> float:
@@ -727,8 +720,8 @@ def project_one(
     when empty, grad (3,) = ∇Φ and phi = Φ are given. J6: (6, n) tip Jacobian (rows 0..2).
     The row is A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
     ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out = q − A⁺ Φ/‖∇Φ‖
-    (Euclidean; otherwise the step itself, for pinocchio.integrate) and
-    v_out = v − A⁺ (A v). Returns ‖∇Φ‖ (the caller checks it is not zero).
+    (Euclidean configuration spaces) and v_out = v − A⁺ (A v). Returns ‖∇Φ‖ (the caller
+    checks it is not zero).
     """
     if desc.shape[0] > 0:
         phi, _ = surface_eval(desc, p, grad, np.zeros((0, 0)))
@@ -747,7 +740,7 @@ def project_one(
     for j in range(n):
         ap = row[j] / rr
         step = -(ap * dist)
-        q_out[j] = q[j] + step if euclidean else step
+        q_out[j] = q[j] + step
         v_out[j] = v[j] - ap * rv
     return gn
 

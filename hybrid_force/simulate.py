@@ -298,7 +298,7 @@ class _Plant:
         K = kernels()
         model, data, fid = self.robot.model, self.data, self.robot.tip_id
         q_tmp, v_tmp = self._tmp
-        K.euler_step(q, v, ddq, dt, True, v_tmp, q_tmp)
+        K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
         pin.computeJointJacobians(model, data, q_tmp)
         pin.updateFramePlacement(model, data, fid)
         surface = self.constraint.surfaces[0]
@@ -307,7 +307,7 @@ class _Plant:
             phi, grad, _ = surface.evaluate(self._tip)
         q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        gn = K.project_one(desc, self._tip, grad, phi, J6, q_tmp, v_tmp, True, q_out, v_out)
+        gn = K.project_one(desc, self._tip, grad, phi, J6, q_tmp, v_tmp, q_out, v_out)
         if not gn >= _GRAD_TOL:
             self._rows(q_tmp)  # raises the precise SingularConfigurationError
         return q_out, v_out
