@@ -34,7 +34,6 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hybrid_force._lazy import kernels
 from hybrid_force.errors import (
     DimensionError,
     SingularConfigurationError,
@@ -56,7 +55,6 @@ __all__ = [
 _MIN_DIRECTION_NORM = 1e-12
 #: A cylinder's normal is undefined within ``_SINGULAR_RTOL * radius`` of its axis, a sphere's
 #: within ``_SINGULAR_RTOL * radius`` of its centre (there ‖∇Φ‖ = 2ρ < 2e-9 · radius).
-_NO_HESSIAN = np.zeros((0, 0))  # tells surface_eval not to write ∇²Φ
 _SINGULAR_RTOL = 1e-9
 #: Default finite-difference steps of :class:`FunctionSurface` [m], see its docstring.
 _DEFAULT_STEP = 6.0e-6
@@ -199,7 +197,7 @@ class Surface(abc.ABC):
         """
 
     def evaluate_with_distance(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
-        """:meth:`evaluate` and :meth:`distance` at p in one call (hot path, not validated).
+        """:meth:`evaluate` and :meth:`distance` at p in one call (not validated).
 
         Returns (Φ, ∇Φ: (3,), ∇²Φ: (3, 3), d [m]); shared arrays as in :meth:`evaluate`.
         """
@@ -284,16 +282,6 @@ class _RoundSurface(Surface):
             np.array((g * wx, g * wy, g * wz)),
             self._hess,
         )
-
-    def evaluate_with_distance(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
-        """(Φ, ∇Φ, ∇²Φ, d) at p: float64 (3,) [m] in one compiled call (hot path).
-
-        The same operations as :meth:`evaluate` and :meth:`distance`
-        (:func:`hybrid_force._kernels.surface_eval`); ∇²Φ is the shared read-only array.
-        """
-        grad = np.empty(3)
-        value, dist = kernels().surface_eval(self._descriptor, p, grad, _NO_HESSIAN)
-        return value, grad, self._hess, dist
 
     def phi(self, p: ArrayLike) -> float:
         """Φ(p) = ±(ρ² − r²) [m²]."""
@@ -494,11 +482,6 @@ class Plane(Surface):
         ∇Φ and ∇²Φ are shared read-only arrays.
         """
         return self._phi(*p.tolist()), self._grad, self._hess
-
-    def evaluate_with_distance(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
-        """(Φ, ∇Φ, ∇²Φ, d = Φ) at p: float64 (3,) [m]; not validated."""
-        value = self._phi(*p.tolist())
-        return value, self._grad, self._hess, value
 
     def phi(self, p: ArrayLike) -> float:
         """Φ(p) = n·(p − point) [m]."""
