@@ -230,14 +230,13 @@ class Constraint:
     def _row(self, i: int, surface: Surface, terms: RobotTerms) -> _Row:
         """One surface's row J_Φ = ∇ΦᵀJ (1, n), its derivative, scale and raw drift."""
         p, J, pdot = terms.p, terms.J, terms.pdot
-        value, grad, hess = surface.evaluate(p)
-        grad_norm = float(np.sqrt(grad @ grad))
-        if grad_norm < _GRAD_TOL:
-            raise SingularConfigurationError(
-                f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): the "
-                "surface normal is undefined there (e.g. on a cylinder's axis or at a sphere's "
-                "centre)"
-            )
+        value, grad, hess, grad_norm = _gradient(
+            i,
+            surface,
+            p,
+            "the surface normal is undefined there (e.g. on a cylinder's axis or at a sphere's "
+            "centre)",
+        )
         h_pdot = hess @ pdot
         row = grad @ J
         row_dot = h_pdot @ J + grad @ terms.Jdot
@@ -302,13 +301,7 @@ class Constraint:
         rows = np.empty((self.k, J.shape[1]))
         dist = np.empty(self.k)
         for i, surface in enumerate(self.surfaces):
-            phi, grad, _ = surface.evaluate(p)
-            norm = float(np.sqrt(grad @ grad))
-            if norm < _GRAD_TOL:
-                raise SingularConfigurationError(
-                    f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): "
-                    "no normal to place the tip along"
-                )
+            phi, grad, _, norm = _gradient(i, surface, p, "no normal to place the tip along")
             rows[i] = (grad / norm) @ J
             dist[i] = phi / norm
         return rows, dist
@@ -321,3 +314,17 @@ class Constraint:
 
     def __repr__(self) -> str:
         return f"Constraint({list(self.surfaces)!r}, normalization={self.normalization!r})"
+
+
+def _gradient(
+    i: int, surface: Surface, p: np.ndarray, consequence: str
+) -> tuple[float, np.ndarray, np.ndarray, float]:
+    """(Φ, ∇Φ, ∇²Φ, ‖∇Φ‖) of surface i at p; SingularConfigurationError where ∇Φ vanishes
+    (the message ends with ``consequence``)."""
+    value, grad, hess = surface.evaluate(p)
+    norm = float(np.sqrt(grad @ grad))
+    if norm < _GRAD_TOL:
+        raise SingularConfigurationError(
+            f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): " + consequence
+        )
+    return value, grad, hess, norm
