@@ -22,6 +22,7 @@ where a number is expected is an error, whatever it contains.
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import re
@@ -42,7 +43,13 @@ from hybrid_force.errors import (
     did_you_mean,
 )
 
-__all__ = ["ON_SURFACE_TOL", "load_scenario", "parse_override"]
+__all__ = [
+    "ON_SURFACE_TOL",
+    "load_scenario",
+    "parse_override",
+    "read_scenario_document",
+    "scenario_from_document",
+]
 
 ON_SURFACE_TOL = 1e-6
 """Largest |d| [m] of the desired path from a surface over [0, duration] accepted."""
@@ -423,6 +430,38 @@ def load_scenario(
     if overrides:
         _apply_overrides(doc, overrides, ctx)
     return _build(doc, file, ctx)
+
+
+def read_scenario_document(
+    path: str | Path, overrides: Mapping[str, object] | None = None
+) -> dict[str, Any]:
+    """The TOML data of a scenario file with the overrides applied, not yet validated.
+
+    What :func:`scenario_from_document` takes: a sweep sends it to workers that may not see
+    the file. ScenarioError for an unreadable file, bad TOML or an override that does not fit.
+    """
+    ctx = _Context(str(path))
+    doc = _read(Path(path), ctx)
+    if overrides:
+        _apply_overrides(doc, overrides, ctx)
+    return doc
+
+
+def scenario_from_document(
+    doc: Mapping[str, Any], *, origin: str = "<scenario>", base_dir: str | Path = "."
+) -> Any:  # -> hybrid_force.simulate.Scenario
+    """Validate scenario data (as :func:`read_scenario_document` returns) into a Scenario.
+
+    Args:
+        doc: the scenario's tables (a deep copy is taken; it is not modified).
+        origin: how error messages name the scenario (a file name).
+        base_dir: folder against which a relative ``robot.model`` path resolves.
+
+    Raises:
+        ScenarioError: as :func:`load_scenario`, naming ``origin``.
+    """
+    ctx = _Context(origin)
+    return _build(copy.deepcopy(dict(doc)), Path(base_dir) / Path(origin).name, ctx)
 
 
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
