@@ -20,9 +20,13 @@ __all__ = [
     "FrameError",
     "GainError",
     "HybridForceError",
+    "LostContactError",
+    "OutputError",
     "ReachError",
     "ResultFileError",
     "RobotError",
+    "RunFailedError",
+    "RunInterruptedError",
     "ScenarioError",
     "SimulationError",
     "SingularConfigurationError",
@@ -95,12 +99,46 @@ class SimulationError(HybridForceError):
     """A simulation failed at run time (not bad input)."""
 
 
-class DivergenceError(SimulationError):
-    """Non-finite state or a runaway; ``result`` holds the run up to the failure."""
+class RunFailedError(SimulationError):
+    """A run that started and did not finish as asked; ``result`` holds what it computed.
+
+    ``result`` is the :class:`~hybrid_force.result.Result` up to the failure (its meta has
+    ``status = "failed"`` and ``reason``), or None when nothing was recorded. ``reason`` is a
+    short tag: "diverged", "lost contact", "interrupted", "path", "error".
+    """
+
+    reason = "error"
 
     def __init__(self, message: str, result: object | None = None) -> None:
         super().__init__(message)
         self.result = result
+
+
+class DivergenceError(RunFailedError):
+    """Non-finite state or a runaway; ``result`` holds the run up to the failure."""
+
+    reason = "diverged"
+
+
+class LostContactError(RunFailedError):
+    """A run that started in contact without the supervisor ended off the surface."""
+
+    reason = "lost contact"
+
+
+class RunInterruptedError(RunFailedError):
+    """Ctrl-C (SIGINT) or SIGTERM stopped the run; ``signal`` names which."""
+
+    reason = "interrupted"
+
+    def __init__(self, message: str, result: object | None = None, signal: str = "SIGINT") -> None:
+        super().__init__(message, result)
+        self.signal = signal
+
+
+class OutputError(BadInputError):
+    """An output path cannot be used: not writable, locked by another run, or it would
+    overwrite an input or another output of the same run."""
 
 
 class ScenarioError(BadInputError):
