@@ -28,6 +28,8 @@ __all__ = [
     "RunFailedError",
     "RunInterruptedError",
     "ScenarioError",
+    "ScenarioValueError",
+    "SimSettingsError",
     "SimulationError",
     "SingularConfigurationError",
     "SurfaceError",
@@ -143,6 +145,21 @@ class OutputError(BadInputError):
 
 class ScenarioError(BadInputError):
     """A scenario file is invalid; the message names the file, table.key and value."""
+
+
+class ScenarioValueError(BadInputError):
+    """A field of a :class:`~hybrid_force.simulate.Scenario` built in Python is invalid.
+
+    Raised by ``Scenario(...)`` itself: a wrong type or shape (robot, surfaces, path, q0, v0,
+    control, sim, name, description, source), settings that do not fit the robot or the
+    surfaces (K_d's size, one f_d per surface), a run starting in contact whose desired path
+    or start is off a surface, or a start inside the solid. The message names the field.
+    """
+
+
+class SimSettingsError(BadInputError):
+    """A simulation setting (:class:`~hybrid_force.simulate.SimSettings`, ``Baumgarte``) is
+    invalid; the message names the setting as the scenario file's ``[sim]`` key spells it."""
 
 
 class ResultFileError(BadInputError):
