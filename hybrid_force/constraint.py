@@ -28,7 +28,7 @@ The acceleration-level constraint used by the simulator is the exact second time
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
@@ -138,17 +138,28 @@ class Constraint:
     def __init__(
         self, surfaces: Surface | Sequence[Surface], normalization: Normalization = "tip"
     ) -> None:
-        items = (surfaces,) if isinstance(surfaces, Surface) else tuple(surfaces)
+        items: tuple[object, ...]
+        if isinstance(surfaces, Surface):
+            items = (surfaces,)
+        elif isinstance(surfaces, Iterable) and not isinstance(surfaces, str | bytes | Mapping):
+            items = tuple(surfaces)
+        else:
+            raise SurfaceError(
+                f"surfaces must be a Surface or a sequence (list, tuple) of Surfaces, got "
+                f"{surfaces!r} ({type(surfaces).__name__})"
+            )
         if not items:
             raise SurfaceError("a constraint needs at least one surface, got none")
+        checked: list[Surface] = []
         for i, s in enumerate(items):
             if not isinstance(s, Surface):
                 raise SurfaceError(f"surface {i} is not a hybrid_force Surface: {s!r}")
-        if normalization not in _NORMALIZATIONS:
+            checked.append(s)
+        if not isinstance(normalization, str) or normalization not in _NORMALIZATIONS:
             raise SurfaceError(
                 f"normalization must be one of {', '.join(_NORMALIZATIONS)}, got {normalization!r}"
             )
-        self.surfaces: tuple[Surface, ...] = items
+        self.surfaces: tuple[Surface, ...] = tuple(checked)
         self.normalization: Normalization = normalization
         self._tip_scaling = normalization == "tip"
         # scratch ∇Φ and ∇²Φ written by the compiled evaluation (k = 1)

@@ -37,10 +37,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from hybrid_force import _checks as checks
 from hybrid_force._lazy import kernels
 from hybrid_force.errors import BadInputError, SurfaceError, did_you_mean
 
 __all__ = [
+    "ON_SURFACE_TOL",
     "Circle",
     "FunctionPath",
     "Helix",
@@ -61,39 +63,37 @@ _PARALLEL_TOL = 1e-6
 
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 0.618...
 
+_UNITS = {"omega": "rad/s", "rise": "m/s", "phase": "rad"}
+"""Units of the scalar parameters of a helix or circle, shown in error messages."""
+
+_MAX_SAMPLES = 10_000_000
+"""Most samples :func:`check_on_surface` accepts (each costs a path and a surface call)."""
+
+ON_SURFACE_TOL = 1e-6
+"""Largest |d| [m] of a desired path from a surface over a run accepted by the scenario loader
+and by ``Scenario`` for a run that starts in contact (:func:`check_on_surface`)."""
+
 
 class PathParameterError(BadInputError):
     """A path parameter (radius, axis, omega, ...) or a check_on_surface argument is invalid."""
 
 
 # --- helpers -------------------------------------------------------------------------------------
-def _finite_float(owner: str, name: str, value: object) -> float:
-    """Return ``value`` as a finite float or raise :class:`PathParameterError`."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise PathParameterError(
-            f"{owner}.{name} must be a finite real number, got {value!r} ({type(value).__name__})"
-        )
-    out = float(value)
-    if not math.isfinite(out):
-        raise PathParameterError(f"{owner}.{name} must be finite, got {value!r}")
-    return out
+def _finite_float(owner: str, name: str, value: object, unit: str = "") -> float:
+    """Return ``value`` (a real number, not a bool) as a finite float or raise
+    :class:`PathParameterError` naming ``owner.name``."""
+    return checks.number(value, f"{owner}.{name}", PathParameterError, unit=unit)
 
 
 def _vector3(owner: str, name: str, value: object) -> tuple[float, float, float]:
-    """Return ``value`` as a finite 3-vector (tuple of floats) or raise."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise PathParameterError(
-            f"{owner}.{name} must be 3 finite numbers, got {value!r} ({exc})"
-        ) from None
+    """Return ``value`` as a finite 3-vector of real numbers (tuple of floats) or raise."""
+    what = f"{owner}.{name}"
+    arr = checks.array(value, what, PathParameterError, valid="3 finite real numbers")
     if arr.shape != (3,):
         raise PathParameterError(
-            f"{owner}.{name} must be 3 finite numbers (shape (3,)), got {value!r} "
+            f"{what} must be 3 finite numbers (shape (3,)), got {checks.shown(value)} "
             f"with shape {arr.shape}"
         )
-    if not np.all(np.isfinite(arr)):
-        raise PathParameterError(f"{owner}.{name} must be finite, got {value!r}")
     return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 
@@ -185,14 +185,15 @@ class _CircularPath(Path):
         floats, and build the frame and basis (rise along the direction: 0 for a circle)."""
         owner = type(self).__name__
         center = _vector3(owner, "center", self.center)
-        radius = _finite_float(owner, "radius", self.radius)
-        if radius <= 0.0:
-            raise PathParameterError(f"{owner}.radius must be > 0 [m], got {self.radius!r}")
+        radius = checks.number(
+            self.radius, f"{owner}.radius", PathParameterError, minimum=0.0, strict=True, unit="m"
+        )
         raw = getattr(self, direction)
         vector = _vector3(owner, direction, raw)
         unit = _unit3(owner, direction, raw)
         for name in scalars:
-            object.__setattr__(self, name, _finite_float(owner, name, getattr(self, name)))
+            value = _finite_float(owner, name, getattr(self, name), unit=_UNITS[name])
+            object.__setattr__(self, name, value)
         object.__setattr__(self, "center", center)
         object.__setattr__(self, "radius", radius)
         object.__setattr__(self, direction, vector)
@@ -375,11 +376,11 @@ class FunctionPath(Path):
             if (fn is not None or required) and not callable(fn):
                 raise PathParameterError(
                     f"FunctionPath.{name} must be a callable of t returning 3 numbers, "
-                    f"got {fn!r} ({type(fn).__name__})"
+                    f"got {checks.shown(fn)}"
                 )
-        h = _finite_float("FunctionPath", "step", step)
-        if h <= 0.0:
-            raise PathParameterError(f"FunctionPath.step must be > 0 [s], got {step!r}")
+        h = checks.number(
+            step, "FunctionPath.step", PathParameterError, minimum=0.0, strict=True, unit="s"
+        )
         self._position_fn = position
         self._velocity_fn = velocity
         self._acceleration_fn = acceleration
@@ -400,7 +401,7 @@ class FunctionPath(Path):
         raw = fn(t)
         try:
             out = np.array(raw, dtype=float)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise PathParameterError(
                 f"FunctionPath.{kind}({t!r}) must return 3 numbers, got {raw!r} ({exc})"
             ) from exc
@@ -519,16 +520,25 @@ class OnSurfaceReport:
 
 
 def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray]:
-    p = np.asarray(path.position(t), dtype=float)
+    raw = path.position(t)
+    try:
+        p = np.asarray(raw, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        p = np.full(1, np.nan)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
         raise PathParameterError(
-            f"path {path!r} gives a non-finite or wrongly shaped position {p.tolist()} at t={t!r}"
+            f"path {path!r} gives a non-finite or wrongly shaped position "
+            f"{checks.shown(raw)} at t={t!r}"
         )
-    d = float(surface.distance(p))
+    value = surface.distance(p)
+    try:
+        d = float(value)
+    except (TypeError, ValueError, OverflowError):
+        d = math.nan
     if not math.isfinite(d):
         raise SurfaceError(
-            f"surface {surface!r} returned a non-finite distance {d!r} at p={p.tolist()} "
-            f"(path time t={t!r})"
+            f"surface {surface!r} returned a non-finite distance {checks.shown(value)} "
+            f"at p={p.tolist()} (path time t={t!r})"
         )
     return abs(d), p
 
@@ -549,19 +559,25 @@ def check_on_surface(
     Raises PathParameterError if t0, t1 are not finite, t1 <= t0, or samples < 2;
     SurfaceError if the surface returns a non-finite distance.
     """
-    a = _finite_float("check_on_surface", "t0", t0)
-    b = _finite_float("check_on_surface", "t1", t1)
+    a = _finite_float("check_on_surface", "t0", t0, unit="s")
+    b = _finite_float("check_on_surface", "t1", t1, unit="s")
     if not b > a:
         raise PathParameterError(f"check_on_surface.t1 must be > t0, got t0={t0!r}, t1={t1!r}")
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 2:
+    n = checks.integer(samples, "check_on_surface.samples", PathParameterError, minimum=2)
+    if n > _MAX_SAMPLES:
         raise PathParameterError(
-            f"check_on_surface.samples must be an integer >= 2, got {samples!r}"
+            f"check_on_surface.samples must be <= {_MAX_SAMPLES:.0e}, got {samples!r}"
+        )
+    if not callable(getattr(path, "position", None)):
+        raise PathParameterError(
+            f"check_on_surface.path must be a Path (with position(t) -> (3,)), "
+            f"got {checks.shown(path)}"
         )
     if not callable(getattr(surface, "distance", None)):
         raise PathParameterError(
             f"check_on_surface.surface must have a method distance(p) -> float, got {surface!r}"
         )
-    times = np.linspace(a, b, int(samples))
+    times = np.linspace(a, b, n)
     best_t = a
     best_d = -1.0
     best_p = np.zeros(3)

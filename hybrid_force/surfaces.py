@@ -34,6 +34,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hybrid_force import _checks as checks
 from hybrid_force.errors import (
     DimensionError,
     SingularConfigurationError,
@@ -73,43 +74,19 @@ def _fmt(value: object) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
-def _positive_float(owner: str, name: str, value: object) -> float:
-    """Check that ``value`` is a finite real number > 0 and return it as a float."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise SurfaceParameterError(
-            f"{owner}: parameter '{name}' must be a positive finite number, got {_fmt(value)} "
-            f"of type {type(value).__name__}"
-        )
-    number = float(value)
-    if not (math.isfinite(number) and number > 0.0):
-        raise SurfaceParameterError(
-            f"{owner}: parameter '{name}' must be a positive finite number, got {_fmt(value)}"
-        )
-    return number
+def _positive_float(owner: str, name: str, value: object, unit: str = "m") -> float:
+    """Check that ``value`` is a finite real number > 0 (not a bool) and return it as a float."""
+    what = f"{owner}: parameter '{name}'"
+    return checks.number(value, what, SurfaceParameterError, minimum=0.0, strict=True, unit=unit)
 
 
 def _vector3(owner: str, name: str, value: object) -> Vec3:
-    """Check that ``value`` is a finite real vector of shape (3,) and return it as a float tuple."""
-    try:
-        array = np.asarray(value)
-    except (TypeError, ValueError) as exc:  # ragged sequences and the like
-        raise SurfaceParameterError(
-            f"{owner}: parameter '{name}' must be 3 finite numbers, got {_fmt(value)} ({exc})"
-        ) from exc
-    if array.dtype.kind not in "iuf":
-        raise SurfaceParameterError(
-            f"{owner}: parameter '{name}' must be 3 finite numbers, got {_fmt(value)} "
-            f"(dtype {array.dtype})"
-        )
+    """Check that ``value`` is 3 finite real numbers [m] and return them as a float tuple."""
+    what = f"{owner}: parameter '{name}'"
+    array = checks.array(value, what, SurfaceParameterError, valid="3 finite real numbers")
     if array.shape != (3,):
         raise SurfaceParameterError(
-            f"{owner}: parameter '{name}' must have shape (3,), got shape {array.shape}: "
-            f"{_fmt(value)}"
-        )
-    array = array.astype(np.float64)
-    if not np.all(np.isfinite(array)):
-        raise SurfaceParameterError(
-            f"{owner}: parameter '{name}' must be finite, got {_fmt(value)}"
+            f"{what} must have shape (3,), got shape {array.shape}: {checks.shown(value)}"
         )
     x, y, z = array.tolist()
     return (x, y, z)
@@ -134,12 +111,8 @@ def _direction(owner: str, name: str, value: object) -> Vec3:
 
 
 def _boolean(owner: str, name: str, value: object) -> bool:
-    """Check that ``value`` is a bool (Python or numpy)."""
-    if not isinstance(value, bool | np.bool_):
-        raise SurfaceParameterError(
-            f"{owner}: parameter '{name}' must be True or False, got {_fmt(value)}"
-        )
-    return bool(value)
+    """Check that ``value`` is a bool (Python or numpy), not a truthy 1 or "yes"."""
+    return checks.flag(value, f"{owner}: parameter '{name}'", SurfaceParameterError)
 
 
 def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
@@ -152,7 +125,7 @@ def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
     else:
         try:
             array = np.asarray(p, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise DimensionError(
                 f"{owner!r}.{method}: point p must be 3 numbers [m], got {_fmt(p)} ({exc})"
             ) from exc
@@ -583,6 +556,7 @@ class FunctionSurface(Surface):
         hessian_step: float = _DEFAULT_HESSIAN_STEP,
         singular_tol: float = _DEFAULT_SINGULAR_TOL,
     ) -> None:
+        owner = "FunctionSurface"
         if not callable(phi):
             raise SurfaceParameterError(
                 f"FunctionSurface: parameter 'phi' must be a callable phi(p) -> float, "
@@ -603,9 +577,9 @@ class FunctionSurface(Surface):
             ("gradient_function", gradient),
             ("hessian_function", hessian),
             ("distance_function", distance),
-            ("step", _positive_float("FunctionSurface", "step", step)),
-            ("hessian_step", _positive_float("FunctionSurface", "hessian_step", hessian_step)),
-            ("singular_tol", _positive_float("FunctionSurface", "singular_tol", singular_tol)),
+            ("step", _positive_float(owner, "step", step)),
+            ("hessian_step", _positive_float(owner, "hessian_step", hessian_step)),
+            ("singular_tol", _positive_float(owner, "singular_tol", singular_tol, unit="∇Φ")),
         ):
             object.__setattr__(self, name, value)
 
@@ -628,16 +602,34 @@ class FunctionSurface(Surface):
         return f"FunctionSurface({', '.join(parts)})"
 
     # -- calls of the user's functions, with their results checked --
-    def _call_phi(self, p: np.ndarray) -> float:
-        value = float(self.phi_function(p))
+    def _call_scalar(self, function: PointFunction, name: str, p: np.ndarray) -> float:
+        raw = function(p)
+        if isinstance(raw, bool | np.bool_) or not isinstance(raw, numbers.Real | np.ndarray):
+            value = math.nan
+        else:
+            try:
+                value = float(raw)
+            except (TypeError, ValueError, OverflowError):  # arrays of size != 1, 10**400
+                value = math.nan
         if not math.isfinite(value):
             raise SurfaceError(
-                f"{self!r}: phi returned {value} at p = {_fmt(p)}; it must be finite"
+                f"{self!r}: {name} returned {_fmt(raw)} at p = {_fmt(p)}; it must be a finite "
+                "real number"
             )
         return value
 
+    def _call_phi(self, p: np.ndarray) -> float:
+        return self._call_scalar(self.phi_function, "phi", p)
+
     def _call_vector(self, function: PointFunction, name: str, p: np.ndarray) -> np.ndarray:
-        value = np.array(function(p), dtype=np.float64)
+        raw = function(p)
+        try:
+            value = np.array(raw, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise SurfaceError(
+                f"{self!r}: {name} returned {_fmt(raw)} at p = {_fmt(p)}; it must be real "
+                f"numbers ({exc})"
+            ) from exc
         shape = (3,) if name != "hessian" else (3, 3)
         if value.shape != shape:
             raise DimensionError(
@@ -753,12 +745,7 @@ class FunctionSurface(Surface):
         """Signed distance [m]: the user's, or Φ/‖∇Φ‖ (first order, see the class docstring)."""
         q = self._point(p, "distance")
         if self.distance_function is not None:
-            value = float(self.distance_function(q))
-            if not math.isfinite(value):
-                raise SurfaceError(
-                    f"{self!r}: distance returned {value} at p = {_fmt(q)}; it must be finite"
-                )
-            return value
+            return self._call_scalar(self.distance_function, "distance", q)
         phi0 = self._call_phi(q)
         if phi0 == 0.0:
             return 0.0
