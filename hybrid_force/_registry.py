@@ -131,7 +131,9 @@ def _bundled_entries() -> list[RobotEntry]:
             package_dirs=(),
             default_tip="tip",
             source="bundled",
-            description="the paper's RTR arm (section 6): revolute z, prismatic z, revolute",
+            description=(
+                "the paper's RTR arm (section 6): continuous revolute z, prismatic z, revolute"
+            ),
         )
     ]
 
@@ -184,9 +186,13 @@ def known_robots() -> list[RobotEntry]:
 def resolve_robot(name: str) -> RobotEntry:
     """Return the registry entry called ``name``.
 
+    A name is never a file: :func:`hybrid_force.robot.load_robot` sends here every text that
+    neither ends with ``.urdf`` nor holds a path separator, even if a file of that name exists
+    in the working directory.
+
     Raises:
-        UnknownRobotError: no robot has that name; the message lists the known names and
-            the closest match.
+        UnknownRobotError: no robot has that name; the message lists the known names, the
+            closest match, and how to use a file instead (a path such as ``./name``).
     """
     entries = known_robots()
     for entry in entries:
@@ -195,6 +201,6 @@ def resolve_robot(name: str) -> RobotEntry:
     names = [e.name for e in entries]
     hint = did_you_mean(name, names)
     raise UnknownRobotError(
-        f"unknown robot {name!r}{hint}; known robots: {', '.join(names) or '(none)'}"
-        " (or give the path of a URDF file)"
+        f"unknown robot {name!r}{hint}; known robots: {', '.join(names) or '(none)'} "
+        f"(to use a file, give a path such as ./{name})"
     )

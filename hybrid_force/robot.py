@@ -9,12 +9,27 @@ Pinocchio, the terms of the manipulator equation
 and the kinematics of its tip frame: p(q), J(q) = ∂p/∂q (world-aligned, 3×n), J̇(q, q̇) and
 J̇ q̇. :meth:`Robot.terms` computes everything one control/simulation step needs in one pass.
 
-Conventions: SI units; q and v are Pinocchio's configuration and velocity vectors (nq, nv);
-for the arms here nq = nv = n. Revolute joints in rad, prismatic in m.
+Conventions: SI units; q and v are Pinocchio's configuration and velocity vectors (nq, nv).
+Every moving joint of an arm loaded by :func:`load_robot` has one coordinate (nq = nv = 1:
+a URDF ``continuous`` joint becomes a revolute joint with unbounded range, its angle in rad
+never wrapped), so nq = nv = n. Revolute joints in rad, prismatic in m.
+
+Models the toolkit cannot simulate (no moving joint, a floating or planar joint, a mimic
+joint on the tip's chain, a mass matrix singular at q0) are refused with a
+:class:`~hybrid_force.errors.URDFError` naming the file and the cause, before any Pinocchio
+algorithm runs on them: the checks are in :mod:`hybrid_force.urdf_check`, the loading steps
+in :func:`load_robot`.
+
+Names and paths: ``load_robot("ur5")`` is always the registry's arm; a path is a
+:class:`~pathlib.Path`, or a text ending with ``.urdf`` or holding a path separator.
+:attr:`Robot.source` is what re-loads the same arm from any working directory (the registry
+name, or the absolute path of the URDF file).
 """
 
 from __future__ import annotations
 
+import os
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,7 +42,8 @@ from hybrid_force.errors import DimensionError, FrameError, URDFError
 __all__ = ["Robot", "RobotTerms", "load_robot"]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-# Joints whose configuration space is R (bounded revolute, prismatic): for them
+# Joints whose configuration space is R (revolute with one coordinate, bounded or not, and
+# prismatic): for them
 # pinocchio.integrate(q, dq) is exactly q + dq and difference(q0, q1) is q1 − q0.
 _VECTOR_SPACE_JOINTS = frozenset(
     f"JointModel{kind}"
@@ -105,14 +121,20 @@ class Robot:
 
     Attributes:
         name: registry name, or the URDF path as given.
+        source: (read-only) the registry name for a named arm, else the absolute resolved
+            path of the URDF file: ``load_robot(robot.source)`` gives the same arm from any
+            working directory (what results store).
         urdf_path: the URDF file.
         package_dirs: folders that resolve ``package://`` mesh URIs.
         model: the Pinocchio model (gravity (0, 0, −9.81) m/s²).
         data: a Pinocchio data object owned by this robot (one per purpose: the simulator
             and viewer make their own with :meth:`new_data`).
         tip: tip frame name; tip_id its frame index.
-        euclidean: True when every joint is a bounded revolute or prismatic joint, so that
-            q ⊕ dq = q + dq (the fast loop then integrates without Pinocchio calls).
+        euclidean: True when every joint has one real coordinate (revolute, bounded or not,
+            or prismatic), so that q ⊕ dq = q + dq (the fast loop then integrates without
+            Pinocchio calls). True for every arm :func:`load_robot` returns (continuous joints
+            included); False only for a model built by hand with e.g. a JointModelRUBZ.
+        position_limits, effort_limits: (read-only) the joint limits of the model.
     """
 
     def __init__(
@@ -123,11 +145,23 @@ class Robot:
         urdf_path: Path,
         package_dirs: tuple[str, ...] = (),
         tip: str | None = None,
+        source: str | None = None,
     ) -> None:
+        """Wrap a Pinocchio model (no scope check: :func:`load_robot` makes those).
+
+        Args:
+            model: the arm's Pinocchio model.
+            name: how messages name the arm.
+            urdf_path: the URDF file the model comes from.
+            package_dirs: folders that resolve ``package://`` URIs.
+            tip: tip frame (default: the last body frame).
+            source: see :attr:`source`; default: the absolute resolved ``urdf_path``.
+        """
         self.model = model
         self.data = model.createData()
         self.name = name
         self.urdf_path = Path(urdf_path)
+        self._source = str(self.urdf_path.resolve()) if source is None else source
         self.package_dirs = tuple(package_dirs)
         if tip is None:
             tip = _default_tip(model)
@@ -141,7 +175,37 @@ class Robot:
         self._lower = np.tril_indices(model.nv, -1)
         self.euclidean = all(j.shortname() in _VECTOR_SPACE_JOINTS for j in list(model.joints)[1:])
 
-    # --- sizes and validation ------------------------------------------------
+    # --- identity, sizes, limits and validation ------------------------------------
+    @property
+    def source(self) -> str:
+        """The registry name of a named arm, else the absolute resolved URDF path."""
+        return self._source
+
+    @property
+    def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower (nq,), upper (nq,)) joint position limits [rad or m], read-only copies.
+
+        From the URDF's ``<limit lower upper>`` (Pinocchio's model); ∓inf for a continuous
+        joint. A revolute/prismatic ``<limit>`` without lower/upper has URDF's default 0, 0.
+        """
+        lower = np.array(self.model.lowerPositionLimit, dtype=float)
+        upper = np.array(self.model.upperPositionLimit, dtype=float)
+        lower.flags.writeable = upper.flags.writeable = False
+        return lower, upper
+
+    @property
+    def effort_limits(self) -> np.ndarray:
+        """(nv,) joint effort limits [N·m or N], a read-only copy; +inf where unspecified.
+
+        From the URDF's ``<limit effort>``. +inf where the URDF gives none (a continuous
+        joint without ``<limit>``) or gives 0 (URDF's conventional "unspecified", so 0 never
+        means "no force allowed"), or a value that is not a positive number.
+        """
+        effort = np.array(self.model.effortLimit, dtype=float)
+        effort[~(effort > 0)] = np.inf  # also NaN
+        effort.flags.writeable = False
+        return effort
+
     @property
     def nq(self) -> int:
         """Size of the configuration vector q."""
@@ -272,6 +336,7 @@ class Robot:
             urdf_path=self.urdf_path,
             package_dirs=self.package_dirs,
             tip=self.tip,
+            source=self.source,
         )
 
     def __repr__(self) -> str:
@@ -279,54 +344,158 @@ class Robot:
 
 
 def load_robot(model: str | Path, tip: str | None = None) -> Robot:
-    """Load an arm by name or URDF path.
+    """Load an arm by name or URDF path, refusing models the toolkit cannot simulate.
+
+    Name or path: a :class:`~pathlib.Path` is always a path; a text is a path when it ends with
+    ``.urdf`` or contains a path separator (``/``, ``\\``), and a registry name otherwise, even
+    when a file of that name exists in the working directory (give ``./ur5`` to use such a
+    file).
+
+    Loading (see :mod:`hybrid_force.urdf_check` for every refusal):
+
+    1. :func:`~hybrid_force.urdf_check.check_urdf` (structure, inertial data, no floating or
+       planar joint, at least one moving joint), before Pinocchio sees the file;
+    2. a ``continuous`` joint is rewritten as a ``revolute`` one (same axis; its ``<limit>``
+       effort and velocity are kept) and the model built with ``pin.buildModelFromXML``
+       (``mimic=False``); its position limits are then set to ∓inf, and its effort and
+       velocity limits to +inf when its ``<limit>`` does not give them. It has one real
+       coordinate, the angle in rad, never wrapped (not Pinocchio's (cos, sin) pair);
+    3. joints held at their neutral value: the registry's ``locked_joints``, and every mimic
+       joint that is not on the chain from the root to the tip frame (e.g. a mimicking
+       gripper finger), which is held where its master's neutral value puts it
+       (offset + multiplier · q_master(q0)); ``pin.buildReducedModel`` merges their links
+       into their parents;
+    4. :func:`~hybrid_force.urdf_check.check_arm_model` (nv > 0, one coordinate per joint, no
+       mimic joint on the tip's chain, M(q0) positive definite).
+
+    Every moving joint of a loaded arm then has nq = nv = 1, so q and v are (n,).
 
     Args:
         model: a bundled name (``"rtr"``), an example-robot-data arm (``"ur5"``, ``"panda"``,
             … see ``hybrid-force robots``), or a path to a URDF file.
         tip: frame touching the surface; default: the arm's documented default tip, or for a
-            plain URDF file the last frame of the model.
+            plain URDF file the last body frame of the model.
 
     Raises:
-        UnknownRobotError: the name is neither known nor an existing file (lists known names).
-        URDFError: the file is missing, malformed, or physically impossible.
+        UnknownRobotError: a name that is not known (lists the known names).
+        URDFError: the file is missing, malformed, physically impossible, or outside the
+            toolkit's scope (the message names the file and the cause).
         FrameError: ``tip`` is not a frame of the model (lists the frames).
     """
     from hybrid_force._registry import resolve_robot
-    from hybrid_force.urdf_check import check_urdf
+    from hybrid_force.urdf_check import check_arm_model, check_urdf
 
-    text = str(model)
-    path = Path(text)
-    if text.endswith(".urdf") or path.is_file() or "/" in text:
+    locked: tuple[str, ...] = ()
+    if _is_path(model):
+        path = Path(model)
         if not path.is_file():
             raise URDFError(f"URDF file not found: {path}")
         check_urdf(path)
-        name, package_dirs, default_tip = text, (str(path.resolve().parent),), None
-        locked: tuple[str, ...] = ()
+        name, package_dirs, default_tip = str(model), (str(path.resolve().parent),), None
+        source = str(path.resolve())
     else:
-        entry = resolve_robot(text)
+        entry = resolve_robot(str(model))
         path, package_dirs, default_tip, name = (
             entry.urdf_path,
             tuple(entry.package_dirs),
             entry.default_tip,
             entry.name,
         )
-        locked = entry.locked_joints
+        locked, source = entry.locked_joints, entry.name
         check_urdf(path)
-    try:
-        pin_model = pin.buildModelFromUrdf(str(path))
-    except (RuntimeError, ValueError) as exc:
-        raise URDFError(f"Pinocchio cannot parse {path}: {exc}") from exc
+    pin_model, mimic = _build_model(path)
+    tip_name = tip if tip is not None else default_tip or _default_tip(pin_model)
+    _require_frame(pin_model, tip_name, path)
+    chain = {
+        pin_model.names[j]
+        for j in pin_model.supports[pin_model.frames[pin_model.getFrameId(tip_name)].parentJoint]
+    }
+    locked += tuple(j for j in mimic if j not in chain and j not in locked)
     if locked:
+        q_ref = pin.neutral(pin_model)
+        for joint, (master, multiplier, offset) in mimic.items():
+            q_ref[_q_index(pin_model, joint)] = (
+                offset + multiplier * q_ref[_q_index(pin_model, master)]
+            )
         ids = [pin_model.getJointId(j) for j in locked]
-        pin_model = pin.buildReducedModel(pin_model, ids, pin.neutral(pin_model))
+        pin_model = pin.buildReducedModel(pin_model, ids, q_ref)
+    check_arm_model(pin_model, path, tip=tip_name, mimic={j: m[0] for j, m in mimic.items()})
     return Robot(
         pin_model,
         name=name,
         urdf_path=path,
         package_dirs=package_dirs,
-        tip=tip if tip is not None else default_tip,
+        tip=tip_name,
+        source=source,
     )
+
+
+def _is_path(model: str | Path) -> bool:
+    """True for a Path, or a text ending with ``.urdf`` or holding a path separator."""
+    if isinstance(model, Path):
+        return True
+    separators = {"/", "\\", os.sep} | ({os.altsep} if os.altsep else set())
+    return model.endswith(".urdf") or any(sep in model for sep in separators)
+
+
+def _build_model(path: Path) -> tuple[pin.Model, dict[str, tuple[str, float, float]]]:
+    """Pinocchio model of a checked URDF, continuous joints as unbounded revolute ones.
+
+    Returns:
+        the model, and ``{mimic joint: (master, multiplier, offset)}`` from its ``<mimic>``
+        elements (Pinocchio builds them as independent joints: ``mimic=False``).
+    """
+    root = ET.parse(path).getroot()
+    continuous: dict[str, tuple[bool, bool]] = {}  # joint: (gives effort, gives velocity)
+    mimic: dict[str, tuple[str, float, float]] = {}
+    for joint in root.findall("joint"):
+        name = joint.get("name", "")
+        element = joint.find("mimic")
+        if element is not None and joint.get("type") in ("revolute", "continuous", "prismatic"):
+            mimic[name] = (
+                element.get("joint", ""),
+                float(element.get("multiplier", "1")),
+                float(element.get("offset", "0")),
+            )
+        if joint.get("type") != "continuous":
+            continue
+        joint.set("type", "revolute")
+        limit = joint.find("limit")
+        if limit is None:
+            limit = ET.SubElement(joint, "limit")
+        given = (limit.get("effort") is not None, limit.get("velocity") is not None)
+        continuous[name] = given
+        for key, present in zip(("effort", "velocity"), given, strict=True):
+            if not present:
+                limit.set(key, "0")  # placeholder, +inf below
+        limit.attrib.pop("lower", None)
+        limit.attrib.pop("upper", None)
+    try:
+        model = pin.buildModelFromXML(ET.tostring(root, encoding="unicode"))
+    except (RuntimeError, ValueError) as exc:
+        raise URDFError(f"Pinocchio cannot parse {path}: {exc}") from exc
+    for name, (has_effort, has_velocity) in continuous.items():
+        jid = model.getJointId(name)
+        iq, iv = model.idx_qs[jid], model.idx_vs[jid]
+        model.lowerPositionLimit[iq] = -np.inf
+        model.upperPositionLimit[iq] = np.inf
+        if not has_effort:
+            model.effortLimit[iv] = np.inf
+        if not has_velocity:
+            model.velocityLimit[iv] = np.inf
+    return model, mimic
+
+
+def _q_index(model: pin.Model, joint: str) -> int:
+    """Index in q of a one-coordinate joint."""
+    return int(model.idx_qs[model.getJointId(joint)])
+
+
+def _require_frame(model: pin.Model, tip: str, path: Path) -> None:
+    """FrameError listing the model's frames if ``tip`` is not one of them."""
+    if not model.existFrame(tip):
+        frames = [f.name for f in model.frames]
+        raise FrameError(f"tip frame '{tip}' not found in {path}; frames are: {', '.join(frames)}")
 
 
 def _default_tip(model: pin.Model) -> str:

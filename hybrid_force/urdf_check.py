@@ -1,10 +1,12 @@
-"""Plausibility checks of a URDF file, run before Pinocchio parses it.
+"""Checks of a URDF arm: plausibility before Pinocchio parses it, scope after it has built it.
 
-Neither Pinocchio's URDF parser nor yourdfpy's ``validate()`` rejects physically impossible
-inertial data, and Pinocchio's parser (urdfdom) reports structural errors only on stderr
-before raising a bare ``ValueError``. :func:`check_urdf` raises a
-:class:`~hybrid_force.errors.URDFError` that names the file, the link or joint, and the
-offending values, for:
+Every refusal raises a :class:`~hybrid_force.errors.URDFError` whose message names the file,
+the link or joint, and the offending values or the cause; the command line turns it into exit
+status 2 and one ``error: ...`` line (never a traceback, never a crash inside Pinocchio).
+
+**Before parsing**, :func:`check_urdf` (Pinocchio's parser, urdfdom, reports structural errors
+only on stderr before raising a bare ``ValueError``, and neither it nor yourdfpy's
+``validate()`` rejects impossible inertial data) refuses:
 
 * a missing file (or a directory);
 * malformed XML (with the XML parser's reason, line and column), or XML that is not a URDF
@@ -14,12 +16,36 @@ offending values, for:
 * physically impossible inertial data on a link that declares ``<inertial>``:
   mass missing, not finite or ``<= 0``; an inertia matrix with a non-finite entry, that is not
   positive semi-definite, or whose principal moments break the triangle inequality
-  ``I1 + I2 >= I3`` (for every permutation).
+  ``I1 + I2 >= I3`` (for every permutation);
+* models outside the toolkit's scope (fixed-base arms): a ``floating`` or ``planar`` joint
+  anywhere (named, with its type), and a model with no moving joint (every joint ``fixed``,
+  or no joint at all: nv = 0, on which Pinocchio's algorithms must never run).
+
+**After Pinocchio has built the model** (and the loader has made continuous joints unbounded
+revolute ones and locked the joints it locks), :func:`check_arm_model` refuses, before any
+algorithm that assumes nv > 0 runs:
+
+* nv = 0 (e.g. every moving joint locked);
+* a joint that is not a one-coordinate revolute or prismatic joint (nq ≠ nv or nv ≠ 1;
+  a free-flyer or planar joint if one got past the XML check): after loading, every moving
+  joint of an arm has nq = nv = 1;
+* a mimic joint (``<mimic joint=...>``) on the kinematic chain from the root to the tip frame,
+  named with its master: Pinocchio 4 models mimic joints (``mimic=True``) as
+  ``JointModelMimic``, which its forward and impulse dynamics refuse, and loading them as
+  independent joints would simulate an arm that does not exist. Mimic joints *off* that chain
+  (gripper fingers) are not refused: :func:`hybrid_force.robot.load_robot` locks them (see
+  there);
+* a mass matrix that is singular at the neutral configuration q0: M(q0) must have its smallest
+  eigenvalue above ``_MASS_REL_TOL * λ_max + _MASS_ABS_TOL`` (scale-aware: the registry's arms
+  have λ_min / λ_max ≥ 4e-5). The message names the joints that carry no inertia (their
+  subtree has zero mass and zero rotational inertia), or else the joints that the
+  near-null direction of M moves.
 
 Allowed on purpose: a link without ``<inertial>`` (a massless frame), and a link whose
 ``<inertial>`` has mass exactly 0 together with an all-zero inertia matrix (some URDF
-exporters write that for dummy frames; it is the same massless frame). A thin rod
-(principal moments ``0, I, I``) meets the triangle inequality with equality and passes.
+exporters write that for dummy frames; it is the same massless frame), as long as every
+moving joint still moves something with inertia. A thin rod (principal moments ``0, I, I``)
+meets the triangle inequality with equality and passes.
 
 Tolerances: PSD and triangle checks accept a violation up to
 ``_REL_TOL * max(|principal moments|) + _ABS_TOL`` [kg m²] (rounding in CAD exports).
@@ -29,17 +55,28 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
 from hybrid_force.errors import URDFError
 
-__all__ = ["check_urdf"]
+__all__ = ["check_arm_model", "check_urdf"]
 
 _REL_TOL = 1e-6
 _ABS_TOL = 1e-12
+# M(q0) is refused as singular when λ_min <= _MASS_REL_TOL·λ_max + _MASS_ABS_TOL
+# [kg, kg·m, kg·m²: the units of M's entries].
+_MASS_REL_TOL = 1e-10
+_MASS_ABS_TOL = 1e-14
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+_MOVING_TYPES = ("revolute", "continuous", "prismatic")
+_FIXED_BASE_ONLY = (
+    "hybrid_force simulates fixed-base arms only (make the joint fixed, or remove it and "
+    "its parent link)"
+)
 _INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 
@@ -91,9 +128,17 @@ def _check_links(path: Path, root: ET.Element) -> set[str]:
 
 
 def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
-    """Joints have names, known types, limits where required, and make one tree of links."""
+    """Joints have names, known types, limits where required, and make one tree of links.
+
+    Also refuses, once the tree is known to be well formed, a floating or planar joint and a
+    model without any moving joint (see the module docstring).
+    """
     joint_names: set[str] = set()
     parent_of: dict[str, str] = {}
+    unsupported: list[tuple[str, str, dict[str, str]]] = []
+    masters: dict[str, str] = {}
+    types: dict[str, str] = {}
+    moving = 0
     for i, joint in enumerate(root.findall("joint")):
         name = joint.get("name")
         if not name:
@@ -131,6 +176,16 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
                     "which is not defined"
                 )
             ends[tag] = link
+        if jtype in ("floating", "planar"):
+            unsupported.append((name, jtype, ends))
+        moving += jtype in _MOVING_TYPES
+        types[name] = jtype
+        mimic = joint.find("mimic")
+        if mimic is not None and jtype in _MOVING_TYPES:  # URDF ignores it elsewhere
+            masters[name] = mimic.get("joint") or ""
+            for key in ("multiplier", "offset"):
+                if mimic.get(key) is not None:
+                    _float_attr(path, f"joint {name!r}: <mimic>", mimic, key)
         child = ends["child"]
         if child in parent_of:
             raise URDFError(
@@ -144,6 +199,25 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
         raise URDFError(
             f"malformed URDF {path}: the links must form one tree with one root link; "
             f"root links found: {detail}"
+        )
+    for name, master in masters.items():
+        if types.get(master) not in _MOVING_TYPES or master == name:
+            raise URDFError(
+                f"malformed URDF {path}: joint {name!r} has <mimic joint={master!r}>, which "
+                "names no other revolute, continuous or prismatic joint of the model"
+            )
+    if unsupported:
+        name, jtype, ends = unsupported[0]
+        raise URDFError(
+            f"unsupported URDF {path}: joint {name!r} (parent link {ends['parent']!r}, child "
+            f"link {ends['child']!r}) is a {jtype} joint; {_FIXED_BASE_ONLY}"
+        )
+    if moving == 0:
+        count = len(joint_names)
+        what = f"all {count} joints are fixed" if count else "it has no joint"
+        raise URDFError(
+            f"unsupported URDF {path}: the model has no moving joint ({what}, so nv = 0); "
+            "an arm needs at least one revolute, continuous or prismatic joint"
         )
 
 
@@ -202,3 +276,88 @@ def _check_inertial(path: Path, link: str, inertial: ET.Element) -> None:
             f"physically impossible URDF {path}: {where} principal moments {principal} kg m² "
             f"break the triangle inequality I1 + I2 >= I3 ({shown})"
         )
+
+
+def check_arm_model(
+    model: pin.Model, path: Path | str, *, tip: str, mimic: Mapping[str, str] | None = None
+) -> None:
+    """Refuse a built model the toolkit cannot simulate (see the module docstring).
+
+    Runs no Pinocchio algorithm before nv > 0 is established; then one ``crba`` at the neutral
+    configuration.
+
+    Args:
+        model: the Pinocchio model as the loader will use it (continuous joints already
+            unbounded revolute ones, locked joints removed).
+        path: the URDF file (named in the messages).
+        tip: the tip frame (must exist in ``model``).
+        mimic: ``{mimic joint: its master}`` as declared by the URDF's ``<mimic>`` elements.
+
+    Raises:
+        URDFError: nv = 0, a joint that is not one-coordinate revolute or prismatic, a mimic
+            joint on the chain from the root to ``tip``, or M(q0) singular; the message names
+            the file, the joints and the cause.
+    """
+    where = f"unsupported URDF {path}"
+    if model.nv == 0:
+        raise URDFError(
+            f"{where}: the model has no moving joint left (nv = 0); an arm needs at least "
+            "one revolute, continuous or prismatic joint"
+        )
+    for jid in range(1, model.njoints):
+        joint = model.joints[jid]
+        if joint.nq != 1 or joint.nv != 1:
+            raise URDFError(
+                f"{where}: joint {model.names[jid]!r} is a {joint.shortname()} "
+                f"(nq = {joint.nq}, nv = {joint.nv}); only one-coordinate revolute and "
+                f"prismatic joints are supported: {_FIXED_BASE_ONLY}"
+            )
+    mimic = dict(mimic or {})
+    chain = list(model.supports[model.frames[model.getFrameId(tip)].parentJoint])[1:]
+    on_chain = [model.names[j] for j in chain if model.names[j] in mimic]
+    if on_chain:
+        listed = ", ".join(f"{j!r} (mimics {mimic[j]!r})" for j in on_chain)
+        raise URDFError(
+            f"{where}: mimic joints on the arm's chain are not supported: Pinocchio 4's "
+            f"forward and impulse dynamics refuse them; joint {listed} lies on the chain from "
+            f"the root to the tip frame {tip!r} (choose another tip, or replace the mimic "
+            "joint by an independent or a fixed joint)"
+        )
+    _check_mass_matrix(model, where)
+
+
+def _check_mass_matrix(model: pin.Model, where: str) -> None:
+    """M(q0) positive definite, scale-aware; name the joints that move nothing with inertia."""
+    M = pin.crba(model, model.createData(), pin.neutral(model))
+    M = np.triu(M) + np.triu(M, 1).T
+    eig, vec = np.linalg.eigh(M)
+    floor = _MASS_REL_TOL * max(float(eig[-1]), 0.0) + _MASS_ABS_TOL
+    if eig[0] > floor:
+        return
+    names = [model.names[j] for j in range(1, model.njoints)]
+    empty = [
+        model.names[j]
+        for j in range(1, model.njoints)
+        if all(
+            model.inertias[k].mass == 0.0 and not np.any(model.inertias[k].inertia)
+            for k in model.subtrees[j]
+        )
+    ]
+    if empty:
+        cause = (
+            f"joint(s) {', '.join(map(repr, empty))} carry no inertia (every link they move "
+            "has zero mass and zero inertia)"
+        )
+    else:
+        # v_j = column of each joint in v (nv = njoints − 1, one coordinate per joint here)
+        null = np.abs(vec[:, 0])
+        moved = [names[i] for i in np.flatnonzero(null > 0.1 * null.max())]
+        cause = (
+            f"moving joint(s) {', '.join(map(repr, moved))} together move nothing with inertia "
+            "(e.g. a point mass on a joint's axis)"
+        )
+    raise URDFError(
+        f"{where}: the mass matrix M(q0) at the neutral configuration is singular "
+        f"(smallest eigenvalue {eig[0]:.3g}, largest {eig[-1]:.3g}): {cause}; give the links "
+        "these joints move a positive mass and inertia"
+    )

@@ -106,8 +106,9 @@ def arms() -> dict[str, Robot]:
 
 
 def _random_state(robot: Robot, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """q uniform within the joint limits, v uniform in [−2, 2] (n,)."""
-    lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    """q uniform within the joint limits (±π for an unbounded joint), v uniform in [−2, 2]."""
+    lo, hi = robot.position_limits
+    lo, hi = np.where(np.isfinite(lo), lo, -math.pi), np.where(np.isfinite(hi), hi, math.pi)
     q = lo + (hi - lo) * rng.random(robot.nq)
     return q, rng.uniform(-2.0, 2.0, robot.nv)
 
@@ -183,18 +184,37 @@ def test_bundled_arms_are_euclidean(arms: dict[str, Robot], arm: str) -> None:
         np.testing.assert_array_equal(pin.integrate(robot.model, q, dq), q + dq)
 
 
-def _rtr_with_continuous_base(tmp_path: Path, repo_root: Path) -> Robot:
-    """The RTR arm with its first joint declared continuous (q1 stored as (cos, sin))."""
-    text = (repo_root / "robots" / "rtr.urdf").read_text()
-    old = '<joint name="q1" type="revolute">'
-    assert text.count(old) == 1
-    path = tmp_path / "rtr_continuous.urdf"
-    path.write_text(text.replace(old, '<joint name="q1" type="continuous">'))
-    return load_robot(path, tip="tip")
+def _rtr_with_continuous_base(rtr_urdf: Path) -> Robot:
+    """The RTR arm with q1 stored as (cos q1, sin q1): Pinocchio's own JointModelRUBZ.
+
+    ``pin.buildModelFromUrdf`` builds rtr.urdf's continuous q1 that way; ``load_robot`` no
+    longer does (it makes it an unbounded revolute joint), so the non-Euclidean branches are
+    reached through a Robot made directly from the model.
+    """
+    model = pin.buildModelFromUrdf(str(rtr_urdf))
+    assert model.joints[1].shortname() == "JointModelRUBZ"
+    return Robot(model, name="rtr_rubz", urdf_path=rtr_urdf, tip="tip")
 
 
-def test_continuous_joint_is_not_euclidean(tmp_path: Path, repo_root: Path) -> None:
-    robot = _rtr_with_continuous_base(tmp_path, repo_root)
+def test_continuous_urdf_joint_is_euclidean(arms: dict[str, Robot]) -> None:
+    """rtr.urdf's q1 is continuous: loaded as one unbounded angle, integrated by addition."""
+    robot = arms["rtr"]
+    assert robot.model.joints[1].shortname() == "JointModelRZ"
+    assert (robot.nq, robot.nv) == (3, 3)
+    lower, upper = robot.position_limits
+    assert (lower[0], upper[0]) == (-math.inf, math.inf)
+    q0 = np.array([6.0, 2.0, 0.3])
+    dq = np.array([7.5, -0.2, 0.1])  # q1 passes 4π: the angle is not wrapped
+    q1 = pin.integrate(robot.model, q0, dq)
+    np.testing.assert_array_equal(q1, q0 + dq)
+    assert q1[0] == 13.5
+    # the angle still means the same pose: 13.5 rad and 13.5 − 4π give one tip position
+    wrapped = q1 - np.array([4 * math.pi, 0.0, 0.0])
+    np.testing.assert_allclose(robot.tip_position(q1), robot.tip_position(wrapped), atol=1e-14)
+
+
+def test_continuous_joint_as_rubz_is_not_euclidean(rtr_urdf: Path) -> None:
+    robot = _rtr_with_continuous_base(rtr_urdf)
     assert robot.euclidean is False
     # the independent reason: q has 4 numbers for 3 velocities, and integrate rotates the
     # unit complex number (cos q1, sin q1) instead of adding to it
@@ -551,9 +571,9 @@ def test_desired_joint_path_fast_equals_reference(arms: dict[str, Robot], arm: s
     _advance_both(fast, ref, 500)
 
 
-def test_desired_joint_path_fast_on_a_continuous_joint(tmp_path: Path, repo_root: Path) -> None:
+def test_desired_joint_path_fast_on_a_continuous_joint(rtr_urdf: Path) -> None:
     """The non-Euclidean branches (pinocchio.integrate / difference) of the fast CLIK."""
-    robot = _rtr_with_continuous_base(tmp_path, repo_root)
+    robot = _rtr_with_continuous_base(rtr_urdf)
     path = paper_helix()
     q0 = inverse_kinematics(robot, path.position(0), seed=np.array([1.0, 0.0, 6.0, 2.0]))
     fast = DesiredJointPath(robot, path, q0, fast=True)

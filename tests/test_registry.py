@@ -12,6 +12,7 @@ import pytest
 
 from hybrid_force._registry import RobotEntry, bundled_robots_dir, known_robots, resolve_robot
 from hybrid_force.errors import BadInputError, UnknownRobotError
+from hybrid_force.robot import load_robot
 from hybrid_force.urdf_check import check_urdf
 
 ENTRIES = known_robots()
@@ -73,18 +74,24 @@ def test_example_robot_data_entries_use_the_cmeel_share_dir() -> None:
 def test_entry_loads_and_has_its_tip(entry: RobotEntry) -> None:
     assert entry.urdf_path.is_file()
     check_urdf(entry.urdf_path)
-    model = pin.buildModelFromUrdf(str(entry.urdf_path))
-    assert model.nq == model.nv  # no continuous (cos, sin) joints: q and v have one size
-    assert model.existFrame(entry.default_tip)
+    robot = load_robot(entry.name)
+    assert robot.source == entry.name  # a name re-loads from any working directory
+    # One coordinate per moving joint (a continuous joint is an unbounded revolute one), and
+    # as many as the URDF declares (counted from the XML) minus the locked ones.
+    root = ET.parse(entry.urdf_path).getroot()
+    moving = [
+        j.get("name")
+        for j in root.findall("joint")
+        if j.get("type") in ("revolute", "continuous", "prismatic")
+    ]
+    assert robot.nq == robot.nv == len(moving) - len(entry.locked_joints)
+    assert robot.euclidean is True
+    assert robot.tip == entry.default_tip
     # The tip is carried by the arm: it moves when the joints move.
-    data = model.createData()
-    fid = model.getFrameId(entry.default_tip)
     rng = np.random.default_rng(5)
-    q0 = pin.neutral(model)
-    pin.framesForwardKinematics(model, data, q0)
-    p0 = data.oMf[fid].translation.copy()
-    pin.framesForwardKinematics(model, data, q0 + rng.uniform(-0.5, 0.5, model.nq))
-    assert np.linalg.norm(data.oMf[fid].translation - p0) > 1e-3
+    q0 = robot.neutral()
+    p0 = robot.tip_position(q0)
+    assert np.linalg.norm(robot.tip_position(q0 + rng.uniform(-0.5, 0.5, robot.nq)) - p0) > 1e-3
 
 
 def test_expected_joint_counts() -> None:
@@ -159,3 +166,18 @@ def test_unknown_name_lists_known_names_and_suggests() -> None:
 def test_unknown_name_without_close_match() -> None:
     with pytest.raises(UnknownRobotError, match=r"unknown robot 'zzzzzz'; known robots: rtr"):
         resolve_robot("zzzzzz")
+
+
+def test_unknown_name_says_how_to_use_a_file() -> None:
+    with pytest.raises(UnknownRobotError, match=r"to use a file, give a path such as \./my_arm\)"):
+        resolve_robot("my_arm")
+
+
+def test_rtr_base_joint_is_continuous_in_the_urdf(rtr_urdf: Path) -> None:
+    """The paper's base joint turns freely: q1 is declared continuous, with its limits kept."""
+    joints = {j.get("name"): j for j in ET.parse(rtr_urdf).getroot().findall("joint")}
+    assert joints["q1"].get("type") == "continuous"
+    limit = joints["q1"].find("limit")
+    assert limit is not None
+    assert (limit.get("effort"), limit.get("velocity")) == ("10000", "100")
+    assert "continuous" in resolve_robot("rtr").description
