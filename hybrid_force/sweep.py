@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
+import ctypes
 import hashlib
 import io
 import itertools
@@ -34,19 +35,25 @@ import json
 import math
 import multiprocessing
 import os
+import shutil
+import signal
 import sys
+import tempfile
+import threading
 import time
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures import as_completed as _futures_as_completed
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
+from concurrent.futures import wait as _futures_wait
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 from hybrid_force._atomic import atomic_file
-from hybrid_force.errors import BadInputError, SimulationError
+from hybrid_force.errors import BadInputError, ScenarioError, SimulationError
 
 __all__ = [
+    "MAX_RUNS",
     "METRIC_COLUMNS",
     "STATUSES",
     "TIMING_COLUMNS",
@@ -95,6 +102,12 @@ time_to_converge [s] (first time after which ‖e‖ < 1 mm for good). Empty cel
 
 TIMING_COLUMNS: tuple[str, ...] = ("steps_per_second", "wall_time")
 """Machine-dependent columns (steps/s of the control loop, wall time [s] of the whole run)."""
+
+MAX_RUNS = 100_000
+"""Most variants one sweep may have (the grid sizes' product × samples; values of one --grid).
+
+Larger sweeps are refused before anything is expanded or run: split them into several sweeps.
+"""
 
 _FIXED_HEAD = ("run_id",)
 _STATUS_COLUMNS = ("status", "error", "warnings")
@@ -173,7 +186,8 @@ def expand(
 
     Raises:
         SweepError: a key not of the form table.key, a key both in grid and random, an empty
-            value list, a value listed twice, a range with lo > hi or not finite, samples < 1.
+            value list, a value listed twice, a range with lo > hi or not finite, samples < 1,
+            more than :data:`MAX_RUNS` variants (checked before anything is expanded).
     """
     import numpy as np
 
@@ -181,6 +195,23 @@ def expand(
         _check_key(key, "--grid")
         if len(values) == 0:
             raise SweepError(f"--grid {key} has no values")
+        if len(values) > MAX_RUNS:
+            raise SweepError(
+                f"--grid {key} lists {len(values)} values; at most {MAX_RUNS} (MAX_RUNS) are "
+                "allowed"
+            )
+    if random and (isinstance(samples, bool) or not isinstance(samples, int) or samples < 1):
+        raise SweepError(f"--samples must be a positive integer with --random, got {samples!r}")
+    n_runs = math.prod(len(values) for values in grid.values()) * (samples if random else 1)
+    if n_runs > MAX_RUNS:
+        sizes = [f"--grid {key}: {len(values)} values" for key, values in grid.items()]
+        if random:
+            sizes.append(f"--samples {samples}")
+        raise SweepError(
+            f"the sweep would have {n_runs} runs ({' × '.join(sizes)}); at most {MAX_RUNS} "
+            "(MAX_RUNS) are allowed: split it into several sweeps, each with its own --out"
+        )
+    for key, values in grid.items():
         seen: set[str] = set()
         for v in values:
             text = json.dumps(_canonical(v), sort_keys=True)
@@ -201,8 +232,6 @@ def expand(
     points = [dict(zip(grid, combo, strict=True)) for combo in itertools.product(*grid.values())]
     if not random:
         return [{k: _canonical(v) for k, v in p.items()} for p in points]
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
-        raise SweepError(f"--samples must be a positive integer with --random, got {samples!r}")
     keys = sorted(random)
     gen = np.random.default_rng(seed)
     unit = gen.random((samples, len(keys)))  # (samples, m) in [0, 1)
@@ -275,8 +304,140 @@ def _metrics_row(result: Any) -> dict[str, Any]:
     return row
 
 
+def _new_row(rid: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    """A row with status "ok", no error, no warnings and every metric/timing column None."""
+    row: dict[str, Any] = {"run_id": rid, **params, "status": "ok", "error": None}
+    row["warnings"] = None
+    for name in (*METRIC_COLUMNS, *TIMING_COLUMNS):
+        row[name] = None
+    return row
+
+
+def _is_urdf_path(model: object) -> bool:
+    """Whether ``robot.model`` names a URDF file (as the scenario loader decides), not a name."""
+    return isinstance(model, str) and (model.endswith(".urdf") or "/" in model or "\\" in model)
+
+
+@dataclass(frozen=True)
+class _Urdf:
+    """A URDF file of the sweep's machine, sent with a task (a worker may not see the file).
+
+    ``model`` is ``robot.model`` as the scenario writes it (e.g. ``"rtr.urdf"``), ``path`` the
+    file's absolute path on the sweep's machine (what the kept result's meta names), ``data``
+    its bytes (kinematics and inertias only are used: meshes are never read).
+    """
+
+    model: str
+    path: str
+    data: bytes
+
+
+@dataclass(frozen=True)
+class _Task:
+    """Everything one run needs, and nothing a worker might not see: sent to a worker.
+
+    ``doc`` is the scenario's data with the variant's overrides applied; ``origin`` names the
+    scenario file in messages; ``keep``: return the result (the bytes of its .npz) to the
+    sweep; ``scratch``: a folder of the sweep's machine for the run's temporary folder (only
+    for workers on that machine; None: the worker's own temporary directory).
+    """
+
+    run_id: str
+    params: dict[str, Any]
+    doc: dict[str, Any]
+    origin: str
+    urdf: _Urdf | None
+    keep: bool
+    scratch: str | None = None
+
+
+_Outcome = tuple[dict[str, Any], bytes | None]
+"""What a worker returns: the row, and the saved .npz of the run's Result (or None)."""
+
+
+def _signature(path: Path) -> tuple[int, int, int]:
+    """(inode, size [B], mtime [ns]) of a file: changes when the file is rewritten."""
+    st = path.stat()
+    return st.st_ino, st.st_size, st.st_mtime_ns
+
+
+class _Source:
+    """The scenario file on the sweep's machine: it turns variants into :class:`_Task` s.
+
+    The file is read here (never by a worker). Raises ScenarioError (bad input) at
+    construction if it cannot be read or is not TOML.
+    """
+
+    def __init__(self, path: Path, *, scratch: str | None = None) -> None:
+        from hybrid_force.scenario import read_scenario_document
+
+        self.path = path
+        self.origin = str(path)
+        self.scratch = scratch
+        read_scenario_document(path)  # unreadable file or bad TOML: ScenarioError now
+        try:
+            self.signature = _signature(path)
+        except OSError as exc:
+            raise SweepError(f"cannot read scenario file '{path}': {exc}") from exc
+        self._urdfs: dict[str, _Urdf | str] = {}  # target path → file, or why it is unreadable
+
+    def job(self, rid: str, params: Mapping[str, Any], keep: bool) -> _Task | dict[str, Any]:
+        """The task of one variant, or its finished row when it is bad input already here.
+
+        Raises:
+            SweepError: the scenario file was changed since the sweep started (its rows would
+                mix two versions of the scenario).
+        """
+        from hybrid_force.scenario import read_scenario_document
+
+        try:
+            unchanged = _signature(self.path) == self.signature
+        except OSError:
+            unchanged = False
+        if not unchanged:
+            raise SweepError(
+                f"the scenario file '{self.path}' was changed or removed during the sweep; "
+                "the finished rows are kept, but a new version of the file needs another --out"
+            )
+        try:
+            doc = read_scenario_document(self.path, dict(params))
+            urdf = self._urdf(doc)
+        except BadInputError as exc:
+            row = _new_row(rid, params)
+            row["status"] = "bad input"
+            row["error"] = _one_line(str(exc))
+            row["wall_time"] = 0.0
+            return row
+        return _Task(rid, dict(params), doc, self.origin, urdf, keep, self.scratch)
+
+    def _urdf(self, doc: Mapping[str, Any]) -> _Urdf | None:
+        """The URDF file ``robot.model`` names (relative to the scenario's folder), or None."""
+        robot = doc.get("robot")
+        model = robot.get("model") if isinstance(robot, Mapping) else None
+        if not _is_urdf_path(model):
+            return None
+        assert isinstance(model, str)
+        candidate = Path(model)
+        target = candidate if candidate.is_absolute() else self.path.parent / candidate
+        key = str(target)
+        if key not in self._urdfs:
+            try:
+                data = target.read_bytes()
+                self._urdfs[key] = _Urdf(model, str(target.resolve()), data)
+            except FileNotFoundError:
+                self._urdfs[key] = (
+                    f"URDF file not found (paths are relative to the scenario file): {target}"
+                )
+            except OSError as exc:
+                self._urdfs[key] = f"cannot read the URDF file {target}: {exc}"
+        found = self._urdfs[key]
+        if isinstance(found, str):
+            raise ScenarioError(f"{self.origin}: robot.model = {json.dumps(model)}: {found}")
+        return found
+
+
 def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) -> dict[str, Any]:
-    """Run one variant of a scenario; never raises (failures become the row's status).
+    """Run one variant of a scenario in this process; never raises (failures become the status).
 
     Args:
         scenario_path: the scenario TOML file.
@@ -288,55 +449,165 @@ def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) ->
         A flat dict: ``run_id``, the params (keys ``"table.key"``), ``status`` (see
         :data:`STATUSES`), ``error`` (one-line message or None), ``warnings`` (the distinct
         warnings the run raised, joined by " | ", or None), the :data:`METRIC_COLUMNS`
-        (None when undefined) and the :data:`TIMING_COLUMNS`. Top-level, so it pickles for a
-        process pool or a Dask worker.
+        (None when undefined) and the :data:`TIMING_COLUMNS` (wall_time [s]).
+
+    The run goes through the same steps as a sweep's: the scenario's data and its URDF file
+    are read here, then built and simulated from a private temporary folder.
     """
     rid = run_id(params)
-    row: dict[str, Any] = {"run_id": rid, **params, "status": "ok", "error": None}
-    row["warnings"] = None
-    for name in (*METRIC_COLUMNS, *TIMING_COLUMNS):
-        row[name] = None
-    wall0 = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        _run_into(row, scenario_path, params, keep_dir)
-    messages = list(dict.fromkeys(_one_line(str(w.message)) for w in caught))
-    row["warnings"] = " | ".join(messages) if messages else None
-    row["wall_time"] = time.perf_counter() - wall0
+    try:
+        job = _Source(Path(scenario_path)).job(rid, params, keep=keep_dir is not None)
+    except BadInputError as exc:
+        row = _new_row(rid, params)
+        row.update(status="bad input", error=_one_line(str(exc)), wall_time=0.0)
+        return row
+    if isinstance(job, dict):
+        return job
+    row, blob = _execute(job)
+    if blob is not None and keep_dir is not None:
+        try:
+            _save_blob(Path(keep_dir), rid, blob)
+        except OSError as exc:
+            row["status"] = "error"
+            row["error"] = _one_line(f"cannot save the result: {exc}")
     return row
 
 
-def _run_into(
-    row: dict[str, Any], scenario_path: str, params: dict[str, Any], keep_dir: str | None
-) -> None:
-    """Load, simulate and fill ``row`` in place (status, error, metrics); never raises."""
-    rid = row["run_id"]
+def _execute(task: _Task) -> _Outcome:
+    """Run one task (in a worker); never raises: failures become the row's status.
+
+    The URDF (if any) is written to a private temporary folder, removed afterwards. Top-level,
+    so it pickles for a process pool or a Dask worker.
+    """
+    row = _new_row(task.run_id, task.params)
+    blob: bytes | None = None
+    renames: list[tuple[str, str]] = []  # worker paths → what the sweep's machine calls them
+    wall0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            scratch = task.scratch if task.scratch and os.path.isdir(task.scratch) else None
+            with tempfile.TemporaryDirectory(
+                prefix="hybrid_force_run_", dir=scratch, ignore_cleanup_errors=True
+            ) as tmp:
+                blob = _simulate_into(row, task, Path(tmp), renames)
+        except Exception as exc:
+            row["status"] = "error"
+            row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
+    messages = list(dict.fromkeys(_one_line(str(w.message)) for w in caught))
+    row["warnings"] = " | ".join(messages) if messages else None
+    for key in ("error", "warnings"):
+        for local, original in renames:
+            if row[key]:
+                row[key] = row[key].replace(local, original)
+    row["wall_time"] = time.perf_counter() - wall0
+    return row, blob
+
+
+def _simulate_into(
+    row: dict[str, Any], task: _Task, tmp: Path, renames: list[tuple[str, str]]
+) -> bytes | None:
+    """Build and simulate the task in the folder ``tmp``; fill ``row`` (status, error, metrics).
+
+    Returns the bytes of the saved Result when the task keeps it, else None. Raises only on an
+    unexpected exception (the caller makes it status "error").
+    """
+    from hybrid_force.errors import DivergenceError
+    from hybrid_force.scenario import scenario_from_document
+    from hybrid_force.simulate import simulate
+
+    doc = dict(task.doc)
+    if task.urdf is not None:
+        local = tmp / (Path(task.urdf.path).name or "robot.urdf")
+        local.write_bytes(task.urdf.data)
+        robot = doc.get("robot")
+        doc["robot"] = {**(robot if isinstance(robot, dict) else {}), "model": str(local)}
+        renames.append((str(local), task.urdf.path))
     result: Any = None
     try:
-        from hybrid_force.errors import DivergenceError
-        from hybrid_force.scenario import load_scenario
-        from hybrid_force.simulate import simulate
-
-        try:
-            scenario = load_scenario(scenario_path, overrides=params)
-            result = simulate(scenario)
-        except DivergenceError as exc:
-            row["status"] = "diverged"
-            row["error"] = _one_line(str(exc))
-            result = exc.result
-        except SimulationError as exc:
-            row["status"] = "diverged"
-            row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
-        except BadInputError as exc:
-            row["status"] = "bad input"
-            row["error"] = _one_line(str(exc))
-        if result is not None:
-            row.update(_metrics_row(result))
-            if keep_dir is not None:
-                result.save(Path(keep_dir) / f"{rid}.npz")
-    except Exception as exc:
-        row["status"] = "error"
+        scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
+        result = simulate(scenario)
+    except DivergenceError as exc:
+        row["status"] = "diverged"
+        row["error"] = _one_line(str(exc))
+        result = exc.result
+    except SimulationError as exc:
+        row["status"] = "diverged"
         row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
+    except BadInputError as exc:
+        row["status"] = "bad input"
+        row["error"] = _one_line(str(exc))
+    if result is None:
+        return None
+    result = _with_original_model(result, task)
+    row.update(_metrics_row(result))
+    if not task.keep:
+        return None
+    return result.save(tmp / "result.npz").read_bytes()
+
+
+def _with_original_model(result: Any, task: _Task) -> Any:
+    """The Result with its meta naming the robot as the sweep's machine does, not the worker.
+
+    ``meta["robot"]["model"]``: the registry name, or the URDF's absolute path on the sweep's
+    machine; ``meta["scenario"]["robot"]["model"]``: the value the scenario file writes.
+    """
+    if task.urdf is None:
+        return result
+    robot = dict(result.meta.get("robot") or {})
+    robot["model"] = task.urdf.path
+    source = result.meta.get("scenario")
+    if isinstance(source, dict) and isinstance(source.get("robot"), dict):
+        source = {**source, "robot": {**source["robot"], "model": task.urdf.model}}
+    return result.with_meta(robot=robot, scenario=source)
+
+
+def _save_blob(keep_dir: Path, rid: str, blob: bytes) -> Path:
+    """Write a run's .npz bytes atomically to ``keep_dir/<rid>.npz`` (directory fsync'ed)."""
+    keep_dir.mkdir(parents=True, exist_ok=True)
+    target = keep_dir / f"{rid}.npz"
+    with atomic_file(target) as fh:
+        fh.write(blob)
+    with contextlib.suppress(OSError):
+        fd = os.open(keep_dir, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    return target
+
+
+# ----------------------------------------------------------------------------- worker processes
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+def _watch_parent(parent_pid: int) -> None:
+    """Make this worker process die (SIGKILL) as soon as its parent, ``parent_pid``, dies.
+
+    The initialiser of the sweep's local worker processes, so that even a ``kill -9`` of the
+    sweep leaves none behind. On Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (the kernel kills
+    us when the parent's thread that started us exits: the sweep's main thread); elsewhere, or
+    if prctl fails, a daemon thread polls ``os.getppid()`` every 0.2 s. A parent that died
+    before the watch was armed is caught by comparing ``os.getppid()`` with ``parent_pid``.
+    """
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent_pid:
+        os._exit(1)  # orphaned already
+
+    if not armed:
+
+        def poll() -> None:
+            while os.getppid() == parent_pid:
+                time.sleep(0.2)
+            os._exit(1)
+
+        threading.Thread(target=poll, name="hybrid_force parent watch", daemon=True).start()
 
 
 # ----------------------------------------------------------------------------- CSV files
@@ -535,6 +806,11 @@ def run_sweep(
     scenario = Path(scenario_path)
     if not scenario.is_file():
         raise SweepError(f"scenario file '{scenario}' does not exist")
+    if hasattr(variants, "__len__") and len(variants) > MAX_RUNS:
+        raise SweepError(
+            f"the sweep has {len(variants)} variants; at most {MAX_RUNS} (MAX_RUNS) are allowed: "
+            "split it into several sweeps, each with its own --out"
+        )
     variants = [dict(v) for v in variants]
     ids = [run_id(v) for v in variants]
     if len(set(ids)) != len(ids):
@@ -542,6 +818,7 @@ def run_sweep(
         raise SweepError(f"the variant {dup!r} appears more than once")
     if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
         raise SweepError(f"--workers must be a positive integer, got {workers!r}")
+    source = _Source(scenario)  # read here, never by a worker; ScenarioError if unreadable
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -561,7 +838,7 @@ def run_sweep(
                 "use another --out or delete that directory"
             )
     table = _Table(out / _CSV_NAME, variants)
-    keep_dir = str((out / "results").resolve()) if keep_results else None
+    keep_dir = (out / "results").resolve() if keep_results else None
     info = {
         "scenario": str(scenario.resolve()),
         "scenario_sha256": sha,
@@ -585,81 +862,164 @@ def run_sweep(
     bar.draw()
     lost: list[str] = []
 
-    def finish(row: dict[str, Any]) -> None:
+    def finish(row: dict[str, Any], blob: bytes | None) -> None:
+        if blob is not None and keep_dir is not None:
+            try:
+                _save_blob(keep_dir, str(row["run_id"]), blob)
+            except OSError as exc:
+                raise SweepError(f"cannot save a result into '{keep_dir}': {exc}") from exc
         table.add(row)
         table.write(force=False)
         bar.update(str(row.get("status")))
         if on_row is not None:
             on_row(row)
 
+    remote = scheduler not in (None, "local")
+    # a scratch folder of this machine for the local workers' temporary folders: removed at
+    # the end even when the sweep is interrupted (SIGTERM, Ctrl-C) and its workers killed
+    scratch = None if remote else tempfile.mkdtemp(prefix="hybrid_force_sweep_")
+    source.scratch = scratch
+
+    def jobs() -> Iterator[tuple[str, _Task | dict[str, Any]]]:
+        for rid, params in todo:
+            yield rid, source.job(rid, params, keep=keep_dir is not None)
+
     try:
         if scheduler is None:
-            _run_pool(str(scenario), todo, workers, keep_dir, finish, lost)
+            _run_pool(jobs(), len(todo), workers, finish, lost)
         else:
-            _run_dask(str(scenario), todo, workers, scheduler, keep_dir, finish, lost)
+            _run_dask(jobs(), workers, scheduler, finish, lost)
     finally:
         table.write()
         bar.close()
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
     if lost:
+        missing = sum(1 for rid in ids if rid not in table.rows)
         raise SimulationError(
-            f"{len(lost)} run(s) were lost ({lost[0]}); the {len(table.rows)} finished rows are "
-            f"in '{table.path}'; run the same sweep again to run the missing ones"
+            f"{len(lost)} run(s) were lost ({lost[0]}); {missing} variant(s) have no row; the "
+            f"{len(table.rows)} finished rows are in '{table.path}'; run the same sweep again "
+            "to run the missing ones"
         )
     return table.path
 
 
+def _pump(
+    jobs: Iterator[tuple[str, _Task | dict[str, Any]]],
+    submit: Callable[[_Task], Any],
+    wait_first: Callable[[list[Any]], Iterable[Any]],
+    limit: int,
+    finish: Callable[[dict[str, Any], bytes | None], None],
+    lost: list[str],
+    *,
+    stop_on_loss: bool,
+) -> None:
+    """Keep at most ``limit`` tasks in flight and hand each finished one to ``finish``.
+
+    Tasks are made (their scenario data read) only when submitted, so a long sweep holds a few
+    of them in memory, not all. A future that raised (a lost worker, not a failed run:
+    :func:`_execute` never raises) is recorded in ``lost`` with its run id; with
+    ``stop_on_loss`` (a broken process pool takes no more work) nothing more is submitted.
+    """
+    pending: dict[Any, str] = {}
+    more = True
+
+    def refill() -> None:
+        nonlocal more
+        while more and len(pending) < limit:
+            job = next(jobs, None)
+            if job is None:
+                more = False
+                return
+            rid, item = job
+            if isinstance(item, _Task):
+                try:
+                    pending[submit(item)] = rid
+                except Exception as exc:  # e.g. BrokenProcessPool: a worker died
+                    lost.append(f"{rid}: {type(exc).__name__}: {_one_line(str(exc))}")
+                    more = False
+            else:
+                finish(item, None)  # bad input found here: no worker needed
+
+    refill()
+    while pending:
+        for fut in wait_first(list(pending)):
+            rid = pending.pop(fut)
+            try:
+                row, blob = fut.result()
+            except Exception as exc:
+                lost.append(f"{rid}: {type(exc).__name__}: {_one_line(str(exc))}")
+                more = more and not stop_on_loss
+                continue
+            finish(row, blob)
+        refill()
+
+
+def _first_done(futures: list[Future[_Outcome]]) -> Iterable[Future[_Outcome]]:
+    return _futures_wait(futures, return_when=FIRST_COMPLETED).done
+
+
 def _run_pool(
-    scenario: str,
-    todo: Sequence[tuple[str, dict[str, Any]]],
+    jobs: Iterator[tuple[str, _Task | dict[str, Any]]],
+    n_jobs: int,
     workers: int | None,
-    keep_dir: str | None,
-    finish: Callable[[dict[str, Any]], None],
+    finish: Callable[[dict[str, Any], bytes | None], None],
     lost: list[str],
 ) -> None:
-    """Run on a local process pool ("spawn": no fork of a process holding Pinocchio state)."""
-    n = min(int(workers or os.cpu_count() or 1), len(todo))
+    """Run on a local process pool ("spawn": no fork of a process holding Pinocchio state).
+
+    The workers die with this process (:func:`_watch_parent`); on any exception (SIGTERM,
+    Ctrl-C, a failed write) they are killed before it propagates, so none is left running.
+    """
+    n = min(int(workers or os.cpu_count() or 1), n_jobs)
     ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx)
+    pool = ProcessPoolExecutor(
+        max_workers=n, mp_context=ctx, initializer=_watch_parent, initargs=(os.getpid(),)
+    )
     try:
-        futures: dict[Future[dict[str, Any]], str] = {
-            pool.submit(run_one, scenario, params, keep_dir): rid for rid, params in todo
-        }
-        _drain(_futures_as_completed(futures), futures, finish, lost)
+        _pump(
+            jobs,
+            lambda task: pool.submit(_execute, task),
+            _first_done,
+            max(4 * n, 32),
+            finish,
+            lost,
+            stop_on_loss=True,
+        )
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
+        _kill_pool(pool)
         raise
     pool.shutdown(wait=True)
 
 
-def _drain(
-    done: Iterable[Any],
-    run_ids: Mapping[Any, str],
-    finish: Callable[[dict[str, Any]], None],
-    lost: list[str],
-) -> None:
-    """Hand each finished future's row to ``finish``; a future that raised (a lost worker, not a
-    failed run: run_one never raises) is recorded in ``lost`` with its run id."""
-    for fut in done:
-        try:
-            row = fut.result()
-        except Exception as exc:
-            lost.append(f"{run_ids[fut]}: {type(exc).__name__}: {_one_line(str(exc))}")
-            continue
-        finish(row)
+def _kill_pool(pool: ProcessPoolExecutor) -> None:
+    """Stop a process pool now: cancel what is queued, kill (SIGKILL) and reap its workers."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        with contextlib.suppress(Exception):
+            proc.kill()
+    for proc in processes:
+        with contextlib.suppress(Exception):
+            proc.join(timeout=5.0)
 
 
 def _run_dask(
-    scenario: str,
-    todo: Sequence[tuple[str, dict[str, Any]]],
+    jobs: Iterator[tuple[str, _Task | dict[str, Any]]],
     workers: int | None,
     scheduler: str,
-    keep_dir: str | None,
-    finish: Callable[[dict[str, Any]], None],
+    finish: Callable[[dict[str, Any], bytes | None], None],
     lost: list[str],
 ) -> None:
-    """Run on a Dask cluster: a LocalCluster for "local", else the scheduler at that address."""
+    """Run on a Dask cluster: a LocalCluster for "local", else the scheduler at that address.
+
+    A LocalCluster's worker processes are children of this process and exit when it dies
+    (Dask's nanny pipe); on any exception the cluster is closed before it propagates. Tasks
+    carry the scenario's data and URDF, so remote workers need no shared file system.
+    """
     try:
-        from dask.distributed import Client, LocalCluster, as_completed
+        from dask.distributed import Client, LocalCluster
+        from dask.distributed import wait as dask_wait
     except ImportError as exc:  # pragma: no cover - dask is a dependency
         raise SweepError(f"--scheduler needs dask.distributed: {exc}") from exc
     with contextlib.ExitStack() as stack:
@@ -681,20 +1041,30 @@ def _run_dask(
                     f"cannot connect to the Dask scheduler at {scheduler!r}: {exc} "
                     "(give tcp://host:port of a running scheduler, or 'local')"
                 ) from exc
-        futures = {
-            client.submit(run_one, scenario, params, keep_dir, key=f"run-{rid}", pure=False): rid
-            for rid, params in todo
-        }
+        threads = sum(client.nthreads().values())
+        submitted: list[Any] = []
+
+        def submit(task: _Task) -> Any:
+            fut = client.submit(_execute, task, key=f"run-{task.run_id}", pure=False)
+            submitted.append(fut)
+            return fut
+
+        def wait_first(futures: list[Any]) -> Iterable[Any]:
+            return dask_wait(futures, return_when="FIRST_COMPLETED").done
+
         try:
-            _drain(as_completed(list(futures)), futures, finish, lost)
+            _pump(jobs, submit, wait_first, max(4 * threads, 32), finish, lost, stop_on_loss=False)
         except BaseException:
-            client.cancel(list(futures))
+            with contextlib.suppress(Exception):
+                client.cancel([f for f in submitted if not f.done()])
             raise
 
 
 # ----------------------------------------------------------------------------- command line
 def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
     """Define the options of ``hybrid-force sweep`` on the given (sub)parser."""
+    parser.epilog = _EXIT_STATUS_HELP
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.add_argument("scenario", help="scenario TOML file")
     parser.add_argument(
         "--grid",
@@ -753,8 +1123,13 @@ def _parse_grid(items: Sequence[str]) -> dict[str, list[Any]]:
             raise SweepError(f"--grid {item!r} must be table.key=v1,v2,...")
         if key in grid:
             raise SweepError(f"--grid {key} is given twice; list all its values in one option")
+        texts = split_values(values)
+        if len(texts) > MAX_RUNS:
+            raise SweepError(
+                f"--grid {key} lists {len(texts)} values; at most {MAX_RUNS} (MAX_RUNS) are allowed"
+            )
         parsed = []
-        for text in split_values(values):
+        for text in texts:
             if not text:
                 raise SweepError(f"--grid {item!r} has an empty value")
             parsed.append(parse_override(f"{key}={text}")[1])
@@ -780,10 +1155,55 @@ def _parse_random(items: Sequence[str]) -> dict[str, tuple[float, float]]:
     return out
 
 
-def sweep_command(args: argparse.Namespace) -> int:
-    """``hybrid-force sweep``: 0 when every variant has a row (even failed runs), 2 bad input.
+class _Terminated(BaseException):
+    """SIGTERM reached the sweep: stop its workers, keep what has finished, exit 128 + 15."""
 
-    Returns 1 if runs were lost (a worker died) and 130 on Ctrl-C; in both cases the finished
+
+@contextlib.contextmanager
+def _sigterm_stops_the_sweep() -> Iterator[None]:
+    """While in the block, SIGTERM raises :class:`_Terminated` in the main thread (once).
+
+    The exception unwinds like Ctrl-C: the workers are killed, sweep.csv is written. A second
+    SIGTERM during that clean-up is ignored (it takes well under a second). Outside the main
+    thread signal handlers cannot be set, and SIGTERM keeps its previous meaning.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    fired = False
+
+    def handler(signum: int, frame: Any) -> None:
+        nonlocal fired
+        if not fired:
+            fired = True
+            raise _Terminated()
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+_EXIT_STATUS_HELP = f"""\
+exit status:
+  0    every variant has a row and at least one run is ok; runs that diverged or are
+       bad input are reported on stderr ("warning: N of M runs are not ok ...")
+  1    no run is ok (all diverged or bad input), or some runs hit an unexpected error
+       (status "error", run again on resume), or runs were lost (a worker died)
+  2    bad input: the scenario file, an option, or more than {MAX_RUNS} runs
+  130  Ctrl-C;  143  SIGTERM (the workers are stopped, the finished rows are kept)
+With 1 (lost or error runs), 130 and 143, running the same command again resumes the sweep.
+"""
+
+
+def sweep_command(args: argparse.Namespace) -> int:
+    """``hybrid-force sweep``; returns the exit status.
+
+    0: every variant has a row and at least one is ok (rows not ok are counted in a warning on
+    stderr); 1: no run is ok, or rows with status "error", or lost runs (a worker died);
+    2: bad input (raised as :class:`SweepError` / BadInputError, e.g. more than
+    :data:`MAX_RUNS` variants); 130: Ctrl-C; 143: SIGTERM. With 1, 130 and 143 the finished
     rows are saved and rerunning the same command completes the sweep.
     """
     from hybrid_force.scenario import load_scenario
@@ -800,7 +1220,6 @@ def sweep_command(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise SweepError(f"--workers must be a positive integer, got {args.workers}")
     variants = expand(grid, random, args.samples or 0, args.seed)
-    load_scenario(scenario)  # a broken scenario file is bad input, before any run starts
     out = Path(args.out) if args.out else Path("runs") / f"{scenario.stem}_sweep"
     arguments = {
         "grid": grid,
@@ -815,35 +1234,64 @@ def sweep_command(args: argparse.Namespace) -> int:
         nonlocal n_new
         n_new += 1
 
-    try:
-        path = run_sweep(
-            scenario,
-            variants,
-            workers=args.workers,
-            scheduler=args.scheduler,
-            out_dir=out,
-            keep_results=args.keep_results,
-            progress=not args.quiet,
-            arguments=arguments,
-            on_row=count,
-        )
-    except KeyboardInterrupt:
+    def stopped(how: str) -> None:
         print(
-            f"interrupted after {n_new} new run(s); the finished rows are in "
+            f"{how} after {n_new} new run(s); the finished rows are in "
             f"'{out / _CSV_NAME}'; run the same command again to resume",
             file=sys.stderr,
         )
+
+    try:
+        with _sigterm_stops_the_sweep():
+            load_scenario(scenario)  # a broken scenario file is bad input, before any run
+            path = run_sweep(
+                scenario,
+                variants,
+                workers=args.workers,
+                scheduler=args.scheduler,
+                out_dir=out,
+                keep_results=args.keep_results,
+                progress=not args.quiet,
+                arguments=arguments,
+                on_row=count,
+            )
+    except KeyboardInterrupt:
+        stopped("interrupted")
         return 130
+    except _Terminated:
+        stopped("terminated (SIGTERM)")
+        return 128 + signal.SIGTERM
     except SimulationError as exc:
         print(f"error: {_one_line(str(exc))}", file=sys.stderr)
         return 1
-    _print_summary(path, variants, n_new, time.monotonic() - t0)
+    counts = _print_summary(path, variants, n_new, time.monotonic() - t0)
+    total = sum(counts.values())
+    not_ok = total - counts["ok"]
+    detail = ", ".join(f"{n} {s}" for s, n in counts.items() if n and s != "ok")
+    if counts["error"]:
+        print(
+            f"error: {counts['error']} of {total} runs hit an unexpected error (status "
+            f"'error': a bug, not a verdict on the variant); see the error column of '{path}'; "
+            "running the same command again retries them",
+            file=sys.stderr,
+        )
+        return 1
+    if counts["ok"] == 0:
+        print(f"error: no run is ok ({detail}); see the error column of '{path}'", file=sys.stderr)
+        return 1
+    if not_ok:
+        print(
+            f"warning: {not_ok} of {total} runs are not ok ({detail}); see the status and error "
+            f"columns of '{path}'",
+            file=sys.stderr,
+        )
     return 0
 
 
 def _print_summary(
     path: Path, variants: Sequence[Mapping[str, Any]], n_new: int, wall: float
-) -> None:
+) -> dict[str, int]:
+    """Print the sweep's summary on stdout; return the number of its rows of each status."""
     _, rows = read_sweep_csv(path)
     ids = {run_id(v) for v in variants}
     mine = [r for r in rows if r["run_id"] in ids]
@@ -865,3 +1313,4 @@ def _print_summary(
             f"at {params or 'the scenario as is'}"
         )
     print(f"wrote {path}")
+    return counts
