@@ -45,7 +45,7 @@ def shown(value: object) -> str:
         text = repr(value)
     if len(text) > 80:
         text = text[:77] + "..."
-    if isinstance(value, bool) or not isinstance(value, float | int | np.ndarray):
+    if isinstance(value, bool) or not isinstance(value, float | int | list | tuple | np.ndarray):
         text += f" ({type(value).__name__})"
     return text
 
@@ -141,7 +141,7 @@ def array(value: object, what: str, error: ErrorType, *, valid: str) -> np.ndarr
         _fail(error, what, f"{valid} (real numbers, not dtype {out.dtype})", value)
     out = out.astype(np.float64)
     if not np.all(np.isfinite(out)):
-        _fail(error, what, f"{valid} (all finite)", value)
+        _fail(error, what, f"{valid}, without non-finite entries (nan, inf)", value)
     return out
 
 

@@ -21,8 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force import _checks as checks
 from hybrid_force._lazy import kernels
-from hybrid_force.errors import GainError, ReachError
+from hybrid_force.errors import ControlError, DimensionError, GainError, ReachError
 from hybrid_force.paths import Path
 from hybrid_force.robot import Robot
 
@@ -31,6 +32,7 @@ __all__ = ["ClikSettings", "DesiredJointPath", "inverse_kinematics"]
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _START_TOL = 1e-9  # [m] accepted ‖k(q_d(0)) − p_d(0)‖
 _COND_MAX = 1e8  # condition number of J J^T beyond which J is treated as singular
+_TARGET = "3 finite real numbers [m] (a tip position)"
 _NO_DESCRIPTOR = np.zeros(0)  # "the path sample is already there" for the Newton kernel
 
 
@@ -49,12 +51,19 @@ class ClikSettings:
     posture_gain: float = 1.0
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.gamma) and self.gamma > 0):
-            raise GainError(f"clik gamma must be > 0 (paper eq. 27), got {self.gamma!r}")
-        if not (np.isfinite(self.damping) and self.damping >= 0):
-            raise GainError(f"clik damping must be >= 0, got {self.damping!r}")
-        if not (np.isfinite(self.posture_gain) and self.posture_gain >= 0):
-            raise GainError(f"clik posture_gain must be >= 0, got {self.posture_gain!r}")
+        """Check the gains (finite real numbers, not bools) and store them as floats.
+
+        Raises GainError naming the gain ("clik gamma", "damping", "posture_gain").
+        """
+        for name, what, strict, unit in (
+            ("gamma", "clik gamma (paper eq. 27)", True, "1/s"),
+            ("damping", "clik damping", False, "m"),
+            ("posture_gain", "clik posture_gain", False, "1/s"),
+        ):
+            value = checks.number(
+                getattr(self, name), what, GainError, minimum=0.0, strict=strict, unit=unit
+            )
+            object.__setattr__(self, name, value)
 
 
 def _check_conditioning(J: np.ndarray, t: float, q: np.ndarray, robot: Robot) -> None:
@@ -105,9 +114,20 @@ def inverse_kinematics(
 
     Raises:
         ReachError: the iterations do not converge (the point is out of reach from the seed).
+        DimensionError: target or seed is not real numbers of the right size.
+        ControlError: tol is not a number > 0, max_iter not an integer >= 1.
     """
+    target = checks.array(target, "inverse_kinematics: target", DimensionError, valid=_TARGET)
+    if target.shape != (3,):
+        raise DimensionError(
+            f"inverse_kinematics: target must be {_TARGET}, got shape {target.shape}"
+        )
+    if seed is not None:
+        seed = checks.array(seed, "inverse_kinematics: seed", DimensionError, valid="nq numbers")
+    what = "inverse_kinematics: tol"
+    tol = checks.number(tol, what, ControlError, minimum=0, strict=True, unit="m")
+    max_iter = checks.integer(max_iter, "inverse_kinematics: max_iter", ControlError, minimum=1)
     model, data = robot.model, robot.new_data()
-    target = np.asarray(target, dtype=float)
     q = robot.neutral() if seed is None else robot.check_q(seed, "seed").copy()
     err = np.inf
     for _ in range(max_iter):

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hybrid_force import _checks as checks
 from hybrid_force._lazy import kernels
 from hybrid_force.constraint import ConstraintTerms
 from hybrid_force.errors import GainError
@@ -40,6 +41,7 @@ __all__ = [
     "Gains",
     "LawWorkspace",
     "arimoto_law",
+    "check_damping_gain",
     "default_damping_gain",
     "free_space_law",
     "make_gains",
@@ -77,6 +79,44 @@ def default_damping_gain(M0: np.ndarray, rate: float = 20.0) -> np.ndarray:
     return rate * 0.5 * (M0 + M0.T)
 
 
+_KD_VALID = "a number > 0, a vector of n numbers > 0 or an n×n symmetric positive definite matrix"
+
+
+def check_damping_gain(Kd: object, n: int | None = None) -> float | np.ndarray:
+    """Validate the damping gain K_d > 0 of eq. 11 and 30 (paper: K_d = K_dᵀ > 0).
+
+    Args:
+        Kd: a real number (K_d = Kd·I), a vector of n real numbers (the diagonal) or an (n, n)
+            symmetric matrix [N·m·s/rad for a revolute joint, N·s/m for a prismatic one]; its
+            eigenvalues must all be > 0.
+        n: the number of joints, when known (then the size must be n).
+
+    Returns:
+        Kd as a float, or as a new read-only float64 array of shape (n,) or (n, n).
+
+    Raises:
+        GainError: wrong type or shape, non-finite entries, not symmetric, not positive
+            definite; the message names ``Kd``.
+    """
+    K = checks.array(Kd, "Kd", GainError, valid=_KD_VALID)
+    if n is not None and K.shape not in ((), (n,), (n, n)):
+        raise GainError(
+            f"Kd must be a scalar, a vector of {n} or an {n}x{n} matrix, got shape {K.shape}"
+        )
+    if K.ndim > 2 or K.size == 0 or (K.ndim == 2 and K.shape[0] != K.shape[1]):
+        raise GainError(f"Kd must be {_KD_VALID}, got shape {K.shape}: {checks.shown(Kd)}")
+    M = K * np.eye(1) if K.ndim == 0 else (np.diag(K) if K.ndim == 1 else K)
+    if not np.allclose(M, M.T, rtol=1e-12, atol=1e-12 * float(np.abs(M).max() + 1)):
+        raise GainError(f"Kd must be symmetric (paper eq. 11: K_d = K_dᵀ > 0), got {M.tolist()}")
+    eig_min = float(np.linalg.eigvalsh(M).min())
+    if eig_min <= 0:
+        raise GainError(f"Kd must be positive definite; its smallest eigenvalue is {eig_min:.6g}")
+    if K.ndim == 0:
+        return float(K)
+    K.setflags(write=False)
+    return K
+
+
 def make_gains(
     Kd: float | np.ndarray | list[float],
     Lambda: float,
@@ -87,35 +127,23 @@ def make_gains(
     """Validate the gains against the paper's assumptions and return :class:`Gains`.
 
     Args:
-        Kd: a scalar (K_d = Kd·I), a vector (diagonal) of length n, or an (n, n) matrix.
+        Kd: a scalar (K_d = Kd·I), a vector (diagonal) of length n, or an (n, n) matrix
+            (see :func:`check_damping_gain`).
+        Lambda: Λ > 0 [1/s]. beta: β ≥ 0 [(m/s)/(N·s)]. gamma: γ > 0 [1/s].
+        n: the number of joints (an integer ≥ 1).
 
     Raises:
-        GainError: K_d not symmetric positive definite, Λ ≤ 0, β < 0, γ ≤ 0, non-finite values.
+        GainError: K_d not symmetric positive definite, Λ ≤ 0, β < 0, γ ≤ 0, non-finite values,
+            or a value that is not a real number (a bool, a string, 10**400); the message
+            names the gain.
     """
-    K = np.asarray(Kd, dtype=float)
-    if K.ndim == 0:
-        K = float(K) * np.eye(n)
-    elif K.shape == (n,):
-        K = np.diag(K)
-    elif K.shape != (n, n):
-        raise GainError(
-            f"Kd must be a scalar, a vector of {n} or an {n}x{n} matrix, got shape {K.shape}"
-        )
-    if not np.all(np.isfinite(K)):
-        raise GainError(f"Kd has non-finite entries: {K.tolist()}")
-    if not np.allclose(K, K.T, rtol=1e-12, atol=1e-12 * float(np.abs(K).max() + 1)):
-        raise GainError(f"Kd must be symmetric (paper eq. 11: K_d = K_dᵀ > 0), got {K.tolist()}")
-    eig_min = float(np.linalg.eigvalsh(K).min())
-    if eig_min <= 0:
-        raise GainError(f"Kd must be positive definite; its smallest eigenvalue is {eig_min:.6g}")
-    for name, value, ok, rule in (
-        ("Lambda", Lambda, lambda x: x > 0, "> 0"),
-        ("beta", beta, lambda x: x >= 0, ">= 0"),
-        ("gamma", gamma, lambda x: x > 0, "> 0"),
-    ):
-        if not (np.isfinite(value) and ok(value)):
-            raise GainError(f"{name} must be finite and {rule} (paper eq. 4, 11), got {value!r}")
-    return Gains(Kd=K, Lambda=float(Lambda), beta=float(beta), gamma=float(gamma))
+    n = checks.integer(n, "make_gains: n (the number of joints)", GainError, minimum=1)
+    K = check_damping_gain(Kd, n)
+    K = np.array(K * np.eye(n) if isinstance(K, float) else (np.diag(K) if K.ndim == 1 else K))
+    lam = checks.number(Lambda, "Lambda (paper eq. 4, 29)", GainError, minimum=0, strict=True)
+    b = checks.number(beta, "beta (paper eq. 4)", GainError, minimum=0)
+    g = checks.number(gamma, "gamma (paper eq. 11)", GainError, minimum=0, strict=True)
+    return Gains(Kd=K, Lambda=lam, beta=b, gamma=g)
 
 
 @dataclass(frozen=True)

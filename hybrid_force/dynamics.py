@@ -33,8 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force import _checks as checks
 from hybrid_force._lazy import kernels
-from hybrid_force.errors import SimulationError
+from hybrid_force.errors import SimSettingsError
 
 __all__ = [
     "Baumgarte",
@@ -51,8 +52,13 @@ class Baumgarte:
     """Mills & Goldenberg stabilisation gains (section 6.2): φ̈ + 2α φ̇ + β² φ = 0.
 
     Attributes:
-        alpha: α [1/s]. beta: β [1/s]. α = β is critical damping. Defaults give a 20 ms time
-            constant, far slower than dt = 1 ms and far faster than the motion.
+        alpha: α ≥ 0 [1/s]. beta: β ≥ 0 [1/s]. α = β is critical damping; 0 switches a term
+            off. Defaults give a 20 ms time constant, far slower than dt = 1 ms and far faster
+            than the motion.
+
+    Raises SimSettingsError (a BadInputError) for a gain that is not a finite real number
+    ≥ 0 (a bool, a string, nan, −1), naming it as the scenario file's ``[sim]`` key
+    (``baumgarte_alpha``, ``baumgarte_beta``). Gains are stored as floats.
     """
 
     alpha: float = 50.0
@@ -60,9 +66,11 @@ class Baumgarte:
 
     def __post_init__(self) -> None:
         for name in ("alpha", "beta"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise SimulationError(f"baumgarte {name} must be finite and >= 0, got {value!r}")
+            what = f"Baumgarte {name} (sim.baumgarte_{name})"
+            value = checks.number(
+                getattr(self, name), what, SimSettingsError, minimum=0, unit="1/s"
+            )
+            object.__setattr__(self, name, value)
 
     def gamma(self, drift: np.ndarray, rate: np.ndarray, phi: np.ndarray) -> np.ndarray:
         """γ (k,) for pin.forwardDynamics: drift + 2α φ̇ + β² φ."""

@@ -31,12 +31,14 @@ multiplied by ``mass_factor`` (M, C, g scale by it; kinematics are exact).
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force import _checks as checks
 from hybrid_force._lazy import kernels
 from hybrid_force.clik import ClikSettings, DesiredJointPath, inverse_kinematics
 from hybrid_force.constraint import Constraint, ConstraintTerms
@@ -47,6 +49,7 @@ from hybrid_force.control import (
     Gains,
     LawWorkspace,
     arimoto_law,
+    check_damping_gain,
     default_damping_gain,
     free_space_law,
     make_gains,
@@ -72,7 +75,8 @@ class ControlSettings:
         Lambda: Λ [1/s] (eq. 4, 29).
         beta: β (eq. 4) [(m/s)/(N·s)].
         gamma: γ [1/s] force gain (eq. 11).
-        f_d: desired contact force [N] (section 6.3: 10 N); a float or one per surface.
+        f_d: desired contact force [N] (section 6.3: 10 N); a float or one per surface, each
+            ≥ 0 (every surface is unilateral: it pushes, never pulls).
         clik_gain: γ of the CLIK (eq. 27), paper: 7.
         max_dist: near-phase distance [m] (paper: 0.05).
         contact_tol: contact distance [m] (paper: 1e-5).
@@ -84,6 +88,11 @@ class ControlSettings:
         branch_check_time: in contact for longer than this [s] with a task error above
             ``branch_error`` that no longer decreases → "branch" event and a warning.
         branch_error: [m].
+
+    Every number must be a finite real number (not a bool, not a string) within the range
+    above, ``supervisor`` a bool: anything else raises :class:`GainError` (a number) or
+    :class:`ControlError` naming the field. Numbers are stored as floats, K_d as a float or a
+    read-only float array, f_d as a float or a tuple of floats.
     """
 
     Kd: float | tuple | list | np.ndarray | None = None
@@ -103,19 +112,84 @@ class ControlSettings:
     branch_error: float = 1e-2
 
     def __post_init__(self) -> None:
-        if not (0 < self.P < 1):
-            raise GainError(f"P must be in (0, 1) (paper eq. 31), got {self.P!r}")
-        if not (self.max_dist > self.contact_tol > 0):
+        """Check every field (types, signs, finiteness) and store numbers as floats.
+
+        K_d is checked for its own shape and definiteness; its size against the arm's joint
+        count, and the number of f_d values against the number of surfaces, are checked when
+        the arm and the surfaces are known (``Scenario``, :class:`HybridController`).
+        """
+        set_ = object.__setattr__
+        if self.Kd is not None:
+            set_(self, "Kd", check_damping_gain(self.Kd))
+        for name, minimum, strict, maximum, unit in _NUMBERS:
+            value = getattr(self, name)
+            if name == "approach_rate" and value is None:
+                continue
+            what = f"ControlSettings.{name}"
+            number = checks.number(
+                value, what, GainError, minimum=minimum, strict=strict, maximum=maximum, unit=unit
+            )
+            set_(self, name, number)
+        if not self.max_dist > self.contact_tol:
             raise GainError(
                 f"need max_dist > contact_tol > 0, got max_dist={self.max_dist!r}, "
                 f"contact_tol={self.contact_tol!r}"
             )
-        if not (np.isfinite(self.mass_factor) and self.mass_factor > 0):
-            raise GainError(f"mass_factor must be > 0, got {self.mass_factor!r}")
-        if not (np.isfinite(self.kd_rate) and self.kd_rate > 0):
-            raise GainError(f"kd_rate must be > 0, got {self.kd_rate!r}")
-        if self.approach_rate is not None and not self.approach_rate > 0:
-            raise GainError(f"approach_rate must be > 0, got {self.approach_rate!r}")
+        supervisor = checks.flag(self.supervisor, "ControlSettings.supervisor", ControlError)
+        set_(self, "supervisor", supervisor)
+        set_(self, "f_d", _desired_force(self.f_d))
+
+    def f_d_for(self, k: int) -> np.ndarray:
+        """The desired contact force of each of ``k`` surfaces: (k,) [N], a new array.
+
+        Raises GainError if f_d has neither 1 nor k values.
+        """
+        f_d = np.atleast_1d(np.asarray(self.f_d, dtype=float))
+        if f_d.shape not in ((1,), (k,)):
+            raise GainError(
+                f"ControlSettings.f_d must be one number or {k} numbers (one per surface), got "
+                f"{len(f_d)} values: {self.f_d!r}"
+            )
+        return np.broadcast_to(f_d, (k,)).copy()
+
+
+_NUMBERS: tuple[tuple[str, float, bool, float | None, str], ...] = (
+    # name, minimum, minimum excluded, maximum (excluded), unit. The paper's assumptions:
+    # K_d > 0, Λ > 0, β ≥ 0, γ > 0 (eq. 4, 11), CLIK γ > 0 (eq. 27), 0 < P < 1 (eq. 31).
+    ("kd_rate", 0.0, True, None, "1/s"),
+    ("Lambda", 0.0, True, None, "1/s"),
+    ("beta", 0.0, False, None, "(m/s)/(N·s)"),
+    ("gamma", 0.0, True, None, "1/s"),
+    ("clik_gain", 0.0, True, None, "1/s"),
+    ("max_dist", 0.0, True, None, "m"),
+    ("contact_tol", 0.0, True, None, "m"),
+    ("P", 0.0, True, 1.0, ""),
+    ("approach_rate", 0.0, True, None, "1/s"),  # or None (then Λ)
+    ("mass_factor", 0.0, True, None, ""),
+    ("branch_check_time", 0.0, False, None, "s"),
+    ("branch_error", 0.0, True, None, "m"),
+)
+
+
+def _desired_force(f_d: object) -> float | tuple[float, ...]:
+    """f_d as a float or a tuple of floats, each ≥ 0 [N]: every surface here is unilateral."""
+    what = "ControlSettings.f_d"
+    valid = "a finite real number >= 0 [N] or a sequence of them (one per surface)"
+    if isinstance(f_d, numbers.Real) and not isinstance(f_d, bool | np.bool_):
+        values = np.array([checks.number(f_d, what, GainError, unit="N")])
+    else:
+        values = checks.array(f_d, what, GainError, valid=valid)
+        if values.ndim != 1 or values.size == 0:
+            raise GainError(f"{what} must be {valid}, got {checks.shown(f_d)}")
+    if np.any(values < 0):
+        raise GainError(
+            f"{what} = {checks.shown(f_d)}: a surface can only push, so f_d must be >= 0 N "
+            "(0 is allowed: touch without pressing); a negative desired force would ask the "
+            "surface to pull"
+        )
+    if isinstance(f_d, numbers.Real):
+        return float(values[0])
+    return tuple(float(x) for x in values)
 
 
 @dataclass
@@ -177,10 +251,7 @@ class HybridController:
                 f"dt·λ_max(M⁻¹K_d) = {self.stiffness * dt:.3g} at q0 is too large for explicit "
                 f"integration (must stay well below 2; limit here 0.5): lower Kd or dt = {dt}"
             )
-        f_d = np.broadcast_to(np.asarray(s.f_d, dtype=float), (k,)).copy()
-        if not np.all(np.isfinite(f_d)):
-            raise GainError(f"f_d must be finite, got {s.f_d!r}")
-        self.f_d_contact = f_d
+        self.f_d_contact = s.f_d_for(k)
         self.approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
         self._int = _Integrators(F=np.zeros(k), F_d=np.zeros(k), f_d=np.zeros(k))
         self.phase = FREE

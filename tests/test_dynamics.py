@@ -25,7 +25,7 @@ from hybrid_force.dynamics import (
     kkt_reference,
     plastic_impact,
 )
-from hybrid_force.errors import SimulationError
+from hybrid_force.errors import SimSettingsError, SimulationError
 from hybrid_force.robot import Robot, load_robot
 from hybrid_force.surfaces import Cylinder, Plane, Sphere, Surface
 
@@ -170,10 +170,22 @@ def test_baumgarte_gamma_formula() -> None:
     np.testing.assert_allclose(Baumgarte(0.0, 0.0).gamma(np.array([7.0]), 1.0, 1.0), [7.0])
 
 
-@pytest.mark.parametrize(("alpha", "beta"), [(-1.0, 1.0), (1.0, -1.0), (np.nan, 1.0), (1, np.inf)])
-def test_baumgarte_rejects_bad_gains(alpha: float, beta: float) -> None:
-    with pytest.raises(SimulationError, match="baumgarte"):
-        Baumgarte(alpha=alpha, beta=beta)
+@pytest.mark.parametrize(
+    ("alpha", "beta", "key"),
+    [
+        (-1.0, 1.0, "baumgarte_alpha"),
+        (1.0, -1.0, "baumgarte_beta"),
+        (np.nan, 1.0, "baumgarte_alpha"),
+        (1, np.inf, "baumgarte_beta"),
+        ("50", 1.0, "baumgarte_alpha"),
+        (1.0, True, "baumgarte_beta"),
+    ],
+)
+def test_baumgarte_rejects_bad_gains(alpha: object, beta: object, key: str) -> None:
+    """Bad input, not a run-time failure: a BadInputError naming the [sim] key."""
+    with pytest.raises(SimSettingsError, match=key) as info:
+        Baumgarte(alpha=alpha, beta=beta)  # type: ignore[arg-type]
+    assert not isinstance(info.value, SimulationError)
 
 
 def test_baumgarte_closes_on_the_surface(rtr: Robot) -> None:
