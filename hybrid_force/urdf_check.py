@@ -214,7 +214,9 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
         )
     if moving == 0:
         count = len(joint_names)
-        what = f"all {count} joints are fixed" if count else "it has no joint"
+        what = {0: "it has no joint", 1: "its only joint is fixed"}.get(
+            count, f"all {count} joints are fixed"
+        )
         raise URDFError(
             f"unsupported URDF {path}: the model has no moving joint ({what}, so nv = 0); "
             "an arm needs at least one revolute, continuous or prismatic joint"
