@@ -11,9 +11,17 @@ Subcommands:
 * ``robots``: list the robot models known by name, with joint count, default tip frame and
   source.
 
-Bad input (any :class:`~hybrid_force.errors.BadInputError`) prints one line
-``error: <message>`` on stderr and exits with status 2, never a traceback; a run-time
-failure (:class:`~hybrid_force.errors.SimulationError`) exits with status 1.
+Exit status (the contract README.md documents):
+
+* 0: the run finished as asked (warnings, e.g. a joint beyond its URDF range, are printed as
+  ``warning: ...`` lines and stored in summary.json);
+* 2: bad input, refused before anything runs (any :class:`~hybrid_force.errors.BadInputError`:
+  scenario, model, an output folder that is not writable or is locked by another run, an
+  output path that would replace the run's own files): one line ``error: <message>``;
+* 1: a run that started and failed (:class:`~hybrid_force.errors.RunFailedError`: diverged,
+  lost contact, path singular on the way, an unexpected exception); its partial result and
+  summary are saved with ``status = "failed"`` and ``reason``;
+* 130 / 143: interrupted by Ctrl-C (SIGINT) / SIGTERM; the partial result is saved as well.
 Heavy modules (Pinocchio, numpy, matplotlib, meshcat) are imported inside the subcommand
 functions, so ``--help`` stays fast.
 """
@@ -21,19 +29,22 @@ functions, so ``--help`` stays fast.
 from __future__ import annotations
 
 import argparse
-import json
+import contextlib
 import os
+import signal
 import sys
 import time
-from collections.abc import Callable, Sequence
+import warnings
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
-from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import (
     BadInputError,
-    DivergenceError,
     HybridForceError,
+    RunFailedError,
+    RunInterruptedError,
+    RunWarning,
     SimulationError,
 )
 
@@ -114,13 +125,6 @@ class _Progress:
             self.shown = False
 
 
-def _write_json_atomic(data: Any, path: Path) -> None:
-    """Write ``data`` as JSON to ``path`` via a temporary file and os.replace."""
-    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
-    with atomic_file(path, "w", encoding="utf-8") as fh:
-        fh.write(text)
-
-
 def _output_dir(text: str | os.PathLike[str]) -> Path:
     out = Path(text)
     try:
@@ -128,17 +132,6 @@ def _output_dir(text: str | os.PathLike[str]) -> Path:
     except OSError as exc:
         raise BadInputError(f"cannot create output directory {str(out)!r}: {exc}") from None
     return out
-
-
-def _save(result: Any, out: Path) -> dict[str, Any]:
-    """Write out/result.npz and out/summary.json; return the summary."""
-    try:
-        result.save(out / "result.npz")
-        summary = result.summary()
-        _write_json_atomic(summary, out / "summary.json")
-    except OSError as exc:
-        raise BadInputError(f"cannot write the results into {str(out)!r}: {exc}") from None
-    return summary
 
 
 def _num(x: object, unit: str, fmt: str = ".3g") -> str:
@@ -165,8 +158,37 @@ def _print_summary(summary: dict[str, Any], out: Path, stream: TextIO) -> None:
     print("\n".join(lines), file=stream)
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the run is, so it stops like Ctrl-C and keeps what it computed."""
+
+    signal = "SIGTERM"
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise _Terminated()
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """Within the block, SIGTERM raises _Terminated (main thread only; else unchanged)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:  # not the main thread: leave SIGTERM alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+#: Exit status of a run stopped by a signal: 128 + the signal's number, as shells report it.
+_SIGNAL_STATUS = {"SIGINT": 130, "SIGTERM": 143}
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     """Load, run, summarise and save a scenario (see the module docstring)."""
+    from hybrid_force.run_output import RunOutput
     from hybrid_force.scenario import load_scenario, parse_override
     from hybrid_force.simulate import simulate
 
@@ -175,40 +197,65 @@ def _cmd_run(args: argparse.Namespace) -> int:
         key, value = parse_override(text)
         overrides[key] = value
     scenario = load_scenario(args.scenario, overrides)
-    out = _output_dir(args.out if args.out is not None else Path("runs") / scenario.name)
-    show = not args.quiet and sys.stderr.isatty()
-    progress = _Progress(sys.stderr, scenario.name) if show else None
-    try:
-        result = simulate(scenario, progress=progress)
-    except DivergenceError as exc:
-        if progress is not None:
-            progress.close()
-        if exc.result is not None:
-            _save(exc.result, out)
-            if args.plot:
-                _plot_result(exc.result, out, quiet=True)
-            where = f" (partial result saved in {out / 'result.npz'})"
-        else:
-            where = ""
-        print(f"error: run failed: {_one_line(exc)}{where}", file=sys.stderr)
-        return 1
-    finally:
-        if progress is not None:
-            progress.close()
-    summary = _save(result, out)
-    if not args.quiet:
-        _print_summary(summary, out, sys.stdout)
-    if args.plot:
-        _plot_result(result, out, quiet=args.quiet)
-    if args.html is not None:
-        replay = _import_feature("hybrid_force.replay", "the 3D replay (--html)")
-        replay.write_html(result, args.html)
+    output = RunOutput(
+        args.out if args.out is not None else Path("runs") / scenario.name,
+        inputs=[Path(args.scenario)],
+    )
+    html = output.check_extra("--html", args.html) if args.html is not None else None
+    with output, _sigterm_interrupts():
+        show = not args.quiet and sys.stderr.isatty()
+        progress = _Progress(sys.stderr, scenario.name) if show else None
+        caught: list[warnings.WarningMessage] = []
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", RunWarning)
+                result = simulate(scenario, progress=progress)
+        except RunFailedError as exc:
+            if progress is not None:
+                progress.close()
+            _show_warnings(caught)
+            return _run_failed(exc, output, args)
+        finally:
+            if progress is not None:
+                progress.close()
+        summary = output.save(result)
+        _show_warnings(caught)
         if not args.quiet:
-            print(f"  wrote {args.html}")
+            _print_summary(summary, output.folder, sys.stdout)
+        if args.plot:
+            _plot_result(result, output.folder, quiet=args.quiet)
+        if html is not None:
+            replay = _import_feature("hybrid_force.replay", "the 3D replay (--html)")
+            replay.write_html(result, html)
+            if not args.quiet:
+                print(f"  wrote {html}")
     if args.view:
         replay = _import_feature("hybrid_force.replay", "the 3D viewer (--view)")
         replay.serve(result)
     return 0
+
+
+def _show_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
+    """Run warnings as ``warning: ...`` lines on stderr; others as Python shows them."""
+    for w in caught:
+        if issubclass(w.category, RunWarning):
+            print(f"warning: {_one_line(w.message)}", file=sys.stderr)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+
+
+def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> int:
+    """Save the partial result of a failed run, say where; return the exit status."""
+    status = _SIGNAL_STATUS.get(exc.signal, 130) if isinstance(exc, RunInterruptedError) else 1
+    where = ""
+    if exc.result is not None:
+        # a second interrupt while saving must not leave half a pair: the writes are atomic
+        output.save(exc.result)
+        if args.plot and status == 1:
+            _plot_result(exc.result, output.folder, quiet=True)
+        where = f" (partial result saved in {output.result} and {output.summary})"
+    print(f"error: run failed ({exc.reason}): {_one_line(exc)}{where}", file=sys.stderr)
+    return status
 
 
 def _plot_result(result: Any, out: Path, *, quiet: bool) -> list[Path]:
@@ -310,7 +357,8 @@ def _add_run(sub: Any) -> None:
         description=(
             "Load a scenario file (TOML, see docs/scenarios.md), simulate it, print a short "
             "summary and write DIR/result.npz and DIR/summary.json. Exit status: 0 ok, "
-            "1 the run failed (its partial result is saved), 2 bad input."
+            "1 the run failed (its partial result is saved), 2 bad input, 130/143 "
+            "interrupted by SIGINT/SIGTERM (partial result saved)."
         ),
     )
     run.add_argument("scenario", metavar="SCENARIO", help="scenario file (.toml)")
@@ -404,7 +452,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
-def _one_line(exc: BaseException) -> str:
+def _one_line(exc: object) -> str:
     """The exception message on one line."""
     return " ".join(str(exc).split())
 

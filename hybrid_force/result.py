@@ -70,7 +70,19 @@ PHASE_NEAR = 1
 PHASE_CONTACT = 2
 _PHASES = (PHASE_FREE, PHASE_NEAR, PHASE_CONTACT)
 #: Event kinds the simulator records in ``meta["events"]`` (other kinds are accepted as well).
-EVENT_KINDS: tuple[str, ...] = ("near", "contact", "impact", "release", "branch", "diverged")
+#: A failed run ends with an event named after its reason ("diverged", "lost contact", ...).
+EVENT_KINDS: tuple[str, ...] = (
+    "free",
+    "near",
+    "contact",
+    "impact",
+    "release",
+    "branch",
+    "diverged",
+    "path",
+    "interrupted",
+    "error",
+)
 #: Settling time [s] used by :meth:`Result.metrics` when ``meta["settings"]`` has none.
 DEFAULT_SETTLE_TIME = 5.0
 #: ``time_to_converge`` is the first time after which ``||p - p_d||`` stays below this [m].
@@ -622,14 +634,34 @@ class Result:
         )
 
     def summary(self, settle_time: float | None = None) -> dict[str, Any]:
-        """JSON-able dict: name, status, error, steps_per_second, sample/event counts, metrics."""
+        """JSON-able dict: what the run was and how it ended, then its :class:`Metrics`.
+
+        Keys: name, run_id (the same in result.npz's meta: a summary and a result with the same
+        run_id describe the same run), status ("ok" or "failed"), reason (None, "diverged",
+        "lost contact", "interrupted", "path", "error"), error, warnings (lines), steps_per_second,
+        n_samples, t_end [s] (the last sample: earlier than the duration for a failed run),
+        n_events, contact_at_end, lost_contact, left_contact_at [s], joint_range_exceeded and
+        effort_exceeded (joint names; details in meta["limits"]), then the metrics. Keys whose
+        value the run did not record (older results) are None or empty.
+        """
+        meta = self.meta
+        limits = meta.get("limits") or {}
         out: dict[str, Any] = {
-            "name": self.meta.get("name"),
+            "name": meta.get("name"),
+            "run_id": meta.get("run_id"),
             "status": self.status,
-            "error": self.meta.get("error"),
-            "steps_per_second": self.meta.get("steps_per_second"),
+            "reason": meta.get("reason"),
+            "error": meta.get("error"),
+            "warnings": list(meta.get("warnings") or []),
+            "steps_per_second": meta.get("steps_per_second"),
             "n_samples": self.n_samples,
+            "t_end": float(self.t[-1]) if self.n_samples else None,
             "n_events": len(self.events),
+            "contact_at_end": meta.get("contact_at_end"),
+            "lost_contact": meta.get("lost_contact"),
+            "left_contact_at": meta.get("left_at"),
+            "joint_range_exceeded": [v["joint"] for v in limits.get("position", [])],
+            "effort_exceeded": [v["joint"] for v in limits.get("effort", [])],
         }
         out.update(self.metrics(settle_time).to_dict())
         return out

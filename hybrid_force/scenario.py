@@ -54,7 +54,15 @@ __all__ = [
 ON_SURFACE_TOL = 1e-6
 """Largest |d| [m] of the desired path from a surface over [0, duration] accepted."""
 
-_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
+_NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")  # matched in full (re.fullmatch)
+
+MAX_FILE_BYTES = 1 << 20
+"""Largest scenario file read [bytes]: a scenario is a page of text, never megabytes."""
+
+PATH_CHECK_STEP = 0.02
+"""Spacing [s] of the samples at which the loader follows the desired path by inverse
+kinematics (at most :data:`PATH_CHECK_SAMPLES` samples over [0, sim.duration])."""
+PATH_CHECK_SAMPLES = 1000
 
 
 # --- schema --------------------------------------------------------------------------------------
@@ -215,6 +223,8 @@ def parse_override(text: str) -> tuple[str, object]:
         value: object = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    except RecursionError:
+        raise ScenarioError(f"override {key!r}: its value is nested too deeply") from None
     return key, value
 
 
@@ -300,7 +310,10 @@ def _number(ctx: _Context, key: str, value: object) -> float:
         raise ctx.error(key, value, "must be a number, got a boolean")
     if not _is_number(value):
         raise ctx.error(key, value, f"must be a number, got {_type_name(value)}")
-    out = float(value)  # type: ignore[arg-type]
+    try:
+        out = float(value)  # type: ignore[arg-type]
+    except OverflowError:  # an integer beyond float range, e.g. 10**400
+        out = math.inf
     if not math.isfinite(out):
         raise ctx.error(key, value, "must be a finite number")
     return out
@@ -313,7 +326,10 @@ def _vector(ctx: _Context, key: str, value: object, what: str) -> list[float]:
     for i, x in enumerate(value):
         if isinstance(x, bool) or not _is_number(x):
             raise ctx.error(key, value, f"must be {what}; element {i} is {_type_name(x)}")
-        xf = float(x)
+        try:
+            xf = float(x)
+        except OverflowError:
+            xf = math.inf
         if not math.isfinite(xf):
             raise ctx.error(key, value, f"must be {what}; element {i} is not finite")
         out.append(xf)
@@ -391,19 +407,34 @@ def _wrap(
 # --- the loader ----------------------------------------------------------------------------------
 def _read(path: Path, ctx: _Context) -> dict[str, Any]:
     try:
-        raw = path.read_bytes()
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
     except FileNotFoundError:
         raise ScenarioError(f"scenario file not found: {ctx.file}") from None
     except OSError as exc:
         raise ScenarioError(f"cannot read scenario file {ctx.file}: {exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(
+            f"{ctx.file}: larger than {MAX_FILE_BYTES} bytes; a scenario file is a page of text"
+        )
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"{ctx.file}: not UTF-8 text ({exc})") from None
+    return _parse_toml(text, ctx.file)
+
+
+def _parse_toml(text: str, where: str) -> dict[str, Any]:
+    """tomllib.loads with its failures as one-line ScenarioErrors (syntax, absurd nesting)."""
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{ctx.file}: TOML syntax error: {exc}") from None
+        raise ScenarioError(f"{where}: TOML syntax error: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise ScenarioError(
+            f"{where}: arrays or tables nested too deeply (hundreds of levels); "
+            "a scenario needs at most three"
+        ) from None
 
 
 def load_scenario(
@@ -477,7 +508,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             )
     top = _check_table(ctx, "", {k: v for k, v in doc.items() if k in _TOP}, _TOP)
     name = top["name"]
-    if not _NAME_RE.match(name):
+    if not _NAME_RE.fullmatch(name):
         raise ctx.error(
             "name",
             name,
@@ -499,6 +530,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
     _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx)
+    _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
     return Scenario(
         robot=robot,
         surfaces=surfaces,
@@ -807,3 +839,44 @@ def _check_controller(
             )
             raise ctx.error("control.Kd", value, f"{message} (sim.dt = {sim.dt:g})") from None
         raise _wrap(ctx, "control", control_values, exc) from None
+
+
+def _check_path_followable(
+    robot: Any, path: Any, traj: Mapping[str, Any], q0: Any, duration: float, ctx: _Context
+) -> None:
+    """Follow p_d(t) by inverse kinematics over [0, duration]: out of reach or singular → error.
+
+    The run's desired joint path (CLIK, eq. 27) starts at the inverse kinematics of p_d(0)
+    seeded with the start q0 and moves continuously; here each sample is solved from the
+    previous one (same branch), every :data:`PATH_CHECK_STEP` s (at most
+    :data:`PATH_CHECK_SAMPLES` samples), and J must be as well conditioned as the CLIK needs
+    (``hybrid_force.clik``). A singular instant between two samples can still stop the run;
+    the run then keeps its partial result.
+    """
+    from hybrid_force.clik import _COND_MAX, ClikSettings, inverse_kinematics
+
+    n = int(min(PATH_CHECK_SAMPLES, max(2, math.ceil(duration / PATH_CHECK_STEP) + 1)))
+    damping = ClikSettings().damping if robot.nv > 3 else 0.0
+    shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
+    q = q0
+    for t in np.linspace(0.0, duration, n):
+        target = path.position(float(t))
+        try:
+            q = inverse_kinematics(robot, target, seed=q, tol=1e-9, max_iter=50)
+        except ReachError:
+            p = [round(float(x), 6) for x in target]
+            raise ScenarioError(
+                f"{ctx.file}: {shown}: the desired path is out of reach at t = {t:.4g} s "
+                f"(p_d = {p}), followed from the start; it must be reachable over "
+                f"[0, sim.duration = {duration:g} s]"
+            ) from None
+        # the CLIK's test: cond(J Jᵀ + λ² I) < _COND_MAX, λ its damping (0 for three joints)
+        sv = np.linalg.svd(robot.jacobian(q), compute_uv=False)
+        if not (sv[0] ** 2 + damping**2) < _COND_MAX * (sv[-1] ** 2 + damping**2):
+            p = [round(float(x), 6) for x in target]
+            s_text = ", ".join(f"{x:.3g}" for x in sv)
+            raise ScenarioError(
+                f"{ctx.file}: {shown}: the desired path passes a singular configuration at "
+                f"t = {t:.4g} s (p_d = {p}, q_d = {np.round(q, 6).tolist()}, singular values "
+                f"of J: {s_text}); the controller cannot follow it"
+            )

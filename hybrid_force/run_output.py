@@ -1,0 +1,159 @@
+"""The output folder of one run: checked before the run, locked during it, consistent after.
+
+``hybrid-force run`` writes ``DIR/result.npz`` and ``DIR/summary.json`` (and with ``--plot``
+the figures). :class:`RunOutput` makes these promises:
+
+* the folder is created and proven writable before the simulation starts (a run of minutes
+  is never lost to an unwritable folder);
+* one run at a time writes into a folder: an exclusive ``flock`` on the folder itself is held
+  from the check to the last file; a second run into the same folder is refused at once (the
+  lock dies with its process, so a killed run leaves no stale lock, and no lock file);
+* an extra output path (``--html``) that is the run's own result, summary, a figure the run
+  writes, or the scenario file itself is refused before the run;
+* result.npz and summary.json never describe different runs: the old summary and the old
+  figures are removed first, then the result is written atomically, then the summary
+  (atomically, carrying the same ``run_id``). A kill at any moment leaves either the old
+  pair, the old result alone, the new result alone, or the new pair.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import json
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from hybrid_force._atomic import atomic_file
+from hybrid_force.errors import OutputError
+from hybrid_force.plots import FIGURE_NAMES
+
+__all__ = ["RESULT_NAME", "SUMMARY_NAME", "RunOutput"]
+
+RESULT_NAME = "result.npz"
+SUMMARY_NAME = "summary.json"
+
+
+class RunOutput:
+    """The output folder of one run (a context manager holding its lock).
+
+    Args:
+        folder: the output folder (created if missing).
+        inputs: files the run reads (the scenario): no output may replace one.
+    """
+
+    def __init__(self, folder: str | os.PathLike[str], inputs: Iterable[Path] = ()) -> None:
+        self.folder = Path(folder)
+        self.result = self.folder / RESULT_NAME
+        self.summary = self.folder / SUMMARY_NAME
+        self.figures = tuple(self.folder / f"{name}.png" for name in FIGURE_NAMES)
+        self._inputs = tuple(Path(p) for p in inputs)
+        self._fd: int | None = None
+
+    # ------------------------------------------------------------------ before the run
+    def check_extra(self, option: str, path: str | os.PathLike[str]) -> Path:
+        """Refuse an extra output (e.g. ``--html FILE``) that would replace another file of
+        this run or one of its inputs, or whose folder cannot be written; return it."""
+        target = Path(path)
+        mine = {
+            _key(self.result): "the run's result",
+            _key(self.summary): "the run's summary",
+            **{_key(f): "a figure of the run" for f in self.figures},
+            **{_key(p): "an input of the run" for p in self._inputs},
+        }
+        what = mine.get(_key(target))
+        if what is not None:
+            raise OutputError(f"{option} {str(path)!r} is {what}: choose another file")
+        if target.is_dir():
+            raise OutputError(f"{option} {str(path)!r} is a directory, not a file")
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(
+                f"{option} {str(path)!r}: cannot create its folder: {exc.strerror or exc}"
+            ) from None
+        _probe(target.parent, option)
+        return target
+
+    def __enter__(self) -> RunOutput:
+        """Create the folder, prove it writable and take its lock (OutputError if held)."""
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(
+                f"--out {str(self.folder)!r}: cannot create the output folder: {exc.strerror}"
+            ) from None
+        if not self.folder.is_dir():
+            raise OutputError(f"--out {str(self.folder)!r} is not a folder")
+        _probe(self.folder, "--out")
+        try:
+            fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
+        except OSError as exc:
+            raise OutputError(
+                f"--out {str(self.folder)!r}: cannot open it: {exc.strerror}"
+            ) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES, errno.EAGAIN):
+                raise OutputError(
+                    f"--out {str(self.folder)!r}: another run is writing into this folder "
+                    "(it holds the folder's lock); wait for it or choose another --out"
+                ) from None
+            raise OutputError(f"--out {str(self.folder)!r}: cannot lock it: {exc}") from None
+        self._fd = fd
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    # ------------------------------------------------------------------ after the run
+    def save(self, result: Any) -> dict[str, Any]:
+        """Write result.npz then summary.json (see the module docstring); return the summary."""
+        summary = result.summary()
+        text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
+        try:
+            for stale in (self.summary, *self.figures):
+                with contextlib.suppress(FileNotFoundError):
+                    stale.unlink()
+            result.save(self.result)
+            with atomic_file(self.summary, "w", encoding="utf-8") as fh:
+                fh.write(text)
+        except OSError as exc:
+            raise OutputError(
+                f"cannot write the results into {str(self.folder)!r}: {exc}"
+            ) from None
+        return summary
+
+
+def _key(path: Path) -> str:
+    """A path compared by where it points (resolved, also for a file that does not exist)."""
+    return os.path.normcase(str(path.resolve()))
+
+
+def _probe(folder: Path, option: str) -> None:
+    """OutputError unless a file can be created (and removed) in ``folder``."""
+    if not folder.is_dir():
+        raise OutputError(f"{option}: the folder {str(folder)!r} does not exist")
+    try:
+        fd, name = tempfile.mkstemp(dir=folder, prefix=".hybrid-force-probe.")
+    except OSError as exc:
+        raise OutputError(
+            f"{option}: cannot write into {str(folder)!r}: {exc.strerror or exc}"
+        ) from None
+    os.close(fd)
+    os.unlink(name)
