@@ -77,6 +77,8 @@ def test_load_rtr_by_path_and_tmp_copy(rtr_urdf: Path, tmp_path: Path) -> None:
             np.testing.assert_allclose(robot.tip_position(q), ref.tip_position(q), atol=1e-15)
             np.testing.assert_allclose(robot.mass_matrix(q), ref.mass_matrix(q), atol=1e-12)
     assert load_robot(copy).urdf_path == copy
+    assert load_robot(str(copy)).source == str(copy.resolve())
+    assert ref.source == "rtr"
 
 
 def test_tip_keyword_picks_frame() -> None:
@@ -89,6 +91,93 @@ def test_tip_keyword_picks_frame() -> None:
     )
     ur5 = load_robot("ur5", tip="wrist_3_link")
     assert ur5.tip == "wrist_3_link"
+
+
+# A one-joint arm: a 1 m rod turning about z (1 kg at its middle), tip at its end.
+_ONE_JOINT = """<?xml version="1.0"?>
+<robot name="one"><link name="base"/>
+<link name="rod"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.09" iyz="0" izz="0.09"/></inertial></link>
+<link name="end"/>
+<joint name="spin" type="revolute"><parent link="base"/><child link="rod"/>
+<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="5" velocity="2"/></joint>
+<joint name="end_joint" type="fixed"><parent link="rod"/><child link="end"/>
+<origin xyz="1 0 0"/></joint></robot>
+"""
+
+
+def test_a_bare_name_is_never_a_file_of_the_working_directory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, rtr_urdf: Path
+) -> None:
+    (tmp_path / "rtr").write_text(_ONE_JOINT)  # a file named like a registry arm
+    (tmp_path / "myarm").write_text(_ONE_JOINT)
+    monkeypatch.chdir(tmp_path)
+    named = load_robot("rtr")  # the registry's arm, not ./rtr
+    assert (named.nv, named.source) == (3, "rtr")
+    assert named.urdf_path.resolve() == rtr_urdf.resolve()
+    for path in ("./rtr", Path("rtr"), tmp_path / "rtr"):  # a separator, or a Path: a file
+        one = load_robot(path)
+        assert (one.nv, one.tip) == (1, "end")
+        assert one.source == str((tmp_path / "rtr").resolve())
+    with pytest.raises(UnknownRobotError) as info:
+        load_robot("myarm")
+    message = str(info.value)
+    assert "unknown robot 'myarm'" in message
+    assert "give a path such as ./myarm" in message
+    assert "rtr" in message and "ur5" in message  # the known names
+    assert load_robot("./myarm").nv == 1
+
+
+def test_source_loads_the_same_arm_from_another_directory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "arms").mkdir()
+    (tmp_path / "arms" / "one.urdf").write_text(_ONE_JOINT)
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path)
+    robot = load_robot("arms/one.urdf")
+    assert robot.name == "arms/one.urdf"  # as given
+    assert robot.source == str(tmp_path.resolve() / "arms" / "one.urdf")
+    assert Path(robot.source).is_absolute()
+    assert robot.with_mass_factor(2.0).source == robot.source
+    with pytest.raises(AttributeError):
+        robot.source = "x"  # type: ignore[misc]
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    again = load_robot(robot.source)
+    q = np.array([0.3])
+    np.testing.assert_allclose(again.tip_position(q), [np.cos(0.3), np.sin(0.3), 0], atol=1e-15)
+    with pytest.raises(URDFError, match="not found"):
+        load_robot(robot.name)  # the relative path no longer resolves from here
+
+
+def test_joint_limits_from_the_urdf(tmp_path: Path) -> None:
+    """Position limits as written (∓inf for a continuous joint); effort 0 or absent is +inf."""
+    text = _ONE_JOINT.replace('effort="5"', 'effort="0"').replace(
+        "</robot>",
+        '<link name="slide_link"><inertial><mass value="0.5"/><inertia ixx="0.01" ixy="0" '
+        'ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>'
+        '<link name="wheel"><inertial><mass value="0.2"/><inertia ixx="0.001" ixy="0" '
+        'ixz="0" iyy="0.001" iyz="0" izz="0.001"/></inertial></link>'
+        '<joint name="slide" type="prismatic"><parent link="end"/><child link="slide_link"/>'
+        '<axis xyz="1 0 0"/><limit lower="0" upper="0.4" effort="50" velocity="1"/></joint>'
+        '<joint name="turn" type="continuous"><parent link="slide_link"/><child link="wheel"/>'
+        '<axis xyz="0 1 0"/></joint></robot>',
+    )
+    path = tmp_path / "three.urdf"
+    path.write_text(text)
+    robot = load_robot(path, tip="wheel")
+    assert robot.nq == robot.nv == 3
+    lower, upper = robot.position_limits
+    assert lower.shape == upper.shape == (3,)
+    np.testing.assert_array_equal(lower, [-1.0, 0.0, -np.inf])
+    np.testing.assert_array_equal(upper, [1.0, 0.4, np.inf])
+    np.testing.assert_array_equal(robot.effort_limits, [np.inf, 50.0, np.inf])
+    np.testing.assert_array_equal(robot.model.effortLimit[:2], [0.0, 50.0])  # model as parsed
+    for array in (lower, upper, robot.effort_limits):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 1.0
+    with pytest.raises(AttributeError):
+        robot.effort_limits = np.zeros(3)  # type: ignore[misc]
 
 
 # --- kinematics ------------------------------------------------------------------------------

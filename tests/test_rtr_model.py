@@ -53,6 +53,8 @@ coordinate), with each point's Jacobian from central finite differences of its p
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+
 import numpy as np
 import pytest
 
@@ -253,6 +255,34 @@ def test_model_layout(rtr: Robot) -> None:
     np.testing.assert_array_equal(rtr.model.gravity.linear, [0.0, 0.0, -G0])
     total_mass = sum(inertia.mass for inertia in rtr.model.inertias)
     assert total_mass == pytest.approx(M2 + M3, abs=1e-12)
+
+
+def _urdf_joints(rtr: Robot) -> list[ET.Element]:
+    """The moving joints of rtr.urdf, in file order (q1, q2, q3)."""
+    root = ET.parse(rtr.urdf_path).getroot()
+    return [j for j in root.findall("joint") if j.get("type") != "fixed"]
+
+
+def test_q1_turns_freely(rtr: Robot) -> None:
+    """rtr.urdf declares q1 continuous: one angle [rad], unbounded, never wrapped.
+
+    The hand formulas are 2π-periodic in q1, so M, g, p and J at q1 = 10 rad or −25 rad
+    (outside the old ±6.3 rad limits) still equal them; q2 and q3 keep their URDF limits.
+    """
+    assert [j.get("type") for j in _urdf_joints(rtr)] == ["continuous", "prismatic", "revolute"]
+    lower, upper = rtr.position_limits
+    np.testing.assert_array_equal(lower, [-np.inf, -1.0, -3.2])
+    np.testing.assert_array_equal(upper, [np.inf, 16.0, 3.2])
+    # effort limits as declared, 0 (URDF's "unspecified") read as +inf
+    efforts = [float(j.find("limit").get("effort")) for j in _urdf_joints(rtr)]
+    np.testing.assert_array_equal(rtr.effort_limits, [e if e > 0 else np.inf for e in efforts])
+    assert rtr.euclidean
+    for q1 in (10.0, -25.0, 1e3):
+        q = np.array([q1, 4.0, 0.6])
+        _close(rtr.tip_position(q), ref_p(q))
+        _close(rtr.jacobian(q), ref_J(q))
+        _close(rtr.mass_matrix(q), ref_M(q))
+        _close(rtr.gravity(q), ref_g(q))
 
 
 def test_positive_q3_raises_the_tool(rtr: Robot) -> None:

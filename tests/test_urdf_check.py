@@ -207,3 +207,42 @@ def test_missing_inertia_element(tmp_path: Path) -> None:
     text = _urdf('<inertial><mass value="1"/></inertial>')
     with pytest.raises(URDFError, match=r"'arm'.*no <inertia>"):
         check_urdf(_write(tmp_path, text))
+
+
+# --- outside the toolkit's scope (fixed-base arms with at least one moving joint) -------
+@pytest.mark.parametrize("jtype", ["floating", "planar"])
+def test_floating_and_planar_joints_are_refused(tmp_path: Path, jtype: str) -> None:
+    joint = f'<joint name="free" type="{jtype}"><parent link="base"/><child link="arm"/></joint>'
+    with pytest.raises(URDFError) as info:
+        check_urdf(_write(tmp_path, _urdf(joint=joint)))
+    message = str(info.value)
+    assert "robot.urdf" in message
+    assert f"joint 'free' (parent link 'base', child link 'arm') is a {jtype} joint" in message
+    assert "fixed-base arms only" in message
+
+
+def test_a_model_needs_a_moving_joint(tmp_path: Path) -> None:
+    fixed = '<joint name="j1" type="fixed"><parent link="base"/><child link="arm"/></joint>'
+    with pytest.raises(URDFError, match=r"no moving joint \(its only joint is fixed, so nv = 0\)"):
+        check_urdf(_write(tmp_path, _urdf(joint=fixed)))
+    check_urdf(_write(tmp_path, _urdf()))  # the same tree with j1 revolute passes
+
+
+def test_a_single_link_without_joints_has_no_moving_joint(tmp_path: Path) -> None:
+    with pytest.raises(URDFError, match=r"robot\.urdf.*no moving joint \(it has no joint"):
+        check_urdf(_write(tmp_path, '<robot name="t"><link name="only"/></robot>'))
+
+
+def test_mimic_attributes_are_checked(tmp_path: Path) -> None:
+    two = _urdf(joint=_JOINT).replace(
+        "</robot>",
+        '<link name="hand"/><joint name="j2" type="revolute"><parent link="arm"/>'
+        '<child link="hand"/><limit effort="1" velocity="1"/>MIMIC</joint></robot>',
+    )
+    check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="j1" multiplier="2"/>')))
+    with pytest.raises(URDFError, match=r"'j2': <mimic>.*multiplier='two' is not a number"):
+        check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="j1" multiplier="two"/>')))
+    with pytest.raises(URDFError, match=r"'j2' has <mimic joint='nope'>"):
+        check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="nope"/>')))
+    with pytest.raises(URDFError, match=r"'j2' has <mimic joint='j2'>"):
+        check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="j2"/>')))
