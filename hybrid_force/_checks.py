@@ -55,11 +55,14 @@ def _fail(error: ErrorType, what: str, valid: str, value: object) -> NoReturn:
 
 
 def _rule(minimum: float | None, strict: bool, maximum: float | None, unit: str) -> str:
-    text = "a finite real number"
-    if minimum is not None and maximum is not None:
-        text += f" in {'(' if strict else '['}{minimum:g}, {maximum:g})"
+    if minimum == 0 and strict and maximum is None:
+        text = "a positive finite number"
+    elif minimum is not None and maximum is not None:
+        text = f"a finite number in {'(' if strict else '['}{minimum:g}, {maximum:g})"
     elif minimum is not None:
-        text += f" {'>' if strict else '>='} {minimum:g}"
+        text = f"a finite number {'>' if strict else '>='} {minimum:g}"
+    else:
+        text = "a finite real number"
     return f"{text} [{unit}]" if unit else text
 
 
@@ -98,13 +101,17 @@ def number(
     return out
 
 
-def integer(value: object, what: str, error: ErrorType, *, minimum: int) -> int:
-    """``value`` as a Python int ≥ ``minimum`` (Python or numpy integer, not a bool)."""
-    valid = f"an integer >= {minimum}"
+def integer(
+    value: object, what: str, error: ErrorType, *, minimum: int, maximum: int | None = None
+) -> int:
+    """``value`` as a Python int in [minimum, maximum] (Python or numpy integer, not a bool)."""
+    valid = (
+        f"an integer >= {minimum}" if maximum is None else f"an integer in [{minimum}, {maximum}]"
+    )
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Integral):
         _fail(error, what, valid, value)
     out = int(value)
-    if out < minimum:
+    if out < minimum or (maximum is not None and out > maximum):
         _fail(error, what, valid, value)
     return out
 

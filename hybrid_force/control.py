@@ -79,6 +79,7 @@ def default_damping_gain(M0: np.ndarray, rate: float = 20.0) -> np.ndarray:
     return rate * 0.5 * (M0 + M0.T)
 
 
+_MAX_JOINTS = 10_000  # make_gains refuses n beyond this (an n×n K_d would not fit in memory)
 _KD_VALID = "a number > 0, a vector of n numbers > 0 or an n×n symmetric positive definite matrix"
 
 
@@ -130,14 +131,16 @@ def make_gains(
         Kd: a scalar (K_d = Kd·I), a vector (diagonal) of length n, or an (n, n) matrix
             (see :func:`check_damping_gain`).
         Lambda: Λ > 0 [1/s]. beta: β ≥ 0 [(m/s)/(N·s)]. gamma: γ > 0 [1/s].
-        n: the number of joints (an integer ≥ 1).
+        n: the number of joints (an integer in [1, 10000]).
 
     Raises:
         GainError: K_d not symmetric positive definite, Λ ≤ 0, β < 0, γ ≤ 0, non-finite values,
             or a value that is not a real number (a bool, a string, 10**400); the message
             names the gain.
     """
-    n = checks.integer(n, "make_gains: n (the number of joints)", GainError, minimum=1)
+    n = checks.integer(
+        n, "make_gains: n (the number of joints)", GainError, minimum=1, maximum=_MAX_JOINTS
+    )
     K = check_damping_gain(Kd, n)
     K = np.array(K * np.eye(n) if isinstance(K, float) else (np.diag(K) if K.ndim == 1 else K))
     lam = checks.number(Lambda, "Lambda (paper eq. 4, 29)", GainError, minimum=0, strict=True)
