@@ -253,7 +253,10 @@ def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> i
         output.save(exc.result)
         if args.plot and status == 1:
             _plot_result(exc.result, output.folder, quiet=True)
-        where = f" (partial result saved in {output.result} and {output.summary})"
+        t_end = float(exc.result.t[-1]) if exc.result.n_samples else 0.0
+        where = (
+            f" (its result up to t = {t_end:.6g} s saved in {output.result} and {output.summary})"
+        )
     print(f"error: run failed ({exc.reason}): {_one_line(exc)}{where}", file=sys.stderr)
     return status
 

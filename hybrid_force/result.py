@@ -89,6 +89,10 @@ DEFAULT_SETTLE_TIME = 5.0
 CONVERGE_TOLERANCE = 1e-3
 _STATUSES = ("ok", "failed")
 _META_KEY = "meta"
+#: Deepest nesting of lists and objects accepted in a loaded result's meta.
+MAX_META_DEPTH = 64
+#: Most members an archive may hold (a result has 13).
+_MAX_MEMBERS = 64
 
 
 # --------------------------------------------------------------------------- helpers
@@ -162,6 +166,77 @@ def _finite_rows(*arrays: np.ndarray) -> np.ndarray:
         fin = np.isfinite(a)
         mask &= fin if fin.ndim == 1 else np.all(fin.reshape(fin.shape[0], -1), axis=1)
     return mask
+
+
+def _json_depth(value: Any) -> int:
+    """Nesting depth of JSON data (0 for a scalar), without recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, dict):
+            node = list(node.values())
+        if isinstance(node, list):
+            deepest = max(deepest, depth + 1)
+            if deepest > MAX_META_DEPTH:
+                return deepest
+            stack.extend((child, depth + 1) for child in node)
+    return deepest
+
+
+def _check_archive(fh: Any, src: Path) -> None:
+    """Refuse, before anything is decompressed or allocated, an archive whose arrays would not
+    fit in memory or whose .npy headers claim more data than their member holds.
+
+    The sizes checked are the zip directory's uncompressed sizes, which ``zipfile`` enforces
+    while reading, and each array header's shape × item size against its member's size (numpy
+    allocates the claimed shape before reading).
+    """
+    from numpy.lib import format as npy_format
+
+    from hybrid_force.run_checks import available_memory
+
+    if fh.read(6) == b"\x93NUMPY":
+        raise ResultFileError(
+            f"result file '{src}' holds a single numpy array, not an .npz result archive"
+        )
+    fh.seek(0)
+    try:
+        with zipfile.ZipFile(fh) as archive:
+            members = archive.infolist()
+            if len(members) > _MAX_MEMBERS:
+                raise ResultFileError(
+                    f"result file '{src}' has {len(members)} members; a result has "
+                    f"{len(ARRAY_NAMES) + 1}"
+                )
+            total = sum(m.file_size for m in members)
+            free = available_memory()
+            if free is not None and 2 * total > free:
+                raise ResultFileError(
+                    f"result file '{src}' would take {total / 2**30:.3g} GiB once decompressed "
+                    f"(twice that while loading); {free / 2**30:.3g} GiB of memory is available"
+                )
+            for member in members:
+                if not member.filename.endswith(".npy"):
+                    continue
+                with archive.open(member) as npy:
+                    version = npy_format.read_magic(npy)
+                    if version == (1, 0):
+                        shape, _, dtype = npy_format.read_array_header_1_0(npy)
+                    else:
+                        shape, _, dtype = npy_format.read_array_header_2_0(npy)
+                claimed = math.prod(shape) * dtype.itemsize
+                if claimed > member.file_size:
+                    raise ResultFileError(
+                        f"result file '{src}': array '{member.filename[:-4]}' claims shape "
+                        f"{shape} ({claimed} bytes) but its member holds {member.file_size} bytes"
+                    )
+    except ResultFileError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+        raise ResultFileError(
+            f"result file '{src}' is not a readable .npz archive (truncated or not a "
+            f"hybrid_force result): {type(exc).__name__}: {exc}"
+        ) from exc
 
 
 def _max_or_none(x: np.ndarray) -> float | None:
@@ -490,6 +565,8 @@ class Result:
         try:
             # open the file ourselves: np.load leaks its handle when the zip is corrupt
             with src.open("rb") as fh:
+                _check_archive(fh, src)
+                fh.seek(0)
                 loaded = np.load(fh, allow_pickle=False)
                 if not isinstance(loaded, NpzFile):
                     raise ResultFileError(
@@ -524,6 +601,14 @@ class Result:
             meta = json.loads(str(meta_arr))
         except json.JSONDecodeError as exc:
             raise ResultFileError(f"result file '{src}': 'meta' is not valid JSON: {exc}") from exc
+        except RecursionError:
+            meta = None  # nested beyond Python's recursion limit: refused just below
+        depth = _json_depth(meta) if meta is not None else MAX_META_DEPTH + 1
+        if depth > MAX_META_DEPTH:
+            raise ResultFileError(
+                f"result file '{src}': 'meta' is nested more than {MAX_META_DEPTH} levels deep "
+                "(a result's meta needs about 5)"
+            )
         if not isinstance(meta, dict):
             raise ResultFileError(
                 f"result file '{src}': 'meta' must be a JSON object, got {type(meta).__name__}"

@@ -33,6 +33,8 @@ from __future__ import annotations
 import json
 import platform
 import time
+import uuid
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
@@ -54,13 +56,23 @@ from hybrid_force.dynamics import (
 from hybrid_force.errors import (
     BadInputError,
     DivergenceError,
-    SimulationError,
+    LostContactError,
+    ReachError,
+    RunFailedError,
+    RunInterruptedError,
+    RunWarning,
     SingularConfigurationError,
 )
 from hybrid_force.paths import Path, PathParameterError
 from hybrid_force.result import Result
 from hybrid_force.robot import Robot, RobotTerms
-from hybrid_force.supervisor import ControlSettings, HybridController
+from hybrid_force.run_checks import (
+    check_log_memory,
+    contact_outcome,
+    describe,
+    limit_violations,
+)
+from hybrid_force.supervisor import CONTACT, NEAR, ControlSettings, HybridController
 from hybrid_force.surfaces import Surface
 
 __all__ = ["Scenario", "SimSettings", "simulate"]
@@ -319,11 +331,21 @@ class _Log:
     in that order (:func:`hybrid_force._kernels.record_row` writes a row in the same order).
     """
 
+    @staticmethod
+    def widths(nq: int, nv: int, k: int) -> tuple[int, ...]:
+        """Columns of each field, in table order."""
+        return (1, nq, nv, nq, nv, 3, 3, k, k, k, 1, 1)
+
+    @classmethod
+    def width(cls, nq: int, nv: int, k: int) -> int:
+        """Float64 numbers per sample."""
+        return sum(cls.widths(nq, nv, k))
+
     def __init__(
         self, N: int, nq: int, nv: int, k: int, max_velocity: float, max_force: float
     ) -> None:
         self.max_velocity, self.max_force = max_velocity, max_force
-        widths = (1, nq, nv, nq, nv, 3, 3, k, k, k, 1, 1)
+        widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
         start = 0
@@ -483,9 +505,20 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         progress: optional callback called with the fraction done (0..1) about 100 times.
 
     Raises:
-        DivergenceError: non-finite state or a runaway; ``err.result`` holds the run so far,
-            marked ``status = "failed"``.
-        BadInputError subclasses: bad settings, start out of reach, …
+        RunFailedError: the run started and stopped early, or ended in a state it must not
+            claim as a success; ``err.result`` holds every sample computed, its meta has
+            ``status = "failed"`` and ``reason``. Subclasses: DivergenceError (non-finite
+            state, runaway, singular constraint), LostContactError (started in contact with
+            ``control.supervisor = false`` and ended off the surface), RunInterruptedError
+            (KeyboardInterrupt, i.e. Ctrl-C, or SIGTERM turned into one by the CLI); reason
+            "path" when the desired path became singular or unreachable, "error" for any other
+            exception (its type and message are in ``meta["error"]``).
+        BadInputError subclasses: bad settings, start out of reach, a log that would not fit
+            in memory (before the run starts).
+
+    Warns:
+        RunWarning: a joint left its URDF range, a command exceeded an effort limit, or the
+            tool left the surface and was not back at the end (also in ``meta["warnings"]``).
     """
     sc, sim = scenario, scenario.sim
     robot = sc.robot
@@ -518,14 +551,17 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     in_contact = False
     if float(plant.distance(q).max()) <= sc.control.contact_tol:
         q, v, in_contact = _touch(plant, q, v, 0.0, events)
+    started_in_contact = ever_in_contact = in_contact
+    check_log_memory(N, _Log.width(nq, nv, k), sim.duration, dt)
     log = _Log(N, nq, nv, k, sim.max_velocity, sim.max_force)
     baum = sim.baumgarte
     zeros_k = np.zeros(k)
     meta = {
         "name": sc.name,
+        "run_id": uuid.uuid4().hex,
         "description": sc.description,
         "scenario": _jsonable(sc.source) if sc.source is not None else None,
-        "robot": {"model": robot.name, "tip": robot.tip, "nq": nq},
+        "robot": {"model": robot.source, "tip": robot.tip, "nq": nq},
         "surfaces": [s.to_dict() for s in sc.surfaces],
         "path": _path_meta(sc.path),
         "gains": {
@@ -605,7 +641,9 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 controller.f_d,
                 cons.distance if cons is not None else plant.distance(q),
                 controller.V,
-                controller.phase,
+                # the real contact state: the supervisor's phase says which law runs, and a
+                # tool off the surface is never logged as in contact
+                CONTACT if in_contact else min(controller.phase, NEAR),
             )
             n_logged = i + 1
             if not ok:
@@ -635,27 +673,26 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                     # crossed the surface, or within the tolerance and still closing in
                     q_new = _crossing(model, q, q_new, float(log.phi[i].max()), d_new)
                     q_new, v, in_contact = _touch(plant, q_new, v, t + dt, events)
+                    ever_in_contact = True
                 q = q_new
             if progress is not None and i % report_every == 0:
                 progress(i / N)
-    except (
-        DivergenceError,
-        SimulationError,
-        SingularConfigurationError,
-        np.linalg.LinAlgError,
-    ) as exc:
+    except BaseException as exc:  # whatever stopped the run, keep what it computed
         wall = time.perf_counter() - wall0
+        failure = _failure(exc, sc.name, t)
         meta.update(
             status="failed",
+            reason=failure.reason,
             error=f"{type(exc).__name__}: {exc}",
-            events=_merge(controller.events, [*events, {"t": t, "kind": "diverged"}]),
+            events=_merge(controller.events, [*events, {"t": t, "kind": failure.reason}]),
             steps_per_second=i / wall if wall > 0 else 0.0,
             wall_time=wall,
         )
-        result = log.result(n_logged, meta, k)
-        raise DivergenceError(
-            f"run '{sc.name}' failed at t = {t:.6g} s: {exc}", result=result
-        ) from exc
+        try:
+            failure.result = _finish(log, n_logged, meta, k, robot, ever_in_contact, in_contact)
+        except Exception:  # the log itself is unusable: report the failure without it
+            failure.result = None
+        raise failure from exc
     end = time.perf_counter()
     wall = end - wall0
     # the rate of the steady loop: from step 1 on, once the compiled kernels are loaded
@@ -664,6 +701,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     )
     meta.update(
         status="ok",
+        reason=None,
         error=None,
         events=_merge(controller.events, events),
         steps_per_second=steady,
@@ -671,7 +709,72 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     )
     if progress is not None:
         progress(1.0)
-    return log.result(N, meta, k)
+    result = _finish(log, N, meta, k, robot, ever_in_contact, in_contact)
+    if started_in_contact and not sc.control.supervisor and result.meta["lost_contact"]:
+        left = result.meta["left_at"]
+        message = (
+            f"run '{sc.name}' lost contact: it started on the surface without the supervisor "
+            f"(control.supervisor = false), left it at t = {left:.6g} s and ended off it"
+        )
+        failed = result.with_meta(status="failed", reason="lost contact", error=message)
+        raise LostContactError(message, result=failed)
+    return result
+
+
+def _failure(exc: BaseException, name: str, t: float) -> RunFailedError:
+    """The RunFailedError that reports ``exc``, which stopped run ``name`` at time t [s]."""
+    where = f"run '{name}' stopped at t = {t:.6g} s"
+    if isinstance(exc, KeyboardInterrupt):
+        signal_name = getattr(exc, "signal", "SIGINT")
+        return RunInterruptedError(f"{where}: interrupted ({signal_name})", signal=signal_name)
+    if isinstance(exc, DivergenceError):
+        return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
+    if isinstance(exc, ReachError):
+        failure = RunFailedError(f"{where}: the desired path cannot be followed: {exc}")
+        failure.reason = "path"
+        return failure
+    if isinstance(exc, SingularConfigurationError | np.linalg.LinAlgError):
+        return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
+    return RunFailedError(f"{where} by an unexpected error: {type(exc).__name__}: {exc}")
+
+
+def _finish(
+    log: _Log,
+    n: int,
+    meta: dict,
+    k: int,
+    robot: Robot,
+    ever_in_contact: bool,
+    in_contact: bool,
+) -> Result:
+    """The Result of the first n samples, with what the run must say about itself in meta.
+
+    Adds ``limits`` (joints beyond their range or effort limit, see
+    :func:`~hybrid_force.run_checks.limit_violations`), ``contact_at_end``, ``lost_contact``,
+    ``left_at`` and ``warnings`` (one line each, also issued as Python warnings).
+    """
+    lower, upper = robot.position_limits
+    limits = limit_violations(
+        _joint_names(robot), lower, upper, robot.effort_limits,
+        log.t[:n], log.q[:n], log.u[:n],
+    )  # fmt: skip
+    outcome = contact_outcome(ever_in_contact, in_contact, meta.get("events", []))
+    notes = describe(limits, outcome)
+    for note in notes:
+        warnings.warn(f"run '{meta.get('name')}': {note}", RunWarning, stacklevel=3)
+    meta.update(limits=limits, warnings=notes, **outcome)
+    return log.result(n, meta, k)
+
+
+def _joint_names(robot: Robot) -> list[str]:
+    """Names of the joints, one per column of q (nq = nv for every arm the loader builds)."""
+    model = robot.model
+    names = [""] * robot.nq
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        for c in range(joint.nq):
+            names[joint.idx_q + c] = model.names[j] if joint.nq == 1 else f"{model.names[j]}[{c}]"
+    return names
 
 
 def _reference_terms(robot: Robot, q: np.ndarray, v: np.ndarray) -> RobotTerms:
