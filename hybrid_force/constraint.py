@@ -149,11 +149,14 @@ class Constraint:
                 f"{surfaces!r} ({type(surfaces).__name__})"
             )
         if not items:
-            raise SurfaceError("a constraint needs at least one surface, got none")
+            raise SurfaceError("surfaces is empty: a constraint needs at least one surface")
         checked: list[Surface] = []
         for i, s in enumerate(items):
             if not isinstance(s, Surface):
-                raise SurfaceError(f"surface {i} is not a hybrid_force Surface: {s!r}")
+                raise SurfaceError(
+                    f"surfaces[{i}] is not a hybrid_force Surface (Cylinder, Sphere, Plane, "
+                    f"FunctionSurface): {s!r} ({type(s).__name__})"
+                )
             checked.append(s)
         if not isinstance(normalization, str) or normalization not in _NORMALIZATIONS:
             raise SurfaceError(

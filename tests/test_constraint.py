@@ -379,7 +379,7 @@ def test_bad_construction() -> None:
         Constraint(Cylinder(0.4), normalization="unit")  # type: ignore[arg-type]
     with pytest.raises(SurfaceError, match="at least one"):
         Constraint([])
-    with pytest.raises(SurfaceError, match="surface 1"):
+    with pytest.raises(SurfaceError, match=r"surfaces\[1\]"):
         Constraint([Cylinder(0.4), "plane"])  # type: ignore[list-item]
     assert Constraint([Cylinder(0.4), Sphere(1.0)]).k == 2
 
