@@ -54,8 +54,6 @@ __all__ = [
 ON_SURFACE_TOL = 1e-6
 """Largest |d| [m] of the desired path from a surface over [0, duration] accepted."""
 
-_NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")  # matched in full (re.fullmatch)
-
 MAX_FILE_BYTES = 1 << 20
 """Largest scenario file read [bytes]: a scenario is a page of text, never megabytes."""
 
@@ -508,12 +506,12 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             )
     top = _check_table(ctx, "", {k: v for k, v in doc.items() if k in _TOP}, _TOP)
     name = top["name"]
-    if not _NAME_RE.fullmatch(name):
+    if not (re.fullmatch(Scenario.NAME_PATTERN, name) and len(name) <= Scenario.NAME_MAX_LENGTH):
         raise ctx.error(
             "name",
             name,
-            "must be a simple name (letters, digits, '_', '-', '.'; not starting with '.'): "
-            "it names the output folder runs/<name>/",
+            f"must be a simple name of 1 to {Scenario.NAME_MAX_LENGTH} letters, digits, '_', "
+            "'-', '.' (not starting with '.' or '-'): it names the output folder runs/<name>/",
         )
     for table in ("robot", "trajectory", "initial"):
         if table not in doc:
@@ -531,18 +529,21 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
     _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx)
     _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
-    return Scenario(
-        robot=robot,
-        surfaces=surfaces,
-        path=path,
-        q0=q0,
-        v0=v0,
-        control=control,
-        sim=sim,
-        name=name,
-        description=top.get("description", ""),
-        source=json.loads(json.dumps(doc)),
-    )
+    try:
+        return Scenario(
+            robot=robot,
+            surfaces=surfaces,
+            path=path,
+            q0=q0,
+            v0=v0,
+            control=control,
+            sim=sim,
+            name=name,
+            description=top.get("description", ""),
+            source=json.loads(json.dumps(doc)),
+        )
+    except BadInputError as exc:  # a rule across tables (e.g. stacked surfaces need no approach)
+        raise ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}") from None
 
 
 def _robot(table: object, file: Path, ctx: _Context) -> Any:

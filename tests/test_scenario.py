@@ -181,6 +181,8 @@ omega = 0.0  # stands still at center + radius·x = [0.4, 0, 7], on both planes
 [initial]
 q = [0.0, 6.1339746, 2.0943951]
 v = [0.0, 0.0, 0.0]
+[control]
+supervisor = false  # stacked surfaces: the run starts in contact with both
 [sim]
 duration = 1.0
 """
