@@ -42,6 +42,7 @@ from hybrid_force.errors import (
     ScenarioError,
     did_you_mean,
 )
+from hybrid_force.paths import ON_SURFACE_TOL  # re-exported: the loader's and Scenario's rule
 
 __all__ = [
     "ON_SURFACE_TOL",
@@ -50,9 +51,6 @@ __all__ = [
     "read_scenario_document",
     "scenario_from_document",
 ]
-
-ON_SURFACE_TOL = 1e-6
-"""Largest |d| [m] of the desired path from a surface over [0, duration] accepted."""
 
 MAX_FILE_BYTES = 1 << 20
 """Largest scenario file read [bytes]: a scenario is a page of text, never megabytes."""
