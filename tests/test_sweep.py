@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import hashlib
 import json
@@ -10,14 +11,17 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hybrid_force.sweep import (
+    MAX_RUNS,
     METRIC_COLUMNS,
     TIMING_COLUMNS,
     SweepError,
@@ -228,10 +232,12 @@ def test_killed_sweep_resumes_without_redoing_finished_runs(tmp_path: Path) -> N
     with csv_path.open(newline="") as fh:
         before = list(csv.DictReader(fh))
     assert before and all(r["status"] == "ok" for r in before)
+    assert len(list(out.glob(".scratch-*"))) == 1  # the killed sweep could not remove it
     new_rows: list[dict] = []
     variants = [{"control.Lambda": x} for x in lambdas]
     run_sweep(scenario, variants, workers=2, out_dir=out, progress=False, on_row=new_rows.append)
     _, after = read_sweep_csv(csv_path)
+    assert not list(out.glob(".scratch-*"))  # the next sweep removed it
     assert [r["run_id"] for r in after] == [run_id(v) for v in variants]
     assert len(new_rows) == len(lambdas) - len(before)  # only the missing runs ran
     assert {r["run_id"] for r in new_rows}.isdisjoint({r["run_id"] for r in before})
@@ -326,3 +332,247 @@ def test_rows_of_other_sweeps_are_kept_and_error_rows_retried(
     # this sweep's variants in its order, then the row of the earlier sweep
     assert [r["control.Lambda"] for r in after] == ["-3.0", "-1.0", "-2.0"]
     assert [r["status"] for r in after] == ["bad input"] * 3
+
+
+# ----------------------------------------------------------------------------- trust
+def _alive(procs: list) -> list[int]:
+    """Pids of the psutil processes that still run (a zombie waiting to be reaped is dead)."""
+    import psutil
+
+    out = []
+    for p in procs:
+        try:
+            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
+                out.append(p.pid)
+        except psutil.NoSuchProcess:
+            pass
+    return out
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """Kill a process group started by a test (start_new_session=True) and reap its leader."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=10)
+
+
+@pytest.fixture()
+def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, Path]]:
+    """A Dask scheduler and one worker (1 process, 1 thread) started as commands in their own
+    folder, with their own TMPDIR: (scheduler address, that folder). Killed at teardown."""
+    home = tmp_path / "cluster_home"
+    (home / "tmp").mkdir(parents=True)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["TMPDIR"] = str(home / "tmp")
+    bin_dir = Path(sys.executable).parent
+    dask_cmd = str(bin_dir / "dask") if (bin_dir / "dask").exists() else "dask"
+    sched_file = home / "scheduler.json"
+    procs: list[subprocess.Popen] = []
+    logs = [(home / "scheduler.log").open("wb"), (home / "worker.log").open("wb")]
+    try:
+        procs.append(
+            subprocess.Popen(
+                [dask_cmd, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                 "--scheduler-file", str(sched_file)],
+                cwd=home, env=env, stdout=logs[0], stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        )  # fmt: skip
+        deadline = time.monotonic() + 60
+        while not sched_file.exists() and time.monotonic() < deadline:
+            assert procs[0].poll() is None, (home / "scheduler.log").read_text()
+            time.sleep(0.1)
+        time.sleep(0.2)  # the file is written in one go, but let it land
+        address = json.loads(sched_file.read_text())["address"]
+        procs.append(
+            subprocess.Popen(
+                [dask_cmd, "worker", address, "--nworkers", "1", "--nthreads", "1",
+                 "--no-dashboard", "--local-directory", str(home)],
+                cwd=home, env=env, stdout=logs[1], stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        )  # fmt: skip
+        from dask.distributed import Client
+
+        with Client(address, timeout=30) as client:
+            client.wait_for_workers(1, timeout=60)
+        yield address, home
+    finally:
+        for proc in procs:
+            _stop(proc)
+        for log in logs:
+            log.close()
+
+
+@pytest.mark.slow
+def test_sweep_on_a_cluster_whose_workers_cannot_see_the_scenario(
+    tmp_path: Path,
+    dask_cluster: tuple[str, Path],
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture,
+) -> None:
+    """The workers run in another folder: a scenario path relative to the caller's folder and a
+    URDF path relative to the scenario mean nothing to them; they get data, not paths."""
+    from hybrid_force.cli import main
+    from hybrid_force.result import Result
+
+    address, home = dask_cluster
+    scen_dir = tmp_path / "study"
+    scen_dir.mkdir()
+    # the bundled URDF, with meshes that exist nowhere: simulating needs none
+    urdf = (REPO / "robots" / "rtr.urdf").read_text()
+    mesh = '<visual><geometry><mesh filename="package://nowhere/arm.stl"/></geometry></visual>'
+    urdf = urdf.replace('<link name="tip">', f'<link name="tip">{mesh}', 1)
+    assert "package://nowhere" in urdf
+    (scen_dir / "my_rtr.urdf").write_text(urdf)
+    text = SCENARIO.format(duration=0.1).replace('model = "rtr"', 'model = "my_rtr.urdf"')
+    (scen_dir / "tiny.toml").write_text(text)
+    caller = tmp_path / "caller"
+    caller.mkdir()
+    monkeypatch.chdir(caller)
+    status = main(
+        ["sweep", "../study/tiny.toml", "--grid", "control.Lambda=5,20,-1",
+         "--scheduler", address, "--out", "out", "--keep-results", "--quiet"]
+    )  # fmt: skip
+    captured = capsys.readouterr()
+    assert status == 0, captured.err
+    assert "warning: 1 of 3 runs are not ok (1 bad input)" in captured.err
+    _, rows = read_sweep_csv(caller / "out" / "sweep.csv")
+    assert [r["status"] for r in rows] == ["ok", "ok", "bad input"], rows
+    assert float(rows[0]["t_end"]) == pytest.approx(0.1)
+    # the message names the scenario as the caller gave it, not a worker's temporary copy
+    assert rows[2]["error"].startswith("../study/tiny.toml: control.Lambda")
+    assert "hybrid_force_run_" not in rows[2]["error"]
+    # results kept by the caller (never written by a worker), naming the caller's URDF
+    kept = sorted((caller / "out" / "results").glob("*.npz"))
+    assert [p.stem for p in kept] == sorted(r["run_id"] for r in rows[:2])
+    result = Result.load(kept[0])
+    assert result.meta["robot"]["model"] == str((scen_dir / "my_rtr.urdf").resolve())
+    assert result.meta["scenario"]["robot"]["model"] == "my_rtr.urdf"
+    # the worker made its temporary folders in its TMPDIR and removed them; nothing of the
+    # sweep's was written in the worker's folder
+    from dask.distributed import Client
+
+    with Client(address, timeout=30) as client:
+        assert list(client.run(tempfile.gettempdir).values()) == [str(home / "tmp")]
+    assert not list((home / "tmp").rglob("hybrid_force_run_*"))
+    assert not list(home.rglob("*.npz")) and not list(home.rglob("*.urdf"))
+
+
+def test_run_one_sends_a_relative_urdf_and_names_the_original(tmp_path: Path) -> None:
+    from hybrid_force.result import Result
+
+    (tmp_path / "arms").mkdir()
+    (tmp_path / "arms" / "a.urdf").write_text((REPO / "robots" / "rtr.urdf").read_text())
+    scen = tmp_path / "s.toml"
+    scen.write_text(SCENARIO.format(duration=0.05).replace('"rtr"', '"arms/a.urdf"'))
+    keep = tmp_path / "keep"
+    row = run_one(str(scen), {"control.Lambda": 5.0}, str(keep))
+    assert row["status"] == "ok", row
+    kept = Result.load(keep / f"{row['run_id']}.npz")
+    assert kept.meta["robot"]["model"] == str((tmp_path / "arms" / "a.urdf").resolve())
+    assert kept.meta["scenario"]["robot"]["model"] == "arms/a.urdf"
+    missing = run_one(str(scen), {"robot.model": "arms/none.urdf"}, None)
+    assert missing["status"] == "bad input"
+    assert "URDF file not found" in missing["error"] and "none.urdf" in missing["error"]
+    named = run_one(str(scen), {"robot.model": "rtr"}, str(keep))
+    assert named["status"] == "ok"
+    assert Result.load(keep / f"{named['run_id']}.npz").meta["robot"]["model"] == "rtr"
+
+
+def test_exit_status_when_runs_fail(
+    tmp_path: Path, scenario: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Every run failed: 1. Some failed: 0 and a warning on stderr. (--help says so.)"""
+    out = tmp_path / "all_bad"
+    args = _args(str(scenario), "--grid", "control.Lambda=-1,-2", "--out", str(out), "--quiet")
+    assert sweep_command(args) == 1
+    err = capsys.readouterr().err
+    assert "error: no run is ok (2 bad input)" in err
+    assert [r["status"] for r in read_sweep_csv(out / "sweep.csv")[1]] == ["bad input"] * 2
+    assert sweep_command(args) == 1  # resumed: nothing to run, still no run ok
+    from hybrid_force.cli import main
+
+    assert main(["sweep", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "exit status:" in text and "1 no run is ok" in text and "143 SIGTERM" in text
+    assert f"more than {MAX_RUNS} runs" in text
+
+
+def test_huge_sweeps_are_refused_before_expanding(tmp_path: Path, scenario: Path) -> None:
+    assert MAX_RUNS == 100_000
+    t0 = time.perf_counter()
+    big = {f"t.k{i}": list(range(10)) for i in range(12)}  # 10**12 variants
+    with pytest.raises(SweepError, match=r"would have 1000000000000 runs .*--grid t\.k0: 10"):
+        expand(big, {}, 0, 0)
+    with pytest.raises(SweepError, match=r"--grid a\.x: 1000 values × --samples 101"):
+        expand({"a.x": list(range(1000))}, {"s.m": (0.0, 1.0)}, 101, 0)
+    with pytest.raises(SweepError, match="--samples 1000000000"):
+        expand({}, {"s.m": (0.0, 1.0)}, 10**9, 0)  # not drawn: 8 GB of samples
+    with pytest.raises(SweepError, match=r"lists 100001 values"):
+        expand({"a.x": range(MAX_RUNS + 1)}, {}, 0, 0)
+    assert time.perf_counter() - t0 < 2.0
+    assert len(expand({"a.x": list(range(1000)), "b.y": list(range(100))}, {}, 0, 0)) == MAX_RUNS
+    values = ",".join(str(i) for i in range(MAX_RUNS + 1))
+    with pytest.raises(SweepError, match=r"--grid control\.Lambda lists 100001 values"):
+        sweep_command(_args(str(scenario), "--grid", f"control.Lambda={values}"))
+    with pytest.raises(SweepError, match="at most 100000"):
+        run_sweep(scenario, [{"a.x": i} for i in range(MAX_RUNS + 1)], out_dir=tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
+def _descendants(pid: int) -> list:
+    import psutil
+
+    try:
+        return psutil.Process(pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        return []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("engine", ["pool", "local"])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["TERM", "KILL"])
+def test_killing_the_sweep_leaves_no_worker(tmp_path: Path, engine: str, sig: int) -> None:
+    """A sweep of long runs is killed while its workers run: none of the processes it
+    started (workers, Dask nannies' workers, resource tracker) outlives it by more than 10 s."""
+    scen = tmp_path / "long.toml"
+    scen.write_text(SCENARIO.format(duration=0.15))
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "hybrid_force.cli", "sweep", str(scen), "--grid",
+           "control.Lambda=2,3,5", "--grid", "sim.duration=60.0", "--workers", "1",
+           "--out", str(out), "--quiet"]  # fmt: skip
+    if engine == "local":
+        cmd += ["--scheduler", "local"]
+    log = tmp_path / "stderr.txt"
+    with log.open("wb") as err:
+        proc = subprocess.Popen(cmd, cwd=tmp_path, stderr=err, start_new_session=True)
+    try:
+        # a run has started when its private folder exists (in DIR/.scratch-<pid>-*/)
+        deadline = time.monotonic() + 90
+        while not list(out.glob(".scratch-*/hybrid_force_run_*")):
+            assert proc.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, "no run started"
+            time.sleep(0.05)
+        started = _descendants(proc.pid)
+        assert started, "the sweep has no child process"
+        os.kill(proc.pid, sig)
+        status = proc.wait(timeout=30)
+        t_killed = time.monotonic()
+        while _alive(started) and time.monotonic() - t_killed < 10:
+            time.sleep(0.05)
+        assert _alive(started) == [], log.read_text()
+    finally:
+        _stop(proc)
+        for p in _descendants(proc.pid):
+            with contextlib.suppress(Exception):
+                p.kill()
+    if sig == signal.SIGTERM:
+        assert status == 143, log.read_text()
+        assert "terminated (SIGTERM) after 0 new run(s)" in log.read_text()
+        _, rows = read_sweep_csv(out / "sweep.csv")  # written, parseable, nothing finished
+        assert rows == []
+        assert not list(out.glob(".scratch-*"))  # the workers' temporary folders are gone
+    else:
+        assert status == -signal.SIGKILL
