@@ -20,6 +20,14 @@ Resuming: run again with the same arguments and ``--out DIR``. Rows already in
 ``DIR/sweep.csv`` (matched by run id) are kept and not run again; ``DIR/sweep.json`` records
 the arguments and a hash of the scenario file, and a sweep refuses to resume in a DIR made
 from a different scenario file content.
+
+Workers get data, never paths: this process reads the scenario file (with each variant's
+overrides) and the URDF file its ``robot.model`` names, and sends both with the task; a worker
+writes the URDF into a private temporary folder, builds the scenario from the data, and sends
+back the row and, with ``keep_results``, the saved result's bytes, which this process writes
+into ``DIR/results/``. So a Dask worker on another machine or in another folder needs only
+hybrid_force installed. Local workers die with the sweep (even on ``kill -9``), and SIGTERM
+stops them, keeps the finished rows and exits 143. At most :data:`MAX_RUNS` variants.
 """
 
 from __future__ import annotations
@@ -773,17 +781,18 @@ def run_sweep(
     """Run every variant not yet in ``out_dir/sweep.csv``; return the CSV path.
 
     Args:
-        scenario_path: the scenario TOML file (workers of a Dask cluster must see it at the
-            same path, e.g. on a shared file system, and have hybrid_force installed).
+        scenario_path: the scenario TOML file, read by this process only (workers, which
+            need hybrid_force installed, get its data and its URDF file's content).
         variants: dicts of overrides, e.g. from :func:`expand`; run ids must be distinct.
         workers: local worker processes (default ``os.cpu_count()``), or the number of workers
             of a ``"local"`` Dask cluster (default 2).
         scheduler: None: a process pool ("spawn" start method, safe with Pinocchio);
             ``"local"``: a Dask LocalCluster (processes, one thread each) started and closed
             here; anything else: the address of a running Dask scheduler ("tcp://host:8786").
-        out_dir: output directory (created). Holds sweep.csv, sweep.json and, with
-            keep_results, results/<run_id>.npz.
-        keep_results: save every run's Result.
+        out_dir: output directory (created). Holds sweep.csv, sweep.json, with keep_results
+            results/<run_id>.npz and, while the sweep runs, .scratch-<pid>-*/ (the local
+            workers' temporary folders).
+        keep_results: save every run's Result (written here, by this process, atomically).
         progress: text progress bar with ETA on stderr, when stderr is a terminal (True), never
             (False) or always ("force").
         arguments: extra JSON-able description of the sweep stored in sweep.json.
@@ -799,9 +808,15 @@ def run_sweep(
     run ids it holds (except rows with status "error").
 
     Raises:
-        SweepError: duplicate variants, a bad out_dir, a DIR made from another scenario file.
+        SweepError: duplicate variants, more than :data:`MAX_RUNS` of them, a bad out_dir, a
+            DIR made from another scenario file, a scenario file changed during the sweep, a
+            result that cannot be saved.
+        ScenarioError: the scenario file cannot be read or is not TOML.
         SimulationError: runs were lost (a worker process died); the finished rows are saved
             and rerunning the same sweep runs the missing ones.
+
+    Any exception (Ctrl-C included) kills the local workers before it propagates, and
+    ``sweep.csv`` holds every row finished until then.
     """
     scenario = Path(scenario_path)
     if not scenario.is_file():

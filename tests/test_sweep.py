@@ -576,3 +576,22 @@ def test_killing_the_sweep_leaves_no_worker(tmp_path: Path, engine: str, sig: in
         assert not list(out.glob(".scratch-*"))  # the workers' temporary folders are gone
     else:
         assert status == -signal.SIGKILL
+
+
+def test_a_scenario_file_changed_during_the_sweep_stops_it(tmp_path: Path, scenario: Path) -> None:
+    """Rows of two versions of a scenario never share a table."""
+    variants = [{"robot.model": "nowhere/arm.urdf"}, {"control.Lambda": 5.0}]
+    seen: list[dict] = []
+
+    def edit(row: dict) -> None:  # the first row is made here (the URDF is missing)
+        seen.append(row)
+        scenario.write_text(SCENARIO.format(duration=0.2))
+
+    with pytest.raises(SweepError, match="changed or removed during the sweep"):
+        run_sweep(
+            scenario, variants, workers=1, out_dir=tmp_path / "o", progress=False, on_row=edit
+        )
+    assert [r["status"] for r in seen] == ["bad input"]
+    assert "URDF file not found" in seen[0]["error"]
+    _, rows = read_sweep_csv(tmp_path / "o" / "sweep.csv")
+    assert [r["run_id"] for r in rows] == [run_id(variants[0])]  # the finished row is kept
