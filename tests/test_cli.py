@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybrid_force.cli import FeatureUnavailableError, _import_feature, _Progress
+from hybrid_force.cli import FeatureUnavailableError, _import_feature, _Progress, main
 from hybrid_force.result import Metrics, Result
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -231,3 +231,31 @@ def test_progress_bar_text() -> None:
     quiet = io.StringIO()
     _Progress(quiet, "demo", delay=60.0)(0.5)
     assert quiet.getvalue() == ""
+
+
+def test_lost_contact_exits_1_and_saves_the_run(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "lost"
+    code = main([
+        "run", str(SHIPPED[0].parent / "paper_contact.toml"), "--out", str(out), "--quiet",
+        "--set", "initial.v=[0, 0, 3]", "--set", "control.f_d=0", "--set", "sim.duration=1",
+    ])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "warning: run 'paper_contact': the tool left the surface" in err
+    assert "error: run failed (lost contact)" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["reason"] == "lost contact"
+    assert summary["lost_contact"] is True and summary["contact_at_end"] is False
+    assert Result.load(out / "result.npz").meta["run_id"] == summary["run_id"]
+
+
+def test_log_that_does_not_fit_in_memory_is_refused_before_the_run(
+    tmp_path: Path, capsys, monkeypatch
+) -> None:
+    monkeypatch.setattr("hybrid_force.run_checks.available_memory", lambda: 10**6)
+    out = tmp_path / "big"
+    code = main(["run", str(SHIPPED[0].parent / "paper_contact.toml"), "--out", str(out)])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1
+    assert err[0].startswith("error: sim.duration = 20 s at sim.dt = 0.001 s")
+    assert "GiB" in err[0] and not (out / "result.npz").exists()

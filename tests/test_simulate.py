@@ -5,6 +5,8 @@ The targets are those of issue 5, checked on full 20 s runs at dt = 1 ms.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -366,3 +368,93 @@ def test_stacked_surfaces_with_an_approach_are_refused(rtr) -> None:
     )
     with pytest.raises(BadInputError, match="supervisor = false"):
         simulate(sc)
+
+
+# --- a run never lies, and keeps what it computed --------------------------------------------
+def _paper_contact(**overrides: object) -> Scenario:
+    from hybrid_force.scenario import load_scenario
+
+    return load_scenario(
+        Path(__file__).resolve().parents[1] / "scenarios" / "paper_contact.toml", overrides
+    )
+
+
+def test_logged_contact_is_the_real_contact_state() -> None:
+    """Kicked off the surface at t = 0 (q̇3 = −3 rad/s), the tool flies and lands again: samples
+    logged as contact are exactly those on the surface (geometric check on phi), and the worst
+    distance in contact counts contact samples only."""
+    result = simulate(_paper_contact(**{"initial.v": [0.0, 0.0, -3.0], "sim.duration": 1.0}))
+    kinds = [e["kind"] for e in result.events]
+    assert "release" in kinds and "impact" in kinds  # it left and came back
+    contact = result.phase == CONTACT
+    assert np.all(np.abs(result.phi[contact]) < 1e-9)
+    off = result.phi > 1e-6
+    assert off.sum() > 10 and not np.any(contact & off)
+    summary = result.summary()
+    assert summary["worst_constraint_violation"] < 1e-9
+    assert summary["contact_at_end"] is True and summary["lost_contact"] is False
+
+
+def test_lost_contact_without_supervisor_fails_with_its_result() -> None:
+    from hybrid_force.errors import LostContactError
+
+    sc = _paper_contact(**{"initial.v": [0.0, 0.0, 3.0], "control.f_d": 0.0, "sim.duration": 1.0})
+    with (
+        pytest.warns(UserWarning, match="left the surface"),
+        pytest.raises(LostContactError, match="lost contact") as info,
+    ):
+        simulate(sc)
+    result = info.value.result
+    assert result.status == "failed" and result.meta["reason"] == "lost contact"
+    assert result.n_samples == 1001  # the whole run is kept
+    assert result.phi[-1] > sc.control.contact_tol  # really off the surface at the end
+    releases = [e["t"] for e in result.events if e["kind"] == "release"]
+    assert result.meta["left_at"] == releases[-1]
+    assert result.summary()["lost_contact"] is True
+
+
+@pytest.mark.parametrize(
+    ("raised", "error", "reason"),
+    [(KeyboardInterrupt, "RunInterruptedError", "interrupted"),
+     (RuntimeError, "RunFailedError", "error")],
+)  # fmt: skip
+def test_a_run_stopped_by_any_exception_keeps_its_samples(
+    raised: type[BaseException], error: str, reason: str
+) -> None:
+    import hybrid_force.errors as errors
+
+    def stop_half_way(fraction: float) -> None:
+        if fraction >= 0.5:
+            raise raised("stop")
+
+    with pytest.raises(getattr(errors, error)) as info:
+        simulate(_paper_contact(**{"sim.duration": 0.4}), progress=stop_half_way)
+    result = info.value.result
+    assert type(info.value).__name__ == error and info.value.reason == reason
+    assert result.status == "failed" and result.meta["reason"] == reason
+    assert 150 < result.n_samples < 250 and np.all(np.diff(result.t) > 0)
+    assert np.all(np.isfinite(result.q)) and result.events[-1]["kind"] == reason
+    if raised is RuntimeError:
+        assert "RuntimeError: stop" in result.meta["error"]
+
+
+def test_desired_path_failing_mid_run_stops_with_its_result(monkeypatch) -> None:
+    """The CLIK raises ReachError when J becomes singular on the desired path (the loader
+    refuses such paths when it can find them; a user's FunctionPath can still get there)."""
+    from hybrid_force.clik import DesiredJointPath
+    from hybrid_force.errors import ReachError, RunFailedError
+
+    advance = DesiredJointPath.advance
+
+    def singular_after(self, dt: float) -> None:
+        if self.t >= 0.2:
+            raise ReachError("the tip Jacobian is singular on the desired path (test)")
+        advance(self, dt)
+
+    monkeypatch.setattr(DesiredJointPath, "advance", singular_after)
+    with pytest.raises(RunFailedError, match="desired path cannot be followed") as info:
+        simulate(_paper_contact(**{"sim.duration": 0.5}))
+    assert info.value.reason == "path"
+    result = info.value.result
+    assert result.status == "failed" and result.meta["reason"] == "path"
+    assert result.t[-1] == pytest.approx(0.2) and np.all(np.isfinite(result.q))
