@@ -54,7 +54,6 @@ from hybrid_force.dynamics import (
     plastic_impact,
 )
 from hybrid_force.errors import (
-    BadInputError,
     DivergenceError,
     LostContactError,
     ReachError,
@@ -522,13 +521,8 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     """
     sc, sim = scenario, scenario.sim
     robot = sc.robot
+    # Scenario has checked its fields (stacked surfaces only without the supervisor, ...)
     constraint = Constraint(sc.surfaces, normalization=sim.normalization)
-    if constraint.k > 1 and sc.control.supervisor:
-        raise BadInputError(
-            f"{constraint.k} stacked surfaces need a run that starts in contact with all of them "
-            "(control.supervisor = false): contact with a subset of the surfaces, as an approach "
-            "would make, is not implemented"
-        )
     model, data = robot.model, robot.new_data()
     k, nq, nv = constraint.k, robot.nq, robot.nv
     dt = sim.dt
