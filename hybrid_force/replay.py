@@ -1095,6 +1095,11 @@ def replay_command(args: Any) -> int:
     """
     html_path = getattr(args, "html", None)
     if html_path is not None:
+        from hybrid_force.run_output import RunOutput
+
+        # never write the page over the result it replays, or over its summary or figures
+        source = Path(args.result)
+        html_path = RunOutput(source.parent, inputs=[source]).check_extra("--html", html_path)
         out = write_html(args.result, html_path)
         size = out.stat().st_size
         print(f"wrote {out} ({size / 1e6:.2f} MB)")

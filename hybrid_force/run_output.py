@@ -61,10 +61,10 @@ class RunOutput:
         this run or one of its inputs, or whose folder cannot be written; return it."""
         target = Path(path)
         mine = {
+            **{_key(p): "an input of the run" for p in self._inputs},
             _key(self.result): "the run's result",
             _key(self.summary): "the run's summary",
             **{_key(f): "a figure of the run" for f in self.figures},
-            **{_key(p): "an input of the run" for p in self._inputs},
         }
         what = mine.get(_key(target))
         if what is not None:

@@ -211,3 +211,15 @@ def test_sigterm_saves_the_partial_result_and_exits_143(tmp_path: Path) -> None:
     assert summary["run_id"] == result.meta["run_id"]
     assert 0.0 < result.t[-1] < 600.0 and summary["t_end"] == result.t[-1]
     assert np.all(np.isfinite(result.q))
+
+
+@pytest.mark.parametrize("name", ["result.npz", "summary.json"])
+def test_replay_html_never_replaces_the_result_it_replays(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    out = tmp_path / "out"
+    assert _run(capsys, *_tiny(out))[0] == 0
+    before = (out / name).read_bytes()
+    code, _, err = _run(capsys, "replay", out / "result.npz", "--html", out / name)
+    assert code == 2 and err.startswith("error: --html") and err.count("\n") == 1
+    assert (out / name).read_bytes() == before
