@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -516,3 +517,326 @@ def test_stiff_default_gain_names_kd_and_dt(tmp_path: Path) -> None:
     path = _write(tmp_path, BASE)
     msg = _error(path, {"control.kd_rate": 1000.0, "sim.dt": 0.002})
     assert "control.Kd" in msg and "dt" in msg
+
+
+# --- bounded resources and absurd values (exit 2, one 'error:' line naming file and key) --------
+def _cli_run(
+    capsys: pytest.CaptureFixture[str], path: Path, out: Path, *extra: str
+) -> tuple[int, str]:
+    """``hybrid-force run path --out out --quiet ...``: (status, the single stderr line)."""
+    from hybrid_force.cli import main
+
+    capsys.readouterr()
+    status = main(["run", str(path), "--out", str(out), "--quiet", *extra])
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
+    assert "Traceback" not in err
+    return status, lines[0]
+
+
+_HUGE = "1" + "0" * 400  # an integer beyond float range (10**400)
+
+_ABSURD_NUMBERS = [
+    # (id, old text, new text, key named, words in the problem)
+    (
+        "int 10**400",
+        "radius = 0.4\ncenter",
+        f"radius = {_HUGE}\ncenter",
+        "surface.radius",
+        "finite",
+    ),
+    (
+        "int 10**400 in vector",
+        "center = [0.0, 0.0, 10.0]",
+        f"center = [1e0, {_HUGE}, 0]",
+        "trajectory.center",
+        "element 1 is not finite",
+    ),
+    ("1e400", "radius = 0.4\ncenter", "radius = 1e400\ncenter", "surface.radius", "finite"),
+    ("-inf", "omega = 1.0", "omega = -inf", "trajectory.omega", "finite"),
+    ("nan", "radius = 0.4\ncenter", "radius = nan\ncenter", "surface.radius", "finite"),
+    (
+        "nan in vector",
+        "tip = [0.4, 0.0, 7.0]",
+        "tip = [0.4, nan, 7.0]",
+        "initial.tip",
+        "element 1 is not finite",
+    ),
+    ("int 10**400 in sim", "duration = 2.0", f"duration = {_HUGE}", "sim.duration", "finite"),
+]
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "problem"),
+    [case[1:] for case in _ABSURD_NUMBERS],
+    ids=[case[0] for case in _ABSURD_NUMBERS],
+)
+def test_absurd_numbers_exit_2_naming_file_and_key(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], old: str, new: str, key: str, problem: str
+) -> None:
+    assert old in BASE
+    path = _write(tmp_path, BASE.replace(old, new, 1))
+    msg = _error(path)
+    assert str(path) in msg and f"{key} = " in msg and problem in msg
+    out = tmp_path / "out"
+    status, line = _cli_run(capsys, path, out)
+    assert status == 2 and str(path) in line and f"{key} = " in line and problem in line
+    assert not out.exists()
+
+
+_DEEP = 100_000
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "x = " + "[" * _DEEP + "]" * _DEEP + "\n" + BASE,
+        "x = " + "{a = " * _DEEP + "1" + "}" * _DEEP + "\n" + BASE,
+        BASE.replace("duration = 2.0", "duration = " + "[" * _DEEP + "]" * _DEEP),
+        BASE.replace("duration = 2.0", "duration = " + "{a = " * _DEEP + "1" + "}" * _DEEP),
+    ],
+    ids=["arrays-top", "inline-tables-top", "arrays-in-sim", "inline-tables-in-sim"],
+)
+def test_deep_nesting_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
+) -> None:
+    path = _write(tmp_path, text, "deep.toml")
+    msg = _error(path)
+    assert str(path) in msg and "nested too deeply" in msg
+    out = tmp_path / "out"
+    status, line = _cli_run(capsys, path, out)
+    assert status == 2 and str(path) in line and "nested too deeply" in line
+    assert not out.exists()
+
+
+def test_moderately_deep_value_is_an_ordinary_error(tmp_path: Path) -> None:
+    # deep enough to be absurd, shallow enough for tomllib: the key's own check refuses it
+    path = _write(tmp_path, BASE.replace("seed = [0.0, 6.0, 2.0]", "seed = " + "[" * 50 + "]" * 50))
+    msg = _error(path)
+    assert str(path) in msg and "initial.seed = [[[" in msg and "element 0 is an array" in msg
+
+
+def test_scenario_file_over_the_size_limit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hybrid_force.scenario import MAX_FILE_BYTES
+
+    pad = MAX_FILE_BYTES - len(BASE.encode()) - 2
+    exact = BASE + "#" + "x" * pad + "\n"
+    assert len(exact.encode()) == MAX_FILE_BYTES
+    assert load_scenario(_write(tmp_path, exact, "exact.toml")).name == "base"
+    path = _write(tmp_path, BASE + "#" + "x" * (pad + 1) + "\n", "big.toml")
+    msg = _error(path)
+    assert str(path) in msg and f"larger than {MAX_FILE_BYTES} bytes" in msg
+    out = tmp_path / "out"
+    status, line = _cli_run(capsys, path, out)
+    assert status == 2 and str(path) in line and str(MAX_FILE_BYTES) in line
+    assert not out.exists()
+    # a (sparse) file of 256 MiB is refused after reading MAX_FILE_BYTES + 1 bytes of it
+    sparse = tmp_path / "sparse.toml"
+    with sparse.open("wb") as fh:
+        fh.truncate(256 << 20)
+    msg = _error(sparse)
+    assert str(sparse) in msg and f"larger than {MAX_FILE_BYTES} bytes" in msg
+
+
+@pytest.mark.parametrize(
+    ("value", "problem"),
+    [
+        (_HUGE, "finite"),
+        ("1e400", "finite"),
+        ("nan", "finite"),
+        ("[" * _DEEP + "]" * _DEEP, "nested too deeply"),
+        ("{a=" * _DEEP + "1" + "}" * _DEEP, "nested too deeply"),
+    ],
+    ids=["int 10**400", "1e400", "nan", "deep arrays", "deep inline tables"],
+)
+def test_absurd_override_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], value: str, problem: str
+) -> None:
+    if problem == "nested too deeply":
+        with pytest.raises(ScenarioError, match=r"'sim\.dt'.*nested too deeply"):
+            parse_override(f"sim.dt={value}")
+    else:
+        key, parsed = parse_override(f"sim.dt={value}")
+        msg = _error(_write(tmp_path, BASE, "ok.toml"), {key: parsed})
+        assert "ok.toml" in msg and "sim.dt = " in msg and problem in msg
+    out = tmp_path / "out"
+    status, line = _cli_run(
+        capsys, _write(tmp_path, BASE, "ok.toml"), out, "--set", f"sim.dt={value}"
+    )
+    assert status == 2 and "sim.dt" in line and problem in line
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "toml_value",
+    [
+        r'"ok\n"',  # a trailing newline (basic string escape)
+        '"""ok\n"""',  # the same, as a multi-line string
+        '"a/b"',
+        '"../up"',
+        '".."',
+        '"."',
+        '".hidden"',
+        '""',
+        '"-rf"',
+        '"a b"',
+        r'"a\\b"',
+        r'"a\u0000b"',
+        '"café"',
+        '"' + "a" * 101 + '"',
+        "1",
+        "[]",
+    ],
+    ids=[
+        "newline",
+        "newline-multiline",
+        "slash",
+        "dotdot-slash",
+        "dotdot",
+        "dot",
+        "leading-dot",
+        "empty",
+        "leading-dash",
+        "space",
+        "backslash",
+        "nul",
+        "non-ascii",
+        "101 chars",
+        "number",
+        "array",
+    ],
+)
+def test_bad_names_exit_2_naming_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], toml_value: str
+) -> None:
+    path = _write(tmp_path, BASE.replace('name = "base"', f"name = {toml_value}", 1))
+    msg = _error(path)
+    assert str(path) in msg and "name = " in msg
+    out = tmp_path / "out"
+    status, line = _cli_run(capsys, path, out)
+    assert status == 2 and str(path) in line and ": name = " in line
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["run_1.a-b", "_x", "9", "a..b", "A" * 100])
+def test_valid_names_are_accepted(tmp_path: Path, name: str) -> None:
+    sc = load_scenario(_write(tmp_path, BASE.replace('name = "base"', f'name = "{name}"', 1)))
+    assert sc.name == name
+
+
+# --- the desired path followed over the whole run (RTR arm on the plane z = 5) ------------------
+RTR_PLANE = (REPO_ROOT / "scenarios" / "rtr_plane.toml").read_text(encoding="utf-8")
+REACH = 1.9  # [m] largest distance of the RTR tip from the z axis (l2 + l3)
+
+
+def _plane_circle(center_x: float, radius: float, phase: float) -> str:
+    """rtr_plane.toml with the circle moved to center [center_x, 0, 5], radius and phase; the
+    start 2 cm above the circle's start point (omega 0.5 rad/s, duration 12 s as shipped)."""
+    x0 = center_x + radius * math.cos(phase)
+    y0 = radius * math.sin(phase)
+    text = RTR_PLANE
+    for old, new in (
+        ("center = [0.0, 0.0, 5.0]", f"center = [{center_x!r}, 0.0, 5.0]"),
+        ("radius = 0.6", f"radius = {radius!r}"),
+        ("phase = 0.0 ", f"phase = {phase!r} "),
+        ("tip = [0.6, 0.0, 5.02]", f"tip = [{x0:.9f}, {y0:.9f}, 5.02]"),
+    ):
+        assert old in text
+        text = text.replace(old, new, 1)
+    return text
+
+
+def _failure_time(line: str) -> float:
+    match = re.search(r"at t = ([0-9.e+-]+) s", line)
+    assert match, line
+    return float(match.group(1))
+
+
+def test_path_out_of_reach_in_the_middle_of_the_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # center x = 1.2, radius 0.8, phase pi: starts at [0.4, 0, 5] (reachable); the far side is
+    # 2.0 m from the z axis. The circle leaves the reach (1.9 m) when
+    # |c + r e(θ)|² = 2.08 + 1.92 cos θ = 1.9², θ = π + 0.5 t  →  t ≈ 4.99 s.
+    path = _write(tmp_path, _plane_circle(1.2, 0.8, math.pi), "far.toml")
+    t_leave = (math.pi - math.acos((REACH**2 - 2.08) / 1.92)) / 0.5
+    # the start and the first 4 s are fine: the same file with a shorter run loads
+    assert load_scenario(path, {"sim.duration": 4.0}).name == "rtr_plane"
+    msg = _error(path)
+    out = tmp_path / "out"
+    status, line = _cli_run(capsys, path, out)
+    assert status == 2
+    for text in (msg, line):
+        assert str(path) in text and "out of reach" in text
+        assert "trajectory.center = [1.2, 0.0, 5.0]" in text and "trajectory.radius = 0.8" in text
+        t = _failure_time(text)
+        assert t_leave <= t <= t_leave + 0.021, (t, t_leave)  # the first sample beyond reach
+        match = re.search(r"p_d = \[([^\]]*)\]", text)
+        assert match, text
+        p = [float(v) for v in match.group(1).split(",")]
+        assert math.hypot(p[0], p[1]) > REACH and p[2] == 5.0
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("center_x", "radius", "phase", "where"),
+    [
+        # center x = 1.0, radius 0.9: the far side [1.9, 0, 5] is the full extension (q3 = 0)
+        (1.0, 0.9, -3.0, [1.9, 0.0, 5.0]),
+        # center x = 0.5, radius 0.5: the circle passes over the z axis at [0, 0, 5]
+        (0.5, 0.5, math.pi - 3.0, [0.0, 0.0, 5.0]),
+    ],
+    ids=["full-extension", "over-the-z-axis"],
+)
+def test_path_through_a_singular_configuration_in_the_middle_of_the_run(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    center_x: float,
+    radius: float,
+    phase: float,
+    where: list[float],
+) -> None:
+    # θ(t) = phase + 0.5 t reaches the singular point at t = 6 s, a sample of the check
+    path = _write(tmp_path, _plane_circle(center_x, radius, phase), "singular.toml")
+    np.testing.assert_allclose(
+        [center_x + radius * math.cos(phase + 3.0), radius * math.sin(phase + 3.0), 5.0],
+        where,
+        atol=1e-12,
+    )
+    assert load_scenario(path, {"sim.duration": 5.5}).name == "rtr_plane"
+    msg = _error(path)
+    out = tmp_path / "out"
+    status, line = _cli_run(capsys, path, out)
+    assert status == 2
+    for text in (msg, line):
+        assert str(path) in text and "singular configuration" in text
+        assert f"trajectory.center = [{center_x!r}, 0.0, 5.0]" in text
+        assert f"trajectory.phase = {phase!r}" in text
+        assert _failure_time(text) == pytest.approx(6.0)
+        assert f"p_d = {where}" in text
+    assert not out.exists()
+
+
+def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each shipped scenario still loads with the path check, which solves the inverse
+    kinematics at every sample of [0, duration] (each load takes well under a second)."""
+    import hybrid_force.clik as clik
+    from hybrid_force.scenario import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
+
+    solve = clik.inverse_kinematics
+    calls: list[int] = []
+
+    def counting(*args: object, **kwargs: object) -> np.ndarray:
+        calls.append(1)
+        return solve(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(clik, "inverse_kinematics", counting)
+    for path in SHIPPED:
+        calls.clear()
+        sc = load_scenario(path)
+        samples = min(PATH_CHECK_SAMPLES, math.ceil(sc.sim.duration / PATH_CHECK_STEP) + 1)
+        assert len(calls) >= samples, path.name
