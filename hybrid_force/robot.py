@@ -430,12 +430,14 @@ def load_robot(model: str | Path, tip: str | None = None) -> Robot:
     )
 
 
-def _is_path(model: str | Path) -> bool:
-    """True for a Path, or a text ending with ``.urdf`` or holding a path separator."""
-    if isinstance(model, Path):
+def _is_path(model: str | os.PathLike[str]) -> bool:
+    """True for a Path (any os.PathLike), or a text ending with ``.urdf`` or holding a path
+    separator (``/``, ``\\``, and the platform's own)."""
+    if isinstance(model, os.PathLike):
         return True
+    text = str(model)
     separators = {"/", "\\", os.sep} | ({os.altsep} if os.altsep else set())
-    return model.endswith(".urdf") or any(sep in model for sep in separators)
+    return text.endswith(".urdf") or any(sep in text for sep in separators)
 
 
 def _build_model(path: Path) -> tuple[pin.Model, dict[str, tuple[str, float, float]]]:
