@@ -361,7 +361,7 @@ def _stop(proc: subprocess.Popen) -> None:
 def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     """A Dask scheduler and one worker (1 process, 1 thread) started as commands in their own
     folder, with their own TMPDIR: (scheduler address, that folder). Killed at teardown."""
-    home = tmp_path / "cluster_home"
+    home = tmp_path / "cluster" / "home"  # not a sibling of the caller's folder
     (home / "tmp").mkdir(parents=True)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env["TMPDIR"] = str(home / "tmp")
@@ -431,6 +431,8 @@ def test_sweep_on_a_cluster_whose_workers_cannot_see_the_scenario(
     caller = tmp_path / "caller"
     caller.mkdir()
     monkeypatch.chdir(caller)
+    assert (caller / "../study/tiny.toml").is_file()
+    assert not (home / "../study/tiny.toml").exists()  # the caller's path, seen by the worker
     status = main(
         ["sweep", "../study/tiny.toml", "--grid", "control.Lambda=5,20,-1",
          "--scheduler", address, "--out", "out", "--keep-results", "--quiet"]
