@@ -597,3 +597,51 @@ def test_a_scenario_file_changed_during_the_sweep_stops_it(tmp_path: Path, scena
     assert "URDF file not found" in seen[0]["error"]
     _, rows = read_sweep_csv(tmp_path / "o" / "sweep.csv")
     assert [r["run_id"] for r in rows] == [run_id(variants[0])]  # the finished row is kept
+
+
+_WATCHED_CHILD = """
+import os, sys, threading, time
+if sys.argv[1] == "fallback":
+    sys.platform = "darwin"  # no prctl: the polling thread must do it
+from hybrid_force.sweep import _watch_parent
+_watch_parent(os.getppid())
+names = [t.name for t in threading.enumerate()]
+print("watched", "hybrid_force parent watch" in names, flush=True)
+time.sleep(60)
+"""
+_PARENT = """
+import subprocess, sys, time
+child = subprocess.Popen([sys.executable, "-c", sys.argv[1], sys.argv[2]])
+print(child.pid, flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize("how", ["prctl", "fallback"])
+def test_a_watched_worker_dies_with_its_parent(how: str) -> None:
+    """_watch_parent (the pool workers' initialiser): SIGKILL of the parent kills the child,
+    through PR_SET_PDEATHSIG on Linux or the os.getppid() polling thread elsewhere."""
+    import psutil
+
+    parent = subprocess.Popen(
+        [sys.executable, "-c", _PARENT, _WATCHED_CHILD, how],
+        stdout=subprocess.PIPE,  # the child inherits it: its line comes after the pid
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        assert parent.stdout is not None
+        child = psutil.Process(int(parent.stdout.readline()))
+        thread = "True" if how == "fallback" or not sys.platform.startswith("linux") else "False"
+        assert parent.stdout.readline().split() == ["watched", thread]
+        assert _alive([child]) == [child.pid]
+        parent.kill()
+        parent.wait(timeout=10)
+        t0 = time.monotonic()
+        while _alive([child]) and time.monotonic() - t0 < 5:
+            time.sleep(0.05)
+        assert _alive([child]) == []
+    finally:
+        _stop(parent)
+        if parent.stdout is not None:
+            parent.stdout.close()
