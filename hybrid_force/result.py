@@ -216,9 +216,12 @@ def _check_archive(fh: Any, src: Path) -> None:
                     f"(twice that while loading); {free / 2**30:.3g} GiB of memory is available"
                 )
             for member in members:
-                if not member.filename.endswith(".npy"):
-                    continue
+                # numpy serves "t" as well as "t.npy" as array "t": check every member that
+                # holds an array, whatever its name
                 with archive.open(member) as npy:
+                    if npy.read(6) != b"\x93NUMPY":
+                        continue
+                    npy.seek(0)
                     version = npy_format.read_magic(npy)
                     if version == (1, 0):
                         shape, _, dtype = npy_format.read_array_header_1_0(npy)
@@ -226,13 +229,22 @@ def _check_archive(fh: Any, src: Path) -> None:
                         shape, _, dtype = npy_format.read_array_header_2_0(npy)
                 claimed = math.prod(shape) * dtype.itemsize
                 if claimed > member.file_size:
+                    name = member.filename.removesuffix(".npy")
                     raise ResultFileError(
-                        f"result file '{src}': array '{member.filename[:-4]}' claims shape "
+                        f"result file '{src}': array '{name}' claims shape "
                         f"{shape} ({claimed} bytes) but its member holds {member.file_size} bytes"
                     )
     except ResultFileError:
         raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+    except (
+        OSError,
+        ValueError,
+        EOFError,
+        zipfile.BadZipFile,
+        zlib.error,
+        KeyError,
+        RuntimeError,
+    ) as exc:  # RuntimeError: an encrypted member; NotImplementedError: unknown compression
         raise ResultFileError(
             f"result file '{src}' is not a readable .npz archive (truncated or not a "
             f"hybrid_force result): {type(exc).__name__}: {exc}"
@@ -586,7 +598,15 @@ class Result:
                         data[name] = npz[name]
         except ResultFileError:
             raise
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as exc:
+        except (
+            OSError,
+            ValueError,
+            EOFError,
+            zipfile.BadZipFile,
+            zlib.error,
+            KeyError,
+            RuntimeError,
+        ) as exc:  # RuntimeError: an encrypted member; NotImplementedError: unknown compression
             raise ResultFileError(
                 f"result file '{src}' is not a readable .npz archive (truncated or not a "
                 f"hybrid_force result): {type(exc).__name__}: {exc}"

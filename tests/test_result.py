@@ -824,13 +824,6 @@ def test_npy_file_given_instead_of_npz_through_the_cli(
     assert not (tmp_path / "x.html").exists()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=MemoryError,
-    reason="bug: _check_archive checks the .npy header of members named '*.npy' only, but "
-    "np.load's NpzFile also reads a member named 't' (no suffix) as array 't'; its header's "
-    "claimed shape is then allocated: MemoryError instead of ResultFileError",
-)
 def test_npy_header_in_member_without_npy_suffix_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -848,13 +841,6 @@ def test_npy_header_in_member_without_npy_suffix_is_refused(
     assert status == 2 and str(path) in line
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=RuntimeError,
-    reason="bug: zipfile raises RuntimeError for an encrypted member and NotImplementedError "
-    "(a RuntimeError) for an unknown compression method; Result.load/_check_archive do not "
-    "catch them, so they escape as tracebacks instead of ResultFileError (exit 2)",
-)
 @pytest.mark.parametrize(
     ("local", "central"),
     [((6, "<H", 1), (8, "<H", 1)), ((8, "<H", 99), (10, "<H", 99))],
