@@ -27,6 +27,7 @@ __all__ = [
     "RobotError",
     "RunFailedError",
     "RunInterruptedError",
+    "RunWarning",
     "ScenarioError",
     "ScenarioValueError",
     "SimSettingsError",
@@ -136,6 +137,11 @@ class RunInterruptedError(RunFailedError):
     def __init__(self, message: str, result: object | None = None, signal: str = "SIGINT") -> None:
         super().__init__(message, result)
         self.signal = signal
+
+
+class RunWarning(UserWarning):
+    """A run finished but did something the user must know: it left a joint's range,
+    exceeded an effort limit, or lost contact with the surface (also in its summary)."""
 
 
 class OutputError(BadInputError):
