@@ -12,9 +12,11 @@ the same keys as ``hybrid-force run --set``) and writes one row per run to ``DIR
 * :func:`add_sweep_arguments` / :func:`sweep_command`: the ``hybrid-force sweep`` command.
 
 Row statuses: ``"ok"``; ``"diverged"`` (the simulation failed at run time; the metrics are those
-of the partial run); ``"bad input"`` (the variant is not a valid scenario, e.g. a negative
-gain); ``"error"`` (an unexpected exception: a bug, not a verdict on the variant). Rows with
-status ``"error"`` are run again when the sweep is resumed; all others are final.
+of the partial run); ``"failed"`` (the run failed otherwise: it lost contact, or its desired
+path became singular; the error column starts with the reason); ``"bad input"`` (the variant
+is not a valid scenario, e.g. a negative gain); ``"error"`` (an unexpected exception: a bug,
+not a verdict on the variant). Rows with status ``"error"`` are run again when the sweep is
+resumed; all others are final.
 
 Resuming: run again with the same arguments and ``--out DIR``. Rows already in
 ``DIR/sweep.csv`` (matched by run id) are kept and not run again; ``DIR/sweep.json`` records
@@ -76,7 +78,7 @@ __all__ = [
     "sweep_command",
 ]
 
-STATUSES = ("ok", "diverged", "bad input", "error")
+STATUSES = ("ok", "diverged", "failed", "bad input", "error")
 """Possible values of the ``status`` column (see the module docstring)."""
 
 METRIC_COLUMNS: tuple[str, ...] = (
@@ -520,7 +522,7 @@ def _simulate_into(
     Returns the bytes of the saved Result when the task keeps it, else None. Raises only on an
     unexpected exception (the caller makes it status "error").
     """
-    from hybrid_force.errors import DivergenceError
+    from hybrid_force.errors import DivergenceError, RunFailedError, RunInterruptedError
     from hybrid_force.scenario import scenario_from_document
     from hybrid_force.simulate import simulate
 
@@ -535,9 +537,15 @@ def _simulate_into(
     try:
         scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
         result = simulate(scenario)
-    except DivergenceError as exc:
-        row["status"] = "diverged"
-        row["error"] = _one_line(str(exc))
+    except RunInterruptedError as exc:
+        raise KeyboardInterrupt from exc  # the sweep is being stopped: not a verdict on the run
+    except RunFailedError as exc:
+        # "error": an unexpected exception inside the run, retried on resume like any other
+        row["status"] = (
+            "diverged" if isinstance(exc, DivergenceError)
+            else "error" if exc.reason == "error" else "failed"
+        )  # fmt: skip
+        row["error"] = _one_line(f"{exc.reason}: {exc}")
         result = exc.result
     except SimulationError as exc:
         row["status"] = "diverged"

@@ -645,3 +645,17 @@ def test_a_watched_worker_dies_with_its_parent(how: str) -> None:
         _stop(parent)
         if parent.stdout is not None:
             parent.stdout.close()
+
+
+def test_a_run_that_loses_contact_is_a_failed_row_with_its_metrics(tmp_path: Path) -> None:
+    """Kicked off the surface with nothing to bring it back (f_d = 0, no supervisor): the run
+    fails with reason 'lost contact'; its row keeps the metrics of the whole run."""
+    scenario = tmp_path / "tiny.toml"
+    scenario.write_text(SCENARIO.format(duration=0.3))
+    row = run_one(
+        str(scenario),
+        {"initial.v": [0.0, 0.0, 3.0], "control.f_d": 0.0},
+        None,
+    )
+    assert row["status"] == "failed" and row["error"].startswith("lost contact: ")
+    assert row["t_end"] == pytest.approx(0.3)
