@@ -189,7 +189,8 @@ def _check_archive(fh: Any, src: Path) -> None:
 
     The sizes checked are the zip directory's uncompressed sizes, which ``zipfile`` enforces
     while reading, and each array header's shape × item size against its member's size (numpy
-    allocates the claimed shape before reading).
+    allocates the claimed shape before reading). Zip and header errors propagate to
+    :meth:`Result.load`, which reports them as an unreadable archive.
     """
     from numpy.lib import format as npy_format
 
@@ -200,55 +201,39 @@ def _check_archive(fh: Any, src: Path) -> None:
             f"result file '{src}' holds a single numpy array, not an .npz result archive"
         )
     fh.seek(0)
-    try:
-        with zipfile.ZipFile(fh) as archive:
-            members = archive.infolist()
-            if len(members) > _MAX_MEMBERS:
+    with zipfile.ZipFile(fh) as archive:
+        members = archive.infolist()
+        if len(members) > _MAX_MEMBERS:
+            raise ResultFileError(
+                f"result file '{src}' has {len(members)} members; a result has "
+                f"{len(ARRAY_NAMES) + 1}"
+            )
+        total = sum(m.file_size for m in members)
+        free = available_memory()
+        if free is not None and 2 * total > free:
+            raise ResultFileError(
+                f"result file '{src}' would take {total / 2**30:.3g} GiB once decompressed "
+                f"(twice that while loading); {free / 2**30:.3g} GiB of memory is available"
+            )
+        for member in members:
+            # numpy serves "t" as well as "t.npy" as array "t": check every member that
+            # holds an array, whatever its name
+            with archive.open(member) as npy:
+                if npy.read(6) != b"\x93NUMPY":
+                    continue
+                npy.seek(0)
+                version = npy_format.read_magic(npy)
+                if version == (1, 0):
+                    shape, _, dtype = npy_format.read_array_header_1_0(npy)
+                else:
+                    shape, _, dtype = npy_format.read_array_header_2_0(npy)
+            claimed = math.prod(shape) * dtype.itemsize
+            if claimed > member.file_size:
+                name = member.filename.removesuffix(".npy")
                 raise ResultFileError(
-                    f"result file '{src}' has {len(members)} members; a result has "
-                    f"{len(ARRAY_NAMES) + 1}"
+                    f"result file '{src}': array '{name}' claims shape "
+                    f"{shape} ({claimed} bytes) but its member holds {member.file_size} bytes"
                 )
-            total = sum(m.file_size for m in members)
-            free = available_memory()
-            if free is not None and 2 * total > free:
-                raise ResultFileError(
-                    f"result file '{src}' would take {total / 2**30:.3g} GiB once decompressed "
-                    f"(twice that while loading); {free / 2**30:.3g} GiB of memory is available"
-                )
-            for member in members:
-                # numpy serves "t" as well as "t.npy" as array "t": check every member that
-                # holds an array, whatever its name
-                with archive.open(member) as npy:
-                    if npy.read(6) != b"\x93NUMPY":
-                        continue
-                    npy.seek(0)
-                    version = npy_format.read_magic(npy)
-                    if version == (1, 0):
-                        shape, _, dtype = npy_format.read_array_header_1_0(npy)
-                    else:
-                        shape, _, dtype = npy_format.read_array_header_2_0(npy)
-                claimed = math.prod(shape) * dtype.itemsize
-                if claimed > member.file_size:
-                    name = member.filename.removesuffix(".npy")
-                    raise ResultFileError(
-                        f"result file '{src}': array '{name}' claims shape "
-                        f"{shape} ({claimed} bytes) but its member holds {member.file_size} bytes"
-                    )
-    except ResultFileError:
-        raise
-    except (
-        OSError,
-        ValueError,
-        EOFError,
-        zipfile.BadZipFile,
-        zlib.error,
-        KeyError,
-        RuntimeError,
-    ) as exc:  # RuntimeError: an encrypted member; NotImplementedError: unknown compression
-        raise ResultFileError(
-            f"result file '{src}' is not a readable .npz archive (truncated or not a "
-            f"hybrid_force result): {type(exc).__name__}: {exc}"
-        ) from exc
 
 
 def _max_or_none(x: np.ndarray) -> float | None:
