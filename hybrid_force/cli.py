@@ -29,16 +29,15 @@ functions, so ``--help`` stays fast.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
-import signal
 import sys
 import time
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
+from hybrid_force._signals import sigterm_raises
 from hybrid_force.errors import (
     BadInputError,
     HybridForceError,
@@ -158,30 +157,6 @@ def _print_summary(summary: dict[str, Any], out: Path, stream: TextIO) -> None:
     print("\n".join(lines), file=stream)
 
 
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the run is, so it stops like Ctrl-C and keeps what it computed."""
-
-    signal = "SIGTERM"
-
-
-def _raise_terminated(signum: int, frame: object) -> None:
-    raise _Terminated()
-
-
-@contextlib.contextmanager
-def _sigterm_interrupts() -> Iterator[None]:
-    """Within the block, SIGTERM raises _Terminated (main thread only; else unchanged)."""
-    try:
-        previous = signal.signal(signal.SIGTERM, _raise_terminated)
-    except ValueError:  # not the main thread: leave SIGTERM alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 #: Exit status of a run stopped by a signal: 128 + the signal's number, as shells report it.
 _SIGNAL_STATUS = {"SIGINT": 130, "SIGTERM": 143}
 
@@ -202,24 +177,24 @@ def _cmd_run(args: argparse.Namespace) -> int:
         inputs=[Path(args.scenario)],
     )
     html = output.check_extra("--html", args.html) if args.html is not None else None
-    with output, _sigterm_interrupts():
+    with output, sigterm_raises():
         show = not args.quiet and sys.stderr.isatty()
         progress = _Progress(sys.stderr, scenario.name) if show else None
         caught: list[warnings.WarningMessage] = []
+        failure: RunFailedError | None = None
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", RunWarning)
                 result = simulate(scenario, progress=progress)
         except RunFailedError as exc:
-            if progress is not None:
-                progress.close()
-            _show_warnings(caught)
-            return _run_failed(exc, output, args)
+            failure = exc
         finally:
             if progress is not None:
                 progress.close()
-        summary = output.save(result)
         _show_warnings(caught)
+        if failure is not None:
+            return _run_failed(failure, output, args)
+        summary = output.save(result)
         if not args.quiet:
             _print_summary(summary, output.folder, sys.stdout)
         if args.plot:
@@ -450,9 +425,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (SimulationError, FeatureUnavailableError) as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # outside a run (Terminated: SIGTERM in a run's clean-up)
         print("error: interrupted", file=sys.stderr)
-        return 130
+        return _SIGNAL_STATUS.get(getattr(exc, "signal", "SIGINT"), 130)
 
 
 def _one_line(exc: object) -> str:

@@ -60,6 +60,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from hybrid_force._atomic import atomic_file
+from hybrid_force._signals import Terminated, sigterm_raises
 from hybrid_force.errors import BadInputError, ScenarioError, SimulationError
 
 __all__ = [
@@ -1224,36 +1225,6 @@ def _parse_random(items: Sequence[str]) -> dict[str, tuple[float, float]]:
     return out
 
 
-class _Terminated(BaseException):
-    """SIGTERM reached the sweep: stop its workers, keep what has finished, exit 128 + 15."""
-
-
-@contextlib.contextmanager
-def _sigterm_stops_the_sweep() -> Iterator[None]:
-    """While in the block, SIGTERM raises :class:`_Terminated` in the main thread (once).
-
-    The exception unwinds like Ctrl-C: the workers are killed, sweep.csv is written. A second
-    SIGTERM during that clean-up is ignored (it takes well under a second). Outside the main
-    thread signal handlers cannot be set, and SIGTERM keeps its previous meaning.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    fired = False
-
-    def handler(signum: int, frame: Any) -> None:
-        nonlocal fired
-        if not fired:
-            fired = True
-            raise _Terminated()
-
-    previous = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 _EXIT_STATUS_HELP = f"""\
 exit status:
   0    every variant has a row and at least one run is ok; runs that diverged or are
@@ -1311,7 +1282,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         )
 
     try:
-        with _sigterm_stops_the_sweep():
+        with sigterm_raises():
             load_scenario(scenario)  # a broken scenario file is bad input, before any run
             path = run_sweep(
                 scenario,
@@ -1324,12 +1295,12 @@ def sweep_command(args: argparse.Namespace) -> int:
                 arguments=arguments,
                 on_row=count,
             )
+    except Terminated:  # before KeyboardInterrupt, which it is
+        stopped("terminated (SIGTERM)")
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         stopped("interrupted")
         return 130
-    except _Terminated:
-        stopped("terminated (SIGTERM)")
-        return 128 + signal.SIGTERM
     except SimulationError as exc:
         print(f"error: {_one_line(str(exc))}", file=sys.stderr)
         return 1
