@@ -186,10 +186,14 @@ class Robot:
         """(lower (nq,), upper (nq,)) joint position limits [rad or m], read-only copies.
 
         From the URDF's ``<limit lower upper>`` (Pinocchio's model); ∓inf for a continuous
-        joint. A revolute/prismatic ``<limit>`` without lower/upper has URDF's default 0, 0.
+        joint, and for a joint whose range is empty (lower = upper: URDF's default 0, 0 when a
+        ``<limit>`` gives only effort and velocity, which hand-written files use to mean "no
+        range"; a joint that truly cannot move is a fixed joint).
         """
         lower = np.array(self.model.lowerPositionLimit, dtype=float)
         upper = np.array(self.model.upperPositionLimit, dtype=float)
+        unspecified = ~(lower < upper)  # also NaN
+        lower[unspecified], upper[unspecified] = -np.inf, np.inf
         lower.flags.writeable = upper.flags.writeable = False
         return lower, upper
 

@@ -376,3 +376,22 @@ def test_bad_q_or_v_is_dimension_error(arms: dict[str, Robot], bad: object) -> N
 def test_dimension_error_message_names_shape(arms: dict[str, Robot]) -> None:
     with pytest.raises(DimensionError, match=r"\(6,\).*\(5,\)"):
         arms["ur5"].jacobian(np.zeros(5))
+
+
+def test_a_revolute_joint_without_lower_and_upper_has_no_range(tmp_path: Path) -> None:
+    """URDF's default lower = upper = 0 means "no range given", not a joint that may not move:
+    the run does not warn that it left its range."""
+    text = (
+        '<robot name="r"><link name="base"/>'
+        '<link name="arm"><inertial><mass value="1"/><origin xyz="0.5 0 0"/>'
+        '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<axis xyz="0 0 1"/><limit effort="5" velocity="1"/></joint></robot>'
+    )
+    path = tmp_path / "norange.urdf"
+    path.write_text(text)
+    robot = load_robot(path)
+    lower, upper = robot.position_limits
+    np.testing.assert_array_equal(lower, [-np.inf])
+    np.testing.assert_array_equal(upper, [np.inf])
+    np.testing.assert_array_equal(robot.effort_limits, [5.0])
