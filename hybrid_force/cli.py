@@ -41,6 +41,7 @@ from hybrid_force._signals import sigterm_raises
 from hybrid_force.errors import (
     BadInputError,
     HybridForceError,
+    HybridForceWarning,
     RunFailedError,
     RunInterruptedError,
     RunWarning,
@@ -211,12 +212,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _show_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
-    """Run warnings as ``warning: ...`` lines on stderr; others as Python shows them."""
+    """Show the warnings a run recorded (after its progress bar is gone)."""
     for w in caught:
-        if issubclass(w.category, RunWarning):
-            print(f"warning: {_one_line(w.message)}", file=sys.stderr)
-        else:
-            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 
 
 def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> int:
@@ -418,7 +416,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else 0
     handler: Handler = args.handler
     try:
-        return handler(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return handler(args)
     except BadInputError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
@@ -428,6 +428,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt as exc:  # outside a run (Terminated: SIGTERM in a run's clean-up)
         print("error: interrupted", file=sys.stderr)
         return _SIGNAL_STATUS.get(getattr(exc, "signal", "SIGINT"), 130)
+
+
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    """The toolkit's own warnings as one line ``warning: <message>``; others as Python does."""
+    if issubclass(category, HybridForceWarning):
+        print(f"warning: {_one_line(message)}", file=sys.stderr)
+    else:
+        _python_showwarning(message, category, filename, lineno, file, line)
+
+
+_python_showwarning = warnings.showwarning
 
 
 def _one_line(exc: object) -> str:

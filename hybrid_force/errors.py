@@ -13,6 +13,8 @@ import difflib
 from collections.abc import Iterable
 
 __all__ = [
+    "HybridForceWarning",
+    "ModelWarning",
     "BadInputError",
     "ControlError",
     "DimensionError",
@@ -139,7 +141,15 @@ class RunInterruptedError(RunFailedError):
         self.signal = signal
 
 
-class RunWarning(UserWarning):
+class HybridForceWarning(UserWarning):
+    """Base class of the warnings hybrid_force issues (the CLI prints ``warning: <message>``)."""
+
+
+class ModelWarning(HybridForceWarning):
+    """A model loaded, but its parser reported problems (e.g. a visual element it skipped)."""
+
+
+class RunWarning(HybridForceWarning):
     """A run finished but did something the user must know: it left a joint's range,
     exceeded an effort limit, or lost contact with the surface (also in its summary)."""
 

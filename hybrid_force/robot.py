@@ -28,8 +28,13 @@ name, or the absolute path of the URDF file).
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
+import tempfile
+import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,7 +42,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import kernels
-from hybrid_force.errors import DimensionError, FrameError, URDFError
+from hybrid_force.errors import DimensionError, FrameError, ModelWarning, URDFError
 
 __all__ = ["Robot", "RobotTerms", "load_robot"]
 
@@ -434,6 +439,40 @@ def load_robot(model: str | Path, tip: str | None = None) -> Robot:
     )
 
 
+@contextlib.contextmanager
+def _native_stderr(source: object) -> Iterator[Callable[[], list[str]]]:
+    """Capture what C++ code (urdfdom) writes to file descriptor 2 inside the block.
+
+    Yields a function returning the captured messages, one per line, without urdfdom's
+    "Error:" prefixes and source locations. When the block raised, the caller reports it (one
+    error line); when it did not, the messages are issued as one :class:`ModelWarning`
+    naming ``source`` (the file parsed).
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+
+        def said() -> list[str]:
+            sink.seek(0)
+            lines = (
+                " ".join(x.split()) for x in sink.read().decode("utf-8", "replace").split("\n")
+            )
+            return [x.removeprefix("Error: ") for x in lines if x and not x.startswith("at line ")]
+
+        try:
+            yield said
+        finally:
+            messages = said()
+            os.dup2(saved, 2)  # stderr is back before anything is reported
+            os.close(saved)
+    if messages:  # reached only when the block did not raise
+        text = "; ".join(messages)
+        warnings.warn(
+            f"{source}: Pinocchio's URDF parser reported: {text}", ModelWarning, stacklevel=3
+        )
+
+
 def _is_path(model: str | os.PathLike[str]) -> bool:
     """True for a Path (any os.PathLike), or a text ending with ``.urdf`` or holding a path
     separator (``/``, ``\\``, and the platform's own)."""
@@ -476,10 +515,14 @@ def _build_model(path: Path) -> tuple[pin.Model, dict[str, tuple[str, float, flo
                 limit.set(key, "0")  # placeholder, +inf below
         limit.attrib.pop("lower", None)
         limit.attrib.pop("upper", None)
-    try:
-        model = pin.buildModelFromXML(ET.tostring(root, encoding="unicode"))
-    except (RuntimeError, ValueError) as exc:
-        raise URDFError(f"Pinocchio cannot parse {path}: {exc}") from exc
+    with _native_stderr(path) as said:
+        try:
+            model = pin.buildModelFromXML(ET.tostring(root, encoding="unicode"))
+        except (RuntimeError, ValueError) as exc:
+            # urdfdom says why on stderr, in several lines: its first one joins the error
+            why = said()
+            detail = f" ({why[0]})" if why else ""
+            raise URDFError(f"Pinocchio cannot parse {path}: {exc}{detail}") from exc
     for name, (has_effort, has_velocity) in continuous.items():
         jid = model.getJointId(name)
         iq, iv = model.idx_qs[jid], model.idx_vs[jid]

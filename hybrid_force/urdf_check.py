@@ -164,6 +164,7 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
                     f"malformed URDF {path}: {jtype} joint {name!r} lacks "
                     f"{', '.join(missing)} (required by URDF)"
                 )
+        _check_joint_numbers(path, name, jtype, joint)
         ends = {}
         for tag in ("parent", "child"):
             element = joint.find(tag)
@@ -223,6 +224,56 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
         )
 
 
+def _vector_attr(path: Path, where: str, element: ET.Element, key: str) -> list[float] | None:
+    """The attribute as 3 finite numbers, None when absent; URDFError otherwise."""
+    raw = element.get(key)
+    if raw is None:
+        return None
+    try:
+        values = [float(x) for x in raw.split()]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise URDFError(
+            f"malformed URDF {path}: {where} attribute {key}={raw!r} must be 3 finite numbers"
+        )
+    return values
+
+
+def _check_joint_numbers(path: Path, name: str, jtype: str, joint: ET.Element) -> None:
+    """Origin, axis and limits hold finite numbers (urdfdom would otherwise print several
+    lines on stderr, or accept NaN); a moving joint's axis is not zero; lower <= upper."""
+    where = f"joint {name!r}"
+    origin = joint.find("origin")
+    if origin is not None:
+        for key in ("xyz", "rpy"):
+            _vector_attr(path, f"{where}: <origin>", origin, key)
+    axis = joint.find("axis")
+    if axis is not None:
+        xyz = _vector_attr(path, f"{where}: <axis>", axis, "xyz")
+        if xyz is not None and jtype in _MOVING_TYPES and not any(xyz):
+            raise URDFError(f"malformed URDF {path}: {where}: <axis xyz='0 0 0'> has no direction")
+    limit = joint.find("limit")
+    if limit is None:
+        return
+    values = {}
+    for key in ("lower", "upper", "effort", "velocity"):
+        if limit.get(key) is not None:
+            value = _float_attr(path, f"{where}: <limit>", limit, key)
+            if not math.isfinite(value) or (key in ("effort", "velocity") and value < 0):
+                valid = "finite" if key in ("lower", "upper") else "finite and >= 0"
+                raise URDFError(
+                    f"malformed URDF {path}: {where}: <limit {key}={limit.get(key)!r}> must be "
+                    f"{valid}"
+                )
+            values[key] = value
+    if values.get("lower", -math.inf) > values.get("upper", math.inf):
+        raise URDFError(
+            f"malformed URDF {path}: {where}: <limit lower={values['lower']:g} "
+            f"upper={values['upper']:g}>: lower is above upper"
+        )
+
+
 def _float_attr(path: Path, where: str, element: ET.Element, key: str) -> float:
     raw = element.get(key)
     if raw is None:
@@ -238,6 +289,10 @@ def _float_attr(path: Path, where: str, element: ET.Element, key: str) -> float:
 def _check_inertial(path: Path, link: str, inertial: ET.Element) -> None:
     """Mass > 0 (or the massless exception), inertia PSD and meeting the triangle inequality."""
     where = f"link {link!r}: <inertial>"
+    origin = inertial.find("origin")
+    if origin is not None:
+        for key in ("xyz", "rpy"):
+            _vector_attr(path, f"{where} <origin>", origin, key)
     mass_el = inertial.find("mass")
     if mass_el is None:
         raise URDFError(f"malformed URDF {path}: {where} has no <mass> element")

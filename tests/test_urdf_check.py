@@ -246,3 +246,47 @@ def test_mimic_attributes_are_checked(tmp_path: Path) -> None:
         check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="nope"/>')))
     with pytest.raises(URDFError, match=r"'j2' has <mimic joint='j2'>"):
         check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="j2"/>')))
+
+
+# --- numbers urdfdom would choke on (several lines on stderr) or accept (NaN) ----------------
+@pytest.mark.parametrize(
+    ("old", "new", "words"),
+    [
+        ('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>', "has no direction"),
+        ('<axis xyz="0 0 1"/>', '<axis xyz="nan 0 1"/>', "must be 3 finite numbers"),
+        ('<axis xyz="0 0 1"/>', '<axis xyz="0 1"/>', "must be 3 finite numbers"),
+        ('<origin xyz="0.9 0 0" rpy="0 0 0"/>', '<origin xyz="inf 0 0"/>', "3 finite numbers"),
+        ('lower="-1" upper="16"', 'lower="16" upper="-1"', "lower is above upper"),
+        ('lower="-1" upper="16"', 'lower="nan" upper="16"', "must be finite"),
+        ('upper="16" effort="0"', 'upper="16" effort="-5"', "finite and >= 0"),
+    ],
+    ids=["zero-axis", "nan-axis", "short-axis", "inf-origin", "lower-above-upper",
+         "nan-lower", "negative-effort"],
+)  # fmt: skip
+def test_joint_numbers_are_checked_before_pinocchio(
+    tmp_path: Path, rtr_urdf: Path, old: str, new: str, words: str
+) -> None:
+    text = rtr_urdf.read_text()
+    assert old in text
+    path = tmp_path / "arm.urdf"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(URDFError, match=words) as info:
+        check_urdf(path)
+    assert str(path) in str(info.value)
+
+
+def test_a_parser_complaint_on_a_model_that_loads_is_one_warning(
+    tmp_path: Path, rtr_urdf: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """urdfdom skips a visual it cannot read and writes several lines on the C stderr: they
+    become one ModelWarning naming the file, and nothing reaches stderr directly."""
+    from hybrid_force.errors import ModelWarning
+    from hybrid_force.robot import load_robot
+
+    text = rtr_urdf.read_text().replace('<cylinder radius="0.03"', '<cylinder radius="abc"', 1)
+    path = tmp_path / "arm.urdf"
+    path.write_text(text)
+    with pytest.warns(ModelWarning, match=r"arm.urdf: .*radius \[abc\]"):
+        robot = load_robot(path)
+    assert robot.nv == 3
+    assert capfd.readouterr().err == ""
