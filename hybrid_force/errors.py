@@ -13,8 +13,6 @@ import difflib
 from collections.abc import Iterable
 
 __all__ = [
-    "HybridForceWarning",
-    "ModelWarning",
     "BadInputError",
     "ControlError",
     "DimensionError",
@@ -22,7 +20,9 @@ __all__ = [
     "FrameError",
     "GainError",
     "HybridForceError",
+    "HybridForceWarning",
     "LostContactError",
+    "ModelWarning",
     "OutputError",
     "ReachError",
     "ResultFileError",

@@ -24,7 +24,7 @@ import fcntl
 import json
 import os
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -33,7 +33,7 @@ from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import OutputError
 from hybrid_force.plots import FIGURE_NAMES
 
-__all__ = ["RESULT_NAME", "SUMMARY_NAME", "RunOutput"]
+__all__ = ["RESULT_NAME", "SUMMARY_NAME", "RunOutput", "locked_folder"]
 
 RESULT_NAME = "result.npz"
 SUMMARY_NAME = "summary.json"
@@ -53,7 +53,7 @@ class RunOutput:
         self.summary = self.folder / SUMMARY_NAME
         self.figures = tuple(self.folder / f"{name}.png" for name in FIGURE_NAMES)
         self._inputs = tuple(Path(p) for p in inputs)
-        self._fd: int | None = None
+        self._stack = contextlib.ExitStack()
 
     # ------------------------------------------------------------------ before the run
     def check_extra(self, option: str, path: str | os.PathLike[str]) -> Path:
@@ -82,32 +82,7 @@ class RunOutput:
 
     def __enter__(self) -> RunOutput:
         """Create the folder, prove it writable and take its lock (OutputError if held)."""
-        try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(
-                f"--out {str(self.folder)!r}: cannot create the output folder: {exc.strerror}"
-            ) from None
-        if not self.folder.is_dir():
-            raise OutputError(f"--out {str(self.folder)!r} is not a folder")
-        _probe(self.folder, "--out")
-        try:
-            fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
-        except OSError as exc:
-            raise OutputError(
-                f"--out {str(self.folder)!r}: cannot open it: {exc.strerror}"
-            ) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            os.close(fd)
-            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES, errno.EAGAIN):
-                raise OutputError(
-                    f"--out {str(self.folder)!r}: another run is writing into this folder "
-                    "(it holds the folder's lock); wait for it or choose another --out"
-                ) from None
-            raise OutputError(f"--out {str(self.folder)!r}: cannot lock it: {exc}") from None
-        self._fd = fd
+        self._stack.enter_context(locked_folder(self.folder))
         return self
 
     def __exit__(
@@ -116,10 +91,7 @@ class RunOutput:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
-            os.close(self._fd)
-            self._fd = None
+        self._stack.close()
 
     # ------------------------------------------------------------------ after the run
     def save(self, result: Any) -> dict[str, Any]:
@@ -138,6 +110,45 @@ class RunOutput:
                 f"cannot write the results into {str(self.folder)!r}: {exc}"
             ) from None
         return summary
+
+
+@contextlib.contextmanager
+def locked_folder(folder: Path, option: str = "--out") -> Iterator[Path]:
+    """Within the block, ``folder`` exists, is writable and is ours alone.
+
+    Creates the folder, proves a file can be made in it, and holds an exclusive ``flock`` on
+    it (the folder itself, so no lock file is left behind, and the lock dies with the
+    process). Runs and sweeps both take it: two commands never write into one folder at once.
+
+    Raises:
+        OutputError: naming ``option`` and the folder: cannot be created or written, not a
+            folder, or another command holds its lock.
+    """
+    where = f"{option} {str(folder)!r}"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{where}: cannot create the output folder: {exc.strerror}") from None
+    if not folder.is_dir():
+        raise OutputError(f"{where} is not a folder")
+    _probe(folder, option)
+    try:
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError as exc:
+        raise OutputError(f"{where}: cannot open it: {exc.strerror}") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES, errno.EAGAIN):
+                raise OutputError(
+                    f"{where}: another run or sweep is writing into this folder (it holds the "
+                    f"folder's lock); wait for it or choose another {option}"
+                ) from None
+            raise OutputError(f"{where}: cannot lock it: {exc}") from None
+        yield folder
+    finally:
+        os.close(fd)  # closing the descriptor releases the lock
 
 
 def _key(path: Path) -> str:

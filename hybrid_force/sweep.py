@@ -62,6 +62,7 @@ from typing import Any, Literal
 from hybrid_force._atomic import atomic_file
 from hybrid_force._signals import Terminated, sigterm_raises
 from hybrid_force.errors import BadInputError, ScenarioError, SimulationError
+from hybrid_force.run_output import locked_folder
 
 __all__ = [
     "MAX_RUNS",
@@ -848,84 +849,86 @@ def run_sweep(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise SweepError(f"cannot create output directory '{out}': {exc}") from exc
-    sha = _file_sha256(scenario)
-    info_path = out / _JSON_NAME
-    if info_path.exists() and (out / _CSV_NAME).exists():
-        try:
-            old = json.loads(info_path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
-            old = {}
-        if old.get("scenario_sha256") not in (None, sha):
-            raise SweepError(
-                f"'{out}' holds a sweep of a different version of the scenario "
-                f"(sha256 {old.get('scenario_sha256')}, now {sha} for '{scenario}'); "
-                "use another --out or delete that directory"
-            )
-    table = _Table(out / _CSV_NAME, variants)
-    keep_dir = (out / "results").resolve() if keep_results else None
-    info = {
-        "scenario": str(scenario.resolve()),
-        "scenario_sha256": sha,
-        "n_variants": len(variants),
-        "workers": workers,
-        "scheduler": scheduler,
-        "keep_results": keep_results,
-        "columns": table.columns,
-        "arguments": dict(arguments or {}),
-        "variants": [{"run_id": rid, **v} for rid, v in zip(ids, variants, strict=True)],
-    }
-    _write_atomic(info_path, json.dumps(info, indent=1, default=str) + "\n")
-    todo = [(rid, v) for rid, v in zip(ids, variants, strict=True) if not table.finished(rid)]
-    table.write()
-    enabled = progress == "force" or (bool(progress) and sys.stderr.isatty())
-    bar = _Bar(len(variants), len(variants) - len(todo), enabled)
-    if not todo:
-        bar.draw()
-        bar.close()
-        return table.path
-    bar.draw()
-    lost: list[str] = []
-
-    def finish(row: dict[str, Any], blob: bytes | None) -> None:
-        if blob is not None and keep_dir is not None:
+    # one command at a time writes into a folder: a second sweep (or a run) is refused
+    with locked_folder(out, "--out"):
+        sha = _file_sha256(scenario)
+        info_path = out / _JSON_NAME
+        if info_path.exists() and (out / _CSV_NAME).exists():
             try:
-                _save_blob(keep_dir, str(row["run_id"]), blob)
-            except OSError as exc:
-                raise SweepError(f"cannot save a result into '{keep_dir}': {exc}") from exc
-        table.add(row)
-        table.write(force=False)
-        bar.update(str(row.get("status")))
-        if on_row is not None:
-            on_row(row)
-
-    remote = scheduler not in (None, "local")
-    # the local workers' temporary folders go in DIR/.scratch-<pid>-*: removed at the end,
-    # even when the sweep is interrupted (SIGTERM, Ctrl-C); after a kill -9, by the next sweep
-    scratch = None if remote else _scratch_dir(out)
-    source.scratch = scratch
-
-    def jobs() -> Iterator[tuple[str, _Task | dict[str, Any]]]:
-        for rid, params in todo:
-            yield rid, source.job(rid, params, keep=keep_dir is not None)
-
-    try:
-        if scheduler is None:
-            _run_pool(jobs(), len(todo), workers, finish, lost)
-        else:
-            _run_dask(jobs(), workers, scheduler, finish, lost)
-    finally:
+                old = json.loads(info_path.read_text(encoding="utf-8"))
+            except (OSError, json.JSONDecodeError):
+                old = {}
+            if old.get("scenario_sha256") not in (None, sha):
+                raise SweepError(
+                    f"'{out}' holds a sweep of a different version of the scenario "
+                    f"(sha256 {old.get('scenario_sha256')}, now {sha} for '{scenario}'); "
+                    "use another --out or delete that directory"
+                )
+        table = _Table(out / _CSV_NAME, variants)
+        keep_dir = (out / "results").resolve() if keep_results else None
+        info = {
+            "scenario": str(scenario.resolve()),
+            "scenario_sha256": sha,
+            "n_variants": len(variants),
+            "workers": workers,
+            "scheduler": scheduler,
+            "keep_results": keep_results,
+            "columns": table.columns,
+            "arguments": dict(arguments or {}),
+            "variants": [{"run_id": rid, **v} for rid, v in zip(ids, variants, strict=True)],
+        }
+        _write_atomic(info_path, json.dumps(info, indent=1, default=str) + "\n")
+        todo = [(rid, v) for rid, v in zip(ids, variants, strict=True) if not table.finished(rid)]
         table.write()
-        bar.close()
-        if scratch is not None:
-            shutil.rmtree(scratch, ignore_errors=True)
-    if lost:
-        missing = sum(1 for rid in ids if rid not in table.rows)
-        raise SimulationError(
-            f"{len(lost)} run(s) were lost ({lost[0]}); {missing} variant(s) have no row; the "
-            f"{len(table.rows)} finished rows are in '{table.path}'; run the same sweep again "
-            "to run the missing ones"
-        )
-    return table.path
+        enabled = progress == "force" or (bool(progress) and sys.stderr.isatty())
+        bar = _Bar(len(variants), len(variants) - len(todo), enabled)
+        if not todo:
+            bar.draw()
+            bar.close()
+            return table.path
+        bar.draw()
+        lost: list[str] = []
+
+        def finish(row: dict[str, Any], blob: bytes | None) -> None:
+            if blob is not None and keep_dir is not None:
+                try:
+                    _save_blob(keep_dir, str(row["run_id"]), blob)
+                except OSError as exc:
+                    raise SweepError(f"cannot save a result into '{keep_dir}': {exc}") from exc
+            table.add(row)
+            table.write(force=False)
+            bar.update(str(row.get("status")))
+            if on_row is not None:
+                on_row(row)
+
+        remote = scheduler not in (None, "local")
+        # the local workers' temporary folders go in DIR/.scratch-<pid>-*: removed at the end,
+        # even when the sweep is interrupted (SIGTERM, Ctrl-C); after a kill -9, by the next sweep
+        scratch = None if remote else _scratch_dir(out)
+        source.scratch = scratch
+
+        def jobs() -> Iterator[tuple[str, _Task | dict[str, Any]]]:
+            for rid, params in todo:
+                yield rid, source.job(rid, params, keep=keep_dir is not None)
+
+        try:
+            if scheduler is None:
+                _run_pool(jobs(), len(todo), workers, finish, lost)
+            else:
+                _run_dask(jobs(), workers, scheduler, finish, lost)
+        finally:
+            table.write()
+            bar.close()
+            if scratch is not None:
+                shutil.rmtree(scratch, ignore_errors=True)
+        if lost:
+            missing = sum(1 for rid in ids if rid not in table.rows)
+            raise SimulationError(
+                f"{len(lost)} run(s) were lost ({lost[0]}); {missing} variant(s) have no row; the "
+                f"{len(table.rows)} finished rows are in '{table.path}'; run the same sweep again "
+                "to run the missing ones"
+            )
+        return table.path
 
 
 def _scratch_dir(out: Path) -> str:

@@ -39,7 +39,7 @@ def test_second_holder_of_a_folder_is_refused_and_the_lock_dies_with_the_first(
 ) -> None:
     first = RunOutput(tmp_path / "out")
     with first:
-        with pytest.raises(OutputError, match="another run is writing into this folder"):
+        with pytest.raises(OutputError, match="another run or sweep is writing into this folder"):
             RunOutput(tmp_path / "out").__enter__()
         # a different folder is independent
         with RunOutput(tmp_path / "other"):
@@ -76,7 +76,7 @@ def test_lock_held_by_another_process_refuses_the_cli_run_before_simulating(
     assert code == 2 and stdout == ""
     lines = err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: --out")
-    assert "another run is writing into this folder" in lines[0]
+    assert "another run or sweep is writing into this folder" in lines[0]
     assert os.listdir(out) == []  # nothing written by the refused run
 
 

@@ -659,3 +659,22 @@ def test_a_run_that_loses_contact_is_a_failed_row_with_its_metrics(tmp_path: Pat
     )
     assert row["status"] == "failed" and row["error"].startswith("lost contact: ")
     assert row["t_end"] == pytest.approx(0.3)
+
+
+def test_a_sweep_into_a_folder_another_command_writes_into_is_refused(
+    tmp_path: Path, scenario: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Two writers of one sweep.csv would each rewrite it from their own rows: the second is
+    refused before it runs anything, and the first one's files are untouched."""
+    from hybrid_force.run_output import locked_folder
+
+    out = tmp_path / "busy"
+    with locked_folder(out):
+        (out / "sweep.csv").write_text("run_id,status\nabc,ok\n")
+        from hybrid_force.cli import main
+
+        argv = ["sweep", str(scenario), "--grid", "control.Lambda=5,10", "--out", str(out)]
+        assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "another run or sweep is writing into this folder" in err[0]
+    assert (out / "sweep.csv").read_text() == "run_id,status\nabc,ok\n"
