@@ -225,7 +225,12 @@ def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> i
         # a second interrupt while saving must not leave half a pair: the writes are atomic
         output.save(exc.result)
         if args.plot and status == 1:
-            _plot_result(exc.result, output.folder, quiet=True)
+            from hybrid_force.plots import PlotError
+
+            try:
+                _plot_result(exc.result, output.folder, quiet=True)
+            except PlotError as plot_exc:  # e.g. fewer than 2 samples: the run's verdict stands
+                print(f"warning: no figures: {_one_line(plot_exc)}", file=sys.stderr)
         t_end = float(exc.result.t[-1]) if exc.result.n_samples else 0.0
         where = (
             f" (its result up to t = {t_end:.6g} s saved in {output.result} and {output.summary})"

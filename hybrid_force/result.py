@@ -164,7 +164,7 @@ def _finite_rows(*arrays: np.ndarray) -> np.ndarray:
     mask = np.ones(arrays[0].shape[0], dtype=bool)
     for a in arrays:
         fin = np.isfinite(a)
-        mask &= fin if fin.ndim == 1 else np.all(fin.reshape(fin.shape[0], -1), axis=1)
+        mask &= np.all(fin, axis=tuple(range(1, fin.ndim)))  # also for N = 0
     return mask
 
 

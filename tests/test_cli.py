@@ -259,3 +259,37 @@ def test_log_that_does_not_fit_in_memory_is_refused_before_the_run(
     assert code == 2 and len(err) == 1
     assert err[0].startswith("error: sim.duration = 20 s at sim.dt = 0.001 s")
     assert "GiB" in err[0] and not (out / "result.npz").exists()
+
+
+def test_run_failing_at_its_first_sample_with_plot_keeps_exit_1(tmp_path: Path, capsys) -> None:
+    """One sample cannot be drawn: the figures are skipped with a warning; the run's verdict
+    (exit 1, its result and summary saved) stands."""
+    out = tmp_path / "div"
+    code = main([
+        "run", str(REPO_ROOT / "scenarios" / "paper_contact.toml"), "--set", "control.f_d=1e9",
+        "--set", "sim.duration=0.2", "--out", str(out), "--plot",
+    ])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 1 and "warning: no figures:" in err and "run failed (diverged)" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["n_samples"] == 1 and summary["status"] == "failed"
+
+
+def test_run_interrupted_before_its_first_sample_saves_an_empty_result(
+    tmp_path: Path, capsys, monkeypatch
+) -> None:
+    from hybrid_force.robot import Robot
+
+    def interrupt(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    # the first thing the loop does is ask the plant's terms: Ctrl-C lands there
+    monkeypatch.setattr(Robot, "terms", interrupt)
+    out = tmp_path / "empty"
+    code = main(["run", str(REPO_ROOT / "scenarios" / "paper_contact.toml"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 130 and "run failed (interrupted)" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["n_samples"] == 0 and summary["t_end"] is None
+    assert summary["reason"] == "interrupted" and summary["final_position_error"] is None
+    assert Result.load(out / "result.npz").n_samples == 0
