@@ -81,7 +81,17 @@ class RunOutput:
         return target
 
     def __enter__(self) -> RunOutput:
-        """Create the folder, prove it writable and take its lock (OutputError if held)."""
+        """Create the folder, prove it writable and take its lock (OutputError if held).
+
+        Also refused: a folder where the run's own files would replace one of its inputs
+        (a scenario file called summary.json in the output folder, say).
+        """
+        ours = {_key(f) for f in (self.result, self.summary, *self.figures)}
+        for given in self._inputs:
+            if _key(given) in ours:
+                raise OutputError(
+                    f"--out {str(self.folder)!r}: the run would replace its input {str(given)!r}"
+                )
         self._stack.enter_context(locked_folder(self.folder))
         return self
 

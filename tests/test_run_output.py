@@ -223,3 +223,14 @@ def test_replay_html_never_replaces_the_result_it_replays(
     code, _, err = _run(capsys, "replay", out / "result.npz", "--html", out / name)
     assert code == 2 and err.startswith("error: --html") and err.count("\n") == 1
     assert (out / name).read_bytes() == before
+
+
+def test_output_files_that_would_replace_the_scenario_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scenario = tmp_path / "summary.json"  # a TOML scenario under an unlucky name
+    scenario.write_text(CONTACT.read_text())
+    before = scenario.read_bytes()
+    code, _, err = _run(capsys, "run", scenario, "--out", tmp_path, "--set", "sim.duration=0.05")
+    assert code == 2 and "would replace its input" in err and err.count("\n") == 1
+    assert scenario.read_bytes() == before and not (tmp_path / "result.npz").exists()
