@@ -42,7 +42,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import kernels
-from hybrid_force.errors import DimensionError, FrameError, ModelWarning, URDFError
+from hybrid_force.errors import DimensionError, FrameError, ModelWarning, RobotError, URDFError
 
 __all__ = ["Robot", "RobotTerms", "load_robot"]
 
@@ -152,7 +152,8 @@ class Robot:
         tip: str | None = None,
         source: str | None = None,
     ) -> None:
-        """Wrap a Pinocchio model (no scope check: :func:`load_robot` makes those).
+        """Wrap a Pinocchio model: nv > 0 and M(q0) positive definite are checked here (so a
+        hand-built model cannot crash Pinocchio); :func:`load_robot` makes the other checks.
 
         Args:
             model: the arm's Pinocchio model.
@@ -162,6 +163,16 @@ class Robot:
             tip: tip frame (default: the last body frame).
             source: see :attr:`source`; default: the absolute resolved ``urdf_path``.
         """
+        if not isinstance(model, pin.Model):
+            raise RobotError(f"robot '{name}': model must be a pinocchio.Model, got {model!r}")
+        if model.nv == 0:  # before any algorithm: Pinocchio's assume nv > 0 (segfault)
+            raise RobotError(
+                f"robot '{name}': the model has no moving joint (nv = 0); an arm needs at least "
+                "one revolute or prismatic joint"
+            )
+        from hybrid_force.urdf_check import check_mass_matrix
+
+        check_mass_matrix(model, f"unsupported model of robot '{name}' ({urdf_path})")
         self.model = model
         self.data = model.createData()
         self.name = name

@@ -63,7 +63,7 @@ import pinocchio as pin
 
 from hybrid_force.errors import URDFError
 
-__all__ = ["check_arm_model", "check_urdf"]
+__all__ = ["check_arm_model", "check_mass_matrix", "check_urdf"]
 
 _REL_TOL = 1e-6
 _ABS_TOL = 1e-12
@@ -340,8 +340,8 @@ def check_arm_model(
 ) -> None:
     """Refuse a built model the toolkit cannot simulate (see the module docstring).
 
-    Runs no Pinocchio algorithm before nv > 0 is established; then one ``crba`` at the neutral
-    configuration.
+    Runs no Pinocchio algorithm. The mass matrix is checked by
+    :class:`~hybrid_force.robot.Robot` (:func:`check_mass_matrix`), for every model.
 
     Args:
         model: the Pinocchio model as the loader will use it (continuous joints already
@@ -351,9 +351,9 @@ def check_arm_model(
         mimic: ``{mimic joint: its master}`` as declared by the URDF's ``<mimic>`` elements.
 
     Raises:
-        URDFError: nv = 0, a joint that is not one-coordinate revolute or prismatic, a mimic
-            joint on the chain from the root to ``tip``, or M(q0) singular; the message names
-            the file, the joints and the cause.
+        URDFError: nv = 0, a joint that is not one-coordinate revolute or prismatic, or a
+            mimic joint on the chain from the root to ``tip``; the message names the file, the
+            joints and the cause.
     """
     where = f"unsupported URDF {path}"
     if model.nv == 0:
@@ -380,10 +380,10 @@ def check_arm_model(
             f"the root to the tip frame {tip!r} (choose another tip, or replace the mimic "
             "joint by an independent or a fixed joint)"
         )
-    _check_mass_matrix(model, where)
+    # M(q0) positive definite: checked by Robot() for every model, hand-built ones included
 
 
-def _check_mass_matrix(model: pin.Model, where: str) -> None:
+def check_mass_matrix(model: pin.Model, where: str) -> None:
     """M(q0) positive definite, scale-aware; name the joints that move nothing with inertia."""
     M = pin.crba(model, model.createData(), pin.neutral(model))
     M = np.triu(M) + np.triu(M, 1).T

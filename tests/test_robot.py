@@ -395,3 +395,39 @@ def test_a_revolute_joint_without_lower_and_upper_has_no_range(tmp_path: Path) -
     np.testing.assert_array_equal(lower, [-np.inf])
     np.testing.assert_array_equal(upper, [np.inf])
     np.testing.assert_array_equal(robot.effort_limits, [5.0])
+
+
+def test_a_hand_built_model_without_moving_joint_is_refused_not_a_segfault() -> None:
+    """Robot() itself refuses nv = 0 before any Pinocchio algorithm (crba on nv = 0 crashes
+    the interpreter), so the Python API cannot reach a segfault either; in a subprocess so a
+    regression fails this test instead of killing the suite."""
+    import subprocess
+    import sys
+
+    code = (
+        "import pinocchio as pin\n"
+        "from hybrid_force.errors import RobotError\n"
+        "from hybrid_force.robot import Robot\n"
+        "m = pin.Model()\n"
+        "m.addFrame(pin.Frame('tip', 0, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))\n"
+        "try:\n"
+        "    Robot(m, name='empty', urdf_path='none.urdf', tip='tip')\n"
+        "except RobotError as exc:\n"
+        "    print('refused:', exc)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "refused: robot 'empty': the model has no moving joint (nv = 0)" in proc.stdout
+
+
+def test_a_hand_built_model_with_a_massless_joint_is_refused() -> None:
+    import pinocchio as pin
+
+    from hybrid_force.errors import RobotError
+
+    model = pin.Model()
+    j = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "massless")
+    model.appendBodyToJoint(j, pin.Inertia.Zero(), pin.SE3.Identity())
+    model.addFrame(pin.Frame("link", j, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))
+    with pytest.raises(RobotError, match="'massless'"):
+        Robot(model, name="hand", urdf_path=Path("none.urdf"), tip="link")
