@@ -337,7 +337,9 @@ class Result:
             the free side, > 0 when the tool presses on the surface, 0 out of contact [N].
         phi: (N,) (or (N, k)) signed metric distance of the tip to the surface, > 0 free side [m].
         V: (N,) Lyapunov function ½ sᵀ M s + ½ β e_F² of paper section 5.1 [J].
-        phase: (N,) int64 phase code: 0 free, 1 near, 2 contact.
+        phase: (N,) int64 phase code: 2 (contact) exactly when the tool is on the surface
+            (the plant's contact state); otherwise the supervisor's approach phase, 0 free or
+            1 near (a sample off the surface is never 2, whatever the controller assumed).
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
             steps_per_second counts the loop from its second step on (the first steps load

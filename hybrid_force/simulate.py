@@ -11,7 +11,8 @@ One step (dt, 1 ms by default):
 3. in contact, the constrained dynamics resolve q̈ and f together
    (:class:`~hybrid_force.dynamics.ConstrainedDynamics`); if the surface would have to
    pull (f < 0) the contact is released (unilateral surface) and the step is free;
-4. the sample is recorded; the controller advances its integrators with f; the plant is
+4. the sample is recorded (its phase is the plant's contact state: "contact" only on the
+   surface); the controller advances its integrators with f; the plant is
    integrated by semi-implicit Euler with ``pinocchio.integrate`` (q + v dt directly for arms
    whose joints are all bounded revolute or prismatic), or RK4 with the command held over the
    step;
@@ -21,6 +22,11 @@ One step (dt, 1 ms by default):
 6. out of contact, a crossing of the surface between two steps (d changing sign) is detected,
    the tip is placed on the surface at the crossing, and a plastic impact (A q̇⁺ = 0) is
    applied: the tool never passes through the surface.
+
+After the loop (or when anything stops it: divergence, Ctrl-C, SIGTERM, an exception) the
+run's samples become its Result, with what it must say about itself in ``meta``: joints that
+left their range or exceeded an effort limit, whether the tool ended on the surface
+(:mod:`hybrid_force.run_checks`), ``status`` and ``reason``.
 
 Two implementations of the step: the default calls compiled kernels between the Pinocchio
 calls (:mod:`hybrid_force._kernels`); ``SimSettings(reference=True)`` runs the readable numpy
