@@ -294,7 +294,9 @@ class Constraint:
             value, grad, hess, distance = surface.evaluate_with_distance(terms.p)
             scalars[0, 0] = value
             scalars[1, 0] = distance
-        _, _, jac, tip = terms.packed()._packs
+        packs = terms.packed()._packs
+        assert packs is not None  # packed() always returns terms with their packs
+        _, _, jac, tip = packs
         grad_norm, row_norm, jmax = kernels().constraint_one(
             desc, grad, hess, jac, tip, v, self._tip_scaling, rows, cols, squares, scalars
         )

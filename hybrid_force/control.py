@@ -119,7 +119,7 @@ def check_damping_gain(Kd: object, n: int | None = None) -> float | np.ndarray:
 
 
 def make_gains(
-    Kd: float | np.ndarray | list[float],
+    Kd: object,
     Lambda: float,
     beta: float,
     gamma: float,

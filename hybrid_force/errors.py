@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for annotations only: errors.py imports nothing of the package at run time
+    from hybrid_force.result import Result
 
 __all__ = [
     "BadInputError",
@@ -114,7 +118,7 @@ class RunFailedError(SimulationError):
 
     reason = "error"
 
-    def __init__(self, message: str, result: object | None = None) -> None:
+    def __init__(self, message: str, result: Result | None = None) -> None:
         super().__init__(message)
         self.result = result
 
@@ -136,7 +140,7 @@ class RunInterruptedError(RunFailedError):
 
     reason = "interrupted"
 
-    def __init__(self, message: str, result: object | None = None, signal: str = "SIGINT") -> None:
+    def __init__(self, message: str, result: Result | None = None, signal: str = "SIGINT") -> None:
         super().__init__(message, result)
         self.signal = signal
 

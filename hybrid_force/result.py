@@ -532,7 +532,7 @@ class Result:
         if target.is_dir():
             raise ResultFileError(f"cannot save result to '{target}': it is a directory")
         meta_text = _meta_to_json(self.meta)
-        payload: dict[str, np.ndarray] = {name: getattr(self, name) for name in ARRAY_NAMES}
+        payload: dict[str, Any] = {name: getattr(self, name) for name in ARRAY_NAMES}
         payload[_META_KEY] = np.array(meta_text, dtype=np.str_)
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -660,6 +660,8 @@ class Result:
         settled = t >= settle
         pos_win = e_ok & settled
         e_set = e[pos_win]
+        max_axis: tuple[float, ...] | None
+        rms_axis: tuple[float, ...] | None
         if e_set.shape[0]:
             max_axis = tuple(float(x) for x in np.max(np.abs(e_set), axis=0))
             rms_axis = tuple(float(x) for x in np.sqrt(np.mean(np.square(e_set), axis=0)))

@@ -611,6 +611,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             cmd = controller.command(t, q, v, terms, cons)
             f = zeros_k
             if in_contact:
+                assert cons is not None  # in contact, evaluate() raised instead of failing
                 if fast:
                     gamma = baum.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, gamma_buf)
                 else:
@@ -807,7 +808,8 @@ def _path_meta(path: Path) -> dict:
 
 
 def _merge(a: list[dict], b: list[dict]) -> list[dict]:
-    return sorted(_jsonable(a + b), key=lambda e: e["t"])
+    events: list[dict] = _jsonable(a + b)  # type: ignore[assignment]  # a list stays a list
+    return sorted(events, key=lambda e: e["t"])
 
 
 def _check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: SimSettings) -> None:

@@ -290,7 +290,7 @@ class HybridController:
     @property
     def trace(self) -> ControlTrace | None:
         """What the law computed at the last step (None before the first step)."""
-        if not self.fast or self._last is None:
+        if self._law is None or self._last is None:  # the reference path keeps its trace
             return self._trace
         return self._law.trace(*self._last)
 
@@ -372,6 +372,7 @@ class HybridController:
             command, self._trace = free_space_law(self.gains, model, v, e_q, desired)
             self.V = self._trace.V
             return command
+        assert cons is not None  # only the free phase runs without constraint terms
         if phase == NEAR:
             # eq. 31 with the measured force, which is 0 before contact (see module docstring).
             st.f_d = self._zeros_k

@@ -232,7 +232,7 @@ class _RoundSurface(Surface):
         sign = -1.0 if inside else 1.0
         values = {"radius": radius, "center": center, **extra, "inside": inside}
         values.update(_sign=sign, _r2=radius * radius, _hess=_read_only(2.0 * sign * shape))
-        axis = extra.get("axis", (0.0, 0.0, 0.0))
+        axis = np.asarray(extra.get("axis", (0.0, 0.0, 0.0)), dtype=float)
         desc = np.array([0.0, *center, *axis, sign, radius * radius, radius])
         values.update(_descriptor=_read_only(desc))
         for name, value in values.items():
