@@ -822,7 +822,9 @@ def _check_controller(
 
     try:
         constraint = Constraint(surfaces, normalization=sim.normalization)
-        HybridController(robot, constraint, path, q0, control, dt=sim.dt)
+        # the numpy path: the same checks without loading the compiled kernels (about 1 s),
+        # which a sweep's parent, that never simulates, does not need
+        HybridController(robot, constraint, path, q0, control, dt=sim.dt, fast=False)
     except ReachError as exc:
         raise ctx.error(
             "trajectory.center",
