@@ -1,25 +1,90 @@
 """Checks of a URDF arm: plausibility before Pinocchio parses it, scope after it has built it.
 
+The rule: **refuse only what breaks the simulation, warn about the rest.** Published URDFs
+that every mainstream simulator loads (a massless fixed root link, a massless end link that
+carries a small inertia, an inertia a few percent off the triangle inequality) load here too,
+with one :class:`~hybrid_force.errors.ModelWarning` per implausible link.
+
 Every refusal raises a :class:`~hybrid_force.errors.URDFError` whose message names the file,
 the link or joint, and the offending values or the cause; the command line turns it into exit
 status 2 and one ``error: ...`` line (never a traceback, never a crash inside Pinocchio).
+Every warning names the file, the link and the values.
+
+**Reading** (:func:`urdf_text`): the file is read once and made acceptable to every XML parser
+the toolkit uses (Python's ElementTree, Pinocchio's urdfdom/TinyXML2, yourdfpy's lxml).
+Extension tags that URDF tools ignore (``<gazebo>``, ``<transmission>``, ``<ros2_control>``,
+Drake's ``<drake:...>`` elements) are left in place: every reader looks only at the direct
+``<link>`` and ``<joint>`` children of ``<robot>``. An element or attribute whose namespace
+prefix the file never declares (``<link name="a" drake:foo="1">`` without ``xmlns:drake``)
+makes namespace-aware parsers refuse the whole file ("unbound prefix"); such prefixes are
+declared on the root element (``xmlns:drake="urn:hybrid-force:undeclared-prefix:drake"``),
+which changes no URDF element and no line number. :func:`check_urdf` reads the same text.
 
 **Before parsing**, :func:`check_urdf` (Pinocchio's parser, urdfdom, reports structural errors
-only on stderr before raising a bare ``ValueError``, and neither it nor yourdfpy's
-``validate()`` rejects impossible inertial data) refuses:
+only on stderr before raising a bare ``ValueError``, and drops an inertial it cannot read with
+a message on stderr) refuses:
 
 * a missing file (or a directory);
 * malformed XML (with the XML parser's reason, line and column), or XML that is not a URDF
   (root element not ``<robot>``, links or joints without names, duplicate names, joints of
   unknown type, a revolute/prismatic joint without ``<limit effort=.. velocity=..>``,
   parent/child naming a link that does not exist, a link with two parents, no single root);
-* physically impossible inertial data on a link that declares ``<inertial>``:
-  mass missing, not finite or ``<= 0``; an inertia matrix with a non-finite entry, that is not
-  positive semi-definite, or whose principal moments break the triangle inequality
-  ``I1 + I2 >= I3`` (for every permutation);
+* joint origins, axes, limits and mimic attributes that are not finite numbers (an axis of
+  zero length, lower above upper, a negative effort or velocity limit);
+* on a *simulated* link (see below) that declares ``<inertial>``: a missing ``<mass>`` or
+  ``<inertia>``, a number that does not parse or is not finite (mass, inertia, origin), a
+  negative mass, and an inertia matrix that is not positive semi-definite beyond round-off:
+  its smallest principal moment below ``-(_PSD_REL_TOL · I_max + _ABS_TOL)``;
 * models outside the toolkit's scope (fixed-base arms): a ``floating`` or ``planar`` joint
   anywhere (named, with its type), and a model with no moving joint (every joint ``fixed``,
   or no joint at all: nv = 0, on which Pinocchio's algorithms must never run).
+
+It **warns** (one ``ModelWarning`` per link, naming the file, the link and the values, and
+listing every finding of that link) about a simulated link whose inertial data no rigid body
+has, but on which the dynamics stay well defined:
+
+* mass 0 with a non-zero inertia matrix (Pinocchio keeps it as a rotational inertia without
+  mass);
+* principal moments that break the triangle inequality ``I1 + I2 >= I3`` by more than
+  ``_TRI_REL_TOL · I3 + _ABS_TOL``.
+
+Not a finding: a link without ``<inertial>`` (a massless frame), mass 0 with an all-zero
+inertia (the same massless frame, as some exporters write it), and a positive mass with an
+all-zero inertia (a point mass: physically fine; on a joint's axis it leaves that joint
+without inertia, which the mass-matrix check below refuses, naming the joint).
+
+**Links that are not simulated are not checked at all**: the root link and every link welded
+to it by a chain of fixed joints. Pinocchio merges them into the universe, which never moves,
+so their inertial data never enters M, C or g (a massless or empty world link is the rule in
+published URDFs). If urdfdom cannot read such an inertial, it says so on stderr and drops it;
+:func:`hybrid_force.robot.load_robot` turns that into a ``ModelWarning``.
+
+**Tolerances, and why the line between refusal and warning is there.** The simulation needs
+each link's spatial inertia positive semi-definite: a negative principal moment is a body
+with negative kinetic energy about that axis, and M(q) can become indefinite away from the
+start (the articulated-body algorithm then divides by non-positive inertias). That is refused.
+The triangle inequality only says whether a mass distribution with those moments exists; a
+positive semi-definite matrix that breaks it still gives positive-definite M(q) and
+well-posed dynamics, so it is reported, not refused. Rounding: a symmetric matrix whose
+entries are printed with d significant digits has each entry off by at most 5·10^-d of the
+largest moment, so its eigenvalues move by at most 3 · 5·10^-d · I_max (1.5e-5 · I_max at
+6 digits). ``_PSD_REL_TOL = _TRI_REL_TOL = 1e-4`` covers any file printed with 6 or more
+significant digits (the triangle sum moves by at most 3 × that); a violation larger than
+1e-4 of the largest moment is no rounding of a real body. ``_ABS_TOL = 1e-12`` kg m² covers
+entries written as ``1e-13``-sized noise around zero.
+
+**Why not yourdfpy here.** yourdfpy (0.0.60) reads links, joints, limits and inertials, and
+:mod:`hybrid_force.model_report` (``hybrid-force robots --check``) reads the model through it.
+The checks above keep their own reading because, measured on the inputs of
+``tests/test_urdf_check.py``, yourdfpy does not refuse what the simulation cannot take and
+its messages name no file: it *recovers* malformed XML (mismatched tags: it logs an error and
+returns a partial model), accepts duplicate link and joint names, a joint naming an undefined
+link, two root links, NaN and negative masses, a NaN or 2-element axis and a revolute joint
+without ``<limit>`` (its ``validate()`` only logs the last and returns False), and raises a
+bare ``ValueError``/``KeyError`` without the file or link for a non-numeric mass or a root
+that is not ``<robot>``. Importing it also costs 0.6–0.9 s (trimesh, scipy, networkx:
+``python -X importtime -c "import yourdfpy"``), which every run and every sweep worker would
+pay; this module stays on the standard library's parser (a few ms for a 29-joint humanoid).
 
 **After Pinocchio has built the model** (and the loader has made continuous joints unbounded
 revolute ones and locked the joints it locks), :func:`check_arm_model` refuses, before any
@@ -35,37 +100,35 @@ algorithm that assumes nv > 0 runs:
   independent joints would simulate an arm that does not exist. Mimic joints *off* that chain
   (gripper fingers) are not refused: :func:`hybrid_force.robot.load_robot` locks them (see
   there);
-* a mass matrix that is singular at the neutral configuration q0: M(q0) must have its smallest
+* a mass matrix that is singular at the neutral configuration q0 (:func:`check_mass_matrix`,
+  run by :class:`~hybrid_force.robot.Robot` for every model): M(q0) must have its smallest
   eigenvalue above ``_MASS_REL_TOL * λ_max + _MASS_ABS_TOL`` (scale-aware: the registry's arms
   have λ_min / λ_max ≥ 4e-5). The message names the joints that carry no inertia (their
   subtree has zero mass and zero rotational inertia), or else the joints that the
   near-null direction of M moves.
-
-Allowed on purpose: a link without ``<inertial>`` (a massless frame), and a link whose
-``<inertial>`` has mass exactly 0 together with an all-zero inertia matrix (some URDF
-exporters write that for dummy frames; it is the same massless frame), as long as every
-moving joint still moves something with inertia. A thin rod (principal moments ``0, I, I``)
-meets the triangle inequality with equality and passes.
-
-Tolerances: PSD and triangle checks accept a violation up to
-``_REL_TOL * max(|principal moments|) + _ABS_TOL`` [kg m²] (rounding in CAD exports).
 """
 
 from __future__ import annotations
 
+import codecs
 import math
+import re
+import warnings
 import xml.etree.ElementTree as ET
+import xml.parsers.expat
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force.errors import URDFError
+from hybrid_force.errors import ModelWarning, URDFError
 
-__all__ = ["check_arm_model", "check_mass_matrix", "check_urdf"]
+__all__ = ["check_arm_model", "check_mass_matrix", "check_urdf", "urdf_text"]
 
-_REL_TOL = 1e-6
+# Inertia tolerances [relative to the largest principal moment; kg m²]: module docstring.
+_PSD_REL_TOL = 1e-4
+_TRI_REL_TOL = 1e-4
 _ABS_TOL = 1e-12
 # M(q0) is refused as singular when λ_min <= _MASS_REL_TOL·λ_max + _MASS_ABS_TOL
 # [kg, kg·m, kg·m²: the units of M's entries].
@@ -78,17 +141,29 @@ _FIXED_BASE_ONLY = (
     "its parent link)"
 )
 _INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+# The namespace an undeclared prefix is bound to (any URI does; this one says what happened).
+_UNDECLARED_NS = "urn:hybrid-force:undeclared-prefix:"
+_XML_DECL_ENCODING = re.compile(r"""^(\ufeff?<\?xml[^>]*?\bencoding\s*=\s*)(["'])[^"']*\2""")
 
 
-def check_urdf(path: Path | str) -> None:
-    """Raise :class:`URDFError` if the URDF at ``path`` is missing, malformed or impossible.
+def urdf_text(path: Path | str) -> str:
+    """The URDF file at ``path`` as XML text that every parser of the toolkit accepts.
+
+    The file's text, decoded (its declared encoding, UTF-8 by default), with every namespace
+    prefix that it uses without declaring it declared on the root element (see the module
+    docstring); an XML declaration naming another encoding than UTF-8 then says UTF-8. Feed
+    the result to ``xml.etree.ElementTree.fromstring``, ``pinocchio.buildModelFromXML`` or
+    :func:`check_urdf` (``text=``). Only well-formedness is checked here.
 
     Args:
         path: path of a ``.urdf`` file.
 
+    Returns:
+        the sanitised XML text (same lines as the file).
+
     Raises:
-        URDFError: the message names the file and, where relevant, the link or joint and
-            the offending values.
+        URDFError: the file is missing, a directory, unreadable, not decodable, or not
+            well-formed XML (the parser's reason, line and column).
     """
     path = Path(path)
     if not path.exists():
@@ -96,19 +171,112 @@ def check_urdf(path: Path | str) -> None:
     if not path.is_file():
         raise URDFError(f"URDF path is not a file: {path}")
     try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise URDFError(f"malformed URDF {path}: XML parse error: {exc}") from exc
+        raw = path.read_bytes()
     except OSError as exc:
         raise URDFError(f"cannot read URDF {path}: {exc}") from exc
+    scan = _PrefixScan()
+    try:
+        scan.parse(raw)
+    except xml.parsers.expat.ExpatError as exc:  # the same text ElementTree's ParseError has
+        raise URDFError(f"malformed URDF {path}: XML parse error: {exc}") from None
+    encoding = scan.encoding or "utf-8"
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        encoding = "utf-16"
+    elif codecs.lookup(encoding).name == "utf-8":
+        encoding = "utf-8-sig"  # drops a byte-order mark
+    try:
+        text = raw.decode(encoding)
+        root_at = len(raw[: scan.root_byte].decode(encoding))
+    except (LookupError, UnicodeDecodeError) as exc:
+        raise URDFError(f"cannot decode URDF {path} as {encoding}: {exc}") from None
+    if scan.undeclared:
+        end = root_at + 1 + len(scan.root_name)
+        if text[root_at:end] != "<" + scan.root_name:  # never seen; refuse rather than guess
+            raise URDFError(f"cannot locate the root element <{scan.root_name}> in {path}")
+        declarations = "".join(
+            f' xmlns:{prefix}="{_UNDECLARED_NS}{prefix}"' for prefix in scan.undeclared
+        )
+        text = text[:end] + declarations + text[end:]
+    if scan.encoding and codecs.lookup(scan.encoding).name != "utf-8":
+        text = _XML_DECL_ENCODING.sub(r"\1\2UTF-8\2", text, count=1)
+    return text
+
+
+class _PrefixScan:
+    """One pass of expat without namespace processing over the raw bytes: the declared
+    encoding, the root element's name and byte offset, and the prefixes used out of scope."""
+
+    def __init__(self) -> None:
+        self.encoding: str | None = None
+        self.root_name = ""
+        self.root_byte = 0
+        self.undeclared: list[str] = []
+        self._scopes: list[frozenset[str]] = [frozenset({"xml", "xmlns"})]
+        self._parser = xml.parsers.expat.ParserCreate()
+        self._parser.XmlDeclHandler = self._declaration
+        self._parser.StartElementHandler = self._start
+        self._parser.EndElementHandler = self._end
+
+    def parse(self, raw: bytes) -> None:
+        self._parser.Parse(raw, True)
+
+    def _declaration(self, version: str, encoding: str | None, standalone: int) -> None:
+        self.encoding = encoding
+
+    def _start(self, name: str, attributes: dict[str, str]) -> None:
+        if not self.root_name:
+            self.root_name, self.root_byte = name, self._parser.CurrentByteIndex
+        declared = {key[6:] for key in attributes if key.startswith("xmlns:")}
+        scope = self._scopes[-1] | declared
+        self._scopes.append(scope)
+        for qualified in (name, *attributes):
+            prefix, colon, _ = qualified.partition(":")
+            if colon and prefix not in scope and prefix not in self.undeclared:
+                self.undeclared.append(prefix)
+
+    def _end(self, name: str) -> None:
+        self._scopes.pop()
+
+
+def check_urdf(path: Path | str, text: str | None = None) -> None:
+    """Refuse a URDF that is missing, malformed or cannot be simulated; warn about the rest.
+
+    Args:
+        path: path of a ``.urdf`` file (named in every message).
+        text: the file's text as :func:`urdf_text` returns it (read from ``path`` if None).
+
+    Raises:
+        URDFError: the message names the file and, where relevant, the link or joint and
+            the offending values.
+
+    Warns:
+        ModelWarning: once per simulated link with implausible inertial data (module
+            docstring), naming the file, the link and the values.
+    """
+    path = Path(path)
+    if text is None:
+        text = urdf_text(path)
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise URDFError(f"malformed URDF {path}: XML parse error: {exc}") from exc
     if root.tag != "robot":
         raise URDFError(f"not a URDF: {path}: root element is <{root.tag}>, expected <robot>")
     links = _check_links(path, root)
-    _check_joints(path, root, links)
+    welded = _check_joints(path, root, links)
     for link in root.findall("link"):
+        name = link.get("name", "?")
         inertial = link.find("inertial")
-        if inertial is not None:
-            _check_inertial(path, link.get("name", "?"), inertial)
+        if inertial is None or name in welded:
+            continue  # a massless frame, or merged into the universe: never simulated
+        findings = _check_inertial(path, name, inertial)
+        if findings:
+            warnings.warn(
+                f"{path}: link {name!r}: {findings[0]}: {'; '.join(findings[1:])}; loaded as "
+                "written (no rigid body has this inertia, but the dynamics are well defined)",
+                ModelWarning,
+                stacklevel=2,
+            )
 
 
 def _check_links(path: Path, root: ET.Element) -> set[str]:
@@ -127,17 +295,22 @@ def _check_links(path: Path, root: ET.Element) -> set[str]:
     return names
 
 
-def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
+def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
     """Joints have names, known types, limits where required, and make one tree of links.
 
     Also refuses, once the tree is known to be well formed, a floating or planar joint and a
     model without any moving joint (see the module docstring).
+
+    Returns:
+        the links that are not simulated: the root link and every link welded to it by a
+        chain of fixed joints (Pinocchio merges them into the universe).
     """
     joint_names: set[str] = set()
     parent_of: dict[str, str] = {}
     unsupported: list[tuple[str, str, dict[str, str]]] = []
     masters: dict[str, str] = {}
     types: dict[str, str] = {}
+    welded_to: dict[str, list[str]] = {}  # link: the links fixed joints attach to it
     moving = 0
     for i, joint in enumerate(root.findall("joint")):
         name = joint.get("name")
@@ -194,6 +367,8 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
                 f"({parent_of[child]!r} and {name!r})"
             )
         parent_of[child] = name
+        if jtype == "fixed":
+            welded_to.setdefault(ends["parent"], []).append(child)
     roots = sorted(links - parent_of.keys())
     if len(roots) != 1:
         detail = "none (the joints form a cycle)" if not roots else ", ".join(map(repr, roots))
@@ -222,6 +397,12 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> None:
             f"unsupported URDF {path}: the model has no moving joint ({what}, so nv = 0); "
             "an arm needs at least one revolute, continuous or prismatic joint"
         )
+    welded, stack = {roots[0]}, [roots[0]]
+    while stack:
+        for child in welded_to.get(stack.pop(), ()):
+            welded.add(child)
+            stack.append(child)
+    return welded
 
 
 def _vector_attr(path: Path, where: str, element: ET.Element, key: str) -> list[float] | None:
@@ -286,8 +467,16 @@ def _float_attr(path: Path, where: str, element: ET.Element, key: str) -> float:
         ) from None
 
 
-def _check_inertial(path: Path, link: str, inertial: ET.Element) -> None:
-    """Mass > 0 (or the massless exception), inertia PSD and meeting the triangle inequality."""
+def _check_inertial(path: Path, link: str, inertial: ET.Element) -> list[str]:
+    """Refuse what breaks the simulation; return the findings to warn about (module doc).
+
+    Refused: a missing ``<mass>`` or ``<inertia>``, numbers that do not parse or are not
+    finite, a negative mass, an inertia that is not positive semi-definite beyond round-off.
+
+    Returns:
+        [] for a plausible inertial; else the inertial's values, then one text per finding
+        (mass 0 with a non-zero inertia, a broken triangle inequality).
+    """
     where = f"link {link!r}: <inertial>"
     origin = inertial.find("origin")
     if origin is not None:
@@ -311,28 +500,40 @@ def _check_inertial(path: Path, link: str, inertial: ET.Element) -> None:
         raise URDFError(
             f"physically impossible URDF {path}: {where} inertia has a non-finite entry ({shown})"
         )
-    if mass == 0.0 and all(v == 0.0 for v in values):
-        return  # massless frame written as an explicit zero inertial (allowed, see module doc)
-    if mass <= 0.0:
+    if mass < 0.0:
         raise URDFError(
-            f"physically impossible URDF {path}: {where} mass = {mass:g} kg; "
-            "a link with <inertial> needs mass > 0 (or mass 0 with an all-zero inertia)"
+            f"physically impossible URDF {path}: {where} mass = {mass:g} kg; a link's mass "
+            "must be >= 0 (0 with an all-zero inertia, or no <inertial>, for a massless frame)"
         )
+    if all(v == 0.0 for v in values):
+        return []  # a massless frame (mass 0) or a point mass (mass > 0): module docstring
     matrix = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]], dtype=float)
     moments = np.linalg.eigvalsh(matrix)  # ascending principal moments [kg m²]
-    tol = _REL_TOL * float(np.max(np.abs(moments))) + _ABS_TOL
+    largest = float(np.max(np.abs(moments)))
     principal = ", ".join(f"{m:.6g}" for m in moments)
-    if moments[0] < -tol:
+    if moments[0] < -(_PSD_REL_TOL * largest + _ABS_TOL):
         raise URDFError(
             f"physically impossible URDF {path}: {where} inertia is not positive "
-            f"semi-definite ({shown}; principal moments {principal} kg m²)"
+            f"semi-definite ({shown}; principal moments {principal} kg m²): a negative "
+            "moment is a negative kinetic energy, which the dynamics cannot integrate"
         )
+    findings = []
+    if mass == 0.0:
+        findings.append("mass 0 with a non-zero inertia (simulated as an inertia without mass)")
     # With sorted moments I1 <= I2 <= I3, the only inequality that can fail is I1 + I2 >= I3.
-    if moments[0] + moments[1] < moments[2] - tol:
-        raise URDFError(
-            f"physically impossible URDF {path}: {where} principal moments {principal} kg m² "
-            f"break the triangle inequality I1 + I2 >= I3 ({shown})"
+    short = float(moments[2] - moments[0] - moments[1])
+    if short > _TRI_REL_TOL * float(moments[2]) + _ABS_TOL:
+        findings.append(
+            f"I1 + I2 falls short of I3 by {short:.3g} kg m² "
+            f"({100 * short / float(moments[2]):.3g} % of I3): the triangle inequality every "
+            "rigid body meets is broken"
         )
+    if not findings:
+        return []
+    return [
+        f"<inertial> mass {mass:g} kg, inertia {shown} kg m² (principal moments {principal})",
+        *findings,
+    ]
 
 
 def check_arm_model(
