@@ -9,7 +9,8 @@ Subcommands:
 * ``replay RESULT.npz``: the 3D replay of a saved run (hybrid_force.replay).
 * ``sweep SCENARIO ...``: a parameter sweep (hybrid_force.sweep defines its options).
 * ``robots``: list the robot models known by name, with joint count, default tip frame and
-  source.
+  source; ``robots --check MODEL [--tip FRAME]``: what loading one model finds
+  (hybrid_force.model_report).
 
 Exit status (the contract README.md documents):
 
@@ -54,7 +55,15 @@ Handler = Callable[[argparse.Namespace], int]
 
 
 def _cmd_robots(args: argparse.Namespace) -> int:
-    """Print a table of the named robots: name, joints, default tip, source."""
+    """Print a table of the named robots (name, joints, default tip, source), or with
+    ``--check MODEL`` what loading that model finds (hybrid_force.model_report)."""
+    if args.check is not None:
+        from hybrid_force.model_report import format_report, model_report
+
+        sys.stdout.write(format_report(model_report(args.check, tip=args.tip)))
+        return 0
+    if args.tip is not None:
+        raise BadInputError("robots: --tip needs --check MODEL")
     from hybrid_force._registry import known_robots
     from hybrid_force.robot import load_robot
 
@@ -320,8 +329,20 @@ def build_parser(*, sweep_options: bool = True) -> argparse.ArgumentParser:
     sub.required = True
     robots = sub.add_parser(
         "robots",
-        help="list the robot models known by name",
-        description="List the robot models known by name (joint count, default tip, source).",
+        help="list the robot models known by name, or check one model",
+        description=(
+            "List the robot models known by name (joint count, default tip, source). With "
+            "--check MODEL: load MODEL (a name or a URDF path) as a scenario would and print "
+            "its joints and limits, the tip and other tip frames, the total mass, the reach, "
+            "the meshes its visuals reference (found or missing) and the model's warnings; "
+            "exit status 2 with one error line if it cannot be simulated (docs/robots.md)."
+        ),
+    )
+    robots.add_argument(
+        "--check", metavar="MODEL", default=None, help="report on one model (name or URDF path)"
+    )
+    robots.add_argument(
+        "--tip", metavar="FRAME", default=None, help="with --check: the tip frame to load with"
     )
     robots.set_defaults(handler=_cmd_robots)
     _add_run(sub)

@@ -67,3 +67,128 @@ def test_bad_input_error_is_one_line_exit_2(
     assert main(["robots"]) == 2
     captured = capsys.readouterr()
     assert captured.err == "error: URDF file not found: /nowhere/rtr.urdf (second line)\n"
+
+
+# --- robots --check MODEL [--tip FRAME] ------------------------------------------------------
+def test_check_rtr_prints_the_hand_numbers(capsys: pytest.CaptureFixture[str]) -> None:
+    """robots/rtr.urdf by hand: q1 continuous, q2 prismatic in [-1, 16] m, q3 revolute in
+    [-3.2, 3.2] rad, no effort limit (effort="0"); 20 + 20 kg; reach from q1's origin:
+    0.9 + 1.0 m of links (the tip's largest distance from the q1 axis) + 16 m of q2."""
+    assert main(["robots", "--check", "rtr"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    lines = captured.out.splitlines()
+    assert lines[0] == f"model: rtr ({REPO_ROOT / 'robots' / 'rtr.urdf'})"
+    assert lines[1] == "joints: 3 moving"
+    assert [line.split() for line in lines[2:6]] == [
+        ["name", "type", "range", "effort"],
+        ["q1", "continuous", "unbounded", "unspecified"],
+        ["q2", "prismatic", "[-1,", "16]", "m", "unspecified"],
+        ["q3", "revolute", "[-3.2,", "3.2]", "rad", "unspecified"],
+    ]
+    assert "fixed joints: tip_joint" in lines
+    assert "tip: tip (default)" in lines
+    assert "other tip frames: link3" in lines
+    assert "total mass: 40 kg (40 kg on moving joints)" in lines
+    assert (
+        "reach: 17.9 m from the origin of joint q1 "
+        "(joint-to-joint distances 1.9 m + prismatic travel 16 m)"
+    ) in lines
+    assert "meshes: 0 referenced, 0 found" in lines
+    assert lines[-1] == "warnings: none"
+
+
+def test_check_with_a_tip(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["robots", "--check", "rtr", "--tip", "link3"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "tip: link3 (given; default: tip)" in out
+    assert any(line.startswith("reach: 16.9 m from the origin of joint q1") for line in out)
+
+
+_MESHY = (
+    '<robot name="m">'
+    '<link name="world"><visual><geometry><mesh filename="meshes/base.stl"/></geometry>'
+    "</visual></link>"
+    '<link name="arm"><inertial><origin xyz="0.3 0 0"/><mass value="2"/>'
+    '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>'
+    '<visual><geometry><mesh filename="meshes/gripper.stl"/></geometry></visual></link>'
+    '<link name="hand"/>'
+    '<joint name="j1" type="revolute"><parent link="world"/><child link="arm"/>'
+    '<origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>'
+    '<limit lower="-1" upper="1" effort="5" velocity="1"/></joint>'
+    '<joint name="j2" type="fixed"><parent link="arm"/><child link="hand"/>'
+    '<origin xyz="0.3 0.4 0"/></joint></robot>'
+)
+
+
+def test_check_a_urdf_with_a_missing_mesh(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """meshes/base.stl exists next to the URDF, meshes/gripper.stl does not: reported, and
+    the status stays 0 (meshes only matter to the viewer). Reach by hand: |(0.3, 0.4, 0)|."""
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "base.stl").write_text("solid s\nendsolid s\n")
+    path = tmp_path / "arm.urdf"
+    path.write_text(_MESHY)
+    assert main(["robots", "--check", str(path)]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    lines = captured.out.splitlines()
+    assert lines[0] == f"model: {path}"
+    assert "meshes: 2 referenced, 1 found" in lines
+    assert "  found    meshes/base.stl" in lines
+    missing = tmp_path / "meshes" / "gripper.stl"
+    assert f"  missing  meshes/gripper.stl (link arm; looked for {missing})" in lines
+    assert "total mass: 2 kg (2 kg on moving joints)" in lines
+    reach = "reach: 0.5 m from the origin of joint j1 (the sum of the joint-to-joint distances"
+    assert any(line.startswith(reach) for line in lines)
+    assert "  j1    revolute  [-1, 1] rad  5 N·m" in lines
+
+
+def test_check_lists_the_model_warnings(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A massless hand with an inertia: one warning line in the report, none on stderr."""
+    path = tmp_path / "arm.urdf"
+    path.write_text(
+        _MESHY.replace(
+            '<link name="hand"/>',
+            '<link name="hand"><inertial><mass value="0"/><inertia ixx="1e-4" ixy="0" ixz="0" '
+            'iyy="1e-4" iyz="0" izz="1e-4"/></inertial></link>',
+        )
+    )
+    assert main(["robots", "--check", str(path)]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    lines = captured.out.splitlines()
+    index = lines.index("warnings: 1")
+    assert lines[index + 1].startswith(f"  warning: {path}: link 'hand': <inertial> mass 0 kg")
+
+
+def test_check_a_refused_model_exits_2_with_one_error_line(tmp_path: Path) -> None:
+    """A floating joint: the process exits 2 with one ``error:`` line naming file and joint."""
+    path = tmp_path / "floating.urdf"
+    path.write_text(_MESHY.replace('name="j1" type="revolute"', 'name="j1" type="floating"'))
+    proc = _run("robots", "--check", str(path))
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: unsupported URDF ")
+    assert str(path) in lines[0] and "joint 'j1'" in lines[0] and "floating joint" in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("args", "text"),
+    [
+        (["robots", "--check", "rtr", "--tip", "nope"], "tip frame 'nope' not found"),
+        (["robots", "--check", "rtx"], "unknown robot 'rtx' (did you mean 'rtr'?)"),
+        (["robots", "--tip", "tip"], "--tip needs --check MODEL"),
+    ],
+    ids=["bad-tip", "unknown-name", "tip-without-check"],
+)
+def test_check_bad_input_is_one_error_line(
+    capsys: pytest.CaptureFixture[str], args: list[str], text: str
+) -> None:
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and text in lines[0]
