@@ -53,6 +53,8 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
+import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,7 +63,7 @@ from typing import Any
 import numpy as np
 
 from hybrid_force._atomic import atomic_file
-from hybrid_force.errors import BadInputError, HybridForceError, ViewerError
+from hybrid_force.errors import BadInputError, HybridForceError, ModelWarning, ViewerError
 from hybrid_force.result import Result
 
 __all__ = [
@@ -300,12 +302,20 @@ class Replay:
         if not isinstance(info, dict) or not isinstance(info.get("model"), str):
             raise ViewerError(
                 f"result '{self.result.meta.get('name')}' has no robot model in meta['robot'] "
-                f"(got {info!r}); expected {{'model': <name or URDF path>, 'tip': <frame>}}"
+                f"(got {info!r}); expected {{'model': <name or model path>, 'tip': <frame>}}"
             )
         model = info["model"]
         tip = info.get("tip")
+        options = _load_options(self.result.meta)
         try:
-            robot = load_robot(model, tip=tip if isinstance(tip, str) else None)
+            robot = load_robot(model, tip=tip if isinstance(tip, str) else None, **options)
+            if robot.nq != self.result.nq and "lock_off_chain" not in options:
+                # a result made before joints off the tip's chain were locked by default
+                unlocked = load_robot(
+                    model, tip=tip if isinstance(tip, str) else None, **options,
+                    lock_off_chain=False,
+                )  # fmt: skip
+                robot = unlocked if unlocked.nq == self.result.nq else robot
         except HybridForceError as exc:
             raise ViewerError(f"result's robot '{model}' cannot be found: {exc}") from exc
         except (OSError, ValueError, RuntimeError) as exc:
@@ -405,24 +415,11 @@ class Replay:
         return list(self._visual_model().geometryObjects)
 
     def _visual_model(self) -> Any:
+        """The robot's visual geometry model (built once; see :func:`visual_geometry`)."""
         cached = getattr(self, "_visual_model_cache", None)
         if cached is not None:
             return cached
-        import pinocchio as pin
-
-        robot = self.robot
-        try:
-            visual = pin.buildGeomFromUrdf(
-                robot.model,
-                str(robot.urdf_path),
-                pin.GeometryType.VISUAL,
-                package_dirs=[str(d) for d in robot.package_dirs],
-            )
-        except (RuntimeError, ValueError, OSError) as exc:
-            raise ViewerError(
-                f"cannot load the visual geometry of robot '{robot.name}' from "
-                f"'{robot.urdf_path}': {exc}"
-            ) from exc
+        visual = visual_geometry(self.robot)
         self._visual_model_cache = visual
         return visual
 
@@ -659,6 +656,243 @@ class Replay:
     def serve(self, *, port: int | None = None, loop: bool = False) -> None:
         """Play the run in a live meshcat server; see :func:`serve`."""
         _serve_replay(self, port=port, loop=loop)
+
+
+# --------------------------------------------------------------------------- robot and visuals
+def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
+    """The :func:`~hybrid_force.robot.load_robot` options a result's meta records.
+
+    From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``: what
+    :attr:`~hybrid_force.robot.Robot.reference` gives). A key ``meta["robot"]`` lacks is taken
+    from the scenario's ``[robot]`` table (``meta["scenario"]["robot"]``): ``xacro_args`` and
+    ``lock_off_chain`` as written; ``package_dirs`` (relative to the scenario file) only when
+    the scenario's ``robot.model`` is a relative path without ``..`` whose parts end
+    ``meta["robot"]["model"]`` (the scenario's folder is then known). Values of the wrong type
+    are ignored (the arm is then loaded without them).
+    """
+    info = meta.get("robot") if isinstance(meta.get("robot"), dict) else {}
+    scenario = meta.get("scenario")
+    table = scenario.get("robot") if isinstance(scenario, dict) else None
+    table = table if isinstance(table, dict) else {}
+    out: dict[str, Any] = {}
+    args = info.get("xacro_args", table.get("xacro_args"))
+    if isinstance(args, dict) and args:
+        out["xacro_args"] = {
+            str(k): v if isinstance(v, str) else _toml_text(v) for k, v in args.items()
+        }
+    lock = info.get("lock_off_chain", table.get("lock_off_chain"))
+    if isinstance(lock, bool):
+        out["lock_off_chain"] = lock
+    dirs = info.get("package_dirs")
+    if dirs is None:
+        dirs = _scenario_package_dirs(info.get("model"), table)
+    if isinstance(dirs, list) and dirs and all(isinstance(d, str) and d for d in dirs):
+        out["package_dirs"] = list(dirs)
+    return out
+
+
+def _toml_text(value: object) -> str:
+    """A scenario's xacro argument given as a TOML number or boolean, as the loader passes it."""
+    from hybrid_force.scenario import xacro_argument_text
+
+    return xacro_argument_text(value)
+
+
+def _scenario_package_dirs(model: object, table: dict[str, Any]) -> list[str] | None:
+    """The scenario's ``robot.package_dirs`` made absolute, when its folder can be told."""
+    dirs, written = table.get("package_dirs"), table.get("model")
+    if not (isinstance(dirs, list) and isinstance(model, str) and isinstance(written, str)):
+        return None
+    rel = Path(written)
+    if rel.is_absolute() or ".." in rel.parts or not rel.parts:
+        return None
+    full = Path(model)
+    if len(full.parts) <= len(rel.parts) or full.parts[-len(rel.parts) :] != rel.parts:
+        return None
+    folder = full.parents[len(rel.parts) - 1]
+    return [str(folder / d) for d in dirs if isinstance(d, str) and d]
+
+
+#: Edge of the cube drawn in place of a mesh that cannot be found or read [m].
+PLACEHOLDER_SIZE = 0.05
+
+
+def visual_geometry(robot: Any) -> Any:
+    """The visual ``pinocchio.GeometryModel`` of a robot, with a placeholder for every mesh
+    that cannot be found: never an error for a missing mesh.
+
+    A URDF's (or xacro's expansion's) ``<visual><geometry><mesh filename=...>`` URIs are
+    resolved here: ``package://NAME/rest`` as ``NAME/rest`` in the first of
+    ``robot.package_dirs`` that holds it, ``file://path`` and plain paths (relative ones to
+    the model file's folder, then to each package folder). An MJCF file's ``<asset><mesh
+    file=...>`` resolve against its folder (and ``<compiler meshdir>`` or ``assetdir``).
+    Pinocchio then builds the geometry (``pin.buildGeomFromUrdfString`` /
+    ``pin.buildGeomFromMJCF``) from a copy of the XML whose found meshes are absolute paths
+    and whose missing ones are a cube of :data:`PLACEHOLDER_SIZE` at the visual's origin.
+    Each missing mesh gives one :class:`~hybrid_force.errors.ModelWarning` naming its URI
+    and the link(s) (MJCF: bodies) that use it. If Pinocchio cannot read a mesh file that
+    exists, every mesh of the robot becomes a placeholder, with one warning saying why.
+
+    Raises:
+        ViewerError: the model file cannot be read or parsed any more.
+    """
+    import pinocchio as pin
+
+    label = f"robot '{robot.name}'"
+    if str(robot.urdf_path) != robot.name:
+        label += f" ({robot.urdf_path})"
+    try:
+        return _build_visuals(robot, pin, placeholders_only=False, label=label)
+    except ViewerError:
+        raise
+    except (RuntimeError, ValueError, IndexError) as exc:  # a mesh file Pinocchio cannot read
+        why = " ".join(str(exc).split("message:", 1)[-1].split())
+    try:
+        visual = _build_visuals(robot, pin, placeholders_only=True, label=label)
+    except ViewerError:
+        raise
+    except (RuntimeError, ValueError, IndexError, OSError) as exc:
+        raise ViewerError(f"cannot load the visual geometry of {label}: {exc}") from exc
+    warnings.warn(
+        f"{label}: Pinocchio cannot read its meshes ({why}); every mesh is drawn as a "
+        f"{PLACEHOLDER_SIZE:g} m cube",
+        ModelWarning,
+        stacklevel=3,
+    )
+    return visual
+
+
+def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str) -> Any:
+    """Build the visual geometry from a copy of the model's XML (see :func:`visual_geometry`);
+    warn about each missing mesh (only when ``placeholders_only`` is False)."""
+    import tempfile
+
+    try:
+        if robot.kind == "mjcf":
+            root = ET.parse(robot.urdf_path).getroot()
+        else:
+            root = ET.fromstring(robot.urdf_xml)
+    except (OSError, ET.ParseError) as exc:
+        raise ViewerError(f"cannot load the visual geometry of {label}: {exc}") from exc
+    base = Path(robot.urdf_path).resolve().parent
+    dirs = [str(d) for d in robot.package_dirs]
+    if robot.kind == "mjcf":
+        missing = _mjcf_meshes(root, base, placeholders_only)
+    else:
+        missing = _urdf_meshes(root, base, dirs, placeholders_only)
+    if robot.kind == "mjcf":
+        with tempfile.TemporaryDirectory(prefix="hybrid_force_visuals_") as tmp:
+            copy = Path(tmp) / Path(robot.urdf_path).name
+            ET.ElementTree(root).write(copy, encoding="unicode")
+            visual = pin.buildGeomFromMJCF(robot.model, str(copy), pin.GeometryType.VISUAL)
+    else:
+        visual = pin.buildGeomFromUrdfString(
+            robot.model, ET.tostring(root, encoding="unicode"), pin.GeometryType.VISUAL,
+            package_dirs=dirs,
+        )  # fmt: skip
+    if not placeholders_only:
+        for uri, owners in missing.items():
+            what = "body" if robot.kind == "mjcf" else "link"
+            names = ", ".join(f"'{o}'" for o in owners)
+            warnings.warn(
+                f"{label}: mesh '{uri}' of {what}{'s' if len(owners) > 1 else ''} {names} not "
+                f"found (package folders: {', '.join(dirs) or 'none'}); drawn as a "
+                f"{PLACEHOLDER_SIZE:g} m cube",
+                ModelWarning,
+                stacklevel=4,
+            )
+    return visual
+
+
+def _resolve_mesh(uri: str, base: Path, dirs: list[str]) -> Path | None:
+    """The file a URDF mesh URI names, or None (see :func:`visual_geometry`)."""
+    from hybrid_force.robot import find_package
+
+    if uri.startswith("package://"):
+        name, _, rest = uri[len("package://") :].partition("/")
+        candidates = [Path(d) / name / rest for d in dirs] if name and rest else []
+        package = find_package(name, dirs)
+        if package is not None:
+            candidates.insert(0, package / rest)
+    else:
+        path = Path(uri.removeprefix("file://"))
+        if path.is_absolute():
+            candidates = [path]
+        else:
+            candidates = [base / path, *(Path(d) / path for d in dirs)]
+    for candidate in candidates:
+        if uri and candidate.is_file():
+            return candidate.resolve()
+    return None
+
+
+def _placeholder_box(half: bool) -> str:
+    """The size attribute of the placeholder cube: full edges (URDF) or half (MJCF) [m]."""
+    edge = PLACEHOLDER_SIZE / 2 if half else PLACEHOLDER_SIZE
+    return f"{edge:g} {edge:g} {edge:g}"
+
+
+def _urdf_meshes(
+    root: ET.Element, base: Path, dirs: list[str], all_missing: bool
+) -> dict[str, list[str]]:
+    """Make a URDF tree's visual meshes absolute paths, or placeholder boxes when missing
+    (every one with ``all_missing``); return {URI: links} of the missing ones."""
+    missing: dict[str, list[str]] = {}
+    for link in root.findall("link"):
+        for visual in link.findall("visual"):
+            geometry = visual.find("geometry")
+            mesh = geometry.find("mesh") if geometry is not None else None
+            if geometry is None or mesh is None:
+                continue
+            uri = mesh.get("filename", "")
+            found = None if all_missing else _resolve_mesh(uri, base, dirs)
+            if found is not None:
+                mesh.set("filename", str(found))
+                continue
+            owners = missing.setdefault(uri, [])
+            if link.get("name", "?") not in owners:
+                owners.append(link.get("name", "?"))
+            geometry.remove(mesh)
+            ET.SubElement(geometry, "box", size=_placeholder_box(half=False))
+    return missing
+
+
+def _mjcf_meshes(root: ET.Element, base: Path, all_missing: bool) -> dict[str, list[str]]:
+    """Make an MJCF tree's mesh assets absolute paths; replace the geoms of a missing one (of
+    every one with ``all_missing``) by placeholder boxes; return {file: bodies} of those."""
+    folder = base
+    for compiler in root.iter("compiler"):
+        sub = compiler.get("meshdir") or compiler.get("assetdir")
+        if sub:
+            folder = base / sub
+        for key in ("meshdir", "assetdir"):
+            compiler.attrib.pop(key, None)
+    gone: dict[str, str] = {}  # asset name → file as written
+    for asset in root.iter("asset"):
+        for mesh in list(asset.findall("mesh")):
+            file = mesh.get("file")
+            if not file:
+                continue
+            path = Path(file) if Path(file).is_absolute() else folder / file
+            if not all_missing and path.is_file():
+                mesh.set("file", str(path.resolve()))
+                continue
+            gone[mesh.get("name") or Path(file).stem] = file
+            asset.remove(mesh)
+    missing: dict[str, list[str]] = {}
+    for body in [*root.iter("worldbody"), *root.iter("body")]:
+        for geom in body.findall("geom"):
+            name = geom.get("mesh")
+            if name is None or name not in gone:
+                continue
+            owners = missing.setdefault(gone[name], [])
+            owner = body.get("name", "world") if body.tag == "body" else "world"
+            if owner not in owners:
+                owners.append(owner)
+            del geom.attrib["mesh"]
+            geom.set("type", "box")
+            geom.set("size", _placeholder_box(half=True))
+    return missing
 
 
 # --------------------------------------------------------------------------- static page

@@ -46,10 +46,13 @@ from hybrid_force.paths import ON_SURFACE_TOL  # re-exported: the loader's and S
 
 __all__ = [
     "ON_SURFACE_TOL",
+    "RobotTable",
     "load_scenario",
     "parse_override",
     "read_scenario_document",
+    "resolve_robot_table",
     "scenario_from_document",
+    "xacro_argument_text",
 ]
 
 MAX_FILE_BYTES = 1 << 20
@@ -68,7 +71,8 @@ class _Key:
 
     kinds: "str", "number", "bool", "vec3" (3 numbers), "vector" (a list of numbers),
     "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
-    "choice" (one of ``choices``).
+    "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
+    table of texts: strings, or numbers and booleans turned into their TOML text).
     """
 
     kind: str
@@ -79,7 +83,13 @@ class _Key:
 _TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
 _TABLES = ("robot", "surface", "surfaces", "trajectory", "initial", "control", "sim")
 
-_ROBOT: dict[str, _Key] = {"model": _Key("str", True), "tip": _Key("str")}
+_ROBOT: dict[str, _Key] = {
+    "model": _Key("str", True),
+    "tip": _Key("str"),
+    "package_dirs": _Key("str_list"),
+    "xacro_args": _Key("str_table"),
+    "lock_off_chain": _Key("bool"),
+}
 
 _SURFACE_TYPES = ("cylinder", "sphere", "plane")
 _SURFACE: dict[str, dict[str, _Key]] = {
@@ -267,6 +277,31 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
         if not isinstance(value, str):
             raise ctx.error(key, value, f"must be a string, got {_type_name(value)}")
         return value
+    if kind == "str_list":
+        if not isinstance(value, list):
+            raise ctx.error(key, value, f"must be an array of strings, got {_type_name(value)}")
+        for i, x in enumerate(value):
+            if not isinstance(x, str) or not x:
+                raise ctx.error(
+                    key, value, f"must be an array of non-empty strings; element {i} is "
+                    f"{_type_name(x) if not isinstance(x, str) else 'empty'}",
+                )  # fmt: skip
+        return list(value)
+    if kind == "str_table":
+        if not isinstance(value, dict):
+            raise ctx.error(
+                key, value, f'must be a table of texts {{name = "value"}}, got {_type_name(value)}'
+            )
+        out: dict[str, str] = {}
+        for name, x in value.items():
+            if _is_number(x):
+                _number(ctx, f"{key}.{name}", x)  # refuses a number that is not finite
+            elif not isinstance(x, (str, bool)):
+                raise ctx.error(
+                    f"{key}.{name}", x, f"must be a text (a string), got {_type_name(x)}"
+                )
+            out[name] = xacro_argument_text(x)
+        return out
     if kind == "bool":
         if not isinstance(value, bool):
             raise ctx.error(key, value, f"must be true or false, got {_type_name(value)}")
@@ -544,27 +579,121 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         raise ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}") from None
 
 
-def _robot(table: object, file: Path, ctx: _Context) -> Any:
-    from hybrid_force.robot import load_robot
+def xacro_argument_text(value: object) -> str:
+    """The text a ``robot.xacro_args`` value passes to xacro: a string as is, a boolean as
+    ``true``/``false``, an integer in decimal, a float as Python's shortest repr (``0.7``)."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    raise TypeError(f"a xacro argument must be a string, number or boolean, got {value!r}")
+
+
+@dataclass(frozen=True)
+class RobotTable:
+    """A scenario's ``[robot]`` table, checked and resolved as the loader resolves it.
+
+    Attributes:
+        values: the checked values of the table (``xacro_args`` as texts).
+        model: ``robot.model`` as written.
+        target: the registry name, or the model file's path (relative ones joined to the
+            scenario file's folder; the file exists).
+        kind: ``"name"`` (a registry arm), ``"urdf"``, ``"xacro"`` or ``"mjcf"``.
+        package_dirs: ``robot.package_dirs`` as absolute folders (each exists).
+        xacro_args: ``robot.xacro_args`` as ``{name: text}``.
+    """
+
+    values: dict[str, Any]
+    model: str
+    target: str | Path
+    kind: str
+    package_dirs: tuple[str, ...]
+    xacro_args: dict[str, str]
+
+
+def resolve_robot_table(
+    doc: Mapping[str, Any], path: str | Path, origin: str | None = None
+) -> RobotTable:
+    """Check a scenario's ``[robot]`` table and find the files it names, without loading
+    the arm (what a sweep sends to its workers).
+
+    Args:
+        doc: the scenario's data (as :func:`read_scenario_document` returns).
+        path: the scenario file (relative model paths and package folders join its folder).
+        origin: how messages name the scenario (default: ``path``).
+
+    Raises:
+        ScenarioError: as :func:`load_scenario` for the ``[robot]`` table: a missing table,
+            key, model file or package folder, a wrong type, xacro arguments for a model that
+            is not a .xacro file.
+    """
+    ctx = _Context(str(path) if origin is None else origin)
+    if "robot" not in doc:
+        raise ctx.table_error("[robot]", "missing required table")
+    return _robot_table(doc["robot"], Path(path), ctx)
+
+
+def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
+    from hybrid_force.robot import _is_path, model_kind
 
     values = _check_table(ctx, "robot", table, _ROBOT)
+    raw = table if isinstance(table, dict) else {}
     model: str = values["model"]
     target: str | Path = model
-    if model.endswith(".urdf") or "/" in model or "\\" in model:
+    kind = "name"
+    if _is_path(model):
         candidate = Path(model)
         target = candidate if candidate.is_absolute() else file.parent / candidate
-        if not Path(target).is_file():
+        kind = model_kind(target)
+        if not target.is_file():
+            label = {"urdf": "URDF", "xacro": "xacro", "mjcf": "MJCF"}[kind]
             raise ctx.error(
                 "robot.model",
                 model,
-                f"URDF file not found (paths are relative to the scenario file): {target}",
+                f"{label} file not found (paths are relative to the scenario file): {target}",
             )
+    dirs = []
+    for folder_text in values.get("package_dirs", []):
+        folder = Path(folder_text)
+        folder = folder if folder.is_absolute() else file.parent / folder
+        if not folder.is_dir():
+            raise ctx.error(
+                "robot.package_dirs",
+                raw.get("package_dirs"),
+                f"folder not found (paths are relative to the scenario file): {folder}",
+            )
+        dirs.append(str(folder.absolute()))
+    args = values.get("xacro_args", {})
+    if args and kind != "xacro":
+        raise ctx.error(
+            "robot.xacro_args",
+            raw.get("xacro_args"),
+            f"robot.model = {_fmt(model)} is not a .xacro file: only a xacro model takes arguments",
+        )
+    return RobotTable(values, model, target, kind, tuple(dirs), dict(args))
+
+
+def _robot(table: object, file: Path, ctx: _Context) -> Any:
+    from hybrid_force.robot import load_robot
+
+    resolved = _robot_table(table, file, ctx)
+    values = resolved.values
     try:
-        return load_robot(target, tip=values.get("tip"))
+        return load_robot(
+            resolved.target,
+            tip=values.get("tip"),
+            package_dirs=resolved.package_dirs,
+            xacro_args=resolved.xacro_args or None,
+            lock_off_chain=values.get("lock_off_chain"),
+        )
     except FrameError as exc:
         raise ctx.error("robot.tip", values.get("tip"), " ".join(str(exc).split())) from None
     except RobotError as exc:
-        raise ctx.error("robot.model", model, " ".join(str(exc).split())) from None
+        raise ctx.error("robot.model", resolved.model, " ".join(str(exc).split())) from None
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
