@@ -251,9 +251,12 @@ class Robot:
 
     @property
     def urdf_xml(self) -> str | None:
-        """The URDF text the model was built from (None for an MJCF model)."""
+        """The URDF text the model was built from (None for an MJCF model): the file's text
+        as :func:`~hybrid_force.urdf_check.urdf_text` reads it, or xacro's expansion."""
         if self._urdf_xml is None and self.kind != "mjcf":
-            self._urdf_xml = self.urdf_path.read_text(encoding="utf-8")
+            from hybrid_force.urdf_check import urdf_text
+
+            self._urdf_xml = urdf_text(self.urdf_path)
         return self._urdf_xml
 
     @property
@@ -455,10 +458,11 @@ def load_robot(
 
     Loading (see :mod:`hybrid_force.urdf_check` for every refusal):
 
-    1. a URDF (or xacro's expansion): :func:`~hybrid_force.urdf_check.check_urdf`
-       (structure, inertial data, no floating or planar joint, at least one moving joint),
-       before Pinocchio sees it. An MJCF file: no ``<include>`` (Pinocchio's parser ignores
-       it), no free or ball joint;
+    1. a URDF is read by :func:`~hybrid_force.urdf_check.urdf_text` (undeclared namespace
+       prefixes declared); it, or xacro's expansion, goes through
+       :func:`~hybrid_force.urdf_check.check_urdf` (structure, inertial data, no floating or
+       planar joint, at least one moving joint) before Pinocchio sees it. An MJCF file: no
+       ``<include>`` (Pinocchio's parser ignores it), no free or ball joint;
     2. a URDF's ``continuous`` joint is rewritten as a ``revolute`` one (same axis; its
        ``<limit>`` effort and velocity are kept) and the model built with
        ``pin.buildModelFromXML`` (``mimic=False``); its position limits are then set to
@@ -505,7 +509,7 @@ def load_robot(
             joint lies between the root and it while the joints off its chain are locked.
     """
     from hybrid_force._registry import resolve_robot
-    from hybrid_force.urdf_check import check_arm_model, check_urdf
+    from hybrid_force.urdf_check import check_arm_model, urdf_text
 
     given = _absolute_dirs(package_dirs)
     args = _xacro_arguments(xacro_args)
@@ -535,13 +539,10 @@ def load_robot(
     mimic: dict[str, tuple[str, float, float]] = {}
     if kind == "mjcf":
         pin_model = _build_mjcf(path)
-    elif kind == "xacro":
-        xml = expand_xacro(path, args, given)
-        _check_expanded_urdf(path, xml)
-        pin_model, mimic = _build_model(path, xml)
     else:
-        check_urdf(path)
-        pin_model, mimic = _build_model(path)
+        xml = expand_xacro(path, args, given) if kind == "xacro" else urdf_text(path)
+        _check_urdf_text(path, xml, expanded=kind == "xacro")
+        pin_model, mimic = _build_model(path, xml)
     tip_name = tip if tip is not None else default_tip or _default_tip(pin_model)
     _require_frame(pin_model, tip_name, path)
     pin_model = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all)
@@ -712,19 +713,26 @@ def expand_xacro(
     return text
 
 
-def _check_expanded_urdf(path: Path, xml: str) -> None:
-    """check_urdf on xacro's expansion (written to a private temporary file); its messages
-    name ``path`` (expanded by xacro), never the temporary file."""
+def _check_urdf_text(path: Path, xml: str, *, expanded: bool) -> None:
+    """:func:`~hybrid_force.urdf_check.check_urdf` on the URDF text of ``path``; for xacro's
+    expansion (``expanded``) its messages say ``<path> (as expanded by xacro)``."""
     from hybrid_force.urdf_check import check_urdf
 
-    with tempfile.TemporaryDirectory(prefix="hybrid_force_xacro_") as tmp:
-        expanded = Path(tmp) / (path.name.removesuffix(".xacro") or "expanded.urdf")
-        expanded.write_text(xml, encoding="utf-8")
+    if not expanded:
+        check_urdf(path, text=xml)
+        return
+    shown = f"{path} (as expanded by xacro)"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ModelWarning)
         try:
-            check_urdf(expanded)
+            check_urdf(path, text=xml)
         except URDFError as exc:
-            shown = f"{path} (as expanded by xacro)"
-            raise URDFError(str(exc).replace(str(expanded), shown)) from None
+            raise URDFError(str(exc).replace(str(path), shown, 1)) from None
+    for w in caught:
+        message = str(w.message)
+        if issubclass(w.category, ModelWarning):
+            message = message.replace(str(path), shown, 1)
+        warnings.warn(message, w.category, stacklevel=4)
 
 
 def _lock_joints(
@@ -822,7 +830,8 @@ def _build_model(
 
     Args:
         path: the model file (named in messages; read when ``xml`` is None).
-        xml: the URDF text (xacro's expansion of ``path``), or None.
+        xml: the URDF text (:func:`~hybrid_force.urdf_check.urdf_text` of ``path``, or
+            xacro's expansion of it), or None.
 
     Returns:
         the model, and ``{mimic joint: (master, multiplier, offset)}`` from its ``<mimic>``
