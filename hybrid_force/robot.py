@@ -540,8 +540,11 @@ def load_robot(
     if kind == "mjcf":
         pin_model = _build_mjcf(path)
     else:
-        xml = expand_xacro(path, args, given) if kind == "xacro" else urdf_text(path)
-        _check_urdf_text(path, xml, expanded=kind == "xacro")
+        if kind == "xacro":
+            xml = expand_xacro(path, args, given, check=True)
+        else:
+            xml = urdf_text(path)
+            _check_urdf_text(path, xml, expanded=False)
         pin_model, mimic = _build_model(path, xml)
     tip_name = tip if tip is not None else default_tip or _default_tip(pin_model)
     _require_frame(pin_model, tip_name, path)
@@ -628,7 +631,11 @@ class _FindError(Exception):
 
 
 def expand_xacro(
-    path: str | os.PathLike[str], args: Mapping[str, str], package_dirs: Sequence[str]
+    path: str | os.PathLike[str],
+    args: Mapping[str, str],
+    package_dirs: Sequence[str | os.PathLike[str]],
+    *,
+    check: bool = False,
 ) -> str:
     """The URDF text that the xacro file ``path`` expands to, with the arguments ``args``.
 
@@ -642,12 +649,16 @@ def expand_xacro(
         path: the ``.xacro`` file.
         args: ``{name: text}`` values of its ``<xacro:arg>`` (``$(arg name)``).
         package_dirs: folders that hold package folders (see :func:`load_robot`).
+        check: also check the expansion as :func:`load_robot` does
+            (:func:`~hybrid_force.urdf_check.check_urdf`; its messages and warnings name
+            ``<path> (as expanded by xacro)``).
 
     Raises:
         URDFError: the ``xacro`` package is missing, or xacro cannot expand the file (XML
             syntax, an undefined argument or property, a missing include, ``$(find NAME)``
             with no folder NAME); the message names the file (and the included file where it
-            happened) and xacro's own message.
+            happened) and xacro's own message. With ``check``: an expansion that is not a
+            URDF the toolkit can simulate.
     """
     path = Path(path)
     try:
@@ -710,6 +721,8 @@ def expand_xacro(
     messages = [" ".join(x.split()) for x in said.getvalue().splitlines() if x.strip()]
     if messages:
         warnings.warn(f"{path}: xacro reported: {'; '.join(messages)}", ModelWarning, stacklevel=3)
+    if check:
+        _check_urdf_text(path, text, expanded=True)
     return text
 
 

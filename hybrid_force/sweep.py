@@ -24,9 +24,13 @@ the arguments and a hash of the scenario file, and a sweep refuses to resume in 
 from a different scenario file content.
 
 Workers get data, never paths: this process reads the scenario file (with each variant's
-overrides) and the URDF file its ``robot.model`` names, and sends both with the task; a worker
-writes the URDF into a private temporary folder, builds the scenario from the data, and sends
-back the row and, with ``keep_results``, the saved result's bytes, which this process writes
+overrides) and the model file its ``robot.model`` names, and sends both with the task: a
+URDF's or an MJCF file's bytes, or for a xacro file the URDF text it expands to here (with
+``robot.xacro_args`` and ``robot.package_dirs``), so workers need neither xacro nor the
+files it includes. Meshes are never sent: simulating reads none (the package folders are
+checked here and recorded in the kept results' meta for the replay). A worker writes the
+model into a private temporary folder, builds the scenario from the data, and sends back
+the row and, with ``keep_results``, the saved result's bytes, which this process writes
 into ``DIR/results/``. So a Dask worker on another machine or in another folder needs only
 hybrid_force installed. Local workers die with the sweep (even on ``kill -9``), and SIGTERM
 stops them, keeps the finished rows and exits 143. At most :data:`MAX_RUNS` variants.
@@ -325,23 +329,22 @@ def _new_row(rid: str, params: Mapping[str, Any]) -> dict[str, Any]:
     return row
 
 
-def _is_urdf_path(model: object) -> bool:
-    """Whether ``robot.model`` names a URDF file (as the scenario loader decides), not a name."""
-    return isinstance(model, str) and (model.endswith(".urdf") or "/" in model or "\\" in model)
-
-
 @dataclass(frozen=True)
 class _Urdf:
-    """A URDF file of the sweep's machine, sent with a task (a worker may not see the file).
+    """A model file of the sweep's machine, sent with a task (a worker may not see the file).
 
     ``model`` is ``robot.model`` as the scenario writes it (e.g. ``"rtr.urdf"``), ``path`` the
     file's absolute path on the sweep's machine (what the kept result's meta names), ``data``
-    its bytes (kinematics and inertias only are used: meshes are never read).
+    the bytes the worker writes as ``name`` in its folder: a URDF's or MJCF file's own bytes,
+    or the URDF text a xacro file expands to (``expanded``: the worker then drops
+    ``robot.xacro_args``). Kinematics and inertias only are used: meshes are never read.
     """
 
     model: str
     path: str
     data: bytes
+    name: str = "robot.urdf"
+    expanded: bool = False
 
 
 @dataclass(frozen=True)
@@ -351,7 +354,10 @@ class _Task:
     ``doc`` is the scenario's data with the variant's overrides applied; ``origin`` names the
     scenario file in messages; ``keep``: return the result (the bytes of its .npz) to the
     sweep; ``scratch``: a folder of the sweep's machine for the run's temporary folder (only
-    for workers on that machine; None: the worker's own temporary directory).
+    for workers on that machine; None: the worker's own temporary directory);
+    ``robot_meta``: what the kept result's ``meta["robot"]`` records besides the model
+    (``package_dirs`` absolute on the sweep's machine, ``xacro_args``, ``lock_off_chain``),
+    so that its replay loads the same arm.
     """
 
     run_id: str
@@ -361,6 +367,7 @@ class _Task:
     urdf: _Urdf | None
     keep: bool
     scratch: str | None = None
+    robot_meta: dict[str, Any] | None = None
 
 
 _Outcome = tuple[dict[str, Any], bytes | None]
@@ -391,7 +398,7 @@ class _Source:
             self.signature = _signature(path)
         except OSError as exc:
             raise SweepError(f"cannot read scenario file '{path}': {exc}") from exc
-        self._urdfs: dict[str, _Urdf | str] = {}  # target path → file, or why it is unreadable
+        self._urdfs: dict[str, _Urdf | str] = {}  # model and options → file, or why not
 
     def job(self, rid: str, params: Mapping[str, Any], keep: bool) -> _Task | dict[str, Any]:
         """The task of one variant, or its finished row when it is bad input already here.
@@ -413,39 +420,68 @@ class _Source:
             )
         try:
             doc = read_scenario_document(self.path, dict(params))
-            urdf = self._urdf(doc)
+            urdf, robot_meta = self._urdf(doc)
         except BadInputError as exc:
             row = _new_row(rid, params)
             row["status"] = "bad input"
             row["error"] = _one_line(str(exc))
             row["wall_time"] = 0.0
             return row
-        return _Task(rid, dict(params), doc, self.origin, urdf, keep, self.scratch)
+        return _Task(rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta)
 
-    def _urdf(self, doc: Mapping[str, Any]) -> _Urdf | None:
-        """The URDF file ``robot.model`` names (relative to the scenario's folder), or None."""
-        robot = doc.get("robot")
-        model = robot.get("model") if isinstance(robot, Mapping) else None
-        if not _is_urdf_path(model):
-            return None
-        assert isinstance(model, str)
-        candidate = Path(model)
-        target = candidate if candidate.is_absolute() else self.path.parent / candidate
-        key = str(target)
+    def _urdf(self, doc: Mapping[str, Any]) -> tuple[_Urdf | None, dict[str, Any]]:
+        """The model file ``robot.model`` names (relative to the scenario's folder; None for a
+        registry arm), and the options the result's ``meta["robot"]`` records.
+
+        A xacro file is expanded here, once per set of arguments and package folders; its
+        failure is bad input naming ``robot.model``, as the scenario loader says it.
+        """
+        from hybrid_force.errors import ModelWarning, RobotError
+        from hybrid_force.robot import expand_xacro
+        from hybrid_force.scenario import resolve_robot_table
+
+        table = resolve_robot_table(doc, self.path, origin=self.origin)
+        lock = table.values.get("lock_off_chain")
+        robot_meta = {
+            "package_dirs": list(table.package_dirs),
+            "xacro_args": dict(table.xacro_args),
+            "lock_off_chain": lock if isinstance(lock, bool) else None,
+        }
+        if table.kind == "name":
+            return None, robot_meta
+        target = Path(table.target)
+        key = json.dumps([str(target), table.xacro_args, table.package_dirs], sort_keys=True)
         if key not in self._urdfs:
             try:
-                data = target.read_bytes()
-                self._urdfs[key] = _Urdf(model, str(target.resolve()), data)
+                if table.kind == "xacro":
+                    with warnings.catch_warnings():  # the worker's load warns, in the row
+                        warnings.simplefilter("ignore", ModelWarning)
+                        text = expand_xacro(
+                            target, table.xacro_args, table.package_dirs, check=True
+                        )
+                    name = target.name.removesuffix(".xacro")
+                    name = name if name.endswith(".urdf") else f"{name or 'robot'}.urdf"
+                    found = _Urdf(
+                        table.model, str(target.resolve()), text.encode("utf-8"), name, True
+                    )
+                else:
+                    data = target.read_bytes()
+                    found = _Urdf(table.model, str(target.resolve()), data, target.name)
+                self._urdfs[key] = found
+            except RobotError as exc:
+                self._urdfs[key] = _one_line(str(exc))
             except FileNotFoundError:
                 self._urdfs[key] = (
-                    f"URDF file not found (paths are relative to the scenario file): {target}"
+                    f"model file not found (paths are relative to the scenario file): {target}"
                 )
             except OSError as exc:
-                self._urdfs[key] = f"cannot read the URDF file {target}: {exc}"
-        found = self._urdfs[key]
-        if isinstance(found, str):
-            raise ScenarioError(f"{self.origin}: robot.model = {json.dumps(model)}: {found}")
-        return found
+                self._urdfs[key] = f"cannot read the model file {target}: {exc}"
+        found_or_why = self._urdfs[key]
+        if isinstance(found_or_why, str):
+            raise ScenarioError(
+                f"{self.origin}: robot.model = {json.dumps(table.model)}: {found_or_why}"
+            )
+        return found_or_why, robot_meta
 
 
 def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) -> dict[str, Any]:
@@ -529,12 +565,18 @@ def _simulate_into(
     from hybrid_force.simulate import simulate
 
     doc = dict(task.doc)
-    if task.urdf is not None:
-        local = tmp / (Path(task.urdf.path).name or "robot.urdf")
-        local.write_bytes(task.urdf.data)
-        robot = doc.get("robot")
-        doc["robot"] = {**(robot if isinstance(robot, dict) else {}), "model": str(local)}
-        renames.append((str(local), task.urdf.path))
+    robot = doc.get("robot")
+    if isinstance(robot, dict):
+        # the package folders were checked by the sweep: simulating reads no mesh
+        robot = {k: v for k, v in robot.items() if k != "package_dirs"}
+        if task.urdf is not None:
+            local = tmp / (task.urdf.name or "robot.urdf")
+            local.write_bytes(task.urdf.data)
+            robot["model"] = str(local)
+            if task.urdf.expanded:
+                robot.pop("xacro_args", None)
+            renames.append((str(local), task.urdf.path))
+        doc["robot"] = robot
     result: Any = None
     try:
         scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
@@ -567,16 +609,19 @@ def _simulate_into(
 def _with_original_model(result: Any, task: _Task) -> Any:
     """The Result with its meta naming the robot as the sweep's machine does, not the worker.
 
-    ``meta["robot"]["model"]``: the registry name, or the URDF's absolute path on the sweep's
-    machine; ``meta["scenario"]["robot"]["model"]``: the value the scenario file writes.
+    ``meta["robot"]``: ``model`` the registry name, or the model file's absolute path on the
+    sweep's machine, and the task's ``robot_meta`` (package folders, xacro arguments,
+    locking: what the replay passes to ``load_robot``); ``meta["scenario"]["robot"]``: the
+    ``[robot]`` table as the scenario file (with the variant's overrides) writes it.
     """
-    if task.urdf is None:
-        return result
     robot = dict(result.meta.get("robot") or {})
-    robot["model"] = task.urdf.path
+    if task.urdf is not None:
+        robot["model"] = task.urdf.path
+    robot.update(task.robot_meta or {})
     source = result.meta.get("scenario")
-    if isinstance(source, dict) and isinstance(source.get("robot"), dict):
-        source = {**source, "robot": {**source["robot"], "model": task.urdf.model}}
+    original = task.doc.get("robot")
+    if isinstance(source, dict) and isinstance(original, dict):
+        source = {**source, "robot": dict(original)}
     return result.with_meta(robot=robot, scenario=source)
 
 
