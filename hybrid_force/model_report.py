@@ -18,15 +18,18 @@
 * the reach (:class:`Reach`): a bound on the distance from the first moving joint to the tip.
 
 The URDF's own content (joint types such as ``continuous``, which Pinocchio turns into
-revolute joints, the full joint list and the visuals) is read with yourdfpy, from the text
-:func:`hybrid_force.urdf_check.urdf_text` gives (imported here, on first use: about 0.7 s).
-The dynamics-side numbers (limits, masses, placements) come from the Pinocchio model the
-simulation uses. A file yourdfpy cannot read (not a URDF, e.g.) still gets the Pinocchio part
-and a note.
+revolute joints, the full joint list and the visuals) is read with yourdfpy (imported here, on
+first use: about 0.7 s), from the text the model was built from
+(:attr:`Robot.urdf_xml <hybrid_force.robot.Robot.urdf_xml>`: the file as
+:func:`hybrid_force.urdf_check.urdf_text` reads it, or xacro's expansion). The dynamics-side
+numbers (limits, masses, placements) come from the Pinocchio model the simulation uses. An
+MJCF model, or a file yourdfpy cannot read, still gets the Pinocchio part and a note.
 
-Mesh resolution: ``package://NAME/REST`` is looked for as ``DIR/NAME/REST`` in each of the
-robot's ``package_dirs`` (as Pinocchio does); ``file://PATH`` and a plain path are taken
-relative to the URDF's folder unless absolute; any other URI scheme counts as missing.
+Mesh resolution, the replay's (:func:`hybrid_force.replay.visual_geometry`), so that a mesh
+reported found is one the replay draws: ``package://NAME/REST`` is ``DIR/NAME/REST`` in the
+first of the robot's ``package_dirs`` that holds it; ``file://PATH`` and a plain path are
+taken as is when absolute, else relative to the model file's folder, then to each package
+folder; another URI scheme (``http://``) names no file.
 """
 
 from __future__ import annotations
@@ -184,7 +187,13 @@ def model_report(model: str | Path, tip: str | None = None) -> ModelReport:
         except HybridForceError:
             default_tip = None
     notes: list[str] = []
-    urdf = _read_urdf(robot.urdf_path, notes)
+    xml = robot.urdf_xml
+    if xml is None:
+        notes.append(
+            f"{robot.urdf_path} is an MJCF model: joint types are Pinocchio's, and fixed "
+            "joints and meshes are not reported"
+        )
+    urdf = _read_urdf(xml, robot.urdf_path, notes) if xml is not None else None
     pin_model = robot.model
     names = [str(pin_model.names[j]) for j in range(1, pin_model.njoints)]
     urdf_types = {j.name: j.type for j in urdf.robot.joints} if urdf is not None else {}
@@ -282,11 +291,10 @@ def _recorded_model_warnings() -> Iterator[list[str]]:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
 
 
-def _read_urdf(path: Path, notes: list[str]) -> Any | None:
-    """The yourdfpy model of ``path`` (no meshes loaded), or None with a note saying why."""
+def _read_urdf(xml: str, path: Path, notes: list[str]) -> Any | None:
+    """The yourdfpy model of the URDF text ``xml`` read from ``path`` (no meshes loaded), or
+    None with a note saying why."""
     import yourdfpy  # about 0.7 s (trimesh, scipy): only here
-
-    from hybrid_force.urdf_check import urdf_text
 
     logger = logging.getLogger("yourdfpy")
     records: list[logging.LogRecord] = []
@@ -299,7 +307,7 @@ def _read_urdf(path: Path, notes: list[str]) -> Any | None:
     logger.addHandler(handler)
     logger.propagate = False  # nothing on stderr: what it says goes into the notes
     try:
-        data = urdf_text(path).encode("utf-8")
+        data = xml.encode("utf-8")  # urdf_text's declaration, if any, says UTF-8
         urdf = yourdfpy.URDF.load(
             io.BytesIO(data),
             build_scene_graph=False,
@@ -328,21 +336,26 @@ def _meshes(urdf: Any, urdf_path: Path, package_dirs: tuple[str, ...]) -> tuple[
             mesh = visual.geometry.mesh if visual.geometry is not None else None
             if mesh is None or mesh.filename in seen:
                 continue
-            candidates = _mesh_candidates(str(mesh.filename), folder, package_dirs)
-            found = next((c for c in candidates if c.is_file()), None)
+            candidates = tuple(dict.fromkeys(_mesh_candidates(mesh.filename, folder, package_dirs)))
+            found = next((c.resolve() for c in candidates if c.is_file()), None)
             seen[mesh.filename] = MeshRef(str(mesh.filename), link.name, found, candidates)
     return tuple(seen.values())
 
 
 def _mesh_candidates(uri: str, folder: Path, package_dirs: tuple[str, ...]) -> tuple[Path, ...]:
-    """The paths a mesh URI may name, in the order they are tried."""
+    """The paths a mesh URI may name, in the order they are tried (module docstring)."""
     if uri.startswith("package://"):
-        rest = uri.removeprefix("package://")
-        return tuple(Path(d) / rest for d in package_dirs)
-    path = uri.removeprefix("file://")
-    if "://" in path:
+        name, _, rest = uri.removeprefix("package://").partition("/")
+        if not name or not rest or name in (".", ".."):
+            return ()
+        return tuple(Path(d) / name / rest for d in package_dirs)
+    text = uri.removeprefix("file://")
+    if not text or "://" in text:
         return ()  # http:// and the like: never fetched
-    return (folder / path,)  # an absolute path stays itself
+    path = Path(text)
+    if path.is_absolute():
+        return (path,)
+    return (folder / path, *(Path(d) / path for d in package_dirs))
 
 
 def format_report(report: ModelReport) -> str:

@@ -192,6 +192,13 @@ def test_meshes_found_and_missing(tmp_path: Path) -> None:
     assert missing["meshes/gripper.stl"] == (tmp_path / "meshes" / "gripper.stl",)
     assert missing["http://x.org/h.stl"] == ()
     assert tmp_path / "otherpkg" / "h.stl" in missing["package://otherpkg/h.stl"]
+    # the replay draws exactly the meshes reported found (its own resolution, same rule)
+    from hybrid_force.replay import _resolve_mesh
+
+    robot = load_robot(path)
+    dirs = [str(d) for d in robot.package_dirs]
+    for m in report.meshes:
+        assert _resolve_mesh(m.uri, tmp_path, dirs) == m.found, m.uri
     lines = format_report(report).splitlines()
     assert "meshes: 7 referenced, 4 found" in lines
     gripper = tmp_path / "meshes" / "gripper.stl"
@@ -283,3 +290,72 @@ def test_reach_of_a_planar_two_link_arm_is_reached_when_stretched(tmp_path: Path
     assert np.linalg.norm(stretched) == pytest.approx(0.8, abs=1e-12)
     assert [j.urdf_type for j in report.joints] == ["continuous", "continuous"]
     assert "unbounded" in format_report(report)
+
+
+# --- other model sources: the report reads what the model was built from -----------------------
+_RTR_MJCF = """\
+<mujoco model="rtr">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="link1">
+      <joint name="q1" type="hinge" axis="0 0 1"/>
+      <body name="link2">
+        <joint name="q2" type="slide" axis="0 0 1" range="-1 16"/>
+        <inertial pos="0.45 0 0" mass="20" diaginertia="0 1.35 1.35"/>
+        <body name="link3" pos="0.9 0 0">
+          <joint name="q3" type="hinge" axis="0 -1 0" range="-3.2 3.2"/>
+          <inertial pos="0.5 0 0" mass="20" diaginertia="0 1.6666666666666667 1.6666666666666667"/>
+          <body name="tip" pos="1 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_mjcf_rtr_has_the_urdf_rtr_numbers(tmp_path: Path) -> None:
+    """The RTR written in MJCF: the same masses and reach by hand (1.9 m + 16 m); the joint
+    types are Pinocchio's (MJCF has no 'continuous'), and a note says no URDF part is read."""
+    path = tmp_path / "rtr.xml"
+    path.write_text(_RTR_MJCF)
+    report = model_report(path, tip="tip")
+    assert [(j.name, j.urdf_type) for j in report.joints] == [
+        ("q1", "revolute"),
+        ("q2", "prismatic"),
+        ("q3", "revolute"),
+    ]
+    assert (report.joints[1].lower, report.joints[1].upper) == (-1.0, 16.0)
+    assert report.total_mass == pytest.approx(40.0, abs=1e-12)
+    assert report.reach.links == pytest.approx(1.9, abs=1e-12)
+    assert report.reach.prismatic == 16.0
+    assert report.meshes == () and report.fixed_joints == ()
+    assert len(report.notes) == 1 and "is an MJCF model" in report.notes[0]
+
+
+def test_xacro_is_reported_from_its_expansion(tmp_path: Path) -> None:
+    """Lengths given as xacro properties (0.6 and 0.4 m) and a continuous joint: the report
+    reads the expansion, so the type is 'continuous' and the reach 0.6 + 0.4 m."""
+    path = tmp_path / "two.urdf.xacro"
+    path.write_text(
+        '<robot name="two" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:property name="l1" value="0.6"/><xacro:property name="l2" value="0.4"/>'
+        f'<link name="world"/><link name="a">{_body(1.0, x=0.3)}</link>'
+        f'<link name="b">{_body(1.0, x=0.2)}</link><link name="tip"/>'
+        '<joint name="j1" type="continuous"><parent link="world"/><child link="a"/>'
+        '<axis xyz="0 0 1"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/>'
+        '<origin xyz="${l1} 0 0"/><axis xyz="0 0 1"/>'
+        '<limit lower="-2" upper="2" effort="4" velocity="1"/></joint>'
+        '<joint name="t" type="fixed"><parent link="b"/><child link="tip"/>'
+        '<origin xyz="${l2} 0 0"/></joint></robot>'
+    )
+    report = model_report(path)
+    assert [(j.name, j.urdf_type) for j in report.joints] == [
+        ("j1", "continuous"),
+        ("j2", "revolute"),
+    ]
+    assert report.fixed_joints == ("t",)
+    assert report.reach.total == pytest.approx(1.0, abs=1e-12)
+    assert report.total_mass == pytest.approx(2.0, abs=1e-12)
+    assert report.notes == ()

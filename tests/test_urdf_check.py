@@ -546,13 +546,14 @@ def test_check_urdf_takes_the_text_it_is_given(tmp_path: Path) -> None:
         check_urdf(path, text=_urdf(_inertial("-1", "1", "0", "0", "1", "0", "1")))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="robot.py's _build_model still parses the file itself with ElementTree (unbound "
-    "prefix); it must build from urdf_text(path). Remove this mark when it does.",
-)
-def test_load_robot_accepts_undeclared_prefixes(tmp_path: Path) -> None:
+def test_load_robot_accepts_extension_tags_and_undeclared_prefixes(tmp_path: Path) -> None:
+    """The loader builds from urdf_text: the extended file gives the plain file's dynamics
+    (M = izz + m r² = 0.1 + 2 · 0.5² = 0.6 kg m² by hand), silently."""
     from hybrid_force.robot import load_robot
 
-    robot = load_robot(_write(tmp_path, _extended()[1]))
-    assert robot.nv == 1
+    plain, extended = _extended()
+    robot = load_robot(_write(tmp_path, extended))
+    reference = load_robot(_write(tmp_path, plain, "plain.urdf"))
+    assert robot.nv == reference.nv == 1
+    np.testing.assert_allclose(robot.mass_matrix([0.3]), [[0.6]], rtol=1e-12)
+    np.testing.assert_array_equal(robot.mass_matrix([0.3]), reference.mass_matrix([0.3]))
