@@ -440,6 +440,78 @@ _BROKEN = [
         "not found",
     ),
     (
+        "missing xacro",
+        'model = "rtr"',
+        'model = "arm.urdf.xacro"',
+        "robot.model",
+        '"arm.urdf.xacro"',
+        "xacro file not found (paths are relative to the scenario file)",
+    ),
+    (
+        "missing mjcf",
+        'model = "rtr"',
+        'model = "arm.xml"',
+        "robot.model",
+        '"arm.xml"',
+        "MJCF file not found",
+    ),
+    (
+        "package folder missing",
+        'model = "rtr"',
+        'model = "rtr"\npackage_dirs = ["meshes", "nowhere"]',
+        "robot.package_dirs",
+        '["meshes", "nowhere"]',
+        "folder not found (paths are relative to the scenario file)",
+    ),
+    (
+        "package folders not a list",
+        'model = "rtr"',
+        'model = "rtr"\npackage_dirs = "meshes"',
+        "robot.package_dirs",
+        '"meshes"',
+        "must be an array of strings, got a string",
+    ),
+    (
+        "package folder empty",
+        'model = "rtr"',
+        'model = "rtr"\npackage_dirs = [""]',
+        "robot.package_dirs",
+        '[""]',
+        "element 0 is empty",
+    ),
+    (
+        "xacro arguments for a name",
+        'model = "rtr"',
+        'model = "rtr"\nxacro_args = {l2 = "1"}',
+        "robot.xacro_args",
+        '{"l2": "1"}',
+        'robot.model = "rtr" is not a .xacro file',
+    ),
+    (
+        "xacro arguments not a table",
+        'model = "rtr"',
+        'model = "rtr"\nxacro_args = ["l2"]',
+        "robot.xacro_args",
+        '["l2"]',
+        "must be a table of texts",
+    ),
+    (
+        "xacro argument an array",
+        'model = "rtr"',
+        'model = "rtr"\nxacro_args = {l2 = [1]}',
+        "robot.xacro_args.l2",
+        "[1]",
+        "must be a text (a string), got an array",
+    ),
+    (
+        "lock_off_chain not a boolean",
+        'model = "rtr"',
+        'model = "rtr"\nlock_off_chain = "no"',
+        "robot.lock_off_chain",
+        '"no"',
+        "must be true or false",
+    ),
+    (
         "both surface forms",
         "[trajectory]",
         '[[surfaces]]\ntype = "plane"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n'
@@ -467,6 +539,33 @@ def test_broken_file(
     assert key in msg
     assert value in msg
     assert problem in msg
+
+
+def test_robot_package_dirs_are_relative_to_the_scenario_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "study" / "meshes").mkdir(parents=True)
+    text = BASE.replace('model = "rtr"', 'model = "rtr"\npackage_dirs = ["meshes"]')
+    path = _write(tmp_path / "study", text, "s.toml")
+    monkeypatch.chdir(tmp_path)
+    sc = load_scenario("study/s.toml")
+    assert sc.robot.package_dirs[0] == str(tmp_path / "study" / "meshes")
+    assert sc.robot.reference["package_dirs"] == [str(tmp_path / "study" / "meshes")]
+    assert sc.source["robot"]["package_dirs"] == ["meshes"]  # the file's data, as written
+    assert path.is_file()
+
+
+def test_robot_xacro_argument_values_become_texts(tmp_path: Path) -> None:
+    """Strings stay; numbers and booleans are passed to xacro as their TOML text; a number
+    that is not finite is refused."""
+    from hybrid_force.scenario import xacro_argument_text
+
+    assert [xacro_argument_text(v) for v in ("a b", 0.7, 3, 1e-3, True, False)] == [
+        "a b", "0.7", "3", "0.001", "true", "false",
+    ]  # fmt: skip
+    text = BASE.replace('model = "rtr"', 'model = "rtr"\nxacro_args = {l2 = inf}')
+    msg = _error(_write(tmp_path, text))
+    assert "robot.xacro_args.l2 = Infinity" in msg and "finite" in msg
 
 
 def test_toml_syntax_error_gives_line_and_column(tmp_path: Path) -> None:
