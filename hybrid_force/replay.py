@@ -719,19 +719,21 @@ PLACEHOLDER_SIZE = 0.05
 
 def visual_geometry(robot: Any) -> Any:
     """The visual ``pinocchio.GeometryModel`` of a robot, with a placeholder for every mesh
-    that cannot be found: never an error for a missing mesh.
+    that cannot be found or read: a mesh never makes it an error.
 
     A URDF's (or xacro's expansion's) ``<visual><geometry><mesh filename=...>`` URIs are
     resolved here: ``package://NAME/rest`` as ``NAME/rest`` in the first of
     ``robot.package_dirs`` that holds it, ``file://path`` and plain paths (relative ones to
     the model file's folder, then to each package folder). An MJCF file's ``<asset><mesh
     file=...>`` resolve against its folder (and ``<compiler meshdir>`` or ``assetdir``).
-    Pinocchio then builds the geometry (``pin.buildGeomFromUrdfString`` /
-    ``pin.buildGeomFromMJCF``) from a copy of the XML whose found meshes are absolute paths
-    and whose missing ones are a cube of :data:`PLACEHOLDER_SIZE` at the visual's origin.
-    Each missing mesh gives one :class:`~hybrid_force.errors.ModelWarning` naming its URI
-    and the link(s) (MJCF: bodies) that use it. If Pinocchio cannot read a mesh file that
-    exists, every mesh of the robot becomes a placeholder, with one warning saying why.
+    Each file found is loaded first by coal's cached mesh loader (which Pinocchio then reuses
+    for a URDF); Pinocchio builds the geometry (``pin.buildGeomFromUrdfString`` /
+    ``pin.buildGeomFromMJCF``) from a copy of the XML whose readable meshes are absolute
+    paths and whose missing or unreadable ones are a cube of :data:`PLACEHOLDER_SIZE` at the
+    visual's origin. Each such
+    mesh gives one :class:`~hybrid_force.errors.ModelWarning` naming its URI, the link(s)
+    (MJCF: bodies) that use it and why. Should Pinocchio still fail on the meshes, every mesh
+    of the robot becomes a placeholder, with one warning saying why.
 
     Raises:
         ViewerError: the model file cannot be read or parsed any more.
@@ -745,7 +747,7 @@ def visual_geometry(robot: Any) -> Any:
         return _build_visuals(robot, pin, placeholders_only=False, label=label)
     except ViewerError:
         raise
-    except (RuntimeError, ValueError, IndexError) as exc:  # a mesh file Pinocchio cannot read
+    except (RuntimeError, ValueError, IndexError) as exc:  # a mesh Pinocchio cannot use
         why = " ".join(str(exc).split("message:", 1)[-1].split())
     try:
         visual = _build_visuals(robot, pin, placeholders_only=True, label=label)
@@ -762,9 +764,44 @@ def visual_geometry(robot: Any) -> Any:
     return visual
 
 
+class _Meshes:
+    """Mesh files of one robot: resolved, loaded once, or why they are placeholders."""
+
+    def __init__(self, all_missing: bool) -> None:
+        import coal
+
+        self.loader = coal.CachedMeshLoader()
+        self.all_missing = all_missing
+        self.missing: dict[str, tuple[list[str], str]] = {}  # URI: (owners, why)
+
+    def usable(self, uri: str, path: Path | None, scale: str | None, owner: str, why: str) -> bool:
+        """Whether the file ``path`` (None: not found, ``why``) can be drawn; else record
+        ``uri`` and ``owner`` for the warning."""
+        if path is not None and not self.all_missing:
+            try:
+                self.loader.load(str(path), _scale(scale))
+                return True
+            except (RuntimeError, ValueError) as exc:
+                message = " ".join(str(exc).split("message:", 1)[-1].split())
+                why = f"cannot be read ({message})"
+        owners, _ = self.missing.setdefault(uri, ([], why))
+        if owner not in owners:
+            owners.append(owner)
+        return False
+
+
+def _scale(text: str | None) -> np.ndarray:
+    """A mesh's scale attribute as 3 numbers (1 1 1 when absent or unreadable)."""
+    try:
+        values = [float(x) for x in (text or "").split()]
+    except ValueError:
+        values = []
+    return np.array(values if len(values) == 3 else [1.0, 1.0, 1.0])
+
+
 def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str) -> Any:
     """Build the visual geometry from a copy of the model's XML (see :func:`visual_geometry`);
-    warn about each missing mesh (only when ``placeholders_only`` is False)."""
+    warn about each mesh drawn as a placeholder (not when ``placeholders_only``)."""
     import tempfile
 
     try:
@@ -776,28 +813,27 @@ def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str)
         raise ViewerError(f"cannot load the visual geometry of {label}: {exc}") from exc
     base = Path(robot.urdf_path).resolve().parent
     dirs = [str(d) for d in robot.package_dirs]
+    meshes = _Meshes(all_missing=placeholders_only)
     if robot.kind == "mjcf":
-        missing = _mjcf_meshes(root, base, placeholders_only)
-    else:
-        missing = _urdf_meshes(root, base, dirs, placeholders_only)
-    if robot.kind == "mjcf":
+        _mjcf_meshes(root, base, meshes)
         with tempfile.TemporaryDirectory(prefix="hybrid_force_visuals_") as tmp:
             copy = Path(tmp) / Path(robot.urdf_path).name
             ET.ElementTree(root).write(copy, encoding="unicode")
+            # (its binding takes no CachedMeshLoader: the meshes checked are loaded again)
             visual = pin.buildGeomFromMJCF(robot.model, str(copy), pin.GeometryType.VISUAL)
     else:
+        _urdf_meshes(root, base, dirs, meshes)
         visual = pin.buildGeomFromUrdfString(
             robot.model, ET.tostring(root, encoding="unicode"), pin.GeometryType.VISUAL,
-            package_dirs=dirs,
+            package_dirs=dirs, mesh_loader=meshes.loader,
         )  # fmt: skip
     if not placeholders_only:
-        for uri, owners in missing.items():
-            what = "body" if robot.kind == "mjcf" else "link"
+        what = "body" if robot.kind == "mjcf" else "link"
+        for uri, (owners, why) in meshes.missing.items():
             names = ", ".join(f"'{o}'" for o in owners)
             warnings.warn(
-                f"{label}: mesh '{uri}' of {what}{'s' if len(owners) > 1 else ''} {names} not "
-                f"found (package folders: {', '.join(dirs) or 'none'}); drawn as a "
-                f"{PLACEHOLDER_SIZE:g} m cube",
+                f"{label}: mesh '{uri}' of {what}{'s' if len(owners) > 1 else ''} {names} "
+                f"{why}; drawn as a {PLACEHOLDER_SIZE:g} m cube",
                 ModelWarning,
                 stacklevel=4,
             )
@@ -805,18 +841,17 @@ def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str)
 
 
 def _resolve_mesh(uri: str, base: Path, dirs: list[str]) -> Path | None:
-    """The file a URDF mesh URI names, or None (see :func:`visual_geometry`)."""
-    from hybrid_force.robot import find_package
-
+    """The file a URDF mesh URI names, or None (see :func:`visual_geometry`): for
+    ``package://NAME/rest``, the first ``DIR/NAME/rest`` that exists (as Pinocchio does)."""
     if uri.startswith("package://"):
         name, _, rest = uri[len("package://") :].partition("/")
-        candidates = [Path(d) / name / rest for d in dirs] if name and rest else []
-        package = find_package(name, dirs)
-        if package is not None:
-            candidates.insert(0, package / rest)
+        ok = name not in ("", ".", "..") and rest
+        candidates = [Path(d) / name / rest for d in dirs] if ok else []
     else:
         path = Path(uri.removeprefix("file://"))
-        if path.is_absolute():
+        if "://" in uri.removeprefix("file://"):
+            candidates = []  # http:// and the like: never fetched
+        elif path.is_absolute():
             candidates = [path]
         else:
             candidates = [base / path, *(Path(d) / path for d in dirs)]
@@ -832,12 +867,10 @@ def _placeholder_box(half: bool) -> str:
     return f"{edge:g} {edge:g} {edge:g}"
 
 
-def _urdf_meshes(
-    root: ET.Element, base: Path, dirs: list[str], all_missing: bool
-) -> dict[str, list[str]]:
-    """Make a URDF tree's visual meshes absolute paths, or placeholder boxes when missing
-    (every one with ``all_missing``); return {URI: links} of the missing ones."""
-    missing: dict[str, list[str]] = {}
+def _urdf_meshes(root: ET.Element, base: Path, dirs: list[str], meshes: _Meshes) -> None:
+    """Make a URDF tree's visual meshes absolute paths, or placeholder boxes when they are
+    missing or unreadable (recorded in ``meshes``)."""
+    where = f"not found (package folders: {', '.join(dirs) or 'none'})"
     for link in root.findall("link"):
         for visual in link.findall("visual"):
             geometry = visual.find("geometry")
@@ -845,21 +878,17 @@ def _urdf_meshes(
             if geometry is None or mesh is None:
                 continue
             uri = mesh.get("filename", "")
-            found = None if all_missing else _resolve_mesh(uri, base, dirs)
-            if found is not None:
+            found = _resolve_mesh(uri, base, dirs)
+            if meshes.usable(uri, found, mesh.get("scale"), link.get("name", "?"), where):
                 mesh.set("filename", str(found))
                 continue
-            owners = missing.setdefault(uri, [])
-            if link.get("name", "?") not in owners:
-                owners.append(link.get("name", "?"))
             geometry.remove(mesh)
             ET.SubElement(geometry, "box", size=_placeholder_box(half=False))
-    return missing
 
 
-def _mjcf_meshes(root: ET.Element, base: Path, all_missing: bool) -> dict[str, list[str]]:
-    """Make an MJCF tree's mesh assets absolute paths; replace the geoms of a missing one (of
-    every one with ``all_missing``) by placeholder boxes; return {file: bodies} of those."""
+def _mjcf_meshes(root: ET.Element, base: Path, meshes: _Meshes) -> None:
+    """Make an MJCF tree's mesh assets absolute paths; replace the geoms of a missing or
+    unreadable one by placeholder boxes (recorded in ``meshes`` under the file as written)."""
     folder = base
     for compiler in root.iter("compiler"):
         sub = compiler.get("meshdir") or compiler.get("assetdir")
@@ -867,32 +896,37 @@ def _mjcf_meshes(root: ET.Element, base: Path, all_missing: bool) -> dict[str, l
             folder = base / sub
         for key in ("meshdir", "assetdir"):
             compiler.attrib.pop(key, None)
-    gone: dict[str, str] = {}  # asset name → file as written
+    assets: dict[str, tuple[str, Path | None, str | None]] = {}  # name: (file, path, scale)
     for asset in root.iter("asset"):
         for mesh in list(asset.findall("mesh")):
             file = mesh.get("file")
             if not file:
                 continue
             path = Path(file) if Path(file).is_absolute() else folder / file
-            if not all_missing and path.is_file():
-                mesh.set("file", str(path.resolve()))
-                continue
-            gone[mesh.get("name") or Path(file).stem] = file
-            asset.remove(mesh)
-    missing: dict[str, list[str]] = {}
+            found = path.resolve() if path.is_file() else None
+            assets[mesh.get("name") or Path(file).stem] = (file, found, mesh.get("scale"))
+            if found is not None:
+                mesh.set("file", str(found))
+    gone: set[str] = set()
     for body in [*root.iter("worldbody"), *root.iter("body")]:
         for geom in body.findall("geom"):
             name = geom.get("mesh")
-            if name is None or name not in gone:
+            if name is None or name not in assets:
                 continue
-            owners = missing.setdefault(gone[name], [])
+            file, found, scale = assets[name]
             owner = body.get("name", "world") if body.tag == "body" else "world"
-            if owner not in owners:
-                owners.append(owner)
+            why = f"not found (in {folder})"
+            if name not in gone and meshes.usable(file, found, scale, owner, why):
+                continue
+            gone.add(name)
+            meshes.usable(file, None, None, owner, why)  # the owner joins the warning
             del geom.attrib["mesh"]
             geom.set("type", "box")
             geom.set("size", _placeholder_box(half=True))
-    return missing
+    for asset in root.iter("asset"):
+        for mesh in list(asset.findall("mesh")):
+            if (mesh.get("name") or Path(mesh.get("file", "")).stem) in gone:
+                asset.remove(mesh)
 
 
 # --------------------------------------------------------------------------- static page

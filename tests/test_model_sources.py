@@ -246,6 +246,20 @@ def test_relative_and_file_uris_resolve_against_the_urdf_folder(tmp_path: Path) 
     assert paths == [str(tmp_path / "meshes" / "a.stl")] * 2
 
 
+def test_an_unreadable_mesh_is_a_placeholder_with_one_warning(tmp_path: Path) -> None:
+    """A file that exists but is no mesh: the other mesh is still drawn."""
+    arm, packages = _mesh_tree(tmp_path)
+    (packages / "mypkg" / "meshes" / "missing.stl").write_bytes(b"garbage\x00\x01")
+    robot = load_robot(arm, package_dirs=[packages])
+    with pytest.warns(ModelWarning) as record:
+        visual = replay.visual_geometry(robot)
+    assert len(record) == 1
+    message = str(record[0].message)
+    assert "mesh 'package://mypkg/meshes/missing.stl' of link 'l2' cannot be read" in message
+    kinds = {g.name: type(g.geometry).__name__ for g in visual.geometryObjects}
+    assert kinds["l2_0"] == "Box" and kinds["l1_0"].startswith("BVHModel")
+
+
 def test_the_replay_reloads_package_dirs_from_meta(tmp_path: Path) -> None:
     arm, packages = _mesh_tree(tmp_path)
     robot = load_robot(arm, package_dirs=[packages])
@@ -682,7 +696,7 @@ def test_mjcf_replay_draws_its_mesh_and_warns_about_a_missing_one(tmp_path: Path
     robot = load_robot(path, tip="tip")
     page, caught = _html(_result(robot), tmp_path)
     assert len(caught) == 1, [str(w.message) for w in caught]
-    assert "mesh 'gone.stl' of body 'l2'" in str(caught[0].message)
+    assert "mesh 'gone.stl' of body 'l2' not found" in str(caught[0].message)
     objects = _visual_objects(page)
     stl = [o for o in objects.values() if o["geometries"][0].get("format") == "stl"]
     assert len(stl) == 1 and stl[0]["geometries"][0]["data"].data == STL.encode()
