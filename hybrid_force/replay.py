@@ -710,7 +710,7 @@ def _scenario_package_dirs(model: object, table: dict[str, Any]) -> list[str] | 
     if len(full.parts) <= len(rel.parts) or full.parts[-len(rel.parts) :] != rel.parts:
         return None
     folder = full.parents[len(rel.parts) - 1]
-    return [str(folder / d) for d in dirs if isinstance(d, str) and d]
+    return [os.path.normpath(folder / d) for d in dirs if isinstance(d, str) and d]
 
 
 #: Edge of the cube drawn in place of a mesh that cannot be found or read [m].

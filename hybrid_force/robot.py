@@ -588,7 +588,7 @@ def _absolute_dirs(dirs: Sequence[str | os.PathLike[str]]) -> tuple[str, ...]:
     for d in dirs:
         if not isinstance(d, (str, os.PathLike)) or not str(d):
             raise RobotError(f"package_dirs must hold folder paths, got {d!r}")
-        out.append(str(Path(d).absolute()))
+        out.append(os.path.abspath(d))  # absolute, ".." resolved (not symlinks)
     return tuple(out)
 
 
@@ -609,7 +609,7 @@ def _xacro_arguments(args: Mapping[str, str] | None) -> dict[str, str]:
 def _ros_package_path() -> tuple[str, ...]:
     """The folders of the ``ROS_PACKAGE_PATH`` environment variable, absolute, in order."""
     text = os.environ.get("ROS_PACKAGE_PATH", "")
-    return tuple(str(Path(d).absolute()) for d in text.split(os.pathsep) if d)
+    return tuple(os.path.abspath(d) for d in text.split(os.pathsep) if d)
 
 
 def find_package(name: str, package_dirs: Sequence[str]) -> Path | None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import os
 import re
 import tomllib
 from collections.abc import Iterable, Mapping
@@ -666,7 +667,7 @@ def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
                 raw.get("package_dirs"),
                 f"folder not found (paths are relative to the scenario file): {folder}",
             )
-        dirs.append(str(folder.absolute()))
+        dirs.append(os.path.abspath(folder))
     args = values.get("xacro_args", {})
     if args and kind != "xacro":
         raise ctx.error(
