@@ -17,7 +17,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force.errors import DimensionError, FrameError, UnknownRobotError, URDFError
+from hybrid_force.errors import (
+    DimensionError,
+    FrameError,
+    RobotError,
+    UnknownRobotError,
+    URDFError,
+)
 from hybrid_force.robot import Robot, RobotTerms, load_robot
 
 ARMS = ("rtr", "ur5", "panda")
@@ -431,3 +437,57 @@ def test_a_hand_built_model_with_a_massless_joint_is_refused() -> None:
     model.addFrame(pin.Frame("link", j, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))
     with pytest.raises(RobotError, match="'massless'"):
         Robot(model, name="hand", urdf_path=Path("none.urdf"), tip="link")
+
+
+# --- model files other than .urdf: names vs paths, what reloads the arm ------------------------
+def test_texts_ending_xacro_or_xml_are_paths_never_names(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """'arm.xml' and 'arm.urdf.xacro' are files of the working directory (a registry name has
+    no such ending); a missing one says which kind of file is missing."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(URDFError, match=r"^MJCF file not found: arm.xml$"):
+        load_robot("arm.xml")
+    with pytest.raises(URDFError, match=r"^xacro file not found: arm.urdf.xacro$"):
+        load_robot("arm.urdf.xacro")
+    (tmp_path / "arm.xml").write_text(_ONE_JOINT)  # a URDF named .xml: read as a URDF
+    robot = load_robot("arm.xml")
+    assert (robot.kind, robot.nv, robot.source) == ("urdf", 1, str(tmp_path / "arm.xml"))
+
+
+def test_reference_reloads_the_same_arm(tmp_path: Path) -> None:
+    (tmp_path / "meshes").mkdir()
+    path = tmp_path / "one.urdf"
+    path.write_text(_ONE_JOINT)
+    robot = load_robot(path, package_dirs=[tmp_path / "meshes"], lock_off_chain=False)
+    assert robot.reference == {
+        "model": str(path.resolve()),
+        "tip": "end",
+        "package_dirs": [str(tmp_path / "meshes")],
+        "xacro_args": {},
+        "lock_off_chain": False,
+    }
+    again = load_robot(**robot.reference)
+    assert again.reference == robot.reference and again.package_dirs == robot.package_dirs
+    heavy = robot.with_mass_factor(2.0)
+    assert heavy.reference == robot.reference and heavy.kind == robot.kind == "urdf"
+    assert heavy.urdf_xml == robot.urdf_xml and '<robot name="one">' in robot.urdf_xml
+    named = load_robot("rtr")
+    assert named.reference == {
+        "model": "rtr", "tip": "tip", "package_dirs": [], "xacro_args": {},
+        "lock_off_chain": None,
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"package_dirs": "meshes"}, "package_dirs must be a list of folders"),
+        ({"package_dirs": [3]}, "package_dirs must hold folder paths"),
+        ({"xacro_args": ["l1"]}, "xacro_args must be a mapping"),
+        ({"lock_off_chain": "yes"}, "lock_off_chain must be True, False or None"),
+    ],
+)
+def test_bad_load_options_are_refused(kwargs: dict, match: str) -> None:
+    with pytest.raises(RobotError, match=match):
+        load_robot("rtr", **kwargs)
