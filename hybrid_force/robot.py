@@ -573,8 +573,9 @@ def model_kind(path: str | os.PathLike[str]) -> str:
     if not text.endswith(".xml"):
         return "urdf"
     try:
-        for _event, element in ET.iterparse(path, events=("start",)):
-            return "urdf" if element.tag == "robot" else "mjcf"
+        with open(path, "rb") as fh:
+            for _event, element in ET.iterparse(fh, events=("start",)):
+                return "urdf" if element.tag == "robot" else "mjcf"
     except (OSError, ET.ParseError):
         pass  # missing or malformed: the MJCF loader says why
     return "mjcf"
@@ -693,6 +694,7 @@ def expand_xacro(
         saved_eval = substitution_args._eval_dict.get("find")
         substitution_args._eval_find = find
         substitution_args._eval_dict["find"] = find
+        xacro.all_includes = []  # xacro's record of every file it read: never emptied by it
         try:
             doc = xacro.process_file(target, mappings=dict(args), verbosity=0)
             text = doc.toxml()
@@ -703,9 +705,12 @@ def expand_xacro(
             if macros:
                 with contextlib.suppress(Exception):
                     where += f" (in macro '{macros[-1].body.getAttribute('name')}')"
-            cause: BaseException | None = exc
-            while cause is not None and not isinstance(cause, _FindError):
+            cause: BaseException | None = exc  # xacro wraps our $(find) error: unwrap it
+            for _ in range(10):
+                if cause is None or isinstance(cause, _FindError):
+                    break
                 cause = getattr(cause, "exc", None) or cause.__cause__ or cause.__context__
+            cause = cause if isinstance(cause, _FindError) else None
             if isinstance(exc, xml.parsers.expat.ExpatError):
                 why = f"XML syntax error: {exc}"
             elif cause is not None:
