@@ -677,9 +677,9 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     args = info.get("xacro_args", table.get("xacro_args"))
     if isinstance(args, dict) and args:
-        out["xacro_args"] = {
-            str(k): v if isinstance(v, str) else _toml_text(v) for k, v in args.items()
-        }
+        texts = {str(k): _toml_text(v) for k, v in args.items()}
+        if all(isinstance(v, str) for v in texts.values()):
+            out["xacro_args"] = texts
     lock = info.get("lock_off_chain", table.get("lock_off_chain"))
     if isinstance(lock, bool):
         out["lock_off_chain"] = lock
@@ -691,11 +691,15 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _toml_text(value: object) -> str:
-    """A scenario's xacro argument given as a TOML number or boolean, as the loader passes it."""
+def _toml_text(value: object) -> str | None:
+    """A scenario's xacro argument as the loader passes it (a TOML number or boolean as its
+    text), or None for a value the loader refuses."""
     from hybrid_force.scenario import xacro_argument_text
 
-    return xacro_argument_text(value)
+    try:
+        return xacro_argument_text(value)
+    except TypeError:
+        return None
 
 
 def _scenario_package_dirs(model: object, table: dict[str, Any]) -> list[str] | None:

@@ -320,6 +320,21 @@ def test_missing_robot(result: Result) -> None:
         replay.Replay(result.with_meta(**meta))
 
 
+def test_load_options_of_the_wrong_type_in_meta_are_ignored(result: Result) -> None:
+    """A result file is input: package folders, xacro arguments or locking of the wrong type
+    in meta['robot'] are not passed to load_robot (the arm loads without them)."""
+    meta = dict(result.meta)
+    meta["robot"] = {
+        "model": "rtr", "tip": "tip", "nq": 3, "package_dirs": "/not/a/list",
+        "xacro_args": {"a": [1]}, "lock_off_chain": "maybe",
+    }  # fmt: skip
+    rep = replay.Replay(result.with_meta(**meta))
+    assert rep.robot.nv == 3 and rep.robot.reference["package_dirs"] == []
+    meta["robot"] = {"model": "rtr", "tip": "tip", "nq": 3, "xacro_args": {"l2": "1"}}
+    with pytest.raises(ViewerError, match=r"xacro arguments \(l2\) are given for rtr"):
+        replay.Replay(result.with_meta(**meta))
+
+
 @pytest.mark.parametrize(
     ("name", "value"),
     [("fps", 0), ("fps", float("nan")), ("force_scale", -1.0), ("surface_opacity", 1.5)],
