@@ -561,7 +561,9 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         "run_id": uuid.uuid4().hex,
         "description": sc.description,
         "scenario": _jsonable(sc.source) if sc.source is not None else None,
-        "robot": {"model": robot.source, "tip": robot.tip, "nq": nq},
+        # what re-loads the arm from any folder: model (registry name or absolute path), tip,
+        # package_dirs, xacro_args, lock_off_chain
+        "robot": {**robot.reference, "nq": nq},
         "surfaces": [s.to_dict() for s in sc.surfaces],
         "path": _path_meta(sc.path),
         "gains": {
