@@ -60,10 +60,33 @@ def _cmd_robots(args: argparse.Namespace) -> int:
     if args.check is not None:
         from hybrid_force.model_report import format_report, model_report
 
-        sys.stdout.write(format_report(model_report(args.check, tip=args.tip)))
+        xacro_args: dict[str, str] = {}
+        for text in args.xacro_arg:
+            name, sep, value = text.partition("=")
+            if not sep or not name.strip():
+                raise BadInputError(f"robots: --xacro-arg {text!r} must look like NAME=VALUE")
+            xacro_args[name.strip()] = value
+        report = model_report(
+            args.check,
+            tip=args.tip,
+            package_dirs=args.package_dir,
+            xacro_args=xacro_args or None,
+            lock_off_chain=False if args.keep_off_chain else None,
+        )
+        sys.stdout.write(format_report(report))
         return 0
-    if args.tip is not None:
-        raise BadInputError("robots: --tip needs --check MODEL")
+    given = [
+        o
+        for o, v in (
+            ("--tip", args.tip is not None),
+            ("--package-dir", args.package_dir),
+            ("--xacro-arg", args.xacro_arg),
+            ("--keep-off-chain", args.keep_off_chain),
+        )
+        if v
+    ]
+    if given:
+        raise BadInputError(f"robots: {', '.join(given)} needs --check MODEL")
     from hybrid_force._registry import known_robots
     from hybrid_force.robot import load_robot
 
@@ -343,6 +366,25 @@ def build_parser(*, sweep_options: bool = True) -> argparse.ArgumentParser:
     )
     robots.add_argument(
         "--tip", metavar="FRAME", default=None, help="with --check: the tip frame to load with"
+    )
+    robots.add_argument(
+        "--package-dir",
+        metavar="DIR",
+        action="append",
+        default=[],
+        help="with --check: a folder holding package://NAME/... as NAME/... (repeatable)",
+    )
+    robots.add_argument(
+        "--xacro-arg",
+        metavar="NAME=VALUE",
+        action="append",
+        default=[],
+        help="with --check: an argument of a .xacro model (repeatable)",
+    )
+    robots.add_argument(
+        "--keep-off-chain",
+        action="store_true",
+        help="with --check: keep the joints off the chain to the tip free (not locked)",
     )
     robots.set_defaults(handler=_cmd_robots)
     _add_run(sub)

@@ -38,7 +38,7 @@ import io
 import logging
 import math
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -163,12 +163,21 @@ class ModelReport:
     notes: tuple[str, ...] = field(default=())
 
 
-def model_report(model: str | Path, tip: str | None = None) -> ModelReport:
+def model_report(
+    model: str | Path,
+    tip: str | None = None,
+    *,
+    package_dirs: Sequence[str | Path] = (),
+    xacro_args: Mapping[str, str] | None = None,
+    lock_off_chain: bool | None = None,
+) -> ModelReport:
     """Load ``model`` as a scenario would and report what the simulation will see.
 
     Args:
-        model: a registry name or a URDF path (as for :func:`~hybrid_force.robot.load_robot`).
+        model: a registry name or a model path (as for :func:`~hybrid_force.robot.load_robot`).
         tip: the tip frame (default: the model's default tip).
+        package_dirs, xacro_args, lock_off_chain: as for
+            :func:`~hybrid_force.robot.load_robot` (the scenario's ``[robot]`` keys).
 
     Raises:
         URDFError, UnknownRobotError, FrameError: as :func:`~hybrid_force.robot.load_robot`
@@ -176,14 +185,19 @@ def model_report(model: str | Path, tip: str | None = None) -> ModelReport:
     """
     from hybrid_force.robot import load_robot
 
+    options: dict[str, Any] = {
+        "package_dirs": tuple(package_dirs),
+        "xacro_args": xacro_args,
+        "lock_off_chain": lock_off_chain,
+    }
     with _recorded_model_warnings() as said:
-        robot = load_robot(model, tip=tip)
+        robot = load_robot(model, tip=tip, **options)
     default_tip: str | None = robot.tip
     if tip is not None:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ModelWarning)  # already recorded above
-                default_tip = load_robot(model).tip
+                default_tip = load_robot(model, **options).tip
         except HybridForceError:
             default_tip = None
     notes: list[str] = []

@@ -831,3 +831,18 @@ def test_scenario_lock_off_chain_key(tmp_path: Path) -> None:
     )
     with pytest.raises(ScenarioError, match=r"initial.seed = .*must have 4 numbers"):
         load_scenario(kept)
+
+
+def test_robots_check_takes_the_load_options(tmp_path: Path, capsys) -> None:
+    """``robots --check`` loads a xacro arm with its argument: the reported reach is the
+    joint-to-joint distance l1 plus l2 (both revolute), and the total mass 2 + 1 kg."""
+    from hybrid_force.cli import main
+
+    path = _xacro_arm(tmp_path)
+    assert main(["robots", "--check", str(path), "--xacro-arg", "l1=0.7"]) == 0
+    out = capsys.readouterr().out
+    assert "reach: 1.2 m" in out and "total mass: 3 kg" in out
+    assert main(["robots", "--xacro-arg", "l1=0.7"]) == 2
+    assert "--xacro-arg needs --check MODEL" in capsys.readouterr().err
+    assert main(["robots", "--check", str(path), "--xacro-arg", "l1"]) == 2
+    assert "must look like NAME=VALUE" in capsys.readouterr().err
