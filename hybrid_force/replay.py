@@ -584,11 +584,10 @@ class Replay:
         """
         s = self.settings
         surface = self.surfaces[k] if k < len(self.surfaces) else None
-        visible = bool(f != 0.0 and math.isfinite(f) and surface is not None)
-        if not visible:
+        if surface is None or not (f != 0.0 and math.isfinite(f)):
             return _homogeneous(translation=p), 1e-6, False
         try:
-            n = np.asarray(surface.normal(p), dtype=float)
+            n: np.ndarray = np.asarray(surface.normal(p), dtype=np.float64)
         except HybridForceError:
             return _homogeneous(translation=p), 1e-6, False
         direction = n if f > 0 else -n
@@ -670,7 +669,8 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
     ``meta["robot"]["model"]`` (the scenario's folder is then known). Values of the wrong type
     are ignored (the arm is then loaded without them).
     """
-    info = meta.get("robot") if isinstance(meta.get("robot"), dict) else {}
+    robot_meta = meta.get("robot")
+    info: dict[str, Any] = robot_meta if isinstance(robot_meta, dict) else {}
     scenario = meta.get("scenario")
     table = scenario.get("robot") if isinstance(scenario, dict) else None
     table = table if isinstance(table, dict) else {}
@@ -1020,7 +1020,7 @@ class _ZmqWindow:
         import zmq
 
         self._zmq = zmq
-        self.context = zmq.Context.instance()
+        self.context: Any = zmq.Context.instance()
         self.socket = self.context.socket(zmq.REQ)
         self.socket.setsockopt(zmq.LINGER, 0)
         self.socket.setsockopt(zmq.SNDTIMEO, _ZMQ_TIMEOUT_MS)
@@ -1223,7 +1223,7 @@ def _server_main() -> None:
     class LoopbackBridge(zmqserver.ZMQWebSocketBridge):
         def make_app(self) -> Any:
             app = super().make_app()
-            app.listen = functools.partial(app.listen, address="127.0.0.1")  # type: ignore[method-assign]
+            app.listen = functools.partial(app.listen, address="127.0.0.1")
             return app
 
     try:
@@ -1254,7 +1254,7 @@ def _signals_raise_interrupt() -> Iterator[None]:
     def _handler(signum: int, frame: object) -> None:
         raise KeyboardInterrupt(f"signal {signum}")
 
-    old: dict[int, Any] = {}
+    old: dict[signal.Signals, Any] = {}
     for sig in (signal.SIGTERM, signal.SIGHUP):
         old[sig] = signal.signal(sig, _handler)
     try:

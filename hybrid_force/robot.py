@@ -380,7 +380,7 @@ class Robot:
         data = self.data if data is None else data
         if out is None:
             out = RobotTerms.zeros(model.nv)
-        elif out._packs is None:
+        if out._packs is None:
             raise DimensionError("out must come from RobotTerms.zeros(n)")
         mats, vecs, jac, tip = out._packs
         Mu = pin.crba(model, data, q)

@@ -31,7 +31,7 @@ import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -43,6 +43,10 @@ from hybrid_force.errors import (
     ScenarioError,
     did_you_mean,
 )
+
+if TYPE_CHECKING:  # annotations only: the loader imports these where it builds them
+    from hybrid_force.paths import Path as DesiredPath
+    from hybrid_force.surfaces import Surface
 from hybrid_force.paths import ON_SURFACE_TOL  # re-exported: the loader's and Scenario's rule
 
 __all__ = [
@@ -717,6 +721,7 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
     checked: list[tuple[str, dict]] = []
     for name, table in tables:
         kind, values = _typed_table(ctx, name, table, _SURFACE)
+        s: Surface
         try:
             if kind == "cylinder":
                 s = Cylinder(
@@ -744,6 +749,7 @@ def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
     from hybrid_force.paths import Circle, Helix
 
     kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
+    path: DesiredPath
     try:
         if kind == "helix":
             path = Helix(
