@@ -36,6 +36,7 @@ __all__ = [
     "RunWarning",
     "ScenarioError",
     "ScenarioValueError",
+    "SensorError",
     "SimSettingsError",
     "SimulationError",
     "SingularConfigurationError",
@@ -161,6 +162,10 @@ class RunWarning(HybridForceWarning):
 class OutputError(BadInputError):
     """An output path cannot be used: not writable, locked by another run, or it would
     overwrite an input or another output of the same run."""
+
+
+class SensorError(BadInputError):
+    """A sensor setting (the ``[sensor]`` table) or the control rate is invalid."""
 
 
 class ScenarioError(BadInputError):
