@@ -82,7 +82,8 @@ class PlotError(BadInputError):
 class _Run:
     """The arrays of one run that the figures need, with shapes checked.
 
-    t: (N,) [s]; p, p_d: (N, 3) [m]; f, f_d, phi: (N, k) [N, N, m]; V: (N,) [J];
+    t: (N,) [s]; p, p_d: (N, 3) [m]; f, f_d, phi: (N, k) [N, N, m]; f_meas: (N, k) the force
+    the controller measured [N], or None when it is f (ideal sensing); V: (N,) [J];
     phase: (N,) int (0 free, 1 near, 2 contact); surfaces: surface dicts of the schema;
     events: (t [s], kind) pairs of meta["events"], sorted by time.
     """
@@ -97,6 +98,7 @@ class _Run:
     phase: np.ndarray
     surfaces: tuple[Mapping[str, Any], ...]
     events: tuple[tuple[float, str], ...]
+    f_meas: np.ndarray | None = None
 
     @property
     def k(self) -> int:
@@ -197,6 +199,11 @@ def _load_run(result: object) -> _Run:
     if not isinstance(meta, Mapping):
         raise PlotError(f"result.meta must be a dict, got {type(meta).__name__}")
     name = str(meta.get("name") or "unnamed run")
+    f_meas = getattr(result, "f_meas", None)
+    if f_meas is not None:
+        f_meas = _as_columns(np.asarray(f_meas, dtype=float), "f_meas", n)
+        if f_meas.shape != f.shape or np.array_equal(f_meas, f):
+            f_meas = None  # ideal sensing: nothing more to draw
     return _Run(
         name=name,
         t=t,
@@ -208,6 +215,7 @@ def _load_run(result: object) -> _Run:
         phase=phase.astype(np.int64),
         surfaces=_read_surfaces(meta),
         events=_read_events(meta),
+        f_meas=f_meas,
     )
 
 
@@ -755,8 +763,17 @@ def _fig_desired_force(run: _Run) -> Figure:
             color=f"C{j}",
             lw=1.0,
             alpha=0.8,
-            label=_column_label("measured $f$", j, run.k),
+            label=_column_label("true $f$" if run.f_meas is not None else "$f$", j, run.k),
         )
+        if run.f_meas is not None:
+            ax.plot(
+                run.t[sel],
+                run.f_meas[sel, j],
+                color=f"C{j + 3}",
+                lw=0.8,
+                alpha=0.7,
+                label=_column_label("measured $\\tilde f$", j, run.k),
+            )
         ax.plot(
             run.t[sel],
             run.f_d[sel, j],

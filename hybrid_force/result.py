@@ -41,6 +41,7 @@ __all__ = [
     "CONVERGE_TOLERANCE",
     "DEFAULT_SETTLE_TIME",
     "EVENT_KINDS",
+    "OPTIONAL_ARRAYS",
     "PHASE_CONTACT",
     "PHASE_FREE",
     "PHASE_NEAR",
@@ -64,6 +65,9 @@ ARRAY_NAMES: tuple[str, ...] = (
     "V",
     "phase",
 )
+#: Arrays a result file may hold beyond :data:`ARRAY_NAMES` (older files lack them; see
+#: :class:`Result` for the value then).
+OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas",)
 #: Phase codes of the ``phase`` array.
 PHASE_FREE = 0
 PHASE_NEAR = 1
@@ -340,6 +344,9 @@ class Result:
         phase: (N,) int64 phase code: 2 (contact) exactly when the tool is on the surface
             (the plant's contact state); otherwise the supervisor's approach phase, 0 free or
             1 near (a sample off the surface is never 2, whatever the controller assumed).
+        f_meas: (N,) or (N, k) the contact force the controller measured and used at each
+            sample (held between control ticks) [N]; with ideal sensing at the plant's rate it
+            is f itself (also the value for files written before it existed).
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
             steps_per_second counts the loop from its second step on (the first steps load
@@ -362,6 +369,7 @@ class Result:
     V: np.ndarray
     phase: np.ndarray
     meta: dict[str, Any] = field(default_factory=dict)
+    f_meas: np.ndarray | None = None
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
@@ -418,9 +426,16 @@ class Result:
                 f"Result array 't' must be strictly increasing; t[{i}] = {t[i]!r} and "
                 f"t[{i + 1}] = {t[i + 1]!r}"
             )
+        f_meas = arrays["f"] if self.f_meas is None else _as_float_array("f_meas", self.f_meas)
+        if f_meas.shape != constraint_shape:
+            raise DimensionError(
+                f"Result array 'f_meas' must have shape {constraint_shape} like 'f', got shape "
+                f"{tuple(f_meas.shape)}"
+            )
         meta = self._normalise_meta(self.meta)
         for name, arr in arrays.items():
             object.__setattr__(self, name, arr)
+        object.__setattr__(self, "f_meas", f_meas)
         object.__setattr__(self, "meta", meta)
 
     @staticmethod
@@ -504,7 +519,7 @@ class Result:
             )
         stop = int(n)
         return Result(
-            **{name: getattr(self, name)[:stop] for name in ARRAY_NAMES},
+            **{name: getattr(self, name)[:stop] for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)},
             meta=self.meta,
         )
 
@@ -532,7 +547,9 @@ class Result:
         if target.is_dir():
             raise ResultFileError(f"cannot save result to '{target}': it is a directory")
         meta_text = _meta_to_json(self.meta)
-        payload: dict[str, Any] = {name: getattr(self, name) for name in ARRAY_NAMES}
+        payload: dict[str, Any] = {
+            name: getattr(self, name) for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
+        }
         payload[_META_KEY] = np.array(meta_text, dtype=np.str_)
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -581,8 +598,9 @@ class Result:
                             f"result file '{src}' is not a complete hybrid_force result: "
                             f"missing array(s) {', '.join(missing)} (found: {found})"
                         )
-                    for name in (*ARRAY_NAMES, _META_KEY):
-                        data[name] = npz[name]
+                    for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS, _META_KEY):
+                        if name in names:
+                            data[name] = npz[name]
         except ResultFileError:
             raise
         except (

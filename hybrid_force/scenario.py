@@ -74,7 +74,8 @@ PATH_CHECK_SAMPLES = 1000
 class _Key:
     """One key of a table: its kind of value and whether it is required.
 
-    kinds: "str", "number", "bool", "vec3" (3 numbers), "vector" (a list of numbers),
+    kinds: "str", "number", "integer" (a whole number), "bool", "vec3" (3 numbers), "vector"
+    (a list of numbers),
     "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
     "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
     table of texts: strings, or numbers and booleans turned into their TOML text).
@@ -86,7 +87,7 @@ class _Key:
 
 
 _TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
-_TABLES = ("robot", "surface", "surfaces", "trajectory", "initial", "control", "sim")
+_TABLES = ("robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "sim")
 
 _ROBOT: dict[str, _Key] = {
     "model": _Key("str", True),
@@ -147,6 +148,7 @@ _CONTROL: dict[str, _Key] = {
     "P": _Key("number"),
     "approach_rate": _Key("number"),
     "supervisor": _Key("bool"),
+    "rate": _Key("number"),
 }
 
 _SIM: dict[str, _Key] = {
@@ -159,6 +161,16 @@ _SIM: dict[str, _Key] = {
     "settle_time": _Key("number"),
     "unilateral": _Key("bool"),
     "normalization": _Key("choice", choices=("tip", "joint")),
+    "seed": _Key("integer"),
+}
+
+_SENSOR: dict[str, _Key] = {
+    "force_noise": _Key("number"),
+    "force_bias": _Key("number"),
+    "force_cutoff": _Key("number"),
+    "force_delay": _Key("integer"),
+    "joint_noise": _Key("number"),
+    "velocity_noise": _Key("number"),
 }
 
 
@@ -318,6 +330,10 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
         return value
     if kind == "number":
         return _number(ctx, key, value)
+    if kind == "integer":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ctx.error(key, value, f"must be a whole number, got {_type_name(value)}")
+        return value
     if kind == "vec3":
         vec = _vector(ctx, key, value, "3 numbers")
         if len(vec) != 3:
@@ -562,6 +578,8 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     sim_values = _check_table(ctx, "sim", doc.get("sim", {}), _SIM)
     sim = _sim_settings(sim_values, ctx)
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
+    sensor = _sensor_settings(doc.get("sensor", {}), ctx)
+    _check_control_rate(control, sim, control_values, ctx)
     _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
@@ -579,6 +597,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             name=name,
             description=top.get("description", ""),
             source=json.loads(json.dumps(doc)),
+            sensor=sensor,
         )
     except BadInputError as exc:  # a rule across tables (e.g. stacked surfaces need no approach)
         raise ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}") from None
@@ -773,6 +792,27 @@ def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
     return path, {"type": kind, **values}
 
 
+def _sensor_settings(table: object, ctx: _Context) -> Any:
+    from hybrid_force.sensors import SensorSettings
+
+    values = _check_table(ctx, "sensor", table, _SENSOR)
+    try:
+        return SensorSettings(**values)
+    except BadInputError as exc:
+        raise _wrap(ctx, "sensor", values, exc) from None
+
+
+def _check_control_rate(
+    control: Any, sim: Any, control_values: Mapping[str, Any], ctx: _Context
+) -> None:
+    from hybrid_force.simulate import control_steps
+
+    try:
+        control_steps(control, sim)
+    except BadInputError as exc:
+        raise ctx.error("control.rate", control_values.get("rate"), str(exc)) from None
+
+
 def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
     from hybrid_force.dynamics import Baumgarte
     from hybrid_force.simulate import SimSettings
@@ -786,7 +826,15 @@ def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
     defaults = Baumgarte()
     kwargs: dict[str, Any] = {
         k: values[k]
-        for k in ("duration", "dt", "integrator", "settle_time", "unilateral", "normalization")
+        for k in (
+            "duration",
+            "dt",
+            "integrator",
+            "settle_time",
+            "unilateral",
+            "normalization",
+            "seed",
+        )
         if k in values
     }
     kwargs["baumgarte"] = Baumgarte(

@@ -66,6 +66,7 @@ from hybrid_force.errors import (
     RunFailedError,
     RunInterruptedError,
     RunWarning,
+    SensorError,
     SingularConfigurationError,
 )
 from hybrid_force.paths import Path, PathParameterError
@@ -77,6 +78,7 @@ from hybrid_force.run_checks import (
     describe,
     limit_violations,
 )
+from hybrid_force.sensors import Sensors, SensorSettings
 from hybrid_force.supervisor import CONTACT, NEAR, ControlSettings, HybridController
 from hybrid_force.surfaces import Surface
 
@@ -106,6 +108,8 @@ class SimSettings:
             and CLIK, and a dense numpy solve of the KKT system instead of
             pin.forwardDynamics; no compiled kernel but the recorder's (the sample row is
             written the same way in both). About 10× slower; for tests.
+        seed: seed of the sensors' noise (an integer ≥ 0): a run with noisy sensors is
+            reproducible from it.
     """
 
     duration: float = 20.0
@@ -119,6 +123,7 @@ class SimSettings:
     settle_time: float = 5.0
     normalization: Literal["tip", "joint"] = "tip"
     reference: bool = False
+    seed: int = 0
 
     def __post_init__(self) -> None:
         """Check every field; numbers are stored as floats, flags as bools.
@@ -159,6 +164,8 @@ class SimSettings:
         for name in ("unilateral", "reference"):
             value = checks.flag(getattr(self, name), f"sim.{name}", SimSettingsError)
             object.__setattr__(self, name, value)
+        seed = checks.integer(self.seed, "sim.seed", SimSettingsError, minimum=0)
+        object.__setattr__(self, "seed", seed)
         if not isinstance(self.baumgarte, Baumgarte):
             raise SimSettingsError(
                 "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.dynamics.Baumgarte, "
@@ -179,6 +186,7 @@ class Scenario:
         q0: (nq,) start configuration. v0: None or (nv,) start velocity (None: 0). Both are
             stored as new read-only float64 arrays.
         control: controller settings. sim: simulation settings.
+        sensor: what the controller measures (default: ideal sensing, the plant's state).
         name: a short name (used for output folders): letters, digits, '_', '-', '.', not
             starting with '.' or '-', at most ``NAME_MAX_LENGTH`` = 100 characters (the
             scenario file's rule, ``NAME_PATTERN``, matched in full). description: free text.
@@ -194,7 +202,8 @@ class Scenario:
       :func:`~hybrid_force.paths.check_on_surface`) and the start tip p(q0) within
       ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
-      so are stacked surfaces (k > 1), whose approach would touch a subset first.
+      so are stacked surfaces (k > 1), whose approach would touch a subset first;
+    * the control rate (``control.rate``) a whole number of plant steps, not faster than them.
     """
 
     NAME_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_.\-]*"
@@ -210,6 +219,7 @@ class Scenario:
     name: str = "run"
     description: str = ""
     source: dict | None = None
+    sensor: SensorSettings = field(default_factory=SensorSettings)
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -281,6 +291,12 @@ class Scenario:
         if control.Kd is not None:
             check_damping_gain(control.Kd, robot.nv)
         control.f_d_for(len(self.surfaces))
+        if not isinstance(self.sensor, SensorSettings):
+            raise Bad(
+                "Scenario.sensor must be a hybrid_force.sensors.SensorSettings, "
+                f"got {checks.shown(self.sensor)}"
+            )
+        control_steps(control, self.sim)
         self._check_start_and_path()
 
     def _check_start_and_path(self) -> None:
@@ -329,6 +345,27 @@ class Scenario:
                 )
 
 
+def control_steps(control: ControlSettings, sim: SimSettings) -> int:
+    """Plant steps per control tick: 1/(rate·dt), which must be a whole number ≥ 1.
+
+    Raises:
+        SensorError: naming control.rate and sim.dt, with the nearest rates that fit.
+    """
+    if control.rate is None:
+        return 1
+    ratio = 1.0 / (control.rate * sim.dt)
+    steps = round(ratio)
+    if steps < 1 or abs(ratio - steps) > 1e-9 * ratio:
+        fits = sorted({1.0 / (n * sim.dt) for n in (max(int(ratio), 1), int(ratio) + 1)})
+        raise SensorError(
+            f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
+            f"sim.dt = {sim.dt:g} s (1 / (rate · dt) = {ratio:.6g}); the controller ticks every "
+            f"n plant steps: rates that fit nearby: {', '.join(f'{r:g} Hz' for r in fits)}"
+            + ("; it cannot be faster than the plant" if ratio < 1 else "")
+        )
+    return steps
+
+
 class _Log:
     """The run's samples, preallocated as one (N, width) table; one compiled call per row.
 
@@ -347,9 +384,19 @@ class _Log:
         return sum(cls.widths(nq, nv, k))
 
     def __init__(
-        self, N: int, nq: int, nv: int, k: int, max_velocity: float, max_force: float
+        self,
+        N: int,
+        nq: int,
+        nv: int,
+        k: int,
+        max_velocity: float,
+        max_force: float,
+        *,
+        measured: bool = False,
     ) -> None:
         self.max_velocity, self.max_force = max_velocity, max_force
+        # the measured force (N, k), when it is not the plant's force (sampled sensing)
+        self.f_meas: np.ndarray | None = np.zeros((N, k)) if measured else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -409,6 +456,7 @@ class _Log:
             V=own(self.V),
             phase=self.phase[:n].astype(np.int64),
             meta=meta,
+            f_meas=None if self.f_meas is None else col(self.f_meas),
         )
 
 
@@ -502,6 +550,36 @@ class _Plant:
         return q_out, v_out
 
 
+class _ControllerModel:
+    """What a sampled controller computes for itself at the state it measured.
+
+    Its own robot terms (M, C, g, p, J, J̇ at (q̃, ṽ), its own Pinocchio data) and its own
+    constraint rows (its own :class:`Constraint`: it knows the surfaces' geometry). The model
+    is today the plant's model file; the controller's mass factor is applied by
+    :class:`~hybrid_force.supervisor.HybridController` as on the ideal path.
+    """
+
+    def __init__(
+        self, robot: Robot, surfaces: Sequence[Surface], sim: SimSettings, fast: bool
+    ) -> None:
+        self.robot, self.fast = robot, fast
+        self.data = robot.new_data()
+        self.constraint = Constraint(surfaces, normalization=sim.normalization)
+        self._terms = RobotTerms.zeros(robot.nv)
+        self._cons = ConstraintTerms.zeros(self.constraint.k, robot.nv)
+
+    def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
+        """Terms and constraint rows at (q, v); None rows where ∇Φ vanishes (free space)."""
+        if self.fast:
+            terms = self.robot.terms(q, v, self.data, out=self._terms)
+        else:
+            terms = _reference_terms(self.robot, q, v)
+        try:
+            return terms, self.constraint.evaluate(terms, v, fast=self.fast, out=self._cons)
+        except SingularConfigurationError:
+            return terms, None
+
+
 def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = None) -> Result:
     """Run a scenario and return its result.
 
@@ -537,7 +615,24 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     v = np.zeros(nv) if sc.v0 is None else robot.check_v(sc.v0, "initial v").copy()
     plant = _Plant(robot, constraint)
     fast = not sim.reference
-    controller = HybridController(robot, constraint, sc.path, q, sc.control, dt=dt, fast=fast)
+    # Ideal sensing at the plant's rate: the controller's command is affine in the force it
+    # produces (u = u0 + B f) and the plant resolves that loop exactly (the paper's runs).
+    # Otherwise it is sampled: every `per_tick` plant steps the controller reads its sensors,
+    # computes its terms from its own model at the measured state, and its torque is held.
+    per_tick = control_steps(sc.control, sim)
+    sampled = per_tick > 1 or not sc.sensor.ideal
+    period = per_tick * dt
+    own = _ControllerModel(robot, sc.surfaces, sim, fast) if sampled else None
+    controller = HybridController(
+        robot,
+        own.constraint if own is not None else constraint,
+        sc.path,
+        q,
+        sc.control,
+        dt=period,
+        fast=fast,
+    )
+    sensors = Sensors(sc.sensor, period, sim.seed) if sampled else None
     terms_buf = RobotTerms.zeros(nv)
     no_B = np.zeros((nv, k))
     solver = ConstrainedDynamics(model, data, k)
@@ -553,9 +648,13 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         q, v, in_contact = _touch(plant, q, v, 0.0, events)
     started_in_contact = ever_in_contact = in_contact
     check_log_memory(N, _Log.width(nq, nv, k), sim.duration, dt)
-    log = _Log(N, nq, nv, k, sim.max_velocity, sim.max_force)
+    log = _Log(N, nq, nv, k, sim.max_velocity, sim.max_force, measured=sampled)
+    f_meas_log = log.f_meas
     baum = sim.baumgarte
     zeros_k = np.zeros(k)
+    f_last = zeros_k  # the plant's force at the last step: what the force sensor reads
+    f_meas = zeros_k
+    cmd: Command | None = None
     meta = {
         "name": sc.name,
         "run_id": uuid.uuid4().hex,
@@ -589,7 +688,10 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             "baumgarte_beta": baum.beta,
             "unilateral": sim.unilateral,
             "normalization": sim.normalization,
+            "control_rate": 1.0 / period,
+            "seed": sim.seed,
         },
+        "sensor": sc.sensor.to_dict(),
         "versions": _versions(),
     }
     report_every = max(1, N // 100)
@@ -610,7 +712,17 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 if in_contact:
                     raise
                 cons = None
-            cmd = controller.command(t, q, v, terms, cons)
+            if own is None:
+                cmd = controller.command(t, q, v, terms, cons)
+            elif i % per_tick == 0:
+                assert sensors is not None and f_meas_log is not None
+                if i:  # the controller's integrators and CLIK over the period just ended
+                    controller.update(period, f_meas)
+                q_m, v_m, f_meas = sensors.measure(q, v, f_last)
+                own_terms, own_cons = own.evaluate(q_m, v_m)
+                c = controller.command(t, q_m, v_m, own_terms, own_cons)
+                cmd = Command(c.u0 + c.B @ f_meas if c.B is not None else c.u0.copy(), None)
+            assert cmd is not None
             f = zeros_k
             if in_contact:
                 assert cons is not None  # in contact, evaluate() raised instead of failing
@@ -640,7 +752,8 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 no_B if cmd.B is None else cmd.B,
                 f,
                 terms.p,
-                clik.p_d,
+                # sampled: the desired point now, not the one of the last tick (held 1/rate s)
+                clik.p_d if own is None else sc.path.position(t),
                 controller.f_d,
                 cons.distance if cons is not None else plant.distance(q),
                 controller.V,
@@ -648,6 +761,9 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 # tool off the surface is never logged as in contact
                 CONTACT if in_contact else min(controller.phase, NEAR),
             )
+            if f_meas_log is not None:
+                f_meas_log[i] = f_meas
+            f_last = f
             n_logged = i + 1
             if not ok:
                 _check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
@@ -655,7 +771,8 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 break
             if i == 1:
                 wall1 = time.perf_counter()  # steps 0 and 1 loaded (or compiled) the kernels
-            controller.update(dt, f)
+            if own is None:
+                controller.update(dt, f)
             if in_contact and fast_contact:
                 q, v = plant.contact_step(q, v, ddq, dt)
                 if progress is not None and i % report_every == 0:

@@ -88,6 +88,10 @@ class ControlSettings:
         branch_check_time: in contact for longer than this [s] with a task error above
             ``branch_error`` that no longer decreases → "branch" event and a warning.
         branch_error: [m].
+        rate: the control rate [Hz]: the controller reads its sensors and computes a new
+            torque every 1/rate s and the torque is held in between (zero-order hold); None:
+            every plant step (1/sim.dt). Must be a whole number of plant steps (checked with
+            sim.dt by ``Scenario`` and :func:`hybrid_force.simulate.simulate`).
 
     Every number must be a finite real number (not a bool, not a string) within the range
     above, ``supervisor`` a bool: anything else raises :class:`GainError` (a number) or
@@ -110,6 +114,7 @@ class ControlSettings:
     mass_factor: float = 1.0
     branch_check_time: float = 1.0
     branch_error: float = 1e-2
+    rate: float | None = None
 
     def __post_init__(self) -> None:
         """Check every field (types, signs, finiteness) and store numbers as floats.
@@ -123,7 +128,7 @@ class ControlSettings:
             set_(self, "Kd", check_damping_gain(self.Kd))
         for name, minimum, strict, maximum, unit in _NUMBERS:
             value = getattr(self, name)
-            if name == "approach_rate" and value is None:
+            if name in ("approach_rate", "rate") and value is None:
                 continue
             what = f"ControlSettings.{name}"
             number = checks.number(
@@ -168,6 +173,7 @@ _NUMBERS: tuple[tuple[str, float, bool, float | None, str], ...] = (
     ("mass_factor", 0.0, True, None, ""),
     ("branch_check_time", 0.0, False, None, "s"),
     ("branch_error", 0.0, True, None, "m"),
+    ("rate", 0.0, True, None, "Hz"),  # or None (every plant step)
 )
 
 

@@ -432,3 +432,19 @@ def test_plot_sweep_wrong_column_lists_columns(sweep_csv: Path, tmp_path: Path) 
     with pytest.raises(PlotError, match="does not exist"):
         plot_sweep(tmp_path / "missing.csv", tmp_path / "x.png", x="a", metric="b")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_desired_force_shows_the_measured_force_when_it_is_not_the_true_one() -> None:
+    import dataclasses
+
+    base = _synthetic()
+    ideal = plots._fig_desired_force(plots._load_run(base)).axes[0]
+    assert not any("measured" in ln.get_label() for ln in ideal.get_lines())
+    f_meas = base.f + 0.25  # a biased sensor
+    sampled = dataclasses.replace(base, f_meas=f_meas)
+    ax = plots._fig_desired_force(plots._load_run(sampled)).axes[0]
+    measured = [ln for ln in ax.get_lines() if "measured" in ln.get_label()]
+    true = [ln for ln in ax.get_lines() if "true" in ln.get_label()]
+    assert len(measured) == 1 and len(true) == 1
+    n = len(measured[0].get_ydata())
+    np.testing.assert_allclose(measured[0].get_ydata(), f_meas[:n])

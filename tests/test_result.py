@@ -26,7 +26,9 @@ from hybrid_force.result import (
     load_result,
 )
 
-SCHEMA_NAMES = {"t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase"}
+SCHEMA_NAMES = {
+    "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas"
+}  # fmt: skip
 
 
 def _meta(**extra: Any) -> dict[str, Any]:
@@ -858,3 +860,19 @@ def test_unsupported_zip_member_is_refused(
         Result.load(path)
     status, line = _cli(capsys, "plot", str(path))
     assert status == 2 and str(path) in line
+
+
+def test_a_file_without_the_measured_force_loads_with_the_true_one(tmp_path: Path) -> None:
+    """Files written before f_meas existed: the controller then measured the plant's force."""
+    path = _good_file(tmp_path)
+    arrays = _contents(path)
+    arrays.pop("f_meas", None)
+    _rewrite(path, arrays)
+    result = Result.load(path)
+    np.testing.assert_array_equal(result.f_meas, result.f)
+
+
+def test_a_measured_force_of_the_wrong_shape_is_refused() -> None:
+    base = _random_result(5)
+    with pytest.raises(DimensionError, match="f_meas"):
+        Result(**{n: getattr(base, n) for n in ARRAY_NAMES}, f_meas=np.zeros(4))

@@ -939,3 +939,43 @@ def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPat
         sc = load_scenario(path)
         samples = min(PATH_CHECK_SAMPLES, math.ceil(sc.sim.duration / PATH_CHECK_STEP) + 1)
         assert len(calls) >= samples, path.name
+
+
+def test_sensor_table_control_rate_and_seed_are_loaded(tmp_path: Path) -> None:
+    from hybrid_force.sensors import SensorSettings
+
+    scenario = load_scenario(
+        REPO_ROOT / "scenarios" / "paper_contact.toml",
+        {
+            "sensor.force_noise": 0.5,
+            "sensor.force_cutoff": 50,
+            "sensor.force_delay": 1,
+            "control.rate": 500,
+            "sim.seed": 7,
+        },
+    )
+    assert scenario.sensor == SensorSettings(force_noise=0.5, force_cutoff=50.0, force_delay=1)
+    assert scenario.control.rate == 500.0 and scenario.sim.seed == 7
+
+
+@pytest.mark.parametrize(
+    ("override", "key"),
+    [
+        ("control.rate=300", "control.rate"),  # 1 / (300 Hz · 1 ms) is not a whole number
+        ("control.rate=2000", "control.rate"),  # faster than the plant
+        ("sensor.force_delay=1.5", "sensor.force_delay"),
+        ("sensor.force_cutoff=-1", "sensor.force_cutoff"),
+        ("sensor.bias=1", "sensor.bias"),  # unknown key
+        ("sim.seed=true", "sim.seed"),
+    ],
+)
+def test_bad_sensor_and_rate_settings_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], override: str, key: str
+) -> None:
+    from hybrid_force.cli import main
+
+    out = tmp_path / "out"
+    argv = ["run", str(REPO_ROOT / "scenarios" / "paper_contact.toml"), "--set", override]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and f"{key} = " in err[0] and not out.exists()

@@ -459,3 +459,82 @@ def test_desired_path_failing_mid_run_stops_with_its_result(monkeypatch) -> None
     result = info.value.result
     assert result.status == "failed" and result.meta["reason"] == "path"
     assert result.t[-1] == pytest.approx(0.2) and np.all(np.isfinite(result.q))
+
+
+# --- a sampled controller: its own rate, its sensors ------------------------------------------
+def _sampled(duration: float, *, dt: float = 1e-3, rate: float | None = None, **sensor) -> Result:
+    import dataclasses
+
+    from hybrid_force.sensors import SensorSettings
+
+    sc = _paper_contact(**{"sim.duration": duration, "sim.dt": dt})
+    control = dataclasses.replace(sc.control, rate=rate)
+    return simulate(dataclasses.replace(sc, control=control, sensor=SensorSettings(**sensor)))
+
+
+def _settled_errors(result: Result) -> tuple[np.ndarray, float]:
+    """Largest |p − p_d| per axis [m] and |f − f_d| [N] for t ≥ 5 s (true force)."""
+    late = result.t >= 5.0
+    return np.abs(result.p - result.p_d)[late].max(axis=0), float(
+        np.abs(result.f - result.f_d)[late].max()
+    )
+
+
+def test_a_1khz_controller_on_a_10khz_plant_meets_the_targets() -> None:
+    """Section 6.3, plant at dt = 0.1 ms, controller at 1 kHz (its torque held 10 steps)."""
+    result = _sampled(6.0, dt=1e-4, rate=1000.0)
+    assert result.meta["settings"]["control_rate"] == pytest.approx(1000.0)
+    pos, force = _settled_errors(result)
+    assert np.all(pos <= 1e-6) and force <= 1e-3
+    # zero-order hold: the command changes only at ticks, every 10 plant steps
+    changes = np.flatnonzero(np.any(np.diff(result.u, axis=0) != 0.0, axis=1)) + 1
+    assert changes.size > 100 and np.all(changes % 10 == 0)
+
+
+def test_force_measured_one_control_period_late_meets_the_targets() -> None:
+    result = _sampled(6.0, force_delay=1)
+    pos, force = _settled_errors(result)
+    assert np.all(pos <= 1e-6) and force <= 1e-3
+    # the measured force is the true one a period (and a plant step) earlier
+    np.testing.assert_array_equal(result.f_meas[100:], result.f[98:-2])
+
+
+def test_a_biased_force_sensor_shifts_the_true_force_by_the_bias() -> None:
+    """The law regulates what it measures: f_meas → f_d, so the true force → f_d − bias."""
+    bias = 1.5
+    result = _sampled(6.0, force_bias=bias)
+    late = result.t >= 5.0
+    np.testing.assert_allclose(result.f_meas[late], 10.0, atol=1e-9)
+    np.testing.assert_allclose(result.f[late], 10.0 - bias, atol=1e-9)
+
+
+def test_noisy_sensing_is_reproducible_from_the_seed() -> None:
+    import dataclasses
+
+    from hybrid_force.sensors import SensorSettings
+
+    sc = _paper_contact(**{"sim.duration": 0.3})
+    noisy = dataclasses.replace(sc, sensor=SensorSettings(force_noise=0.5, joint_noise=1e-5))
+    a, b = simulate(noisy), simulate(noisy)
+    c = simulate(dataclasses.replace(noisy, sim=dataclasses.replace(noisy.sim, seed=1)))
+    np.testing.assert_array_equal(a.q, b.q)
+    np.testing.assert_array_equal(a.f_meas, b.f_meas)
+    assert not np.array_equal(a.f_meas, c.f_meas)
+    assert a.meta["sensor"]["force_noise"] == 0.5 and a.meta["settings"]["seed"] == 0
+
+
+def test_ideal_sensing_records_the_true_force_as_measured() -> None:
+    result = simulate(_paper_contact(**{"sim.duration": 0.05}))
+    np.testing.assert_array_equal(result.f_meas, result.f)
+    assert result.meta["settings"]["control_rate"] == pytest.approx(1000.0)
+
+
+def test_a_control_rate_that_is_not_whole_plant_steps_is_refused() -> None:
+    import dataclasses
+
+    from hybrid_force.errors import BadInputError
+
+    sc = _paper_contact(**{"sim.duration": 0.05})
+    for rate in (300.0, 2000.0):
+        with pytest.raises(BadInputError, match=r"control\.rate"):
+            dataclasses.replace(sc, control=dataclasses.replace(sc.control, rate=rate))

@@ -1,0 +1,65 @@
+"""Study: the paper's section 6.3 run when the controller sees only its sensors.
+
+Runs scenarios/paper_contact.toml (10 s) with a sampled controller and prints, in Markdown, the
+RMS and the largest error after settling (t ≥ 5 s) of the TRUE contact force |f − f_d| and of
+the tip position ‖p − p_d‖ for:
+
+* ideal sensing (the exact loop, the reference);
+* a 1 kHz controller on a 10 kHz plant;
+* the force measured one and two control periods late;
+* white force noise σ = 0.1, 0.5, 2 N through a 50 Hz first-order low-pass (seed 0);
+* a 1 N force bias.
+
+Run from the repository root:
+
+    python benchmarks/study_sensing.py
+
+Not part of the test suite (the tests check the targets on shorter runs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from hybrid_force import simulate
+from hybrid_force.scenario import load_scenario
+from hybrid_force.sensors import SensorSettings
+
+CASES: tuple[tuple[str, dict[str, Any], dict[str, Any]], ...] = (
+    ("ideal sensing, 1 kHz", {}, {}),
+    ("controller 1 kHz, plant 10 kHz", {"sim.dt": 1e-4, "control.rate": 1000.0}, {}),
+    ("force 1 period late", {}, {"force_delay": 1}),
+    ("force 2 periods late", {}, {"force_delay": 2}),
+    ("force noise σ = 0.1 N, 50 Hz low-pass", {}, {"force_noise": 0.1, "force_cutoff": 50.0}),
+    ("force noise σ = 0.5 N, 50 Hz low-pass", {}, {"force_noise": 0.5, "force_cutoff": 50.0}),
+    ("force noise σ = 2 N, 50 Hz low-pass", {}, {"force_noise": 2.0, "force_cutoff": 50.0}),
+    ("force bias 1 N", {}, {"force_bias": 1.0}),
+)
+
+
+def main() -> None:
+    print(
+        "| case | RMS \\|f − f_d\\| [N] | max \\|f − f_d\\| [N] | RMS ‖p − p_d‖ [m] "
+        "| max ‖p − p_d‖ [m] |"
+    )
+    print("|---|---|---|---|---|")
+    for label, overrides, sensor in CASES:
+        scenario = load_scenario(
+            "scenarios/paper_contact.toml", {"sim.duration": 10.0, **overrides}
+        )
+        scenario = dataclasses.replace(scenario, sensor=SensorSettings(**sensor))
+        result = simulate(scenario)
+        late = result.t >= 5.0
+        ef = np.abs(result.f - result.f_d)[late]
+        ep = np.linalg.norm(result.p - result.p_d, axis=1)[late]
+        print(
+            f"| {label} | {np.sqrt(np.mean(ef**2)):.2g} | {ef.max():.2g} | "
+            f"{np.sqrt(np.mean(ep**2)):.2g} | {ep.max():.2g} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
