@@ -584,7 +584,10 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
     _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx)
-    _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
+    configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
+    _check_sampled_force_loop(
+        robot, surfaces, configurations, control, sim, sensor, control_values, ctx
+    )
     try:
         return Scenario(
             robot=robot,
@@ -1028,7 +1031,7 @@ def _check_controller(
 
 def _check_path_followable(
     robot: Any, path: Any, traj: Mapping[str, Any], q0: Any, duration: float, ctx: _Context
-) -> None:
+) -> list[np.ndarray]:
     """Follow p_d(t) by inverse kinematics over [0, duration]: out of reach or singular → error.
 
     The run's desired joint path (CLIK, eq. 27) starts at the inverse kinematics of p_d(0)
@@ -1036,7 +1039,7 @@ def _check_path_followable(
     previous one (same branch), every :data:`PATH_CHECK_STEP` s (at most
     :data:`PATH_CHECK_SAMPLES` samples), and J must be as well conditioned as the CLIK needs
     (``hybrid_force.clik``). A singular instant between two samples can still stop the run;
-    the run then keeps its partial result.
+    the run then keeps its partial result. Returns the configurations found (one per sample).
     """
     from hybrid_force.clik import _COND_MAX, ClikSettings, inverse_kinematics
 
@@ -1044,6 +1047,7 @@ def _check_path_followable(
     damping = ClikSettings().damping if robot.nv > 3 else 0.0
     shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
     q = q0
+    found: list[np.ndarray] = []
     for t in np.linspace(0.0, duration, n):
         target = path.position(float(t))
         try:
@@ -1065,3 +1069,44 @@ def _check_path_followable(
                 f"t = {t:.4g} s (p_d = {p}, q_d = {np.round(q, 6).tolist()}, singular values "
                 f"of J: {s_text}); the controller cannot follow it"
             )
+        found.append(q)
+    return found
+
+
+def _check_sampled_force_loop(
+    robot: Any,
+    surfaces: list[Any],
+    configurations: list[np.ndarray],
+    control: Any,
+    sim: Any,
+    sensor: Any,
+    control_values: Mapping[str, Any],
+    ctx: _Context,
+) -> None:
+    """A sampled controller's β below the stability bound of its force loop (force_loop.py).
+
+    Only for sampled runs (non-ideal sensing or a control rate below 1/sim.dt): with ideal
+    sensing at the plant's rate the loop is resolved exactly and any β ≥ 0 is fine. W is taken
+    at its smallest over the desired path's configurations.
+    """
+    from hybrid_force.force_loop import beta_bound, inverse_effective_mass
+    from hybrid_force.simulate import control_steps
+
+    steps = control_steps(control, sim)
+    if steps == 1 and sensor.ideal:
+        return
+    period = steps * sim.dt
+    cutoff, delay = sensor.force_cutoff, sensor.force_delay
+    alpha = 1.0 - math.exp(-2.0 * math.pi * cutoff * period) if cutoff else 1.0
+    w_min = inverse_effective_mass(robot, surfaces, configurations, sim.normalization)
+    bound = beta_bound(w_min, control.mass_factor, alpha, delay)
+    if not control.beta < bound:
+        raise ctx.error(
+            "control.beta",
+            control_values.get("beta", control.beta),
+            f"the sampled force loop (control period {period:g} s, sensor.force_delay = "
+            f"{delay}, sensor.force_cutoff = {cutoff:g} Hz) oscillates and grows for "
+            f"beta >= {bound:.4g}: beta · mass_factor / (A M⁻¹ Aᵀ) must stay below "
+            f"{bound * control.mass_factor / w_min:.4g}, with A M⁻¹ Aᵀ >= {w_min:.4g} along "
+            "the path (docs/scenarios.md, [sensor])",
+        )
