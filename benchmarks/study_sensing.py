@@ -8,7 +8,12 @@ the tip position ‖p − p_d‖ for:
 * a 1 kHz controller on a 10 kHz plant;
 * the force measured one and two control periods late;
 * white force noise σ = 0.1, 0.5, 2 N through a 50 Hz first-order low-pass (seed 0);
-* a 1 N force bias.
+* a 1 N force bias;
+
+and a second table: β at 0.7, 0.9 and 1.1 of the loader's stability bound
+(:mod:`hybrid_force.force_loop`) for the force read one period late, and for a 50 Hz low-pass
+without delay, with the largest |f − f_d| over the last second of a 3 s run (through the Python
+API: the loader refuses β beyond the bound).
 
 Run from the repository root:
 
@@ -61,5 +66,32 @@ def main() -> None:
         )
 
 
+def bound_study() -> None:
+    from hybrid_force.force_loop import beta_bound, inverse_effective_mass
+
+    print()
+    print("| sensor | β / bound | β | max \\|f − f_d\\| over t ≥ 2 s [N] | events |")
+    print("|---|---|---|---|---|")
+    for label, sensor, alpha in (
+        ("force 1 period late", {"force_delay": 1}, 1.0),
+        ("50 Hz low-pass", {"force_cutoff": 50.0}, 1.0 - float(np.exp(-2 * np.pi * 50e-3))),
+    ):
+        base = load_scenario("scenarios/paper_contact.toml", {"sim.duration": 3.0})
+        base = dataclasses.replace(base, sensor=SensorSettings(**sensor))
+        w = inverse_effective_mass(base.robot, base.surfaces, [base.q0], "tip")
+        bound = beta_bound(w, 1.0, alpha, sensor.get("force_delay", 0))
+        for fraction in (0.7, 0.9, 1.1):
+            control = dataclasses.replace(base.control, beta=fraction * bound)
+            result = simulate(dataclasses.replace(base, control=control))
+            late = result.t >= 2.0
+            error = float(np.abs(result.f - result.f_d)[late].max())
+            kinds = sorted({e["kind"] for e in result.events})
+            print(
+                f"| {label} | {fraction} | {fraction * bound:.3g} | {error:.2g} | "
+                f"{', '.join(kinds)} |"
+            )
+
+
 if __name__ == "__main__":
     main()
+    bound_study()
