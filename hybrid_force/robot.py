@@ -49,7 +49,7 @@ import pinocchio as pin
 from hybrid_force._lazy import kernels
 from hybrid_force.errors import DimensionError, FrameError, ModelWarning, RobotError, URDFError
 
-__all__ = ["Robot", "RobotTerms", "load_robot"]
+__all__ = ["Robot", "RobotTerms", "load_robot", "reference_terms"]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 # Joints whose configuration space is R (revolute with one coordinate, bounded or not, and
@@ -368,7 +368,7 @@ class Robot:
         updateFramePlacement, getFrameJacobian, getFrameJacobianTimeVariation; the rest
         (symmetric M, nle = C v + g, J v, J̇ v) is one compiled call
         (:func:`hybrid_force._kernels.robot_terms`). The reference, one public method per
-        term, is ``hybrid_force.simulate._reference_terms``; the tests compare the two.
+        term, is :func:`reference_terms`; the tests compare the two.
 
         Args:
             q: (nq,) configuration. v: (nv,) velocity.
@@ -1015,3 +1015,24 @@ def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise DimensionError(f"{what} for robot '{robot}' has non-finite values: {arr}")
     return arr
+
+
+def reference_terms(robot: Robot, q: np.ndarray, v: np.ndarray) -> RobotTerms:
+    """The robot terms from one public method each: the reference :meth:`Robot.terms` is
+    tested against, and the terms of the simulator's reference step."""
+    M, C, g = robot.mass_matrix(q), robot.coriolis(q, v), robot.gravity(q)
+    J = robot.jacobian(q)
+    data = robot.new_data()
+    pin.computeJointJacobiansTimeVariation(robot.model, data, q, v)
+    Jdot = pin.getFrameJacobianTimeVariation(robot.model, data, robot.tip_id, _LWA)[:3].copy()
+    return RobotTerms(
+        M=M,
+        C=C,
+        g=g,
+        nle=C @ v + g,
+        p=robot.tip_position(q),
+        J=J,
+        Jdot=Jdot,
+        Jdot_v=robot.drift(q, v),
+        pdot=J @ v,
+    )

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hybrid_force.controller import LAWS
 from hybrid_force.errors import (
     BadInputError,
     FrameError,
@@ -149,6 +150,8 @@ _CONTROL: dict[str, _Key] = {
     "approach_rate": _Key("number"),
     "supervisor": _Key("bool"),
     "rate": _Key("number"),
+    "law": _Key("choice", choices=LAWS),
+    "model": _Key("str"),
 }
 
 _SIM: dict[str, _Key] = {
@@ -579,6 +582,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     sim = _sim_settings(sim_values, ctx)
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
     sensor = _sensor_settings(doc.get("sensor", {}), ctx)
+    controller_model = _controller_model(control_values, robot, file, ctx)
     _check_control_rate(control, sim, control_values, ctx)
     _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
@@ -601,6 +605,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             description=top.get("description", ""),
             source=json.loads(json.dumps(doc)),
             sensor=sensor,
+            controller_model=controller_model,
         )
     except BadInputError as exc:  # a rule across tables (e.g. stacked surfaces need no approach)
         raise ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}") from None
@@ -795,6 +800,37 @@ def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
     return path, {"type": kind, **values}
 
 
+def _controller_model(
+    control_values: Mapping[str, Any], robot: Any, file: Path, ctx: _Context
+) -> Any:
+    """``control.model``: the controller's own model of the arm (a name, or a model path
+    relative to the scenario file), with the plant's tip and joints; None when not given."""
+    from hybrid_force.controller import check_same_joints
+    from hybrid_force.robot import _is_path, load_robot
+
+    if "model" not in control_values:
+        return None
+    model: str = control_values["model"]
+    target: str | Path = model
+    if _is_path(model):
+        candidate = Path(model)
+        target = candidate if candidate.is_absolute() else file.parent / candidate
+        if not target.is_file():
+            raise ctx.error(
+                "control.model",
+                model,
+                f"model file not found (paths are relative to the scenario file): {target}",
+            )
+    try:
+        own = load_robot(target)
+        check_same_joints(robot, own)
+        if own.tip != robot.tip:  # the same arm: the plant's tip frame
+            own = load_robot(target, tip=robot.tip)
+    except BadInputError as exc:
+        raise ctx.error("control.model", model, " ".join(str(exc).split())) from None
+    return own
+
+
 def _sensor_settings(table: object, ctx: _Context) -> Any:
     from hybrid_force.sensors import SensorSettings
 
@@ -862,6 +898,7 @@ def _control_settings(
 
     defaults = ControlSettings()
     kwargs = dict(values)
+    kwargs.pop("model", None)  # the controller's own model: loaded by _controller_model
     n = robot.nv
     if "Kd" in kwargs:
         try:

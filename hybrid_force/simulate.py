@@ -51,6 +51,7 @@ import pinocchio as pin
 from hybrid_force._lazy import kernels
 from hybrid_force.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control import Command
+from hybrid_force.controller import Controller, ControllerModel, check_same_joints
 from hybrid_force.dynamics import (
     Baumgarte,
     ConstrainedDynamics,
@@ -60,6 +61,7 @@ from hybrid_force.dynamics import (
     plastic_impact,
 )
 from hybrid_force.errors import (
+    ControlError,
     DivergenceError,
     LostContactError,
     ReachError,
@@ -72,6 +74,7 @@ from hybrid_force.errors import (
 from hybrid_force.paths import Path, PathParameterError
 from hybrid_force.result import Result
 from hybrid_force.robot import Robot, RobotTerms
+from hybrid_force.robot import reference_terms as _reference_terms
 from hybrid_force.run_checks import (
     check_log_memory,
     contact_outcome,
@@ -79,7 +82,7 @@ from hybrid_force.run_checks import (
     limit_violations,
 )
 from hybrid_force.sensors import Sensors, SensorSettings
-from hybrid_force.supervisor import CONTACT, NEAR, ControlSettings, HybridController
+from hybrid_force.supervisor import CONTACT, FREE, NEAR, ControlSettings, HybridController
 from hybrid_force.surfaces import Surface
 
 __all__ = ["Scenario", "SimSettings", "simulate"]
@@ -187,6 +190,9 @@ class Scenario:
             stored as new read-only float64 arrays.
         control: controller settings. sim: simulation settings.
         sensor: what the controller measures (default: ideal sensing, the plant's state).
+        controller_model: the controller's own model of the arm (``control.model``): another
+            :class:`~hybrid_force.robot.Robot` with the plant's joints (a heavier link, say);
+            None: the plant's own model. ``control.mass_factor`` applies on top of it.
         name: a short name (used for output folders): letters, digits, '_', '-', '.', not
             starting with '.' or '-', at most ``NAME_MAX_LENGTH`` = 100 characters (the
             scenario file's rule, ``NAME_PATTERN``, matched in full). description: free text.
@@ -220,6 +226,7 @@ class Scenario:
     description: str = ""
     source: dict | None = None
     sensor: SensorSettings = field(default_factory=SensorSettings)
+    controller_model: Robot | None = None
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -297,6 +304,13 @@ class Scenario:
                 f"got {checks.shown(self.sensor)}"
             )
         control_steps(control, self.sim)
+        if self.controller_model is not None:
+            if not isinstance(self.controller_model, Robot):
+                raise Bad(
+                    "Scenario.controller_model must be None or a hybrid_force.robot.Robot, "
+                    f"got {checks.shown(self.controller_model)}"
+                )
+            check_same_joints(robot, self.controller_model)
         self._check_start_and_path()
 
     def _check_start_and_path(self) -> None:
@@ -550,42 +564,22 @@ class _Plant:
         return q_out, v_out
 
 
-class _ControllerModel:
-    """What a sampled controller computes for itself at the state it measured.
-
-    Its own robot terms (M, C, g, p, J, J̇ at (q̃, ṽ), its own Pinocchio data) and its own
-    constraint rows (its own :class:`Constraint`: it knows the surfaces' geometry). The model
-    is today the plant's model file; the controller's mass factor is applied by
-    :class:`~hybrid_force.supervisor.HybridController` as on the ideal path.
-    """
-
-    def __init__(
-        self, robot: Robot, surfaces: Sequence[Surface], sim: SimSettings, fast: bool
-    ) -> None:
-        self.robot, self.fast = robot, fast
-        self.data = robot.new_data()
-        self.constraint = Constraint(surfaces, normalization=sim.normalization)
-        self._terms = RobotTerms.zeros(robot.nv)
-        self._cons = ConstraintTerms.zeros(self.constraint.k, robot.nv)
-
-    def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
-        """Terms and constraint rows at (q, v); None rows where ∇Φ vanishes (free space)."""
-        if self.fast:
-            terms = self.robot.terms(q, v, self.data, out=self._terms)
-        else:
-            terms = _reference_terms(self.robot, q, v)
-        try:
-            return terms, self.constraint.evaluate(terms, v, fast=self.fast, out=self._cons)
-        except SingularConfigurationError:
-            return terms, None
-
-
-def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = None) -> Result:
+def simulate(
+    scenario: Scenario,
+    *,
+    progress: Callable[[float], None] | None = None,
+    controller: Controller | None = None,
+) -> Result:
     """Run a scenario and return its result.
 
     Args:
         scenario: the run.
         progress: optional callback called with the fraction done (0..1) about 100 times.
+        controller: your own controller (:class:`~hybrid_force.controller.Controller`:
+            ``command(t, q, v, f) -> u``), instead of the scenario's law; it runs at
+            ``control.rate`` on the ``[sensor]`` measurements, its torque held between ticks.
+            The result then has no desired joint path (q_d is NaN) and no Lyapunov function
+            (V is NaN); p_d is the scenario's path and f_d its ``control.f_d``.
 
     Raises:
         RunFailedError: the run started and stopped early, or ended in a state it must not
@@ -620,23 +614,39 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
     # Otherwise it is sampled: every `per_tick` plant steps the controller reads its sensors,
     # computes its terms from its own model at the measured state, and its torque is held.
     per_tick = control_steps(sc.control, sim)
-    sampled = per_tick > 1 or not sc.sensor.ideal
+    if controller is not None and not callable(getattr(controller, "command", None)):
+        raise ControlError(
+            f"controller must have a method command(t, q, v, f) -> u, got {controller!r}"
+        )
+    sampled = controller is not None or per_tick > 1 or not sc.sensor.ideal
     period = per_tick * dt
-    own = _ControllerModel(robot, sc.surfaces, sim, fast) if sampled else None
-    controller = HybridController(
-        robot,
-        own.constraint if own is not None else constraint,
-        sc.path,
-        q,
-        sc.control,
-        dt=period,
-        fast=fast,
+    # the controller's own model: the plant's model file, or control.model (same joints)
+    model_robot = sc.controller_model if sc.controller_model is not None else robot
+    own = (
+        ControllerModel(model_robot, sc.surfaces, sim.normalization, fast)
+        if sampled or model_robot is not robot
+        else None
+    )
+    law = (
+        HybridController(
+            model_robot,
+            own.constraint if own is not None else constraint,
+            sc.path,
+            q,
+            sc.control,
+            dt=period,
+            fast=fast,
+        )
+        if controller is None
+        else None
     )
     sensors = Sensors(sc.sensor, period, sim.seed) if sampled else None
+    task_f_d = sc.control.f_d_for(k)
+    no_q_d = np.full(nq, np.nan)
     terms_buf = RobotTerms.zeros(nv)
     no_B = np.zeros((nv, k))
     solver = ConstrainedDynamics(model, data, k)
-    clik = controller.clik
+    clik = law.clik if law is not None else None
     unilateral, release_tol = sim.unilateral, sim.release_tol
     gamma_buf = np.zeros(k)
     cons_buf = ConstraintTerms.zeros(k, nv)
@@ -665,17 +675,23 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         "robot": {**robot.reference, "nq": nq},
         "surfaces": [s.to_dict() for s in sc.surfaces],
         "path": _path_meta(sc.path),
-        "gains": {
-            "Kd": controller.gains.Kd.tolist(),
-            "Lambda": controller.gains.Lambda,
-            "beta": controller.gains.beta,
-            "gamma": controller.gains.gamma,
-            "f_d": controller.f_d_contact.tolist(),
+        "controller": {
+            "law": "arimoto" if law is not None else type(controller).__name__,
+            "model": model_robot.reference,
+        },
+        "gains": None
+        if law is None
+        else {
+            "Kd": law.gains.Kd.tolist(),
+            "Lambda": law.gains.Lambda,
+            "beta": law.gains.beta,
+            "gamma": law.gains.gamma,
+            "f_d": law.f_d_contact.tolist(),
             "clik_gain": sc.control.clik_gain,
             "max_dist": sc.control.max_dist,
             "contact_tol": sc.control.contact_tol,
             "P": sc.control.P,
-            "approach_rate": controller.approach_rate,
+            "approach_rate": law.approach_rate,
             "mass_factor": sc.control.mass_factor,
             "supervisor": sc.control.supervisor,
         },
@@ -694,6 +710,10 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         "sensor": sc.sensor.to_dict(),
         "versions": _versions(),
     }
+
+    def law_events() -> list[dict]:
+        return law.events if law is not None else []
+
     report_every = max(1, N // 100)
     wall0 = wall1 = time.perf_counter()
     t = 0.0
@@ -712,16 +732,24 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 if in_contact:
                     raise
                 cons = None
-            if own is None:
-                cmd = controller.command(t, q, v, terms, cons)
-            elif i % per_tick == 0:
-                assert sensors is not None and f_meas_log is not None
-                if i:  # the controller's integrators and CLIK over the period just ended
-                    controller.update(period, f_meas)
+            if not sampled:  # the exact loop: u = u0 + B f, resolved with the plant below
+                assert law is not None
+                if own is None:
+                    cmd = law.command(t, q, v, terms, cons)
+                else:  # the controller's own model, at the exact state
+                    cmd = law.command(t, q, v, *own.evaluate(q, v))
+            elif i % per_tick == 0:  # a tick: sense, then control; the torque is held
+                assert sensors is not None
+                if law is not None and i:  # the law's integrators and CLIK over the period
+                    law.update(period, f_meas)
                 q_m, v_m, f_meas = sensors.measure(q, v, f_last)
-                own_terms, own_cons = own.evaluate(q_m, v_m)
-                c = controller.command(t, q_m, v_m, own_terms, own_cons)
-                cmd = Command(c.u0 + c.B @ f_meas if c.B is not None else c.u0.copy(), None)
+                if law is None:
+                    assert controller is not None
+                    cmd = Command(_user_torque(controller, t, q_m, v_m, f_meas, nv), None)
+                else:
+                    assert own is not None
+                    c = law.command(t, q_m, v_m, *own.evaluate(q_m, v_m))
+                    cmd = Command(c.u0 + c.B @ f_meas if c.B is not None else c.u0.copy(), None)
             assert cmd is not None
             f = zeros_k
             if in_contact:
@@ -747,19 +775,23 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 t,
                 q,
                 v,
-                clik.q,
+                clik.q if clik is not None else no_q_d,
                 cmd.u0,
                 no_B if cmd.B is None else cmd.B,
                 f,
                 terms.p,
                 # sampled: the desired point now, not the one of the last tick (held 1/rate s)
-                clik.p_d if own is None else sc.path.position(t),
-                controller.f_d,
+                clik.p_d if clik is not None and not sampled else sc.path.position(t),
+                law.f_d if law is not None else task_f_d,
                 cons.distance if cons is not None else plant.distance(q),
-                controller.V,
+                law.V if law is not None else np.nan,
                 # the real contact state: the supervisor's phase says which law runs, and a
                 # tool off the surface is never logged as in contact
-                CONTACT if in_contact else min(controller.phase, NEAR),
+                CONTACT
+                if in_contact
+                else min(law.phase, NEAR)
+                if law is not None
+                else _free_phase(cons, plant, q, sc.control.max_dist),
             )
             if f_meas_log is not None:
                 f_meas_log[i] = f_meas
@@ -771,8 +803,9 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
                 break
             if i == 1:
                 wall1 = time.perf_counter()  # steps 0 and 1 loaded (or compiled) the kernels
-            if own is None:
-                controller.update(dt, f)
+            if not sampled:
+                assert law is not None
+                law.update(dt, f)
             if in_contact and fast_contact:
                 q, v = plant.contact_step(q, v, ddq, dt)
                 if progress is not None and i % report_every == 0:
@@ -804,7 +837,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
             status="failed",
             reason=failure.reason,
             error=f"{type(exc).__name__}: {exc}",
-            events=_merge(controller.events, [*events, {"t": t, "kind": failure.reason}]),
+            events=_merge(law_events(), [*events, {"t": t, "kind": failure.reason}]),
             steps_per_second=i / wall if wall > 0 else 0.0,
             wall_time=wall,
         )
@@ -823,7 +856,7 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         status="ok",
         reason=None,
         error=None,
-        events=_merge(controller.events, events),
+        events=_merge(law_events(), events),
         steps_per_second=steady,
         wall_time=wall,
     )
@@ -839,6 +872,25 @@ def simulate(scenario: Scenario, *, progress: Callable[[float], None] | None = N
         failed = result.with_meta(status="failed", reason="lost contact", error=message)
         raise LostContactError(message, result=failed)
     return result
+
+
+def _user_torque(
+    controller: Controller, t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, n: int
+) -> np.ndarray:
+    """The user controller's torque at a tick, checked: (n,) finite real numbers."""
+    u = np.asarray(controller.command(t, q.copy(), v.copy(), f.copy()), dtype=float)
+    if u.shape != (n,) or not np.all(np.isfinite(u)):
+        raise ControlError(
+            f"controller {type(controller).__name__}.command(t = {t:.6g} s, ...) returned "
+            f"{u!r}; it must return {n} finite joint torques"
+        )
+    return u.copy()
+
+
+def _free_phase(cons: ConstraintTerms | None, plant: _Plant, q: np.ndarray, max_dist: float) -> int:
+    """Off the surface, for a run without the paper's supervisor: near within max_dist [m]."""
+    distance = cons.distance if cons is not None else plant.distance(q)
+    return NEAR if float(distance.max()) <= max_dist else FREE
 
 
 def _failure(exc: BaseException, name: str, t: float) -> RunFailedError:
@@ -895,26 +947,6 @@ def _joint_names(robot: Robot) -> list[str]:
         for c in range(joint.nq):
             names[joint.idx_q + c] = model.names[j] if joint.nq == 1 else f"{model.names[j]}[{c}]"
     return names
-
-
-def _reference_terms(robot: Robot, q: np.ndarray, v: np.ndarray) -> RobotTerms:
-    """The robot terms from one public method each (the reference for the fast pass)."""
-    M, C, g = robot.mass_matrix(q), robot.coriolis(q, v), robot.gravity(q)
-    J = robot.jacobian(q)
-    data = robot.new_data()
-    pin.computeJointJacobiansTimeVariation(robot.model, data, q, v)
-    Jdot = pin.getFrameJacobianTimeVariation(robot.model, data, robot.tip_id, _LWA)[:3].copy()
-    return RobotTerms(
-        M=M,
-        C=C,
-        g=g,
-        nle=C @ v + g,
-        p=robot.tip_position(q),
-        J=J,
-        Jdot=Jdot,
-        Jdot_v=robot.drift(q, v),
-        pdot=J @ v,
-    )
 
 
 def _path_meta(path: Path) -> dict:

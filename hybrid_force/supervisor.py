@@ -88,6 +88,7 @@ class ControlSettings:
         branch_check_time: in contact for longer than this [s] with a task error above
             ``branch_error`` that no longer decreases → "branch" event and a warning.
         branch_error: [m].
+        law: the control law, ``"arimoto"`` (the paper's, with this supervisor).
         rate: the control rate [Hz]: the controller reads its sensors and computes a new
             torque every 1/rate s and the torque is held in between (zero-order hold); None:
             every plant step (1/sim.dt). Must be a whole number of plant steps (checked with
@@ -115,6 +116,7 @@ class ControlSettings:
     branch_check_time: float = 1.0
     branch_error: float = 1e-2
     rate: float | None = None
+    law: str = "arimoto"
 
     def __post_init__(self) -> None:
         """Check every field (types, signs, finiteness) and store numbers as floats.
@@ -140,6 +142,9 @@ class ControlSettings:
                 f"need max_dist > contact_tol > 0, got max_dist={self.max_dist!r}, "
                 f"contact_tol={self.contact_tol!r}"
             )
+        from hybrid_force.controller import LAWS
+
+        checks.one_of(self.law, "control.law", ControlError, LAWS)
         supervisor = checks.flag(self.supervisor, "ControlSettings.supervisor", ControlError)
         set_(self, "supervisor", supervisor)
         set_(self, "f_d", _desired_force(self.f_d))
