@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -26,3 +27,83 @@ def rtr_urdf() -> Path:
 def rng() -> np.random.Generator:
     """A random generator with a fixed seed (tests must be reproducible)."""
     return np.random.default_rng(20240611)
+
+
+# --- a model written as xacro files (tests of model sources and of sweeps) ------------------
+#: A xacro macro making a thin rod link (mass [kg], length [m] along +x), for parts/rod.xacro.
+ROD_MACRO = """\
+<robot xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:macro name="rod" params="name length mass">
+    <link name="${name}">
+      <inertial>
+        <origin xyz="${length / 2} 0 0"/>
+        <mass value="${mass}"/>
+        <inertia ixx="0" ixy="0" ixz="0" iyy="${mass * length**2 / 12}" iyz="0"
+                 izz="${mass * length**2 / 12}"/>
+      </inertial>
+    </link>
+  </xacro:macro>
+</robot>
+"""
+
+#: The paper's RTR arm as xacro: link 2's length is the argument l2 (0.9 m: the bundled arm),
+#: its links made by the macro of the included parts/rod.xacro (relative to the arm's file).
+RTR_XACRO = """\
+<?xml version="1.0"?>
+<robot name="rtr" xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:arg name="l2" default="0.9"/>
+  <xacro:property name="l2" value="$(arg l2)"/>
+  <xacro:include filename="parts/rod.xacro"/>
+  <link name="world"/>
+  <link name="link1"/>
+  <xacro:rod name="link2" length="${l2}" mass="20"/>
+  <xacro:rod name="link3" length="1.0" mass="20"/>
+  <link name="tip"/>
+  <joint name="q1" type="continuous"><parent link="world"/><child link="link1"/>
+    <axis xyz="0 0 1"/></joint>
+  <joint name="q2" type="prismatic"><parent link="link1"/><child link="link2"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="16" effort="0" velocity="100"/></joint>
+  <joint name="q3" type="revolute"><parent link="link2"/><child link="link3"/>
+    <origin xyz="${l2} 0 0"/><axis xyz="0 -1 0"/>
+    <limit lower="-3.2" upper="3.2" effort="0" velocity="100"/></joint>
+  <joint name="tip_joint" type="fixed"><parent link="link3"/><child link="tip"/>
+    <origin xyz="1.0 0 0"/></joint>
+</robot>
+"""
+
+#: The paper's RTR arm in MJCF (hinge, slide, hinge; capsule geoms), its tip a body "tip".
+RTR_MJCF = """\
+<mujoco model="rtr">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="link1">
+      <joint name="q1" type="hinge" axis="0 0 1"/>
+      <body name="link2">
+        <joint name="q2" type="slide" axis="0 0 1" range="-1 16"/>
+        <inertial pos="0.45 0 0" mass="20" diaginertia="0 1.35 1.35"/>
+        <geom type="capsule" fromto="0 0 0 0.9 0 0" size="0.02"/>
+        <body name="link3" pos="0.9 0 0">
+          <joint name="q3" type="hinge" axis="0 -1 0" range="-3.2 3.2"/>
+          <inertial pos="0.5 0 0" mass="20" diaginertia="0 1.6666666666666667 1.6666666666666667"/>
+          <geom type="capsule" fromto="0 0 0 1 0 0" size="0.02"/>
+          <body name="tip" pos="1 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture
+def write_xacro_rtr() -> Callable[[Path], Path]:
+    """Writes folder/rtr.urdf.xacro and folder/parts/rod.xacro; returns the arm's path."""
+
+    def write(folder: Path) -> Path:
+        (folder / "parts").mkdir(parents=True, exist_ok=True)
+        (folder / "parts" / "rod.xacro").write_text(ROD_MACRO)
+        path = folder / "rtr.urdf.xacro"
+        path.write_text(RTR_XACRO)
+        return path
+
+    return write

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import RTR_MJCF
 
 from hybrid_force.errors import FrameError, URDFError
 from hybrid_force.model_report import format_report, model_report
@@ -293,32 +294,13 @@ def test_reach_of_a_planar_two_link_arm_is_reached_when_stretched(tmp_path: Path
 
 
 # --- other model sources: the report reads what the model was built from -----------------------
-_RTR_MJCF = """\
-<mujoco model="rtr">
-  <compiler angle="radian"/>
-  <worldbody>
-    <body name="link1">
-      <joint name="q1" type="hinge" axis="0 0 1"/>
-      <body name="link2">
-        <joint name="q2" type="slide" axis="0 0 1" range="-1 16"/>
-        <inertial pos="0.45 0 0" mass="20" diaginertia="0 1.35 1.35"/>
-        <body name="link3" pos="0.9 0 0">
-          <joint name="q3" type="hinge" axis="0 -1 0" range="-3.2 3.2"/>
-          <inertial pos="0.5 0 0" mass="20" diaginertia="0 1.6666666666666667 1.6666666666666667"/>
-          <body name="tip" pos="1 0 0"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
 
 
 def test_mjcf_rtr_has_the_urdf_rtr_numbers(tmp_path: Path) -> None:
     """The RTR written in MJCF: the same masses and reach by hand (1.9 m + 16 m); the joint
     types are Pinocchio's (MJCF has no 'continuous'), and a note says no URDF part is read."""
     path = tmp_path / "rtr.xml"
-    path.write_text(_RTR_MJCF)
+    path.write_text(RTR_MJCF)
     report = model_report(path, tip="tip")
     assert [(j.name, j.urdf_type) for j in report.joints] == [
         ("q1", "revolute"),

@@ -15,12 +15,14 @@ import os
 import re
 import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 import umsgpack
+from conftest import ROD_MACRO, RTR_MJCF
 
 from hybrid_force import replay
 from hybrid_force.errors import FrameError, ModelWarning, RobotError, ScenarioError, URDFError
@@ -281,20 +283,6 @@ def test_the_replay_finds_package_dirs_in_the_scenario_table(tmp_path: Path) -> 
 
 
 # --- xacro ----------------------------------------------------------------------------------------
-ROD_MACRO = """\
-<robot xmlns:xacro="http://www.ros.org/wiki/xacro">
-  <xacro:macro name="rod" params="name length mass">
-    <link name="${name}">
-      <inertial>
-        <origin xyz="${length / 2} 0 0"/>
-        <mass value="${mass}"/>
-        <inertia ixx="0" ixy="0" ixz="0" iyy="${mass * length**2 / 12}" iyz="0"
-                 izz="${mass * length**2 / 12}"/>
-      </inertial>
-    </link>
-  </xacro:macro>
-</robot>
-"""
 
 ARM_XACRO = """\
 <?xml version="1.0"?>
@@ -439,29 +427,6 @@ def test_a_replay_expands_the_xacro_file_again_with_its_arguments(tmp_path: Path
     )
 
 
-RTR_XACRO = """\
-<?xml version="1.0"?>
-<robot name="rtr" xmlns:xacro="http://www.ros.org/wiki/xacro">
-  <xacro:arg name="l2" default="0.9"/>
-  <xacro:property name="l2" value="$(arg l2)"/>
-  <xacro:include filename="parts/rod.xacro"/>
-  <link name="world"/>
-  <link name="link1"/>
-  <xacro:rod name="link2" length="${l2}" mass="20"/>
-  <xacro:rod name="link3" length="1.0" mass="20"/>
-  <link name="tip"/>
-  <joint name="q1" type="continuous"><parent link="world"/><child link="link1"/>
-    <axis xyz="0 0 1"/></joint>
-  <joint name="q2" type="prismatic"><parent link="link1"/><child link="link2"/>
-    <axis xyz="0 0 1"/><limit lower="-1" upper="16" effort="0" velocity="100"/></joint>
-  <joint name="q3" type="revolute"><parent link="link2"/><child link="link3"/>
-    <origin xyz="${l2} 0 0"/><axis xyz="0 -1 0"/>
-    <limit lower="-3.2" upper="3.2" effort="0" velocity="100"/></joint>
-  <joint name="tip_joint" type="fixed"><parent link="link3"/><child link="tip"/>
-    <origin xyz="1.0 0 0"/></joint>
-</robot>
-"""
-
 # Paper section 6.3, shortened (tests/test_sweep.py): the RTR on the cylinder r = 0.4.
 RTR_SCENARIO = """\
 name = "own_rtr"
@@ -486,22 +451,15 @@ duration = 0.05
 """
 
 
-def _rtr_xacro(folder: Path) -> Path:
-    """folder/rtr.urdf.xacro (argument l2, link length [m]) and its folder/parts/rod.xacro."""
-    (folder / "parts").mkdir(parents=True, exist_ok=True)
-    (folder / "parts" / "rod.xacro").write_text(ROD_MACRO)
-    path = folder / "rtr.urdf.xacro"
-    path.write_text(RTR_XACRO)
-    return path
-
-
 def _rtr_scenario(path: Path, robot: str, seed: str = "[0.0, 6.0, 2.0]") -> Path:
     path.write_text(RTR_SCENARIO.format(robot=robot, seed=seed))
     return path
 
 
-def test_rtr_xacro_is_the_bundled_rtr_at_the_default_length(tmp_path: Path) -> None:
-    path = _rtr_xacro(tmp_path)
+def test_rtr_xacro_is_the_bundled_rtr_at_the_default_length(
+    tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
+) -> None:
+    path = write_xacro_rtr(tmp_path)
     xacro_rtr, rtr = load_robot(path), load_robot("rtr")
     short = load_robot(path, xacro_args={"l2": "0.7"})
     rng = np.random.default_rng(4)
@@ -513,8 +471,10 @@ def test_rtr_xacro_is_the_bundled_rtr_at_the_default_length(tmp_path: Path) -> N
         np.testing.assert_allclose(short.tip_position(q), p, atol=1e-14)
 
 
-def test_scenario_with_a_xacro_model_and_arguments(tmp_path: Path) -> None:
-    _rtr_xacro(tmp_path / "arms")
+def test_scenario_with_a_xacro_model_and_arguments(
+    tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
+) -> None:
+    write_xacro_rtr(tmp_path / "arms")
     scen = _rtr_scenario(
         tmp_path / "s.toml", 'model = "arms/rtr.urdf.xacro"\nxacro_args = {l2 = 0.7}'
     )
@@ -579,29 +539,6 @@ def test_mjcf_arm_matches_the_hand_formulas(tmp_path: Path) -> None:
     np.testing.assert_array_equal(lower, [-3, -3])
     np.testing.assert_array_equal(upper, [3, 3])
     np.testing.assert_array_equal(robot.effort_limits, [np.inf, np.inf])  # MJCF gives none
-
-
-RTR_MJCF = """\
-<mujoco model="rtr">
-  <compiler angle="radian"/>
-  <worldbody>
-    <body name="link1">
-      <joint name="q1" type="hinge" axis="0 0 1"/>
-      <body name="link2">
-        <joint name="q2" type="slide" axis="0 0 1" range="-1 16"/>
-        <inertial pos="0.45 0 0" mass="20" diaginertia="0 1.35 1.35"/>
-        <geom type="capsule" fromto="0 0 0 0.9 0 0" size="0.02"/>
-        <body name="link3" pos="0.9 0 0">
-          <joint name="q3" type="hinge" axis="0 -1 0" range="-3.2 3.2"/>
-          <inertial pos="0.5 0 0" mass="20" diaginertia="0 1.6666666666666667 1.6666666666666667"/>
-          <geom type="capsule" fromto="0 0 0 1 0 0" size="0.02"/>
-          <body name="tip" pos="1 0 0"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
 
 
 def test_mjcf_rtr_is_the_bundled_urdf_rtr(tmp_path: Path) -> None:

@@ -14,7 +14,7 @@ import sys
 import tempfile
 import textwrap
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -681,58 +681,26 @@ def test_a_sweep_into_a_folder_another_command_writes_into_is_refused(
 
 
 # ----------------------------------------------------------------------------- own model files
-# The RTR arm as a xacro file: link 2's length is the argument l2 (0.9 m: the bundled arm),
-# its links made by a macro of an included file (parts/rod.xacro, relative to the arm's file).
-ROD_MACRO = """\
-<robot xmlns:xacro="http://www.ros.org/wiki/xacro">
-  <xacro:macro name="rod" params="name length mass">
-    <link name="${name}"><inertial><origin xyz="${length / 2} 0 0"/><mass value="${mass}"/>
-      <inertia ixx="0" ixy="0" ixz="0" iyy="${mass * length**2 / 12}" iyz="0"
-               izz="${mass * length**2 / 12}"/></inertial></link>
-  </xacro:macro>
-</robot>
-"""
-RTR_XACRO = """\
-<?xml version="1.0"?>
-<robot name="rtr" xmlns:xacro="http://www.ros.org/wiki/xacro">
-  <xacro:arg name="l2" default="0.9"/>
-  <xacro:property name="l2" value="$(arg l2)"/>
-  <xacro:include filename="parts/rod.xacro"/>
-  <link name="world"/>
-  <link name="link1"/>
-  <xacro:rod name="link2" length="${l2}" mass="20"/>
-  <xacro:rod name="link3" length="1.0" mass="20"/>
-  <link name="tip"/>
-  <joint name="q1" type="continuous"><parent link="world"/><child link="link1"/>
-    <axis xyz="0 0 1"/></joint>
-  <joint name="q2" type="prismatic"><parent link="link1"/><child link="link2"/>
-    <axis xyz="0 0 1"/><limit lower="-1" upper="16" effort="0" velocity="100"/></joint>
-  <joint name="q3" type="revolute"><parent link="link2"/><child link="link3"/>
-    <origin xyz="${l2} 0 0"/><axis xyz="0 -1 0"/>
-    <limit lower="-3.2" upper="3.2" effort="0" velocity="100"/></joint>
-  <joint name="tip_joint" type="fixed"><parent link="link3"/><child link="tip"/>
-    <origin xyz="1.0 0 0"/></joint>
-</robot>
-"""
+# The RTR arm as a xacro file (conftest.py's write_xacro_rtr): link 2's length is the argument
+# l2, its links made by a macro of an included file (parts/rod.xacro).
 
 
-def _xacro_study(tmp_path: Path) -> Path:
+def _xacro_study(tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]) -> Path:
     """study/arms/rtr.urdf.xacro (+ parts/rod.xacro) and study/s.toml using it with l2 = 0.8."""
-    arms = tmp_path / "study" / "arms"
-    (arms / "parts").mkdir(parents=True)
-    (arms / "parts" / "rod.xacro").write_text(ROD_MACRO)
-    (arms / "rtr.urdf.xacro").write_text(RTR_XACRO)
+    write_xacro_rtr(tmp_path / "study" / "arms")
     scen = tmp_path / "study" / "s.toml"
     robot = 'model = "arms/rtr.urdf.xacro"\nxacro_args = {l2 = "0.8"}'
     scen.write_text(SCENARIO.format(duration=0.05).replace('model = "rtr"', robot))
     return scen
 
 
-def test_a_xacro_model_is_expanded_by_the_sweep_and_sent_as_urdf(tmp_path: Path) -> None:
+def test_a_xacro_model_is_expanded_by_the_sweep_and_sent_as_urdf(
+    tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
+) -> None:
     """The worker gets the expanded URDF text: it runs with the xacro files gone."""
     from hybrid_force.sweep import _execute, _Source
 
-    scen = _xacro_study(tmp_path)
+    scen = _xacro_study(tmp_path, write_xacro_rtr)
     task = _Source(scen).job("r1", {"control.Lambda": 5.0}, keep=True)
     assert not isinstance(task, dict), task
     assert task.urdf is not None and task.urdf.expanded and task.urdf.name == "rtr.urdf"
@@ -745,11 +713,13 @@ def test_a_xacro_model_is_expanded_by_the_sweep_and_sent_as_urdf(tmp_path: Path)
     assert blob is not None
 
 
-def test_run_one_on_a_relative_xacro_model_names_it_and_its_arguments(tmp_path: Path) -> None:
+def test_run_one_on_a_relative_xacro_model_names_it_and_its_arguments(
+    tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
+) -> None:
     from hybrid_force.replay import Replay
     from hybrid_force.result import Result
 
-    scen = _xacro_study(tmp_path)
+    scen = _xacro_study(tmp_path, write_xacro_rtr)
     keep = tmp_path / "keep"
     row = run_one(str(scen), {"control.Lambda": 5.0}, str(keep))
     assert row["status"] == "ok", row
