@@ -39,6 +39,7 @@ import numpy as np
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, did_you_mean
+from hybrid_force.phases import CONTACT, NEAR
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -68,7 +69,6 @@ _KIND_COLOURS = {
     "free": "tab:gray",
 }
 _SURFACE_TYPES = ("cylinder", "sphere", "plane")
-_PHASE_FREE, _PHASE_NEAR, _PHASE_CONTACT = 0, 1, 2
 
 
 class PlotError(BadInputError):
@@ -108,7 +108,7 @@ class _Run:
     @property
     def contact(self) -> np.ndarray:
         """(N,) bool: samples in the contact phase."""
-        return self.phase == _PHASE_CONTACT
+        return self.phase == CONTACT
 
 
 def _array(result: object, attr: str) -> np.ndarray:
@@ -456,11 +456,11 @@ def _phase_switches(t: np.ndarray, phase: np.ndarray) -> list[tuple[float, str]]
     out: list[tuple[float, str]] = []
     for i in np.flatnonzero(np.diff(phase) != 0) + 1:
         old, new = int(phase[i - 1]), int(phase[i])
-        if new == _PHASE_CONTACT:
+        if new == CONTACT:
             kind = "contact"
-        elif old == _PHASE_CONTACT:
+        elif old == CONTACT:
             kind = "release"
-        elif new == _PHASE_NEAR:
+        elif new == NEAR:
             kind = "near"
         else:
             kind = "free"
@@ -826,7 +826,7 @@ def _fig_lyapunov(run: _Run) -> Figure:
     if not _semilog(ax, run.t, run.V, color="k", lw=1.0, label="V"):
         ax.plot(run.t, run.V, color="k", lw=1.0, label="V")
         _note(ax, "V has no positive finite value: linear scale")
-    _shade(ax, run.t, run.phase == _PHASE_NEAR, "tab:orange", "near phase")
+    _shade(ax, run.t, run.phase == NEAR, "tab:orange", "near phase")
     _shade(ax, run.t, run.contact, "tab:green", "contact phase")
     ax.set_xlim(run.t[0], run.t[-1])
     ax.set_xlabel("t [s]")

@@ -64,6 +64,7 @@ import numpy as np
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, HybridForceError, ModelWarning, ViewerError
+from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.result import Result
 
 __all__ = [
@@ -79,7 +80,6 @@ __all__ = [
 
 #: Colours (0xRRGGBB) of the tip marker per phase: 0 free, 1 near, 2 contact.
 PHASE_COLORS: tuple[int, int, int] = (0x8C8C8C, 0xF08C1E, 0x2CA02C)
-_PHASE_NAMES: tuple[str, str, str] = ("free", "near", "contact")
 _SURFACE_COLORS: tuple[int, ...] = (0x4A90D9, 0xB07AD9, 0x49B6A6, 0xD9C24A)
 _DESIRED_COLOR = 0x1F77B4
 _ACTUAL_COLOR = 0xD62728
@@ -405,7 +405,7 @@ class Replay:
             "desired_path": f"/meshcat/{_ROOT}/paths/desired",
             "actual_path": f"/meshcat/{_ROOT}/paths/actual",
             "tip": f"/meshcat/{_ROOT}/tip",
-            "phase_markers": [f"/meshcat/{_ROOT}/tip/{name}" for name in _PHASE_NAMES],
+            "phase_markers": [f"/meshcat/{_ROOT}/tip/{name}" for name in PHASE_NAMES],
             "force_arrows": [
                 f"/meshcat/{_ROOT}/force/arrow_{i}" for i in range(self.frame_f.shape[1])
             ],
@@ -496,7 +496,7 @@ class Replay:
                 mg.Line(mg.PointsGeometry(positions), mg.LineBasicMaterial(color=color))
             )
         # tip marker: one sphere per phase, only the current phase visible
-        for phase, pname in enumerate(_PHASE_NAMES):
+        for phase, pname in enumerate(PHASE_NAMES):
             root["tip"][pname].set_object(
                 mg.Mesh(mg.Sphere(s.tip_radius), mg.MeshLambertMaterial(color=PHASE_COLORS[phase]))
             )
@@ -558,7 +558,7 @@ class Replay:
             arrows = [self._arrow_pose(k, p, self.frame_f[i, k]) for k in range(n_k)]
             if i == 0:  # the initial state, before the animation starts
                 tip_node.set_transform(_homogeneous(translation=p))
-                for j, pname in enumerate(_PHASE_NAMES):
+                for j, pname in enumerate(PHASE_NAMES):
                     tip_node[pname].set_property("visible", j == phase)
                 for k, (T, length, visible) in enumerate(arrows):
                     node = force_root[f"arrow_{k}"]
@@ -568,7 +568,7 @@ class Replay:
             with anim.at_frame(vis, i) as frame:
                 ftip = frame[_ROOT]["tip"]
                 ftip.set_transform(_homogeneous(translation=p))
-                for j, pname in enumerate(_PHASE_NAMES):
+                for j, pname in enumerate(PHASE_NAMES):
                     ftip[pname].set_property("visible", "boolean", j == phase)
                 for k, (T, length, visible) in enumerate(arrows):
                     node = frame[_ROOT]["force"][f"arrow_{k}"]

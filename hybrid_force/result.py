@@ -35,6 +35,7 @@ from numpy.lib.npyio import NpzFile
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
+from hybrid_force.phases import Phase
 
 __all__ = [
     "ARRAY_NAMES",
@@ -69,10 +70,8 @@ ARRAY_NAMES: tuple[str, ...] = (
 #: :class:`Result` for the value then).
 OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas",)
 #: Phase codes of the ``phase`` array.
-PHASE_FREE = 0
-PHASE_NEAR = 1
-PHASE_CONTACT = 2
-_PHASES = (PHASE_FREE, PHASE_NEAR, PHASE_CONTACT)
+PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT
+_PHASES = tuple(int(p) for p in Phase)
 #: Event kinds the simulator records in ``meta["events"]`` (other kinds are accepted as well).
 #: A failed run ends with an event named after its reason ("diverged", "lost contact", ...).
 EVENT_KINDS: tuple[str, ...] = (

@@ -72,6 +72,7 @@ from hybrid_force.errors import (
     SingularConfigurationError,
 )
 from hybrid_force.paths import Path, PathParameterError
+from hybrid_force.phases import CONTACT, FREE, NEAR
 from hybrid_force.result import Result
 from hybrid_force.robot import Robot, RobotTerms
 from hybrid_force.robot import reference_terms as _reference_terms
@@ -82,7 +83,7 @@ from hybrid_force.run_checks import (
     limit_violations,
 )
 from hybrid_force.sensors import Sensors, SensorSettings
-from hybrid_force.supervisor import CONTACT, FREE, NEAR, ControlSettings, HybridController
+from hybrid_force.supervisor import ControlSettings, HybridController
 from hybrid_force.surfaces import Surface
 
 __all__ = ["Scenario", "SimSettings", "simulate"]

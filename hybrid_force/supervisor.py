@@ -56,12 +56,11 @@ from hybrid_force.control import (
 )
 from hybrid_force.errors import ControlError, GainError
 from hybrid_force.paths import Path
+from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES
 from hybrid_force.robot import Robot, RobotTerms
 
 __all__ = ["CONTACT", "FREE", "NEAR", "PHASE_NAMES", "ControlSettings", "HybridController"]
 
-FREE, NEAR, CONTACT = 0, 1, 2
-PHASE_NAMES = ("free", "near", "contact")
 _BRANCH_PERIOD = 0.01  # [s] the wrong-branch check runs at most this often (seconds-long test)
 
 
