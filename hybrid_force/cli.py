@@ -41,7 +41,7 @@ from typing import Any, NoReturn, TextIO
 from hybrid_force._signals import sigterm_raises
 from hybrid_force.errors import (
     BadInputError,
-    HybridForceError,
+    FeatureUnavailableError,
     HybridForceWarning,
     RunFailedError,
     RunInterruptedError,
@@ -99,10 +99,6 @@ def _cmd_robots(args: argparse.Namespace) -> int:
     for row in [header, *rows]:
         print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
     return 0
-
-
-class FeatureUnavailableError(HybridForceError):
-    """A subcommand's module (e.g. hybrid_force.replay) is not installed in this checkout."""
 
 
 def _import_feature(module: str, feature: str) -> Any:

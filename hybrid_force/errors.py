@@ -21,6 +21,7 @@ __all__ = [
     "ControlError",
     "DimensionError",
     "DivergenceError",
+    "FeatureUnavailableError",
     "FrameError",
     "GainError",
     "HybridForceError",
@@ -28,6 +29,8 @@ __all__ = [
     "LostContactError",
     "ModelWarning",
     "OutputError",
+    "PathParameterError",
+    "PlotError",
     "ReachError",
     "ResultFileError",
     "RobotError",
@@ -42,6 +45,7 @@ __all__ = [
     "SingularConfigurationError",
     "SurfaceError",
     "SurfaceParameterError",
+    "SweepError",
     "URDFError",
     "UnknownRobotError",
     "ViewerError",
@@ -193,6 +197,23 @@ class ResultFileError(BadInputError):
 
 class ViewerError(BadInputError):
     """The 3D replay cannot be produced (missing model, port in use, ...)."""
+
+
+# --- edges: command line, figures, sweeps, paths --------------------------------------------
+class PathParameterError(BadInputError):
+    """A path parameter (radius, axis, omega, ...) or a check_on_surface argument is invalid."""
+
+
+class PlotError(BadInputError):
+    """A run or a sweep file cannot be plotted (missing array, wrong shape, unknown column, ...)."""
+
+
+class SweepError(BadInputError):
+    """A sweep specification (grid, random range, samples, output directory) is invalid."""
+
+
+class FeatureUnavailableError(HybridForceError):
+    """A subcommand's module (e.g. hybrid_force.replay) is not installed in this checkout."""
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:

@@ -39,7 +39,7 @@ import numpy as np
 
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import kernels
-from hybrid_force.errors import BadInputError, SurfaceError, did_you_mean
+from hybrid_force.errors import PathParameterError, SurfaceError, did_you_mean
 
 __all__ = [
     "ON_SURFACE_TOL",
@@ -72,10 +72,6 @@ _MAX_SAMPLES = 10_000_000
 ON_SURFACE_TOL = 1e-6
 """Largest |d| [m] of a desired path from a surface over a run accepted by the scenario loader
 and by ``Scenario`` for a run that starts in contact (:func:`check_on_surface`)."""
-
-
-class PathParameterError(BadInputError):
-    """A path parameter (radius, axis, omega, ...) or a check_on_surface argument is invalid."""
 
 
 # --- helpers -------------------------------------------------------------------------------------

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hybrid_force._atomic import atomic_file
-from hybrid_force.errors import BadInputError, did_you_mean
+from hybrid_force.errors import PlotError, did_you_mean
 from hybrid_force.phases import CONTACT, NEAR
 
 if TYPE_CHECKING:
@@ -69,10 +69,6 @@ _KIND_COLOURS = {
     "free": "tab:gray",
 }
 _SURFACE_TYPES = ("cylinder", "sphere", "plane")
-
-
-class PlotError(BadInputError):
-    """A run or a sweep file cannot be plotted (missing array, wrong shape, unknown column, ...)."""
 
 
 # --------------------------------------------------------------------------------------------

@@ -65,7 +65,7 @@ from typing import Any, Literal
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force._signals import Terminated, sigterm_raises
-from hybrid_force.errors import BadInputError, ScenarioError, SimulationError
+from hybrid_force.errors import BadInputError, ScenarioError, SimulationError, SweepError
 from hybrid_force.run_output import locked_folder
 
 __all__ = [
@@ -131,10 +131,6 @@ _CSV_NAME = "sweep.csv"
 _JSON_NAME = "sweep.json"
 
 Progress = bool | Literal["force"]
-
-
-class SweepError(BadInputError):
-    """A sweep specification (grid, random range, samples, output directory) is invalid."""
 
 
 # ----------------------------------------------------------------------------- variants
