@@ -181,7 +181,7 @@ _SENSOR: dict[str, _Key] = {
 def _fmt(value: object) -> str:
     """A value as it would be written in TOML (JSON is close enough), shortened."""
     try:
-        text = json.dumps(value)
+        text = json.dumps(value, ensure_ascii=False)
     except (TypeError, ValueError):
         text = repr(value)
     return text if len(text) <= 100 else text[:97] + "..."
@@ -1042,13 +1042,15 @@ def _check_controller(
 ) -> None:
     """Build the controller once: checks q_d(0) in reach and dt·λ_max(M⁻¹K_d)."""
     from hybrid_force.constraint import Constraint
+    from hybrid_force.simulate import control_steps
     from hybrid_force.supervisor import HybridController
 
     try:
         constraint = Constraint(surfaces, normalization=sim.normalization)
         # the numpy path: the same checks without loading the compiled kernels (about 1 s),
         # which a sweep's parent, that never simulates, does not need
-        HybridController(robot, constraint, path, q0, control, dt=sim.dt, fast=False)
+        period = control_steps(control, sim) * sim.dt  # the law runs at the control rate
+        HybridController(robot, constraint, path, q0, control, dt=period, fast=False)
     except ReachError as exc:
         raise ctx.error(
             "trajectory.center",
@@ -1062,7 +1064,11 @@ def _check_controller(
             value = control_values.get(
                 "Kd", f"default kd_rate · M(q0), kd_rate = {control.kd_rate}"
             )
-            raise ctx.error("control.Kd", value, f"{message} (sim.dt = {sim.dt:g})") from None
+            period = control_steps(control, sim) * sim.dt
+            where = f"sim.dt = {sim.dt:g} s" + (
+                f", control period {period:g} s" if period != sim.dt else ""
+            )
+            raise ctx.error("control.Kd", value, f"{message} ({where})") from None
         raise _wrap(ctx, "control", control_values, exc) from None
 
 

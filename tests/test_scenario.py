@@ -979,3 +979,11 @@ def test_bad_sensor_and_rate_settings_exit_2(
     assert main([*argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and f"{key} = " in err[0] and not out.exists()
+
+
+def test_the_gain_check_uses_the_control_period(capsys: pytest.CaptureFixture[str]) -> None:
+    """K_d = 100 M(q0) at a 100 Hz controller: period · λ_max(M⁻¹K_d) = 0.01 · 100 = 1 > 0.5,
+    refused by the loader, while the same gain at the plant's 1 kHz (0.1) is accepted."""
+    load_scenario(REPO_ROOT / "scenarios" / "paper_contact.toml")
+    with pytest.raises(ScenarioError, match=r"control\.Kd = .*= 1 at q0.*control period 0\.01 s"):
+        load_scenario(REPO_ROOT / "scenarios" / "paper_contact.toml", {"control.rate": 100})
