@@ -20,6 +20,7 @@ from hybrid_force.control import (
     free_space_law,
     make_gains,
 )
+from hybrid_force.controller import Controller, ControllerModel
 from hybrid_force.dynamics import (
     Baumgarte,
     ConstrainedDynamics,
@@ -69,6 +70,7 @@ from hybrid_force.paths import (
 from hybrid_force.result import Metrics, Result, load_result
 from hybrid_force.robot import Robot, RobotTerms, load_robot
 from hybrid_force.scenario import load_scenario, parse_override
+from hybrid_force.sensors import SensorSettings
 from hybrid_force.simulate import Scenario, SimSettings, simulate
 from hybrid_force.supervisor import (
     CONTACT,
@@ -131,6 +133,8 @@ __all__ = [
     "ControlError",
     "ControlSettings",
     "ControlTrace",
+    "Controller",
+    "ControllerModel",
     "Cylinder",
     "Desired",
     "DesiredJointPath",
@@ -167,6 +171,7 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "ScenarioValueError",
+    "SensorSettings",
     "SimSettings",
     "SimSettingsError",
     "SimulationError",
