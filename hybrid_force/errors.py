@@ -58,7 +58,25 @@ class HybridForceError(Exception):
 
 
 class BadInputError(HybridForceError, ValueError):
-    """Input given by the user (file, parameter, option) is invalid."""
+    """Input given by the user (file, parameter, option) is invalid.
+
+    Attributes:
+        key: the offending key as a scenario file spells it (``"surface.radius"``), or None
+            where the error is not about one key.
+        value: the offending value (None when ``key`` is None or the key is missing).
+        file: the scenario file, when the error comes from one.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        key: str | None = None,
+        value: object = None,
+        file: str | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.key, self.value, self.file = key, value, file
 
 
 # --- robot model -----------------------------------------------------------

@@ -222,10 +222,12 @@ class _Context:
         self.file = file
 
     def error(self, key: str, value: object, problem: str) -> ScenarioError:
-        return ScenarioError(f"{self.file}: {key} = {_fmt(value)}: {problem}")
+        return ScenarioError(
+            f"{self.file}: {key} = {_fmt(value)}: {problem}", key=key, value=value, file=self.file
+        )
 
     def table_error(self, key: str, problem: str) -> ScenarioError:
-        return ScenarioError(f"{self.file}: {key}: {problem}")
+        return ScenarioError(f"{self.file}: {key}: {problem}", key=key, file=self.file)
 
 
 # --- overrides -----------------------------------------------------------------------------------

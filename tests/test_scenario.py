@@ -987,3 +987,14 @@ def test_the_gain_check_uses_the_control_period(capsys: pytest.CaptureFixture[st
     load_scenario(REPO_ROOT / "scenarios" / "paper_contact.toml")
     with pytest.raises(ScenarioError, match=r"control\.Kd = .*= 1 at q0.*control period 0\.01 s"):
         load_scenario(REPO_ROOT / "scenarios" / "paper_contact.toml", {"control.rate": 100})
+
+
+def test_a_scenario_error_carries_the_file_key_and_value() -> None:
+    path = REPO_ROOT / "scenarios" / "paper_contact.toml"
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, {"surface.radius": -0.4})
+    assert info.value.key == "surface.radius" and info.value.value == -0.4
+    assert info.value.file == str(path)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, {"sim.duration": "long"})
+    assert (info.value.key, info.value.value) == ("sim.duration", "long")
