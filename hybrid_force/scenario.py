@@ -671,25 +671,31 @@ def resolve_robot_table(
     return _robot_table(doc["robot"], Path(path), ctx)
 
 
-def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
+def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
+    """A model reference of a scenario: (the registry name, "name") or (the model file,
+    resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""
     from hybrid_force.robot import _is_path, model_kind
 
+    if not _is_path(model):
+        return model, "name"
+    candidate = Path(model)
+    target = candidate if candidate.is_absolute() else file.parent / candidate
+    kind = model_kind(target)
+    if not target.is_file():
+        label = {"urdf": "URDF", "xacro": "xacro", "mjcf": "MJCF"}[kind]
+        raise ctx.error(
+            key,
+            model,
+            f"{label} file not found (paths are relative to the scenario file): {target}",
+        )
+    return target, kind
+
+
+def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
     values = _check_table(ctx, "robot", table, _ROBOT)
     raw = table if isinstance(table, dict) else {}
     model: str = values["model"]
-    target: str | Path = model
-    kind = "name"
-    if _is_path(model):
-        candidate = Path(model)
-        target = candidate if candidate.is_absolute() else file.parent / candidate
-        kind = model_kind(target)
-        if not target.is_file():
-            label = {"urdf": "URDF", "xacro": "xacro", "mjcf": "MJCF"}[kind]
-            raise ctx.error(
-                "robot.model",
-                model,
-                f"{label} file not found (paths are relative to the scenario file): {target}",
-            )
+    target, kind = _model_target(model, "robot.model", file, ctx)
     dirs = []
     for folder_text in values.get("package_dirs", []):
         folder = Path(folder_text)
@@ -808,21 +814,12 @@ def _controller_model(
     """``control.model``: the controller's own model of the arm (a name, or a model path
     relative to the scenario file), with the plant's tip and joints; None when not given."""
     from hybrid_force.controller import check_same_joints
-    from hybrid_force.robot import _is_path, load_robot
+    from hybrid_force.robot import load_robot
 
     if "model" not in control_values:
         return None
     model: str = control_values["model"]
-    target: str | Path = model
-    if _is_path(model):
-        candidate = Path(model)
-        target = candidate if candidate.is_absolute() else file.parent / candidate
-        if not target.is_file():
-            raise ctx.error(
-                "control.model",
-                model,
-                f"model file not found (paths are relative to the scenario file): {target}",
-            )
+    target, _ = _model_target(model, "control.model", file, ctx)
     try:
         own = load_robot(target)
         check_same_joints(robot, own)

@@ -421,14 +421,19 @@ def _vector_attr(path: Path, where: str, element: ET.Element, key: str) -> list[
     return values
 
 
+def _check_origin(path: Path, where: str, parent: ET.Element) -> None:
+    """The ``<origin>`` of ``parent``, if any, has 3 finite numbers in xyz and in rpy."""
+    origin = parent.find("origin")
+    if origin is not None:
+        for key in ("xyz", "rpy"):
+            _vector_attr(path, where, origin, key)
+
+
 def _check_joint_numbers(path: Path, name: str, jtype: str, joint: ET.Element) -> None:
     """Origin, axis and limits hold finite numbers (urdfdom would otherwise print several
     lines on stderr, or accept NaN); a moving joint's axis is not zero; lower <= upper."""
     where = f"joint {name!r}"
-    origin = joint.find("origin")
-    if origin is not None:
-        for key in ("xyz", "rpy"):
-            _vector_attr(path, f"{where}: <origin>", origin, key)
+    _check_origin(path, f"{where}: <origin>", joint)
     axis = joint.find("axis")
     if axis is not None:
         xyz = _vector_attr(path, f"{where}: <axis>", axis, "xyz")
@@ -478,10 +483,7 @@ def _check_inertial(path: Path, link: str, inertial: ET.Element) -> list[str]:
         (mass 0 with a non-zero inertia, a broken triangle inequality).
     """
     where = f"link {link!r}: <inertial>"
-    origin = inertial.find("origin")
-    if origin is not None:
-        for key in ("xyz", "rpy"):
-            _vector_attr(path, f"{where} <origin>", origin, key)
+    _check_origin(path, f"{where} <origin>", inertial)
     mass_el = inertial.find("mass")
     if mass_el is None:
         raise URDFError(f"malformed URDF {path}: {where} has no <mass> element")

@@ -83,7 +83,7 @@ def test_a_heavier_link_in_the_model_shows_as_an_offset(tmp_path: Path) -> None:
 def test_control_model_errors_name_the_key(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from hybrid_force.cli import main
 
-    for value, words in (("none.urdf", "model file not found"), ("ur5", "must have the plant")):
+    for value, words in (("none.urdf", "URDF file not found"), ("ur5", "must have the plant")):
         with pytest.raises(ScenarioError, match=rf"control\.model = \"{value}\": .*{words}"):
             load_scenario(CONTACT, {"control.model": value})
     out = tmp_path / "out"
