@@ -6,7 +6,7 @@ Run from the repository root:
 
 Reports, in one run on one machine:
 
-1. steps per second of the full closed loop (:func:`hybrid_force.simulate.simulate`: control
+1. steps per second of the full closed loop (:func:`hybrid_force.sim.loop.simulate`: control
    law, constrained dynamics, integration, projection, logging), median over repetitions of a
    2 s simulated run, for the paper_contact setup (RTR arm on the cylinder, section 6.3) and for
    UR5 / Panda on a plane z = 0.3 m;
@@ -45,12 +45,12 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hybrid_force.clik import inverse_kinematics
-from hybrid_force.paths import Circle, paper_helix
-from hybrid_force.robot import Robot, load_robot
-from hybrid_force.simulate import Scenario, SimSettings, simulate
-from hybrid_force.supervisor import ControlSettings
-from hybrid_force.surfaces import Cylinder, Plane
+from hybrid_force.control.clik import inverse_kinematics
+from hybrid_force.control.supervisor import ControlSettings
+from hybrid_force.geometry.paths import Circle, paper_helix
+from hybrid_force.geometry.surfaces import Cylinder, Plane
+from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.sim.loop import Scenario, SimSettings, simulate
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _DT = 1e-3
@@ -367,7 +367,7 @@ def _startup(reps: int) -> dict:
     code_kernels = (
         f"import time, sys; sys.path.insert(0, {here!r}); import bench_loop as b; "
         "s = b._rtr_setup(); "
-        "from hybrid_force.simulate import simulate; t=time.perf_counter(); "
+        "from hybrid_force.sim.loop import simulate; t=time.perf_counter(); "
         "simulate(s.make(0.01)); print(time.perf_counter()-t)"
     )
 
@@ -412,11 +412,11 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
     calls. Parts in the loop run interleaved, with colder caches, so their sum is below the
     loop's time per step; the shares say what dominates.
     """
-    from hybrid_force.constraint import Constraint, ConstraintTerms
-    from hybrid_force.dynamics import ConstrainedDynamics
-    from hybrid_force.robot import RobotTerms
-    from hybrid_force.simulate import _Log, _Plant
-    from hybrid_force.supervisor import HybridController
+    from hybrid_force.control.constraint import Constraint, ConstraintTerms
+    from hybrid_force.control.supervisor import HybridController
+    from hybrid_force.model.robot import RobotTerms
+    from hybrid_force.sim.dynamics import ConstrainedDynamics
+    from hybrid_force.sim.loop import _Log, _Plant
 
     sc = setup.make(0.2)
     res = simulate(sc)

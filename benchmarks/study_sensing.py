@@ -11,9 +11,9 @@ the tip position ‖p − p_d‖ for:
 * a 1 N force bias;
 
 and a second table: β at 0.7, 0.9 and 1.1 of the loader's stability bound
-(:mod:`hybrid_force.force_loop`) for the force read one period late, and for a 50 Hz low-pass
-without delay, with the largest |f − f_d| over the last second of a 3 s run (through the Python
-API: the loader refuses β beyond the bound).
+(:mod:`hybrid_force.control.force_loop`) for the force read one period late, and for a 50 Hz
+low-pass without delay, with the largest |f − f_d| over the last second of a 3 s run (through
+the Python API: the loader refuses β beyond the bound).
 
 Run from the repository root:
 
@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 
 from hybrid_force import simulate
-from hybrid_force.scenario import load_scenario
-from hybrid_force.sensors import SensorSettings
+from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.sim.sensors import SensorSettings
 
 CASES: tuple[tuple[str, dict[str, Any], dict[str, Any]], ...] = (
     ("ideal sensing, 1 kHz", {}, {}),
@@ -67,7 +67,7 @@ def main() -> None:
 
 
 def bound_study() -> None:
-    from hybrid_force.force_loop import beta_bound, inverse_effective_mass
+    from hybrid_force.control.force_loop import beta_bound, inverse_effective_mass
 
     print()
     print("| sensor | β / bound | β | max \\|f − f_d\\| over t ≥ 2 s [N] | events |")

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force import load_robot, simulate
-from hybrid_force.scenario import load_scenario
-from hybrid_force.surfaces import Cylinder
+from hybrid_force.geometry.surfaces import Cylinder
+from hybrid_force.scenario.loader import load_scenario
 
 
 class PressAndHold:

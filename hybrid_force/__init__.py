@@ -7,9 +7,13 @@ on Pinocchio and URDF. The public names are re-exported here; see README.md.
 
 from __future__ import annotations
 
-from hybrid_force.clik import ClikSettings, DesiredJointPath, inverse_kinematics
-from hybrid_force.constraint import Constraint, ConstraintTerms
-from hybrid_force.control import (
+import sys as _sys
+
+from hybrid_force import _compat
+from hybrid_force.control.clik import ClikSettings, DesiredJointPath, inverse_kinematics
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.controller import Controller, ControllerModel
+from hybrid_force.control.laws.arimoto import (
     Command,
     ControlTrace,
     Desired,
@@ -20,14 +24,12 @@ from hybrid_force.control import (
     free_space_law,
     make_gains,
 )
-from hybrid_force.controller import Controller, ControllerModel
-from hybrid_force.dynamics import (
-    Baumgarte,
-    ConstrainedDynamics,
-    constrained_acceleration,
-    free_acceleration,
-    kkt_reference,
-    plastic_impact,
+from hybrid_force.control.supervisor import (
+    CONTACT,
+    FREE,
+    NEAR,
+    ControlSettings,
+    HybridController,
 )
 from hybrid_force.errors import (
     BadInputError,
@@ -56,7 +58,7 @@ from hybrid_force.errors import (
     URDFError,
     ViewerError,
 )
-from hybrid_force.paths import (
+from hybrid_force.geometry.paths import (
     Circle,
     FunctionPath,
     Helix,
@@ -67,19 +69,7 @@ from hybrid_force.paths import (
     paper_helix,
     path_from_dict,
 )
-from hybrid_force.result import Metrics, Result, load_result
-from hybrid_force.robot import Robot, RobotTerms, load_robot
-from hybrid_force.scenario import load_scenario, parse_override
-from hybrid_force.sensors import SensorSettings
-from hybrid_force.simulate import Scenario, SimSettings, simulate
-from hybrid_force.supervisor import (
-    CONTACT,
-    FREE,
-    NEAR,
-    ControlSettings,
-    HybridController,
-)
-from hybrid_force.surfaces import (
+from hybrid_force.geometry.surfaces import (
     Cylinder,
     FunctionSurface,
     Plane,
@@ -87,19 +77,38 @@ from hybrid_force.surfaces import (
     Surface,
     surface_from_dict,
 )
+from hybrid_force.model.robot import Robot, RobotTerms, load_robot
+from hybrid_force.result import Metrics, Result, load_result
+from hybrid_force.scenario.loader import load_scenario, parse_override
+from hybrid_force.sim.dynamics import (
+    Baumgarte,
+    ConstrainedDynamics,
+    constrained_acceleration,
+    free_acceleration,
+    kkt_reference,
+    plastic_impact,
+)
+from hybrid_force.sim.loop import Scenario, SimSettings, simulate
+from hybrid_force.sim.sensors import SensorSettings
+
+# Module paths of versions before 0.2 (hybrid_force.robot, hybrid_force.simulate, ...) stay
+# importable. hybrid_force.simulate is seeded here: it names the function above, which the
+# import system would otherwise replace by the module on `import hybrid_force.simulate`.
+_compat.install()
+_sys.modules.setdefault("hybrid_force.simulate", _sys.modules["hybrid_force.sim.loop"])
 
 # The edges (figures, 3D replay, sweeps) load on first use, so `import hybrid_force` and a plain
 # `hybrid-force run` do not pay for them (PEP 562 module __getattr__).
 _LAZY = {
-    "PlotError": "hybrid_force.plots",
-    "plot_result": "hybrid_force.plots",
-    "plot_sweep": "hybrid_force.plots",
-    "Replay": "hybrid_force.replay",
-    "ReplaySettings": "hybrid_force.replay",
-    "serve": "hybrid_force.replay",
-    "write_html": "hybrid_force.replay",
-    "expand": "hybrid_force.sweep",
-    "run_sweep": "hybrid_force.sweep",
+    "PlotError": "hybrid_force.viz.plots",
+    "plot_result": "hybrid_force.viz.plots",
+    "plot_sweep": "hybrid_force.viz.plots",
+    "Replay": "hybrid_force.viz.replay",
+    "ReplaySettings": "hybrid_force.viz.replay",
+    "serve": "hybrid_force.viz.replay",
+    "write_html": "hybrid_force.viz.replay",
+    "expand": "hybrid_force.studies.sweep",
+    "run_sweep": "hybrid_force.studies.sweep",
 }
 
 

@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
-from types import ModuleType
+import importlib
+from typing import Any
 
-_kernels: ModuleType | None = None
 
+class LazyKernels:
+    """The kernels module of one concept, imported on first attribute access (Numba: ~0.5 s).
 
-def kernels() -> ModuleType:
-    """The module :mod:`hybrid_force._kernels`, imported on first use (Numba: about 0.5 s)."""
-    global _kernels
-    if _kernels is None:
-        from hybrid_force import _kernels as module
+    Each function found is stored on the instance, so later lookups cost a plain attribute
+    access in the hot loop.
+    """
 
-        _kernels = module
-    return _kernels
+    def __init__(self, module: str) -> None:
+        self._module = module
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        value = getattr(importlib.import_module(self._module), name)
+        setattr(self, name, value)
+        return value

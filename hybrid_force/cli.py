@@ -6,11 +6,11 @@ Subcommands:
   it, print a short summary, write ``DIR/result.npz`` and ``DIR/summary.json`` (and with
   ``--plot`` the figures, ``--html`` a 3D replay, ``--view`` a live viewer).
 * ``plot FILE``: the figures of a saved run (``.npz``) or a plot of a sweep (``.csv``).
-* ``replay RESULT.npz``: the 3D replay of a saved run (hybrid_force.replay).
-* ``sweep SCENARIO ...``: a parameter sweep (hybrid_force.sweep defines its options).
+* ``replay RESULT.npz``: the 3D replay of a saved run (hybrid_force.viz.replay).
+* ``sweep SCENARIO ...``: a parameter sweep (hybrid_force.studies.sweep defines its options).
 * ``robots``: list the robot models known by name, with joint count, default tip frame and
   source; ``robots --check MODEL [--tip FRAME]``: what loading one model finds
-  (hybrid_force.model_report).
+  (hybrid_force.model.report).
 
 Exit status (the contract README.md documents):
 
@@ -56,9 +56,9 @@ Handler = Callable[[argparse.Namespace], int]
 
 def _cmd_robots(args: argparse.Namespace) -> int:
     """Print a table of the named robots (name, joints, default tip, source), or with
-    ``--check MODEL`` what loading that model finds (hybrid_force.model_report)."""
+    ``--check MODEL`` what loading that model finds (hybrid_force.model.report)."""
     if args.check is not None:
-        from hybrid_force.model_report import format_report, model_report
+        from hybrid_force.model.report import format_report, model_report
 
         xacro_args: dict[str, str] = {}
         for text in args.xacro_arg:
@@ -87,8 +87,8 @@ def _cmd_robots(args: argparse.Namespace) -> int:
     ]
     if given:
         raise BadInputError(f"robots: {', '.join(given)} needs --check MODEL")
-    from hybrid_force._registry import known_robots
-    from hybrid_force.robot import load_robot
+    from hybrid_force.model.registry import known_robots
+    from hybrid_force.model.robot import load_robot
 
     rows: list[tuple[str, str, str, str]] = []
     for entry in known_robots():
@@ -193,8 +193,8 @@ _SIGNAL_STATUS = {"SIGINT": 130, "SIGTERM": 143}
 def _cmd_run(args: argparse.Namespace) -> int:
     """Load, run, summarise and save a scenario (see the module docstring)."""
     from hybrid_force.run_output import RunOutput
-    from hybrid_force.scenario import load_scenario, parse_override
-    from hybrid_force.simulate import simulate
+    from hybrid_force.scenario.loader import load_scenario, parse_override
+    from hybrid_force.sim.loop import simulate
 
     overrides: dict[str, object] = {}
     for text in args.set or []:
@@ -229,12 +229,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if args.plot:
             _plot_result(result, output.folder, quiet=args.quiet)
         if html is not None:
-            replay = _import_feature("hybrid_force.replay", "the 3D replay (--html)")
+            replay = _import_feature("hybrid_force.viz.replay", "the 3D replay (--html)")
             replay.write_html(result, html)
             if not args.quiet:
                 print(f"  wrote {html}")
     if args.view:
-        replay = _import_feature("hybrid_force.replay", "the 3D viewer (--view)")
+        replay = _import_feature("hybrid_force.viz.replay", "the 3D viewer (--view)")
         replay.serve(result)
     return 0
 
@@ -253,7 +253,7 @@ def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> i
         # a second interrupt while saving must not leave half a pair: the writes are atomic
         output.save(exc.result)
         if args.plot and status == 1:
-            from hybrid_force.plots import PlotError
+            from hybrid_force.viz.plots import PlotError
 
             try:
                 _plot_result(exc.result, output.folder, quiet=True)
@@ -268,7 +268,7 @@ def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> i
 
 
 def _plot_result(result: Any, out: Path, *, quiet: bool) -> list[Path]:
-    from hybrid_force.plots import plot_result
+    from hybrid_force.viz.plots import plot_result
 
     files = plot_result(result, out)
     if not quiet:
@@ -297,7 +297,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
                 f"plotting the sweep {path} needs --x <table.key> and --metric <name> "
                 "(and optionally --y <table.key> for a heat map)"
             )
-        from hybrid_force.plots import plot_sweep
+        from hybrid_force.viz.plots import plot_sweep
 
         out = _output_dir(args.out if args.out is not None else path.parent)
         ys = f"_{args.y}" if args.y is not None else ""
@@ -311,19 +311,19 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    """3D replay of a saved run (delegated to hybrid_force.replay)."""
-    replay = _import_feature("hybrid_force.replay", "the 3D replay")
+    """3D replay of a saved run (delegated to hybrid_force.viz.replay)."""
+    replay = _import_feature("hybrid_force.viz.replay", "the 3D replay")
     return int(replay.replay_command(args))
 
 
 def _cmd_sweep_missing(args: argparse.Namespace) -> int:
-    _import_feature("hybrid_force.sweep", "the sweep command")
+    _import_feature("hybrid_force.studies.sweep", "the sweep command")
     raise FeatureUnavailableError("the sweep command is not available")  # pragma: no cover
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    """A parameter sweep (delegated to hybrid_force.sweep)."""
-    sweep = _import_feature("hybrid_force.sweep", "the sweep command")
+    """A parameter sweep (delegated to hybrid_force.studies.sweep)."""
+    sweep = _import_feature("hybrid_force.studies.sweep", "the sweep command")
     return int(sweep.sweep_command(args))
 
 
@@ -337,7 +337,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser(*, sweep_options: bool = True) -> argparse.ArgumentParser:
     """The argument parser with every subcommand (each sets ``handler``).
 
-    sweep_options: let hybrid_force.sweep add the options of ``sweep`` (imports that module;
+    sweep_options: let hybrid_force.studies.sweep add the options of ``sweep`` (imports that module;
     :func:`main` does so only when the command is ``sweep``, so ``--help`` stays fast).
     """
     parser = _Parser(
@@ -460,7 +460,7 @@ def _add_sweep(sub: Any, with_options: bool) -> None:
         sweep.set_defaults(handler=_cmd_sweep)
         return
     try:
-        module = _import_feature("hybrid_force.sweep", "the sweep command")
+        module = _import_feature("hybrid_force.studies.sweep", "the sweep command")
     except FeatureUnavailableError:
         sweep.add_argument("args", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
         sweep.set_defaults(handler=_cmd_sweep_missing)

@@ -195,7 +195,7 @@ class ScenarioError(BadInputError):
 
 
 class ScenarioValueError(BadInputError):
-    """A field of a :class:`~hybrid_force.simulate.Scenario` built in Python is invalid.
+    """A field of a :class:`~hybrid_force.sim.loop.Scenario` built in Python is invalid.
 
     Raised by ``Scenario(...)`` itself: a wrong type or shape (robot, surfaces, path, q0, v0,
     control, sim, name, description, source), settings that do not fit the robot or the
@@ -205,7 +205,7 @@ class ScenarioValueError(BadInputError):
 
 
 class SimSettingsError(BadInputError):
-    """A simulation setting (:class:`~hybrid_force.simulate.SimSettings`, ``Baumgarte``) is
+    """A simulation setting (:class:`~hybrid_force.sim.loop.SimSettings`, ``Baumgarte``) is
     invalid; the message names the setting as the scenario file's ``[sim]`` key spells it."""
 
 
@@ -231,7 +231,7 @@ class SweepError(BadInputError):
 
 
 class FeatureUnavailableError(HybridForceError):
-    """A subcommand's module (e.g. hybrid_force.replay) is not installed in this checkout."""
+    """A subcommand's module (e.g. hybrid_force.viz.replay) is not installed in this checkout."""
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:

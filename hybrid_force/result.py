@@ -197,7 +197,7 @@ def _check_archive(fh: Any, src: Path) -> None:
     """
     from numpy.lib import format as npy_format
 
-    from hybrid_force.run_checks import available_memory
+    from hybrid_force.sim.run_checks import available_memory
 
     if fh.read(6) == b"\x93NUMPY":
         raise ResultFileError(

@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hybrid_force.clik import ClikSettings, inverse_kinematics
-from hybrid_force.constraint import Constraint
-from hybrid_force.control import check_damping_gain, make_gains
-from hybrid_force.dynamics import Baumgarte
+from hybrid_force.control.clik import ClikSettings, inverse_kinematics
+from hybrid_force.control.constraint import Constraint
+from hybrid_force.control.laws.arimoto import check_damping_gain, make_gains
+from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import (
     BadInputError,
     ControlError,
@@ -34,7 +34,7 @@ from hybrid_force.errors import (
     SurfaceError,
     SurfaceParameterError,
 )
-from hybrid_force.paths import (
+from hybrid_force.geometry.paths import (
     Circle,
     FunctionPath,
     Helix,
@@ -43,10 +43,16 @@ from hybrid_force.paths import (
     paper_helix,
     path_from_dict,
 )
-from hybrid_force.robot import Robot, load_robot
-from hybrid_force.simulate import Scenario, SimSettings
-from hybrid_force.supervisor import ControlSettings
-from hybrid_force.surfaces import Cylinder, FunctionSurface, Plane, Sphere, surface_from_dict
+from hybrid_force.geometry.surfaces import (
+    Cylinder,
+    FunctionSurface,
+    Plane,
+    Sphere,
+    surface_from_dict,
+)
+from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.sim.dynamics import Baumgarte
+from hybrid_force.sim.loop import Scenario, SimSettings
 
 # --- bad values, by what was expected ------------------------------------------------------------
 NOT_A_NUMBER: list[tuple[str, object]] = [

@@ -113,12 +113,12 @@ def browser() -> Iterator[Any]:
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The paper's 6.4 setup simulated for 1.2 s (contact from t ≈ 0.9 s), saved."""
-    from hybrid_force.clik import inverse_kinematics
-    from hybrid_force.paths import paper_helix
-    from hybrid_force.robot import load_robot
-    from hybrid_force.simulate import Scenario, SimSettings, simulate
-    from hybrid_force.supervisor import ControlSettings
-    from hybrid_force.surfaces import Cylinder
+    from hybrid_force.control.clik import inverse_kinematics
+    from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.geometry.paths import paper_helix
+    from hybrid_force.geometry.surfaces import Cylinder
+    from hybrid_force.model.robot import load_robot
+    from hybrid_force.sim.loop import Scenario, SimSettings, simulate
 
     robot = load_robot("rtr")
     q0 = inverse_kinematics(robot, [0.1, 0.1, 2], seed=[0.5, 1, 2.0])
@@ -177,8 +177,8 @@ def _check_scene(page: Any, result: Result) -> None:
     """Scene content, FK at a contact frame, phase/force state, two times → two images."""
     from PIL import Image
 
-    from hybrid_force.replay import Replay
-    from hybrid_force.robot import load_robot
+    from hybrid_force.model.robot import load_robot
+    from hybrid_force.viz.replay import Replay
 
     rep = Replay(result)
     nodes = rep.node_paths()
@@ -255,7 +255,7 @@ def _seek(page: Any, tau: float, paths: list[str]) -> dict[str, Any]:
 
 
 def test_static_html_in_browser(browser: Any, run_file: Path, tmp_path: Path) -> None:
-    from hybrid_force.replay import write_html
+    from hybrid_force.viz.replay import write_html
 
     html = write_html(run_file, tmp_path / "replay.html")
     context, page, record = _new_page(browser, allowed_hosts=())
@@ -288,7 +288,7 @@ def _alive(pid: int) -> bool:
 
 def test_live_server_in_browser(browser: Any, run_file: Path) -> None:
     code = (
-        "import sys; from hybrid_force.replay import serve; "
+        "import sys; from hybrid_force.viz.replay import serve; "
         "serve(sys.argv[1], loop=True, browser_timeout=60)"
     )
     proc = subprocess.Popen(

@@ -252,7 +252,7 @@ def test_lost_contact_exits_1_and_saves_the_run(tmp_path: Path, capsys) -> None:
 def test_log_that_does_not_fit_in_memory_is_refused_before_the_run(
     tmp_path: Path, capsys, monkeypatch
 ) -> None:
-    monkeypatch.setattr("hybrid_force.run_checks.available_memory", lambda: 10**6)
+    monkeypatch.setattr("hybrid_force.sim.run_checks.available_memory", lambda: 10**6)
     out = tmp_path / "big"
     code = main(["run", str(SHIPPED[0].parent / "paper_contact.toml"), "--out", str(out)])
     err = capsys.readouterr().err.splitlines()
@@ -278,7 +278,7 @@ def test_run_failing_at_its_first_sample_with_plot_keeps_exit_1(tmp_path: Path, 
 def test_run_interrupted_before_its_first_sample_saves_an_empty_result(
     tmp_path: Path, capsys, monkeypatch
 ) -> None:
-    from hybrid_force.robot import Robot
+    from hybrid_force.model.robot import Robot
 
     def interrupt(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt

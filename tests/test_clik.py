@@ -1,4 +1,4 @@
-"""Closed-loop inverse kinematics (hybrid_force.clik): the paper's "Newton algorithm", eq. 27.
+"""Closed-loop inverse kinematics the paper's "Newton algorithm", eq. 27.
 
 Independent references:
 - inverse_kinematics: the residual ‖p(q) − target‖ measured with the robot's own forward
@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hybrid_force.clik import ClikSettings, DesiredJointPath, inverse_kinematics
+from hybrid_force.control.clik import ClikSettings, DesiredJointPath, inverse_kinematics
 from hybrid_force.errors import GainError, ReachError
-from hybrid_force.paths import Circle, Path, paper_helix
-from hybrid_force.robot import Robot, load_robot
+from hybrid_force.geometry.paths import Circle, Path, paper_helix
+from hybrid_force.model.robot import Robot, load_robot
 
 L2, L3 = 0.9, 1.0
 DT = 1e-3

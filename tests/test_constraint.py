@@ -1,4 +1,4 @@
-"""Constraint layer (hybrid_force.constraint): surfaces seen in joint space (issue 3).
+"""Constraint layer (hybrid_force.control.constraint): surfaces seen in joint space (issue 3).
 
 Independent references:
 - geometric identities of the projection (eq. 5 and below, eq. 7): Q = Qᵀ, Q² = Q, Q Aᵀ = 0,
@@ -18,10 +18,10 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from hybrid_force.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.errors import SingularConfigurationError, SurfaceError
-from hybrid_force.robot import Robot, load_robot
-from hybrid_force.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.model.robot import Robot, load_robot
 
 NORMALIZATIONS = ("tip", "joint")
 H = 1e-6  # central-difference step along q(t) = q + v t [s]

@@ -1,4 +1,4 @@
-"""The paper's control laws (hybrid_force.control): eq. 4, 9–11, 13, 16, 29–30 (issue 4).
+"""The paper's control laws: eq. 4, 9–11, 13, 16, 29–30 (issue 4).
 
 Independent references:
 - eq. 10, s₀ᵀs₁ = 0, and s = s₀ + s₁ for tangent velocities (A q̇ = 0);
@@ -20,8 +20,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force.constraint import Constraint, ConstraintTerms
-from hybrid_force.control import (
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.laws.arimoto import (
     ControlTrace,
     Desired,
     Gains,
@@ -30,10 +30,10 @@ from hybrid_force.control import (
     free_space_law,
     make_gains,
 )
-from hybrid_force.dynamics import Baumgarte, constrained_acceleration, kkt_reference
 from hybrid_force.errors import GainError
-from hybrid_force.robot import Robot, load_robot
-from hybrid_force.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.sim.dynamics import Baumgarte, constrained_acceleration, kkt_reference
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 NORMALIZATIONS = ("tip", "joint")

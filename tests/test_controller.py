@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.controller: the controller's own model, and controllers from Python."""
+"""hybrid_force.control.controller: the controller's own model, and controllers from Python."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from hybrid_force import load_robot, simulate
-from hybrid_force.controller import ControllerModel, check_same_joints
+from hybrid_force.control.controller import ControllerModel, check_same_joints
 from hybrid_force.errors import BadInputError, ControlError, RunFailedError, ScenarioError
-from hybrid_force.scenario import load_scenario
+from hybrid_force.scenario.loader import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 CONTACT = REPO / "scenarios" / "paper_contact.toml"

@@ -1,4 +1,4 @@
-"""Constrained dynamics (hybrid_force.dynamics): eq. 2 with the stabilisation of section 6.2.
+"""Constrained dynamics (hybrid_force.sim.dynamics): eq. 2 with the stabilisation of section 6.2.
 
 Independent references:
 - pin.forwardDynamics called directly with (q, v) (it runs its own crba/nle), the dense
@@ -17,17 +17,17 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force.constraint import Constraint
-from hybrid_force.dynamics import (
+from hybrid_force.control.constraint import Constraint
+from hybrid_force.errors import SimSettingsError, SimulationError
+from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.sim.dynamics import (
     Baumgarte,
     constrained_acceleration,
     free_acceleration,
     kkt_reference,
     plastic_impact,
 )
-from hybrid_force.errors import SimSettingsError, SimulationError
-from hybrid_force.robot import Robot, load_robot
-from hybrid_force.surfaces import Cylinder, Plane, Sphere, Surface
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m]
 

@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.force_loop: the sampled force loop's stability bound."""
+"""Tests of hybrid_force.control.force_loop: the sampled force loop's stability bound."""
 
 from __future__ import annotations
 
@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from hybrid_force import simulate
-from hybrid_force.force_loop import (
+from hybrid_force.control.force_loop import (
     beta_bound,
     inverse_effective_mass,
     max_stable_gain,
     spectral_radius,
 )
-from hybrid_force.scenario import load_scenario
+from hybrid_force.scenario.loader import load_scenario
 
 CONTACT = Path(__file__).resolve().parents[1] / "scenarios" / "paper_contact.toml"
 

@@ -37,9 +37,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force.clik import DesiredJointPath, inverse_kinematics
-from hybrid_force.constraint import Constraint, ConstraintTerms
-from hybrid_force.control import (
+from hybrid_force.control.clik import DesiredJointPath, inverse_kinematics
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.laws.arimoto import (
     ControlTrace,
     Desired,
     Gains,
@@ -48,13 +48,13 @@ from hybrid_force.control import (
     free_space_law,
     make_gains,
 )
+from hybrid_force.control.supervisor import CONTACT, FREE, NEAR, ControlSettings, HybridController
 from hybrid_force.errors import SingularConfigurationError
-from hybrid_force.paths import Circle, FunctionPath, Helix, paper_helix
-from hybrid_force.paths import Path as TaskPath
-from hybrid_force.robot import Robot, RobotTerms, load_robot
-from hybrid_force.simulate import _Plant, _reference_terms
-from hybrid_force.supervisor import CONTACT, FREE, NEAR, ControlSettings, HybridController
-from hybrid_force.surfaces import Cylinder, FunctionSurface, Plane, Sphere, Surface
+from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
+from hybrid_force.geometry.paths import Path as TaskPath
+from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere, Surface
+from hybrid_force.model.robot import Robot, RobotTerms, load_robot
+from hybrid_force.sim.loop import _Plant, _reference_terms
 
 ARMS = ("rtr", "ur5", "panda")
 RTOL = 1e-12  # relative to the scale of the compared array (see the module docstring)
@@ -722,7 +722,7 @@ def test_constrained_dynamics_solver_equals_dense_kkt(
     """ConstrainedDynamics.solve (one forwardDynamics + loop_resolve with U D Uᵀ) against a
     dense solve of the coupled KKT system, for arbitrary B (not a law's β M A⁺), B = None,
     and two calls in a row (the second overwrites the first's outputs)."""
-    from hybrid_force.dynamics import ConstrainedDynamics, kkt_reference
+    from hybrid_force.sim.dynamics import ConstrainedDynamics, kkt_reference
 
     robot = arms[arm]
     rng = np.random.default_rng(31 + k)
@@ -750,7 +750,7 @@ def test_constrained_dynamics_solver_equals_dense_kkt(
 
 
 def test_baumgarte_gamma_into_equals_gamma() -> None:
-    from hybrid_force.dynamics import Baumgarte
+    from hybrid_force.sim.dynamics import Baumgarte
 
     rng = np.random.default_rng(5)
     baum = Baumgarte(alpha=37.0, beta=12.5)
@@ -767,7 +767,7 @@ def test_baumgarte_gamma_into_equals_gamma() -> None:
 def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     """_Log.record writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] and reports
     NaN in q, |v_i| above max_velocity and |f| above max_force."""
-    from hybrid_force.simulate import _Log
+    from hybrid_force.sim.loop import _Log
 
     rng = np.random.default_rng(9)
     nq = nv = 4

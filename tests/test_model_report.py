@@ -1,4 +1,4 @@
-"""hybrid_force.model_report: what ``robots --check`` reports, against hand computations.
+"""hybrid_force.model.report: what ``robots --check`` reports, against hand computations.
 
 The RTR numbers come from robots/rtr.urdf by hand (l2 = 0.9 m, l3 = 1 m, m2 = m3 = 20 kg, q2 in
 [-1, 16] m); the small URDFs here are written inline so their numbers follow from the text.
@@ -17,8 +17,8 @@ import pytest
 from conftest import RTR_MJCF
 
 from hybrid_force.errors import FrameError, URDFError
-from hybrid_force.model_report import format_report, model_report
-from hybrid_force.robot import load_robot
+from hybrid_force.model.report import format_report, model_report
+from hybrid_force.model.robot import load_robot
 
 
 def _body(mass: float, izz: float = 0.01, x: float = 0.0) -> str:
@@ -194,7 +194,7 @@ def test_meshes_found_and_missing(tmp_path: Path) -> None:
     assert missing["http://x.org/h.stl"] == ()
     assert tmp_path / "otherpkg" / "h.stl" in missing["package://otherpkg/h.stl"]
     # the replay draws exactly the meshes reported found (its own resolution, same rule)
-    from hybrid_force.replay import _resolve_mesh
+    from hybrid_force.viz.replay import _resolve_mesh
 
     robot = load_robot(path)
     dirs = [str(d) for d in robot.package_dirs]
@@ -251,7 +251,7 @@ def test_panda_locked_fingers_and_masses_agree_with_yourdfpy() -> None:
     Locking the fingers keeps their mass (the total is the URDF's sum of link masses)."""
     import yourdfpy
 
-    from hybrid_force._registry import resolve_robot
+    from hybrid_force.model.registry import resolve_robot
 
     report = model_report("panda")
     urdf = yourdfpy.URDF.load(

@@ -1,5 +1,5 @@
 """Bring your own robot: package folders and meshes, xacro files, MJCF files, and the joints
-off the arm's chain (hybrid_force.robot.load_robot, the replay's visuals).
+off the arm's chain (hybrid_force.model.robot.load_robot, the replay's visuals).
 
 Every model here is a small file written by the test. References are independent of the
 code under test: the closed-form kinematics and mass matrix of a planar two-link arm of thin
@@ -26,10 +26,10 @@ from conftest import ROD_MACRO, RTR_MJCF
 
 from hybrid_force import replay
 from hybrid_force.errors import FrameError, ModelWarning, RobotError, ScenarioError, URDFError
+from hybrid_force.geometry.surfaces import Plane
+from hybrid_force.model.robot import Robot, expand_xacro, load_robot
 from hybrid_force.result import Result
-from hybrid_force.robot import Robot, expand_xacro, load_robot
-from hybrid_force.scenario import load_scenario
-from hybrid_force.surfaces import Plane
+from hybrid_force.scenario.loader import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -560,7 +560,7 @@ def test_mjcf_rtr_is_the_bundled_urdf_rtr(tmp_path: Path) -> None:
 
 def test_a_contact_scenario_runs_on_an_mjcf_arm(tmp_path: Path) -> None:
     """tests/test_sweep.py's tiny paper 6.3 run (start on the cylinder, helix) on rtr.xml."""
-    from hybrid_force.simulate import simulate
+    from hybrid_force.sim.loop import simulate
 
     (tmp_path / "arms").mkdir()
     (tmp_path / "arms" / "rtr.xml").write_text(RTR_MJCF)

@@ -22,8 +22,8 @@ import pytest
 
 from hybrid_force.cli import main as cli_main
 from hybrid_force.errors import BadInputError, URDFError
-from hybrid_force.robot import load_robot
-from hybrid_force.urdf_check import check_urdf
+from hybrid_force.model.robot import load_robot
+from hybrid_force.model.urdf_check import check_urdf
 
 
 # --- tiny URDF builder -------------------------------------------------------------------------

@@ -18,8 +18,28 @@ def test_import_does_not_load_plotting_viewer_or_cluster_libraries() -> None:
     code = (
         "import sys, hybrid_force; "
         "print(','.join(m for m in ('matplotlib', 'meshcat', 'dask', 'distributed', 'zmq', "
-        "'playwright', 'hybrid_force.plots', 'hybrid_force.replay', 'hybrid_force.sweep') "
+        "'playwright', 'hybrid_force.viz.plots', 'hybrid_force.viz.replay', "
+        "'hybrid_force.studies.sweep') "
         "if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_module_paths_of_before_the_layers_still_import_the_same_modules() -> None:
+    # A fresh interpreter: the old names must work whatever was imported before.
+    code = (
+        "import importlib, sys\n"
+        "from hybrid_force._compat import MOVED\n"
+        "import hybrid_force\n"
+        "for old, new in MOVED.items():\n"
+        "    assert importlib.import_module(old) is importlib.import_module(new), old\n"
+        "from hybrid_force.simulate import Scenario, SimSettings\n"
+        "from hybrid_force.control import Gains, arimoto_law\n"
+        "from hybrid_force.scenario import load_scenario\n"
+        "assert callable(hybrid_force.simulate) and hybrid_force.simulate.__name__ == 'simulate'\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"

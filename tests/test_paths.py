@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.paths: eq. 25, analytic derivatives, frames, on-surface check, I/O."""
+"""hybrid_force.geometry.paths: eq. 25, analytic derivatives, frames, on-surface check, I/O."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hybrid_force.errors import BadInputError, SurfaceError
-from hybrid_force.paths import (
+from hybrid_force.geometry.paths import (
     Circle,
     FunctionPath,
     Helix,
@@ -238,7 +238,7 @@ def test_paper_helix_lies_on_the_paper_cylinder() -> None:
 
 
 def test_paper_helix_on_the_real_cylinder() -> None:
-    surfaces = pytest.importorskip("hybrid_force.surfaces")
+    surfaces = pytest.importorskip("hybrid_force.geometry.surfaces")
     rep = check_on_surface(paper_helix(), surfaces.Cylinder(0.4), 0.0, 20.0)
     assert rep.worst_distance < 1e-12
 
@@ -260,7 +260,7 @@ def test_shifted_helix_reported_off_by_the_shift(samples: int) -> None:
 
 
 def test_shifted_helix_on_the_real_cylinder() -> None:
-    surfaces = pytest.importorskip("hybrid_force.surfaces")
+    surfaces = pytest.importorskip("hybrid_force.geometry.surfaces")
     path = Helix((0.0, 0.03, 10.0), 0.4, omega=1.0, rise=0.1)
     # shift along y: the wall is nearest at θ = −π/2 ≡ 3π/2 (inside by 0.03)
     rep = check_on_surface(path, surfaces.Cylinder(0.4), 3.0, 6.0, samples=101)

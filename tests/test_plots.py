@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.plots: the paper's figures of a run, and sweep plots.
+"""Tests of hybrid_force.viz.plots: the paper's figures of a run, and sweep plots.
 
 The runs are synthetic (known shapes, hand-written phases and events), so every expectation
 here comes from how the test built its data, not from the plotting code.
@@ -17,8 +17,8 @@ import pytest
 
 from hybrid_force import plots
 from hybrid_force.errors import BadInputError
-from hybrid_force.plots import FIGURE_NAMES, PlotError, plot_result, plot_sweep
 from hybrid_force.result import Result
+from hybrid_force.viz.plots import FIGURE_NAMES, PlotError, plot_result, plot_sweep
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 EXPECTED = (

@@ -1,4 +1,4 @@
-"""hybrid_force._registry: every named robot loads, has its tip frame, and its meshes resolve."""
+"""hybrid_force.model.registry: every named robot loads, has its tip frame, its meshes resolve."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force._registry import RobotEntry, bundled_robots_dir, known_robots, resolve_robot
 from hybrid_force.errors import BadInputError, UnknownRobotError
-from hybrid_force.robot import load_robot
-from hybrid_force.urdf_check import check_urdf
+from hybrid_force.model.registry import RobotEntry, bundled_robots_dir, known_robots, resolve_robot
+from hybrid_force.model.robot import load_robot
+from hybrid_force.model.urdf_check import check_urdf
 
 ENTRIES = known_robots()
 NAMES = [e.name for e in ENTRIES]

@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.replay without a browser.
+"""Tests of hybrid_force.viz.replay without a browser.
 
 The HTML recording is checked by decoding the meshcat commands embedded in it (base64 msgpack)
 and comparing the animation tracks with references computed here: Pinocchio's geometry
@@ -26,9 +26,9 @@ import umsgpack
 
 from hybrid_force import replay
 from hybrid_force.errors import BadInputError, ResultFileError, ViewerError
+from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+from hybrid_force.model.robot import load_robot
 from hybrid_force.result import Result
-from hybrid_force.robot import load_robot
-from hybrid_force.surfaces import Cylinder, Plane, Sphere
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 

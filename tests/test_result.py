@@ -698,7 +698,7 @@ def test_npy_header_claiming_terabytes_through_plot_and_replay(
 def test_declared_sizes_beyond_available_memory_are_refused(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import hybrid_force.run_checks as run_checks
+    import hybrid_force.sim.run_checks as run_checks
 
     path = _good_file(tmp_path)
     assert Result.load(path).n_samples == 50  # a genuine result, loadable with real memory
@@ -716,7 +716,7 @@ def test_declared_sizes_beyond_available_memory_are_refused(
 def test_deflated_zip_bomb_is_refused_before_decompression(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import hybrid_force.run_checks as run_checks
+    import hybrid_force.sim.run_checks as run_checks
 
     n = 4 << 20  # 32 MiB of float64 zeros, deflated to a few tens of kB
     path = tmp_path / "bomb.npz"

@@ -1,4 +1,4 @@
-"""Robot-model layer (hybrid_force.robot) beyond the RTR closed forms: any URDF arm.
+"""Robot-model layer (hybrid_force.model.robot) beyond the RTR closed forms: any URDF arm.
 
 References used here are independent of the code under test:
 - J(q) against central finite differences of the tip position p(q);
@@ -24,7 +24,7 @@ from hybrid_force.errors import (
     UnknownRobotError,
     URDFError,
 )
-from hybrid_force.robot import Robot, RobotTerms, load_robot
+from hybrid_force.model.robot import Robot, RobotTerms, load_robot
 
 ARMS = ("rtr", "ur5", "panda")
 
@@ -413,7 +413,7 @@ def test_a_hand_built_model_without_moving_joint_is_refused_not_a_segfault() -> 
     code = (
         "import pinocchio as pin\n"
         "from hybrid_force.errors import RobotError\n"
-        "from hybrid_force.robot import Robot\n"
+        "from hybrid_force.model.robot import Robot\n"
         "m = pin.Model()\n"
         "m.addFrame(pin.Frame('tip', 0, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))\n"
         "try:\n"

@@ -58,7 +58,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from hybrid_force.robot import Robot, load_robot
+from hybrid_force.model.robot import Robot, load_robot
 
 M2, M3 = 20.0, 20.0  # [kg]
 L2, L3 = 0.9, 1.0  # [m]

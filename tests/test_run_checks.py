@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.run_checks: log memory, limit violations, contact outcome."""
+"""Tests of hybrid_force.sim.run_checks: log memory, limit violations, contact outcome."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hybrid_force.errors import BadInputError
-from hybrid_force.run_checks import (
+from hybrid_force.sim.run_checks import (
     LOG_COPIES,
     check_log_memory,
     contact_outcome,
@@ -79,10 +79,10 @@ def test_contact_outcome(ever: bool, end: bool, events: list, expected: dict) ->
 
 
 def test_log_memory_is_refused_naming_duration_and_dt(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("hybrid_force.run_checks.available_memory", lambda: 10**9)
+    monkeypatch.setattr("hybrid_force.sim.run_checks.available_memory", lambda: 10**9)
     # 1e6 samples × 20 numbers × 8 bytes × 3 copies = 4.8e8 bytes: fits in 1e9
     assert check_log_memory(10**6, 20, 1000.0, 1e-3) == LOG_COPIES * 10**6 * 20 * 8
     with pytest.raises(BadInputError, match=r"sim.duration = 10000 s at sim.dt = 0.001 s"):
         check_log_memory(10**7, 20, 1e4, 1e-3)
-    monkeypatch.setattr("hybrid_force.run_checks.available_memory", lambda: None)
+    monkeypatch.setattr("hybrid_force.sim.run_checks.available_memory", lambda: None)
     check_log_memory(10**9, 20, 1e6, 1e-3)  # unknown memory: nothing refused

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from hybrid_force.errors import ScenarioError
-from hybrid_force.scenario import load_scenario, parse_override
-from hybrid_force.simulate import Scenario
-from hybrid_force.surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+from hybrid_force.scenario.loader import load_scenario, parse_override
+from hybrid_force.sim.loop import Scenario
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((REPO_ROOT / "scenarios").glob("*.toml"))
@@ -118,9 +118,9 @@ def test_paper_approach_is_inside_and_off_the_surface() -> None:
 
 
 def test_defaults_are_the_dataclass_defaults(tmp_path: Path) -> None:
-    from hybrid_force.dynamics import Baumgarte
-    from hybrid_force.simulate import SimSettings
-    from hybrid_force.supervisor import ControlSettings
+    from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.sim.dynamics import Baumgarte
+    from hybrid_force.sim.loop import SimSettings
 
     # no [control] and no [sim]; the start 0.1 m off the cylinder (the supervisor, on by
     # default, approaches it)
@@ -558,7 +558,7 @@ def test_robot_package_dirs_are_relative_to_the_scenario_file(
 def test_robot_xacro_argument_values_become_texts(tmp_path: Path) -> None:
     """Strings stay; numbers and booleans are passed to xacro as their TOML text; a number
     that is not finite is refused."""
-    from hybrid_force.scenario import xacro_argument_text
+    from hybrid_force.scenario.loader import xacro_argument_text
 
     assert [xacro_argument_text(v) for v in ("a b", 0.7, 3, 1e-3, True, False)] == [
         "a b", "0.7", "3", "0.001", "true", "false",
@@ -720,7 +720,7 @@ def test_moderately_deep_value_is_an_ordinary_error(tmp_path: Path) -> None:
 def test_scenario_file_over_the_size_limit(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from hybrid_force.scenario import MAX_FILE_BYTES
+    from hybrid_force.scenario.loader import MAX_FILE_BYTES
 
     pad = MAX_FILE_BYTES - len(BASE.encode()) - 2
     exact = BASE + "#" + "x" * pad + "\n"
@@ -923,8 +923,8 @@ def test_path_through_a_singular_configuration_in_the_middle_of_the_run(
 def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPatch) -> None:
     """Each shipped scenario still loads with the path check, which solves the inverse
     kinematics at every sample of [0, duration] (each load takes well under a second)."""
-    import hybrid_force.clik as clik
-    from hybrid_force.scenario import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
+    import hybrid_force.control.clik as clik
+    from hybrid_force.scenario.loader import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
 
     solve = clik.inverse_kinematics
     calls: list[int] = []
@@ -942,7 +942,7 @@ def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPat
 
 
 def test_sensor_table_control_rate_and_seed_are_loaded(tmp_path: Path) -> None:
-    from hybrid_force.sensors import SensorSettings
+    from hybrid_force.sim.sensors import SensorSettings
 
     scenario = load_scenario(
         REPO_ROOT / "scenarios" / "paper_contact.toml",

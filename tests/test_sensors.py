@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.sensors: the measurement model against its definitions."""
+"""Tests of hybrid_force.sim.sensors: the measurement model against its definitions."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hybrid_force.errors import BadInputError, SensorError
-from hybrid_force.sensors import Sensors, SensorSettings
+from hybrid_force.sim.sensors import Sensors, SensorSettings
 
 T = 1e-3  # control period [s]
 

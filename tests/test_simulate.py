@@ -25,7 +25,7 @@ from hybrid_force import (
     paper_helix,
     simulate,
 )
-from hybrid_force.supervisor import CONTACT
+from hybrid_force.control.supervisor import CONTACT
 
 
 @pytest.fixture(scope="module")
@@ -299,7 +299,7 @@ def test_bad_time_settings_are_rejected_up_front(kwargs: dict, word: str) -> Non
 def test_wrong_branch_is_detected_recorded_and_warned(rtr, monkeypatch) -> None:
     """Issue 5's second trap: Q removes every error along J_Φn, so an arm on the mirrored RTR
     elbow (q3 → −q3) can never reach a q_d on the other branch; the controller must say so."""
-    import hybrid_force.supervisor as supervisor
+    import hybrid_force.control.supervisor as supervisor
 
     p0 = np.array([0.4, 0.0, 10.0])  # on the cylinder and on the helix at t = 0
     mirrored = inverse_kinematics(rtr, p0, seed=np.array([0.0, 11.0, -2.0]))
@@ -373,7 +373,7 @@ def test_stacked_surfaces_with_an_approach_are_refused(rtr) -> None:
 
 # --- a run never lies, and keeps what it computed --------------------------------------------
 def _paper_contact(**overrides: object) -> Scenario:
-    from hybrid_force.scenario import load_scenario
+    from hybrid_force.scenario.loader import load_scenario
 
     return load_scenario(
         Path(__file__).resolve().parents[1] / "scenarios" / "paper_contact.toml", overrides
@@ -442,7 +442,7 @@ def test_a_run_stopped_by_any_exception_keeps_its_samples(
 def test_desired_path_failing_mid_run_stops_with_its_result(monkeypatch) -> None:
     """The CLIK raises ReachError when J becomes singular on the desired path (the loader
     refuses such paths when it can find them; a user's FunctionPath can still get there)."""
-    from hybrid_force.clik import DesiredJointPath
+    from hybrid_force.control.clik import DesiredJointPath
     from hybrid_force.errors import ReachError, RunFailedError
 
     advance = DesiredJointPath.advance
@@ -465,7 +465,7 @@ def test_desired_path_failing_mid_run_stops_with_its_result(monkeypatch) -> None
 def _sampled(duration: float, *, dt: float = 1e-3, rate: float | None = None, **sensor) -> Result:
     import dataclasses
 
-    from hybrid_force.sensors import SensorSettings
+    from hybrid_force.sim.sensors import SensorSettings
 
     sc = _paper_contact(**{"sim.duration": duration, "sim.dt": dt})
     control = dataclasses.replace(sc.control, rate=rate)
@@ -511,7 +511,7 @@ def test_a_biased_force_sensor_shifts_the_true_force_by_the_bias() -> None:
 def test_noisy_sensing_is_reproducible_from_the_seed() -> None:
     import dataclasses
 
-    from hybrid_force.sensors import SensorSettings
+    from hybrid_force.sim.sensors import SensorSettings
 
     sc = _paper_contact(**{"sim.duration": 0.3})
     noisy = dataclasses.replace(sc, sensor=SensorSettings(force_noise=0.5, joint_noise=1e-5))

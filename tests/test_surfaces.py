@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.surfaces against independent references.
+"""Tests of hybrid_force.geometry.surfaces against independent references.
 
 References used: central finite differences written here (not the module's), direct geometric
 constructions (projection onto the axis, points placed on the surface by a parametrisation,
@@ -23,7 +23,7 @@ from hybrid_force.errors import (
     SurfaceError,
     SurfaceParameterError,
 )
-from hybrid_force.surfaces import (
+from hybrid_force.geometry.surfaces import (
     Cylinder,
     FunctionSurface,
     Plane,

@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.sweep: variants, engines (process pool, Dask), failures, resuming."""
+"""hybrid_force.studies.sweep: variants, engines (process pool, Dask), failures, resuming."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybrid_force.sweep import (
+from hybrid_force.studies.sweep import (
     MAX_RUNS,
     METRIC_COLUMNS,
     TIMING_COLUMNS,
@@ -183,7 +183,7 @@ def test_pool_and_dask_give_identical_rows(tmp_path: Path, scenario: Path) -> No
     assert info["n_variants"] == 4 and info["columns"] == cols_p
     assert not [p for p in (tmp_path / "pool").iterdir() if p.name.endswith(".tmp")]
     # a heat map / line plot of the CSV
-    from hybrid_force.plots import plot_sweep
+    from hybrid_force.viz.plots import plot_sweep
 
     png = plot_sweep(pool_csv, tmp_path / "line.png", x="control.Lambda", metric="t_end")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
@@ -191,7 +191,7 @@ def test_pool_and_dask_give_identical_rows(tmp_path: Path, scenario: Path) -> No
 
 _KILL_SCRIPT = """
 import sys
-from hybrid_force.sweep import run_sweep
+from hybrid_force.studies.sweep import run_sweep
 if __name__ == "__main__":
     variants = [{{"control.Lambda": float(x)}} for x in {lambdas}]
     run_sweep(sys.argv[1], variants, workers=1, out_dir=sys.argv[2], progress=False)
@@ -603,7 +603,7 @@ _WATCHED_CHILD = """
 import os, sys, threading, time
 if sys.argv[1] == "fallback":
     sys.platform = "darwin"  # no prctl: the polling thread must do it
-from hybrid_force.sweep import _watch_parent
+from hybrid_force.studies.sweep import _watch_parent
 _watch_parent(os.getppid())
 names = [t.name for t in threading.enumerate()]
 print("watched", "hybrid_force parent watch" in names, flush=True)
@@ -698,7 +698,7 @@ def test_a_xacro_model_is_expanded_by_the_sweep_and_sent_as_urdf(
     tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
 ) -> None:
     """The worker gets the expanded URDF text: it runs with the xacro files gone."""
-    from hybrid_force.sweep import _execute, _Source
+    from hybrid_force.studies.sweep import _execute, _Source
 
     scen = _xacro_study(tmp_path, write_xacro_rtr)
     task = _Source(scen).job("r1", {"control.Lambda": 5.0}, keep=True)
@@ -716,8 +716,8 @@ def test_a_xacro_model_is_expanded_by_the_sweep_and_sent_as_urdf(
 def test_run_one_on_a_relative_xacro_model_names_it_and_its_arguments(
     tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
 ) -> None:
-    from hybrid_force.replay import Replay
     from hybrid_force.result import Result
+    from hybrid_force.viz.replay import Replay
 
     scen = _xacro_study(tmp_path, write_xacro_rtr)
     keep = tmp_path / "keep"

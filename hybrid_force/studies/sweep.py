@@ -384,7 +384,7 @@ class _Source:
     """
 
     def __init__(self, path: Path, *, scratch: str | None = None) -> None:
-        from hybrid_force.scenario import read_scenario_document
+        from hybrid_force.scenario.loader import read_scenario_document
 
         self.path = path
         self.origin = str(path)
@@ -403,7 +403,7 @@ class _Source:
             SweepError: the scenario file was changed since the sweep started (its rows would
                 mix two versions of the scenario).
         """
-        from hybrid_force.scenario import read_scenario_document
+        from hybrid_force.scenario.loader import read_scenario_document
 
         try:
             unchanged = _signature(self.path) == self.signature
@@ -433,8 +433,8 @@ class _Source:
         failure is bad input naming ``robot.model``, as the scenario loader says it.
         """
         from hybrid_force.errors import ModelWarning, RobotError
-        from hybrid_force.robot import expand_xacro
-        from hybrid_force.scenario import resolve_robot_table
+        from hybrid_force.model.robot import expand_xacro
+        from hybrid_force.scenario.loader import resolve_robot_table
 
         table = resolve_robot_table(doc, self.path, origin=self.origin)
         lock = table.values.get("lock_off_chain")
@@ -557,8 +557,8 @@ def _simulate_into(
     unexpected exception (the caller makes it status "error").
     """
     from hybrid_force.errors import DivergenceError, RunFailedError, RunInterruptedError
-    from hybrid_force.scenario import scenario_from_document
-    from hybrid_force.simulate import simulate
+    from hybrid_force.scenario.loader import scenario_from_document
+    from hybrid_force.sim.loop import simulate
 
     doc = dict(task.doc)
     robot = doc.get("robot")
@@ -1227,7 +1227,7 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _parse_grid(items: Sequence[str]) -> dict[str, list[Any]]:
-    from hybrid_force.scenario import parse_override
+    from hybrid_force.scenario.loader import parse_override
 
     grid: dict[str, list[Any]] = {}
     for item in items:
@@ -1290,7 +1290,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     :data:`MAX_RUNS` variants); 130: Ctrl-C; 143: SIGTERM. With 1, 130 and 143 the finished
     rows are saved and rerunning the same command completes the sweep.
     """
-    from hybrid_force.scenario import load_scenario
+    from hybrid_force.scenario.loader import load_scenario
 
     scenario = Path(args.scenario)
     if not scenario.is_file():

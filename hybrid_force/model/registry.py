@@ -110,10 +110,8 @@ def bundled_robots_dir() -> Path | None:
     Looks first inside the installed package (``hybrid_force/robots``, put there by the
     wheel's force-include), then at the top of a source checkout (``<repo>/robots``).
     """
-    candidates = (
-        Path(__file__).parent / "robots",
-        Path(__file__).resolve().parents[1] / "robots",
-    )
+    package = Path(__file__).resolve().parents[1]  # hybrid_force/
+    candidates = (package / "robots", package.parent / "robots")
     for candidate in candidates:
         if (candidate / "rtr.urdf").is_file():
             return candidate.resolve()
@@ -186,7 +184,7 @@ def known_robots() -> list[RobotEntry]:
 def resolve_robot(name: str) -> RobotEntry:
     """Return the registry entry called ``name``.
 
-    A name is never a file: :func:`hybrid_force.robot.load_robot` sends here every text that
+    A name is never a file: :func:`hybrid_force.model.robot.load_robot` sends here every text that
     neither ends with ``.urdf`` nor holds a path separator, even if a file of that name exists
     in the working directory.
 

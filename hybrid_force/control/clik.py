@@ -22,10 +22,12 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force import _checks as checks
-from hybrid_force._lazy import kernels
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import ControlError, DimensionError, GainError, ReachError
-from hybrid_force.paths import Path
-from hybrid_force.robot import Robot
+from hybrid_force.geometry.paths import Path
+from hybrid_force.model.robot import Robot
+
+_K = LazyKernels("hybrid_force.control._kernels")
 
 __all__ = ["ClikSettings", "DesiredJointPath", "inverse_kinematics"]
 
@@ -290,7 +292,7 @@ class DesiredJointPath:
         """:meth:`_derivatives` with its algebra compiled, written into q̇_d and q̈_d in place."""
         robot, data, cfg = self.robot, self._data, self.settings
         model, fid, q = robot.model, robot.tip_id, self.q
-        K = kernels()
+        K = _K
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacement(model, data, fid)
         p = self._tip
@@ -333,7 +335,7 @@ class DesiredJointPath:
         """:meth:`advance` once t is updated: path sample, predictor, Newton, derivatives."""
         robot, data = self.robot, self._data
         model, q_pred = robot.model, self._q_pred
-        K = kernels()
+        K = _K
         if robot.euclidean:
             if dt != self._dt_pred:  # otherwise the last step's kernel made the predictor
                 K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)

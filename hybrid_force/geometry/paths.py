@@ -38,8 +38,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force._lazy import kernels
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import PathParameterError, SurfaceError, did_you_mean
+
+_K = LazyKernels("hybrid_force.geometry._kernels")
 
 __all__ = [
     "ON_SURFACE_TOL",
@@ -229,7 +231,7 @@ class _CircularPath(Path):
 
     def evaluate_into(self, t: float, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
         """:meth:`evaluate` written into p, v, a (3,) in one compiled call (hot path)."""
-        kernels().circular_path(self._basis, self.phase, self.omega, float(t), p, v, a)
+        _K.circular_path(self._basis, self.phase, self.omega, float(t), p, v, a)
 
     def position(self, t: float) -> np.ndarray:
         """Return p(t) (3,) [m]."""
@@ -545,7 +547,7 @@ def check_on_surface(
     """Worst |d| [m] of ``path`` on ``surface`` over t ∈ [t0, t1] [s].
 
     surface: any object with ``distance(p: (3,) ndarray) -> float``, the signed metric
-    distance [m] (e.g. hybrid_force.surfaces.Cylinder). The span is sampled at
+    distance [m] (e.g. hybrid_force.geometry.surfaces.Cylinder). The span is sampled at
     ``samples`` (≥ 2) uniform times; the bracket around the worst sample is then refined
     by a golden-section search for the maximum of |d|, so the reported value is accurate
     to rounding even between samples as long as |d| has a single peak within one sample

@@ -1,89 +1,30 @@
-"""Compiled arithmetic of the fast simulation step (Numba), one section per concept module.
+"""Compiled algebra of the controller's step (Numba): constraint rows (k = 1), the modified
+Arimoto law (eq. 4, 11, 29–30), the CLIK of eq. 27 and the force momenta.
 
-The hot loop of :func:`hybrid_force.simulate` spends its time in a few hundred operations on
-arrays of 3 to 30 numbers; from numpy each costs about a microsecond of call overhead, far
-more than the arithmetic. Here the same formulas are written as loops and compiled once by
-Numba (cached on disk), so each concept's algebra costs one call per step.
+References, the readable numpy versions: :class:`hybrid_force.control.constraint.Constraint`
+(k rows), :func:`hybrid_force.control.laws.arimoto.arimoto_law` and ``free_space_law``,
+:class:`hybrid_force.control.clik.DesiredJointPath` (its reference methods).
+``tests/test_kernels.py`` checks each kernel against its reference. The plant never calls
+these kernels.
 
-Every kernel here has a readable numpy or Python definition in its concept module, which stays
-the reference: :mod:`hybrid_force.robot` (terms), :mod:`hybrid_force.surfaces` (Φ, ∇Φ, ∇²Φ,
-d), :mod:`hybrid_force.constraint` (k = 1 rows), :mod:`hybrid_force.control` (eq. 4, 11,
-29–30), :mod:`hybrid_force.clik` (eq. 27), :mod:`hybrid_force.paths` (helix, circle),
-:mod:`hybrid_force.dynamics` (Baumgarte, the algebraic loop) and :mod:`hybrid_force.simulate`
-(Euler, projection, the sample row). ``tests/test_kernels.py`` checks each kernel against its
-reference, and ``tests/test_simulate.py`` the whole fast step against the reference step.
-
-The simulator never calls the law's kernel, nor the controller the plant's. Built-in surfaces
-and paths describe their closed form by a small array (``_descriptor``) that a kernel evaluates
-where the Python code would call ``surface.evaluate`` or ``path.evaluate``; user-defined
-surfaces and paths stay in Python. This
-module is imported only by the fast paths (Numba takes about 0.5 s to import).
-Conventions: outputs are preallocated arrays passed last and written in place.
+The hot loop spends its time in a few hundred operations on arrays of 3 to 30 numbers; from
+numpy each costs about a microsecond of call overhead, far more than the arithmetic, so the
+formulas are written as loops and compiled once (cached on disk). Imported only on first use
+(Numba takes about 0.5 s to import). Conventions: outputs are preallocated arrays passed last
+and written in place.
 """
 
 from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
-# error_model="numpy": a division by zero gives inf/nan (checked by the caller) instead of
-# raising inside compiled code. No fastmath: the IEEE operation order is kept.
-_jit = numba.njit(cache=True, error_model="numpy")
+from hybrid_force._jit import jit as _jit
+from hybrid_force.geometry._kernels import path_sample, surface_eval
 
 
-# --- robot (hybrid_force.robot.Robot.terms) --------------------------------------------------
-@_jit
-def robot_terms(
-    Mu: np.ndarray,
-    C_in: np.ndarray,
-    g_in: np.ndarray,
-    p_in: np.ndarray,
-    J6: np.ndarray,
-    Jd6: np.ndarray,
-    v: np.ndarray,
-    mats: np.ndarray,
-    vecs: np.ndarray,
-    jac: np.ndarray,
-    tip: np.ndarray,
-) -> None:
-    """Copy one step's Pinocchio outputs into the terms' arrays and derive the rest.
-
-    Mu: (n, n) crba output (upper triangle valid). C_in: (n, n). g_in: (n,). p_in: (3,) tip
-    position. J6, Jd6: (6, n) frame Jacobian and its time variation (rows 0..2 used). v: (n,).
-    Writes (``RobotTerms.zeros``) mats = [M (symmetric), C], vecs = [g, nle = C v + g],
-    jac = [J, J̇] (3, n), tip = [p, J̇ v, J v].
-    """
-    M, C, g, nle = mats[0], mats[1], vecs[0], vecs[1]
-    J, Jdot, p, Jdot_v, pdot = jac[0], jac[1], tip[0], tip[1], tip[2]
-    n = v.shape[0]
-    for r in range(3):
-        p[r] = p_in[r]
-    for i in range(n):
-        acc = g_in[i]
-        for j in range(n):
-            M[i, j] = Mu[i, j] if i <= j else Mu[j, i]
-            c = C_in[i, j]
-            C[i, j] = c
-            acc += c * v[j]
-        g[i] = g_in[i]
-        nle[i] = acc
-    for r in range(3):
-        a = 0.0
-        b = 0.0
-        for j in range(n):
-            x = J6[r, j]
-            y = Jd6[r, j]
-            J[r, j] = x
-            Jdot[r, j] = y
-            a += x * v[j]
-            b += y * v[j]
-        pdot[r] = a
-        Jdot_v[r] = b
-
-
-# --- constraint (hybrid_force.constraint.Constraint, k = 1) ----------------------------------
+# --- constraint (hybrid_force.control.constraint.Constraint, k = 1) -------------------------------
 @_jit
 def constraint_one(
     desc: np.ndarray,
@@ -190,7 +131,7 @@ def constraint_one(
     return grad_norm, row_norm, jmax
 
 
-# --- control (hybrid_force.control.arimoto_law) ----------------------------------------------
+# --- control (hybrid_force.control.laws.arimoto.arimoto_law) --------------------------------------
 @_jit
 def arimoto(
     M: np.ndarray,
@@ -277,7 +218,7 @@ def arimoto(
     return 0.5 * V + 0.5 * beta * eF2
 
 
-# --- clik (hybrid_force.clik.DesiredJointPath) ------------------------------------------------
+# --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------
 @_jit
 def _inv3_into(a: np.ndarray, out: np.ndarray) -> float:
     """out = a⁻¹ for a (3, 3) by the adjugate; returns the determinant (0 → out unchanged)."""
@@ -515,317 +456,7 @@ def newton_step(
         out[i] = q[i] + (Jp[i, 0] * e0 + Jp[i, 1] * e1 + Jp[i, 2] * e2)
 
 
-# --- dynamics (hybrid_force.dynamics.constrained_acceleration) --------------------------------
-@_jit
-def baumgarte(
-    drift: np.ndarray,
-    rate: np.ndarray,
-    value: np.ndarray,
-    scale: np.ndarray,
-    two_alpha: float,
-    beta_sq: float,
-    out: np.ndarray,
-) -> None:
-    """γ = drift + 2α A q̇ + β² Φ/s (k,), as ``Baumgarte.gamma`` (section 6.2)."""
-    for m in range(out.shape[0]):
-        out[m] = drift[m] + two_alpha * rate[m] + beta_sq * (value[m] / scale[m])
-
-
-@_jit
-def _solve_udut(U: np.ndarray, D: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
-    """x = (U D Uᵀ)⁻¹ b with U (n, n) unit upper triangular and D (n,): Pinocchio's M."""
-    n = b.shape[0]
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= U[i, j] * x[j]
-        x[i] = acc
-    for i in range(n):
-        x[i] /= D[i]
-    for i in range(n):
-        acc = x[i]
-        for j in range(i):
-            acc -= U[j, i] * x[j]
-        x[i] = acc
-
-
-@_jit
-def loop_resolve(
-    U: np.ndarray,
-    D: np.ndarray,
-    A: np.ndarray,
-    B: np.ndarray,
-    ddq0: np.ndarray,
-    f0: np.ndarray,
-    ddq: np.ndarray,
-    f: np.ndarray,
-) -> bool:
-    """Resolve the command u = u0 + B f from the KKT solution (q̈0, f0) at u = u0.
-
-    With M = U D Uᵀ (the factorisation pinocchio.forwardDynamics leaves in data.U, data.D),
-    X = M⁻¹Aᵀ, Y = M⁻¹B (n, k), G = A X and H = A Y (k, k), the constraint A q̈ = −γ gives
-    (G + H) f = G f0 and q̈ = q̈0 + X (f − f0) + Y f. A: (k, n). B: (n, k). Writes q̈ (n,)
-    and f (k,) [N]. Returns False when G + H is singular (no pivot above 1e-300).
-    """
-    n = ddq0.shape[0]
-    k = f0.shape[0]
-    X = np.empty((n, k))
-    Y = np.empty((n, k))
-    col = np.empty(n)
-    sol = np.empty(n)
-    for m in range(k):
-        for i in range(n):
-            col[i] = A[m, i]
-        _solve_udut(U, D, col, sol)
-        X[:, m] = sol
-        for i in range(n):
-            col[i] = B[i, m]
-        _solve_udut(U, D, col, sol)
-        Y[:, m] = sol
-    S = np.empty((k, k))
-    rhs = np.empty(k)
-    for a in range(k):
-        r = 0.0
-        for c in range(k):
-            g = 0.0
-            h = 0.0
-            for i in range(n):
-                g += A[a, i] * X[i, c]
-                h += A[a, i] * Y[i, c]
-            S[a, c] = g + h
-            r += g * f0[c]
-        rhs[a] = r
-    # Gaussian elimination with partial pivoting on the k × k system S f = rhs
-    for c in range(k):
-        piv = c
-        for a in range(c + 1, k):
-            if abs(S[a, c]) > abs(S[piv, c]):
-                piv = a
-        if not abs(S[piv, c]) > 1e-300:
-            return False
-        if piv != c:
-            for j in range(k):
-                S[c, j], S[piv, j] = S[piv, j], S[c, j]
-            rhs[c], rhs[piv] = rhs[piv], rhs[c]
-        for a in range(c + 1, k):
-            ratio = S[a, c] / S[c, c]
-            for j in range(c, k):
-                S[a, j] -= ratio * S[c, j]
-            rhs[a] -= ratio * rhs[c]
-    for c in range(k - 1, -1, -1):
-        acc = rhs[c]
-        for j in range(c + 1, k):
-            acc -= S[c, j] * f[j]
-        f[c] = acc / S[c, c]
-    for i in range(n):
-        acc = ddq0[i]
-        for m in range(k):
-            acc += X[i, m] * (f[m] - f0[m]) + Y[i, m] * f[m]
-        ddq[i] = acc
-    return True
-
-
-# --- simulate (hybrid_force.simulate: semi-implicit Euler and post-stabilisation, k = 1) -----
-@_jit
-def _put(row: np.ndarray, start: int, x: np.ndarray) -> int:
-    for j in range(x.shape[0]):
-        row[start + j] = x[j]
-    return start + x.shape[0]
-
-
-@_jit
-def record_row(
-    table: np.ndarray,
-    i: int,
-    t: float,
-    q: np.ndarray,
-    v: np.ndarray,
-    q_d: np.ndarray,
-    u0: np.ndarray,
-    B: np.ndarray,
-    f: np.ndarray,
-    p: np.ndarray,
-    p_d: np.ndarray,
-    f_d: np.ndarray,
-    phi: np.ndarray,
-    V: float,
-    phase: int,
-    max_velocity: float,
-    max_force: float,
-) -> bool:
-    """Write one sample into row i of the run's table (fields in the order of simulate._Log).
-
-    The command column is u = u0 + B f (B: (n, k)). Returns True when q, v, f are finite,
-    every |v_i| ≤ max_velocity and every |f_m| ≤ max_force.
-    """
-    row = table[i]
-    row[0] = t
-    c = _put(row, 1, q)
-    c = _put(row, c, v)
-    c = _put(row, c, q_d)
-    n = u0.shape[0]
-    for j in range(n):
-        acc = u0[j]
-        for m in range(f.shape[0]):
-            acc += B[j, m] * f[m]
-        row[c + j] = acc
-    c = _put(row, c + n, p)
-    c = _put(row, c, p_d)
-    c = _put(row, c, f)
-    c = _put(row, c, f_d)
-    c = _put(row, c, phi)
-    row[c] = V
-    row[c + 1] = phase
-    ok = True
-    for j in range(q.shape[0]):
-        ok = ok and math.isfinite(q[j])
-    for j in range(v.shape[0]):
-        ok = ok and abs(v[j]) <= max_velocity
-    for m in range(f.shape[0]):
-        ok = ok and abs(f[m]) <= max_force
-    return ok
-
-
-@_jit
-def euler_step(
-    q: np.ndarray,
-    v: np.ndarray,
-    ddq: np.ndarray,
-    dt: float,
-    v_out: np.ndarray,
-    q_out: np.ndarray,
-) -> None:
-    """Semi-implicit Euler v⁺ = v + q̈ dt, q⁺ = q + v⁺ dt (Euclidean configuration spaces)."""
-    for i in range(v.shape[0]):
-        vi = v[i] + ddq[i] * dt
-        v_out[i] = vi
-        q_out[i] = q[i] + vi * dt
-
-
-@_jit
-def project_one(
-    desc: np.ndarray,
-    p: np.ndarray,
-    grad: np.ndarray,
-    phi: float,
-    J6: np.ndarray,
-    q: np.ndarray,
-    v: np.ndarray,
-    q_out: np.ndarray,
-    v_out: np.ndarray,
-) -> float:
-    """One Gauss–Newton step onto a surface and the velocity onto its tangent space, k = 1.
-
-    desc: the surface's descriptor (:func:`surface_eval`), evaluated here at the tip p (3,);
-    when empty, grad (3,) = ∇Φ and phi = Φ are given. J6: (6, n) tip Jacobian (rows 0..2).
-    The row is A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
-    ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out = q − A⁺ Φ/‖∇Φ‖
-    (Euclidean configuration spaces) and v_out = v − A⁺ (A v). Returns ‖∇Φ‖ (the caller
-    checks it is not zero).
-    """
-    if desc.shape[0] > 0:
-        phi, _ = surface_eval(desc, p, grad, np.zeros((0, 0)))
-    n = q.shape[0]
-    gn = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
-    n0, n1, n2 = grad[0] / gn, grad[1] / gn, grad[2] / gn
-    dist = phi / gn
-    row = np.empty(n)
-    rr = 0.0
-    rv = 0.0
-    for j in range(n):
-        r = n0 * J6[0, j] + n1 * J6[1, j] + n2 * J6[2, j]
-        row[j] = r
-        rr += r * r
-        rv += r * v[j]
-    for j in range(n):
-        ap = row[j] / rr
-        step = -(ap * dist)
-        q_out[j] = q[j] + step
-        v_out[j] = v[j] - ap * rv
-    return gn
-
-
-# --- surfaces (hybrid_force.surfaces: Cylinder, Sphere, Plane) --------------------------------
-@_jit
-def surface_eval(
-    desc: np.ndarray, p: np.ndarray, grad: np.ndarray, hess: np.ndarray
-) -> tuple[float, float]:
-    """Φ, ∇Φ, ∇²Φ and d of a surface from its descriptor (``Surface._descriptor``) at p.
-
-    desc[0] = 0: cylinder or sphere, desc = [0, c (3), a (3), sign, r², r] (a = 0 for a
-    sphere): w = p − c minus (w·a) a, Φ = ±(‖w‖² − r²), ∇Φ = ±2w, ∇²Φ = ±2(I − aaᵀ),
-    d = Φ / (‖w‖ + r). desc[0] = 1: plane, desc = [1, o (3), n (3)]: Φ = d = n·(p − o),
-    ∇Φ = n, ∇²Φ = 0. The same operations as the Python methods. Writes grad (3,) and, unless
-    hess is (0, 0), hess (3, 3). Returns (Φ, d).
-    """
-    if desc[0] == 1.0:
-        value = desc[4] * (p[0] - desc[1]) + desc[5] * (p[1] - desc[2]) + desc[6] * (p[2] - desc[3])
-        for r in range(3):
-            grad[r] = desc[4 + r]
-        if hess.shape[0] == 3:
-            for r in range(3):
-                for c in range(3):
-                    hess[r, c] = 0.0
-        return value, value
-    ax, ay, az = desc[4], desc[5], desc[6]
-    sign = desc[7]
-    wx = p[0] - desc[1]
-    wy = p[1] - desc[2]
-    wz = p[2] - desc[3]
-    t = wx * ax + wy * ay + wz * az
-    wx, wy, wz = wx - t * ax, wy - t * ay, wz - t * az
-    g = 2.0 * sign
-    grad[0] = g * wx
-    grad[1] = g * wy
-    grad[2] = g * wz
-    if hess.shape[0] == 3:
-        a = (ax, ay, az)
-        for r in range(3):
-            for c in range(3):
-                hess[r, c] = g * ((1.0 if r == c else 0.0) - a[r] * a[c])
-    rho2 = wx * wx + wy * wy + wz * wz
-    value = sign * (rho2 - desc[8])
-    return value, value / (math.sqrt(rho2) + desc[9])
-
-
-# --- paths (hybrid_force.paths._CircularPath.evaluate) ---------------------------------------
-@_jit
-def circular_path(
-    basis: np.ndarray,
-    phase: float,
-    omega: float,
-    t: float,
-    p: np.ndarray,
-    v: np.ndarray,
-    a: np.ndarray,
-) -> None:
-    """p = [cos θ, sin θ, t, 1] B, ṗ = [−ω sin θ, ω cos θ, 1, 0] B, p̈ = −ω² [cos θ, sin θ] B.
-
-    basis: (4, 3) rows r·e1, r·e2, rise·a, c. θ = phase + ω t. Writes p, v, a (3,).
-    """
-    th = phase + omega * t
-    co = math.cos(th)
-    si = math.sin(th)
-    wc = omega * co
-    ws = omega * si
-    for j in range(3):
-        b0, b1 = basis[0, j], basis[1, j]
-        p[j] = co * b0 + si * b1 + t * basis[2, j] + basis[3, j]
-        v[j] = -ws * b0 + wc * b1 + basis[2, j]
-        a[j] = -omega * wc * b0 - omega * ws * b1
-
-
-@_jit
-def path_sample(desc: np.ndarray, t: float, sample: np.ndarray) -> None:
-    """p_d, ṗ_d, p̈_d at t [s] into the rows of sample (3, 3), from ``Path._descriptor``.
-
-    desc = [0, phase, ω, B (4 × 3, row-major)]: a helix or a circle (:func:`circular_path`).
-    """
-    basis = desc[3:15].reshape((4, 3))
-    circular_path(basis, desc[1], desc[2], t, sample[0], sample[1], sample[2])
-
-
-# --- controller momenta -----------------------------------------------------------------------
+# --- controller momenta ---------------------------------------------------------------------------
 @_jit
 def accumulate(
     x: np.ndarray, dx: np.ndarray, y: np.ndarray, dy: np.ndarray, dt: float, diff: np.ndarray

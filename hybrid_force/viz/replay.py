@@ -274,7 +274,7 @@ class Replay:
 
     Attributes:
         result: the run.
-        robot: the :class:`~hybrid_force.robot.Robot` of ``meta["robot"]``.
+        robot: the :class:`~hybrid_force.model.robot.Robot` of ``meta["robot"]``.
         surfaces: the surfaces of ``meta["surfaces"]`` (function surfaces are not drawn).
         frame_times: (F,) times of the animation frames [s] (t[0] + i / fps).
         frame_q: (F, nq) configurations at the frames (interpolated) [rad or m].
@@ -296,7 +296,7 @@ class Replay:
 
     # ------------------------------------------------------------------ loading
     def _load_robot(self) -> Any:
-        from hybrid_force.robot import load_robot
+        from hybrid_force.model.robot import load_robot
 
         info = self.result.meta.get("robot")
         if not isinstance(info, dict) or not isinstance(info.get("model"), str):
@@ -328,7 +328,7 @@ class Replay:
         return robot
 
     def _load_surfaces(self) -> list[Any]:
-        from hybrid_force.surfaces import surface_from_dict
+        from hybrid_force.geometry.surfaces import surface_from_dict
 
         out: list[Any] = []
         for i, d in enumerate(self.result.meta.get("surfaces") or []):
@@ -659,10 +659,10 @@ class Replay:
 
 # --------------------------------------------------------------------------- robot and visuals
 def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
-    """The :func:`~hybrid_force.robot.load_robot` options a result's meta records.
+    """The :func:`~hybrid_force.model.robot.load_robot` options a result's meta records.
 
     From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``: what
-    :attr:`~hybrid_force.robot.Robot.reference` gives). A key ``meta["robot"]`` lacks is taken
+    :attr:`~hybrid_force.model.robot.Robot.reference` gives). A key ``meta["robot"]`` lacks is taken
     from the scenario's ``[robot]`` table (``meta["scenario"]["robot"]``): ``xacro_args`` and
     ``lock_off_chain`` as written; ``package_dirs`` (relative to the scenario file) only when
     the scenario's ``robot.model`` is a relative path without ``..`` whose parts end
@@ -694,7 +694,7 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
 def _toml_text(value: object) -> str | None:
     """A scenario's xacro argument as the loader passes it (a TOML number or boolean as its
     text), or None for a value the loader refuses."""
-    from hybrid_force.scenario import xacro_argument_text
+    from hybrid_force.scenario.loader import xacro_argument_text
 
     try:
         return xacro_argument_text(value)
@@ -1100,7 +1100,7 @@ class LiveServer:
             sys.executable,
             "-u",
             "-c",
-            "from hybrid_force.replay import _server_main; _server_main()",
+            "from hybrid_force.viz.replay import _server_main; _server_main()",
             str(os.getpid()),
             "" if self.port_requested is None else str(self.port_requested),
         ]

@@ -34,10 +34,12 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
-from hybrid_force._lazy import kernels
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import SingularConfigurationError, SurfaceError
-from hybrid_force.robot import Robot, RobotTerms
-from hybrid_force.surfaces import Surface
+from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.model.robot import Robot, RobotTerms
+
+_K = LazyKernels("hybrid_force.control._kernels")
 
 __all__ = ["Constraint", "ConstraintTerms", "Normalization"]
 
@@ -297,7 +299,7 @@ class Constraint:
         packs = terms.packed()._packs
         assert packs is not None  # packed() always returns terms with their packs
         _, _, jac, tip = packs
-        grad_norm, row_norm, jmax = kernels().constraint_one(
+        grad_norm, row_norm, jmax = _K.constraint_one(
             desc, grad, hess, jac, tip, v, self._tip_scaling, rows, cols, squares, scalars
         )
         if not grad_norm >= _GRAD_TOL or not row_norm >= _ROW_TOL * grad_norm * (1.0 + jmax):

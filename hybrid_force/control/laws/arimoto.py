@@ -6,10 +6,10 @@ affine in the contact force f that the dynamics will produce from it:
     u = u0 + B f,       u0: (n,), B: (n, k)
 
 because the hybrid law's q̈_r contains ė_F = f − f_d (the algebraic loop of issue 4). The
-simulator resolves u and f together, exactly (see :mod:`hybrid_force.dynamics`).
+simulator resolves u and f together, exactly (see :mod:`hybrid_force.sim.dynamics`).
 
 Derivation of the loop (generalised to k rows A with A⁺ = Aᵀ(AAᵀ)⁻¹, see
-:mod:`hybrid_force.constraint`; with the paper's unit row J_Φn, A⁺ = J_Φnᵀ):
+:mod:`hybrid_force.control.constraint`; with the paper's unit row J_Φn, A⁺ = J_Φnᵀ):
 
     x      = q̇_d − Λ e_q,                  ẋ = q̈_d − Λ (q̇ − q̇_d)
     q̇_r   = Q x + β A⁺ e_F                                           (eq. 4)
@@ -29,10 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force._lazy import kernels
-from hybrid_force.constraint import ConstraintTerms
+from hybrid_force._lazy import LazyKernels
+from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.errors import GainError
-from hybrid_force.robot import RobotTerms
+from hybrid_force.model.robot import RobotTerms
+
+_K = LazyKernels("hybrid_force.control._kernels")
 
 __all__ = [
     "Command",
@@ -237,7 +239,7 @@ def arimoto_law(
         e_F: (k,) momentum error F − F_d [N·s] (eq. 3).
         f_d: (k,) desired force [N].
         approach: optional (k,) normal reference velocity [m/s] added as A⁺·approach to q̇_r
-            (near phase only, see :mod:`hybrid_force.supervisor`); None in contact.
+            (near phase only, see :mod:`hybrid_force.control.supervisor`); None in contact.
 
     Returns:
         The command u = u0 + B f and the trace (s₀ = Q(ė_q + Λe_q), s₁ = −βA⁺e_F, eq. 9).
@@ -348,7 +350,7 @@ class LawWorkspace:
         matrices: np.ndarray,
     ) -> None:
         g = self.gains
-        self.V = kernels().arimoto(
+        self.V = _K.arimoto(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
             cons.A, v, e_q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda, g.beta,
             g.gamma, self._vectors, matrices,

@@ -1,7 +1,7 @@
 """The closed loop: controller + constrained dynamics + contact events + integration.
 
 :func:`simulate` runs a :class:`Scenario` (a plain Python description of one run, which the
-TOML loader of :mod:`hybrid_force.scenario` also produces) and returns a
+TOML loader of :mod:`hybrid_force.scenario.loader` also produces) and returns a
 :class:`~hybrid_force.result.Result`.
 
 One step (dt, 1 ms by default):
@@ -9,7 +9,7 @@ One step (dt, 1 ms by default):
 1. the plant's terms at (q, v), once (:meth:`Robot.terms`), and the constraint terms;
 2. the controller's command u = u0 + B f (the simulator does not know which law made it);
 3. in contact, the constrained dynamics resolve q̈ and f together
-   (:class:`~hybrid_force.dynamics.ConstrainedDynamics`); if the surface would have to
+   (:class:`~hybrid_force.sim.dynamics.ConstrainedDynamics`); if the surface would have to
    pull (f < 0) the contact is released (unilateral surface) and the step is free;
 4. the sample is recorded (its phase is the plant's contact state: "contact" only on the
    surface); the controller advances its integrators with f; the plant is
@@ -26,7 +26,7 @@ One step (dt, 1 ms by default):
 After the loop (or when anything stops it: divergence, Ctrl-C, SIGTERM, an exception) the
 run's samples become its Result, with what it must say about itself in ``meta``: joints that
 left their range or exceeded an effort limit, whether the tool ended on the surface
-(:mod:`hybrid_force.run_checks`), ``status`` and ``reason``.
+(:mod:`hybrid_force.sim.run_checks`), ``status`` and ``reason``.
 
 Two implementations of the step: the default calls compiled kernels between the Pinocchio
 calls (:mod:`hybrid_force._kernels`); ``SimSettings(reference=True)`` runs the readable numpy
@@ -48,18 +48,11 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force._lazy import kernels
-from hybrid_force.constraint import _GRAD_TOL, Constraint, ConstraintTerms
-from hybrid_force.control import Command
-from hybrid_force.controller import Controller, ControllerModel, check_same_joints
-from hybrid_force.dynamics import (
-    Baumgarte,
-    ConstrainedDynamics,
-    constrained_acceleration,
-    free_acceleration,
-    kkt_reference,
-    plastic_impact,
-)
+from hybrid_force._lazy import LazyKernels
+from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
+from hybrid_force.control.controller import Controller, ControllerModel, check_same_joints
+from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.supervisor import ControlSettings, HybridController
 from hybrid_force.errors import (
     ControlError,
     DivergenceError,
@@ -71,20 +64,29 @@ from hybrid_force.errors import (
     SensorError,
     SingularConfigurationError,
 )
-from hybrid_force.paths import Path, PathParameterError
+from hybrid_force.geometry.paths import Path, PathParameterError
+from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.model.robot import Robot, RobotTerms
+from hybrid_force.model.robot import reference_terms as _reference_terms
 from hybrid_force.phases import CONTACT, FREE, NEAR
 from hybrid_force.result import Result
-from hybrid_force.robot import Robot, RobotTerms
-from hybrid_force.robot import reference_terms as _reference_terms
-from hybrid_force.run_checks import (
+from hybrid_force.sim.dynamics import (
+    Baumgarte,
+    ConstrainedDynamics,
+    constrained_acceleration,
+    free_acceleration,
+    kkt_reference,
+    plastic_impact,
+)
+from hybrid_force.sim.run_checks import (
     check_log_memory,
     contact_outcome,
     describe,
     limit_violations,
 )
-from hybrid_force.sensors import Sensors, SensorSettings
-from hybrid_force.supervisor import ControlSettings, HybridController
-from hybrid_force.surfaces import Surface
+from hybrid_force.sim.sensors import Sensors, SensorSettings
+
+_K = LazyKernels("hybrid_force.sim._kernels")
 
 __all__ = ["Scenario", "SimSettings", "simulate"]
 
@@ -172,7 +174,7 @@ class SimSettings:
         object.__setattr__(self, "seed", seed)
         if not isinstance(self.baumgarte, Baumgarte):
             raise SimSettingsError(
-                "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.dynamics.Baumgarte, "
+                "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.Baumgarte, "
                 f"e.g. Baumgarte(alpha=50.0, beta=50.0), got {checks.shown(self.baumgarte)}"
             )
 
@@ -182,17 +184,17 @@ class Scenario:
     """One run, described in Python (the TOML loader builds the same object).
 
     Attributes:
-        robot: the plant, a :class:`~hybrid_force.robot.Robot` (the controller's model is the
+        robot: the plant, a :class:`~hybrid_force.Robot` (the controller's model is the
             same arm, masses × mass_factor).
-        surfaces: a non-empty sequence of :class:`~hybrid_force.surfaces.Surface` touched by
+        surfaces: a non-empty sequence of :class:`~hybrid_force.Surface` touched by
             the tip (stored as a tuple).
-        path: desired task-space path, a :class:`~hybrid_force.paths.Path` (on the surface).
+        path: desired task-space path, a :class:`~hybrid_force.Path` (on the surface).
         q0: (nq,) start configuration. v0: None or (nv,) start velocity (None: 0). Both are
             stored as new read-only float64 arrays.
         control: controller settings. sim: simulation settings.
         sensor: what the controller measures (default: ideal sensing, the plant's state).
         controller_model: the controller's own model of the arm (``control.model``): another
-            :class:`~hybrid_force.robot.Robot` with the plant's joints (a heavier link, say);
+            :class:`~hybrid_force.model.robot.Robot` with the plant's joints (a heavier link, say);
             None: the plant's own model. ``control.mass_factor`` applies on top of it.
         name: a short name (used for output folders): letters, digits, '_', '-', '.', not
             starting with '.' or '-', at most ``NAME_MAX_LENGTH`` = 100 characters (the
@@ -206,7 +208,7 @@ class Scenario:
       f_d's count against the surfaces;
     * a run that starts in contact (``control.supervisor`` False): the desired path within
       ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration] (sampled by
-      :func:`~hybrid_force.paths.check_on_surface`) and the start tip p(q0) within
+      :func:`~hybrid_force.geometry.paths.check_on_surface`) and the start tip p(q0) within
       ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first;
@@ -235,14 +237,14 @@ class Scenario:
         from collections.abc import Mapping
 
         from hybrid_force import _checks as checks
-        from hybrid_force.control import check_damping_gain
+        from hybrid_force.control.laws.arimoto import check_damping_gain
         from hybrid_force.errors import ScenarioValueError as Bad
 
         set_ = object.__setattr__
         robot = self.robot
         if not isinstance(robot, Robot):
             raise Bad(
-                "Scenario.robot must be a hybrid_force.robot.Robot (e.g. load_robot('rtr')), "
+                "Scenario.robot must be a hybrid_force.model.robot.Robot (e.g. load_robot('rtr')), "
                 f"got {checks.shown(robot)}"
             )
         surfaces = self.surfaces
@@ -251,18 +253,18 @@ class Scenario:
         if not isinstance(surfaces, Sequence) or isinstance(surfaces, str | bytes) or not surfaces:
             raise Bad(
                 "Scenario.surfaces must be a non-empty sequence (list, tuple) of "
-                f"hybrid_force.surfaces.Surface, got {checks.shown(surfaces)}"
+                f"hybrid_force.geometry.surfaces.Surface, got {checks.shown(surfaces)}"
             )
         for i, surface in enumerate(surfaces):
             if not isinstance(surface, Surface):
                 raise Bad(
-                    f"Scenario.surfaces[{i}] must be a hybrid_force.surfaces.Surface (Cylinder, "
+                    f"Scenario.surfaces[{i}] must be a hybrid_force.Surface (Cylinder, "
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
         set_(self, "surfaces", tuple(surfaces))
         if not isinstance(self.path, Path):
             raise Bad(
-                "Scenario.path must be a hybrid_force.paths.Path (Helix, Circle, FunctionPath), "
+                "Scenario.path must be a hybrid_force.Path (Helix, Circle, FunctionPath), "
                 f"got {checks.shown(self.path)}"
             )
         for key, size, optional in (("q0", robot.nq, False), ("v0", robot.nv, True)):
@@ -301,14 +303,14 @@ class Scenario:
         control.f_d_for(len(self.surfaces))
         if not isinstance(self.sensor, SensorSettings):
             raise Bad(
-                "Scenario.sensor must be a hybrid_force.sensors.SensorSettings, "
+                "Scenario.sensor must be a hybrid_force.sim.sensors.SensorSettings, "
                 f"got {checks.shown(self.sensor)}"
             )
         control_steps(control, self.sim)
         if self.controller_model is not None:
             if not isinstance(self.controller_model, Robot):
                 raise Bad(
-                    "Scenario.controller_model must be None or a hybrid_force.robot.Robot, "
+                    "Scenario.controller_model must be None or a hybrid_force.model.robot.Robot, "
                     f"got {checks.shown(self.controller_model)}"
                 )
             check_same_joints(robot, self.controller_model)
@@ -317,7 +319,7 @@ class Scenario:
     def _check_start_and_path(self) -> None:
         """The contact conditions of the start (class docstring), as the scenario loader's."""
         from hybrid_force.errors import ScenarioValueError as Bad
-        from hybrid_force.paths import ON_SURFACE_TOL, check_on_surface
+        from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
         if k > 1 and control.supervisor:
@@ -445,7 +447,7 @@ class _Log:
         Returns True when q, v, f are finite, |v_i| ≤ max_velocity and |f_m| ≤ max_force
         (otherwise :func:`_check_finite` says which and raises).
         """
-        return kernels().record_row(
+        return _K.record_row(
             self.table, i, t, q, v, q_d, u0, B, f, p, p_d, f_d, phi, V, phase,
             self.max_velocity, self.max_force,
         )  # fmt: skip
@@ -547,7 +549,7 @@ class _Plant:
         compiled calls (:func:`hybrid_force._kernels.euler_step`, ``project_one``). Returns
         arrays owned by the plant, never q or v themselves; the next call may reuse them.
         """
-        K = kernels()
+        K = _K
         model, data, fid = self.robot.model, self.data, self.robot.tip_id
         q_tmp, v_tmp = self._tmp
         K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
@@ -576,7 +578,7 @@ def simulate(
     Args:
         scenario: the run.
         progress: optional callback called with the fraction done (0..1) about 100 times.
-        controller: your own controller (:class:`~hybrid_force.controller.Controller`:
+        controller: your own controller (:class:`~hybrid_force.control.controller.Controller`:
             ``command(t, q, v, f) -> u``), instead of the scenario's law; it runs at
             ``control.rate`` on the ``[sensor]`` measurements, its torque held between ticks.
             The result then has no desired joint path (q_d is NaN) and no Lyapunov function
@@ -923,7 +925,7 @@ def _finish(
     """The Result of the first n samples, with what the run must say about itself in meta.
 
     Adds ``limits`` (joints beyond their range or effort limit, see
-    :func:`~hybrid_force.run_checks.limit_violations`), ``contact_at_end``, ``lost_contact``,
+    :func:`~hybrid_force.sim.run_checks.limit_violations`), ``contact_at_end``, ``lost_contact``,
     ``left_at`` and ``warnings`` (one line each, also issued as Python warnings).
     """
     lower, upper = robot.position_limits

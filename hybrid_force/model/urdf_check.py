@@ -57,7 +57,7 @@ without inertia, which the mass-matrix check below refuses, naming the joint).
 to it by a chain of fixed joints. Pinocchio merges them into the universe, which never moves,
 so their inertial data never enters M, C or g (a massless or empty world link is the rule in
 published URDFs). If urdfdom cannot read such an inertial, it says so on stderr and drops it;
-:func:`hybrid_force.robot.load_robot` turns that into a ``ModelWarning``.
+:func:`hybrid_force.model.robot.load_robot` turns that into a ``ModelWarning``.
 
 **Tolerances, and why the line between refusal and warning is there.** The simulation needs
 each link's spatial inertia positive semi-definite: a negative principal moment is a body
@@ -74,7 +74,7 @@ significant digits (the triangle sum moves by at most 3 × that); a violation la
 entries written as ``1e-13``-sized noise around zero.
 
 **Why not yourdfpy here.** yourdfpy (0.0.60) reads links, joints, limits and inertials, and
-:mod:`hybrid_force.model_report` (``hybrid-force robots --check``) reads the model through it.
+:mod:`hybrid_force.model.report` (``hybrid-force robots --check``) reads the model through it.
 The checks above keep their own reading because, measured on the inputs of
 ``tests/test_urdf_check.py``, yourdfpy does not refuse what the simulation cannot take and
 its messages name no file: it *recovers* malformed XML (mismatched tags: it logs an error and
@@ -98,10 +98,10 @@ algorithm that assumes nv > 0 runs:
   named with its master: Pinocchio 4 models mimic joints (``mimic=True``) as
   ``JointModelMimic``, which its forward and impulse dynamics refuse, and loading them as
   independent joints would simulate an arm that does not exist. Mimic joints *off* that chain
-  (gripper fingers) are not refused: :func:`hybrid_force.robot.load_robot` locks them (see
+  (gripper fingers) are not refused: :func:`hybrid_force.model.robot.load_robot` locks them (see
   there);
 * a mass matrix that is singular at the neutral configuration q0 (:func:`check_mass_matrix`,
-  run by :class:`~hybrid_force.robot.Robot` for every model): M(q0) must have its smallest
+  run by :class:`~hybrid_force.model.robot.Robot` for every model): M(q0) must have its smallest
   eigenvalue above ``_MASS_REL_TOL * λ_max + _MASS_ABS_TOL`` (scale-aware: the registry's arms
   have λ_min / λ_max ≥ 4e-5). The message names the joints that carry no inertia (their
   subtree has zero mass and zero rotational inertia), or else the joints that the
@@ -544,7 +544,7 @@ def check_arm_model(
     """Refuse a built model the toolkit cannot simulate (see the module docstring).
 
     Runs no Pinocchio algorithm. The mass matrix is checked by
-    :class:`~hybrid_force.robot.Robot` (:func:`check_mass_matrix`), for every model.
+    :class:`~hybrid_force.model.robot.Robot` (:func:`check_mass_matrix`), for every model.
 
     Args:
         model: the Pinocchio model as the loader will use it (continuous joints already

@@ -1,9 +1,9 @@
 """Stability of the sampled force loop: the largest β a sampled controller may use.
 
 With ideal sensing at the plant's rate the hybrid law's command u = u0 + B f is resolved with
-the plant exactly (:mod:`hybrid_force.control`). A sampled controller uses instead the force it
-measured, and the loop becomes a recursion. Derivation (k = 1; each eigen-direction of W below
-for k > 1):
+the plant exactly (:mod:`hybrid_force.control.laws.arimoto`). A sampled controller uses
+instead the force it measured, and the loop becomes a recursion. Derivation (k = 1; each
+eigen-direction of W below for k > 1):
 
 * The plant in contact: M q̈ + h = u + Aᵀ f with A q̈ = −a_drift, so
   f = W⁻¹ (A M⁻¹ (h − u) − a_drift) with W = A M⁻¹ Aᵀ (the constraint's inverse effective
@@ -34,8 +34,8 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from hybrid_force.robot import Robot
-from hybrid_force.surfaces import Surface
+from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.model.robot import Robot
 
 __all__ = ["beta_bound", "inverse_effective_mass", "max_stable_gain", "spectral_radius"]
 
@@ -76,7 +76,7 @@ def inverse_effective_mass(
             (e.g. the desired path). row: ``sim.normalization``, "tip" (n̂ᵀJ) or "joint"
             (the paper's unit row J_Φ/‖J_Φ‖).
     """
-    from hybrid_force.constraint import Constraint
+    from hybrid_force.control.constraint import Constraint
 
     constraint = Constraint(list(surfaces))
     smallest = np.inf

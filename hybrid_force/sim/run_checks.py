@@ -1,6 +1,6 @@
 """What a run must say about itself: memory it needs, limits it broke, contact it lost.
 
-Checks made around :func:`hybrid_force.simulate.simulate`, none of which changes the physics:
+Checks made around :func:`hybrid_force.sim.loop.simulate`, none of which changes the physics:
 
 * :func:`check_log_memory`: the run's log (one float64 row per sample) and the copies the
   result makes must fit in the memory available, or the run is refused before it starts;

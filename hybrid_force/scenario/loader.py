@@ -1,8 +1,8 @@
 """Scenario files: one TOML file describes one run (robot, surfaces, path, start, gains, sim).
 
 :func:`load_scenario` reads a file, applies ``--set``-style overrides, validates every table
-and key, and returns the :class:`hybrid_force.simulate.Scenario` that
-:func:`hybrid_force.simulate.simulate` runs. The format is documented in docs/scenarios.md.
+and key, and returns the :class:`hybrid_force.sim.loop.Scenario` that
+:func:`hybrid_force.sim.loop.simulate` runs. The format is documented in docs/scenarios.md.
 
 Validation is done up front so a bad file fails in milliseconds, not after a long run. Every
 problem raises :class:`~hybrid_force.errors.ScenarioError` whose message names the file, the
@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybrid_force.controller import LAWS
+from hybrid_force.control.controller import LAWS
 from hybrid_force.errors import (
     BadInputError,
     FrameError,
@@ -46,9 +46,11 @@ from hybrid_force.errors import (
 )
 
 if TYPE_CHECKING:  # annotations only: the loader imports these where it builds them
-    from hybrid_force.paths import Path as DesiredPath
-    from hybrid_force.surfaces import Surface
-from hybrid_force.paths import ON_SURFACE_TOL  # re-exported: the loader's and Scenario's rule
+    from hybrid_force.geometry.paths import Path as DesiredPath
+    from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.paths import (
+    ON_SURFACE_TOL,  # re-exported: the loader's and Scenario's rule
+)
 
 __all__ = [
     "ON_SURFACE_TOL",
@@ -496,7 +498,7 @@ def _parse_toml(text: str, where: str) -> dict[str, Any]:
 
 def load_scenario(
     path: str | Path, overrides: Mapping[str, object] | None = None
-) -> Any:  # -> hybrid_force.simulate.Scenario
+) -> Any:  # -> hybrid_force.sim.loop.Scenario
     """Read, override, validate a scenario file and return a ``Scenario`` ready to simulate.
 
     Args:
@@ -505,7 +507,7 @@ def load_scenario(
             the file's data before validation; they replace or add keys.
 
     Returns:
-        :class:`hybrid_force.simulate.Scenario` with ``source`` = the file's data with the
+        :class:`hybrid_force.sim.loop.Scenario` with ``source`` = the file's data with the
         overrides applied (JSON-able).
 
     Raises:
@@ -537,7 +539,7 @@ def read_scenario_document(
 
 def scenario_from_document(
     doc: Mapping[str, Any], *, origin: str = "<scenario>", base_dir: str | Path = "."
-) -> Any:  # -> hybrid_force.simulate.Scenario
+) -> Any:  # -> hybrid_force.sim.loop.Scenario
     """Validate scenario data (as :func:`read_scenario_document` returns) into a Scenario.
 
     Args:
@@ -553,7 +555,7 @@ def scenario_from_document(
 
 
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-    from hybrid_force.simulate import Scenario
+    from hybrid_force.sim.loop import Scenario
 
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:
@@ -674,7 +676,7 @@ def resolve_robot_table(
 def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
     """A model reference of a scenario: (the registry name, "name") or (the model file,
     resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""
-    from hybrid_force.robot import _is_path, model_kind
+    from hybrid_force.model.robot import _is_path, model_kind
 
     if not _is_path(model):
         return model, "name"
@@ -718,7 +720,7 @@ def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
 
 
 def _robot(table: object, file: Path, ctx: _Context) -> Any:
-    from hybrid_force.robot import load_robot
+    from hybrid_force.model.robot import load_robot
 
     resolved = _robot_table(table, file, ctx)
     values = resolved.values
@@ -737,7 +739,7 @@ def _robot(table: object, file: Path, ctx: _Context) -> Any:
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
-    from hybrid_force.surfaces import Cylinder, Plane, Sphere
+    from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 
     if "surface" in doc and "surfaces" in doc:
         raise ctx.table_error(
@@ -781,7 +783,7 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
 
 
 def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
-    from hybrid_force.paths import Circle, Helix
+    from hybrid_force.geometry.paths import Circle, Helix
 
     kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
     path: DesiredPath
@@ -813,8 +815,8 @@ def _controller_model(
 ) -> Any:
     """``control.model``: the controller's own model of the arm (a name, or a model path
     relative to the scenario file), with the plant's tip and joints; None when not given."""
-    from hybrid_force.controller import check_same_joints
-    from hybrid_force.robot import load_robot
+    from hybrid_force.control.controller import check_same_joints
+    from hybrid_force.model.robot import load_robot
 
     if "model" not in control_values:
         return None
@@ -831,7 +833,7 @@ def _controller_model(
 
 
 def _sensor_settings(table: object, ctx: _Context) -> Any:
-    from hybrid_force.sensors import SensorSettings
+    from hybrid_force.sim.sensors import SensorSettings
 
     values = _check_table(ctx, "sensor", table, _SENSOR)
     try:
@@ -843,7 +845,7 @@ def _sensor_settings(table: object, ctx: _Context) -> Any:
 def _check_control_rate(
     control: Any, sim: Any, control_values: Mapping[str, Any], ctx: _Context
 ) -> None:
-    from hybrid_force.simulate import control_steps
+    from hybrid_force.sim.loop import control_steps
 
     try:
         control_steps(control, sim)
@@ -852,8 +854,8 @@ def _check_control_rate(
 
 
 def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
-    from hybrid_force.dynamics import Baumgarte
-    from hybrid_force.simulate import SimSettings
+    from hybrid_force.sim.dynamics import Baumgarte
+    from hybrid_force.sim.loop import SimSettings
 
     for key in ("baumgarte_alpha", "baumgarte_beta", "settle_time"):
         if key in values and values[key] < 0:
@@ -892,8 +894,8 @@ def _control_settings(
     k: int,
     ctx: _Context,
 ) -> Any:
-    from hybrid_force.control import make_gains
-    from hybrid_force.supervisor import ControlSettings
+    from hybrid_force.control.laws.arimoto import make_gains
+    from hybrid_force.control.supervisor import ControlSettings
 
     defaults = ControlSettings()
     kwargs = dict(values)
@@ -945,7 +947,7 @@ def _check_path_on_surfaces(
     duration: float,
     ctx: _Context,
 ) -> None:
-    from hybrid_force.paths import check_on_surface
+    from hybrid_force.geometry.paths import check_on_surface
 
     for surface, (name, table) in zip(surfaces, tables, strict=True):
         report = check_on_surface(path, surface, 0.0, duration)
@@ -962,7 +964,7 @@ def _check_path_on_surfaces(
 
 
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:
-    from hybrid_force.clik import inverse_kinematics
+    from hybrid_force.control.clik import inverse_kinematics
 
     values = _check_table(ctx, "initial", table, _INITIAL)
     raw = table if isinstance(table, dict) else {}
@@ -1040,9 +1042,9 @@ def _check_controller(
     ctx: _Context,
 ) -> None:
     """Build the controller once: checks q_d(0) in reach and dt·λ_max(M⁻¹K_d)."""
-    from hybrid_force.constraint import Constraint
-    from hybrid_force.simulate import control_steps
-    from hybrid_force.supervisor import HybridController
+    from hybrid_force.control.constraint import Constraint
+    from hybrid_force.control.supervisor import HybridController
+    from hybrid_force.sim.loop import control_steps
 
     try:
         constraint = Constraint(surfaces, normalization=sim.normalization)
@@ -1080,10 +1082,10 @@ def _check_path_followable(
     seeded with the start q0 and moves continuously; here each sample is solved from the
     previous one (same branch), every :data:`PATH_CHECK_STEP` s (at most
     :data:`PATH_CHECK_SAMPLES` samples), and J must be as well conditioned as the CLIK needs
-    (``hybrid_force.clik``). A singular instant between two samples can still stop the run;
+    (``hybrid_force.control.clik``). A singular instant between two samples can still stop the run;
     the run then keeps its partial result. Returns the configurations found (one per sample).
     """
-    from hybrid_force.clik import _COND_MAX, ClikSettings, inverse_kinematics
+    from hybrid_force.control.clik import _COND_MAX, ClikSettings, inverse_kinematics
 
     n = int(min(PATH_CHECK_SAMPLES, max(2, math.ceil(duration / PATH_CHECK_STEP) + 1)))
     damping = ClikSettings().damping if robot.nv > 3 else 0.0
@@ -1131,8 +1133,8 @@ def _check_sampled_force_loop(
     sensing at the plant's rate the loop is resolved exactly and any β ≥ 0 is fine. W is taken
     at its smallest over the desired path's configurations.
     """
-    from hybrid_force.force_loop import beta_bound, inverse_effective_mass
-    from hybrid_force.simulate import control_steps
+    from hybrid_force.control.force_loop import beta_bound, inverse_effective_mass
+    from hybrid_force.sim.loop import control_steps
 
     steps = control_steps(control, sim)
     if steps == 1 and sensor.ideal:

@@ -18,7 +18,7 @@ never wrapped), so nq = nv = n. Revolute joints in rad, prismatic in m.
 Models the toolkit cannot simulate (no moving joint, a floating, planar, free or ball joint,
 a mimic joint on the tip's chain, a mass matrix singular at q0) are refused with a
 :class:`~hybrid_force.errors.URDFError` naming the file and the cause, before any Pinocchio
-algorithm runs on them: the checks are in :mod:`hybrid_force.urdf_check`, the loading steps
+algorithm runs on them: the checks are in :mod:`hybrid_force.model.urdf_check`, the loading steps
 in :func:`load_robot`.
 
 Names and paths: ``load_robot("ur5")`` is always the registry's arm; a path is a
@@ -46,8 +46,10 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force._lazy import kernels
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import DimensionError, FrameError, ModelWarning, RobotError, URDFError
+
+_K = LazyKernels("hybrid_force.model._kernels")
 
 __all__ = ["Robot", "RobotTerms", "load_robot", "reference_terms"]
 
@@ -192,7 +194,7 @@ class Robot:
                 f"robot '{name}': the model has no moving joint (nv = 0); an arm needs at least "
                 "one revolute or prismatic joint"
             )
-        from hybrid_force.urdf_check import check_mass_matrix
+        from hybrid_force.model.urdf_check import check_mass_matrix
 
         check_mass_matrix(model, f"unsupported model of robot '{name}' ({urdf_path})")
         self.model = model
@@ -252,9 +254,9 @@ class Robot:
     @property
     def urdf_xml(self) -> str | None:
         """The URDF text the model was built from (None for an MJCF model): the file's text
-        as :func:`~hybrid_force.urdf_check.urdf_text` reads it, or xacro's expansion."""
+        as :func:`~hybrid_force.model.urdf_check.urdf_text` reads it, or xacro's expansion."""
         if self._urdf_xml is None and self.kind != "mjcf":
-            from hybrid_force.urdf_check import urdf_text
+            from hybrid_force.model.urdf_check import urdf_text
 
             self._urdf_xml = urdf_text(self.urdf_path)
         return self._urdf_xml
@@ -386,7 +388,7 @@ class Robot:
         Mu = pin.crba(model, data, q)
         g = pin.computeGeneralizedGravity(model, data, q)
         C = pin.computeCoriolisMatrix(model, data, q, v)
-        kernels().robot_terms(
+        _K.robot_terms(
             Mu, C, g, pin.updateFramePlacement(model, data, fid).translation,
             pin.getFrameJacobian(model, data, fid, _LWA),
             pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), v, mats, vecs, jac, tip,
@@ -456,11 +458,11 @@ def load_robot(
     read by Pinocchio's MJCF parser (one whose root is ``<robot>`` is a URDF). Anything else
     is a URDF.
 
-    Loading (see :mod:`hybrid_force.urdf_check` for every refusal):
+    Loading (see :mod:`hybrid_force.model.urdf_check` for every refusal):
 
-    1. a URDF is read by :func:`~hybrid_force.urdf_check.urdf_text` (undeclared namespace
+    1. a URDF is read by :func:`~hybrid_force.model.urdf_check.urdf_text` (undeclared namespace
        prefixes declared); it, or xacro's expansion, goes through
-       :func:`~hybrid_force.urdf_check.check_urdf` (structure, inertial data, no floating or
+       :func:`~hybrid_force.model.urdf_check.check_urdf` (structure, inertial data, no floating or
        planar joint, at least one moving joint) before Pinocchio sees it. An MJCF file: no
        ``<include>`` (Pinocchio's parser ignores it), no free or ball joint;
     2. a URDF's ``continuous`` joint is rewritten as a ``revolute`` one (same axis; its
@@ -477,7 +479,7 @@ def load_robot(
        humanoid's other limbs). A locked joint is held at 0 (Pinocchio's neutral position:
        0 rad or 0 m), or at the middle of its range when 0 is outside it (at its one finite
        bound when the other is infinite);
-    4. :func:`~hybrid_force.urdf_check.check_arm_model` (nv > 0, one coordinate per joint, no
+    4. :func:`~hybrid_force.model.urdf_check.check_arm_model` (nv > 0, one coordinate per joint, no
        mimic joint on the tip's chain) and :class:`Robot` (M(q0) positive definite).
 
     Every moving joint of a loaded arm then has nq = nv = 1, so q and v are (n,).
@@ -508,8 +510,8 @@ def load_robot(
         FrameError: ``tip`` is not a frame of the model (lists the frames), or no moving
             joint lies between the root and it while the joints off its chain are locked.
     """
-    from hybrid_force._registry import resolve_robot
-    from hybrid_force.urdf_check import check_arm_model, urdf_text
+    from hybrid_force.model.registry import resolve_robot
+    from hybrid_force.model.urdf_check import check_arm_model, urdf_text
 
     given = _absolute_dirs(package_dirs)
     args = _xacro_arguments(xacro_args)
@@ -651,7 +653,7 @@ def expand_xacro(
         args: ``{name: text}`` values of its ``<xacro:arg>`` (``$(arg name)``).
         package_dirs: folders that hold package folders (see :func:`load_robot`).
         check: also check the expansion as :func:`load_robot` does
-            (:func:`~hybrid_force.urdf_check.check_urdf`; its messages and warnings name
+            (:func:`~hybrid_force.model.urdf_check.check_urdf`; its messages and warnings name
             ``<path> (as expanded by xacro)``).
 
     Raises:
@@ -732,9 +734,9 @@ def expand_xacro(
 
 
 def _check_urdf_text(path: Path, xml: str, *, expanded: bool) -> None:
-    """:func:`~hybrid_force.urdf_check.check_urdf` on the URDF text of ``path``; for xacro's
+    """:func:`~hybrid_force.model.urdf_check.check_urdf` on the URDF text of ``path``; for xacro's
     expansion (``expanded``) its messages say ``<path> (as expanded by xacro)``."""
-    from hybrid_force.urdf_check import check_urdf
+    from hybrid_force.model.urdf_check import check_urdf
 
     if not expanded:
         check_urdf(path, text=xml)
@@ -848,7 +850,7 @@ def _build_model(
 
     Args:
         path: the model file (named in messages; read when ``xml`` is None).
-        xml: the URDF text (:func:`~hybrid_force.urdf_check.urdf_text` of ``path``, or
+        xml: the URDF text (:func:`~hybrid_force.model.urdf_check.urdf_text` of ``path``, or
             xacro's expansion of it), or None.
 
     Returns:

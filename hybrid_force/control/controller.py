@@ -8,9 +8,9 @@ never handed the plant's terms, its multiplier or its state: it computes what it
 its own model (:class:`ControllerModel`).
 
 The paper's law (``control.law = "arimoto"``, the default) is built in
-(:class:`hybrid_force.supervisor.HybridController`): with ideal sensing at the plant's rate
+(:class:`hybrid_force.control.supervisor.HybridController`): with ideal sensing at the plant's rate
 the simulator also uses its affine form u = u0 + B f to resolve the force loop exactly, the
-paper's setting; a controller given to :func:`hybrid_force.simulate.simulate` runs sampled.
+paper's setting; a controller given to :func:`hybrid_force.sim.loop.simulate` runs sampled.
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from hybrid_force.constraint import Constraint, ConstraintTerms, Normalization
+from hybrid_force.control.constraint import Constraint, ConstraintTerms, Normalization
 from hybrid_force.errors import ControlError, SingularConfigurationError
-from hybrid_force.robot import Robot, RobotTerms, reference_terms
-from hybrid_force.surfaces import Surface
+from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 
 __all__ = ["LAWS", "Controller", "ControllerModel", "check_same_joints"]
 
@@ -61,7 +61,7 @@ class ControllerModel:
     Its own robot terms (M, C, g, p, J, J̇ at (q̃, ṽ), its own Pinocchio data) and its own
     constraint rows (its own :class:`Constraint`: it knows the surfaces' geometry). Its robot
     is the plant's model file, or ``control.model`` (the same joints); the controller's mass
-    factor is applied by :class:`~hybrid_force.supervisor.HybridController` on top.
+    factor is applied by :class:`~hybrid_force.control.supervisor.HybridController` on top.
     """
 
     def __init__(

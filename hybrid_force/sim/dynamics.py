@@ -1,6 +1,6 @@
 """Constrained forward dynamics of the arm: q̈ and the contact force f (section 6.2, eq. 2, 28).
 
-In contact the arm obeys (eq. 2, with the k scaled rows A of :mod:`hybrid_force.constraint`)
+In contact the arm obeys (eq. 2, with the k scaled rows A of :mod:`hybrid_force.control.constraint`)
 
     M q̈ + C q̇ + g = u + Aᵀ f,       A q̈ + γ = 0,
 
@@ -34,8 +34,10 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force import _checks as checks
-from hybrid_force._lazy import kernels
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import SimSettingsError
+
+_K = LazyKernels("hybrid_force.sim._kernels")
 
 __all__ = [
     "Baumgarte",
@@ -85,7 +87,7 @@ class Baumgarte:
         out: np.ndarray,
     ) -> np.ndarray:
         """:meth:`gamma` with φ = value / scale, written into out (k,) in one compiled call."""
-        kernels().baumgarte(drift, rate, value, scale, 2.0 * self.alpha, self.beta * self.beta, out)
+        _K.baumgarte(drift, rate, value, scale, 2.0 * self.alpha, self.beta * self.beta, out)
         return out
 
 
@@ -151,7 +153,7 @@ class ConstrainedDynamics:
         if B is None:
             self.ddq[:] = ddq0
             self.f[:] = f0
-        elif not kernels().loop_resolve(self._U, self._D, A, B, ddq0, f0, self.ddq, self.f):
+        elif not _K.loop_resolve(self._U, self._D, A, B, ddq0, f0, self.ddq, self.f):
             raise np.linalg.LinAlgError(
                 "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
             )

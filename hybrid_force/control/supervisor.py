@@ -39,10 +39,10 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force import _checks as checks
-from hybrid_force._lazy import kernels
-from hybrid_force.clik import ClikSettings, DesiredJointPath, inverse_kinematics
-from hybrid_force.constraint import Constraint, ConstraintTerms
-from hybrid_force.control import (
+from hybrid_force._lazy import LazyKernels
+from hybrid_force.control.clik import ClikSettings, DesiredJointPath, inverse_kinematics
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.laws.arimoto import (
     Command,
     ControlTrace,
     Desired,
@@ -55,9 +55,11 @@ from hybrid_force.control import (
     make_gains,
 )
 from hybrid_force.errors import ControlError, GainError
-from hybrid_force.paths import Path
+from hybrid_force.geometry.paths import Path
+from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES
-from hybrid_force.robot import Robot, RobotTerms
+
+_K = LazyKernels("hybrid_force.control._kernels")
 
 __all__ = ["CONTACT", "FREE", "NEAR", "PHASE_NAMES", "ControlSettings", "HybridController"]
 
@@ -91,7 +93,7 @@ class ControlSettings:
         rate: the control rate [Hz]: the controller reads its sensors and computes a new
             torque every 1/rate s and the torque is held in between (zero-order hold); None:
             every plant step (1/sim.dt). Must be a whole number of plant steps (checked with
-            sim.dt by ``Scenario`` and :func:`hybrid_force.simulate.simulate`).
+            sim.dt by ``Scenario`` and :func:`hybrid_force.sim.loop.simulate`).
 
     Every number must be a finite real number (not a bool, not a string) within the range
     above, ``supervisor`` a bool: anything else raises :class:`GainError` (a number) or
@@ -141,7 +143,7 @@ class ControlSettings:
                 f"need max_dist > contact_tol > 0, got max_dist={self.max_dist!r}, "
                 f"contact_tol={self.contact_tol!r}"
             )
-        from hybrid_force.controller import LAWS
+        from hybrid_force.control.controller import LAWS
 
         checks.one_of(self.law, "control.law", ControlError, LAWS)
         supervisor = checks.flag(self.supervisor, "ControlSettings.supervisor", ControlError)
@@ -226,8 +228,8 @@ class HybridController:
         dt: time step [s] (used to check dt·λ_max(M⁻¹K_d)).
         t0: start time [s].
         fast: compiled CLIK and laws writing into preallocated arrays
-            (:class:`~hybrid_force.control.LawWorkspace`); False: the numpy references
-            (:func:`~hybrid_force.control.arimoto_law` and ``free_space_law``).
+            (:class:`~hybrid_force.control.laws.arimoto.LawWorkspace`); False: the numpy references
+            (:func:`~hybrid_force.control.laws.arimoto.arimoto_law` and ``free_space_law``).
     """
 
     def __init__(
@@ -445,7 +447,7 @@ class HybridController:
         st = self._int
         if self.phase == CONTACT:
             if self.fast:
-                kernels().accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
+                _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
             else:
                 st.F += f * dt
                 st.F_d += st.f_d * dt

@@ -1,0 +1,1 @@
+"""The arm: robot models (URDF, xacro, MJCF, named arms), their terms, checks and reports."""

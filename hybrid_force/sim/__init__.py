@@ -1,0 +1,1 @@
+"""The plant and the loop: sensors, constrained dynamics, the simulation step, the record."""

@@ -1,0 +1,252 @@
+"""Compiled algebra of the plant's step (Numba): Baumgarte stabilisation, the exact
+resolution of the algebraic loop u = u0 + B f, semi-implicit Euler with projection onto the
+surface (k = 1), and the row of the record.
+
+References: :mod:`hybrid_force.sim.dynamics` (:func:`~hybrid_force.sim.dynamics.kkt_reference`)
+and the reference plant of :mod:`hybrid_force.sim.loop`. The controller never calls these kernels.
+
+The hot loop spends its time in a few hundred operations on arrays of 3 to 30 numbers; from
+numpy each costs about a microsecond of call overhead, far more than the arithmetic, so the
+formulas are written as loops and compiled once (cached on disk). Imported only on first use
+(Numba takes about 0.5 s to import). Conventions: outputs are preallocated arrays passed last
+and written in place.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hybrid_force._jit import jit as _jit
+from hybrid_force.geometry._kernels import surface_eval
+
+
+# --- dynamics (hybrid_force.sim.dynamics.constrained_acceleration) --------------------------------
+@_jit
+def baumgarte(
+    drift: np.ndarray,
+    rate: np.ndarray,
+    value: np.ndarray,
+    scale: np.ndarray,
+    two_alpha: float,
+    beta_sq: float,
+    out: np.ndarray,
+) -> None:
+    """γ = drift + 2α A q̇ + β² Φ/s (k,), as ``Baumgarte.gamma`` (section 6.2)."""
+    for m in range(out.shape[0]):
+        out[m] = drift[m] + two_alpha * rate[m] + beta_sq * (value[m] / scale[m])
+
+
+@_jit
+def _solve_udut(U: np.ndarray, D: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
+    """x = (U D Uᵀ)⁻¹ b with U (n, n) unit upper triangular and D (n,): Pinocchio's M."""
+    n = b.shape[0]
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= U[i, j] * x[j]
+        x[i] = acc
+    for i in range(n):
+        x[i] /= D[i]
+    for i in range(n):
+        acc = x[i]
+        for j in range(i):
+            acc -= U[j, i] * x[j]
+        x[i] = acc
+
+
+@_jit
+def loop_resolve(
+    U: np.ndarray,
+    D: np.ndarray,
+    A: np.ndarray,
+    B: np.ndarray,
+    ddq0: np.ndarray,
+    f0: np.ndarray,
+    ddq: np.ndarray,
+    f: np.ndarray,
+) -> bool:
+    """Resolve the command u = u0 + B f from the KKT solution (q̈0, f0) at u = u0.
+
+    With M = U D Uᵀ (the factorisation pinocchio.forwardDynamics leaves in data.U, data.D),
+    X = M⁻¹Aᵀ, Y = M⁻¹B (n, k), G = A X and H = A Y (k, k), the constraint A q̈ = −γ gives
+    (G + H) f = G f0 and q̈ = q̈0 + X (f − f0) + Y f. A: (k, n). B: (n, k). Writes q̈ (n,)
+    and f (k,) [N]. Returns False when G + H is singular (no pivot above 1e-300).
+    """
+    n = ddq0.shape[0]
+    k = f0.shape[0]
+    X = np.empty((n, k))
+    Y = np.empty((n, k))
+    col = np.empty(n)
+    sol = np.empty(n)
+    for m in range(k):
+        for i in range(n):
+            col[i] = A[m, i]
+        _solve_udut(U, D, col, sol)
+        X[:, m] = sol
+        for i in range(n):
+            col[i] = B[i, m]
+        _solve_udut(U, D, col, sol)
+        Y[:, m] = sol
+    S = np.empty((k, k))
+    rhs = np.empty(k)
+    for a in range(k):
+        r = 0.0
+        for c in range(k):
+            g = 0.0
+            h = 0.0
+            for i in range(n):
+                g += A[a, i] * X[i, c]
+                h += A[a, i] * Y[i, c]
+            S[a, c] = g + h
+            r += g * f0[c]
+        rhs[a] = r
+    # Gaussian elimination with partial pivoting on the k × k system S f = rhs
+    for c in range(k):
+        piv = c
+        for a in range(c + 1, k):
+            if abs(S[a, c]) > abs(S[piv, c]):
+                piv = a
+        if not abs(S[piv, c]) > 1e-300:
+            return False
+        if piv != c:
+            for j in range(k):
+                S[c, j], S[piv, j] = S[piv, j], S[c, j]
+            rhs[c], rhs[piv] = rhs[piv], rhs[c]
+        for a in range(c + 1, k):
+            ratio = S[a, c] / S[c, c]
+            for j in range(c, k):
+                S[a, j] -= ratio * S[c, j]
+            rhs[a] -= ratio * rhs[c]
+    for c in range(k - 1, -1, -1):
+        acc = rhs[c]
+        for j in range(c + 1, k):
+            acc -= S[c, j] * f[j]
+        f[c] = acc / S[c, c]
+    for i in range(n):
+        acc = ddq0[i]
+        for m in range(k):
+            acc += X[i, m] * (f[m] - f0[m]) + Y[i, m] * f[m]
+        ddq[i] = acc
+    return True
+
+
+# --- simulate (hybrid_force.sim.loop: semi-implicit Euler and post-stabilisation, k = 1) ----------
+@_jit
+def _put(row: np.ndarray, start: int, x: np.ndarray) -> int:
+    for j in range(x.shape[0]):
+        row[start + j] = x[j]
+    return start + x.shape[0]
+
+
+@_jit
+def record_row(
+    table: np.ndarray,
+    i: int,
+    t: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    q_d: np.ndarray,
+    u0: np.ndarray,
+    B: np.ndarray,
+    f: np.ndarray,
+    p: np.ndarray,
+    p_d: np.ndarray,
+    f_d: np.ndarray,
+    phi: np.ndarray,
+    V: float,
+    phase: int,
+    max_velocity: float,
+    max_force: float,
+) -> bool:
+    """Write one sample into row i of the run's table (fields in the order of simulate._Log).
+
+    The command column is u = u0 + B f (B: (n, k)). Returns True when q, v, f are finite,
+    every |v_i| ≤ max_velocity and every |f_m| ≤ max_force.
+    """
+    row = table[i]
+    row[0] = t
+    c = _put(row, 1, q)
+    c = _put(row, c, v)
+    c = _put(row, c, q_d)
+    n = u0.shape[0]
+    for j in range(n):
+        acc = u0[j]
+        for m in range(f.shape[0]):
+            acc += B[j, m] * f[m]
+        row[c + j] = acc
+    c = _put(row, c + n, p)
+    c = _put(row, c, p_d)
+    c = _put(row, c, f)
+    c = _put(row, c, f_d)
+    c = _put(row, c, phi)
+    row[c] = V
+    row[c + 1] = phase
+    ok = True
+    for j in range(q.shape[0]):
+        ok = ok and math.isfinite(q[j])
+    for j in range(v.shape[0]):
+        ok = ok and abs(v[j]) <= max_velocity
+    for m in range(f.shape[0]):
+        ok = ok and abs(f[m]) <= max_force
+    return ok
+
+
+@_jit
+def euler_step(
+    q: np.ndarray,
+    v: np.ndarray,
+    ddq: np.ndarray,
+    dt: float,
+    v_out: np.ndarray,
+    q_out: np.ndarray,
+) -> None:
+    """Semi-implicit Euler v⁺ = v + q̈ dt, q⁺ = q + v⁺ dt (Euclidean configuration spaces)."""
+    for i in range(v.shape[0]):
+        vi = v[i] + ddq[i] * dt
+        v_out[i] = vi
+        q_out[i] = q[i] + vi * dt
+
+
+@_jit
+def project_one(
+    desc: np.ndarray,
+    p: np.ndarray,
+    grad: np.ndarray,
+    phi: float,
+    J6: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    q_out: np.ndarray,
+    v_out: np.ndarray,
+) -> float:
+    """One Gauss–Newton step onto a surface and the velocity onto its tangent space, k = 1.
+
+    desc: the surface's descriptor (:func:`surface_eval`), evaluated here at the tip p (3,);
+    when empty, grad (3,) = ∇Φ and phi = Φ are given. J6: (6, n) tip Jacobian (rows 0..2).
+    The row is A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
+    ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out = q − A⁺ Φ/‖∇Φ‖
+    (Euclidean configuration spaces) and v_out = v − A⁺ (A v). Returns ‖∇Φ‖ (the caller
+    checks it is not zero).
+    """
+    if desc.shape[0] > 0:
+        phi, _ = surface_eval(desc, p, grad, np.zeros((0, 0)))
+    n = q.shape[0]
+    gn = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+    n0, n1, n2 = grad[0] / gn, grad[1] / gn, grad[2] / gn
+    dist = phi / gn
+    row = np.empty(n)
+    rr = 0.0
+    rv = 0.0
+    for j in range(n):
+        r = n0 * J6[0, j] + n1 * J6[1, j] + n2 * J6[2, j]
+        row[j] = r
+        rr += r * r
+        rv += r * v[j]
+    for j in range(n):
+        ap = row[j] / rr
+        step = -(ap * dist)
+        q_out[j] = q[j] + step
+        v_out[j] = v[j] - ap * rv
+    return gn
