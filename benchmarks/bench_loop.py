@@ -67,7 +67,7 @@ _ROOT = Path(__file__).resolve().parents[1]
 #   DesiredJointPath.advance: forwardKinematics(q) + updateFramePlacement (Newton residual),
 #                computeJointJacobians + updateFramePlacement + getFrameJacobian (q̇_d),
 #                computeJointJacobiansTimeVariation + getFrameJacobianTimeVariation (q̈_d)
-#   _Plant.contact_step: computeJointJacobians + updateFramePlacement + getFrameJacobian
+#   Plant.advance in contact: computeJointJacobians + updateFramePlacement + getFrameJacobian
 #                (projection rows at the Euler-integrated q)
 _EXPECTED = {
     "crba": 1,
@@ -416,7 +416,8 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
     from hybrid_force.control.supervisor import HybridController
     from hybrid_force.model.robot import RobotTerms
     from hybrid_force.sim.dynamics import ConstrainedDynamics
-    from hybrid_force.sim.loop import _Log, _Plant
+    from hybrid_force.sim.plant import Plant
+    from hybrid_force.sim.record import Record
 
     sc = setup.make(0.2)
     res = simulate(sc)
@@ -435,8 +436,12 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
     sim.baumgarte.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, gamma)
     solver = ConstrainedDynamics(robot.model, data, k)
     ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
-    log = _Log(2, robot.nq, n, k, sim.max_velocity, sim.max_force)
-    plant = _Plant(robot, constraint)
+    log = Record(2, robot.nq, n, k, sim.max_velocity, sim.max_force)
+    plant = Plant(
+        robot, constraint, sim.baumgarte, sim.integrator, sim.unilateral, sim.release_tol,
+        sc.control.contact_tol,
+    )  # fmt: skip
+    plant.in_contact = True
     no_B = np.zeros((n, k))
     parts: dict[str, Callable[[], object]] = {
         "robot terms (6 Pinocchio calls + 1 kernel)": lambda: robot.terms(q, v, data, out=terms),
@@ -470,8 +475,8 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
         "controller update (momenta + CLIK: 7 Pinocchio calls + 4 kernels)": lambda: ctrl.update(
             1e-9, f
         ),
-        "plant Euler + projection (3 Pinocchio calls + 2 kernels)": lambda: plant.contact_step(
-            q, v, ddq, 0.0
+        "plant Euler + projection (3 Pinocchio calls + 2 kernels)": lambda: plant.advance(
+            q, v, ddq, cmd, 0.0, 0.0, cons.distance
         ),
     }
     return {name: _best_us(call, 200, iters, batches) for name, call in parts.items()}

@@ -44,7 +44,7 @@ def test_the_controller_computes_its_own_models_terms(tmp_path: Path) -> None:
     plant = load_robot("rtr")
     heavy = load_robot(_rtr_variant(tmp_path, "heavy.urdf", 1.1, link3_only=True))
     scenario = load_scenario(CONTACT)
-    own = ControllerModel(heavy, scenario.surfaces, "tip", fast=True)
+    own = ControllerModel(heavy, scenario.surfaces, "tip")
     rng = np.random.default_rng(5)
     for _ in range(3):
         q, v = rng.uniform(-2, 2, 3) + np.array([0.0, 6.0, 0.0]), rng.normal(size=3)

@@ -1,20 +1,20 @@
-"""The compiled fast paths (hybrid_force._kernels) against their numpy references.
+"""The compiled kernels (each concept's ``_kernels.py``) against their numpy references.
 
 Every kernel is reached through the public or module API that uses it, never through its raw
 signature, and compared with the readable numpy definition kept next to it:
 
 1. ``Robot.terms`` (crba + gravity + computeCoriolisMatrix + frame calls + kernel) against
-   ``simulate._reference_terms`` (one public method per term), with and without ``out``;
+   ``robot.reference_terms`` (one public method per term), with and without ``out``;
 2. ``Robot.euclidean`` against the behaviour of ``pinocchio.integrate`` (plain addition or not);
-3. ``Constraint.evaluate(fast=True)`` (k = 1 kernel) against ``fast=False`` (general k-row
+3. ``Constraint.evaluate`` (k = 1 kernel) against ``evaluate_reference`` (general k-row
    algebra) for every surface type and both normalizations, and the same singular points;
 4. ``Surface.evaluate_with_distance`` against ``evaluate`` and ``distance``;
 5. ``Path.evaluate_into`` against ``Path.evaluate``;
 6. ``LawWorkspace.arimoto`` / ``free_space`` against ``arimoto_law`` / ``free_space_law``
    (k = 1 and 2, β = 0 and > 0, with and without the approach term);
-7. ``DesiredJointPath(fast=True)`` against ``fast=False`` over 500 steps of 1 ms;
-8. ``_Plant.contact_step`` against Euler + ``pinocchio.integrate`` + ``_Plant.project``;
-9. ``HybridController(fast=True)`` against ``fast=False`` through free, near and contact;
+7. ``DesiredJointPath`` against ``ReferenceJointPath`` over 500 steps of 1 ms;
+8. ``Plant.advance`` in contact against Euler + ``pinocchio.integrate`` + ``Plant.project``;
+9. ``HybridController`` against ``ReferenceController`` through free, near and contact;
 10. ``ConstrainedDynamics.solve`` (one forwardDynamics, the loop resolved with its U D Uᵀ
     factorisation) against a dense KKT solve and the defining equations, k = 1, 2, 3;
     ``Baumgarte.gamma_into`` against the formula; the run table's row layout and limits.
@@ -37,9 +37,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force.control.clik import DesiredJointPath, inverse_kinematics
+from hybrid_force.control.clik import DesiredJointPath, ReferenceJointPath, inverse_kinematics
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import (
+    Command,
     ControlTrace,
     Desired,
     Gains,
@@ -48,13 +49,22 @@ from hybrid_force.control.laws.arimoto import (
     free_space_law,
     make_gains,
 )
-from hybrid_force.control.supervisor import CONTACT, FREE, NEAR, ControlSettings, HybridController
+from hybrid_force.control.supervisor import (
+    CONTACT,
+    FREE,
+    NEAR,
+    ControlSettings,
+    HybridController,
+    ReferenceController,
+)
 from hybrid_force.errors import SingularConfigurationError
 from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
 from hybrid_force.geometry.paths import Path as TaskPath
 from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere, Surface
 from hybrid_force.model.robot import Robot, RobotTerms, load_robot
-from hybrid_force.sim.loop import _Plant, _reference_terms
+from hybrid_force.model.robot import reference_terms as _reference_terms
+from hybrid_force.sim.dynamics import Baumgarte as _Baumgarte
+from hybrid_force.sim.plant import Plant
 
 ARMS = ("rtr", "ur5", "panda")
 RTOL = 1e-12  # relative to the scale of the compared array (see the module docstring)
@@ -319,10 +329,10 @@ def test_constraint_fast_equals_general_algebra(
     for _ in range(4):
         q, v = _random_state(robot, rng)
         terms = robot.terms(q, v, data)
-        ref = con.evaluate(terms, v, fast=False)
-        _check_constraint_terms(con.evaluate(terms, v, fast=True), ref, terms, v, con.surfaces[0])
+        ref = con.evaluate_reference(terms, v)
+        _check_constraint_terms(con.evaluate(terms, v), ref, terms, v, con.surfaces[0])
         _fill_nan(buf)
-        out = con.evaluate(terms, v, fast=True, out=buf)
+        out = con.evaluate(terms, v, out=buf)
         assert out is buf
         _check_constraint_terms(out, ref, terms, v, con.surfaces[0])
 
@@ -343,7 +353,7 @@ def test_constraint_buffer_is_overwritten_by_the_next_state(
         assert out is buf
         for name in CONSTRAINT_FIELDS:
             assert getattr(out, name) is arrays[name]
-        ref = con.evaluate(terms, v, fast=False)
+        ref = con.evaluate_reference(terms, v)
         _check_constraint_terms(out, ref, terms, v, con.surfaces[0])
 
 
@@ -352,8 +362,8 @@ def _rtr_terms(robot: Robot, q: list[float], v: list[float]) -> tuple[RobotTerms
     return robot.terms(qa, va, robot.new_data()), va
 
 
-@pytest.mark.parametrize("fast", [True, False])
-def test_singular_points_raise_on_both_paths(arms: dict[str, Robot], fast: bool) -> None:
+@pytest.mark.parametrize("reference", [True, False])
+def test_singular_points_raise_on_both_paths(arms: dict[str, Robot], reference: bool) -> None:
     robot = arms["rtr"]
     terms, v = _rtr_terms(robot, [0.4, 6.0, 0.7], [0.3, -0.2, 0.5])
     p = terms.p
@@ -363,14 +373,14 @@ def test_singular_points_raise_on_both_paths(arms: dict[str, Robot], fast: bool)
     np.testing.assert_array_equal(grad, np.zeros(3))
     for normalization in ("tip", "joint"):
         with pytest.raises(SingularConfigurationError, match="∇Φ vanishes"):
-            Constraint(on_axis, normalization).evaluate(terms, v, fast=fast)
+            _evaluate(Constraint(on_axis, normalization), terms, v, reference)
     # q1 = q3 = 0: the tip (1.9, 0, z) cannot move along x (J_Φ = n̂ᵀJ = 0 for a plane ⟂ x)
     terms, v = _rtr_terms(robot, [0.0, 6.0, 0.0], [0.3, -0.2, 0.5])
     assert np.abs(terms.J[0]).max() < 1e-15
     wall = Plane((2.5, 0.0, 0.0), (-1.0, 0.0, 0.0))
     for normalization in ("tip", "joint"):
         with pytest.raises(SingularConfigurationError, match="J_Φ is \\(near\\) zero"):
-            Constraint(wall, normalization).evaluate(terms, v, fast=fast)
+            _evaluate(Constraint(wall, normalization), terms, v, reference)
 
 
 # --- 4. surfaces: value, derivatives and distance in one call ------------------------------------
@@ -490,7 +500,7 @@ def test_law_workspace_equals_the_reference_laws(
     ws = LawWorkspace(robot.nv, k, gains)
     for step in range(6):  # one workspace, hybrid and free calls interleaved
         v, terms, desired, e_q = _law_inputs(robot, rng)
-        cons = con.evaluate(terms, v, fast=False)
+        cons = con.evaluate_reference(terms, v)
         if step % 3 == 2:
             cmd = ws.free_space(terms, v, e_q, desired)
             u0, B, trace = cmd.u0.copy(), cmd.B, ws.trace(e_q, np.zeros(k), np.zeros(k))
@@ -566,8 +576,8 @@ def _advance_both(fast: DesiredJointPath, ref: DesiredJointPath, steps: int) -> 
 @pytest.mark.parametrize("arm", ["rtr", "panda"])
 def test_desired_joint_path_fast_equals_reference(arms: dict[str, Robot], arm: str) -> None:
     robot, path, q0 = _clik_case(arms, arm)
-    fast = DesiredJointPath(robot, path, q0, fast=True)
-    ref = DesiredJointPath(robot, path, q0, fast=False)
+    fast = DesiredJointPath(robot, path, q0)
+    ref = ReferenceJointPath(robot, path, q0)
     _advance_both(fast, ref, 500)
 
 
@@ -576,9 +586,26 @@ def test_desired_joint_path_fast_on_a_continuous_joint(rtr_urdf: Path) -> None:
     robot = _rtr_with_continuous_base(rtr_urdf)
     path = paper_helix()
     q0 = inverse_kinematics(robot, path.position(0), seed=np.array([1.0, 0.0, 6.0, 2.0]))
-    fast = DesiredJointPath(robot, path, q0, fast=True)
-    ref = DesiredJointPath(robot, path, q0, fast=False)
+    fast = DesiredJointPath(robot, path, q0)
+    ref = ReferenceJointPath(robot, path, q0)
     _advance_both(fast, ref, 200)
+
+
+def _plant(robot: Robot, con: Constraint) -> Plant:
+    """A plant in contact with the surface of ``con`` (Euler: its compiled contact step)."""
+    plant = Plant(robot, con, _Baumgarte(), "euler", True, 1e-9, 1e-5)
+    plant.in_contact = True
+    return plant
+
+
+_NO_COMMAND = Command(u0=np.zeros(0), B=None)  # the Euler step does not read the command
+_ON_SURFACE = np.zeros(1)
+
+
+def _evaluate(
+    con: Constraint, terms: RobotTerms, v: np.ndarray, reference: bool
+) -> ConstraintTerms:
+    return con.evaluate_reference(terms, v) if reference else con.evaluate(terms, v)
 
 
 # --- 8. plant: semi-implicit Euler and post-stabilisation ----------------------------------------
@@ -601,7 +628,7 @@ def _contact_states(
 
 
 def _plant_reference(
-    plant: _Plant, q: np.ndarray, v: np.ndarray, ddq: np.ndarray
+    plant: Plant, q: np.ndarray, v: np.ndarray, ddq: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     v1 = v + ddq * DT
     q1 = pin.integrate(plant.robot.model, q, v1 * DT)
@@ -613,11 +640,11 @@ def test_contact_step_equals_euler_and_projection(arms: dict[str, Robot], arm: s
     robot = arms[arm]
     surface = Cylinder(0.4) if arm == "rtr" else Plane((0, 0, 0.3), (0, 0, 1))
     con = Constraint(surface)
-    plant, ref_plant = _Plant(robot, con), _Plant(robot, con)
+    plant, ref_plant = _plant(robot, con), _plant(robot, con)
     rng = np.random.default_rng(109)
     for q0, v0, ddq0 in _contact_states(robot, surface, rng, 3):
         inputs = [q0.copy(), v0.copy()]
-        q1, v1 = plant.contact_step(q0, v0, ddq0, DT)
+        q1, v1 = plant.advance(q0, v0, ddq0, _NO_COMMAND, 0.0, DT, _ON_SURFACE)
         assert q1 is not q0 and v1 is not v0 and q1 is not v1
         np.testing.assert_array_equal(q0, inputs[0])  # inputs untouched
         np.testing.assert_array_equal(v0, inputs[1])
@@ -627,7 +654,7 @@ def test_contact_step_equals_euler_and_projection(arms: dict[str, Robot], arm: s
         # the next step, from the plant's own output arrays
         saved = (q1.copy(), v1.copy())
         ddq1 = rng.uniform(-3, 3, robot.nv)
-        q2, v2 = plant.contact_step(q1, v1, ddq1, DT)
+        q2, v2 = plant.advance(q1, v1, ddq1, _NO_COMMAND, 0.0, DT, _ON_SURFACE)
         for out in (q2, v2):
             assert out is not q1 and out is not v1 and out is not q0 and out is not v0
         assert q2 is not v2
@@ -678,15 +705,15 @@ def test_hybrid_controller_fast_equals_reference(
     robot, surface, path, q0, qs = _controller_case(arms, arm)
     con = Constraint(surface)
     settings = ControlSettings(mass_factor=mass_factor)
-    fast = HybridController(robot, con, path, q0, settings, dt=DT, fast=True)
-    ref = HybridController(robot, con, path, q0, settings, dt=DT, fast=False)
+    fast = HybridController(robot, con, path, q0, settings, dt=DT)
+    ref = ReferenceController(robot, con, path, q0, settings, dt=DT)
     rng = np.random.default_rng(110)
     phases = []
     for i, q in enumerate(qs):
         t = i * DT
         v = rng.uniform(-0.3, 0.3, robot.nv)
         terms = robot.terms(q, v, robot.new_data())
-        cons = None if i == 0 else con.evaluate(terms, v, fast=False)
+        cons = None if i == 0 else con.evaluate_reference(terms, v)
         cmd = fast.command(t, q, v, terms, cons)
         u0, B = cmd.u0.copy(), None if cmd.B is None else cmd.B.copy()
         V, trace = fast.V, fast.trace
@@ -765,14 +792,14 @@ def test_baumgarte_gamma_into_equals_gamma() -> None:
 
 
 def test_log_row_holds_the_fields_and_the_applied_command() -> None:
-    """_Log.record writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] and reports
+    """Record.record writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] and reports
     NaN in q, |v_i| above max_velocity and |f| above max_force."""
-    from hybrid_force.sim.loop import _Log
+    from hybrid_force.sim.record import Record
 
     rng = np.random.default_rng(9)
     nq = nv = 4
     k = 2
-    log = _Log(3, nq, nv, k, max_velocity=5.0, max_force=100.0)
+    log = Record(3, nq, nv, k, max_velocity=5.0, max_force=100.0)
     q, v, q_d, u0 = rng.standard_normal((4, nq))
     B = rng.standard_normal((nv, k))
     f, f_d, phi = rng.standard_normal((3, k))

@@ -11,7 +11,7 @@ pulls q_d towards a posture (the seed):
 q̇_d = J⁺ x + (I − J⁺J)(−k_n (q_d − q_posture)),   x = ṗ_d − γ (k(q_d) − p_d).
 
 The joint acceleration q̈_d is the exact time derivative of q̇_d, null-space part included
-(see :meth:`DesiredJointPath._derivatives`).
+(see :meth:`ReferenceJointPath._derivatives`).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from hybrid_force.model.robot import Robot
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
-__all__ = ["ClikSettings", "DesiredJointPath", "inverse_kinematics"]
+__all__ = ["ClikSettings", "DesiredJointPath", "ReferenceJointPath", "inverse_kinematics"]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _START_TOL = 1e-9  # [m] accepted ‖k(q_d(0)) − p_d(0)‖
@@ -168,11 +168,11 @@ class DesiredJointPath:
         q0: (nq,) q_d(0); must satisfy k(q_d(0)) = p_d(0) (see :func:`inverse_kinematics`).
         settings: the CLIK gains.
         t0: start time [s].
-        fast: do the algebra of each step in compiled calls
-            (:func:`hybrid_force._kernels.newton_step`, ``clik_velocity``,
-            ``clik_acceleration``; a helix or circle is sampled inside the first) and update
-            q, qd, qdd, p_d, pdot_d and pddot_d in place; False: the numpy reference
-            (:meth:`_derivatives`), new arrays every step.
+
+    The algebra of each step is compiled (:mod:`hybrid_force.control._kernels`:
+    ``newton_step``, ``clik_velocity``, ``clik_acceleration``; a helix or circle is sampled
+    inside the first), and q, qd, qdd, p_d, pdot_d, pddot_d are updated in place: keep a copy
+    to remember a value. :class:`ReferenceJointPath` is the readable numpy version.
     """
 
     def __init__(
@@ -182,12 +182,10 @@ class DesiredJointPath:
         q0: np.ndarray,
         settings: ClikSettings | None = None,
         t0: float = 0.0,
-        fast: bool = True,
     ) -> None:
         self.robot = robot
         self.path = path
         self.settings = settings or ClikSettings()
-        self.fast = fast
         self._data = robot.new_data()
         # a view of the tip translation in self._data (updated in place by updateFramePlacement)
         self._tip = self._data.oMf[robot.tip_id].translation
@@ -197,25 +195,7 @@ class DesiredJointPath:
         self.posture = robot.check_q(q0, "q_d(0)").copy()
         self.t = float(t0)
         self.q = self.posture.copy()
-        if fast:
-            self._Jp = np.zeros((n, 3))
-            self._W = np.zeros((3, 3))
-            self._N = np.zeros((n, n))
-            self._x = np.zeros(3)
-            self._dq_post = np.zeros(n)
-            self._q_pred = np.zeros(robot.nq)
-            self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
-            self.qd = np.zeros(n)
-            self.qdd = np.zeros(n)
-            # settings and path sample as small arrays (fewer kernel arguments)
-            cfg = self.settings
-            gain = cfg.posture_gain if self._redundant else 0.0
-            self._cfg = np.array([cfg.gamma, cfg.damping**2, float(self._redundant), gain])
-            self._sample = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
-            self._sample[:] = path.evaluate(self.t)
-            self.p_d, self.pdot_d, self.pddot_d = self._sample
-        else:
-            self.p_d, self.pdot_d, self.pddot_d = path.evaluate(self.t)
+        self._start()
         p0, _ = self._tip_and_jacobian(self.q)
         if np.linalg.norm(p0 - self.p_d) > _START_TOL:
             raise ReachError(
@@ -224,16 +204,120 @@ class DesiredJointPath:
                 f"not on the path at p_d({self.t:g}) = {np.round(self.p_d, 6).tolist()}: eq. 27 "
                 "needs k(q_d(0)) = p_d(0); use inverse_kinematics to find q_d(0)"
             )
-        if fast:
-            self._derivatives_fast()
-        else:
-            self.qd, self.qdd = self._derivatives()
+        self._update_derivatives()
+
+    def _start(self) -> None:
+        """Buffers written in place by the kernels, and the path sample at t0."""
+        n, robot, path = self.robot.nv, self.robot, self.path
+        self._Jp = np.zeros((n, 3))
+        self._W = np.zeros((3, 3))
+        self._N = np.zeros((n, n))
+        self._x = np.zeros(3)
+        self._dq_post = np.zeros(n)
+        self._q_pred = np.zeros(robot.nq)
+        self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
+        self.qd = np.zeros(n)
+        self.qdd = np.zeros(n)
+        # settings and path sample as small arrays (fewer kernel arguments)
+        cfg = self.settings
+        gain = cfg.posture_gain if self._redundant else 0.0
+        self._cfg = np.array([cfg.gamma, cfg.damping**2, float(self._redundant), gain])
+        self._sample = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
+        self._sample[:] = path.evaluate(self.t)
+        self.p_d, self.pdot_d, self.pddot_d = self._sample
 
     def _tip_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         model, data, fid = self.robot.model, self._data, self.robot.tip_id
         pin.computeJointJacobians(model, data, q)
         p = pin.updateFramePlacement(model, data, fid).translation
         return p, pin.getFrameJacobian(model, data, fid, _LWA)[:3]
+
+    def _update_derivatives(self) -> None:
+        """q̇_d (eq. 27) and q̈_d, its exact time derivative, at (t, q_d), written in place
+        (the algebra of :meth:`ReferenceJointPath._derivatives`, compiled)."""
+        robot, data, cfg = self.robot, self._data, self.settings
+        model, fid, q = robot.model, robot.tip_id, self.q
+        K = _K
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacement(model, data, fid)
+        p = self._tip
+        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+        if self._redundant and cfg.posture_gain > 0.0:
+            if robot.euclidean:
+                np.subtract(q, self.posture, out=self._dq_post)
+            else:
+                self._dq_post[:] = pin.difference(model, self.posture, q)
+        cond = K.clik_velocity(
+            J6, p, self._sample, self._cfg, self._dq_post, self._Jp, self._W, self._N, self._x,
+            self.qd,
+        )  # fmt: skip
+        if not cond < _COND_MAX:  # the cheap bound of cond(J Jᵀ); the SVD names the values
+            _check_conditioning(J6[:3], self.t, q, robot)
+        pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
+        K.clik_acceleration(
+            J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), self._Jp, self._W,
+            self._N, self._x, self.qd, self._sample, self._cfg, self._dq_post, self.qdd, q,
+            self._dt_pred, self._q_pred,
+        )  # fmt: skip
+
+    def advance(self, dt: float) -> None:
+        """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction)."""
+        self.t += dt
+        self._advance(dt)
+
+    def _advance(self, dt: float) -> None:
+        """:meth:`advance` once t is updated: path sample, predictor, Newton, derivatives."""
+        robot, data = self.robot, self._data
+        model, q_pred = robot.model, self._q_pred
+        K = _K
+        if robot.euclidean:
+            if dt != self._dt_pred:  # otherwise the last step's kernel made the predictor
+                K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
+                self._dt_pred = dt
+        else:
+            q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
+        pin.forwardKinematics(model, data, q_pred)
+        pin.updateFramePlacement(model, data, robot.tip_id)
+        p = self._tip
+        desc = self.path._descriptor
+        if desc.shape[0] == 0 or not robot.euclidean:  # the path sample in Python
+            self.path.evaluate_into(self.t, self.p_d, self.pdot_d, self.pddot_d)
+            desc = _NO_DESCRIPTOR
+        if robot.euclidean:
+            # (a path with a descriptor is sampled at t inside this call)
+            K.newton_step(desc, self.t, self._sample, q_pred, self._Jp, p, self.q)
+        else:
+            self.q[:] = pin.integrate(model, q_pred, self._Jp @ (self.p_d - p))
+        self._update_derivatives()
+
+    def task_error(self) -> float:
+        """‖k(q_d) − p_d‖ at the current time [m]."""
+        p, _ = self._tip_and_jacobian(self.q)
+        return float(np.linalg.norm(p - self.p_d))
+
+
+class ReferenceJointPath(DesiredJointPath):
+    """:class:`DesiredJointPath` in readable numpy: the reference its kernels are tested
+    against (``tests/test_kernels.py``) and the one the scenario loader checks a path with
+    (no Numba). New arrays every step instead of updates in place.
+    """
+
+    def _start(self) -> None:
+        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
+
+    def _update_derivatives(self) -> None:
+        self.qd, self.qdd = self._derivatives()
+
+    def _advance(self, dt: float) -> None:
+        model = self.robot.model
+        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
+        q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
+        # Newton correction with the pseudo-inverse of the previous step: J changes by O(dt)
+        # between the two, so the residual after it is O(dt) × the predictor's O(dt³) error.
+        pin.forwardKinematics(model, self._data, q)
+        p = pin.updateFramePlacement(model, self._data, self.robot.tip_id).translation
+        self.q = pin.integrate(model, q, self._Jp @ (self.p_d - p))
+        self._update_derivatives()
 
     def _pinv(self, J: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """J⁻¹ (n = 3) or the damped pseudo-inverse Jᵀ W (n > 3), and W = (JJᵀ + λ²I)⁻¹
@@ -287,76 +371,3 @@ class DesiredJointPath:
             N_dot = -(Jp_dot @ J + Jp @ Jdot)
             qdd += N_dot @ z + N @ (-self.settings.posture_gain * qd)
         return qd, qdd
-
-    def _derivatives_fast(self) -> None:
-        """:meth:`_derivatives` with its algebra compiled, written into q̇_d and q̈_d in place."""
-        robot, data, cfg = self.robot, self._data, self.settings
-        model, fid, q = robot.model, robot.tip_id, self.q
-        K = _K
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, fid)
-        p = self._tip
-        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        if self._redundant and cfg.posture_gain > 0.0:
-            if robot.euclidean:
-                np.subtract(q, self.posture, out=self._dq_post)
-            else:
-                self._dq_post[:] = pin.difference(model, self.posture, q)
-        cond = K.clik_velocity(
-            J6, p, self._sample, self._cfg, self._dq_post, self._Jp, self._W, self._N, self._x,
-            self.qd,
-        )  # fmt: skip
-        if not cond < _COND_MAX:  # the cheap bound of cond(J Jᵀ); the SVD names the values
-            _check_conditioning(J6[:3], self.t, q, robot)
-        pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
-        K.clik_acceleration(
-            J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), self._Jp, self._W,
-            self._N, self._x, self.qd, self._sample, self._cfg, self._dq_post, self.qdd, q,
-            self._dt_pred, self._q_pred,
-        )  # fmt: skip
-
-    def advance(self, dt: float) -> None:
-        """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction)."""
-        model = self.robot.model
-        self.t += dt
-        if self.fast:
-            self._advance_fast(dt)
-            return
-        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
-        q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
-        # Newton correction with the pseudo-inverse of the previous step: J changes by O(dt)
-        # between the two, so the residual after it is O(dt) × the predictor's O(dt³) error.
-        pin.forwardKinematics(model, self._data, q)
-        p = pin.updateFramePlacement(model, self._data, self.robot.tip_id).translation
-        self.q = pin.integrate(model, q, self._Jp @ (self.p_d - p))
-        self.qd, self.qdd = self._derivatives()
-
-    def _advance_fast(self, dt: float) -> None:
-        """:meth:`advance` once t is updated: path sample, predictor, Newton, derivatives."""
-        robot, data = self.robot, self._data
-        model, q_pred = robot.model, self._q_pred
-        K = _K
-        if robot.euclidean:
-            if dt != self._dt_pred:  # otherwise the last step's kernel made the predictor
-                K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
-                self._dt_pred = dt
-        else:
-            q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
-        pin.forwardKinematics(model, data, q_pred)
-        pin.updateFramePlacement(model, data, robot.tip_id)
-        p = self._tip
-        desc = self.path._descriptor
-        if desc.shape[0] == 0 or not robot.euclidean:  # the path sample in Python
-            self.path.evaluate_into(self.t, self.p_d, self.pdot_d, self.pddot_d)
-            desc = _NO_DESCRIPTOR
-        if robot.euclidean:
-            # (a path with a descriptor is sampled at t inside this call)
-            K.newton_step(desc, self.t, self._sample, q_pred, self._Jp, p, self.q)
-        else:
-            self.q[:] = pin.integrate(model, q_pred, self._Jp @ (self.p_d - p))
-        self._derivatives_fast()
-
-    def task_error(self) -> float:
-        """‖k(q_d) − p_d‖ at the current time [m]."""
-        p, _ = self._tip_and_jacobian(self.q)
-        return float(np.linalg.norm(p - self.p_d))

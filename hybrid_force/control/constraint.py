@@ -183,25 +183,30 @@ class Constraint:
         self,
         terms: RobotTerms,
         v: np.ndarray,
-        fast: bool = True,
         out: ConstraintTerms | None = None,
     ) -> ConstraintTerms:
         """Joint-space quantities from the robot terms of one step.
 
+        One surface (k = 1): one compiled call
+        (:func:`hybrid_force.control._kernels.constraint_one`); k > 1: the general k-row
+        algebra of :meth:`evaluate_reference`, which is also the reference of the kernel.
+
         Args:
             terms: the robot's terms at (q, v) (:meth:`Robot.terms`).
             v: (n,) joint velocity.
-            fast: when k = 1, one compiled call (:func:`hybrid_force._kernels.constraint_one`)
-                instead of the general k-row numpy algebra below, which is its reference.
-            out: with ``fast`` and k = 1, terms whose arrays are overwritten (see
-                :meth:`ConstraintTerms.zeros`); default: fresh arrays. Ignored otherwise.
+            out: for k = 1, terms whose arrays are overwritten (see
+                :meth:`ConstraintTerms.zeros`); default: fresh arrays. Ignored for k > 1.
 
         Raises:
             SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
                 stacked rows are dependent.
         """
-        if fast and self.k == 1:
+        if self.k == 1:
             return self._evaluate_one(terms, v, out)
+        return self.evaluate_reference(terms, v)
+
+    def evaluate_reference(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+        """:meth:`evaluate` in readable numpy, for any k (new arrays; same errors)."""
         rows = [self._row(i, s, terms) for i, s in enumerate(self.surfaces)]
         k, n = self.k, terms.J.shape[1]
         J_phi = np.array([r.row for r in rows])

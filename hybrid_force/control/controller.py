@@ -25,7 +25,13 @@ from hybrid_force.errors import ControlError, SingularConfigurationError
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 
-__all__ = ["LAWS", "Controller", "ControllerModel", "check_same_joints"]
+__all__ = [
+    "LAWS",
+    "Controller",
+    "ControllerModel",
+    "ReferenceControllerModel",
+    "check_same_joints",
+]
 
 #: The control laws a scenario can name (``control.law``).
 LAWS: tuple[str, ...] = ("arimoto",)
@@ -69,9 +75,8 @@ class ControllerModel:
         robot: Robot,
         surfaces: Sequence[Surface],
         normalization: Normalization,
-        fast: bool,
     ) -> None:
-        self.robot, self.fast = robot, fast
+        self.robot = robot
         self.data = robot.new_data()
         self.constraint = Constraint(surfaces, normalization=normalization)
         self._terms = RobotTerms.zeros(robot.nv)
@@ -79,11 +84,19 @@ class ControllerModel:
 
     def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
         """Terms and constraint rows at (q, v); None rows where ∇Φ vanishes (free space)."""
-        if self.fast:
-            terms = self.robot.terms(q, v, self.data, out=self._terms)
-        else:
-            terms = reference_terms(self.robot, q, v)
+        terms = self.robot.terms(q, v, self.data, out=self._terms)
         try:
-            return terms, self.constraint.evaluate(terms, v, fast=self.fast, out=self._cons)
+            return terms, self.constraint.evaluate(terms, v, out=self._cons)
+        except SingularConfigurationError:
+            return terms, None
+
+
+class ReferenceControllerModel(ControllerModel):
+    """:class:`ControllerModel` in readable numpy (one public method per robot term)."""
+
+    def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
+        terms = reference_terms(self.robot, q, v)
+        try:
+            return terms, self.constraint.evaluate_reference(terms, v)
         except SingularConfigurationError:
             return terms, None

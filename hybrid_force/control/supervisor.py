@@ -40,7 +40,12 @@ import pinocchio as pin
 
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.clik import ClikSettings, DesiredJointPath, inverse_kinematics
+from hybrid_force.control.clik import (
+    ClikSettings,
+    DesiredJointPath,
+    ReferenceJointPath,
+    inverse_kinematics,
+)
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import (
     Command,
@@ -48,10 +53,9 @@ from hybrid_force.control.laws.arimoto import (
     Desired,
     Gains,
     LawWorkspace,
-    arimoto_law,
+    ReferenceLaw,
     check_damping_gain,
     default_damping_gain,
-    free_space_law,
     make_gains,
 )
 from hybrid_force.errors import ControlError, GainError
@@ -61,7 +65,15 @@ from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
-__all__ = ["CONTACT", "FREE", "NEAR", "PHASE_NAMES", "ControlSettings", "HybridController"]
+__all__ = [
+    "CONTACT",
+    "FREE",
+    "NEAR",
+    "PHASE_NAMES",
+    "ControlSettings",
+    "HybridController",
+    "ReferenceController",
+]
 
 _BRANCH_PERIOD = 0.01  # [s] the wrong-branch check runs at most this often (seconds-long test)
 
@@ -227,10 +239,15 @@ class HybridController:
         settings: see :class:`ControlSettings`.
         dt: time step [s] (used to check dt·λ_max(M⁻¹K_d)).
         t0: start time [s].
-        fast: compiled CLIK and laws writing into preallocated arrays
-            (:class:`~hybrid_force.control.laws.arimoto.LawWorkspace`); False: the numpy references
-            (:func:`~hybrid_force.control.laws.arimoto.arimoto_law` and ``free_space_law``).
+
+    The CLIK and the laws run compiled, writing into preallocated arrays
+    (:class:`~hybrid_force.control.clik.DesiredJointPath`,
+    :class:`~hybrid_force.control.laws.arimoto.LawWorkspace`);
+    :class:`ReferenceController` is the same controller on the numpy references.
     """
+
+    _joint_path: type[DesiredJointPath] = DesiredJointPath
+    _law_type: type[LawWorkspace] | type[ReferenceLaw] = LawWorkspace
 
     def __init__(
         self,
@@ -241,19 +258,15 @@ class HybridController:
         settings: ControlSettings | None = None,
         dt: float = 1e-3,
         t0: float = 0.0,
-        fast: bool = True,
     ) -> None:
         self.robot = robot
-        self.fast = fast
         self.constraint = constraint
         self.path = path
         self.settings = s = settings or ControlSettings()
         k, n = constraint.k, robot.nv
         q0 = robot.check_q(q0, "q0")
         qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
-        self.clik = DesiredJointPath(
-            robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0, fast=fast
-        )
+        self.clik = self._joint_path(robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0)
         M0 = robot.mass_matrix(q0) * s.mass_factor
         Kd = default_damping_gain(M0, s.kd_rate) if s.Kd is None else s.Kd
         self.gains: Gains = make_gains(Kd, s.Lambda, s.beta, s.gamma, n)
@@ -268,22 +281,20 @@ class HybridController:
         self._int = _Integrators(F=np.zeros(k), F_d=np.zeros(k), f_d=np.zeros(k))
         self.phase = FREE
         self.V = 0.0  # V of the last step [J] (section 5.1)
-        self._trace: ControlTrace | None = None
         self._first = True
         self._zeros_k = np.zeros(k)
         self._e_q = np.zeros(n)
         self._e_F = np.zeros(k)
-        self._law = LawWorkspace(n, k, self.gains) if fast else None
+        self._law = self._law_type(n, k, self.gains)
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._scaled = RobotTerms.zeros(n)
         # per-step tests, decided once
         self._supervised = s.supervisor
         self._exact_model = s.mass_factor == 1.0
-        self._subtract = fast and robot.euclidean  # e_q = q − q_d (else pin.difference)
+        self._subtract = robot.euclidean  # e_q = q − q_d (else pin.difference)
         self._next_branch_check = -np.inf
-        if fast:
-            c = self.clik
-            self._desired = Desired(q=c.q, qd=c.qd, qdd=c.qdd)  # c updates them in place
+        c = self.clik
+        self._desired = Desired(q=c.q, qd=c.qd, qdd=c.qdd)
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -293,18 +304,16 @@ class HybridController:
 
     @property
     def desired(self) -> Desired:
-        """q_d, q̇_d, q̈_d now (with ``fast``, arrays that the next step overwrites)."""
-        if self.fast:
-            return self._desired
-        c = self.clik
-        return Desired(q=c.q, qd=c.qd, qdd=c.qdd)
+        """q_d, q̇_d, q̈_d now (arrays that the next step may overwrite)."""
+        c, d = self.clik, self._desired
+        if d.q is not c.q or d.qd is not c.qd or d.qdd is not c.qdd:  # new arrays (reference)
+            self._desired = d = Desired(q=c.q, qd=c.qd, qdd=c.qdd)
+        return d
 
     @property
     def trace(self) -> ControlTrace | None:
         """What the law computed at the last step (None before the first step)."""
-        if self._law is None or self._last is None:  # the reference path keeps its trace
-            return self._trace
-        return self._law.trace(*self._last)
+        return None if self._last is None else self._law.trace(*self._last)
 
     @property
     def f_d(self) -> np.ndarray:
@@ -368,7 +377,7 @@ class HybridController:
             self.phase = phase
             self._first = False
         model = terms if self._exact_model else self._model_terms(terms)
-        desired = self._desired if self.fast else self.desired
+        desired = self.desired
         if self._subtract:
             e_q = np.subtract(q, desired.q, out=self._e_q)
         else:
@@ -376,13 +385,9 @@ class HybridController:
         law = self._law
         if phase == FREE:
             st.f_d = self._zeros_k
-            if law is not None:
-                self._last = (e_q, self._zeros_k, st.f_d)
-                command = law.free_space(model, v, e_q, desired)
-                self.V = law.V
-                return command
-            command, self._trace = free_space_law(self.gains, model, v, e_q, desired)
-            self.V = self._trace.V
+            self._last = (e_q, self._zeros_k, st.f_d)
+            command = law.free_space(model, v, e_q, desired)
+            self.V = law.V
             return command
         assert cons is not None  # only the free phase runs without constraint terms
         if phase == NEAR:
@@ -395,17 +400,10 @@ class HybridController:
             if t >= self._next_branch_check:
                 self._next_branch_check = t + _BRANCH_PERIOD
                 self._check_branch(t, terms, cons, e_q)
-        # e_F = F − F_d, kept up to date by update() on the fast path
-        e_F = self._e_F if self.fast else np.subtract(st.F, st.F_d, out=self._e_F)
-        if law is not None:
-            self._last = (e_q, e_F, st.f_d)
-            command = law.arimoto(model, cons, v, e_q, desired, e_F, st.f_d, approach)
-            self.V = law.V
-            return command
-        command, self._trace = arimoto_law(
-            self.gains, model, cons, v, e_q, desired, e_F, st.f_d, approach
-        )
-        self.V = self._trace.V
+        e_F = self._e_F  # F − F_d, kept up to date by update()
+        self._last = (e_q, e_F, st.f_d)
+        command = law.arimoto(model, cons, v, e_q, desired, e_F, st.f_d, approach)
+        self.V = law.V
         return command
 
     def _check_branch(
@@ -444,11 +442,27 @@ class HybridController:
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """Advance the controller's integrators over one step with the force f (k,) [N]."""
-        st = self._int
         if self.phase == CONTACT:
-            if self.fast:
-                _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
-            else:
-                st.F += f * dt
-                st.F_d += st.f_d * dt
+            self._accumulate(f, dt)
         self.clik.advance(dt)
+
+    def _accumulate(self, f: np.ndarray, dt: float) -> None:
+        """F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3), in one compiled call."""
+        st = self._int
+        _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
+
+
+class ReferenceController(HybridController):
+    """:class:`HybridController` on the numpy references (:class:`ReferenceJointPath`,
+    :func:`~hybrid_force.control.laws.arimoto.arimoto_law`, ``free_space_law``): what
+    ``SimSettings(reference=True)`` runs, the kernels' tests compare against, and the scenario
+    loader checks a controller with (no Numba to load)."""
+
+    _joint_path = ReferenceJointPath
+    _law_type = ReferenceLaw
+
+    def _accumulate(self, f: np.ndarray, dt: float) -> None:
+        st = self._int
+        st.F += f * dt
+        st.F_d += st.f_d * dt
+        np.subtract(st.F, st.F_d, out=self._e_F)

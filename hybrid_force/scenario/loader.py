@@ -1043,15 +1043,15 @@ def _check_controller(
 ) -> None:
     """Build the controller once: checks q_d(0) in reach and dt·λ_max(M⁻¹K_d)."""
     from hybrid_force.control.constraint import Constraint
-    from hybrid_force.control.supervisor import HybridController
+    from hybrid_force.control.supervisor import ReferenceController
     from hybrid_force.sim.loop import control_steps
 
     try:
         constraint = Constraint(surfaces, normalization=sim.normalization)
-        # the numpy path: the same checks without loading the compiled kernels (about 1 s),
-        # which a sweep's parent, that never simulates, does not need
+        # the numpy reference: the same checks without loading the compiled kernels (about
+        # 1 s), which a sweep's parent, that never simulates, does not need
         period = control_steps(control, sim) * sim.dt  # the law runs at the control rate
-        HybridController(robot, constraint, path, q0, control, dt=period, fast=False)
+        ReferenceController(robot, constraint, path, q0, control, dt=period)
     except ReachError as exc:
         raise ctx.error(
             "trajectory.center",

@@ -1,37 +1,34 @@
-"""The closed loop: controller + constrained dynamics + contact events + integration.
+"""The closed loop: sense → control → plant → record → integrate, one plant step at a time.
 
 :func:`simulate` runs a :class:`Scenario` (a plain Python description of one run, which the
 TOML loader of :mod:`hybrid_force.scenario.loader` also produces) and returns a
-:class:`~hybrid_force.result.Result`.
+:class:`~hybrid_force.result.Result`. One step (``sim.dt``, 1 ms by default), in the order the
+loop in :func:`simulate` reads:
 
-One step (dt, 1 ms by default):
-
-1. the plant's terms at (q, v), once (:meth:`Robot.terms`), and the constraint terms;
-2. the controller's command u = u0 + B f (the simulator does not know which law made it);
-3. in contact, the constrained dynamics resolve q̈ and f together
-   (:class:`~hybrid_force.sim.dynamics.ConstrainedDynamics`); if the surface would have to
-   pull (f < 0) the contact is released (unilateral surface) and the step is free;
-4. the sample is recorded (its phase is the plant's contact state: "contact" only on the
-   surface); the controller advances its integrators with f; the plant is
-   integrated by semi-implicit Euler with ``pinocchio.integrate`` (q + v dt directly for arms
-   whose joints are all bounded revolute or prismatic), or RK4 with the command held over the
-   step;
-5. in contact, post-stabilisation: one Gauss–Newton step puts the tip back on the surface and
-   the velocity is projected onto the tangent space (removes the O(dt²) drift that the
-   Baumgarte terms alone would leave, so the distance stays at round-off);
-6. out of contact, a crossing of the surface between two steps (d changing sign) is detected,
-   the tip is placed on the surface at the crossing, and a plastic impact (A q̇⁺ = 0) is
-   applied: the tool never passes through the surface.
+1. the plant's terms and constraint rows at (q, v) (:meth:`Plant.evaluate
+   <hybrid_force.sim.plant.Plant.evaluate>`), which only the plant uses;
+2. the controller's command: with ideal sensing at the plant's rate the law's u = u0 + B f,
+   affine in the force the plant will produce (the paper's exact algebraic loop); otherwise,
+   at each control tick, the law on its sensors' readings (:mod:`hybrid_force.sim.sensors`)
+   and its own model, its torque held until the next tick (:class:`_ControlSide`);
+3. the plant's q̈ and contact force, together, with release when the surface would pull
+   (:meth:`~hybrid_force.sim.plant.Plant.accelerate`);
+4. the sample, recorded (:class:`~hybrid_force.sim.record.Record`; its phase is the plant's
+   contact state: "contact" only on the surface) and checked for divergence;
+5. the controller's integrators and the plant's state advanced to t + dt, with projection onto
+   the surface in contact and touch detection and impacts out of it
+   (:meth:`~hybrid_force.sim.plant.Plant.advance`).
 
 After the loop (or when anything stops it: divergence, Ctrl-C, SIGTERM, an exception) the
 run's samples become its Result, with what it must say about itself in ``meta``: joints that
 left their range or exceeded an effort limit, whether the tool ended on the surface
 (:mod:`hybrid_force.sim.run_checks`), ``status`` and ``reason``.
 
-Two implementations of the step: the default calls compiled kernels between the Pinocchio
-calls (:mod:`hybrid_force._kernels`); ``SimSettings(reference=True)`` runs the readable numpy
-code they mirror (one public method per robot term, the general constraint algebra, the numpy
-laws and CLIK, a dense KKT solve). The tests compare the two.
+``SimSettings(reference=True)`` builds the same loop from the readable numpy components
+(:class:`~hybrid_force.sim.plant.ReferencePlant`,
+:class:`~hybrid_force.control.supervisor.ReferenceController`,
+:class:`~hybrid_force.control.controller.ReferenceControllerModel`) instead of the compiled
+ones; the tests compare the two.
 """
 
 from __future__ import annotations
@@ -48,11 +45,15 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
-from hybrid_force.control.controller import Controller, ControllerModel, check_same_joints
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.controller import (
+    Controller,
+    ControllerModel,
+    ReferenceControllerModel,
+    check_same_joints,
+)
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.control.supervisor import ControlSettings, HybridController
+from hybrid_force.control.supervisor import ControlSettings, HybridController, ReferenceController
 from hybrid_force.errors import (
     ControlError,
     DivergenceError,
@@ -67,17 +68,11 @@ from hybrid_force.errors import (
 from hybrid_force.geometry.paths import Path, PathParameterError
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot, RobotTerms
-from hybrid_force.model.robot import reference_terms as _reference_terms
 from hybrid_force.phases import CONTACT, FREE, NEAR
 from hybrid_force.result import Result
-from hybrid_force.sim.dynamics import (
-    Baumgarte,
-    ConstrainedDynamics,
-    constrained_acceleration,
-    free_acceleration,
-    kkt_reference,
-    plastic_impact,
-)
+from hybrid_force.sim.dynamics import Baumgarte
+from hybrid_force.sim.plant import Plant, ReferencePlant
+from hybrid_force.sim.record import Record
 from hybrid_force.sim.run_checks import (
     check_log_memory,
     contact_outcome,
@@ -85,8 +80,6 @@ from hybrid_force.sim.run_checks import (
     limit_violations,
 )
 from hybrid_force.sim.sensors import Sensors, SensorSettings
-
-_K = LazyKernels("hybrid_force.sim._kernels")
 
 __all__ = ["Scenario", "SimSettings", "simulate"]
 
@@ -383,100 +376,6 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
     return steps
 
 
-class _Log:
-    """The run's samples, preallocated as one (N, width) table; one compiled call per row.
-
-    The fields (t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase) are column views of the table,
-    in that order (:func:`hybrid_force._kernels.record_row` writes a row in the same order).
-    """
-
-    @staticmethod
-    def widths(nq: int, nv: int, k: int) -> tuple[int, ...]:
-        """Columns of each field, in table order."""
-        return (1, nq, nv, nq, nv, 3, 3, k, k, k, 1, 1)
-
-    @classmethod
-    def width(cls, nq: int, nv: int, k: int) -> int:
-        """Float64 numbers per sample."""
-        return sum(cls.widths(nq, nv, k))
-
-    def __init__(
-        self,
-        N: int,
-        nq: int,
-        nv: int,
-        k: int,
-        max_velocity: float,
-        max_force: float,
-        *,
-        measured: bool = False,
-    ) -> None:
-        self.max_velocity, self.max_force = max_velocity, max_force
-        # the measured force (N, k), when it is not the plant's force (sampled sensing)
-        self.f_meas: np.ndarray | None = np.zeros((N, k)) if measured else None
-        widths = self.widths(nq, nv, k)
-        self.table = np.zeros((N, sum(widths)))
-        views = []
-        start = 0
-        for w in widths:
-            views.append(self.table[:, start : start + w])
-            start += w
-        (t, self.q, self.v, self.q_d, self.u, self.p, self.p_d, self.f, self.f_d, self.phi, V,
-         phase) = views  # fmt: skip
-        self.t, self.V, self.phase = t[:, 0], V[:, 0], phase[:, 0]
-
-    def record(
-        self,
-        i: int,
-        t: float,
-        q: np.ndarray,
-        v: np.ndarray,
-        q_d: np.ndarray,
-        u0: np.ndarray,
-        B: np.ndarray,
-        f: np.ndarray,
-        p: np.ndarray,
-        p_d: np.ndarray,
-        f_d: np.ndarray,
-        phi: np.ndarray,
-        V: float,
-        phase: int,
-    ) -> bool:
-        """Write sample i, with the command u = u0 + B f (B: (n, k), zeros when u ignores f).
-
-        Returns True when q, v, f are finite, |v_i| ≤ max_velocity and |f_m| ≤ max_force
-        (otherwise :func:`_check_finite` says which and raises).
-        """
-        return _K.record_row(
-            self.table, i, t, q, v, q_d, u0, B, f, p, p_d, f_d, phi, V, phase,
-            self.max_velocity, self.max_force,
-        )  # fmt: skip
-
-    def result(self, n: int, meta: dict, k: int) -> Result:
-        def own(a: np.ndarray) -> np.ndarray:
-            return np.ascontiguousarray(a[:n])
-
-        def col(a: np.ndarray) -> np.ndarray:
-            return own(a[:, 0] if k == 1 else a)
-
-        return Result(
-            t=own(self.t),
-            q=own(self.q),
-            v=own(self.v),
-            q_d=own(self.q_d),
-            u=own(self.u),
-            p=own(self.p),
-            p_d=own(self.p_d),
-            f=col(self.f),
-            f_d=col(self.f_d),
-            phi=col(self.phi),
-            V=own(self.V),
-            phase=self.phase[:n].astype(np.int64),
-            meta=meta,
-            f_meas=None if self.f_meas is None else col(self.f_meas),
-        )
-
-
 def _versions() -> dict:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -494,77 +393,6 @@ def _versions() -> dict:
 
 def _jsonable(x: object) -> object:
     return json.loads(json.dumps(x, default=lambda o: np.asarray(o).tolist()))
-
-
-class _Plant:
-    """Geometry helpers of the plant: distances, projection onto the surfaces."""
-
-    def __init__(self, robot: Robot, constraint: Constraint) -> None:
-        self.robot = robot
-        self.constraint = constraint
-        self.data = robot.new_data()
-        n = robot.nv
-        # two (q, v) pairs for contact_step: its output is never its input
-        self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
-        self._tmp = (np.zeros(n), np.zeros(n))
-        # a view of the tip translation in self.data (updated in place by updateFramePlacement)
-        self._tip = self.data.oMf[robot.tip_id].translation
-        self._grad = np.zeros(3)  # scratch ∇Φ of contact_step
-
-    def tip(self, q: np.ndarray) -> np.ndarray:
-        pin.forwardKinematics(self.robot.model, self.data, q)
-        return pin.updateFramePlacement(self.robot.model, self.data, self.robot.tip_id).translation
-
-    def distance(self, q: np.ndarray) -> np.ndarray:
-        return self.constraint.distance(self.tip(q))
-
-    def _rows(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rows n̂ᵀJ (k, n) and first-order distances Φ / ‖∇Φ‖ (k,) at q."""
-        model, data, fid = self.robot.model, self.data, self.robot.tip_id
-        pin.computeJointJacobians(model, data, q)
-        p = pin.updateFramePlacement(model, data, fid).translation
-        return self.constraint.normal_rows(p, pin.getFrameJacobian(model, data, fid, _LWA)[:3])
-
-    def project(self, q: np.ndarray, v: np.ndarray, iterations: int = 1) -> tuple:
-        """Gauss–Newton steps putting the tip on the surfaces, then v onto the tangent space.
-
-        The velocity is projected with the rows of the last iteration's start point (the
-        difference is of the order of the position correction, ~1e-9 m here).
-        """
-        model = self.robot.model
-        for _ in range(iterations):
-            A, d = self._rows(q)
-            gram = A @ A.T
-            A_pinv = A.T / gram[0, 0] if A.shape[0] == 1 else A.T @ np.linalg.inv(gram)
-            q = pin.integrate(model, q, -(A_pinv @ d))
-        v = v - A_pinv @ (A @ v)
-        return q, v
-
-    def contact_step(
-        self, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, dt: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Semi-implicit Euler then :meth:`project`, for one surface and a Euclidean arm.
-
-        The same arithmetic as ``v + ddq dt``, ``pin.integrate`` and :meth:`project` in two
-        compiled calls (:func:`hybrid_force._kernels.euler_step`, ``project_one``). Returns
-        arrays owned by the plant, never q or v themselves; the next call may reuse them.
-        """
-        K = _K
-        model, data, fid = self.robot.model, self.data, self.robot.tip_id
-        q_tmp, v_tmp = self._tmp
-        K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
-        pin.computeJointJacobians(model, data, q_tmp)
-        pin.updateFramePlacement(model, data, fid)
-        surface = self.constraint.surfaces[0]
-        desc, grad, phi = surface._descriptor, self._grad, 0.0
-        if desc.shape[0] == 0:  # no closed form: evaluate in Python
-            phi, grad, _ = surface.evaluate(self._tip)
-        q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
-        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        gn = K.project_one(desc, self._tip, grad, phi, J6, q_tmp, v_tmp, q_out, v_out)
-        if not gn >= _GRAD_TOL:
-            self._rows(q_tmp)  # raises the precise SingularConfigurationError
-        return q_out, v_out
 
 
 def simulate(
@@ -602,84 +430,242 @@ def simulate(
     """
     sc, sim = scenario, scenario.sim
     robot = sc.robot
-    # Scenario has checked its fields (stacked surfaces only without the supervisor, ...)
-    constraint = Constraint(sc.surfaces, normalization=sim.normalization)
-    model, data = robot.model, robot.new_data()
-    k, nq, nv = constraint.k, robot.nq, robot.nv
-    dt = sim.dt
-    N = round(sim.duration / dt) + 1
-    q = robot.check_q(sc.q0, "initial q").copy()
-    v = np.zeros(nv) if sc.v0 is None else robot.check_v(sc.v0, "initial v").copy()
-    plant = _Plant(robot, constraint)
-    fast = not sim.reference
-    # Ideal sensing at the plant's rate: the controller's command is affine in the force it
-    # produces (u = u0 + B f) and the plant resolves that loop exactly (the paper's runs).
-    # Otherwise it is sampled: every `per_tick` plant steps the controller reads its sensors,
-    # computes its terms from its own model at the measured state, and its torque is held.
-    per_tick = control_steps(sc.control, sim)
     if controller is not None and not callable(getattr(controller, "command", None)):
         raise ControlError(
             f"controller must have a method command(t, q, v, f) -> u, got {controller!r}"
         )
-    sampled = controller is not None or per_tick > 1 or not sc.sensor.ideal
-    period = per_tick * dt
-    # the controller's own model: the plant's model file, or control.model (same joints)
-    model_robot = sc.controller_model if sc.controller_model is not None else robot
-    own = (
-        ControllerModel(model_robot, sc.surfaces, sim.normalization, fast)
-        if sampled or model_robot is not robot
-        else None
-    )
-    law = (
-        HybridController(
-            model_robot,
-            own.constraint if own is not None else constraint,
-            sc.path,
-            q,
-            sc.control,
-            dt=period,
-            fast=fast,
-        )
-        if controller is None
-        else None
-    )
-    sensors = Sensors(sc.sensor, period, sim.seed) if sampled else None
-    task_f_d = sc.control.f_d_for(k)
-    no_q_d = np.full(nq, np.nan)
-    terms_buf = RobotTerms.zeros(nv)
-    no_B = np.zeros((nv, k))
-    solver = ConstrainedDynamics(model, data, k)
-    clik = law.clik if law is not None else None
-    unilateral, release_tol = sim.unilateral, sim.release_tol
-    gamma_buf = np.zeros(k)
-    cons_buf = ConstraintTerms.zeros(k, nv)
-    # the compiled Euler + projection step of the plant (one surface, q ⊕ dq = q + dq)
-    fast_contact = fast and k == 1 and robot.euclidean and sim.integrator == "euler"
-    events: list[dict] = []
-    in_contact = False
+    # Scenario has checked its fields (stacked surfaces only without the supervisor, ...)
+    constraint = Constraint(sc.surfaces, normalization=sim.normalization)
+    k, nq, nv, dt = constraint.k, robot.nq, robot.nv, sim.dt
+    N = round(sim.duration / dt) + 1
+    q = robot.check_q(sc.q0, "initial q").copy()
+    v = np.zeros(nv) if sc.v0 is None else robot.check_v(sc.v0, "initial v").copy()
+    reference = sim.reference
+    plant = (ReferencePlant if reference else Plant)(
+        robot, constraint, sim.baumgarte, sim.integrator, sim.unilateral, sim.release_tol,
+        sc.control.contact_tol,
+    )  # fmt: skip
+    ctrl = _control_side(sc, controller, q, reference)
+    law = ctrl.law
     if float(plant.distance(q).max()) <= sc.control.contact_tol:
-        q, v, in_contact = _touch(plant, q, v, 0.0, events)
-    started_in_contact = ever_in_contact = in_contact
-    check_log_memory(N, _Log.width(nq, nv, k), sim.duration, dt)
-    log = _Log(N, nq, nv, k, sim.max_velocity, sim.max_force, measured=sampled)
-    f_meas_log = log.f_meas
-    baum = sim.baumgarte
-    zeros_k = np.zeros(k)
-    f_last = zeros_k  # the plant's force at the last step: what the force sensor reads
-    f_meas = zeros_k
-    cmd: Command | None = None
-    meta = {
+        q, v = plant.touch(q, v, 0.0)
+    started_in_contact = plant.in_contact
+    check_log_memory(N, Record.width(nq, nv, k), sim.duration, dt)
+    log = Record(N, nq, nv, k, sim.max_velocity, sim.max_force, measured=ctrl.measured)
+    meta = _meta(sc, ctrl, k, nq)
+    no_q_d, no_B = np.full(nq, np.nan), np.zeros((nv, k))
+    task_f_d = sc.control.f_d_for(k)
+    clik = law.clik if law is not None else None
+    f = np.zeros(k)  # the plant's force at the last step: what the force sensor reads
+    report_every = max(1, N // 100)
+    wall0 = wall1 = time.perf_counter()
+    t = 0.0
+    i = n_logged = 0  # n_logged: rows filled so far (kept in a failed run's partial result)
+    try:
+        for i in range(N):
+            t = i * dt
+            # 1. the plant's state: its terms and constraint rows (the controller never sees them)
+            terms, cons = plant.evaluate(q, v)
+            # 2. sense and control: u = u0 + B f (exact loop) or a held torque (sampled)
+            cmd = ctrl.command(i, t, q, v, terms, cons, f)
+            # 3. the plant: q̈ and the contact force, together; release if it would pull
+            ddq, f = plant.accelerate(terms, cons, cmd, t)
+            # 4. record sample i (u = u0 + B f) and check the state
+            distance = cons.distance if cons is not None else plant.distance(q)
+            ok = log.record(
+                i, t, q, v,
+                clik.q if clik is not None else no_q_d,
+                cmd.u0, no_B if cmd.B is None else cmd.B, f, terms.p,
+                # sampled: the desired point now, not the one of the last tick (held 1/rate s)
+                clik.p_d if clik is not None and not ctrl.measured else sc.path.position(t),
+                law.f_d if law is not None else task_f_d,
+                distance,
+                law.V if law is not None else np.nan,
+                # the plant's contact state: a tool off the surface is never logged in contact
+                CONTACT if plant.in_contact else ctrl.phase(cons, plant, q),
+            )  # fmt: skip
+            if ctrl.measured:
+                log.f_meas[i] = ctrl.f_meas  # type: ignore[index]
+            n_logged = i + 1
+            if not ok:
+                _check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
+            if i == N - 1:
+                break
+            if i == 1:
+                wall1 = time.perf_counter()  # steps 0 and 1 loaded (or compiled) the kernels
+            # 5. the controller's integrators, then the plant's: (q, v) at t + dt
+            ctrl.update(dt, f)
+            q, v = plant.advance(q, v, ddq, cmd, t, dt, distance)
+            if progress is not None and i % report_every == 0:
+                progress(i / N)
+    except BaseException as exc:  # whatever stopped the run, keep what it computed
+        wall = time.perf_counter() - wall0
+        failure = _failure(exc, sc.name, t)
+        meta.update(
+            status="failed",
+            reason=failure.reason,
+            error=f"{type(exc).__name__}: {exc}",
+            events=_merge(ctrl.events, [*plant.events, {"t": t, "kind": failure.reason}]),
+            steps_per_second=i / wall if wall > 0 else 0.0,
+            wall_time=wall,
+        )
+        try:
+            failure.result = _finish(log, n_logged, meta, k, robot, plant)
+        except Exception:  # the log itself is unusable: report the failure without it
+            failure.result = None
+        raise failure from exc
+    end = time.perf_counter()
+    wall = end - wall0
+    # the rate of the steady loop: from step 1 on, once the compiled kernels are loaded
+    steady = (
+        (N - 2) / (end - wall1) if N > 3 and end > wall1 else (N - 1) / wall if wall > 0 else 0.0
+    )
+    meta.update(
+        status="ok",
+        reason=None,
+        error=None,
+        events=_merge(ctrl.events, plant.events),
+        steps_per_second=steady,
+        wall_time=wall,
+    )
+    if progress is not None:
+        progress(1.0)
+    result = _finish(log, N, meta, k, robot, plant)
+    if started_in_contact and not sc.control.supervisor and result.meta["lost_contact"]:
+        left = result.meta["left_at"]
+        message = (
+            f"run '{sc.name}' lost contact: it started on the surface without the supervisor "
+            f"(control.supervisor = false), left it at t = {left:.6g} s and ended off it"
+        )
+        failed = result.with_meta(status="failed", reason="lost contact", error=message)
+        raise LostContactError(message, result=failed)
+    return result
+
+
+class _ControlSide:
+    """The controller as the loop sees it: a command per step, its integrators, its logs.
+
+    Ideal sensing at the plant's rate (``measured`` False): the law's command is affine in the
+    force the plant will produce (u = u0 + B f) and the plant resolves that loop exactly (the
+    paper's runs). The law then evaluates its model at the plant's state; when that model is
+    the plant's own model file, the plant's terms at that state are the same numbers and are
+    passed instead of being computed twice.
+
+    Sampled (``measured`` True: a control rate below the plant's, sensors that are not ideal,
+    or a user's controller): every ``per_tick`` plant steps the controller reads its sensors,
+    computes its terms from its own model at the measured state, and its torque is held
+    (zero-order hold).
+    """
+
+    def __init__(
+        self,
+        sc: Scenario,
+        law: HybridController | None,
+        user: Controller | None,
+        own: ControllerModel | None,
+        per_tick: int,
+        measured: bool,
+    ) -> None:
+        self.law, self.user, self.own = law, user, own
+        self.per_tick, self.measured = per_tick, measured
+        self.period = per_tick * sc.sim.dt
+        self.sensors = Sensors(sc.sensor, self.period, sc.sim.seed) if measured else None
+        self.f_meas = np.zeros(len(sc.surfaces))
+        self.max_dist = sc.control.max_dist
+        self.nv = sc.robot.nv
+        self._held: Command | None = None
+
+    @property
+    def events(self) -> list[dict]:
+        return self.law.events if self.law is not None else []
+
+    def command(
+        self,
+        i: int,
+        t: float,
+        q: np.ndarray,
+        v: np.ndarray,
+        terms: RobotTerms,
+        cons: ConstraintTerms | None,
+        f: np.ndarray,
+    ) -> Command:
+        """The command at plant step i (time t [s]); f (k,) [N] is the plant's last force."""
+        law = self.law
+        if not self.measured:
+            assert law is not None
+            if self.own is None:
+                return law.command(t, q, v, terms, cons)
+            return law.command(t, q, v, *self.own.evaluate(q, v))
+        if i % self.per_tick == 0:  # a tick: sense, then control; the torque is held
+            assert self.sensors is not None
+            if law is not None and i:  # the law's integrators and CLIK over the period
+                law.update(self.period, self.f_meas)
+            q_m, v_m, self.f_meas = self.sensors.measure(q, v, f)
+            if law is None:
+                assert self.user is not None
+                u = _user_torque(self.user, t, q_m, v_m, self.f_meas, self.nv)
+            else:
+                assert self.own is not None
+                c = law.command(t, q_m, v_m, *self.own.evaluate(q_m, v_m))
+                u = c.u0 + c.B @ self.f_meas if c.B is not None else c.u0.copy()
+            self._held = Command(u, None)
+        assert self._held is not None
+        return self._held
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """The exact loop's integrators over one plant step with the force f (k,) [N]."""
+        if not self.measured:
+            assert self.law is not None
+            self.law.update(dt, f)
+
+    def phase(self, cons: ConstraintTerms | None, plant: Plant, q: np.ndarray) -> int:
+        """The phase logged off the surface: the supervisor's (free or near), or for a user's
+        controller near within ``control.max_dist`` [m]."""
+        if self.law is not None:
+            return min(self.law.phase, NEAR)
+        distance = cons.distance if cons is not None else plant.distance(q)
+        return NEAR if float(distance.max()) <= self.max_dist else FREE
+
+
+def _control_side(
+    sc: Scenario, user: Controller | None, q: np.ndarray, reference: bool
+) -> _ControlSide:
+    """The controller of the run: the scenario's law on its own model, or the user's."""
+    sim = sc.sim
+    per_tick = control_steps(sc.control, sim)
+    measured = user is not None or per_tick > 1 or not sc.sensor.ideal
+    # the controller's own model: the plant's model file, or control.model (same joints)
+    model_robot = sc.controller_model if sc.controller_model is not None else sc.robot
+    own = None
+    if measured or model_robot is not sc.robot:
+        own_type = ReferenceControllerModel if reference else ControllerModel
+        own = own_type(model_robot, sc.surfaces, sim.normalization)
+    law = None
+    if user is None:
+        constraint = (
+            own.constraint if own is not None else Constraint(sc.surfaces, sim.normalization)
+        )
+        law_type = ReferenceController if reference else HybridController
+        law = law_type(model_robot, constraint, sc.path, q, sc.control, dt=per_tick * sim.dt)
+    return _ControlSide(sc, law, user, own, per_tick, measured)
+
+
+def _meta(sc: Scenario, ctrl: _ControlSide, k: int, nq: int) -> dict:
+    """The run's metadata known before it starts (the loop adds status, events, timing)."""
+    sim, law = sc.sim, ctrl.law
+    model_robot = sc.controller_model if sc.controller_model is not None else sc.robot
+    return {
         "name": sc.name,
         "run_id": uuid.uuid4().hex,
         "description": sc.description,
         "scenario": _jsonable(sc.source) if sc.source is not None else None,
         # what re-loads the arm from any folder: model (registry name or absolute path), tip,
         # package_dirs, xacro_args, lock_off_chain
-        "robot": {**robot.reference, "nq": nq},
+        "robot": {**sc.robot.reference, "nq": nq},
         "surfaces": [s.to_dict() for s in sc.surfaces],
         "path": _path_meta(sc.path),
         "controller": {
-            "law": "arimoto" if law is not None else type(controller).__name__,
+            "law": "arimoto" if law is not None else type(ctrl.user).__name__,
             "model": model_robot.reference,
         },
         "gains": None
@@ -699,182 +685,20 @@ def simulate(
             "supervisor": sc.control.supervisor,
         },
         "settings": {
-            "dt": dt,
+            "dt": sim.dt,
             "duration": sim.duration,
             "integrator": sim.integrator,
             "settle_time": sim.settle_time,
-            "baumgarte_alpha": baum.alpha,
-            "baumgarte_beta": baum.beta,
+            "baumgarte_alpha": sim.baumgarte.alpha,
+            "baumgarte_beta": sim.baumgarte.beta,
             "unilateral": sim.unilateral,
             "normalization": sim.normalization,
-            "control_rate": 1.0 / period,
+            "control_rate": 1.0 / ctrl.period,
             "seed": sim.seed,
         },
         "sensor": sc.sensor.to_dict(),
         "versions": _versions(),
     }
-
-    def law_events() -> list[dict]:
-        return law.events if law is not None else []
-
-    report_every = max(1, N // 100)
-    wall0 = wall1 = time.perf_counter()
-    t = 0.0
-    i = 0
-    n_logged = 0  # rows of the log filled so far (kept in a failed run's partial result)
-    try:
-        for i in range(N):
-            t = i * dt
-            if fast:
-                terms = robot.terms(q, v, data, out=terms_buf)
-            else:
-                terms = _reference_terms(robot, q, v)
-            try:
-                cons = constraint.evaluate(terms, v, fast=fast, out=cons_buf)
-            except SingularConfigurationError:
-                if in_contact:
-                    raise
-                cons = None
-            if not sampled:  # the exact loop: u = u0 + B f, resolved with the plant below
-                assert law is not None
-                if own is None:
-                    cmd = law.command(t, q, v, terms, cons)
-                else:  # the controller's own model, at the exact state
-                    cmd = law.command(t, q, v, *own.evaluate(q, v))
-            elif i % per_tick == 0:  # a tick: sense, then control; the torque is held
-                assert sensors is not None
-                if law is not None and i:  # the law's integrators and CLIK over the period
-                    law.update(period, f_meas)
-                q_m, v_m, f_meas = sensors.measure(q, v, f_last)
-                if law is None:
-                    assert controller is not None
-                    cmd = Command(_user_torque(controller, t, q_m, v_m, f_meas, nv), None)
-                else:
-                    assert own is not None
-                    c = law.command(t, q_m, v_m, *own.evaluate(q_m, v_m))
-                    cmd = Command(c.u0 + c.B @ f_meas if c.B is not None else c.u0.copy(), None)
-            assert cmd is not None
-            f = zeros_k
-            if in_contact:
-                assert cons is not None  # in contact, evaluate() raised instead of failing
-                if fast:
-                    gamma = baum.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, gamma_buf)
-                else:
-                    gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-                if fast:
-                    ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
-                else:
-                    ddq, f = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
-                if unilateral and float(f[0] if k == 1 else f.min()) < -release_tol:
-                    events.append({"t": t, "kind": "release", "force": float(f.min())})
-                    in_contact = False
-                    f = zeros_k
-                    ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
-            else:
-                ddq = free_acceleration(terms.M, terms.nle, cmd.u0)
-            # --- log sample i (with u = u0 + B f) and check the state
-            ok = log.record(
-                i,
-                t,
-                q,
-                v,
-                clik.q if clik is not None else no_q_d,
-                cmd.u0,
-                no_B if cmd.B is None else cmd.B,
-                f,
-                terms.p,
-                # sampled: the desired point now, not the one of the last tick (held 1/rate s)
-                clik.p_d if clik is not None and not sampled else sc.path.position(t),
-                law.f_d if law is not None else task_f_d,
-                cons.distance if cons is not None else plant.distance(q),
-                law.V if law is not None else np.nan,
-                # the real contact state: the supervisor's phase says which law runs, and a
-                # tool off the surface is never logged as in contact
-                CONTACT
-                if in_contact
-                else min(law.phase, NEAR)
-                if law is not None
-                else _free_phase(cons, plant, q, sc.control.max_dist),
-            )
-            if f_meas_log is not None:
-                f_meas_log[i] = f_meas
-            f_last = f
-            n_logged = i + 1
-            if not ok:
-                _check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
-            if i == N - 1:
-                break
-            if i == 1:
-                wall1 = time.perf_counter()  # steps 0 and 1 loaded (or compiled) the kernels
-            if not sampled:
-                assert law is not None
-                law.update(dt, f)
-            if in_contact and fast_contact:
-                q, v = plant.contact_step(q, v, ddq, dt)
-                if progress is not None and i % report_every == 0:
-                    progress(i / N)
-                continue
-            if sim.integrator == "euler":
-                v = v + ddq * dt
-                q_new = pin.integrate(model, q, v * dt)
-            else:
-                q_new, v = _rk4(robot, data, constraint, baum, cmd, q, v, ddq, dt, in_contact)
-            if in_contact:
-                q, v = plant.project(q_new, v)
-            else:
-                d_new = float(plant.distance(q_new).max())
-                if d_new < 0.0 or (
-                    d_new <= sc.control.contact_tol and d_new <= float(log.phi[i].max())
-                ):
-                    # crossed the surface, or within the tolerance and still closing in
-                    q_new = _crossing(model, q, q_new, float(log.phi[i].max()), d_new)
-                    q_new, v, in_contact = _touch(plant, q_new, v, t + dt, events)
-                    ever_in_contact = True
-                q = q_new
-            if progress is not None and i % report_every == 0:
-                progress(i / N)
-    except BaseException as exc:  # whatever stopped the run, keep what it computed
-        wall = time.perf_counter() - wall0
-        failure = _failure(exc, sc.name, t)
-        meta.update(
-            status="failed",
-            reason=failure.reason,
-            error=f"{type(exc).__name__}: {exc}",
-            events=_merge(law_events(), [*events, {"t": t, "kind": failure.reason}]),
-            steps_per_second=i / wall if wall > 0 else 0.0,
-            wall_time=wall,
-        )
-        try:
-            failure.result = _finish(log, n_logged, meta, k, robot, ever_in_contact, in_contact)
-        except Exception:  # the log itself is unusable: report the failure without it
-            failure.result = None
-        raise failure from exc
-    end = time.perf_counter()
-    wall = end - wall0
-    # the rate of the steady loop: from step 1 on, once the compiled kernels are loaded
-    steady = (
-        (N - 2) / (end - wall1) if N > 3 and end > wall1 else (N - 1) / wall if wall > 0 else 0.0
-    )
-    meta.update(
-        status="ok",
-        reason=None,
-        error=None,
-        events=_merge(law_events(), events),
-        steps_per_second=steady,
-        wall_time=wall,
-    )
-    if progress is not None:
-        progress(1.0)
-    result = _finish(log, N, meta, k, robot, ever_in_contact, in_contact)
-    if started_in_contact and not sc.control.supervisor and result.meta["lost_contact"]:
-        left = result.meta["left_at"]
-        message = (
-            f"run '{sc.name}' lost contact: it started on the surface without the supervisor "
-            f"(control.supervisor = false), left it at t = {left:.6g} s and ended off it"
-        )
-        failed = result.with_meta(status="failed", reason="lost contact", error=message)
-        raise LostContactError(message, result=failed)
-    return result
 
 
 def _user_torque(
@@ -888,12 +712,6 @@ def _user_torque(
             f"{u!r}; it must return {n} finite joint torques"
         )
     return u.copy()
-
-
-def _free_phase(cons: ConstraintTerms | None, plant: _Plant, q: np.ndarray, max_dist: float) -> int:
-    """Off the surface, for a run without the paper's supervisor: near within max_dist [m]."""
-    distance = cons.distance if cons is not None else plant.distance(q)
-    return NEAR if float(distance.max()) <= max_dist else FREE
 
 
 def _failure(exc: BaseException, name: str, t: float) -> RunFailedError:
@@ -913,15 +731,7 @@ def _failure(exc: BaseException, name: str, t: float) -> RunFailedError:
     return RunFailedError(f"{where} by an unexpected error: {type(exc).__name__}: {exc}")
 
 
-def _finish(
-    log: _Log,
-    n: int,
-    meta: dict,
-    k: int,
-    robot: Robot,
-    ever_in_contact: bool,
-    in_contact: bool,
-) -> Result:
+def _finish(log: Record, n: int, meta: dict, k: int, robot: Robot, plant: Plant) -> Result:
     """The Result of the first n samples, with what the run must say about itself in meta.
 
     Adds ``limits`` (joints beyond their range or effort limit, see
@@ -933,7 +743,7 @@ def _finish(
         _joint_names(robot), lower, upper, robot.effort_limits,
         log.t[:n], log.q[:n], log.u[:n],
     )  # fmt: skip
-    outcome = contact_outcome(ever_in_contact, in_contact, meta.get("events", []))
+    outcome = contact_outcome(plant.ever_in_contact, plant.in_contact, meta.get("events", []))
     notes = describe(limits, outcome)
     for note in notes:
         warnings.warn(f"run '{meta.get('name')}': {note}", RunWarning, stacklevel=3)
@@ -984,74 +794,3 @@ def _check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: Si
         f"runaway at t = {t:.6g} s: |f| = {fmax:.3g} N > {sim.max_force:.3g} N "
         f"(q = {np.round(q, 6).tolist()})"
     )
-
-
-def _crossing(model: pin.Model, q0: np.ndarray, q1: np.ndarray, d0: float, d1: float) -> np.ndarray:
-    """Configuration where the distance crosses 0 between q0 (d0 > 0) and q1 (d1 ≤ 0), linearly."""
-    if d1 >= 0 or d0 <= d1:
-        return q1
-    tau = d0 / (d0 - d1)
-    return pin.interpolate(model, q0, q1, tau)
-
-
-def _touch(plant: _Plant, q: np.ndarray, v: np.ndarray, t: float, events: list[dict]) -> tuple:
-    """Place the tip on the surface and apply a plastic impact if it moves into it."""
-    q, _ = plant.project(q, np.zeros_like(v), iterations=3)
-    A, _ = plant._rows(q)
-    speed = A @ v
-    if float(speed.min()) < 0.0:
-        data = plant.robot.new_data()
-        v_after, impulse = plastic_impact(plant.robot.model, data, q, v, A)
-        events.append(
-            {
-                "t": t,
-                "kind": "impact",
-                "impulse": float(np.abs(impulse).sum()),
-                "speed": float(-speed.min()),
-            }
-        )
-        v = v_after
-    return q, v, True
-
-
-def _rk4(
-    robot: Robot,
-    data: pin.Data,
-    constraint: Constraint,
-    baum: Baumgarte,
-    cmd: Command,
-    q: np.ndarray,
-    v: np.ndarray,
-    a1: np.ndarray,
-    dt: float,
-    in_contact: bool,
-) -> tuple[np.ndarray, np.ndarray]:
-    """One RK4 step of the plant with the command (u0, B) held over the step.
-
-    a1: (n,) the acceleration already solved at (q, v); the stages reuse ``data``.
-    Returns (q, v) at t + dt.
-    """
-    model = robot.model
-
-    def acc(qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
-        terms = robot.terms(qs, vs, data)
-        if not in_contact:
-            return free_acceleration(terms.M, terms.nle, cmd.u0)
-        cons = constraint.evaluate(terms, vs)
-        gamma = baum.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-        ddq, _ = constrained_acceleration(model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
-        return ddq
-
-    k1v, k1a = v, a1
-    q2 = pin.integrate(model, q, k1v * (dt / 2))
-    k2v = v + k1a * (dt / 2)
-    k2a = acc(q2, k2v)
-    q3 = pin.integrate(model, q, k2v * (dt / 2))
-    k3v = v + k2a * (dt / 2)
-    k3a = acc(q3, k3v)
-    q4 = pin.integrate(model, q, k3v * dt)
-    k4v = v + k3a * dt
-    k4a = acc(q4, k4v)
-    q_new = pin.integrate(model, q, (k1v + 2 * k2v + 2 * k3v + k4v) * (dt / 6))
-    v_new = v + (k1a + 2 * k2a + 2 * k3a + k4a) * (dt / 6)
-    return q_new, v_new

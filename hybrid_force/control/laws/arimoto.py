@@ -42,6 +42,7 @@ __all__ = [
     "Desired",
     "Gains",
     "LawWorkspace",
+    "ReferenceLaw",
     "arimoto_law",
     "check_damping_gain",
     "default_damping_gain",
@@ -370,3 +371,44 @@ class LawWorkspace:
             V=self.V,
             f_d=f_d.copy() if self.hybrid else np.zeros(0),
         )
+
+
+class ReferenceLaw:
+    """:class:`LawWorkspace`'s interface over the numpy references :func:`arimoto_law` and
+    :func:`free_space_law` (new arrays every call): what the reference controller runs."""
+
+    def __init__(self, n: int, k: int, gains: Gains) -> None:
+        self.gains = gains
+        self.V = 0.0
+        self._trace: ControlTrace | None = None
+
+    def arimoto(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None = None,
+    ) -> Command:
+        """:func:`arimoto_law` with this law's gains."""
+        command, self._trace = arimoto_law(
+            self.gains, robot, cons, v, e_q, desired, e_F.copy(), f_d, approach
+        )
+        self.V = self._trace.V
+        return command
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """:func:`free_space_law` with this law's gains."""
+        command, self._trace = free_space_law(self.gains, robot, v, e_q, desired)
+        self.V = self._trace.V
+        return command
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
+        """The :class:`ControlTrace` of the last call."""
+        assert self._trace is not None
+        return self._trace

@@ -1,0 +1,315 @@
+"""The plant: the true arm on its surfaces, with contact, release, impacts and integration.
+
+The controller never reads it: the loop (:mod:`hybrid_force.sim.loop`) hands the controller
+its sensors' readings, and the plant only a command u = u0 + B f. One step of the plant:
+
+1. :meth:`Plant.evaluate`: the arm's terms at (q, v) (:meth:`Robot.terms`) and, where they are
+   defined, the constraint rows of its surfaces;
+2. :meth:`Plant.accelerate`: in contact, q̈ and f together from the constrained dynamics
+   (:class:`~hybrid_force.sim.dynamics.ConstrainedDynamics`, section 6.2, with the algebraic
+   loop u = u0 + B f resolved exactly); if the surface would have to pull (f < 0) the contact
+   is released (unilateral surface) and the step is free;
+3. :meth:`Plant.advance`: semi-implicit Euler (``pinocchio.integrate``, or q + v dt for arms
+   whose joints are all bounded revolute or prismatic) or RK4 with the command held over the
+   step; in contact, post-stabilisation: one Gauss–Newton step puts the tip back on the surface
+   and the velocity is projected onto the tangent space (removes the O(dt²) drift that the
+   Baumgarte terms alone would leave); out of contact, a crossing of the surface between two
+   steps is found, the tip is placed on the surface there and a plastic impact (A q̇⁺ = 0) is
+   applied: the tool never passes through the surface.
+
+:class:`Plant` does the small algebra between the Pinocchio calls in compiled kernels
+(:mod:`hybrid_force.sim._kernels`); :class:`ReferencePlant` is the same plant in readable
+numpy (one public method per robot term, the general constraint algebra, a dense KKT solve),
+which the tests compare against.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import pinocchio as pin
+
+from hybrid_force._lazy import LazyKernels
+from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
+from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
+from hybrid_force.sim.dynamics import (
+    Baumgarte,
+    ConstrainedDynamics,
+    constrained_acceleration,
+    free_acceleration,
+    kkt_reference,
+    plastic_impact,
+)
+
+_K = LazyKernels("hybrid_force.sim._kernels")
+
+__all__ = ["Plant", "ReferencePlant"]
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+class Plant:
+    """The true arm on its surfaces, and its contact state.
+
+    Args:
+        robot: the arm.
+        constraint: its surfaces (the same geometry the controller knows, in its own object).
+        baumgarte: stabilisation gains (section 6.2).
+        integrator: "euler" (semi-implicit) or "rk4" (command held over the step).
+        unilateral: release when the surface would have to pull (f < −release_tol [N]).
+        release_tol: [N].
+        touch_tol: [m] a tip that ends a step within this distance of the surface, still
+            closing in, touches it.
+
+    Attributes:
+        in_contact: the tip is on the surface (the rows hold).
+        ever_in_contact: it has been, at some point of the run.
+        events: touch ("impact") and "release" events, each {"t": s, "kind": ...}.
+    """
+
+    _compiles = True  # the Euler step with projection in compiled calls, where it applies
+
+    def __init__(
+        self,
+        robot: Robot,
+        constraint: Constraint,
+        baumgarte: Baumgarte,
+        integrator: Literal["euler", "rk4"],
+        unilateral: bool,
+        release_tol: float,
+        touch_tol: float,
+    ) -> None:
+        self.robot, self.constraint = robot, constraint
+        self.baumgarte, self.integrator = baumgarte, integrator
+        self.unilateral, self.release_tol, self.touch_tol = unilateral, release_tol, touch_tol
+        self.in_contact = self.ever_in_contact = False
+        self.events: list[dict] = []
+        k, n = constraint.k, robot.nv
+        # the dynamics' data: robot.terms fills M (crba) that the solver then factorises
+        self.data = robot.new_data()
+        self._solver = ConstrainedDynamics(robot.model, self.data, k)
+        self._terms = RobotTerms.zeros(n)
+        self._cons = ConstraintTerms.zeros(k, n)
+        self._gamma = np.zeros(k)
+        self._zeros_k = np.zeros(k)
+        # geometry helpers' own data (projection, distances)
+        self._geo = robot.new_data()
+        self._tip = self._geo.oMf[robot.tip_id].translation  # a view, updated in place
+        # two (q, v) pairs for the compiled contact step: its output is never its input
+        self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
+        self._tmp = (np.zeros(n), np.zeros(n))
+        self._grad = np.zeros(3)
+        self._compiled_step = (
+            self._compiles and k == 1 and robot.euclidean and integrator == "euler"
+        )
+
+    # ------------------------------------------------------------------ one step
+    def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
+        """The arm's terms at (q, v) and the constraint rows, None where they are undefined
+        off the surface (e.g. the tip on a cylinder's axis).
+
+        Raises:
+            SingularConfigurationError: the rows are undefined while in contact.
+        """
+        terms = self.robot.terms(q, v, self.data, out=self._terms)
+        return terms, self._rows_or_none(terms, v)
+
+    def _rows_or_none(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms | None:
+        try:
+            return self._constraint_terms(terms, v)
+        except SingularConfigurationError:
+            if self.in_contact:
+                raise
+            return None
+
+    def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+        return self.constraint.evaluate(terms, v, out=self._cons)
+
+    def accelerate(
+        self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """q̈ (n,) and the contact force f (k,) [N] under u = u0 + B f; releases the contact
+        (an event at t [s]) when the surface would have to pull."""
+        if not self.in_contact:
+            return free_acceleration(terms.M, terms.nle, cmd.u0), self._zeros_k
+        assert cons is not None  # in contact, evaluate() raised instead
+        ddq, f = self._constrained(terms, cons, cmd)
+        # f[0]: one surface, without numpy's reduction overhead (a few µs per step)
+        if self.unilateral and float(f[0] if f.shape[0] == 1 else f.min()) < -self.release_tol:
+            self.events.append({"t": t, "kind": "release", "force": float(f.min())})
+            self.in_contact = False
+            return free_acceleration(terms.M, terms.nle, cmd.u0), self._zeros_k
+        return ddq, f
+
+    def _constrained(
+        self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
+    ) -> tuple[np.ndarray, np.ndarray]:
+        b = self.baumgarte
+        gamma = b.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, self._gamma)
+        return self._solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+
+    def advance(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        ddq: np.ndarray,
+        cmd: Command,
+        t: float,
+        dt: float,
+        distance: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) at t + dt from q̈ at t; ``distance`` (k,) [m]: the tip's distances at t.
+
+        In contact the tip is put back on the surface; out of contact, a step that crosses
+        the surface, or ends within ``touch_tol`` still closing in, touches it (an impact).
+        The arrays returned may be the plant's own buffers: the next call may reuse them.
+        """
+        if self.in_contact and self._compiled_step:
+            return self._contact_step(q, v, ddq, dt)
+        model = self.robot.model
+        if self.integrator == "euler":
+            v = v + ddq * dt
+            q_new = pin.integrate(model, q, v * dt)
+        else:
+            q_new, v = self._rk4(cmd, q, v, ddq, dt)
+        if self.in_contact:
+            return self.project(q_new, v)
+        d_new, d_old = float(self.distance(q_new).max()), float(distance.max())
+        if d_new < 0.0 or (d_new <= self.touch_tol and d_new <= d_old):
+            # crossed the surface, or within the tolerance and still closing in
+            q_new = _crossing(model, q, q_new, d_old, d_new)
+            q_new, v = self.touch(q_new, v, t + dt)
+        return q_new, v
+
+    def touch(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Place the tip on the surface and apply a plastic impact if it moves into it."""
+        q, _ = self.project(q, np.zeros_like(v), iterations=3)
+        A, _ = self._rows(q)
+        speed = A @ v
+        if float(speed.min()) < 0.0:
+            v, impulse = plastic_impact(self.robot.model, self.robot.new_data(), q, v, A)
+            self.events.append(
+                {
+                    "t": t,
+                    "kind": "impact",
+                    "impulse": float(np.abs(impulse).sum()),
+                    "speed": float(-speed.min()),
+                }
+            )
+        self.in_contact = self.ever_in_contact = True
+        return q, v
+
+    # ------------------------------------------------------------------ geometry
+    def tip(self, q: np.ndarray) -> np.ndarray:
+        """(3,) tip position at q [m] (a view of the plant's data)."""
+        pin.forwardKinematics(self.robot.model, self._geo, q)
+        return pin.updateFramePlacement(self.robot.model, self._geo, self.robot.tip_id).translation
+
+    def distance(self, q: np.ndarray) -> np.ndarray:
+        """(k,) metric distances of the tip to the surfaces at q [m]."""
+        return self.constraint.distance(self.tip(q))
+
+    def _rows(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows n̂ᵀJ (k, n) and first-order distances Φ / ‖∇Φ‖ (k,) at q."""
+        model, data, fid = self.robot.model, self._geo, self.robot.tip_id
+        pin.computeJointJacobians(model, data, q)
+        p = pin.updateFramePlacement(model, data, fid).translation
+        return self.constraint.normal_rows(p, pin.getFrameJacobian(model, data, fid, _LWA)[:3])
+
+    def project(
+        self, q: np.ndarray, v: np.ndarray, iterations: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Gauss–Newton steps putting the tip on the surfaces, then v onto the tangent space.
+
+        The velocity is projected with the rows of the last iteration's start point (the
+        difference is of the order of the position correction, ~1e-9 m here).
+        """
+        model = self.robot.model
+        for _ in range(iterations):
+            A, d = self._rows(q)
+            gram = A @ A.T
+            A_pinv = A.T / gram[0, 0] if A.shape[0] == 1 else A.T @ np.linalg.inv(gram)
+            q = pin.integrate(model, q, -(A_pinv @ d))
+        v = v - A_pinv @ (A @ v)
+        return q, v
+
+    def _contact_step(
+        self, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Semi-implicit Euler then :meth:`project`, for one surface and a Euclidean arm, in
+        two compiled calls (:func:`~hybrid_force.sim._kernels.euler_step`, ``project_one``)."""
+        model, data, fid = self.robot.model, self._geo, self.robot.tip_id
+        q_tmp, v_tmp = self._tmp
+        _K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
+        pin.computeJointJacobians(model, data, q_tmp)
+        pin.updateFramePlacement(model, data, fid)
+        surface = self.constraint.surfaces[0]
+        desc, grad, phi = surface._descriptor, self._grad, 0.0
+        if desc.shape[0] == 0:  # no closed form: evaluate in Python
+            phi, grad, _ = surface.evaluate(self._tip)
+        q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
+        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+        gn = _K.project_one(desc, self._tip, grad, phi, J6, q_tmp, v_tmp, q_out, v_out)
+        if not gn >= _GRAD_TOL:
+            self._rows(q_tmp)  # raises the precise SingularConfigurationError
+        return q_out, v_out
+
+    def _rk4(
+        self, cmd: Command, q: np.ndarray, v: np.ndarray, a1: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One RK4 step with the command (u0, B) held; a1: (n,) q̈ already solved at (q, v)."""
+        # the stages reuse the dynamics' data: the next step's evaluate() refills it
+        robot, model, data = self.robot, self.robot.model, self.data
+        in_contact = self.in_contact
+
+        def acc(qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
+            terms = robot.terms(qs, vs, data)
+            if not in_contact:
+                return free_acceleration(terms.M, terms.nle, cmd.u0)
+            cons = self.constraint.evaluate(terms, vs)
+            gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
+            ddq, _ = constrained_acceleration(model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+            return ddq
+
+        k1v, k1a = v, a1
+        k2v = v + k1a * (dt / 2)
+        k2a = acc(pin.integrate(model, q, k1v * (dt / 2)), k2v)
+        k3v = v + k2a * (dt / 2)
+        k3a = acc(pin.integrate(model, q, k2v * (dt / 2)), k3v)
+        k4v = v + k3a * dt
+        k4a = acc(pin.integrate(model, q, k3v * dt), k4v)
+        q_new = pin.integrate(model, q, (k1v + 2 * k2v + 2 * k3v + k4v) * (dt / 6))
+        v_new = v + (k1a + 2 * k2a + 2 * k3a + k4a) * (dt / 6)
+        return q_new, v_new
+
+
+class ReferencePlant(Plant):
+    """:class:`Plant` in readable numpy: every robot term from its own Pinocchio call, the
+    general k-row constraint algebra and a dense solve of the KKT system
+    (:func:`~hybrid_force.sim.dynamics.kkt_reference`) instead of ``pin.forwardDynamics``."""
+
+    _compiles = False
+
+    def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
+        terms = reference_terms(self.robot, q, v)
+        return terms, self._rows_or_none(terms, v)
+
+    def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+        return self.constraint.evaluate_reference(terms, v)
+
+    def _constrained(
+        self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
+    ) -> tuple[np.ndarray, np.ndarray]:
+        gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
+        return kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+
+
+def _crossing(model: pin.Model, q0: np.ndarray, q1: np.ndarray, d0: float, d1: float) -> np.ndarray:
+    """Configuration where the distance crosses 0 between q0 (d0 > 0) and q1 (d1 ≤ 0), linearly."""
+    if d1 >= 0 or d0 <= d1:
+        return q1
+    tau = d0 / (d0 - d1)
+    return pin.interpolate(model, q0, q1, tau)
