@@ -437,10 +437,7 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
     solver = ConstrainedDynamics(robot.model, data, k)
     ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
     log = Record(2, robot.nq, n, k, sim.max_velocity, sim.max_force)
-    plant = Plant(
-        robot, constraint, sim.baumgarte, sim.integrator, sim.unilateral, sim.release_tol,
-        sc.control.contact_tol,
-    )  # fmt: skip
+    plant = Plant(robot, constraint, sim, sc.control.contact_tol)
     plant.in_contact = True
     no_B = np.zeros((n, k))
     parts: dict[str, Callable[[], object]] = {

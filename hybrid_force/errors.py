@@ -26,6 +26,7 @@ __all__ = [
     "GainError",
     "HybridForceError",
     "HybridForceWarning",
+    "JointLimitError",
     "LostContactError",
     "ModelWarning",
     "OutputError",
@@ -136,7 +137,7 @@ class RunFailedError(SimulationError):
 
     ``result`` is the :class:`~hybrid_force.result.Result` up to the failure (its meta has
     ``status = "failed"`` and ``reason``), or None when nothing was recorded. ``reason`` is a
-    short tag: "diverged", "lost contact", "interrupted", "path", "error".
+    short tag: "diverged", "joint limit", "lost contact", "interrupted", "path", "error".
     """
 
     reason = "error"
@@ -150,6 +151,12 @@ class DivergenceError(RunFailedError):
     """Non-finite state or a runaway; ``result`` holds the run up to the failure."""
 
     reason = "diverged"
+
+
+class JointLimitError(RunFailedError):
+    """A joint crossed its position or velocity limit with ``sim.joint_limits = "stop"``."""
+
+    reason = "joint limit"
 
 
 class LostContactError(RunFailedError):

@@ -68,7 +68,7 @@ ARRAY_NAMES: tuple[str, ...] = (
 )
 #: Arrays a result file may hold beyond :data:`ARRAY_NAMES` (older files lack them; see
 #: :class:`Result` for the value then).
-OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas",)
+OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd")
 #: Phase codes of the ``phase`` array.
 PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT
 _PHASES = tuple(int(p) for p in Phase)
@@ -334,7 +334,8 @@ class Result:
         q: (N, nq) joint configuration [rad or m].
         v: (N, n) joint velocity [rad/s or m/s].
         q_d: (N, nq) desired configuration [rad or m].
-        u: (N, n) joint torque/force [N·m or N].
+        u: (N, n) joint torque/force applied to the arm [N·m or N] (the command, saturated
+            at the effort limits when the plant enforces them, ``sim.torque_limits``).
         p, p_d: (N, 3) actual / desired tip position [m].
         f, f_d: (N,) (or (N, k) for k > 1) contact force along the unit surface normal pointing to
             the free side, > 0 when the tool presses on the surface, 0 out of contact [N].
@@ -346,6 +347,8 @@ class Result:
         f_meas: (N,) or (N, k) the contact force the controller measured and used at each
             sample (held between control ticks) [N]; with ideal sensing at the plant's rate it
             is f itself (also the value for files written before it existed).
+        u_cmd: (N, n) the torque the controller commanded [N·m or N]; u itself where no
+            effort limit acted (also the value for files written before it existed).
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
             steps_per_second counts the loop from its second step on (the first steps load
@@ -369,6 +372,7 @@ class Result:
     phase: np.ndarray
     meta: dict[str, Any] = field(default_factory=dict)
     f_meas: np.ndarray | None = None
+    u_cmd: np.ndarray | None = None
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
@@ -431,10 +435,13 @@ class Result:
                 f"Result array 'f_meas' must have shape {constraint_shape} like 'f', got shape "
                 f"{tuple(f_meas.shape)}"
             )
+        u_cmd = arrays["u"] if self.u_cmd is None else _as_float_array("u_cmd", self.u_cmd)
+        _check_shape("u_cmd", u_cmd, (n_samples, n))
         meta = self._normalise_meta(self.meta)
         for name, arr in arrays.items():
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "f_meas", f_meas)
+        object.__setattr__(self, "u_cmd", u_cmd)
         object.__setattr__(self, "meta", meta)
 
     @staticmethod
@@ -751,8 +758,10 @@ class Result:
         run_id describe the same run), status ("ok" or "failed"), reason (None, "diverged",
         "lost contact", "interrupted", "path", "error"), error, warnings (lines), steps_per_second,
         n_samples, t_end [s] (the last sample: earlier than the duration for a failed run),
-        n_events, contact_at_end, lost_contact, left_contact_at [s], joint_range_exceeded and
-        effort_exceeded (joint names; details in meta["limits"]), then the metrics. Keys whose
+        n_events, contact_at_end, lost_contact, left_contact_at [s], joint_range_exceeded,
+        velocity_exceeded and effort_exceeded (joint names; details in meta["limits"]),
+        saturated_time ({joint: seconds} the applied torque was held at an effort limit),
+        then the metrics. Keys whose
         value the run did not record (older results) are None or empty.
         """
         meta = self.meta
@@ -772,7 +781,9 @@ class Result:
             "lost_contact": meta.get("lost_contact"),
             "left_contact_at": meta.get("left_at"),
             "joint_range_exceeded": [v["joint"] for v in limits.get("position", [])],
+            "velocity_exceeded": [v["joint"] for v in limits.get("velocity", [])],
             "effort_exceeded": [v["joint"] for v in limits.get("effort", [])],
+            "saturated_time": dict(meta.get("saturated_time") or {}),
         }
         out.update(self.metrics(settle_time).to_dict())
         return out

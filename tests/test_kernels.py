@@ -63,8 +63,8 @@ from hybrid_force.geometry.paths import Path as TaskPath
 from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere, Surface
 from hybrid_force.model.robot import Robot, RobotTerms, load_robot
 from hybrid_force.model.robot import reference_terms as _reference_terms
-from hybrid_force.sim.dynamics import Baumgarte as _Baumgarte
 from hybrid_force.sim.plant import Plant
+from hybrid_force.sim.settings import SimSettings
 
 ARMS = ("rtr", "ur5", "panda")
 RTOL = 1e-12  # relative to the scale of the compared array (see the module docstring)
@@ -593,7 +593,7 @@ def test_desired_joint_path_fast_on_a_continuous_joint(rtr_urdf: Path) -> None:
 
 def _plant(robot: Robot, con: Constraint) -> Plant:
     """A plant in contact with the surface of ``con`` (Euler: its compiled contact step)."""
-    plant = Plant(robot, con, _Baumgarte(), "euler", True, 1e-9, 1e-5)
+    plant = Plant(robot, con, SimSettings(), 1e-5)
     plant.in_contact = True
     return plant
 

@@ -27,7 +27,7 @@ from hybrid_force.result import (
 )
 
 SCHEMA_NAMES = {
-    "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas"
+    "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas", "u_cmd"
 }  # fmt: skip
 
 

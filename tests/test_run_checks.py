@@ -57,7 +57,7 @@ def test_non_finite_samples_are_skipped() -> None:
     q = np.array([[0.0], [np.nan]])
     out = limit_violations(["j"], np.array([-1.0]), np.array([1.0]), np.array([1.0]),
                            t, q, np.array([[0.0], [np.inf]]))  # fmt: skip
-    assert out == {"position": [], "effort": []}
+    assert out == {"position": [], "velocity": [], "effort": []}
 
 
 @pytest.mark.parametrize(

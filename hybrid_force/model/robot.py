@@ -291,6 +291,18 @@ class Robot:
         return effort
 
     @property
+    def velocity_limits(self) -> np.ndarray:
+        """(nv,) joint velocity limits [rad/s or m/s], a read-only copy; +inf where unspecified.
+
+        From the URDF's ``<limit velocity>``; +inf where it gives none, 0 (unspecified, as for
+        the effort) or a value that is not a positive number.
+        """
+        velocity = np.array(self.model.velocityLimit, dtype=float)
+        velocity[~(velocity > 0)] = np.inf  # also NaN
+        velocity.flags.writeable = False
+        return velocity
+
+    @property
     def nq(self) -> int:
         """Size of the configuration vector q."""
         return self.model.nq

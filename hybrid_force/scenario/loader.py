@@ -167,6 +167,8 @@ _SIM: dict[str, _Key] = {
     "unilateral": _Key("bool"),
     "normalization": _Key("choice", choices=("tip", "joint")),
     "seed": _Key("integer"),
+    "torque_limits": _Key("bool"),
+    "joint_limits": _Key("choice", choices=("report", "stop")),
 }
 
 _SENSOR: dict[str, _Key] = {
@@ -874,6 +876,8 @@ def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
             "unilateral",
             "normalization",
             "seed",
+            "torque_limits",
+            "joint_limits",
         )
         if k in values
     }

@@ -38,9 +38,7 @@ import platform
 import time
 import uuid
 import warnings
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import Literal
+from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -50,330 +48,40 @@ from hybrid_force.control.controller import (
     Controller,
     ControllerModel,
     ReferenceControllerModel,
-    check_same_joints,
 )
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.control.supervisor import ControlSettings, HybridController, ReferenceController
+from hybrid_force.control.supervisor import HybridController, ReferenceController
 from hybrid_force.errors import (
     ControlError,
     DivergenceError,
+    JointLimitError,
     LostContactError,
     ReachError,
     RunFailedError,
     RunInterruptedError,
     RunWarning,
-    SensorError,
     SingularConfigurationError,
 )
 from hybrid_force.geometry.paths import Path, PathParameterError
-from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.phases import CONTACT, FREE, NEAR
 from hybrid_force.result import Result
-from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.plant import Plant, ReferencePlant
 from hybrid_force.sim.record import Record
 from hybrid_force.sim.run_checks import (
     check_log_memory,
     contact_outcome,
     describe,
+    limit_events,
     limit_violations,
+    saturated_time,
 )
-from hybrid_force.sim.sensors import Sensors, SensorSettings
+from hybrid_force.sim.sensors import Sensors
+from hybrid_force.sim.settings import Scenario, SimSettings, control_steps
 
-__all__ = ["Scenario", "SimSettings", "simulate"]
+__all__ = ["Scenario", "SimSettings", "control_steps", "simulate"]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-Integrator = Literal["euler", "rk4"]
-
-
-@dataclass(frozen=True)
-class SimSettings:
-    """Settings of the simulation.
-
-    Attributes:
-        duration: simulated time [s].
-        dt: time step [s] (1 ms by default).
-        integrator: "euler" (semi-implicit) or "rk4" (command held over the step).
-        baumgarte: stabilisation gains (section 6.2).
-        unilateral: release the contact when the surface would have to pull (f < 0).
-        release_tol: f below −release_tol [N] releases.
-        max_velocity: |q̇_i| beyond this [rad/s or m/s] is a runaway.
-        max_force: |f| beyond this [N] is a runaway.
-        settle_time: metrics "after settling" start here [s].
-        normalization: constraint row scaling, "tip" (f in N) or "joint" (the paper's J_Φn).
-        reference: use the straightforward step instead of the fast one: every robot term
-            from its own Pinocchio call, the general k-row constraint algebra, the numpy laws
-            and CLIK, and a dense numpy solve of the KKT system instead of
-            pin.forwardDynamics; no compiled kernel but the recorder's (the sample row is
-            written the same way in both). About 10× slower; for tests.
-        seed: seed of the sensors' noise (an integer ≥ 0): a run with noisy sensors is
-            reproducible from it.
-    """
-
-    duration: float = 20.0
-    dt: float = 1e-3
-    integrator: Integrator = "euler"
-    baumgarte: Baumgarte = field(default_factory=Baumgarte)
-    unilateral: bool = True
-    release_tol: float = 1e-9
-    max_velocity: float = 1e3
-    max_force: float = 1e7
-    settle_time: float = 5.0
-    normalization: Literal["tip", "joint"] = "tip"
-    reference: bool = False
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        """Check every field; numbers are stored as floats, flags as bools.
-
-        Raises SimSettingsError (a BadInputError) naming the field as the scenario file's
-        ``[sim]`` key spells it (``sim.dt``) with the value and what is valid.
-        """
-        from hybrid_force import _checks as checks
-        from hybrid_force.errors import SimSettingsError
-
-        for name, strict, unit in (
-            ("duration", True, "s"),
-            ("dt", True, "s"),
-            ("release_tol", True, "N"),
-            ("max_velocity", True, "rad/s or m/s"),
-            ("max_force", True, "N"),
-            ("settle_time", False, "s"),
-        ):
-            what = f"sim.{name}"
-            value = getattr(self, name)
-            value = checks.number(
-                value, what, SimSettingsError, minimum=0, strict=strict, unit=unit
-            )
-            object.__setattr__(self, name, value)
-        if self.dt > self.duration:
-            raise SimSettingsError(
-                f"sim.dt = {self.dt} s is larger than sim.duration = {self.duration} s"
-            )
-        if self.duration / self.dt > 5e7:
-            raise SimSettingsError(
-                f"sim.duration / sim.dt = {self.duration / self.dt:.3g} steps is absurd (max 5e7)"
-            )
-        for name, choices in (
-            ("integrator", ("euler", "rk4")),
-            ("normalization", ("tip", "joint")),
-        ):
-            checks.one_of(getattr(self, name), f"sim.{name}", SimSettingsError, choices)
-        for name in ("unilateral", "reference"):
-            value = checks.flag(getattr(self, name), f"sim.{name}", SimSettingsError)
-            object.__setattr__(self, name, value)
-        seed = checks.integer(self.seed, "sim.seed", SimSettingsError, minimum=0)
-        object.__setattr__(self, "seed", seed)
-        if not isinstance(self.baumgarte, Baumgarte):
-            raise SimSettingsError(
-                "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.Baumgarte, "
-                f"e.g. Baumgarte(alpha=50.0, beta=50.0), got {checks.shown(self.baumgarte)}"
-            )
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """One run, described in Python (the TOML loader builds the same object).
-
-    Attributes:
-        robot: the plant, a :class:`~hybrid_force.Robot` (the controller's model is the
-            same arm, masses × mass_factor).
-        surfaces: a non-empty sequence of :class:`~hybrid_force.Surface` touched by
-            the tip (stored as a tuple).
-        path: desired task-space path, a :class:`~hybrid_force.Path` (on the surface).
-        q0: (nq,) start configuration. v0: None or (nv,) start velocity (None: 0). Both are
-            stored as new read-only float64 arrays.
-        control: controller settings. sim: simulation settings.
-        sensor: what the controller measures (default: ideal sensing, the plant's state).
-        controller_model: the controller's own model of the arm (``control.model``): another
-            :class:`~hybrid_force.model.robot.Robot` with the plant's joints (a heavier link, say);
-            None: the plant's own model. ``control.mass_factor`` applies on top of it.
-        name: a short name (used for output folders): letters, digits, '_', '-', '.', not
-            starting with '.' or '-', at most ``NAME_MAX_LENGTH`` = 100 characters (the
-            scenario file's rule, ``NAME_PATTERN``, matched in full). description: free text.
-        source: the scenario as loaded from a file (JSON-able dict), stored in the result.
-
-    Checked on construction, like a scenario file by its loader (ScenarioValueError, or the
-    GainError of a K_d or f_d that does not fit the arm or the surfaces, naming the field):
-
-    * the types and shapes above, finite q0 and v0; K_d's size against the arm's joints and
-      f_d's count against the surfaces;
-    * a run that starts in contact (``control.supervisor`` False): the desired path within
-      ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration] (sampled by
-      :func:`~hybrid_force.geometry.paths.check_on_surface`) and the start tip p(q0) within
-      ``control.contact_tol`` of every surface;
-    * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
-      so are stacked surfaces (k > 1), whose approach would touch a subset first;
-    * the control rate (``control.rate``) a whole number of plant steps, not faster than them.
-    """
-
-    NAME_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_.\-]*"
-    NAME_MAX_LENGTH = 100
-
-    robot: Robot
-    surfaces: Sequence[Surface]
-    path: Path
-    q0: np.ndarray
-    v0: np.ndarray | None = None
-    control: ControlSettings = field(default_factory=ControlSettings)
-    sim: SimSettings = field(default_factory=SimSettings)
-    name: str = "run"
-    description: str = ""
-    source: dict | None = None
-    sensor: SensorSettings = field(default_factory=SensorSettings)
-    controller_model: Robot | None = None
-
-    def __post_init__(self) -> None:
-        """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
-        import re
-        from collections.abc import Mapping
-
-        from hybrid_force import _checks as checks
-        from hybrid_force.control.laws.arimoto import check_damping_gain
-        from hybrid_force.errors import ScenarioValueError as Bad
-
-        set_ = object.__setattr__
-        robot = self.robot
-        if not isinstance(robot, Robot):
-            raise Bad(
-                "Scenario.robot must be a hybrid_force.model.robot.Robot (e.g. load_robot('rtr')), "
-                f"got {checks.shown(robot)}"
-            )
-        surfaces = self.surfaces
-        if isinstance(surfaces, Surface):
-            raise Bad(f"Scenario.surfaces must be a sequence of surfaces: wrap it, [{surfaces!r}]")
-        if not isinstance(surfaces, Sequence) or isinstance(surfaces, str | bytes) or not surfaces:
-            raise Bad(
-                "Scenario.surfaces must be a non-empty sequence (list, tuple) of "
-                f"hybrid_force.geometry.surfaces.Surface, got {checks.shown(surfaces)}"
-            )
-        for i, surface in enumerate(surfaces):
-            if not isinstance(surface, Surface):
-                raise Bad(
-                    f"Scenario.surfaces[{i}] must be a hybrid_force.Surface (Cylinder, "
-                    f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
-                )
-        set_(self, "surfaces", tuple(surfaces))
-        if not isinstance(self.path, Path):
-            raise Bad(
-                "Scenario.path must be a hybrid_force.Path (Helix, Circle, FunctionPath), "
-                f"got {checks.shown(self.path)}"
-            )
-        for key, size, optional in (("q0", robot.nq, False), ("v0", robot.nv, True)):
-            value = getattr(self, key)
-            if optional and value is None:
-                continue
-            valid = f"{size} finite real numbers (robot '{robot.name}' has {size})"
-            array = checks.array(value, f"Scenario.{key}", Bad, valid=valid)
-            if array.shape != (size,):
-                raise Bad(f"Scenario.{key} must be {valid}, got shape {array.shape}")
-            array.setflags(write=False)
-            set_(self, key, array)
-        for key, kind in (("control", ControlSettings), ("sim", SimSettings)):
-            value = getattr(self, key)
-            if not isinstance(value, kind):
-                raise Bad(f"Scenario.{key} must be a {kind.__name__}, got {checks.shown(value)}")
-        name = self.name
-        if not isinstance(name, str) or not (
-            re.fullmatch(self.NAME_PATTERN, name) and len(name) <= self.NAME_MAX_LENGTH
-        ):
-            raise Bad(
-                f"Scenario.name must be a simple name of 1 to {self.NAME_MAX_LENGTH} letters, "
-                "digits, '_', '-', '.' (not starting with '.' or '-'): it names the output folder "
-                f"runs/<name>/; got {checks.shown(name)}"
-            )
-        if not isinstance(self.description, str):
-            raise Bad(f"Scenario.description must be a str, got {checks.shown(self.description)}")
-        if self.source is not None and not isinstance(self.source, Mapping):
-            raise Bad(
-                "Scenario.source must be None or the scenario file's data (a dict), "
-                f"got {checks.shown(self.source)}"
-            )
-        control = self.control
-        if control.Kd is not None:
-            check_damping_gain(control.Kd, robot.nv)
-        control.f_d_for(len(self.surfaces))
-        if not isinstance(self.sensor, SensorSettings):
-            raise Bad(
-                "Scenario.sensor must be a hybrid_force.sim.sensors.SensorSettings, "
-                f"got {checks.shown(self.sensor)}"
-            )
-        control_steps(control, self.sim)
-        if self.controller_model is not None:
-            if not isinstance(self.controller_model, Robot):
-                raise Bad(
-                    "Scenario.controller_model must be None or a hybrid_force.model.robot.Robot, "
-                    f"got {checks.shown(self.controller_model)}"
-                )
-            check_same_joints(robot, self.controller_model)
-        self._check_start_and_path()
-
-    def _check_start_and_path(self) -> None:
-        """The contact conditions of the start (class docstring), as the scenario loader's."""
-        from hybrid_force.errors import ScenarioValueError as Bad
-        from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
-
-        control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
-        if k > 1 and control.supervisor:
-            raise Bad(
-                f"Scenario.surfaces: {k} stacked surfaces are supported only for a run that starts "
-                "in contact with all of them (control.supervisor = false, ControlSettings("
-                "supervisor=False)): contact with a subset of the surfaces, as an approach would "
-                "make, is not implemented"
-            )
-        p = self.robot.tip_position(self.q0)
-        tip = f"the tip p(q0) = {np.round(p, 6).tolist()} m"
-        distances = [float(s.distance(p)) for s in surfaces]
-        if control.supervisor:
-            i = int(np.argmin(distances))
-            if distances[i] < -control.contact_tol:
-                raise Bad(
-                    f"Scenario.q0: {tip} is {-distances[i]:.3g} m behind surfaces[{i}] "
-                    f"({surfaces[i]!r}), inside the solid; start on the free side (distance "
-                    f">= -control.contact_tol = {-control.contact_tol:g} m)"
-                )
-            return
-        duration = self.sim.duration
-        for i, surface in enumerate(surfaces):
-            report = check_on_surface(self.path, surface, 0.0, duration)
-            if report.worst_distance > ON_SURFACE_TOL:
-                raise Bad(
-                    f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
-                    f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
-                    f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); a run that starts in "
-                    "contact (control.supervisor = False) needs the desired path within "
-                    f"ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
-                    f"[0, sim.duration = {duration:g} s]"
-                )
-        for i, d in enumerate(distances):
-            if abs(d) > control.contact_tol:
-                raise Bad(
-                    f"Scenario.q0: the run starts in contact (control.supervisor = False) but "
-                    f"{tip} is {d:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be within "
-                    f"control.contact_tol = {control.contact_tol:g} m of every surface"
-                )
-
-
-def control_steps(control: ControlSettings, sim: SimSettings) -> int:
-    """Plant steps per control tick: 1/(rate·dt), which must be a whole number ≥ 1.
-
-    Raises:
-        SensorError: naming control.rate and sim.dt, with the nearest rates that fit.
-    """
-    if control.rate is None:
-        return 1
-    ratio = 1.0 / (control.rate * sim.dt)
-    steps = round(ratio)
-    if steps < 1 or abs(ratio - steps) > 1e-9 * ratio:
-        fits = sorted({1.0 / (n * sim.dt) for n in (max(int(ratio), 1), int(ratio) + 1)})
-        raise SensorError(
-            f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
-            f"sim.dt = {sim.dt:g} s (1 / (rate · dt) = {ratio:.6g}); the controller ticks every "
-            f"n plant steps: rates that fit nearby: {', '.join(f'{r:g} Hz' for r in fits)}"
-            + ("; it cannot be faster than the plant" if ratio < 1 else "")
-        )
-    return steps
 
 
 def _versions() -> dict:
@@ -441,19 +149,24 @@ def simulate(
     q = robot.check_q(sc.q0, "initial q").copy()
     v = np.zeros(nv) if sc.v0 is None else robot.check_v(sc.v0, "initial v").copy()
     reference = sim.reference
-    plant = (ReferencePlant if reference else Plant)(
-        robot, constraint, sim.baumgarte, sim.integrator, sim.unilateral, sim.release_tol,
-        sc.control.contact_tol,
-    )  # fmt: skip
+    plant = (ReferencePlant if reference else Plant)(robot, constraint, sim, sc.control.contact_tol)
     ctrl = _control_side(sc, controller, q, reference)
     law = ctrl.law
     if float(plant.distance(q).max()) <= sc.control.contact_tol:
         q, v = plant.touch(q, v, 0.0)
     started_in_contact = plant.in_contact
     check_log_memory(N, Record.width(nq, nv, k), sim.duration, dt)
-    log = Record(N, nq, nv, k, sim.max_velocity, sim.max_force, measured=ctrl.measured)
+    saturates = plant.effort is not None
+    log = Record(
+        N, nq, nv, k, sim.max_velocity, sim.max_force, measured=ctrl.measured,
+        commanded=saturates,
+    )  # fmt: skip
     meta = _meta(sc, ctrl, k, nq)
     no_q_d, no_B = np.full(nq, np.nan), np.zeros((nv, k))
+    # sim.joint_limits = "stop": position and velocity limits checked at every sample
+    stop_at = _JointLimits(robot) if sim.joint_limits == "stop" else None
+    if stop_at is not None and not stop_at.any:
+        stop_at = None
     task_f_d = sc.control.f_d_for(k)
     clik = law.clik if law is not None else None
     f = np.zeros(k)  # the plant's force at the last step: what the force sensor reads
@@ -472,10 +185,14 @@ def simulate(
             ddq, f = plant.accelerate(terms, cons, cmd, t)
             # 4. record sample i (u = u0 + B f) and check the state
             distance = cons.distance if cons is not None else plant.distance(q)
+            applied = plant.applied
             ok = log.record(
                 i, t, q, v,
                 clik.q if clik is not None else no_q_d,
-                cmd.u0, no_B if cmd.B is None else cmd.B, f, terms.p,
+                # the applied torque: the command u0 + B f, or what the effort limits let through
+                cmd.u0 if applied is None else applied,
+                no_B if cmd.B is None or applied is not None else cmd.B,
+                f, terms.p,
                 # sampled: the desired point now, not the one of the last tick (held 1/rate s)
                 clik.p_d if clik is not None and not ctrl.measured else sc.path.position(t),
                 law.f_d if law is not None else task_f_d,
@@ -486,9 +203,13 @@ def simulate(
             )  # fmt: skip
             if ctrl.measured:
                 log.f_meas[i] = ctrl.f_meas  # type: ignore[index]
+            if saturates:  # the commanded torque, before the limits
+                log.u_cmd[i] = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f  # type: ignore[index]
             n_logged = i + 1
             if not ok:
                 _check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
+            if stop_at is not None:
+                stop_at.check(t, q, v)  # raises JointLimitError
             if i == N - 1:
                 break
             if i == 1:
@@ -510,7 +231,7 @@ def simulate(
             wall_time=wall,
         )
         try:
-            failure.result = _finish(log, n_logged, meta, k, robot, plant)
+            failure.result = _finish(log, n_logged, meta, k, robot, plant, warn=False)
         except Exception:  # the log itself is unusable: report the failure without it
             failure.result = None
         raise failure from exc
@@ -720,6 +441,8 @@ def _failure(exc: BaseException, name: str, t: float) -> RunFailedError:
     if isinstance(exc, KeyboardInterrupt):
         signal_name = getattr(exc, "signal", "SIGINT")
         return RunInterruptedError(f"{where}: interrupted ({signal_name})", signal=signal_name)
+    if isinstance(exc, JointLimitError):
+        return JointLimitError(f"{where}: {exc}")
     if isinstance(exc, DivergenceError):
         return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
     if isinstance(exc, ReachError):
@@ -731,24 +454,72 @@ def _failure(exc: BaseException, name: str, t: float) -> RunFailedError:
     return RunFailedError(f"{where} by an unexpected error: {type(exc).__name__}: {exc}")
 
 
-def _finish(log: Record, n: int, meta: dict, k: int, robot: Robot, plant: Plant) -> Result:
+def _finish(
+    log: Record, n: int, meta: dict, k: int, robot: Robot, plant: Plant, warn: bool = True
+) -> Result:
     """The Result of the first n samples, with what the run must say about itself in meta.
 
-    Adds ``limits`` (joints beyond their range or effort limit, see
-    :func:`~hybrid_force.sim.run_checks.limit_violations`), ``contact_at_end``, ``lost_contact``,
-    ``left_at`` and ``warnings`` (one line each, also issued as Python warnings).
+    Adds ``limits`` (joints beyond their range, velocity or effort limit, see
+    :func:`~hybrid_force.sim.run_checks.limit_violations`; the effort against the commanded
+    torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
+    ``saturated_time`` ({joint: s} held at an effort limit, when the plant enforces them),
+    ``contact_at_end``, ``lost_contact``, ``left_at`` and ``warnings`` (one line each, also
+    issued as Python warnings with ``warn``: a failed run reports its failure, not them).
     """
+    names = _joint_names(robot)
     lower, upper = robot.position_limits
+    u_cmd = log.u[:n] if log.u_cmd is None else log.u_cmd[:n]
     limits = limit_violations(
-        _joint_names(robot), lower, upper, robot.effort_limits,
-        log.t[:n], log.q[:n], log.u[:n],
+        names, lower, upper, robot.effort_limits, log.t[:n], log.q[:n], u_cmd,
+        robot.velocity_limits, log.v[:n],
     )  # fmt: skip
+    saturated = None
+    if plant.effort is not None:
+        saturated = saturated_time(names, plant.effort, u_cmd, float(meta["settings"]["dt"]))
     outcome = contact_outcome(plant.ever_in_contact, plant.in_contact, meta.get("events", []))
-    notes = describe(limits, outcome)
-    for note in notes:
+    notes = describe(limits, outcome, saturated)
+    for note in notes if warn else ():
         warnings.warn(f"run '{meta.get('name')}': {note}", RunWarning, stacklevel=3)
-    meta.update(limits=limits, warnings=notes, **outcome)
+    events = _merge(meta.get("events", []), limit_events(limits))
+    meta.update(
+        limits=limits, saturated_time=saturated or {}, warnings=notes, events=events, **outcome
+    )
     return log.result(n, meta, k)
+
+
+class _JointLimits:
+    """The position and velocity limits a run with ``sim.joint_limits = "stop"`` stops at."""
+
+    def __init__(self, robot: Robot) -> None:
+        slack = 1e-9  # relative, as run_checks.limit_violations: round-off is no crossing
+        lower, upper = robot.position_limits
+        velocity = robot.velocity_limits
+        self.lower = lower - slack * np.maximum(1.0, np.abs(lower))
+        self.upper = upper + slack * np.maximum(1.0, np.abs(upper))
+        self.velocity = velocity * (1.0 + slack)
+        self.names = _joint_names(robot)
+        self.any = bool(np.isfinite(lower).any() or np.isfinite(upper).any())
+        self.any |= bool(np.isfinite(velocity).any())
+
+    def check(self, t: float, q: np.ndarray, v: np.ndarray) -> None:
+        """Raise JointLimitError naming the first joint beyond a limit at time t [s]."""
+        if (
+            np.all(q >= self.lower)
+            and np.all(q <= self.upper)
+            and np.all(np.abs(v) <= self.velocity)
+        ):
+            return
+        for j, name in enumerate(self.names):
+            if not self.lower[j] <= q[j] <= self.upper[j]:
+                raise JointLimitError(
+                    f"joint {name} left its range [{self.lower[j]:.6g}, {self.upper[j]:.6g}] at "
+                    f't = {t:.6g} s (q = {q[j]:.6g}; sim.joint_limits = "stop")'
+                )
+            if j < v.shape[0] and not abs(v[j]) <= self.velocity[j]:
+                raise JointLimitError(
+                    f"joint {name} exceeded its velocity limit {self.velocity[j]:.6g} at "
+                    f't = {t:.6g} s (v = {v[j]:.6g}; sim.joint_limits = "stop")'
+                )
 
 
 def _joint_names(robot: Robot) -> list[str]:

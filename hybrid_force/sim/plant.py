@@ -25,8 +25,6 @@ which the tests compare against.
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 import pinocchio as pin
 
@@ -36,13 +34,13 @@ from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import SingularConfigurationError
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 from hybrid_force.sim.dynamics import (
-    Baumgarte,
     ConstrainedDynamics,
     constrained_acceleration,
     free_acceleration,
     kkt_reference,
     plastic_impact,
 )
+from hybrid_force.sim.settings import SimSettings
 
 _K = LazyKernels("hybrid_force.sim._kernels")
 
@@ -57,12 +55,18 @@ class Plant:
     Args:
         robot: the arm.
         constraint: its surfaces (the same geometry the controller knows, in its own object).
-        baumgarte: stabilisation gains (section 6.2).
-        integrator: "euler" (semi-implicit) or "rk4" (command held over the step).
-        unilateral: release when the surface would have to pull (f < −release_tol [N]).
-        release_tol: [N].
+        sim: the settings it reads: ``baumgarte`` (section 6.2), ``integrator`` ("euler",
+            semi-implicit, or "rk4" with the command held over the step), ``unilateral`` and
+            ``release_tol`` (release when the surface would pull, f < −release_tol [N]) and
+            ``torque_limits`` (saturate the applied torque at the arm's effort limits).
         touch_tol: [m] a tip that ends a step within this distance of the surface, still
             closing in, touches it.
+
+    Torque saturation: the applied torque is τ = sat(u0 + B f), each joint clipped to
+    ±effort. With B (the exact loop of the paper's law) the map is piecewise affine in f; it
+    is solved by active sets: resolve the loop, fix the joints beyond their limit at the limit
+    (their row of B removed), resolve, until no further joint exceeds its limit (at most n
+    passes; a joint once fixed stays fixed within the step).
 
     Attributes:
         in_contact: the tip is on the surface (the rows hold).
@@ -76,15 +80,21 @@ class Plant:
         self,
         robot: Robot,
         constraint: Constraint,
-        baumgarte: Baumgarte,
-        integrator: Literal["euler", "rk4"],
-        unilateral: bool,
-        release_tol: float,
+        sim: SimSettings,
         touch_tol: float,
     ) -> None:
         self.robot, self.constraint = robot, constraint
-        self.baumgarte, self.integrator = baumgarte, integrator
-        self.unilateral, self.release_tol, self.touch_tol = unilateral, release_tol, touch_tol
+        self.baumgarte, self.integrator = sim.baumgarte, sim.integrator
+        self.unilateral, self.release_tol = sim.unilateral, sim.release_tol
+        self.touch_tol = touch_tol
+        effort = robot.effort_limits
+        #: (n,) effort limits the plant enforces [N·m or N] (+inf: none), or None
+        self.effort: np.ndarray | None = (
+            effort if sim.torque_limits and bool(np.isfinite(effort).any()) else None
+        )
+        #: the torque applied at the last accelerate() when it saturated, else None
+        #: (then the applied torque is the command u0 + B f itself)
+        self.applied: np.ndarray | None = None
         self.in_contact = self.ever_in_contact = False
         self.events: list[dict] = []
         k, n = constraint.k, robot.nv
@@ -103,7 +113,7 @@ class Plant:
         self._tmp = (np.zeros(n), np.zeros(n))
         self._grad = np.zeros(3)
         self._compiled_step = (
-            self._compiles and k == 1 and robot.euclidean and integrator == "euler"
+            self._compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
         )
 
     # ------------------------------------------------------------------ one step
@@ -131,18 +141,59 @@ class Plant:
     def accelerate(
         self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """q̈ (n,) and the contact force f (k,) [N] under u = u0 + B f; releases the contact
-        (an event at t [s]) when the surface would have to pull."""
+        """q̈ (n,) and the contact force f (k,) [N] under the applied torque sat(u0 + B f);
+        releases the contact (an event at t [s]) when the surface would have to pull.
+        :attr:`applied` is the saturated torque when a limit acted, else None."""
+        self.applied = None
         if not self.in_contact:
-            return free_acceleration(terms.M, terms.nle, cmd.u0), self._zeros_k
+            return self._free(terms, cmd), self._zeros_k
         assert cons is not None  # in contact, evaluate() raised instead
         ddq, f = self._constrained(terms, cons, cmd)
+        if self.effort is not None:
+            ddq, f = self._saturated(terms, cons, cmd, ddq, f)
         # f[0]: one surface, without numpy's reduction overhead (a few µs per step)
         if self.unilateral and float(f[0] if f.shape[0] == 1 else f.min()) < -self.release_tol:
             self.events.append({"t": t, "kind": "release", "force": float(f.min())})
             self.in_contact = False
-            return free_acceleration(terms.M, terms.nle, cmd.u0), self._zeros_k
+            return self._free(terms, cmd), self._zeros_k
         return ddq, f
+
+    def _free(self, terms: RobotTerms, cmd: Command) -> np.ndarray:
+        u = cmd.u0
+        if self.effort is not None and bool(np.any(np.abs(u) > self.effort)):
+            u = self.applied = np.clip(u, -self.effort, self.effort)
+        return free_acceleration(terms.M, terms.nle, u)
+
+    def _saturated(
+        self,
+        terms: RobotTerms,
+        cons: ConstraintTerms,
+        cmd: Command,
+        ddq: np.ndarray,
+        f: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The active-set resolution of τ = sat(u0 + B f) (class docstring)."""
+        effort = self.effort
+        assert effort is not None
+        u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
+        over = np.abs(u) > effort
+        if not over.any():
+            return ddq, f
+        fixed = np.zeros(u.shape[0], dtype=bool)
+        u0 = cmd.u0.copy()
+        B = None if cmd.B is None else cmd.B.copy()
+        for _ in range(u.shape[0]):
+            fixed |= over
+            u0[over] = np.clip(u[over], -effort[over], effort[over])
+            if B is not None:
+                B[over] = 0.0
+            ddq, f = self._constrained(terms, cons, Command(u0, B))
+            u = u0 if B is None else u0 + B @ f
+            over = ~fixed & (np.abs(u) > effort)
+            if not over.any():
+                break
+        self.applied = u
+        return ddq.copy(), f.copy()
 
     def _constrained(
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
@@ -169,6 +220,8 @@ class Plant:
         """
         if self.in_contact and self._compiled_step:
             return self._contact_step(q, v, ddq, dt)
+        if self.applied is not None:  # RK4's stages hold the torque applied at t
+            cmd = Command(self.applied, None)
         model = self.robot.model
         if self.integrator == "euler":
             v = v + ddq * dt

@@ -43,10 +43,13 @@ class Record:
         max_force: float,
         *,
         measured: bool = False,
+        commanded: bool = False,
     ) -> None:
         self.max_velocity, self.max_force = max_velocity, max_force
         # the measured force (N, k), when it is not the plant's force (sampled sensing)
         self.f_meas: np.ndarray | None = np.zeros((N, k)) if measured else None
+        # the commanded torque (N, n), when effort limits may make it differ from the applied
+        self.u_cmd: np.ndarray | None = np.zeros((N, nv)) if commanded else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -107,4 +110,5 @@ class Record:
             phase=self.phase[:n].astype(np.int64),
             meta=meta,
             f_meas=None if self.f_meas is None else col(self.f_meas),
+            u_cmd=None if self.u_cmd is None else own(self.u_cmd),
         )

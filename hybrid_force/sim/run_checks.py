@@ -4,8 +4,9 @@ Checks made around :func:`hybrid_force.sim.loop.simulate`, none of which changes
 
 * :func:`check_log_memory`: the run's log (one float64 row per sample) and the copies the
   result makes must fit in the memory available, or the run is refused before it starts;
-* :func:`limit_violations`: joint positions outside the URDF's range and commanded torques
-  beyond its effort limits (reported, not enforced: the plant applies the command as is);
+* :func:`limit_violations`: joint positions outside the URDF's range, velocities beyond its
+  velocity limits and commanded torques beyond its effort limits (the plant saturates the
+  applied torque there when ``sim.torque_limits`` is on; :func:`saturated_time` says how long);
 * :func:`contact_outcome`: whether the tool was on the surface at the end, and when it left.
 
 Each returns plain JSON-able data stored in the result's ``meta`` and shown in the summary.
@@ -27,7 +28,9 @@ __all__ = [
     "check_log_memory",
     "contact_outcome",
     "describe",
+    "limit_events",
     "limit_violations",
+    "saturated_time",
 ]
 
 #: Peak copies of the log held at the end of a run: the table, the trimmed arrays handed to
@@ -95,25 +98,35 @@ def limit_violations(
     t: np.ndarray,
     q: np.ndarray,
     u: np.ndarray,
+    velocity: np.ndarray | None = None,
+    v: np.ndarray | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
-    """Joints that left their range and joints whose command exceeded the effort limit.
+    """Joints that left their range or velocity limit, and joints whose command exceeded the
+    effort limit.
 
     Args:
         joint_names: (n,) names of the arm's joints, one per column of q and u (nq = nv).
         lower, upper: (n,) joint range [rad or m]; ±inf where there is none.
         effort: (n,) effort limits [N·m or N]; +inf where there is none.
         t: (N,) time [s]. q: (N, n) positions. u: (N, n) commanded torques.
+        velocity: (n,) velocity limits [rad/s or m/s] (+inf: none); v: (N, n) velocities.
 
     Returns:
-        ``{"position": [...], "effort": [...]}``, one dict per offending joint: ``joint``,
-        ``first_t`` [s], ``worst`` (the value furthest beyond), ``worst_t``, ``limit`` (the bound
-        it crossed) and ``samples`` (how many samples were beyond).
+        ``{"position": [...], "velocity": [...], "effort": [...]}``, one dict per offending
+        joint: ``joint``, ``first_t`` [s], ``worst`` (the value furthest beyond), ``worst_t``,
+        ``limit`` (the bound it crossed) and ``samples`` (how many samples were beyond).
     """
-    out: dict[str, list[dict[str, Any]]] = {"position": [], "effort": []}
+    out: dict[str, list[dict[str, Any]]] = {"position": [], "velocity": [], "effort": []}
     if t.size == 0:
         return out
-    finite_rows = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(u), axis=1)
-    t, q, u = t[finite_rows], q[finite_rows], u[finite_rows]
+    if v is None or velocity is None:
+        v, velocity = np.zeros_like(u), np.full(u.shape[1], np.inf)
+    finite_rows = (
+        np.all(np.isfinite(q), axis=1)
+        & np.all(np.isfinite(u), axis=1)
+        & np.all(np.isfinite(v), axis=1)
+    )
+    t, q, u, v = t[finite_rows], q[finite_rows], u[finite_rows], v[finite_rows]
     if t.size == 0:
         return out
     for j, name in enumerate(joint_names):
@@ -125,12 +138,39 @@ def limit_violations(
                     out["position"].append(
                         {"joint": name, **_first_and_worst(t, excess, q[:, j], bound)}
                     )
+        for key, limit, values in (
+            ("velocity", velocity[j], v[:, j]),
+            ("effort", effort[j], u[:, j]),
+        ):
+            if np.isfinite(limit):
+                excess = np.abs(values) - limit * (1.0 + _LIMIT_TOL)
+                if np.any(excess > 0.0):
+                    out[key].append({"joint": name, **_first_and_worst(t, excess, values, limit)})
+    return out
+
+
+def limit_events(limits: dict[str, list[dict[str, Any]]]) -> list[dict[str, Any]]:
+    """One event per joint that crossed a position or velocity limit, at the first crossing:
+    ``{"t": s, "kind": "joint_limit" | "velocity_limit", "joint": name, "limit": bound}``."""
+    return [
+        {"t": item["first_t"], "kind": kind, "joint": item["joint"], "limit": item["limit"]}
+        for key, kind in (("position", "joint_limit"), ("velocity", "velocity_limit"))
+        for item in limits.get(key, [])
+    ]
+
+
+def saturated_time(
+    joint_names: Sequence[str], effort: np.ndarray, u_cmd: np.ndarray, dt: float
+) -> dict[str, float]:
+    """{joint: time [s]} during which the commanded torque u_cmd (N, n) was beyond the effort
+    limit (n,) and the applied torque was held at it: samples × dt; joints never saturated are
+    left out."""
+    out: dict[str, float] = {}
+    for j, name in enumerate(joint_names):
         if np.isfinite(effort[j]):
-            excess = np.abs(u[:, j]) - effort[j] * (1.0 + _LIMIT_TOL)
-            if np.any(excess > 0.0):
-                out["effort"].append(
-                    {"joint": name, **_first_and_worst(t, excess, u[:, j], effort[j])}
-                )
+            count = int(np.count_nonzero(np.abs(u_cmd[:, j]) > effort[j] * (1.0 + _LIMIT_TOL)))
+            if count:
+                out[name] = count * dt
     return out
 
 
@@ -151,8 +191,13 @@ def contact_outcome(
     }
 
 
-def describe(limits: dict[str, list[dict[str, Any]]], outcome: dict[str, Any]) -> list[str]:
-    """One line per problem of :func:`limit_violations` and :func:`contact_outcome`."""
+def describe(
+    limits: dict[str, list[dict[str, Any]]],
+    outcome: dict[str, Any],
+    saturated: dict[str, float] | None = None,
+) -> list[str]:
+    """One line per problem of :func:`limit_violations` and :func:`contact_outcome`;
+    ``saturated`` ({joint: s}, :func:`saturated_time`) when the plant enforced the limits."""
     notes: list[str] = []
     for item in limits["position"]:
         notes.append(
@@ -160,11 +205,22 @@ def describe(limits: dict[str, list[dict[str, Any]]], outcome: dict[str, Any]) -
             f"t = {item['first_t']:.6g} s, reaching {item['worst']:.6g} "
             f"at t = {item['worst_t']:.6g} s"
         )
+    for item in limits.get("velocity", []):
+        notes.append(
+            f"joint {item['joint']} exceeded its velocity limit {item['limit']:.6g} at "
+            f"t = {item['first_t']:.6g} s, reaching {item['worst']:.6g} "
+            f"at t = {item['worst_t']:.6g} s"
+        )
     for item in limits["effort"]:
+        if saturated is None:
+            applied = "the plant applied it unsaturated"
+        else:
+            held = saturated.get(item["joint"], 0.0)
+            applied = f"the applied torque was held at the limit for {held:.6g} s"
         notes.append(
             f"joint {item['joint']} was commanded {item['worst']:.6g} "
             f"at t = {item['worst_t']:.6g} s, beyond its effort limit {item['limit']:.6g} "
-            f"(first at t = {item['first_t']:.6g} s; the plant applied it unsaturated)"
+            f"(first at t = {item['first_t']:.6g} s; {applied})"
         )
     if outcome["lost_contact"]:
         left = outcome["left_at"]
