@@ -8,6 +8,8 @@ on Pinocchio and URDF. The public names are re-exported here; see README.md.
 from __future__ import annotations
 
 import sys as _sys
+from importlib.metadata import PackageNotFoundError as _NotInstalled
+from importlib.metadata import version as _version
 
 from hybrid_force import _compat
 from hybrid_force.control.clik import ClikSettings, DesiredJointPath, inverse_kinematics
@@ -39,6 +41,7 @@ from hybrid_force.errors import (
     FrameError,
     GainError,
     HybridForceError,
+    JointLimitError,
     LostContactError,
     OutputError,
     ReachError,
@@ -90,6 +93,11 @@ from hybrid_force.sim.dynamics import (
 )
 from hybrid_force.sim.loop import Scenario, SimSettings, simulate
 from hybrid_force.sim.sensors import SensorSettings
+
+try:  # one source: the version in pyproject.toml, as installed
+    __version__: str = _version("hybrid_force")
+except _NotInstalled:  # run from a source tree that is not installed
+    __version__ = "0+unknown"
 
 # Module paths of versions before 0.2 (hybrid_force.robot, hybrid_force.simulate, ...) stay
 # importable. hybrid_force.simulate is seeded here: it names the function above, which the
@@ -157,6 +165,7 @@ __all__ = [
     "Helix",
     "HybridController",
     "HybridForceError",
+    "JointLimitError",
     "LawWorkspace",
     "LostContactError",
     "Metrics",
@@ -192,6 +201,7 @@ __all__ = [
     "URDFError",
     "UnknownRobotError",
     "ViewerError",
+    "__version__",
     "arimoto_law",
     "check_on_surface",
     "constrained_acceleration",

@@ -43,3 +43,13 @@ def test_module_paths_of_before_the_layers_still_import_the_same_modules() -> No
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "ok"
+
+
+def test_version_has_one_source_the_project_metadata() -> None:
+    import tomllib
+    from pathlib import Path
+
+    import hybrid_force
+
+    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    assert hybrid_force.__version__ == pyproject["project"]["version"]

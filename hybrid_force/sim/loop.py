@@ -85,14 +85,10 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 def _versions() -> dict:
-    from importlib.metadata import PackageNotFoundError, version
+    from hybrid_force import __version__
 
-    try:
-        own = version("hybrid_force")
-    except PackageNotFoundError:
-        own = "0+unknown"
     return {
-        "hybrid_force": own,
+        "hybrid_force": __version__,
         "pinocchio": pin.__version__,
         "numpy": np.__version__,
         "python": platform.python_version(),
