@@ -25,13 +25,13 @@ from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import ControlError, DimensionError, GainError, ReachError
 from hybrid_force.geometry.paths import Path
+from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
 __all__ = ["ClikSettings", "DesiredJointPath", "ReferenceJointPath", "inverse_kinematics"]
 
-_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _START_TOL = 1e-9  # [m] accepted ‖k(q_d(0)) − p_d(0)‖
 _COND_MAX = 1e8  # condition number of J J^T beyond which J is treated as singular
 _TARGET = "3 finite real numbers [m] (a tip position)"

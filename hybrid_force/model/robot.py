@@ -53,7 +53,9 @@ _K = LazyKernels("hybrid_force.model._kernels")
 
 __all__ = ["Robot", "RobotTerms", "load_robot", "reference_terms"]
 
-_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+#: The frame convention of every Jacobian here: the tip's velocity in world axes.
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_LWA = LWA
 # Joints whose configuration space is R (revolute with one coordinate, bounded or not, and
 # prismatic): for them
 # pinocchio.integrate(q, dq) is exactly q + dq and difference(q0, q1) is q1 − q0.

@@ -81,8 +81,6 @@ from hybrid_force.sim.settings import Scenario, SimSettings, control_steps
 
 __all__ = ["Scenario", "SimSettings", "control_steps", "simulate"]
 
-_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-
 
 def _versions() -> dict:
     from hybrid_force import __version__

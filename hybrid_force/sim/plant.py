@@ -32,6 +32,7 @@ from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 from hybrid_force.sim.dynamics import (
     ConstrainedDynamics,
@@ -45,8 +46,6 @@ from hybrid_force.sim.settings import SimSettings
 _K = LazyKernels("hybrid_force.sim._kernels")
 
 __all__ = ["Plant", "ReferencePlant"]
-
-_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 class Plant:

@@ -15,6 +15,7 @@ from hybrid_force.errors import SensorError
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot
+from hybrid_force.result import DEFAULT_SETTLE_TIME
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
 
@@ -60,7 +61,7 @@ class SimSettings:
     release_tol: float = 1e-9
     max_velocity: float = 1e3
     max_force: float = 1e7
-    settle_time: float = 5.0
+    settle_time: float = DEFAULT_SETTLE_TIME
     normalization: Literal["tip", "joint"] = "tip"
     reference: bool = False
     seed: int = 0
