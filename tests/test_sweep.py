@@ -778,3 +778,32 @@ def test_run_one_on_an_mjcf_model(tmp_path: Path) -> None:
     # the same run as the bundled URDF arm's (same model, same numbers)
     named = run_one(str(scen), {"robot.model": "rtr"}, None)
     assert row["final_position_error"] == pytest.approx(named["final_position_error"], rel=1e-9)
+
+
+def _thread_settings() -> dict[str, str | None]:
+    import os
+
+    from hybrid_force.studies.sweep import THREAD_VARIABLES
+
+    return {name: os.environ.get(name) for name in THREAD_VARIABLES}
+
+
+def test_workers_start_single_threaded_and_the_environment_is_restored(monkeypatch) -> None:
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    from hybrid_force.studies.sweep import THREAD_VARIABLES, single_threaded_workers
+
+    for name in THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")  # the user's own choice is kept
+    before = dict(os.environ)
+    with single_threaded_workers():
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+            seen = pool.submit(_thread_settings).result(timeout=60)
+    expected = {name: "1" for name in THREAD_VARIABLES}
+    expected["MKL_NUM_THREADS"] = "3"
+    assert seen == expected
+    assert dict(os.environ) == before

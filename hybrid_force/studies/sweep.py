@@ -72,6 +72,7 @@ __all__ = [
     "MAX_RUNS",
     "METRIC_COLUMNS",
     "STATUSES",
+    "THREAD_VARIABLES",
     "TIMING_COLUMNS",
     "SweepError",
     "add_sweep_arguments",
@@ -80,6 +81,7 @@ __all__ = [
     "run_id",
     "run_one",
     "run_sweep",
+    "single_threaded_workers",
     "split_values",
     "sweep_command",
 ]
@@ -1042,6 +1044,38 @@ def _first_done(futures: list[Future[_Outcome]]) -> Iterable[Future[_Outcome]]:
     return _futures_wait(futures, return_when=FIRST_COMPLETED).done
 
 
+#: Thread-pool sizes of the numeric libraries, set to 1 in the workers a sweep starts: each
+#: run is one small serial loop, and n workers × the machine's cores threads would only fight
+#: over the cores (oversubscription).
+THREAD_VARIABLES = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "BLIS_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+    "NUMBA_NUM_THREADS",
+)
+
+
+@contextlib.contextmanager
+def single_threaded_workers() -> Iterator[None]:
+    """While open, processes started from this one run their numeric libraries on one thread.
+
+    Sets each of :data:`THREAD_VARIABLES` that is not already set to "1" (a value the user set
+    is kept), and restores the environment on exit. The workers read them when they start
+    (a "spawn" pool, a LocalCluster's worker processes).
+    """
+    added = [name for name in THREAD_VARIABLES if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        yield
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
+
+
 def _run_pool(
     jobs: Iterator[tuple[str, _Task | dict[str, Any]]],
     n_jobs: int,
@@ -1056,23 +1090,25 @@ def _run_pool(
     """
     n = min(int(workers or os.cpu_count() or 1), n_jobs)
     ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(
-        max_workers=n, mp_context=ctx, initializer=_watch_parent, initargs=(os.getpid(),)
-    )
-    try:
-        _pump(
-            jobs,
-            lambda task: pool.submit(_execute, task),
-            _first_done,
-            max(4 * n, 32),
-            finish,
-            lost,
-            stop_on_loss=True,
+    # the pool starts its workers on demand, while jobs are submitted: keep the variables set
+    with single_threaded_workers():
+        pool = ProcessPoolExecutor(
+            max_workers=n, mp_context=ctx, initializer=_watch_parent, initargs=(os.getpid(),)
         )
-    except BaseException:
-        _kill_pool(pool)
-        raise
-    pool.shutdown(wait=True)
+        try:
+            _pump(
+                jobs,
+                lambda task: pool.submit(_execute, task),
+                _first_done,
+                max(4 * n, 32),
+                finish,
+                lost,
+                stop_on_loss=True,
+            )
+        except BaseException:
+            _kill_pool(pool)
+            raise
+        pool.shutdown(wait=True)
 
 
 def _kill_pool(pool: ProcessPoolExecutor) -> None:
@@ -1111,6 +1147,7 @@ def _run_dask(
     cluster: Any = None
     with contextlib.ExitStack() as stack:
         if scheduler == "local":
+            stack.enter_context(single_threaded_workers())
             cluster = stack.enter_context(
                 LocalCluster(
                     n_workers=int(workers or 2),
