@@ -156,3 +156,33 @@ def test_joint_limits_report_an_event_or_stop_the_run(tmp_path: Path, rtr_urdf: 
     kept = info.value.result
     assert kept is not None and kept.meta["reason"] == "joint limit"
     assert kept.n_samples == crossed[0] + 1  # up to and with the first sample beyond
+
+
+def test_release_applies_the_free_command_not_the_contact_solution(
+    tmp_path: Path, rtr_urdf: Path
+) -> None:
+    robot = load_robot(_rtr_with_limits(tmp_path, rtr_urdf, effort=40.0))
+    effort = robot.effort_limits
+    con = Constraint(Cylinder(0.4))
+    plant = Plant(robot, con, SimSettings(), 1e-5)
+    q, v = _on_the_cylinder(robot), np.zeros(3)
+    rng = np.random.default_rng(11)
+    released = 0
+    for _ in range(400):
+        plant.in_contact = True
+        terms, cons = plant.evaluate(q, v)
+        assert cons is not None
+        u0 = rng.uniform(-60.0, 60.0, 3)
+        B = rng.uniform(-2.0, 2.0, (3, 1))
+        ddq, f = plant.accelerate(terms, cons, Command(u0, B), 0.0)
+        if plant.in_contact:
+            continue
+        released += 1
+        # off the surface f = 0, so the torque is the clipped u0 (B f vanishes)
+        tau = np.clip(u0, -effort, effort)
+        applied = u0 if plant.applied is None else plant.applied
+        np.testing.assert_array_equal(applied, tau)
+        expected = np.linalg.solve(terms.M, tau - terms.nle)
+        np.testing.assert_allclose(ddq, expected, rtol=1e-10, atol=1e-10)
+        assert not f.any()
+    assert released >= 10

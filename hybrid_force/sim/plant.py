@@ -154,6 +154,7 @@ class Plant:
         if self.unilateral and float(f[0] if f.shape[0] == 1 else f.min()) < -self.release_tol:
             self.events.append({"t": t, "kind": "release", "force": float(f.min())})
             self.in_contact = False
+            self.applied = None  # the contact's saturated torque no longer applies
             return self._free(terms, cmd), self._zeros_k
         return ddq, f
 
