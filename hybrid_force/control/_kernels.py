@@ -7,11 +7,7 @@ References, the readable numpy versions: :class:`hybrid_force.control.constraint
 ``tests/test_kernels.py`` checks each kernel against its reference. The plant never calls
 these kernels.
 
-The hot loop spends its time in a few hundred operations on arrays of 3 to 30 numbers; from
-numpy each costs about a microsecond of call overhead, far more than the arithmetic, so the
-formulas are written as loops and compiled once (cached on disk). Imported only on first use
-(Numba takes about 0.5 s to import). Conventions: outputs are preallocated arrays passed last
-and written in place.
+Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """
 
 from __future__ import annotations

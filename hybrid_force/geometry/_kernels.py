@@ -5,11 +5,7 @@ form by a small array (``_descriptor``) that these kernels evaluate where the Py
 call ``surface.evaluate`` or ``path.evaluate``; user-defined surfaces and paths stay in Python.
 References: :mod:`hybrid_force.geometry.surfaces` and :mod:`hybrid_force.geometry.paths`.
 
-The hot loop spends its time in a few hundred operations on arrays of 3 to 30 numbers; from
-numpy each costs about a microsecond of call overhead, far more than the arithmetic, so the
-formulas are written as loops and compiled once (cached on disk). Imported only on first use
-(Numba takes about 0.5 s to import). Conventions: outputs are preallocated arrays passed last
-and written in place.
+Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """
 
 from __future__ import annotations

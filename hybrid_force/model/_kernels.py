@@ -1,14 +1,10 @@
 """Compiled algebra of the robot terms (Numba): the rigid-body terms of one step after
 Pinocchio's passes.
 
-Reference: :meth:`hybrid_force.model.robot.Robot` (one public method per term);
+Reference: :class:`hybrid_force.model.robot.Robot` (one public method per term);
 ``tests/test_kernels.py`` compares the two at random states.
 
-The hot loop spends its time in a few hundred operations on arrays of 3 to 30 numbers; from
-numpy each costs about a microsecond of call overhead, far more than the arithmetic, so the
-formulas are written as loops and compiled once (cached on disk). Imported only on first use
-(Numba takes about 0.5 s to import). Conventions: outputs are preallocated arrays passed last
-and written in place.
+Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """
 
 from __future__ import annotations

@@ -5,11 +5,7 @@ surface (k = 1), and the row of the record.
 References: :mod:`hybrid_force.sim.dynamics` (:func:`~hybrid_force.sim.dynamics.kkt_reference`)
 and the reference plant of :mod:`hybrid_force.sim.loop`. The controller never calls these kernels.
 
-The hot loop spends its time in a few hundred operations on arrays of 3 to 30 numbers; from
-numpy each costs about a microsecond of call overhead, far more than the arithmetic, so the
-formulas are written as loops and compiled once (cached on disk). Imported only on first use
-(Numba takes about 0.5 s to import). Conventions: outputs are preallocated arrays passed last
-and written in place.
+Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """
 
 from __future__ import annotations

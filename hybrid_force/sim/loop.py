@@ -73,6 +73,7 @@ from hybrid_force.sim.run_checks import (
     contact_outcome,
     describe,
     limit_events,
+    limit_slack,
     limit_violations,
     saturated_time,
 )
@@ -193,7 +194,7 @@ def simulate(
                 distance,
                 law.V if law is not None else np.nan,
                 # the plant's contact state: a tool off the surface is never logged in contact
-                CONTACT if plant.in_contact else ctrl.phase(cons, plant, q),
+                CONTACT if plant.in_contact else ctrl.phase(distance),
             )  # fmt: skip
             if ctrl.measured:
                 log.f_meas[i] = ctrl.f_meas  # type: ignore[index]
@@ -278,10 +279,12 @@ class _ControlSide:
         law: HybridController | None,
         user: Controller | None,
         own: ControllerModel | None,
+        model_robot: Robot,
         per_tick: int,
         measured: bool,
     ) -> None:
         self.law, self.user, self.own = law, user, own
+        self.model_robot = model_robot  # the controller's model of the arm
         self.per_tick, self.measured = per_tick, measured
         self.period = per_tick * sc.sim.dt
         self.sensors = Sensors(sc.sensor, self.period, sc.sim.seed) if measured else None
@@ -333,12 +336,11 @@ class _ControlSide:
             assert self.law is not None
             self.law.update(dt, f)
 
-    def phase(self, cons: ConstraintTerms | None, plant: Plant, q: np.ndarray) -> int:
+    def phase(self, distance: np.ndarray) -> int:
         """The phase logged off the surface: the supervisor's (free or near), or for a user's
-        controller near within ``control.max_dist`` [m]."""
+        controller near when the tip's distances (k,) [m] are within ``control.max_dist``."""
         if self.law is not None:
             return min(self.law.phase, NEAR)
-        distance = cons.distance if cons is not None else plant.distance(q)
         return NEAR if float(distance.max()) <= self.max_dist else FREE
 
 
@@ -362,13 +364,12 @@ def _control_side(
         )
         law_type = ReferenceController if reference else HybridController
         law = law_type(model_robot, constraint, sc.path, q, sc.control, dt=per_tick * sim.dt)
-    return _ControlSide(sc, law, user, own, per_tick, measured)
+    return _ControlSide(sc, law, user, own, model_robot, per_tick, measured)
 
 
 def _meta(sc: Scenario, ctrl: _ControlSide, k: int, nq: int) -> dict:
     """The run's metadata known before it starts (the loop adds status, events, timing)."""
     sim, law = sc.sim, ctrl.law
-    model_robot = sc.controller_model if sc.controller_model is not None else sc.robot
     return {
         "name": sc.name,
         "run_id": uuid.uuid4().hex,
@@ -381,7 +382,7 @@ def _meta(sc: Scenario, ctrl: _ControlSide, k: int, nq: int) -> dict:
         "path": _path_meta(sc.path),
         "controller": {
             "law": "arimoto" if law is not None else type(ctrl.user).__name__,
-            "model": model_robot.reference,
+            "model": ctrl.model_robot.reference,
         },
         "gains": None
         if law is None
@@ -485,12 +486,11 @@ class _JointLimits:
     """The position and velocity limits a run with ``sim.joint_limits = "stop"`` stops at."""
 
     def __init__(self, robot: Robot) -> None:
-        slack = 1e-9  # relative, as run_checks.limit_violations: round-off is no crossing
+        # the slack of run_checks.limit_violations: round-off on a bound is no crossing
         lower, upper = robot.position_limits
+        self.lower, self.upper = lower - limit_slack(lower), upper + limit_slack(upper)
         velocity = robot.velocity_limits
-        self.lower = lower - slack * np.maximum(1.0, np.abs(lower))
-        self.upper = upper + slack * np.maximum(1.0, np.abs(upper))
-        self.velocity = velocity * (1.0 + slack)
+        self.velocity = velocity + limit_slack(velocity, relative=True)
         self.names = _joint_names(robot)
         self.any = bool(np.isfinite(lower).any() or np.isfinite(upper).any())
         self.any |= bool(np.isfinite(velocity).any())

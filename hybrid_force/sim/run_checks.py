@@ -29,6 +29,7 @@ __all__ = [
     "contact_outcome",
     "describe",
     "limit_events",
+    "limit_slack",
     "limit_violations",
     "saturated_time",
 ]
@@ -90,6 +91,14 @@ def _first_and_worst(
     }
 
 
+def limit_slack(bound: np.ndarray | float, relative: bool = False) -> np.ndarray:
+    """How far beyond a limit a value may lie before it counts as a crossing (round-off on the
+    bound is not one): ``_LIMIT_TOL`` × max(1, |bound|), or × |bound| with ``relative`` (for
+    magnitudes: velocity and effort). Infinite for an infinite bound."""
+    size = np.abs(np.asarray(bound, dtype=float))
+    return _LIMIT_TOL * (size if relative else np.maximum(1.0, size))
+
+
 def limit_violations(
     joint_names: Sequence[str],
     lower: np.ndarray,
@@ -132,8 +141,7 @@ def limit_violations(
     for j, name in enumerate(joint_names):
         for bound, sign in ((upper[j], 1.0), (lower[j], -1.0)):
             if np.isfinite(bound):
-                slack = _LIMIT_TOL * max(1.0, abs(float(bound)))
-                excess = sign * (q[:, j] - bound) - slack
+                excess = sign * (q[:, j] - bound) - limit_slack(bound)
                 if np.any(excess > 0.0):
                     out["position"].append(
                         {"joint": name, **_first_and_worst(t, excess, q[:, j], bound)}
@@ -143,7 +151,7 @@ def limit_violations(
             ("effort", effort[j], u[:, j]),
         ):
             if np.isfinite(limit):
-                excess = np.abs(values) - limit * (1.0 + _LIMIT_TOL)
+                excess = np.abs(values) - (limit + limit_slack(limit, relative=True))
                 if np.any(excess > 0.0):
                     out[key].append({"joint": name, **_first_and_worst(t, excess, values, limit)})
     return out
@@ -168,7 +176,8 @@ def saturated_time(
     out: dict[str, float] = {}
     for j, name in enumerate(joint_names):
         if np.isfinite(effort[j]):
-            count = int(np.count_nonzero(np.abs(u_cmd[:, j]) > effort[j] * (1.0 + _LIMIT_TOL)))
+            beyond = np.abs(u_cmd[:, j]) > effort[j] + limit_slack(effort[j], relative=True)
+            count = int(np.count_nonzero(beyond))
             if count:
                 out[name] = count * dt
     return out
