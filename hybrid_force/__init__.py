@@ -35,6 +35,7 @@ from hybrid_force.control.supervisor import (
 )
 from hybrid_force.errors import (
     BadInputError,
+    ContactSettingsError,
     ControlError,
     DimensionError,
     DivergenceError,
@@ -83,6 +84,7 @@ from hybrid_force.geometry.surfaces import (
 from hybrid_force.model.robot import Robot, RobotTerms, load_robot
 from hybrid_force.result import Metrics, Result, load_result
 from hybrid_force.scenario.loader import load_scenario, parse_override
+from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import (
     Baumgarte,
     ConstrainedDynamics,
@@ -147,6 +149,8 @@ __all__ = [
     "ConstrainedDynamics",
     "Constraint",
     "ConstraintTerms",
+    "ContactSettings",
+    "ContactSettingsError",
     "ControlError",
     "ControlSettings",
     "ControlTrace",

@@ -18,6 +18,7 @@ if TYPE_CHECKING:  # for annotations only: errors.py imports nothing of the pack
 
 __all__ = [
     "BadInputError",
+    "ContactSettingsError",
     "ControlError",
     "DimensionError",
     "DivergenceError",
@@ -214,6 +215,12 @@ class ScenarioValueError(BadInputError):
 class SimSettingsError(BadInputError):
     """A simulation setting (:class:`~hybrid_force.sim.loop.SimSettings`, ``Baumgarte``) is
     invalid; the message names the setting as the scenario file's ``[sim]`` key spells it."""
+
+
+class ContactSettingsError(BadInputError):
+    """A contact setting (the ``[contact]`` table,
+    :class:`~hybrid_force.sim.contact.ContactSettings`) is invalid, or the time step is too
+    long for it."""
 
 
 class ResultFileError(BadInputError):

@@ -761,7 +761,8 @@ class Result:
         n_events, contact_at_end, lost_contact, left_contact_at [s], joint_range_exceeded,
         velocity_exceeded and effort_exceeded (joint names; details in meta["limits"]),
         saturated_time ({joint: seconds} the applied torque was held at an effort limit),
-        then the metrics. Keys whose
+        friction_energy and damping_energy [J] (dissipated by the contact's friction and
+        compliant damping, docs/contact.md), then the metrics. Keys whose
         value the run did not record (older results) are None or empty.
         """
         meta = self.meta
@@ -784,6 +785,8 @@ class Result:
             "velocity_exceeded": [v["joint"] for v in limits.get("velocity", [])],
             "effort_exceeded": [v["joint"] for v in limits.get("effort", [])],
             "saturated_time": dict(meta.get("saturated_time") or {}),
+            "friction_energy": meta.get("friction_energy"),
+            "damping_energy": meta.get("damping_energy"),
         }
         out.update(self.metrics(settle_time).to_dict())
         return out

@@ -90,7 +90,9 @@ class _Key:
 
 
 _TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
-_TABLES = ("robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "sim")
+_TABLES = (
+    "robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "contact", "sim",
+)  # fmt: skip
 
 _ROBOT: dict[str, _Key] = {
     "model": _Key("str", True),
@@ -169,6 +171,15 @@ _SIM: dict[str, _Key] = {
     "seed": _Key("integer"),
     "torque_limits": _Key("bool"),
     "joint_limits": _Key("choice", choices=("report", "stop")),
+}
+
+_CONTACT: dict[str, _Key] = {
+    "model": _Key("choice", choices=("rigid", "compliant")),
+    "stiffness": _Key("number"),
+    "damping": _Key("number"),
+    "exponent": _Key("number"),
+    "friction": _Key("number"),
+    "friction_velocity": _Key("number"),
 }
 
 _SENSOR: dict[str, _Key] = {
@@ -588,6 +599,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     sim = _sim_settings(sim_values, ctx)
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
     sensor = _sensor_settings(doc.get("sensor", {}), ctx)
+    contact = _contact_settings(doc.get("contact", {}), sim, ctx)
     controller_model = _controller_model(control_values, robot, file, ctx)
     _check_control_rate(control, sim, control_values, ctx)
     _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
@@ -598,6 +610,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     _check_sampled_force_loop(
         robot, surfaces, configurations, control, sim, sensor, control_values, ctx
     )
+    _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
     try:
         return Scenario(
             robot=robot,
@@ -612,6 +625,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             source=json.loads(json.dumps(doc)),
             sensor=sensor,
             controller_model=controller_model,
+            contact=contact,
         )
     except BadInputError as exc:  # a rule across tables (e.g. stacked surfaces need no approach)
         raise ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}") from None
@@ -842,6 +856,47 @@ def _sensor_settings(table: object, ctx: _Context) -> Any:
         return SensorSettings(**values)
     except BadInputError as exc:
         raise _wrap(ctx, "sensor", values, exc) from None
+
+
+def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
+    from hybrid_force.sim.contact import ContactSettings
+
+    values = _check_table(ctx, "contact", table, _CONTACT)
+    try:
+        contact = ContactSettings(**values)
+    except BadInputError as exc:
+        raise _wrap(ctx, "contact", values, exc) from None
+    if not contact.ideal:  # the rules across tables, named by the [sim] key they are about
+        from hybrid_force.sim.settings import Scenario
+
+        try:
+            Scenario._check_contact_settings(contact, sim)
+        except BadInputError as exc:
+            raise ctx.error(str(exc.key), exc.value, " ".join(str(exc).split())) from None
+    return contact
+
+
+def _check_contact_step(
+    robot: Any,
+    surfaces: list[Any],
+    configurations: list[np.ndarray],
+    control: Any,
+    sim: Any,
+    contact: Any,
+    ctx: _Context,
+) -> None:
+    """Refuse a sim.dt too long for the contact model anywhere on the desired joint path."""
+    from hybrid_force.sim.contact import largest_stable_dt, step_text
+
+    f0 = float(np.max(control.f_d_for(len(surfaces))))
+    dt_max = largest_stable_dt(contact, robot, surfaces, configurations, f0)
+    if sim.dt > dt_max:
+        raise ctx.error(
+            "sim.dt",
+            sim.dt,
+            f"is too long for the [contact] model: the largest stable step along the path is "
+            f"{step_text(dt_max)} s (docs/contact.md, time step)",
+        )
 
 
 def _check_control_rate(

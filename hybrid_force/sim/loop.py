@@ -144,7 +144,11 @@ def simulate(
     q = robot.check_q(sc.q0, "initial q").copy()
     v = np.zeros(nv) if sc.v0 is None else robot.check_v(sc.v0, "initial v").copy()
     reference = sim.reference
-    plant = (ReferencePlant if reference else Plant)(robot, constraint, sim, sc.control.contact_tol)
+    task_f_d = sc.control.f_d_for(k)
+    _check_contact_step(sc, q, float(np.max(task_f_d)))
+    plant = (ReferencePlant if reference else Plant)(
+        robot, constraint, sim, sc.control.contact_tol, sc.contact
+    )
     ctrl = _control_side(sc, controller, q, reference)
     law = ctrl.law
     if float(plant.distance(q).max()) <= sc.control.contact_tol:
@@ -162,7 +166,6 @@ def simulate(
     stop_at = _JointLimits(robot) if sim.joint_limits == "stop" else None
     if stop_at is not None and not stop_at.any:
         stop_at = None
-    task_f_d = sc.control.f_d_for(k)
     clik = law.clik if law is not None else None
     f = np.zeros(k)  # the plant's force at the last step: what the force sensor reads
     report_every = max(1, N // 100)
@@ -413,8 +416,35 @@ def _meta(sc: Scenario, ctrl: _ControlSide, k: int, nq: int) -> dict:
             "seed": sim.seed,
         },
         "sensor": sc.sensor.to_dict(),
+        "contact": sc.contact.to_dict(),
         "versions": _versions(),
     }
+
+
+def _check_contact_step(sc: Scenario, q0: np.ndarray, f0: float) -> None:
+    """Refuse a time step too long for the contact model (compliant stiffness, friction's
+    regularisation) at the start configuration q0 (nq,); f0 [N]: the task's force."""
+    from hybrid_force.errors import ContactSettingsError
+    from hybrid_force.sim.contact import largest_stable_dt, step_text
+
+    dt_max = largest_stable_dt(sc.contact, sc.robot, sc.surfaces, [q0], f0)
+    if sc.sim.dt > dt_max:
+        raise ContactSettingsError(
+            f"sim.dt = {sc.sim.dt:g} s is too long for the contact "
+            f"({_contact_text(sc.contact.to_dict())}): the largest stable step at the start "
+            f"is {step_text(dt_max)} s (docs/contact.md, time step)",
+            key="sim.dt",
+            value=sc.sim.dt,
+        )
+
+
+def _contact_text(contact: dict) -> str:
+    """The contact settings as the ``[contact]`` keys that matter for the time step."""
+    keys: tuple[str, ...] = ()
+    if contact["model"] == "compliant":
+        keys = ("stiffness", "damping", "exponent")
+    keys += ("friction", "friction_velocity") if contact["friction"] > 0 else ()
+    return ", ".join(f"contact.{k} = {contact[k]:g}" for k in keys)
 
 
 def _user_torque(
@@ -458,6 +488,7 @@ def _finish(
     :func:`~hybrid_force.sim.run_checks.limit_violations`; the effort against the commanded
     torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
     ``saturated_time`` ({joint: s} held at an effort limit, when the plant enforces them),
+    ``friction_energy`` and ``damping_energy`` [J] (dissipated by the contact),
     ``contact_at_end``, ``lost_contact``, ``left_at`` and ``warnings`` (one line each, also
     issued as Python warnings with ``warn``: a failed run reports its failure, not them).
     """
@@ -479,6 +510,8 @@ def _finish(
     meta.update(
         limits=limits, saturated_time=saturated or {}, warnings=notes, events=events, **outcome
     )
+    # [J] dissipated by the plant's friction and compliant damping (docs/contact.md)
+    meta.update(friction_energy=plant.friction_energy, damping_energy=plant.damping_energy)
     return log.result(n, meta, k)
 
 

@@ -34,6 +34,12 @@ from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import SingularConfigurationError
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
+from hybrid_force.sim.contact import (
+    ContactSettings,
+    compliant_force,
+    friction_matrix,
+    friction_power,
+)
 from hybrid_force.sim.dynamics import (
     ConstrainedDynamics,
     constrained_acceleration,
@@ -60,6 +66,18 @@ class Plant:
             ``torque_limits`` (saturate the applied torque at the arm's effort limits).
         touch_tol: [m] a tip that ends a step within this distance of the surface, still
             closing in, touches it.
+        contact: the contact model (:mod:`hybrid_force.sim.contact`); default the paper's rigid,
+            frictionless contact.
+
+    Compliant contact: the force is the Hunt–Crossley force of the tip's penetration
+    (:func:`~hybrid_force.sim.contact.compliant_force`), known before the step, so the
+    command u = u0 + B f is evaluated at it and q̈ = M⁻¹(sat(u) + Aᵀ f + τ_f − C q̇ − g); the
+    tool is in contact while its tip is inside a surface or within ``GEOMETRIC_TOL`` of it
+    (round-off of a projection), with a "touch" event on entry and "release" on exit.
+    Friction: τ_f = F f with F from :func:`~hybrid_force.sim.contact.friction_matrix` at the
+    step's start velocity; with the rigid contact F is added to the loop's B, so the normal
+    force and its friction are solved together. The energies dissipated by friction and by the
+    compliant damping are summed in :attr:`friction_energy` and :attr:`damping_energy` [J].
 
     Torque saturation: the applied torque is τ = sat(u0 + B f), each joint clipped to
     ±effort. With B (the exact loop of the paper's law) the map is piecewise affine in f; it
@@ -70,8 +88,14 @@ class Plant:
     Attributes:
         in_contact: the tip is on the surface (the rows hold).
         ever_in_contact: it has been, at some point of the run.
-        events: touch ("impact") and "release" events, each {"t": s, "kind": ...}.
+        events: touch ("impact", or "touch" for a compliant contact) and "release" events,
+            each {"t": s, "kind": ...}.
+        friction_energy: [J] dissipated by friction so far.
+        damping_energy: [J] dissipated by the compliant contact's damping so far.
     """
+
+    #: [m] a compliant contact holds while the tip is within this of a surface (round-off)
+    GEOMETRIC_TOL = 1e-12
 
     _compiles = True  # the Euler step with projection in compiled calls, where it applies
 
@@ -81,8 +105,14 @@ class Plant:
         constraint: Constraint,
         sim: SimSettings,
         touch_tol: float,
+        contact: ContactSettings | None = None,
     ) -> None:
         self.robot, self.constraint = robot, constraint
+        self.contact = contact = contact if contact is not None else ContactSettings()
+        self.compliant = contact.compliant
+        self.friction_energy = self.damping_energy = 0.0
+        self._power = (0.0, 0.0)  # (friction, damping) [W] at the last accelerate()
+        self._friction: np.ndarray | None = None  # (n, k) friction torque per N, this step
         self.baumgarte, self.integrator = sim.baumgarte, sim.integrator
         self.unilateral, self.release_tol = sim.unilateral, sim.release_tol
         self.touch_tol = touch_tol
@@ -144,9 +174,14 @@ class Plant:
         releases the contact (an event at t [s]) when the surface would have to pull.
         :attr:`applied` is the saturated torque when a limit acted, else None."""
         self.applied = None
+        self._friction = None
+        if self.compliant:
+            return self._compliant(terms, cons, cmd, t)
         if not self.in_contact:
             return self._free(terms, cmd), self._zeros_k
         assert cons is not None  # in contact, evaluate() raised instead
+        if self.contact.friction > 0.0:
+            self._friction, speed = self._friction_matrix(terms)
         ddq, f = self._constrained(terms, cons, cmd)
         if self.effort is not None:
             ddq, f = self._saturated(terms, cons, cmd, ddq, f)
@@ -155,8 +190,57 @@ class Plant:
             self.events.append({"t": t, "kind": "release", "force": float(f.min())})
             self.in_contact = False
             self.applied = None  # the contact's saturated torque no longer applies
+            self._friction = None
             return self._free(terms, cmd), self._zeros_k
+        if self._friction is not None:
+            c = self.contact
+            self._power = (friction_power(c.friction, c.friction_velocity, f, speed), 0.0)
+            self._friction = None
         return ddq, f
+
+    def _friction_matrix(self, terms: RobotTerms) -> tuple[np.ndarray, np.ndarray]:
+        """(n, k) friction torque per newton of normal force and (k,) sliding speeds [m/s]."""
+        normals = np.array([s.normal(terms.p) for s in self.constraint.surfaces])
+        c = self.contact
+        return friction_matrix(c.friction, c.friction_velocity, normals, terms.J, terms.pdot)
+
+    def _loop_B(self, B: np.ndarray | None) -> np.ndarray | None:
+        """The loop's B with this step's friction torque per newton added, if any."""
+        if self._friction is None:
+            return B
+        return self._friction if B is None else B + self._friction
+
+    def _compliant(
+        self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """q̈ and the Hunt–Crossley force (class docstring); touch and release events."""
+        if cons is None:  # rows undefined off the surface (evaluate() raised if in contact)
+            return self._free(terms, cmd), self._zeros_k
+        penetration, rate = -cons.distance, -cons.rate  # "tip" rows: A v = ḋ [m/s]
+        touching = float(penetration.max()) > -self.GEOMETRIC_TOL
+        if touching != self.in_contact:
+            if touching:
+                self.events.append({"t": t, "kind": "touch", "speed": float(rate.max())})
+            else:
+                self.events.append({"t": t, "kind": "release", "force": 0.0})
+            self.in_contact = touching
+            self.ever_in_contact |= touching
+        if not touching:
+            return self._free(terms, cmd), self._zeros_k
+        c = self.contact
+        f = compliant_force(c, penetration, rate)
+        u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
+        if self.effort is not None and bool(np.any(np.abs(u) > self.effort)):
+            u = self.applied = np.clip(u, -self.effort, self.effort)
+        tau = u + cons.A.T @ f
+        friction = 0.0
+        if c.friction > 0.0:
+            F, speed = self._friction_matrix(terms)
+            tau = tau + F @ f
+            friction = friction_power(c.friction, c.friction_velocity, f, speed)
+        spring = c.stiffness * np.maximum(penetration, 0.0) ** c.exponent
+        self._power = (friction, float((f - spring) @ rate))  # damping: (f − kδⁿ) δ̇ ≥ 0
+        return free_acceleration(terms.M, terms.nle, tau), f
 
     def _free(self, terms: RobotTerms, cmd: Command) -> np.ndarray:
         u = cmd.u0
@@ -200,7 +284,7 @@ class Plant:
     ) -> tuple[np.ndarray, np.ndarray]:
         b = self.baumgarte
         gamma = b.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, self._gamma)
-        return self._solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+        return self._solver.solve(terms.nle, cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
 
     def advance(
         self,
@@ -217,7 +301,15 @@ class Plant:
         In contact the tip is put back on the surface; out of contact, a step that crosses
         the surface, or ends within ``touch_tol`` still closing in, touches it (an impact).
         The arrays returned may be the plant's own buffers: the next call may reuse them.
+        A compliant contact is integrated as the free arm (its force is in q̈ already).
         """
+        if self._power != (0.0, 0.0):  # the step's dissipation, at the step's start forces
+            self.friction_energy += self._power[0] * dt
+            self.damping_energy += self._power[1] * dt
+            self._power = (0.0, 0.0)
+        if self.compliant:
+            v = v + ddq * dt
+            return pin.integrate(self.robot.model, q, v * dt), v
         if self.in_contact and self._compiled_step:
             return self._contact_step(q, v, ddq, dt)
         if self.applied is not None:  # RK4's stages hold the torque applied at t
@@ -238,8 +330,12 @@ class Plant:
         return q_new, v
 
     def touch(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Place the tip on the surface and apply a plastic impact if it moves into it."""
+        """Place the tip on the surface and apply a plastic impact if it moves into it (a
+        compliant contact: place it there, v unchanged; its force does the rest)."""
         q, _ = self.project(q, np.zeros_like(v), iterations=3)
+        if self.compliant:
+            self.in_contact = self.ever_in_contact = True
+            return q, v
         A, _ = self._rows(q)
         speed = A @ v
         if float(speed.min()) < 0.0:
@@ -357,7 +453,7 @@ class ReferencePlant(Plant):
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
     ) -> tuple[np.ndarray, np.ndarray]:
         gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-        return kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+        return kkt_reference(terms.M, terms.nle, cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
 
 
 def _crossing(model: pin.Model, q0: np.ndarray, q1: np.ndarray, d0: float, d1: float) -> np.ndarray:

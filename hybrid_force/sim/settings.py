@@ -16,6 +16,7 @@ from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.result import DEFAULT_SETTLE_TIME
+from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
 
@@ -131,6 +132,9 @@ class Scenario:
             stored as new read-only float64 arrays.
         control: controller settings. sim: simulation settings.
         sensor: what the controller measures (default: ideal sensing, the plant's state).
+        contact: how the surface pushes back (the ``[contact]`` table): rigid (default) or
+            compliant, with or without friction
+            (:class:`~hybrid_force.sim.contact.ContactSettings`).
         controller_model: the controller's own model of the arm (``control.model``): another
             :class:`~hybrid_force.model.robot.Robot` with the plant's joints (a heavier link, say);
             None: the plant's own model. ``control.mass_factor`` applies on top of it.
@@ -168,6 +172,7 @@ class Scenario:
     source: dict | None = None
     sensor: SensorSettings = field(default_factory=SensorSettings)
     controller_model: Robot | None = None
+    contact: ContactSettings = field(default_factory=ContactSettings)
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -245,6 +250,7 @@ class Scenario:
                 f"got {checks.shown(self.sensor)}"
             )
         control_steps(control, self.sim)
+        self._check_contact()
         if self.controller_model is not None:
             if not isinstance(self.controller_model, Robot):
                 raise Bad(
@@ -253,6 +259,44 @@ class Scenario:
                 )
             check_same_joints(robot, self.controller_model)
         self._check_start_and_path()
+
+    def _check_contact(self) -> None:
+        """The contact settings against the simulation's: a compliant or frictional contact
+        needs the explicit Euler step (its forces are evaluated once per step) and forces in
+        newtons (``sim.normalization = "tip"``)."""
+        from hybrid_force import _checks as checks
+        from hybrid_force.errors import ScenarioValueError
+
+        contact = self.contact
+        if not isinstance(contact, ContactSettings):
+            raise ScenarioValueError(
+                "Scenario.contact must be a hybrid_force.sim.contact.ContactSettings, "
+                f"got {checks.shown(contact)}"
+            )
+        self._check_contact_settings(contact, self.sim)
+
+    @staticmethod
+    def _check_contact_settings(contact: ContactSettings, sim: SimSettings) -> None:
+        """Raise ContactSettingsError (key: the ``[sim]`` key) where they do not fit."""
+        from hybrid_force.errors import ContactSettingsError
+
+        if contact.ideal:
+            return
+        what = f'contact.model = "{contact.model}", contact.friction = {contact.friction:g}'
+        if sim.integrator != "euler":
+            raise ContactSettingsError(
+                f'{what} needs sim.integrator = "euler" (the contact forces are evaluated once '
+                f'per step), got "{sim.integrator}"',
+                key="sim.integrator",
+                value=sim.integrator,
+            )
+        if sim.normalization != "tip":
+            raise ContactSettingsError(
+                f'{what} needs sim.normalization = "tip" (forces in newtons), '
+                f'got "{sim.normalization}"',
+                key="sim.normalization",
+                value=sim.normalization,
+            )
 
     def _check_start_and_path(self) -> None:
         """The contact conditions of the start (class docstring), as the scenario loader's."""
