@@ -3,7 +3,8 @@
 Each runs as a user would run it (a subprocess from the repository root); the checks are on
 its printed numbers against what they must be independently of the code (the scenario file's
 f_d, a robot's joint count, a mass matrix's symmetry and positive definiteness, an analytic path
-on an analytic surface). examples/user_controller.py is run by tests/test_controller.py.
+on an analytic surface). tests/test_controller.py also imports examples/user_controller.py
+to test its controller class.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "examples"
-RUN_ELSEWHERE = {"user_controller.py"}  # tests/test_controller.py
 
 
 def run(script: str, *args: str) -> str:
@@ -43,8 +43,13 @@ def number(text: str, label: str) -> float:
 
 
 def test_every_example_has_a_test() -> None:
-    tested = {"inspect_robot.py", "run_and_plot.py", "user_surface_and_path.py"}
-    assert {p.name for p in EXAMPLES.glob("*.py")} == tested | RUN_ELSEWHERE
+    tested = {
+        "inspect_robot.py",
+        "run_and_plot.py",
+        "user_surface_and_path.py",
+        "user_controller.py",
+    }
+    assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
 def test_inspect_robot_prints_joints_and_a_positive_definite_mass_matrix() -> None:
@@ -85,3 +90,9 @@ def test_user_surface_and_path_stays_on_the_surface_and_presses_with_f_d() -> No
     # the loop holds the tool on the surface (Baumgarte); the force converges to f_d = 10 N
     assert number(out, "largest distance |d| to the surface:") < 1e-9
     assert number(out, "final force error |f - f_d|:") < 1e-3
+
+
+def test_user_controller_presses_with_the_force_it_asks() -> None:
+    # at rest on a frictionless surface, u − g + (n̂ᵀJ)ᵀ f = 0 with u = g − (n̂ᵀJ)ᵀ f_push
+    out = run("user_controller.py")
+    assert number(out, "true contact force at the end:") == pytest.approx(10.0, abs=1e-6)
