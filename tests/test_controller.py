@@ -162,20 +162,3 @@ def test_the_law_is_named_and_checked() -> None:
     scenario = load_scenario(CONTACT)
     with pytest.raises(ControlError, match=r"control\.law"):
         dataclasses.replace(scenario.control, law="pid")
-
-
-def test_the_example_script_runs() -> None:
-    import subprocess
-    import sys
-
-    proc = subprocess.run(
-        [sys.executable, "examples/user_controller.py"],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
-    assert proc.returncode == 0, proc.stderr
-    force = float(proc.stdout.split("true contact force at the end:")[1].split("N")[0])
-    assert force == pytest.approx(10.0, abs=1e-6)

@@ -544,7 +544,7 @@ def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray
 def check_on_surface(
     path: Path, surface: Any, t0: float, t1: float, samples: int = 2001
 ) -> OnSurfaceReport:
-    """Worst |d| [m] of ``path`` on ``surface`` over t ∈ [t0, t1] [s].
+    """Worst |d| [m] of ``path`` on ``surface`` over times t0 ≤ t ≤ t1 [s].
 
     surface: any object with ``distance(p: (3,) ndarray) -> float``, the signed metric
     distance [m] (e.g. hybrid_force.geometry.surfaces.Cylinder). The span is sampled at

@@ -170,8 +170,10 @@ def kkt_reference(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Independent dense solution of the coupled system (for tests and the reference loop).
 
+    ```text
     [ M   −(Aᵀ + B) ] [q̈]   [u0 − nle]
     [ A        0    ] [f ] = [  −γ    ]
+    ```
     """
     n, k = M.shape[0], A.shape[0]
     K = np.zeros((n + k, n + k))

@@ -21,7 +21,7 @@ meshcat scene:
 Time runs at real speed: the run is resampled at ``fps`` frames per second (linear interpolation
 of q, p and f between samples; the phase of the latest sample) into a
 :class:`meshcat.animation.Animation`; meshcat's own play / pause / reset / time controls drive it.
-Animation time τ = t − t[0] [s].
+Animation time τ [s] = t − t[0].
 
 Outputs:
 
@@ -1331,8 +1331,8 @@ def serve(
         browser_timeout: stop waiting for a browser after this many seconds [s] (None: wait).
 
     Raises:
-        ResultFileError, ViewerError: as :func:`write_html`; ViewerError also when ``port`` is
-        already in use.
+        ResultFileError, ViewerError: as :func:`write_html`; ViewerError also when ``port``
+            is already in use.
     """
     replay = Replay(result_or_path, ReplaySettings(fps=fps))
     _serve_replay(replay, port=port, loop=loop, browser_timeout=browser_timeout)
