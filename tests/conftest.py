@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable
 from pathlib import Path
 
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture
@@ -27,6 +29,15 @@ def rtr_urdf() -> Path:
 def rng() -> np.random.Generator:
     """A random generator with a fixed seed (tests must be reproducible)."""
     return np.random.default_rng(20240611)
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) [px] from the PNG IHDR chunk; asserts the file is a complete PNG."""
+    data = path.read_bytes()
+    assert data[:8] == PNG_MAGIC, f"{path.name} is not a PNG"
+    assert data[12:16] == b"IHDR"
+    assert data[-8:-4] == b"IEND", f"{path.name} is truncated"
+    return struct.unpack(">II", data[16:24])
 
 
 # --- a model written as xacro files (tests of model sources and of sweeps) ------------------
