@@ -311,6 +311,18 @@ def test_bad_results_raise_plot_error(tmp_path: Path) -> None:
     assert issubclass(PlotError, BadInputError)
 
 
+def test_surface_dicts_are_read_by_the_surface_parser(tmp_path: Path) -> None:
+    """A bad surface dict is refused as surface_from_dict refuses it, naming its index; a
+    function surface (not rebuildable) is skipped, not an error."""
+    base = _synthetic()
+    bad = {"type": "cylinder", "radius": -0.4}
+    broken = dataclasses.replace(base, meta=dict(base.meta, surfaces=[{"type": "function"}, bad]))
+    with pytest.raises(PlotError, match=r"meta\['surfaces'\]\[1\] cannot be drawn.*radius"):
+        plot_result(broken, tmp_path)
+    skipped = dataclasses.replace(base, meta=dict(base.meta, surfaces=[{"type": "function"}]))
+    assert len(plot_result(skipped, tmp_path)) == len(FIGURE_NAMES)
+
+
 def test_desired_force_shows_the_measured_force_when_it_is_not_the_true_one() -> None:
     import dataclasses
 

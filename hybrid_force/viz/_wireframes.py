@@ -1,59 +1,38 @@
 """Surface wireframes and the 2-D view of the run figures (pure numpy).
 
+The surface dicts of a result are read by :func:`hybrid_force.geometry.surfaces.surface_from_dict`,
+the one parser of a surface dict (a bad one is a PlotError naming its index).
+
 Wireframes of the built-in surfaces (cylinder, sphere, plane) cover the part of the surface near
 the motion; :func:`_projection` chooses the plane of the paper's Fig. 3b.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import PlotError
+from hybrid_force.errors import PlotError, SurfaceParameterError
+from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface, surface_from_dict
 
 # --------------------------------------------------------------------------------------------
-# Geometry helpers (pure numpy)
+# Geometry helpers
 # --------------------------------------------------------------------------------------------
-_DEFAULT_VECTORS = {"center": (0.0, 0.0, 0.0), "axis": (0.0, 0.0, 1.0)}  # as in surfaces.py
+_DRAWN = ("cylinder", "sphere", "plane")
 
 
-def _vec(d: Mapping[str, Any], key: str, where: str) -> np.ndarray:
-    """The 3-vector d[key] [m]; a cylinder's/sphere's center and axis default as in surfaces.py."""
-    if key not in d:
-        if key in _DEFAULT_VECTORS and d.get("type") in ("cylinder", "sphere"):
-            return np.array(_DEFAULT_VECTORS[key])
-        raise PlotError(f"{where} lacks the key {key!r} (has {sorted(d)})")
+def _drawable(s: Mapping[str, Any], i: int) -> Surface | None:
+    """The built-in surface of dict s (parsed by :func:`surface_from_dict`), or None for a type
+    this module cannot draw (a function surface, an unknown type)."""
+    if s.get("type") not in _DRAWN:
+        return None
     try:
-        v = np.asarray(d[key], dtype=float).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        raise PlotError(f"{where}[{key!r}] = {d[key]!r} is not a 3-vector") from exc
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise PlotError(f"{where}[{key!r}] = {d[key]!r} is not a finite 3-vector")
-    return v
-
-
-def _unit(d: Mapping[str, Any], key: str, where: str) -> np.ndarray:
-    v = _vec(d, key, where)
-    norm = float(np.linalg.norm(v))
-    if norm < 1e-12:
-        raise PlotError(f"{where}[{key!r}] = {d[key]!r} has zero length")
-    return v / norm
-
-
-def _radius(d: Mapping[str, Any], where: str) -> float:
-    if "radius" not in d:
-        raise PlotError(f"{where} lacks the key 'radius' (has {sorted(d)})")
-    try:
-        r = float(d["radius"])
-    except (TypeError, ValueError) as exc:
-        raise PlotError(f"{where}['radius'] = {d['radius']!r} is not a number") from exc
-    if not (math.isfinite(r) and r > 0):
-        raise PlotError(f"{where}['radius'] = {r} must be a positive finite length [m]")
-    return r
+        return surface_from_dict(s)
+    except SurfaceParameterError as exc:
+        raise PlotError(f"result meta['surfaces'][{i}] cannot be drawn: {exc}") from exc
 
 
 def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -149,16 +128,14 @@ def _surface_mesh(
     s: Mapping[str, Any], i: int, pts: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The wireframe of surface dict s (None for a type this module cannot draw)."""
-    where = f"result meta['surfaces'][{i}]"
-    kind = s.get("type")
-    if kind == "cylinder":
-        return _cylinder_mesh(
-            _vec(s, "center", where), _unit(s, "axis", where), _radius(s, where), pts
-        )
-    if kind == "sphere":
-        return _sphere_mesh(_vec(s, "center", where), _radius(s, where), pts)
-    if kind == "plane":
-        return _plane_mesh(_vec(s, "point", where), _unit(s, "normal", where), pts)
+    surface = _drawable(s, i)
+    if isinstance(surface, Cylinder):
+        axis = np.array(surface.axis)
+        return _cylinder_mesh(np.array(surface.center), axis, surface.radius, pts)
+    if isinstance(surface, Sphere):
+        return _sphere_mesh(np.array(surface.center), surface.radius, pts)
+    if isinstance(surface, Plane):
+        return _plane_mesh(np.array(surface.point), np.array(surface.normal_vector), pts)
     return None
 
 
@@ -187,29 +164,27 @@ def _projection(surfaces: Sequence[Mapping[str, Any]]) -> _Projection:
     Circles drawn: cylinders whose axis is parallel to the view normal, and every sphere (its
     outline in any orthographic view).
     """
+    drawn = [(i, _drawable(s, i)) for i, s in enumerate(surfaces)]
     normal, what = np.array([0.0, 0.0, 1.0]), "xy plane"
-    for kind in ("cylinder", "plane"):
-        found = [(i, s) for i, s in enumerate(surfaces) if s.get("type") == kind]
+    for cls in (Cylinder, Plane):
+        found = [s for _, s in drawn if isinstance(s, cls)]
         if found:
-            i, s = found[0]
-            key = "axis" if kind == "cylinder" else "normal"
-            normal = _unit(s, key, f"result meta['surfaces'][{i}]")
-            what = "plane normal to the cylinder axis" if kind == "cylinder" else "the plane"
+            first = found[0]
+            normal = np.array(first.axis if isinstance(first, Cylinder) else first.normal_vector)
+            what = "plane normal to the cylinder axis" if cls is Cylinder else "the plane"
             break
     u, w = _plane_basis(normal)
     if what == "xy plane":
         u, w = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
     circles: list[tuple[float, float, float, str]] = []
-    for i, s in enumerate(surfaces):
-        where = f"result meta['surfaces'][{i}]"
-        if s.get("type") == "cylinder":
-            a = _unit(s, "axis", where)
-            if abs(abs(a @ normal) - 1.0) < 1e-9:
-                c = _vec(s, "center", where)
-                circles.append((float(c @ u), float(c @ w), _radius(s, where), f"cylinder {i}"))
-        elif s.get("type") == "sphere":
-            c = _vec(s, "center", where)
-            circles.append((float(c @ u), float(c @ w), _radius(s, where), f"sphere {i} outline"))
+    for i, s in drawn:
+        if isinstance(s, Cylinder):
+            if abs(abs(np.array(s.axis) @ normal) - 1.0) < 1e-9:
+                c = np.array(s.center)
+                circles.append((float(c @ u), float(c @ w), s.radius, f"cylinder {i}"))
+        elif isinstance(s, Sphere):
+            c = np.array(s.center)
+            circles.append((float(c @ u), float(c @ w), s.radius, f"sphere {i} outline"))
     return _Projection(
         u=u,
         w=w,

@@ -40,11 +40,7 @@ from hybrid_force.viz._run_data import (
     _zoom_end,
 )
 from hybrid_force.viz._style import _new_figure, _note, _out_dir, _save_atomic
-from hybrid_force.viz._wireframes import (
-    _finite_points,
-    _projection,
-    _surface_mesh,
-)
+from hybrid_force.viz._wireframes import _finite_points, _projection, _surface_mesh
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
