@@ -5,9 +5,13 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
+
+if TYPE_CHECKING:
+    from hybrid_force.model.robot import Robot
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -23,6 +27,31 @@ def repo_root() -> Path:
 def rtr_urdf() -> Path:
     """Path of the bundled RTR arm URDF in the source checkout."""
     return REPO_ROOT / "robots" / "rtr.urdf"
+
+
+# --- the arms most tests use: one load per test module (a Robot owns mutable Pinocchio data) ---
+@pytest.fixture(scope="module")
+def rtr() -> Robot:
+    """The paper's RTR arm (robots/rtr.urdf), tip "tip"."""
+    from hybrid_force.model.robot import load_robot
+
+    return load_robot("rtr")
+
+
+@pytest.fixture(scope="module")
+def ur5() -> Robot:
+    """The UR5 of example-robot-data (6 revolute joints)."""
+    from hybrid_force.model.robot import load_robot
+
+    return load_robot("ur5")
+
+
+@pytest.fixture(scope="module")
+def panda() -> Robot:
+    """The Franka Panda of example-robot-data (7 joints; its fingers locked by the registry)."""
+    from hybrid_force.model.robot import load_robot
+
+    return load_robot("panda")
 
 
 @pytest.fixture
