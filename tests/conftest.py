@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import struct
 from collections.abc import Callable
 from pathlib import Path
@@ -67,6 +68,16 @@ def png_size(path: Path) -> tuple[int, int]:
     assert data[12:16] == b"IHDR"
     assert data[-8:-4] == b"IEND", f"{path.name} is truncated"
     return struct.unpack(">II", data[16:24])
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process pid runs (exists and is not a zombie), read from /proc."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
+        return fh.read().split(")")[-1].split()[0] != "Z"
 
 
 # --- a model written as xacro files (tests of model sources and of sweeps) ------------------

@@ -4,11 +4,11 @@ interface only, a port in use is a ViewerError naming it, and closing it ends th
 
 from __future__ import annotations
 
-import os
 import socket
 import time
 
 import pytest
+from conftest import process_alive
 
 from hybrid_force.errors import ViewerError
 from hybrid_force.viz.live_server import LiveServer
@@ -27,15 +27,6 @@ def _listening(port: int) -> list[str]:
     return out
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
-        return fh.read().split(")")[-1].split()[0] != "Z"
-
-
 @pytest.mark.slow
 def test_live_server_loopback_port_in_use_and_cleanup() -> None:
     with socket.socket() as probe:
@@ -46,7 +37,7 @@ def test_live_server_loopback_port_in_use_and_cleanup() -> None:
             LiveServer(busy_port)
     server = LiveServer()
     pid = server.pid
-    assert pid is not None and _alive(pid)
+    assert pid is not None and process_alive(pid)
     try:
         web_port = int(server.url.split(":")[2].split("/")[0])
         zmq_port = int(server.zmq_url.rsplit(":", 1)[1])
@@ -56,6 +47,6 @@ def test_live_server_loopback_port_in_use_and_cleanup() -> None:
     finally:
         server.close()
     deadline = time.monotonic() + 5
-    while _alive(pid) and time.monotonic() < deadline:
+    while process_alive(pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not _alive(pid)
+    assert not process_alive(pid)
