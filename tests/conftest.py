@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
+import os
+import struct
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
+if TYPE_CHECKING:
+    from hybrid_force.model.robot import Robot
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture
@@ -23,10 +30,54 @@ def rtr_urdf() -> Path:
     return REPO_ROOT / "robots" / "rtr.urdf"
 
 
+# --- the arms most tests use: one load per test module (a Robot owns mutable Pinocchio data) ---
+@pytest.fixture(scope="module")
+def rtr() -> Robot:
+    """The paper's RTR arm (robots/rtr.urdf), tip "tip"."""
+    from hybrid_force.model.robot import load_robot
+
+    return load_robot("rtr")
+
+
+@pytest.fixture(scope="module")
+def ur5() -> Robot:
+    """The UR5 of example-robot-data (6 revolute joints)."""
+    from hybrid_force.model.robot import load_robot
+
+    return load_robot("ur5")
+
+
+@pytest.fixture(scope="module")
+def panda() -> Robot:
+    """The Franka Panda of example-robot-data (7 joints; its fingers locked by the registry)."""
+    from hybrid_force.model.robot import load_robot
+
+    return load_robot("panda")
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     """A random generator with a fixed seed (tests must be reproducible)."""
     return np.random.default_rng(20240611)
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) [px] from the PNG IHDR chunk; asserts the file is a complete PNG."""
+    data = path.read_bytes()
+    assert data[:8] == PNG_MAGIC, f"{path.name} is not a PNG"
+    assert data[12:16] == b"IHDR"
+    assert data[-8:-4] == b"IEND", f"{path.name} is truncated"
+    return struct.unpack(">II", data[16:24])
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process pid runs (exists and is not a zombie), read from /proc."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
+        return fh.read().split(")")[-1].split()[0] != "Z"
 
 
 # --- a model written as xacro files (tests of model sources and of sweeps) ------------------

@@ -531,11 +531,6 @@ def test_dict_constructors_reject_bad_values_with_the_key() -> None:
 
 # --- Scenario ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def rtr() -> Robot:
-    return load_robot("rtr")
-
-
-@pytest.fixture(scope="module")
 def contact(rtr: Robot) -> dict[str, Any]:
     """Section 6.3's run, 1 s: on the cylinder of eq. 26, 3 m below the helix of eq. 25."""
     q0 = inverse_kinematics(rtr, np.array([0.4, 0.0, 7.0]), seed=np.array([0.0, 6.0, 2.0]))

@@ -31,6 +31,7 @@ from urllib.parse import urlparse
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import process_alive
 
 from hybrid_force.result import Result
 
@@ -277,15 +278,6 @@ def _children(pid: int) -> list[int]:
         return [int(x) for x in fh.read().split()]
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
-        return fh.read().split(")")[-1].split()[0] != "Z"
-
-
 def test_live_server_in_browser(browser: Any, run_file: Path) -> None:
     code = (
         "import sys; from hybrid_force.viz.replay import serve; "
@@ -317,7 +309,7 @@ def test_live_server_in_browser(browser: Any, run_file: Path) -> None:
         hosts = {urlparse(u).hostname for u in record.seen if not u.startswith("pageerror")}
         assert hosts == {"127.0.0.1"}, record.seen
         assert not [u for u in record.seen if u.startswith("pageerror")]
-        assert all(_alive(pid) for pid in server_pids)
+        assert all(process_alive(pid) for pid in server_pids)
         proc.send_signal(signal.SIGINT)  # Ctrl-C
         proc.wait(timeout=15)
     finally:
@@ -328,9 +320,9 @@ def test_live_server_in_browser(browser: Any, run_file: Path) -> None:
             if stream is not None:
                 stream.close()
     deadline = time.monotonic() + 5
-    while any(_alive(pid) for pid in server_pids) and time.monotonic() < deadline:
+    while any(process_alive(pid) for pid in server_pids) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not [pid for pid in server_pids if _alive(pid)], "meshcat server left running"
+    assert not [pid for pid in server_pids if process_alive(pid)], "meshcat server left running"
 
 
 def _read_url(proc: subprocess.Popen[bytes], timeout: float) -> str:

@@ -17,21 +17,11 @@ import pytest
 from hybrid_force.control.clik import ClikSettings, DesiredJointPath, inverse_kinematics
 from hybrid_force.errors import GainError, ReachError
 from hybrid_force.geometry.paths import Circle, Path, paper_helix
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.robot import Robot
 
 L2, L3 = 0.9, 1.0
 DT = 1e-3
 PANDA_SEED = np.array([0.0, -0.5, 0.0, -2.3, 0.0, 1.8, 0.8])
-
-
-@pytest.fixture(scope="module")
-def rtr() -> Robot:
-    return load_robot("rtr")
-
-
-@pytest.fixture(scope="module")
-def panda() -> Robot:
-    return load_robot("panda")
 
 
 # --- inverse kinematics -----------------------------------------------------------------------

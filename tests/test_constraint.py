@@ -21,20 +21,10 @@ from hypothesis import strategies as st
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.errors import SingularConfigurationError, SurfaceError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.robot import Robot
 
 NORMALIZATIONS = ("tip", "joint")
 H = 1e-6  # central-difference step along q(t) = q + v t [s]
-
-
-@pytest.fixture(scope="module")
-def rtr() -> Robot:
-    return load_robot("rtr")
-
-
-@pytest.fixture(scope="module")
-def ur5() -> Robot:
-    return load_robot("ur5")
 
 
 def _rtr_state(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

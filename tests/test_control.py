@@ -32,21 +32,11 @@ from hybrid_force.control.laws.arimoto import (
 )
 from hybrid_force.errors import GainError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import Baumgarte, constrained_acceleration, kkt_reference
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 NORMALIZATIONS = ("tip", "joint")
-
-
-@pytest.fixture(scope="module")
-def rtr() -> Robot:
-    return load_robot("rtr")
-
-
-@pytest.fixture(scope="module")
-def ur5() -> Robot:
-    return load_robot("ur5")
 
 
 def _rtr_ik(p: np.ndarray, elbow_up: bool = True) -> np.ndarray:

@@ -20,7 +20,7 @@ import pytest
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.errors import SimSettingsError, SimulationError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import (
     Baumgarte,
     constrained_acceleration,
@@ -30,16 +30,6 @@ from hybrid_force.sim.dynamics import (
 )
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m]
-
-
-@pytest.fixture(scope="module")
-def rtr() -> Robot:
-    return load_robot("rtr")
-
-
-@pytest.fixture(scope="module")
-def ur5() -> Robot:
-    return load_robot("ur5")
 
 
 def _rtr_on_cylinder(angle: float, z: float, elbow_up: bool = True) -> np.ndarray:

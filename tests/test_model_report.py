@@ -194,7 +194,7 @@ def test_meshes_found_and_missing(tmp_path: Path) -> None:
     assert missing["http://x.org/h.stl"] == ()
     assert tmp_path / "otherpkg" / "h.stl" in missing["package://otherpkg/h.stl"]
     # the replay draws exactly the meshes reported found (its own resolution, same rule)
-    from hybrid_force.viz.replay import _resolve_mesh
+    from hybrid_force.viz.robot_visuals import _resolve_mesh
 
     robot = load_robot(path)
     dirs = [str(d) for d in robot.package_dirs]

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from hybrid_force import phases, plots, replay, result, supervisor
+from hybrid_force import phases, replay, result, supervisor
 from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES, Phase
+from hybrid_force.viz import _run_data
 
 
 def test_codes_names_and_labels() -> None:
@@ -18,4 +19,4 @@ def test_every_module_uses_the_same_definition() -> None:
     assert (supervisor.FREE, supervisor.NEAR, supervisor.CONTACT) == (FREE, NEAR, CONTACT)
     assert supervisor.PHASE_NAMES is phases.PHASE_NAMES
     assert tuple(Phase) == (result.PHASE_FREE, result.PHASE_NEAR, result.PHASE_CONTACT)
-    assert plots.CONTACT is phases.CONTACT and replay.PHASE_NAMES is phases.PHASE_NAMES
+    assert _run_data.CONTACT is phases.CONTACT and replay.PHASE_NAMES is phases.PHASE_NAMES

@@ -4,7 +4,7 @@ The HTML recording is checked by decoding the meshcat commands embedded in it (b
 and comparing the animation tracks with references computed here: Pinocchio's geometry
 placements at configurations interpolated with numpy, the closed-form RTR forward kinematics of
 robots/rtr.urdf, the result's contact force and phase. Also: no remote resource, size bounds,
-atomic write, bad inputs, and the live server's loopback binding, port-in-use error and cleanup.
+atomic write and bad inputs.
 """
 
 from __future__ import annotations
@@ -13,8 +13,6 @@ import base64
 import math
 import os
 import re
-import socket
-import time
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -29,6 +27,7 @@ from hybrid_force.errors import BadInputError, ResultFileError, ViewerError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.model.robot import load_robot
 from hybrid_force.result import Result
+from hybrid_force.viz import scene
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 
@@ -260,7 +259,7 @@ def test_thin_polyline_keeps_ends_and_bound() -> None:
     t = np.linspace(0.0, 20.0, 20001)
     pts = np.column_stack([np.cos(t), np.sin(t), 0.1 * t])
     pts[:300, 2] = np.linspace(-8.0, 0.0, 300)  # a fast segment at the start
-    idx = replay._thin_polyline(t, pts, 500)
+    idx = scene._thin_polyline(t, pts, 500)
     assert idx[0] == 0 and idx[-1] == t.size - 1
     assert idx.size <= 502 and np.all(np.diff(idx) > 0)
     # the fast segment keeps points: no gap between kept points longer than 0.2 m
@@ -278,7 +277,7 @@ def test_write_html_atomic(result: Result, tmp_path: Path, monkeypatch: pytest.M
     def failing_replace(src: str, dst: str) -> None:
         raise OSError("disk full")
 
-    monkeypatch.setattr(replay.os, "replace", failing_replace)
+    monkeypatch.setattr(os, "replace", failing_replace)
     with pytest.raises(ViewerError, match="disk full"):
         replay.write_html(result, target)
     assert target.read_text(encoding="utf-8") == "old"
@@ -342,51 +341,3 @@ def test_load_options_of_the_wrong_type_in_meta_are_ignored(result: Result) -> N
 def test_bad_settings(name: str, value: float) -> None:
     with pytest.raises(BadInputError, match=name):
         replay.ReplaySettings(**{name: value})
-
-
-# --------------------------------------------------------------------------- live server
-def _listening(port: int) -> list[str]:
-    """Local addresses (hex, as in /proc/net/tcp{,6}) listening on ``port``."""
-    out = []
-    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
-        with open(table, encoding="ascii") as fh:
-            for line in fh.readlines()[1:]:
-                fields = line.split()
-                addr, port_hex = fields[1].split(":")
-                if fields[3] == "0A" and int(port_hex, 16) == port:
-                    out.append(addr)
-    return out
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
-        return fh.read().split(")")[-1].split()[0] != "Z"
-
-
-@pytest.mark.slow
-def test_live_server_loopback_port_in_use_and_cleanup() -> None:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        busy_port = probe.getsockname()[1]
-        probe.listen()
-        with pytest.raises(ViewerError, match=f"port {busy_port} .* already in use"):
-            replay.LiveServer(busy_port)
-    server = replay.LiveServer()
-    pid = server.pid
-    assert pid is not None and _alive(pid)
-    try:
-        web_port = int(server.url.split(":")[2].split("/")[0])
-        zmq_port = int(server.zmq_url.rsplit(":", 1)[1])
-        assert server.url.startswith("http://127.0.0.1:")
-        for port in (web_port, zmq_port):
-            assert _listening(port) == ["0100007F"], (port, _listening(port))
-    finally:
-        server.close()
-    deadline = time.monotonic() + 5
-    while _alive(pid) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert not _alive(pid)

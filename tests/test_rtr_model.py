@@ -58,7 +58,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.robot import Robot
 
 M2, M3 = 20.0, 20.0  # [kg]
 L2, L3 = 0.9, 1.0  # [m]
@@ -159,11 +159,6 @@ def paper_J(q: np.ndarray) -> np.ndarray:
 
 
 # --- helpers ------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def rtr() -> Robot:
-    return load_robot("rtr")
-
-
 def _states(seed: int = 7, n: int = N_STATES) -> list[tuple[np.ndarray, np.ndarray]]:
     """n random (q, v) with q1, q3 ∈ [−π, π] rad, q2 ∈ [0, 15] m, v ∈ [−3, 3]."""
     rng = np.random.default_rng(seed)

@@ -28,11 +28,6 @@ from hybrid_force import (
 from hybrid_force.control.supervisor import CONTACT
 
 
-@pytest.fixture(scope="module")
-def rtr():
-    return load_robot("rtr")
-
-
 def _contact_scenario(robot, duration: float, **sim) -> Scenario:
     """Section 6.3: on the cylinder of eq. 26, 3 m below the helix of eq. 25."""
     q0 = inverse_kinematics(robot, np.array([0.4, 0.0, 7.0]), seed=np.array([0.0, 6.0, 2.0]))

@@ -1,4 +1,4 @@
-"""Desired task-space paths p_d(t) and a check that a path lies on a surface.
+"""Desired task-space paths p_d(t) (and, re-exported, the check that a path lies on a surface).
 
 A path gives the desired tool position p_d(t) (3,) [m] together with its velocity
 ṗ_d(t) (3,) [m/s] and acceleration p̈_d(t) (3,) [m/s²]; the closed-loop inverse
@@ -9,9 +9,9 @@ kinematics of the paper (eq. 27) turns it into a desired joint path q_d(t).
 * :class:`Circle` – a circle in an arbitrary plane (a helix that does not rise).
 * :class:`FunctionPath` – any path given as Python callables of t; missing
   derivatives come from fourth-order central finite differences.
-* :func:`check_on_surface` – the worst |d| of a path against a surface over a time
-  span, so a scenario can verify that its desired path lies on the obstacle (the
-  paper requires p_d to lie on Φ(p) = 0, eq. 26).
+* :func:`check_on_surface` (in :mod:`.on_surface`) – the worst |d| of a path against a
+  surface over a time span, so a scenario can verify that its desired path lies on the
+  obstacle (the paper requires p_d to lie on Φ(p) = 0, eq. 26).
 
 Helix and circle share one parametrisation (section 6.1 generalised)::
 
@@ -39,7 +39,8 @@ import numpy as np
 
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import PathParameterError, SurfaceError, did_you_mean
+from hybrid_force.errors import PathParameterError, did_you_mean
+from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, OnSurfaceReport, check_on_surface
 
 _K = LazyKernels("hybrid_force.geometry._kernels")
 
@@ -63,17 +64,8 @@ _AXIS_MIN_NORM = 1e-12
 _PARALLEL_TOL = 1e-6
 """If world x projected onto the plane ⟂ a is shorter than this, a counts as ∥ x."""
 
-_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 0.618...
-
 _UNITS = {"omega": "rad/s", "rise": "m/s", "phase": "rad"}
 """Units of the scalar parameters of a helix or circle, shown in error messages."""
-
-_MAX_SAMPLES = 10_000_000
-"""Most samples :func:`check_on_surface` accepts (each costs a path and a surface call)."""
-
-ON_SURFACE_TOL = 1e-6
-"""Largest |d| [m] of a desired path from a surface over a run accepted by the scenario loader
-and by ``Scenario`` for a run that starts in contact (:func:`check_on_surface`)."""
 
 
 # --- helpers -------------------------------------------------------------------------------------
@@ -500,127 +492,3 @@ def path_from_dict(d: Mapping[str, Any]) -> Path:
             f"optional: {list(_OPTIONAL[kind])}"
         )
     return _PATH_TYPES[kind](**params)
-
-
-# --- is a path on a surface? ---------------------------------------------------------------------
-@dataclass(frozen=True)
-class OnSurfaceReport:
-    """Result of :func:`check_on_surface`.
-
-    worst_distance: [m] max over the span of |d(p_d(t))|, d the surface's signed distance.
-    time_of_worst: [s] the t where it occurs.
-    point_of_worst: (3,) [m] p_d(time_of_worst).
-    """
-
-    worst_distance: float
-    time_of_worst: float
-    point_of_worst: np.ndarray = field(compare=False)
-
-
-def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray]:
-    raw = path.position(t)
-    try:
-        p = np.asarray(raw, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        p = np.full(1, np.nan)
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise PathParameterError(
-            f"path {path!r} gives a non-finite or wrongly shaped position "
-            f"{checks.shown(raw)} at t={t!r}"
-        )
-    value = surface.distance(p)
-    try:
-        d = float(value)
-    except (TypeError, ValueError, OverflowError):
-        d = math.nan
-    if not math.isfinite(d):
-        raise SurfaceError(
-            f"surface {surface!r} returned a non-finite distance {checks.shown(value)} "
-            f"at p={p.tolist()} (path time t={t!r})"
-        )
-    return abs(d), p
-
-
-def check_on_surface(
-    path: Path, surface: Any, t0: float, t1: float, samples: int = 2001
-) -> OnSurfaceReport:
-    """Worst |d| [m] of ``path`` on ``surface`` over times t0 ≤ t ≤ t1 [s].
-
-    surface: any object with ``distance(p: (3,) ndarray) -> float``, the signed metric
-    distance [m] (e.g. hybrid_force.geometry.surfaces.Cylinder). The span is sampled at
-    ``samples`` (≥ 2) uniform times; the bracket around the worst sample is then refined
-    by a golden-section search for the maximum of |d|, so the reported value is accurate
-    to rounding even between samples as long as |d| has a single peak within one sample
-    spacing of the worst sample. The time of the worst is less precise (about 1e-8·scale
-    s, since |d| is flat at its peak: the golden search resolves t to ~√ε).
-
-    Raises PathParameterError if t0, t1 are not finite, t1 <= t0, or samples < 2;
-    SurfaceError if the surface returns a non-finite distance.
-    """
-    a = _finite_float("check_on_surface", "t0", t0, unit="s")
-    b = _finite_float("check_on_surface", "t1", t1, unit="s")
-    if not b > a:
-        raise PathParameterError(f"check_on_surface.t1 must be > t0, got t0={t0!r}, t1={t1!r}")
-    n = checks.integer(samples, "check_on_surface.samples", PathParameterError, minimum=2)
-    if n > _MAX_SAMPLES:
-        raise PathParameterError(
-            f"check_on_surface.samples must be <= {_MAX_SAMPLES:.0e}, got {samples!r}"
-        )
-    if not callable(getattr(path, "position", None)):
-        raise PathParameterError(
-            f"check_on_surface.path must be a Path (with position(t) -> (3,)), "
-            f"got {checks.shown(path)}"
-        )
-    if not callable(getattr(surface, "distance", None)):
-        raise PathParameterError(
-            f"check_on_surface.surface must have a method distance(p) -> float, got {surface!r}"
-        )
-    times = np.linspace(a, b, n)
-    best_t = a
-    best_d = -1.0
-    best_p = np.zeros(3)
-    best_k = 0
-    for k, t in enumerate(times):
-        d, p = _abs_distance(path, surface, float(t))
-        if d > best_d:
-            best_t, best_d, best_p, best_k = float(t), d, p, k
-    lo = float(times[max(best_k - 1, 0)])
-    hi = float(times[min(best_k + 1, len(times) - 1)])
-    best_t, best_d, best_p = _golden_max(path, surface, lo, hi, best_t, best_d, best_p)
-    return OnSurfaceReport(worst_distance=best_d, time_of_worst=best_t, point_of_worst=best_p)
-
-
-def _golden_max(
-    path: Path,
-    surface: Any,
-    lo: float,
-    hi: float,
-    best_t: float,
-    best_d: float,
-    best_p: np.ndarray,
-) -> tuple[float, float, np.ndarray]:
-    """Golden-section search for max |d| on [lo, hi]; keeps the best point ever evaluated."""
-    x1 = hi - _GOLDEN * (hi - lo)
-    x2 = lo + _GOLDEN * (hi - lo)
-    f1, p1 = _abs_distance(path, surface, x1)
-    f2, p2 = _abs_distance(path, surface, x2)
-    for x, f, p in ((x1, f1, p1), (x2, f2, p2)):
-        if f > best_d:
-            best_t, best_d, best_p = x, f, p
-    tol = 1e-12 * max(1.0, abs(lo), abs(hi))
-    for _ in range(200):
-        if hi - lo <= tol:
-            break
-        if f1 >= f2:
-            hi, x2, f2 = x2, x1, f1
-            x1 = hi - _GOLDEN * (hi - lo)
-            f1, p1 = _abs_distance(path, surface, x1)
-            if f1 > best_d:
-                best_t, best_d, best_p = x1, f1, p1
-        else:
-            lo, x1, f1 = x1, x2, f2
-            x2 = lo + _GOLDEN * (hi - lo)
-            f2, p2 = _abs_distance(path, surface, x2)
-            if f2 > best_d:
-                best_t, best_d, best_p = x2, f2, p2
-    return best_t, best_d, best_p

@@ -1,4 +1,4 @@
-"""Tests of hybrid_force.viz.plots: the paper's figures of a run, and sweep plots.
+"""Tests of hybrid_force.viz.run_figures: the paper's figures of one run.
 
 The runs are synthetic (known shapes, hand-written phases and events), so every expectation
 here comes from how the test built its data, not from the plotting code.
@@ -6,21 +6,19 @@ here comes from how the test built its data, not from the plotting code.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import struct
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from conftest import png_size
 
-from hybrid_force import plots
 from hybrid_force.errors import BadInputError
 from hybrid_force.result import Result
-from hybrid_force.viz.plots import FIGURE_NAMES, PlotError, plot_result, plot_sweep
+from hybrid_force.viz import _run_data, _wireframes, run_figures
+from hybrid_force.viz.plots import FIGURE_NAMES, PlotError, plot_result
 
-PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 EXPECTED = (
     "path3d.png",
     "projection.png",
@@ -93,15 +91,6 @@ def _synthetic(k: int = 1, *, events: bool = True, seed: int = 7) -> Result:
     )
 
 
-def _png_size(path: Path) -> tuple[int, int]:
-    """(width, height) [px] from the PNG IHDR chunk; asserts the file is a complete PNG."""
-    data = path.read_bytes()
-    assert data[:8] == PNG_MAGIC, f"{path.name} is not a PNG"
-    assert data[12:16] == b"IHDR"
-    assert data[-8:-4] == b"IEND", f"{path.name} is truncated"
-    return struct.unpack(">II", data[16:24])
-
-
 @pytest.fixture(scope="module")
 def written(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Path]]:
     out = tmp_path_factory.mktemp("plots") / "nested" / "run"
@@ -116,7 +105,7 @@ def test_plot_result_writes_exactly_the_six_pngs(written: tuple[Path, list[Path]
     # nothing else (no temporary files left behind)
     assert sorted(p.name for p in out.iterdir()) == sorted(EXPECTED)
     for path in paths:
-        width, height = _png_size(path)
+        width, height = png_size(path)
         assert width >= 400 and height >= 400, (path.name, width, height)
         assert path.stat().st_size > 15_000, path.name
 
@@ -127,13 +116,13 @@ def test_plot_result_k2_and_prefix_and_fallback_events(tmp_path: Path) -> None:
     paths = plot_result(run, tmp_path, prefix="k2_")
     assert [p.name for p in paths] == [f"k2_{n}" for n in EXPECTED]
     for path in paths:
-        _png_size(path)
+        png_size(path)
 
 
 def test_a_saved_result_loads_for_plotting(tmp_path: Path) -> None:
     result = _synthetic()
     saved = result.save(tmp_path / "result.npz")
-    run = plots._load_run(saved)  # what plot_result does with a path
+    run = _run_data._load_run(saved)  # what plot_result does with a path
     assert run.name == "synthetic_approach"
     np.testing.assert_array_equal(run.p, result.p)
     np.testing.assert_array_equal(run.f[:, 0], result.f)
@@ -141,8 +130,8 @@ def test_a_saved_result_loads_for_plotting(tmp_path: Path) -> None:
 
 
 def test_figures_carry_scenario_name_and_units() -> None:
-    run = plots._load_run(_synthetic())
-    for name, build in plots._BUILDERS.items():
+    run = _run_data._load_run(_synthetic())
+    for name, build in run_figures._BUILDERS.items():
         fig = build(run)
         titles = [ax.get_title() for ax in fig.axes]
         suptitle = fig.get_suptitle()
@@ -157,7 +146,7 @@ def test_figures_carry_scenario_name_and_units() -> None:
 
 def test_path3d_lines_are_the_paths() -> None:
     result = _synthetic()
-    fig = plots._fig_path3d(plots._load_run(result))
+    fig = run_figures._fig_path3d(_run_data._load_run(result))
     ax = fig.axes[0]
     lines = {ln.get_label(): ln for ln in ax.get_lines()}
     xs, _ys, zs = lines["actual $p$"].get_data_3d()
@@ -168,7 +157,7 @@ def test_path3d_lines_are_the_paths() -> None:
 
 def test_position_error_panels_hold_p_minus_pd() -> None:
     result = _synthetic()
-    fig = plots._fig_position_errors(plots._load_run(result))
+    fig = run_figures._fig_position_errors(_run_data._load_run(result))
     e_hand = np.exp(-result.t)[:, None] * np.array([-0.3, -0.3, 0.5])
     for i in range(3):
         y = fig.axes[i].get_lines()[0].get_ydata()
@@ -178,7 +167,7 @@ def test_position_error_panels_hold_p_minus_pd() -> None:
 
 def test_force_error_masks_samples_out_of_contact() -> None:
     result = _synthetic()
-    fig = plots._fig_force_error(plots._load_run(result))
+    fig = run_figures._fig_force_error(_run_data._load_run(result))
     whole = fig.axes[0]
     in_contact = whole.get_lines()[0].get_ydata()
     free = whole.get_lines()[1].get_ydata()
@@ -195,7 +184,7 @@ def test_force_error_masks_samples_out_of_contact() -> None:
 
 
 def test_desired_force_marks_the_switches() -> None:
-    fig = plots._fig_desired_force(plots._load_run(_synthetic()))
+    fig = run_figures._fig_desired_force(_run_data._load_run(_synthetic()))
     ax = fig.axes[0]
     vlines = sorted(
         float(ln.get_xdata()[0])
@@ -210,7 +199,7 @@ def test_desired_force_marks_the_switches() -> None:
 
 
 def test_lyapunov_is_log_scale() -> None:
-    fig = plots._fig_lyapunov(plots._load_run(_synthetic()))
+    fig = run_figures._fig_lyapunov(_run_data._load_run(_synthetic()))
     assert fig.axes[0].get_yscale() == "log"
 
 
@@ -218,7 +207,7 @@ def test_lyapunov_is_log_scale() -> None:
 def test_phase_switches_fallback() -> None:
     t = np.arange(10.0)
     phase = np.array([0, 0, 1, 1, 2, 2, 1, 0, 2, 2])
-    got = plots._phase_switches(t, phase)
+    got = _run_data._phase_switches(t, phase)
     assert got == [
         (2.0, "near"),
         (4.0, "contact"),
@@ -232,9 +221,9 @@ def test_intervals_of_a_mask() -> None:
     t = np.arange(8.0) * 0.5
     mask = np.array([1, 1, 0, 0, 1, 0, 1, 1], dtype=bool)
     # runs 0..1 -> [0, 1.0), 4..4 -> [2.0, 2.5), 6..7 reaches the end -> [3.0, 3.5]
-    assert plots._intervals(t, mask) == [(0.0, 1.0), (2.0, 0.5), (3.0, 0.5)]
-    assert plots._intervals(t, np.zeros(8, dtype=bool)) == []
-    assert plots._intervals(t, np.ones(8, dtype=bool)) == [(0.0, 3.5)]
+    assert _run_data._intervals(t, mask) == [(0.0, 1.0), (2.0, 0.5), (3.0, 0.5)]
+    assert _run_data._intervals(t, np.zeros(8, dtype=bool)) == []
+    assert _run_data._intervals(t, np.ones(8, dtype=bool)) == [(0.0, 3.5)]
 
 
 def test_diverged_run_marks_first_non_finite_sample() -> None:
@@ -245,10 +234,10 @@ def test_diverged_run_marks_first_non_finite_sample() -> None:
     p[i_bad:] = np.nan
     f[i_bad + 5 :] = np.inf
     bad = dataclasses.replace(result, p=p, f=f, meta=dict(result.meta, status="failed"))
-    run = plots._load_run(bad)
+    run = _run_data._load_run(bad)
     for build, t_expected in (
-        (plots._fig_position_errors, result.t[i_bad]),
-        (plots._fig_force_error, result.t[i_bad + 5]),
+        (run_figures._fig_position_errors, result.t[i_bad]),
+        (run_figures._fig_force_error, result.t[i_bad + 5]),
     ):
         fig = build(run)
         fig.canvas.draw()  # rendering must not warn (pytest turns warnings into errors)
@@ -260,30 +249,22 @@ def test_diverged_run_marks_first_non_finite_sample() -> None:
         assert red == [pytest.approx(t_expected)]
 
 
-def test_log_scale_rule() -> None:
-    assert plots._use_log(np.array([1e-3, 1.0, np.nan]))  # 3 decades
-    assert not plots._use_log(np.array([1.0, 100.0]))  # exactly 2: not more than 2
-    assert plots._use_log(np.array([1.0, 100.0]), at_least=True)
-    assert not plots._use_log(np.array([-1.0, 1e3]))  # not all positive
-    assert not plots._use_log(np.array([5.0]))
-
-
 def test_zoom_windows() -> None:
-    assert plots._zoom_end(np.linspace(1.0, 21.0, 5)) == pytest.approx(11.0)
-    assert plots._zoom_end(np.linspace(0.0, 6.0, 5)) == pytest.approx(3.0)
-    assert plots._window_end(np.linspace(0.0, 6.0, 5)) == pytest.approx(6.0)
-    assert plots._window_end(np.linspace(0.0, 60.0, 5)) == pytest.approx(10.0)
+    assert _run_data._zoom_end(np.linspace(1.0, 21.0, 5)) == pytest.approx(11.0)
+    assert _run_data._zoom_end(np.linspace(0.0, 6.0, 5)) == pytest.approx(3.0)
+    assert _run_data._window_end(np.linspace(0.0, 6.0, 5)) == pytest.approx(6.0)
+    assert _run_data._window_end(np.linspace(0.0, 60.0, 5)) == pytest.approx(10.0)
 
 
 def test_plane_basis_is_right_handed_orthonormal() -> None:
     rng = np.random.default_rng(3)
     for n in [np.array([0.0, 0.0, 1.0]), *rng.normal(size=(20, 3))]:
         n = n / np.linalg.norm(n)
-        u, w = plots._plane_basis(n)
+        u, w = _wireframes._plane_basis(n)
         frame = np.column_stack([u, w, n])
         np.testing.assert_allclose(frame.T @ frame, np.eye(3), atol=1e-12)
         assert np.linalg.det(frame) == pytest.approx(1.0)
-    u, w = plots._plane_basis(np.array([0.0, 0.0, 1.0]))
+    u, w = _wireframes._plane_basis(np.array([0.0, 0.0, 1.0]))
     np.testing.assert_allclose([u, w], [[1, 0, 0], [0, 1, 0]], atol=1e-15)
 
 
@@ -291,31 +272,31 @@ def test_surface_meshes_lie_on_their_surfaces() -> None:
     rng = np.random.default_rng(11)
     pts = rng.normal(size=(50, 3))
     c, a = np.array([0.1, -0.2, 0.3]), np.array([1.0, 2.0, 2.0]) / 3.0
-    x, y, z = plots._cylinder_mesh(c, a, 0.7, pts)
+    x, y, z = _wireframes._cylinder_mesh(c, a, 0.7, pts)
     g = np.stack([x, y, z], axis=-1) - c
     radial = g - (g @ a)[..., None] * a
     np.testing.assert_allclose(np.linalg.norm(radial, axis=-1), 0.7, rtol=1e-12)
     s = g @ a
     s_pts = (pts - c) @ a
     assert s.min() <= s_pts.min() and s.max() >= s_pts.max()  # covers the motion's axial range
-    x, y, z = plots._sphere_mesh(c, 0.7, c + 0.7 * np.array([[1.0, 0, 0], [0.9, 0.3, 0]]))
+    x, y, z = _wireframes._sphere_mesh(c, 0.7, c + 0.7 * np.array([[1.0, 0, 0], [0.9, 0.3, 0]]))
     np.testing.assert_allclose(np.linalg.norm(np.stack([x, y, z], -1) - c, axis=-1), 0.7)
     normal = np.array([0.0, 0.6, 0.8])
-    x, y, z = plots._plane_mesh(c, normal, pts)
+    x, y, z = _wireframes._plane_mesh(c, normal, pts)
     np.testing.assert_allclose((np.stack([x, y, z], -1) - c) @ normal, 0.0, atol=1e-12)
 
 
 def test_projection_choice() -> None:
     cyl = {"type": "cylinder", "radius": 0.4, "center": [1, 2, 3], "axis": [0, 0, 1]}
-    proj = plots._projection([cyl])
+    proj = _wireframes._projection([cyl])
     assert proj.xlabel == "x [m]" and proj.ylabel == "y [m]"
     assert proj.circles == ((1.0, 2.0, 0.4, "cylinder 0"),)
     plane = {"type": "plane", "point": [0, 0, 0], "normal": [1, 0, 0]}
-    proj = plots._projection([plane])
+    proj = _wireframes._projection([plane])
     assert abs(proj.u @ [1, 0, 0]) < 1e-12 and abs(proj.w @ [1, 0, 0]) < 1e-12
     assert proj.circles == ()
     sphere = {"type": "sphere", "radius": 0.5, "center": [0.1, 0.2, 0.3]}
-    proj = plots._projection([sphere])
+    proj = _wireframes._projection([sphere])
     assert proj.xlabel == "x [m]" and proj.circles == ((0.1, 0.2, 0.5, "sphere 0 outline"),)
 
 
@@ -330,119 +311,27 @@ def test_bad_results_raise_plot_error(tmp_path: Path) -> None:
     assert issubclass(PlotError, BadInputError)
 
 
-# ------------------------------------------------------------------------------- plot_sweep
-def _write_csv(path: Path, rows: list[dict[str, Any]]) -> Path:
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    return path
-
-
-@pytest.fixture
-def sweep_csv(tmp_path: Path) -> Path:
-    rows = []
-    for kd in (1.0, 10.0, 100.0):
-        for lam in (0.5, 1.0, 2.0, 4.0):
-            failed = kd == 100.0 and lam == 4.0
-            rows.append(
-                {
-                    "control.Kd": kd,
-                    "control.Lambda": lam,
-                    "status": "failed" if failed else "ok",
-                    "final_position_error": "" if failed else 1e-2 / (kd * kd * lam),
-                }
-            )
-    return _write_csv(tmp_path / "sweep.csv", rows)
-
-
-def test_plot_sweep_line_and_heatmap(sweep_csv: Path, tmp_path: Path) -> None:
-    line = plot_sweep(
-        sweep_csv, tmp_path / "out" / "line.png", x="control.Kd", metric="final_position_error"
-    )
-    heat = plot_sweep(
-        sweep_csv,
-        tmp_path / "heat.png",
-        x="control.Kd",
-        y="control.Lambda",
-        metric="final_position_error",
-    )
-    for path in (line, heat):
-        _png_size(path)
-        assert path.stat().st_size > 10_000
-    assert sorted(p.name for p in tmp_path.iterdir() if p.is_file()) == ["heat.png", "sweep.csv"]
-
-
-def test_sweep_grid_places_values_and_failures(sweep_csv: Path) -> None:
-    sweep = plots._read_sweep(sweep_csv)
-    values, failed = plots._sweep_grid(
-        sweep, "control.Kd", "control.Lambda", "final_position_error"
-    )
-    assert values.shape == (4, 3)  # rows: Lambda levels, columns: Kd levels
-    for r, lam in enumerate((0.5, 1.0, 2.0, 4.0)):
-        for c, kd in enumerate((1.0, 10.0, 100.0)):
-            if kd == 100.0 and lam == 4.0:
-                assert failed[r, c] and np.isnan(values[r, c])
-            else:
-                assert not failed[r, c]
-                assert values[r, c] == pytest.approx(1e-2 / (kd * kd * lam))
-    fig = plots._sweep_heatmap(sweep, "control.Kd", "control.Lambda", "final_position_error")
-    from matplotlib.colors import LogNorm
-
-    assert isinstance(fig.axes[0].images[0].norm, LogNorm)  # spans 5+ decades
-    fig = plots._sweep_line(sweep, "control.Kd", "final_position_error")
-    assert fig.axes[0].get_yscale() == "log" and fig.axes[0].get_xscale() == "log"
-
-
-def test_sweep_linear_scale_when_narrow(tmp_path: Path) -> None:
-    rows = [{"sim.dt": dt, "rms": 1.0 + dt} for dt in (0.001, 0.002, 0.004)]
-    sweep = plots._read_sweep(_write_csv(tmp_path / "s.csv", rows))
-    fig = plots._sweep_line(sweep, "sim.dt", "rms")
-    assert fig.axes[0].get_yscale() == "linear"
-    np.testing.assert_allclose(fig.axes[0].get_lines()[0].get_ydata(), [1.001, 1.002, 1.004])
-
-
-def test_sweep_where_every_run_failed_still_draws(tmp_path: Path) -> None:
-    rows = [
-        {"control.Kd": kd, "sim.integrator": integ, "status": "failed", "rms": ""}
-        for kd in (1, 2)
-        for integ in ("euler", "rk4")
-    ]
-    sweep = plots._read_sweep(_write_csv(tmp_path / "s.csv", rows))
-    values, failed = plots._sweep_grid(sweep, "sim.integrator", "control.Kd", "rms")
-    assert failed.all() and np.isnan(values).all() and values.shape == (2, 2)
-    fig = plots._sweep_heatmap(sweep, "sim.integrator", "control.Kd", "rms")
-    fig.canvas.draw()
-    assert [t.get_text() for t in fig.axes[0].get_xticklabels()] == ["euler", "rk4"]
-    assert len(fig.axes[0].patches) == 4  # four hatched cells
-
-
-def test_plot_sweep_wrong_column_lists_columns(sweep_csv: Path, tmp_path: Path) -> None:
-    with pytest.raises(PlotError) as info:
-        plot_sweep(sweep_csv, tmp_path / "x.png", x="control.kd", metric="final_position_error")
-    msg = str(info.value)
-    assert "sweep.csv" in msg and "'control.kd'" in msg
-    for col in ("control.Kd", "control.Lambda", "status", "final_position_error"):
-        assert col in msg
-    assert "did you mean 'control.Kd'" in msg
-    with pytest.raises(PlotError, match="available columns"):
-        plot_sweep(sweep_csv, tmp_path / "x.png", x="control.Kd", y="nope", metric="status")
-    with pytest.raises(PlotError, match=r"not numeric \(data row 1 has 'ok'\)"):
-        plot_sweep(sweep_csv, tmp_path / "x.png", x="control.Kd", metric="status")
-    with pytest.raises(PlotError, match="does not exist"):
-        plot_sweep(tmp_path / "missing.csv", tmp_path / "x.png", x="a", metric="b")
-    assert not (tmp_path / "x.png").exists()
+def test_surface_dicts_are_read_by_the_surface_parser(tmp_path: Path) -> None:
+    """A bad surface dict is refused as surface_from_dict refuses it, naming its index; a
+    function surface (not rebuildable) is skipped, not an error."""
+    base = _synthetic()
+    bad = {"type": "cylinder", "radius": -0.4}
+    broken = dataclasses.replace(base, meta=dict(base.meta, surfaces=[{"type": "function"}, bad]))
+    with pytest.raises(PlotError, match=r"meta\['surfaces'\]\[1\] cannot be drawn.*radius"):
+        plot_result(broken, tmp_path)
+    skipped = dataclasses.replace(base, meta=dict(base.meta, surfaces=[{"type": "function"}]))
+    assert len(plot_result(skipped, tmp_path)) == len(FIGURE_NAMES)
 
 
 def test_desired_force_shows_the_measured_force_when_it_is_not_the_true_one() -> None:
     import dataclasses
 
     base = _synthetic()
-    ideal = plots._fig_desired_force(plots._load_run(base)).axes[0]
+    ideal = run_figures._fig_desired_force(_run_data._load_run(base)).axes[0]
     assert not any("measured" in ln.get_label() for ln in ideal.get_lines())
     f_meas = base.f + 0.25  # a biased sensor
     sampled = dataclasses.replace(base, f_meas=f_meas)
-    ax = plots._fig_desired_force(plots._load_run(sampled)).axes[0]
+    ax = run_figures._fig_desired_force(_run_data._load_run(sampled)).axes[0]
     measured = [ln for ln in ax.get_lines() if "measured" in ln.get_label()]
     true = [ln for ln in ax.get_lines() if "true" in ln.get_label()]
     assert len(measured) == 1 and len(true) == 1

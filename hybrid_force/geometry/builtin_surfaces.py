@@ -1,0 +1,314 @@
+"""The built-in surfaces in closed form: :class:`Cylinder` (the paper's eq. 26), :class:`Sphere`
+and :class:`Plane`.
+
+Their Φ, derivatives, distance, normal and foot point are exact up to rounding, and each carries
+the small descriptor the compiled kernels evaluate.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.geometry.surface_base import (
+    _SINGULAR_RTOL,
+    Surface,
+    Vec3,
+    _boolean,
+    _direction,
+    _positive_float,
+    _read_only,
+    _vector3,
+    _xyz,
+)
+
+__all__ = ["Cylinder", "Plane", "Sphere"]
+
+
+# --- cylinder --------------------------------------------------------------------------------
+class _RoundSurface(Surface):
+    """A surface at distance r from a centre (sphere) or an axis (cylinder).
+
+    With w the offset of p from the centre or axis (:meth:`_offset`) and ρ = ‖w‖:
+    Φ = ±(ρ² − r²), ∇Φ = ±2w, d = ±(ρ − r) (+ when the outside is free, − when ``inside``);
+    the Hessian ±2I or ±2(I − aaᵀ) is constant and stored as ``_hess``. ``normal`` and
+    ``closest_point`` raise SingularConfigurationError within 1e-9 · r of the centre or axis.
+    Subclasses set radius, inside, _sign, _r2, _hess, _singular_where and :meth:`_offset`.
+    """
+
+    radius: float
+    _sign: float
+    _r2: float
+    _hess: np.ndarray
+    _singular_where: ClassVar[str]
+
+    def _freeze(
+        self, radius: float, center: Vec3, inside: bool, shape: np.ndarray, **extra: object
+    ) -> None:
+        """Set the validated parameters and the derived sign, r² and Hessian ±2·shape."""
+        sign = -1.0 if inside else 1.0
+        values = {"radius": radius, "center": center, **extra, "inside": inside}
+        values.update(_sign=sign, _r2=radius * radius, _hess=_read_only(2.0 * sign * shape))
+        axis = np.asarray(extra.get("axis", (0.0, 0.0, 0.0)), dtype=float)
+        desc = np.array([0.0, *center, *axis, sign, radius * radius, radius])
+        values.update(_descriptor=_read_only(desc))
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+
+    @abc.abstractmethod
+    def _offset(self, x: float, y: float, z: float) -> Vec3:
+        """w: (3,) [m], the offset of p from the centre or the axis."""
+
+    def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """(Φ, ∇Φ: (3,), ∇²Φ: (3, 3)) at p: float64 (3,) [m] (eq. 26 for the default cylinder).
+
+        Not validated; the Hessian is a shared read-only array.
+        """
+        wx, wy, wz = self._offset(*p.tolist())
+        s = self._sign
+        g = 2.0 * s
+        return (
+            s * (wx * wx + wy * wy + wz * wz - self._r2),
+            np.array((g * wx, g * wy, g * wz)),
+            self._hess,
+        )
+
+    def phi(self, p: ArrayLike) -> float:
+        """Φ(p) = ±(ρ² − r²) [m²]."""
+        wx, wy, wz = self._offset(*_xyz(p, self, "phi"))
+        return self._sign * (wx * wx + wy * wy + wz * wz - self._r2)
+
+    def gradient(self, p: ArrayLike) -> np.ndarray:
+        """∇Φ(p) = ±2 w: (3,) [m]."""
+        wx, wy, wz = self._offset(*_xyz(p, self, "gradient"))
+        g = 2.0 * self._sign
+        return np.array((g * wx, g * wy, g * wz))
+
+    def hessian(self, p: ArrayLike) -> np.ndarray:
+        """∇²Φ: (3, 3), constant."""
+        _xyz(p, self, "hessian")
+        return self._hess.copy()
+
+    def distance(self, p: ArrayLike) -> float:
+        """d = ±(ρ − r) [m], computed as Φ / (ρ + r) so that d = 0 exactly where Φ = 0."""
+        wx, wy, wz = self._offset(*_xyz(p, self, "distance"))
+        rho2 = wx * wx + wy * wy + wz * wz
+        return self._sign * (rho2 - self._r2) / (math.sqrt(rho2) + self.radius)
+
+    def _unit_offset(self, p: ArrayLike, method: str) -> tuple[Vec3, Vec3, float]:
+        """(p as floats, w / ρ, ρ); raises at the centre or on the axis."""
+        x, y, z = _xyz(p, self, method)
+        wx, wy, wz = self._offset(x, y, z)
+        rho = math.hypot(wx, wy, wz)
+        if rho <= _SINGULAR_RTOL * self.radius:
+            raise SingularConfigurationError(
+                f"{self!r}.{method}: p = [{x:.9g}, {y:.9g}, {z:.9g}] {self._singular_where} "
+                f"(distance {rho:.3g} m <= {_SINGULAR_RTOL:g} * radius), where ∇Φ = 0 "
+                "and the normal is undefined"
+            )
+        return (x, y, z), (wx / rho, wy / rho, wz / rho), rho
+
+    def normal(self, p: ArrayLike) -> np.ndarray:
+        """Unit normal ±w/ρ: (3,), to the free side (towards the centre or axis when ``inside``)."""
+        _, (nx, ny, nz), _ = self._unit_offset(p, "normal")
+        s = self._sign
+        return np.array((s * nx, s * ny, s * nz))
+
+    def closest_point(self, p: ArrayLike) -> np.ndarray:
+        """Foot point p + (r − ρ) w/ρ: (3,) [m] (exact up to rounding)."""
+        (x, y, z), (nx, ny, nz), rho = self._unit_offset(p, "closest_point")
+        step = self.radius - rho
+        return np.array((x + step * nx, y + step * ny, z + step * nz))
+
+
+@dataclass(frozen=True, init=False)
+class Cylinder(_RoundSurface):
+    """Infinite circular cylinder of radius r [m] around the line through ``center`` along ``axis``.
+
+    With w = p − c and w⊥ = w − (w·a)a its component across the unit axis a, ρ = ‖w⊥‖:
+
+    - ``inside=False`` (outside free): Φ = ρ² − r², d = ρ − r; with the default centre and axis,
+      Φ = x² + y² − r² exactly, the paper's eq. 26 (``Cylinder(0.4)``);
+    - ``inside=True`` (inside free, the tool presses on the wall from within, section 6.4):
+      Φ = r² − ρ², d = r − ρ.
+
+    ∇Φ = ±2 w⊥, ∇²Φ = ±2 (I − a aᵀ). ``normal`` and ``closest_point`` raise
+    SingularConfigurationError within 1e-9 · r of the axis.
+
+    Parameters: radius > 0 [m]; center: (3,) [m], any point on the axis; axis: (3,), any non-zero
+    direction, normalised internally; inside: which side is free.
+    """
+
+    kind: ClassVar[str] = "cylinder"
+    _singular_where: ClassVar[str] = "lies on the cylinder axis"
+
+    radius: float
+    center: Vec3
+    axis: Vec3
+    inside: bool
+    _sign: float = field(init=False, repr=False, compare=False)
+    _r2: float = field(init=False, repr=False, compare=False)
+    _hess: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __init__(
+        self,
+        radius: float,
+        center: ArrayLike = (0.0, 0.0, 0.0),
+        axis: ArrayLike = (0.0, 0.0, 1.0),
+        inside: bool = False,
+    ) -> None:
+        r = _positive_float("Cylinder", "radius", radius)
+        c = _vector3("Cylinder", "center", center)
+        a = _direction("Cylinder", "axis", axis)
+        side = _boolean("Cylinder", "inside", inside)
+        aa = np.asarray(a)
+        self._freeze(r, c, side, np.eye(3) - np.outer(aa, aa), axis=a)
+
+    def _offset(self, x: float, y: float, z: float) -> Vec3:
+        """w⊥ = (p − c) − ((p − c)·a) a: (3,) [m], the component of p − c across the axis."""
+        cx, cy, cz = self.center
+        ax, ay, az = self.axis
+        wx = x - cx
+        wy = y - cy
+        wz = z - cz
+        t = wx * ax + wy * ay + wz * az
+        return (wx - t * ax, wy - t * ay, wz - t * az)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type": "cylinder", "radius", "center", "axis" (unit), "inside"}``."""
+        return {
+            "type": self.kind,
+            "radius": self.radius,
+            "center": list(self.center),
+            "axis": list(self.axis),
+            "inside": self.inside,
+        }
+
+
+# --- sphere ----------------------------------------------------------------------------------
+@dataclass(frozen=True, init=False)
+class Sphere(_RoundSurface):
+    """Sphere of radius r [m] around ``center``.
+
+    With w = p − c: ``inside=False`` (outside free): Φ = ‖w‖² − r², d = ‖w‖ − r;
+    ``inside=True`` (inside free): Φ = r² − ‖w‖², d = r − ‖w‖. ∇Φ = ±2w, ∇²Φ = ±2I.
+    ``normal`` and ``closest_point`` raise SingularConfigurationError within 1e-9 · r of the centre.
+    """
+
+    kind: ClassVar[str] = "sphere"
+    _singular_where: ClassVar[str] = "is at the sphere's centre"
+
+    radius: float
+    center: Vec3
+    inside: bool
+    _sign: float = field(init=False, repr=False, compare=False)
+    _r2: float = field(init=False, repr=False, compare=False)
+    _hess: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __init__(
+        self,
+        radius: float,
+        center: ArrayLike = (0.0, 0.0, 0.0),
+        inside: bool = False,
+    ) -> None:
+        r = _positive_float("Sphere", "radius", radius)
+        c = _vector3("Sphere", "center", center)
+        side = _boolean("Sphere", "inside", inside)
+        self._freeze(r, c, side, np.eye(3))
+
+    def _offset(self, x: float, y: float, z: float) -> Vec3:
+        """w = p − c: (3,) [m]."""
+        cx, cy, cz = self.center
+        return (x - cx, y - cy, z - cz)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type": "sphere", "radius", "center", "inside"}``."""
+        return {
+            "type": self.kind,
+            "radius": self.radius,
+            "center": list(self.center),
+            "inside": self.inside,
+        }
+
+
+# --- plane -----------------------------------------------------------------------------------
+@dataclass(frozen=True, init=False)
+class Plane(Surface):
+    """Plane through ``point`` [m] with unit ``normal`` n pointing to the free side.
+
+    Φ = n·(p − point) = d [m], ∇Φ = n, ∇²Φ = 0. The normal is normalised internally.
+    """
+
+    kind: ClassVar[str] = "plane"
+
+    point: Vec3
+    normal_vector: Vec3
+    _grad: np.ndarray = field(init=False, repr=False, compare=False)
+    _hess: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __init__(self, point: ArrayLike, normal: ArrayLike) -> None:
+        o = _vector3("Plane", "point", point)
+        n = _direction("Plane", "normal", normal)
+        for name, value in (
+            ("point", o),
+            ("normal_vector", n),
+            ("_grad", _read_only(np.array(n))),
+            ("_hess", _read_only(np.zeros((3, 3)))),
+            ("_descriptor", _read_only(np.array([1.0, *o, *n]))),
+        ):
+            object.__setattr__(self, name, value)
+
+    def __repr__(self) -> str:
+        return f"Plane(point={self.point!r}, normal={self.normal_vector!r})"
+
+    def _phi(self, x: float, y: float, z: float) -> float:
+        ox, oy, oz = self.point
+        nx, ny, nz = self.normal_vector
+        return nx * (x - ox) + ny * (y - oy) + nz * (z - oz)
+
+    def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """(Φ, ∇Φ: (3,), ∇²Φ: (3, 3)) at p: float64 (3,) [m]; not validated.
+
+        ∇Φ and ∇²Φ are shared read-only arrays.
+        """
+        return self._phi(*p.tolist()), self._grad, self._hess
+
+    def phi(self, p: ArrayLike) -> float:
+        """Φ(p) = n·(p − point) [m]."""
+        return self._phi(*_xyz(p, self, "phi"))
+
+    def gradient(self, p: ArrayLike) -> np.ndarray:
+        """∇Φ = n: (3,), constant."""
+        _xyz(p, self, "gradient")
+        return self._grad.copy()
+
+    def hessian(self, p: ArrayLike) -> np.ndarray:
+        """∇²Φ = 0: (3, 3)."""
+        _xyz(p, self, "hessian")
+        return np.zeros((3, 3))
+
+    def distance(self, p: ArrayLike) -> float:
+        """d = Φ = n·(p − point) [m]."""
+        return self._phi(*_xyz(p, self, "distance"))
+
+    def normal(self, p: ArrayLike) -> np.ndarray:
+        """n: (3,), the same everywhere."""
+        _xyz(p, self, "normal")
+        return self._grad.copy()
+
+    def closest_point(self, p: ArrayLike) -> np.ndarray:
+        """Foot point p − d n: (3,) [m]."""
+        x, y, z = _xyz(p, self, "closest_point")
+        d = self._phi(x, y, z)
+        nx, ny, nz = self.normal_vector
+        return np.array((x - d * nx, y - d * ny, z - d * nz))
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type": "plane", "point", "normal" (unit)}``."""
+        return {"type": self.kind, "point": list(self.point), "normal": list(self.normal_vector)}

@@ -1,0 +1,172 @@
+"""The surface interface Φ(p) (paper eq. 1) and the checks its implementations share.
+
+:class:`Surface` is what the controller and the simulation use; the built-in surfaces are in
+:mod:`.builtin_surfaces`, the user-defined one in :mod:`.function_surface`, and the module
+:mod:`.surfaces` gathers them with the dict parser. The helpers below check constructor
+parameters (raising SurfaceParameterError naming the class, the parameter and the value) and
+points p (DimensionError or SurfaceError naming the surface and the method).
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hybrid_force import _checks as checks
+from hybrid_force.errors import DimensionError, SurfaceError, SurfaceParameterError
+
+__all__ = ["Surface"]
+
+#: An axis or normal shorter than this [m or unitless] counts as zero-length.
+_MIN_DIRECTION_NORM = 1e-12
+#: A cylinder's normal is undefined within ``_SINGULAR_RTOL * radius`` of its axis, a sphere's
+#: within ``_SINGULAR_RTOL * radius`` of its centre (there ‖∇Φ‖ = 2ρ < 2e-9 · radius).
+_SINGULAR_RTOL = 1e-9
+Vec3 = tuple[float, float, float]
+
+
+# --- validation helpers ----------------------------------------------------------------------
+def _fmt(value: object) -> str:
+    """Short readable form of a bad value for an error message."""
+    if isinstance(value, np.ndarray):
+        return np.array2string(value, precision=6, separator=", ")
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _positive_float(owner: str, name: str, value: object, unit: str = "m") -> float:
+    """Check that ``value`` is a finite real number > 0 (not a bool) and return it as a float."""
+    what = f"{owner}: parameter '{name}'"
+    return checks.number(value, what, SurfaceParameterError, minimum=0.0, strict=True, unit=unit)
+
+
+def _vector3(owner: str, name: str, value: object) -> Vec3:
+    """Check that ``value`` is 3 finite real numbers [m] and return them as a float tuple."""
+    what = f"{owner}: parameter '{name}'"
+    array = checks.array(value, what, SurfaceParameterError, valid="3 finite real numbers")
+    if array.shape != (3,):
+        raise SurfaceParameterError(
+            f"{what} must have shape (3,), got shape {array.shape}: {checks.shown(value)}"
+        )
+    x, y, z = array.tolist()
+    return (x, y, z)
+
+
+def _direction(owner: str, name: str, value: object) -> Vec3:
+    """Check a direction (axis, normal) and return it normalised to unit length.
+
+    A vector whose norm is already 1 to within 4 ulp is kept as given, so that unit vectors
+    written by ``to_dict`` come back bit for bit.
+    """
+    x, y, z = _vector3(owner, name, value)
+    norm = math.hypot(x, y, z)
+    if not norm >= _MIN_DIRECTION_NORM:
+        raise SurfaceParameterError(
+            f"{owner}: parameter '{name}' must be a non-zero direction "
+            f"(norm >= {_MIN_DIRECTION_NORM:g}), got {_fmt(value)} with norm {norm:g}"
+        )
+    if abs(norm - 1.0) <= 4.0 * np.finfo(np.float64).eps:
+        return (x, y, z)
+    return (x / norm, y / norm, z / norm)
+
+
+def _boolean(owner: str, name: str, value: object) -> bool:
+    """Check that ``value`` is a bool (Python or numpy), not a truthy 1 or "yes"."""
+    return checks.flag(value, f"{owner}: parameter '{name}'", SurfaceParameterError)
+
+
+def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
+    """Return the point p as three finite Python floats, or raise naming ``owner.method``.
+
+    The message (with the owner's repr) is only built on error: this runs on every call.
+    """
+    if type(p) is np.ndarray and p.shape == (3,) and p.dtype == np.float64:
+        x, y, z = p.tolist()
+    else:
+        try:
+            array = np.asarray(p, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise DimensionError(
+                f"{owner!r}.{method}: point p must be 3 numbers [m], got {_fmt(p)} ({exc})"
+            ) from exc
+        if array.shape != (3,):
+            raise DimensionError(
+                f"{owner!r}.{method}: point p must have shape (3,), got shape {array.shape}: "
+                f"{_fmt(p)}"
+            )
+        x, y, z = array.tolist()
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise SurfaceError(f"{owner!r}.{method}: point p must be finite, got [{x}, {y}, {z}]")
+    return (x, y, z)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """Mark ``array`` read-only (shared constant derivative returned by ``evaluate``)."""
+    array.flags.writeable = False
+    return array
+
+
+# --- interface -------------------------------------------------------------------------------
+class Surface(abc.ABC):
+    """A rigid surface Φ(p) = 0 (paper eq. 1), Φ > 0 on the free side (where the tool is).
+
+    Points p are (3,) arrays in metres, in the world frame. Units of Φ depend on the surface
+    (m² for the cylinder and sphere, m for the plane); ``distance`` is always in metres.
+    """
+
+    kind: ClassVar[str]
+    # The closed form as a small read-only float array that compiled code evaluates
+    # (hybrid_force._kernels.surface_eval): [0, c (3), a (3), sign, r², r] for a cylinder
+    # or sphere (a = 0), [1, point (3), n (3)] for a plane; empty when there is none (Python).
+    _descriptor: ClassVar[np.ndarray] = np.zeros(0)
+
+    @abc.abstractmethod
+    def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """Return (Φ, ∇Φ: (3,), ∇²Φ: (3, 3)) at p: (3,) float64 array [m], in one call.
+
+        The hot path, called every simulation step: p is not validated (it must be a float64
+        (3,) ndarray). Derivatives that do not depend on p (a cylinder's Hessian, a plane's
+        gradient) are returned as shared *read-only* arrays: copy them before writing.
+        """
+
+    def evaluate_with_distance(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
+        """:meth:`evaluate` and :meth:`distance` at p in one call (not validated).
+
+        Returns (Φ, ∇Φ: (3,), ∇²Φ: (3, 3), d [m]); shared arrays as in :meth:`evaluate`.
+        """
+        return (*self.evaluate(p), self.distance(p))
+
+    @abc.abstractmethod
+    def phi(self, p: ArrayLike) -> float:
+        """Φ(p) at p: (3,) [m]; > 0 on the free side."""
+
+    @abc.abstractmethod
+    def gradient(self, p: ArrayLike) -> np.ndarray:
+        """∇Φ(p): (3,), a fresh array."""
+
+    @abc.abstractmethod
+    def hessian(self, p: ArrayLike) -> np.ndarray:
+        """∇²Φ(p): (3, 3), a fresh symmetric array."""
+
+    @abc.abstractmethod
+    def distance(self, p: ArrayLike) -> float:
+        """Signed metric distance [m] from p to the surface; > 0 on the free side, 0 where Φ = 0."""
+
+    @abc.abstractmethod
+    def normal(self, p: ArrayLike) -> np.ndarray:
+        """Unit normal ∇Φ/‖∇Φ‖: (3,), pointing to the free side.
+
+        Raises SingularConfigurationError where ∇Φ (nearly) vanishes.
+        """
+
+    @abc.abstractmethod
+    def closest_point(self, p: ArrayLike) -> np.ndarray:
+        """Foot point on the surface nearest to p: (3,) [m]."""
+
+    @abc.abstractmethod
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able description ``{"type": kind, ...parameters as floats / lists}``."""
