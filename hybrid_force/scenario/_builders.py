@@ -1,0 +1,391 @@
+"""The settings each table of a scenario file builds, one table at a time: the arm of
+``[robot]``, the surfaces, the desired path, the start, and the control, sensor, contact and
+sim settings; each constructor's refusal named by its ``table.key``.
+
+The rules across tables, which need the model, are :mod:`hybrid_force.scenario._checks`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hybrid_force.errors import BadInputError, FrameError, ReachError, RobotError
+from hybrid_force.scenario._tables import (
+    _CONTACT,
+    _INITIAL,
+    _ROBOT,
+    _SENSOR,
+    _SURFACE,
+    _TRAJECTORY,
+    _check_table,
+    _Context,
+    _fmt,
+    _typed_table,
+    _wrap,
+)
+
+if TYPE_CHECKING:  # annotations only: the builders import these where they build them
+    from hybrid_force.geometry.paths import Path as DesiredPath
+    from hybrid_force.geometry.surfaces import Surface
+
+
+@dataclass(frozen=True)
+class RobotTable:
+    """A scenario's ``[robot]`` table, checked and resolved as the loader resolves it.
+
+    Attributes:
+        values: the checked values of the table (``xacro_args`` as texts).
+        model: ``robot.model`` as written.
+        target: the registry name, or the model file's path (relative ones joined to the
+            scenario file's folder; the file exists).
+        kind: ``"name"`` (a registry arm), ``"urdf"``, ``"xacro"`` or ``"mjcf"``.
+        package_dirs: ``robot.package_dirs`` as absolute folders (each exists).
+        xacro_args: ``robot.xacro_args`` as ``{name: text}``.
+    """
+
+    values: dict[str, Any]
+    model: str
+    target: str | Path
+    kind: str
+    package_dirs: tuple[str, ...]
+    xacro_args: dict[str, str]
+
+
+def resolve_robot_table(
+    doc: Mapping[str, Any], path: str | Path, origin: str | None = None
+) -> RobotTable:
+    """Check a scenario's ``[robot]`` table and find the files it names, without loading
+    the arm (what a sweep sends to its workers).
+
+    Args:
+        doc: the scenario's data (as :func:`read_scenario_document` returns).
+        path: the scenario file (relative model paths and package folders join its folder).
+        origin: how messages name the scenario (default: ``path``).
+
+    Raises:
+        ScenarioError: as :func:`load_scenario` for the ``[robot]`` table: a missing table,
+            key, model file or package folder, a wrong type, xacro arguments for a model that
+            is not a .xacro file.
+    """
+    ctx = _Context(str(path) if origin is None else origin)
+    if "robot" not in doc:
+        raise ctx.table_error("[robot]", "missing required table")
+    return _robot_table(doc["robot"], Path(path), ctx)
+
+
+def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
+    """A model reference of a scenario: (the registry name, "name") or (the model file,
+    resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""
+    from hybrid_force.model.robot import _is_path, model_kind
+
+    if not _is_path(model):
+        return model, "name"
+    candidate = Path(model)
+    target = candidate if candidate.is_absolute() else file.parent / candidate
+    kind = model_kind(target)
+    if not target.is_file():
+        label = {"urdf": "URDF", "xacro": "xacro", "mjcf": "MJCF"}[kind]
+        raise ctx.error(
+            key,
+            model,
+            f"{label} file not found (paths are relative to the scenario file): {target}",
+        )
+    return target, kind
+
+
+def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
+    values = _check_table(ctx, "robot", table, _ROBOT)
+    raw = table if isinstance(table, dict) else {}
+    model: str = values["model"]
+    target, kind = _model_target(model, "robot.model", file, ctx)
+    dirs = []
+    for folder_text in values.get("package_dirs", []):
+        folder = Path(folder_text)
+        folder = folder if folder.is_absolute() else file.parent / folder
+        if not folder.is_dir():
+            raise ctx.error(
+                "robot.package_dirs",
+                raw.get("package_dirs"),
+                f"folder not found (paths are relative to the scenario file): {folder}",
+            )
+        dirs.append(os.path.abspath(folder))
+    args = values.get("xacro_args", {})
+    if args and kind != "xacro":
+        raise ctx.error(
+            "robot.xacro_args",
+            raw.get("xacro_args"),
+            f"robot.model = {_fmt(model)} is not a .xacro file: only a xacro model takes arguments",
+        )
+    return RobotTable(values, model, target, kind, tuple(dirs), dict(args))
+
+
+def _robot(table: object, file: Path, ctx: _Context) -> Any:
+    from hybrid_force.model.robot import load_robot
+
+    resolved = _robot_table(table, file, ctx)
+    values = resolved.values
+    try:
+        return load_robot(
+            resolved.target,
+            tip=values.get("tip"),
+            package_dirs=resolved.package_dirs,
+            xacro_args=resolved.xacro_args or None,
+            lock_off_chain=values.get("lock_off_chain"),
+        )
+    except FrameError as exc:
+        raise ctx.error("robot.tip", values.get("tip"), " ".join(str(exc).split())) from None
+    except RobotError as exc:
+        raise ctx.error("robot.model", resolved.model, " ".join(str(exc).split())) from None
+
+
+def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
+    from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+
+    if "surface" in doc and "surfaces" in doc:
+        raise ctx.table_error(
+            "surface, surfaces", "give either one [surface] table or [[surfaces]], not both"
+        )
+    if "surface" in doc:
+        tables = [("surface", doc["surface"])]
+    elif "surfaces" in doc:
+        items = doc["surfaces"]
+        if not isinstance(items, list) or not items:
+            raise ctx.error("surfaces", items, "must be a non-empty array of tables [[surfaces]]")
+        tables = [(f"surfaces.{i}", t) for i, t in enumerate(items)]
+    else:
+        raise ctx.table_error("[surface]", "missing required table ([surface] or [[surfaces]])")
+    surfaces: list[Any] = []
+    checked: list[tuple[str, dict]] = []
+    for name, table in tables:
+        kind, values = _typed_table(ctx, name, table, _SURFACE)
+        s: Surface
+        try:
+            if kind == "cylinder":
+                s = Cylinder(
+                    values["radius"],
+                    values.get("center", [0.0, 0.0, 0.0]),
+                    values.get("axis", [0.0, 0.0, 1.0]),
+                    inside=values.get("inside", False),
+                )
+            elif kind == "sphere":
+                s = Sphere(
+                    values["radius"],
+                    values.get("center", [0.0, 0.0, 0.0]),
+                    inside=values.get("inside", False),
+                )
+            else:
+                s = Plane(values["point"], values["normal"])
+        except BadInputError as exc:
+            raise _wrap(ctx, name, values, exc) from None
+        surfaces.append(s)
+        checked.append((name, {"type": kind, **values}))
+    return surfaces, checked
+
+
+def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
+    from hybrid_force.geometry.paths import Circle, Helix
+
+    kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
+    path: DesiredPath
+    try:
+        if kind == "helix":
+            path = Helix(
+                values["center"],
+                values["radius"],
+                axis=values.get("axis", [0.0, 0.0, 1.0]),
+                omega=values["omega"],
+                rise=values["rise"],
+                phase=values.get("phase", 0.0),
+            )
+        else:
+            path = Circle(
+                values["center"],
+                values["radius"],
+                values["normal"],
+                values["omega"],
+                phase=values.get("phase", 0.0),
+            )
+    except BadInputError as exc:
+        raise _wrap(ctx, "trajectory", values, exc) from None
+    return path, {"type": kind, **values}
+
+
+def _controller_model(
+    control_values: Mapping[str, Any], robot: Any, file: Path, ctx: _Context
+) -> Any:
+    """``control.model``: the controller's own model of the arm (a name, or a model path
+    relative to the scenario file), with the plant's tip and joints; None when not given."""
+    from hybrid_force.control.controller import check_same_joints
+    from hybrid_force.model.robot import load_robot
+
+    if "model" not in control_values:
+        return None
+    model: str = control_values["model"]
+    target, _ = _model_target(model, "control.model", file, ctx)
+    try:
+        own = load_robot(target)
+        check_same_joints(robot, own)
+        if own.tip != robot.tip:  # the same arm: the plant's tip frame
+            own = load_robot(target, tip=robot.tip)
+    except BadInputError as exc:
+        raise ctx.error("control.model", model, " ".join(str(exc).split())) from None
+    return own
+
+
+def _sensor_settings(table: object, ctx: _Context) -> Any:
+    from hybrid_force.sim.sensors import SensorSettings
+
+    values = _check_table(ctx, "sensor", table, _SENSOR)
+    try:
+        return SensorSettings(**values)
+    except BadInputError as exc:
+        raise _wrap(ctx, "sensor", values, exc) from None
+
+
+def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
+    from hybrid_force.sim.contact import ContactSettings
+
+    values = _check_table(ctx, "contact", table, _CONTACT)
+    try:
+        contact = ContactSettings(**values)
+    except BadInputError as exc:
+        raise _wrap(ctx, "contact", values, exc) from None
+    if not contact.ideal:  # the rules across tables, named by the [sim] key they are about
+        from hybrid_force.sim.settings import Scenario
+
+        try:
+            Scenario._check_contact_settings(contact, sim)
+        except BadInputError as exc:
+            raise ctx.error(str(exc.key), exc.value, " ".join(str(exc).split())) from None
+    return contact
+
+
+def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
+    from hybrid_force.sim.dynamics import Baumgarte
+    from hybrid_force.sim.loop import SimSettings
+
+    for key in ("baumgarte_alpha", "baumgarte_beta", "settle_time"):
+        if key in values and values[key] < 0:
+            raise ctx.error(f"sim.{key}", values[key], "must be >= 0")
+    for key in ("duration", "dt", "model_mass_factor"):
+        if key in values and values[key] <= 0:
+            raise ctx.error(f"sim.{key}", values[key], "must be > 0")
+    defaults = Baumgarte()
+    kwargs: dict[str, Any] = {
+        k: values[k]
+        for k in (
+            "duration",
+            "dt",
+            "integrator",
+            "settle_time",
+            "unilateral",
+            "normalization",
+            "seed",
+            "torque_limits",
+            "joint_limits",
+        )
+        if k in values
+    }
+    kwargs["baumgarte"] = Baumgarte(
+        alpha=values.get("baumgarte_alpha", defaults.alpha),
+        beta=values.get("baumgarte_beta", defaults.beta),
+    )
+    try:
+        return SimSettings(**kwargs)
+    except BadInputError as exc:
+        raise _wrap(ctx, "sim", values, exc) from None
+
+
+def _control_settings(
+    values: Mapping[str, Any],
+    sim_values: Mapping[str, Any],
+    robot: Any,
+    k: int,
+    ctx: _Context,
+) -> Any:
+    from hybrid_force.control.laws.arimoto import make_gains
+    from hybrid_force.control.supervisor import ControlSettings
+
+    defaults = ControlSettings()
+    kwargs = dict(values)
+    kwargs.pop("model", None)  # the controller's own model: loaded by _controller_model
+    n = robot.nv
+    if "Kd" in kwargs:
+        try:
+            make_gains(
+                kwargs["Kd"],
+                kwargs.get("Lambda", defaults.Lambda),
+                kwargs.get("beta", defaults.beta),
+                kwargs.get("gamma", defaults.gamma),
+                n,
+            )
+        except BadInputError as exc:
+            raise _wrap(ctx, "control", values, exc) from None
+        kwargs["Kd"] = np.asarray(kwargs["Kd"], dtype=float)
+    if "f_d" in kwargs:
+        f_d = kwargs["f_d"]
+        if isinstance(f_d, list):
+            if len(f_d) != k:
+                raise ctx.error(
+                    "control.f_d", f_d, f"must be a number or {k} numbers (one per surface)"
+                )
+            kwargs["f_d"] = tuple(f_d)
+    for key in ("Lambda", "gamma", "clik_gain", "max_dist", "contact_tol", "kd_rate"):
+        if key in kwargs and kwargs[key] <= 0:
+            raise ctx.error(f"control.{key}", kwargs[key], "must be > 0")
+    if "beta" in kwargs and kwargs["beta"] < 0:
+        raise ctx.error("control.beta", kwargs["beta"], "must be >= 0")
+    if "model_mass_factor" in sim_values:
+        kwargs["mass_factor"] = sim_values["model_mass_factor"]
+    try:
+        return ControlSettings(**kwargs)
+    except BadInputError as exc:
+        merged = dict(values)
+        if "model_mass_factor" in sim_values and "mass_factor" in str(exc):
+            raise ctx.error(
+                "sim.model_mass_factor", sim_values["model_mass_factor"], str(exc)
+            ) from None
+        raise _wrap(ctx, "control", merged, exc) from None
+
+
+def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:
+    from hybrid_force.control.clik import inverse_kinematics
+
+    values = _check_table(ctx, "initial", table, _INITIAL)
+    raw = table if isinstance(table, dict) else {}
+    if "tip" in values and "q" in values:
+        raise ctx.table_error(
+            "initial.tip, initial.q", "give either the start tip position or the joints q, not both"
+        )
+    if "tip" not in values and "q" not in values:
+        raise ctx.table_error(
+            "initial.tip", "missing required key: give initial.tip = [x, y, z] or initial.q"
+        )
+    if "seed" in values and "tip" not in values:
+        raise ctx.error("initial.seed", raw["seed"], "a seed is only used with initial.tip")
+    nq, nv = robot.nq, robot.nv
+    for key, size in (("seed", nq), ("q", nq), ("v", nv)):
+        if key in values and len(values[key]) != size:
+            raise ctx.error(
+                f"initial.{key}",
+                raw[key],
+                f"must have {size} numbers for robot '{robot.name}', got {len(values[key])}",
+            )
+    v0 = np.array(values["v"]) if "v" in values else None
+    if "q" in values:
+        return np.array(values["q"]), v0, "initial.q", raw["q"]
+    seed = np.array(values["seed"]) if "seed" in values else None
+    try:
+        q0 = inverse_kinematics(robot, np.array(values["tip"]), seed=seed)
+    except ReachError as exc:
+        extra = f" (initial.seed = {_fmt(raw['seed'])})" if "seed" in values else ""
+        raise ctx.error(
+            "initial.tip", raw["tip"], f"start out of reach{extra}: {' '.join(str(exc).split())}"
+        ) from None
+    return q0, v0, "initial.tip", raw["tip"]

@@ -1,0 +1,236 @@
+"""The rules of a scenario across its tables, checked by running the model before the run:
+the path on every surface, the start in reach and on the right side of the surface, the
+controller built once, the path followable by inverse kinematics, the sampled force loop
+stable, and sim.dt short enough for the contact model.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from hybrid_force.errors import BadInputError, ReachError, ScenarioError
+from hybrid_force.geometry.paths import ON_SURFACE_TOL
+from hybrid_force.scenario._tables import _Context, _fmt, _wrap
+
+PATH_CHECK_STEP = 0.02
+"""Spacing [s] of the samples at which the loader follows the desired path by inverse
+kinematics (at most :data:`PATH_CHECK_SAMPLES` samples over [0, sim.duration])."""
+PATH_CHECK_SAMPLES = 1000
+
+
+def _check_contact_step(
+    robot: Any,
+    surfaces: list[Any],
+    configurations: list[np.ndarray],
+    control: Any,
+    sim: Any,
+    contact: Any,
+    ctx: _Context,
+) -> None:
+    """Refuse a sim.dt too long for the contact model anywhere on the desired joint path."""
+    from hybrid_force.sim.contact import largest_stable_dt, step_text
+
+    f0 = float(np.max(control.f_d_for(len(surfaces))))
+    dt_max = largest_stable_dt(contact, robot, surfaces, configurations, f0)
+    if sim.dt > dt_max:
+        raise ctx.error(
+            "sim.dt",
+            sim.dt,
+            f"is too long for the [contact] model: the largest stable step along the path is "
+            f"{step_text(dt_max)} s (docs/contact.md, time step)",
+        )
+
+
+def _check_control_rate(
+    control: Any, sim: Any, control_values: Mapping[str, Any], ctx: _Context
+) -> None:
+    from hybrid_force.sim.loop import control_steps
+
+    try:
+        control_steps(control, sim)
+    except BadInputError as exc:
+        raise ctx.error("control.rate", control_values.get("rate"), str(exc)) from None
+
+
+def _check_path_on_surfaces(
+    path: Any,
+    traj: Mapping[str, Any],
+    surfaces: list[Any],
+    tables: list[tuple[str, dict]],
+    duration: float,
+    ctx: _Context,
+) -> None:
+    from hybrid_force.geometry.paths import check_on_surface
+
+    for surface, (name, table) in zip(surfaces, tables, strict=True):
+        report = check_on_surface(path, surface, 0.0, duration)
+        if report.worst_distance > ON_SURFACE_TOL:
+            shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
+            where = ", ".join(f"{k} = {_fmt(v)}" for k, v in table.items())
+            p = [round(float(x), 6) for x in report.point_of_worst]
+            raise ScenarioError(
+                f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "
+                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
+                f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
+                f"[0, sim.duration = {duration:g} s]"
+            )
+
+
+def _check_start(
+    robot: Any,
+    q0: Any,
+    surfaces: list[Any],
+    control: Any,
+    key: str,
+    value: object,
+    ctx: _Context,
+) -> None:
+    p = robot.tip_position(q0)
+    d = np.array([float(s.distance(p)) for s in surfaces])
+    where = f"tip at {[round(float(x), 6) for x in p]}"
+    if not control.supervisor:
+        worst = float(np.abs(d).max())
+        if worst > control.contact_tol:
+            raise ctx.error(
+                key,
+                value,
+                f"the run starts in contact (control.supervisor = false) but the start is "
+                f"{worst:.3g} m from the surface ({where}); it must be within control.contact_tol "
+                f"= {control.contact_tol:g} m",
+            )
+    elif float(d.min()) < -control.contact_tol:
+        raise ctx.error(
+            key,
+            value,
+            f"the start is {-float(d.min()):.3g} m behind the surface, inside the solid "
+            f"({where}); start on the free side",
+        )
+
+
+def _check_controller(
+    robot: Any,
+    surfaces: list[Any],
+    path: Any,
+    q0: Any,
+    control: Any,
+    sim: Any,
+    control_values: Mapping[str, Any],
+    ctx: _Context,
+) -> None:
+    """Build the controller once: checks q_d(0) in reach and dt·λ_max(M⁻¹K_d)."""
+    from hybrid_force.control.constraint import Constraint
+    from hybrid_force.control.supervisor import ReferenceController
+    from hybrid_force.sim.loop import control_steps
+
+    try:
+        constraint = Constraint(surfaces, normalization=sim.normalization)
+        # the numpy reference: the same checks without loading the compiled kernels (about
+        # 1 s), which a sweep's parent, that never simulates, does not need
+        period = control_steps(control, sim) * sim.dt  # the law runs at the control rate
+        ReferenceController(robot, constraint, path, q0, control, dt=period)
+    except ReachError as exc:
+        raise ctx.error(
+            "trajectory.center",
+            path.to_dict().get("center"),
+            f"the start of the trajectory is out of reach from the start configuration: "
+            f"{' '.join(str(exc).split())}",
+        ) from None
+    except BadInputError as exc:
+        message = " ".join(str(exc).split())
+        if "dt" in message and "Kd" in message:
+            value = control_values.get(
+                "Kd", f"default kd_rate · M(q0), kd_rate = {control.kd_rate}"
+            )
+            period = control_steps(control, sim) * sim.dt
+            where = f"sim.dt = {sim.dt:g} s" + (
+                f", control period {period:g} s" if period != sim.dt else ""
+            )
+            raise ctx.error("control.Kd", value, f"{message} ({where})") from None
+        raise _wrap(ctx, "control", control_values, exc) from None
+
+
+def _check_path_followable(
+    robot: Any, path: Any, traj: Mapping[str, Any], q0: Any, duration: float, ctx: _Context
+) -> list[np.ndarray]:
+    """Follow p_d(t) by inverse kinematics over [0, duration]: out of reach or singular → error.
+
+    The run's desired joint path (CLIK, eq. 27) starts at the inverse kinematics of p_d(0)
+    seeded with the start q0 and moves continuously; here each sample is solved from the
+    previous one (same branch), every :data:`PATH_CHECK_STEP` s (at most
+    :data:`PATH_CHECK_SAMPLES` samples), and J must be as well conditioned as the CLIK needs
+    (``hybrid_force.control.clik``). A singular instant between two samples can still stop the run;
+    the run then keeps its partial result. Returns the configurations found (one per sample).
+    """
+    from hybrid_force.control.clik import _COND_MAX, ClikSettings, inverse_kinematics
+
+    n = int(min(PATH_CHECK_SAMPLES, max(2, math.ceil(duration / PATH_CHECK_STEP) + 1)))
+    damping = ClikSettings().damping if robot.nv > 3 else 0.0
+    shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
+    q = q0
+    found: list[np.ndarray] = []
+    for t in np.linspace(0.0, duration, n):
+        target = path.position(float(t))
+        try:
+            q = inverse_kinematics(robot, target, seed=q, tol=1e-9, max_iter=50)
+        except ReachError:
+            p = [round(float(x), 6) for x in target]
+            raise ScenarioError(
+                f"{ctx.file}: {shown}: the desired path is out of reach at t = {t:.4g} s "
+                f"(p_d = {p}), followed from the start; it must be reachable over "
+                f"[0, sim.duration = {duration:g} s]"
+            ) from None
+        # the CLIK's test: cond(J Jᵀ + λ² I) < _COND_MAX, λ its damping (0 for three joints)
+        sv = np.linalg.svd(robot.jacobian(q), compute_uv=False)
+        if not (sv[0] ** 2 + damping**2) < _COND_MAX * (sv[-1] ** 2 + damping**2):
+            p = [round(float(x), 6) for x in target]
+            s_text = ", ".join(f"{x:.3g}" for x in sv)
+            raise ScenarioError(
+                f"{ctx.file}: {shown}: the desired path passes a singular configuration at "
+                f"t = {t:.4g} s (p_d = {p}, q_d = {np.round(q, 6).tolist()}, singular values "
+                f"of J: {s_text}); the controller cannot follow it"
+            )
+        found.append(q)
+    return found
+
+
+def _check_sampled_force_loop(
+    robot: Any,
+    surfaces: list[Any],
+    configurations: list[np.ndarray],
+    control: Any,
+    sim: Any,
+    sensor: Any,
+    control_values: Mapping[str, Any],
+    ctx: _Context,
+) -> None:
+    """A sampled controller's β below the stability bound of its force loop (force_loop.py).
+
+    Only for sampled runs (non-ideal sensing or a control rate below 1/sim.dt): with ideal
+    sensing at the plant's rate the loop is resolved exactly and any β ≥ 0 is fine. W is taken
+    at its smallest over the desired path's configurations.
+    """
+    from hybrid_force.control.force_loop import beta_bound, inverse_effective_mass
+    from hybrid_force.sim.loop import control_steps
+
+    steps = control_steps(control, sim)
+    if steps == 1 and sensor.ideal:
+        return
+    period = steps * sim.dt
+    cutoff, delay = sensor.force_cutoff, sensor.force_delay
+    alpha = 1.0 - math.exp(-2.0 * math.pi * cutoff * period) if cutoff else 1.0
+    w_min = inverse_effective_mass(robot, surfaces, configurations, sim.normalization)
+    bound = beta_bound(w_min, control.mass_factor, alpha, delay)
+    if not control.beta < bound:
+        raise ctx.error(
+            "control.beta",
+            control_values.get("beta", control.beta),
+            f"the sampled force loop (control period {period:g} s, sensor.force_delay = "
+            f"{delay}, sensor.force_cutoff = {cutoff:g} Hz) oscillates and grows for "
+            f"beta >= {bound:.4g}: beta · mass_factor / (A M⁻¹ Aᵀ) must stay below "
+            f"{bound * control.mass_factor / w_min:.4g}, with A M⁻¹ Aᵀ >= {w_min:.4g} along "
+            "the path (docs/scenarios.md, [sensor])",
+        )
