@@ -10,9 +10,9 @@ Saving is atomic: the archive is written to a temporary file in the target's dir
 and fsync'ed, then moved onto the target with :func:`os.replace`.  A crash or Ctrl-C during the
 write leaves any earlier file at the target untouched and removes the temporary file.
 
-:meth:`Result.metrics` computes the numbers the paper (section 6) and issue 5 report: position
-error per axis and its norm, force error ``|f - f_d|`` while in contact, worst constraint drift,
-contact time, impact impulse and speed, and the time to converge.
+:meth:`Result.metrics` computes the numbers the paper (section 6) and issue 5 report (position
+and force errors, constraint drift, contact, impacts, convergence) with
+:func:`hybrid_force.metrics.compute_metrics`.
 
 Units: SI throughout (s, m, rad, N, N·m, J, N·s).
 """
@@ -35,6 +35,12 @@ from numpy.lib.npyio import NpzFile
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
+from hybrid_force.metrics import (  # re-exported: the metrics of a result, computed there
+    CONVERGE_TOLERANCE,
+    DEFAULT_SETTLE_TIME,
+    Metrics,
+    compute_metrics,
+)
 from hybrid_force.phases import Phase
 
 __all__ = [
@@ -86,10 +92,6 @@ EVENT_KINDS: tuple[str, ...] = (
     "interrupted",
     "error",
 )
-#: Settling time [s] used by :meth:`Result.metrics` when ``meta["settings"]`` has none.
-DEFAULT_SETTLE_TIME = 5.0
-#: ``time_to_converge`` is the first time after which ``||p - p_d||`` stays below this [m].
-CONVERGE_TOLERANCE = 1e-3
 _STATUSES = ("ok", "failed")
 _META_KEY = "meta"
 #: Deepest nesting of lists and objects accepted in a loaded result's meta.
@@ -162,15 +164,6 @@ def _check_shape(name: str, arr: np.ndarray, expected: tuple[int, ...]) -> None:
         )
 
 
-def _finite_rows(*arrays: np.ndarray) -> np.ndarray:
-    """Boolean mask (N,) of samples where every given array is finite."""
-    mask = np.ones(arrays[0].shape[0], dtype=bool)
-    for a in arrays:
-        fin = np.isfinite(a)
-        mask &= np.all(fin, axis=tuple(range(1, fin.ndim)))  # also for N = 0
-    return mask
-
-
 def _json_depth(value: Any) -> int:
     """Nesting depth of JSON data (0 for a scalar), without recursion."""
     deepest, stack = 0, [(value, 0)]
@@ -239,14 +232,6 @@ def _check_archive(fh: Any, src: Path) -> None:
                 )
 
 
-def _max_or_none(x: np.ndarray) -> float | None:
-    return float(np.max(x)) if x.size else None
-
-
-def _rms_or_none(x: np.ndarray) -> float | None:
-    return float(np.sqrt(np.mean(np.square(x)))) if x.size else None
-
-
 def _fsync_directory(directory: Path) -> None:
     """Best-effort fsync of a directory so a completed rename survives a power cut (POSIX)."""
     try:
@@ -259,66 +244,6 @@ def _fsync_directory(directory: Path) -> None:
         pass
     finally:
         os.close(fd)
-
-
-# --------------------------------------------------------------------------- metrics
-@dataclass(frozen=True)
-class Metrics:
-    """Error and contact metrics of one run (issue 5 item 4; paper section 6).
-
-    Position error ``e = p - p_d`` [m]; force error ``|f - f_d|`` [N] over contact samples
-    (phase 2) only (with k > 1 constraints, the Euclidean norm over the k components).
-    "Settled" values use the samples with ``t >= settle_time``.  A value that does not apply
-    (no samples after ``settle_time``, never in contact, no impact, never converged) is ``None``,
-    never NaN.  Samples with non-finite values (e.g. the last sample of a diverged run) are
-    skipped; the run's ``status`` says it failed.
-
-    Attributes:
-        settle_time: time [s] from which the "settled" metrics are taken.
-        position_error_max_axis: (3,) max ``|e_x|, |e_y|, |e_z|`` for t ≥ settle_time [m].
-        position_error_rms_axis: (3,) RMS of ``e_x, e_y, e_z`` for t ≥ settle_time [m].
-        position_error_max: max ``||e||`` over the whole run [m].
-        position_error_max_settled: max ``||e||`` for t ≥ settle_time [m].
-        position_error_rms_settled: RMS of ``||e||`` for t ≥ settle_time [m].
-        final_position_error: ``||e||`` at the last sample [m].
-        force_error_max_settled: max ``|f - f_d|`` over contact samples with t ≥ settle_time [N].
-        force_error_rms_settled: RMS of ``|f - f_d|`` over the same samples [N].
-        final_force_error: ``|f - f_d|`` at the last sample if it is in contact, else None [N].
-        worst_constraint_violation: max ``|phi|`` over all contact samples [m].
-        contact_time: time of the first "contact" event, else of the first phase-2 sample [s].
-        impact_impulse: sum of ``|impulse|`` of the "impact" events (0.0 if none) [N·s].
-        impact_speed: max ``speed`` of the "impact" events (None if none) [m/s].
-        n_impacts: number of "impact" events.
-        time_to_converge: first time after which ``||e||`` stays below ``converge_tolerance``
-            until the end of the run [s].
-        converge_tolerance: the tolerance used for ``time_to_converge`` [m].
-    """
-
-    settle_time: float
-    position_error_max_axis: tuple[float, float, float] | None
-    position_error_rms_axis: tuple[float, float, float] | None
-    position_error_max: float | None
-    position_error_max_settled: float | None
-    position_error_rms_settled: float | None
-    final_position_error: float | None
-    force_error_max_settled: float | None
-    force_error_rms_settled: float | None
-    final_force_error: float | None
-    worst_constraint_violation: float | None
-    contact_time: float | None
-    impact_impulse: float
-    impact_speed: float | None
-    n_impacts: int
-    time_to_converge: float | None
-    converge_tolerance: float = CONVERGE_TOLERANCE
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-able dict (floats, ints, lists, None) with the attribute names as keys."""
-        out: dict[str, Any] = {}
-        for fld in dataclasses.fields(self):
-            value = getattr(self, fld.name)
-            out[fld.name] = list(value) if isinstance(value, tuple) else value
-        return out
 
 
 # --------------------------------------------------------------------------- result
@@ -662,94 +587,7 @@ class Result:
                 ``meta["settings"]["settle_time"]``, else 5.0 s.
             converge_tolerance: position error norm [m] for ``time_to_converge`` (1e-3 m).
         """
-        if settle_time is None:
-            settings = self.meta.get("settings") or {}
-            settle_time = settings.get("settle_time", DEFAULT_SETTLE_TIME)
-        if isinstance(settle_time, bool) or not isinstance(settle_time, (int, float)):
-            raise BadInputError(f"metrics: settle_time must be a number [s], got {settle_time!r}")
-        settle = float(settle_time)
-        if not math.isfinite(settle):
-            raise BadInputError(f"metrics: settle_time must be finite, got {settle_time!r}")
-        tol = float(converge_tolerance)
-        if not (math.isfinite(tol) and tol > 0.0):
-            raise BadInputError(
-                f"metrics: converge_tolerance must be a positive number [m], got "
-                f"{converge_tolerance!r}"
-            )
-
-        t = self.t
-        e = self.p - self.p_d  # (N, 3) [m]
-        e_ok = _finite_rows(e)
-        e_norm = np.linalg.norm(e, axis=1)  # (N,) [m]
-        settled = t >= settle
-        pos_win = e_ok & settled
-        e_set = e[pos_win]
-        max_axis: tuple[float, ...] | None
-        rms_axis: tuple[float, ...] | None
-        if e_set.shape[0]:
-            max_axis = tuple(float(x) for x in np.max(np.abs(e_set), axis=0))
-            rms_axis = tuple(float(x) for x in np.sqrt(np.mean(np.square(e_set), axis=0)))
-        else:
-            max_axis = rms_axis = None
-        final_pos = float(e_norm[-1]) if self.n_samples and e_ok[-1] else None
-
-        # force error over contact samples; k > 1: Euclidean norm over the k constraints
-        df = self.f - self.f_d
-        ef = np.abs(df) if df.ndim == 1 else np.linalg.norm(df, axis=1)  # (N,) [N]
-        contact = self.phase == PHASE_CONTACT
-        f_ok = _finite_rows(ef)
-        f_win = contact & settled & f_ok
-        last_contact = self.n_samples > 0 and bool(contact[-1]) and bool(f_ok[-1])
-        final_force = float(ef[-1]) if last_contact else None
-
-        phi_abs = np.abs(self.phi) if self.phi.ndim == 1 else np.max(np.abs(self.phi), axis=1)
-        viol = phi_abs[contact & _finite_rows(phi_abs)]
-
-        events = self.events
-        contact_events = [float(ev["t"]) for ev in events if ev["kind"] == "contact"]
-        if contact_events:
-            contact_time: float | None = min(contact_events)
-        elif np.any(contact):
-            contact_time = float(t[int(np.argmax(contact))])
-        else:
-            contact_time = None
-        impacts = [ev for ev in events if ev["kind"] == "impact"]
-        impulse = 0.0
-        speeds: list[float] = []
-        for ev in impacts:
-            if ev.get("impulse") is not None:
-                impulse += float(np.linalg.norm(np.atleast_1d(np.asarray(ev["impulse"], float))))
-            if ev.get("speed") is not None:
-                speeds.append(abs(float(ev["speed"])))
-
-        # first time after which ||e|| < tol until the end (non-finite counts as "not below")
-        above = ~(e_ok & (e_norm < tol))
-        if self.n_samples == 0 or above[-1]:
-            converge: float | None = None
-        elif not np.any(above):
-            converge = float(t[0])
-        else:
-            converge = float(t[int(np.flatnonzero(above)[-1]) + 1])
-
-        return Metrics(
-            settle_time=settle,
-            position_error_max_axis=max_axis,  # type: ignore[arg-type]
-            position_error_rms_axis=rms_axis,  # type: ignore[arg-type]
-            position_error_max=_max_or_none(e_norm[e_ok]),
-            position_error_max_settled=_max_or_none(e_norm[pos_win]),
-            position_error_rms_settled=_rms_or_none(e_norm[pos_win]),
-            final_position_error=final_pos,
-            force_error_max_settled=_max_or_none(ef[f_win]),
-            force_error_rms_settled=_rms_or_none(ef[f_win]),
-            final_force_error=final_force,
-            worst_constraint_violation=_max_or_none(viol),
-            contact_time=contact_time,
-            impact_impulse=impulse,
-            impact_speed=max(speeds) if speeds else None,
-            n_impacts=len(impacts),
-            time_to_converge=converge,
-            converge_tolerance=tol,
-        )
+        return compute_metrics(self, settle_time, converge_tolerance)
 
     def summary(self, settle_time: float | None = None) -> dict[str, Any]:
         """JSON-able dict: what the run was and how it ended, then its :class:`Metrics`.

@@ -53,3 +53,20 @@ def test_version_has_one_source_the_project_metadata() -> None:
 
     pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
     assert hybrid_force.__version__ == pyproject["project"]["version"]
+
+
+def test_names_of_split_modules_stay_importable_from_their_old_module() -> None:
+    # scenario.loader and result were split along their seams; what they exported before the
+    # split is the same object from the old module, the package and the new one
+    import hybrid_force.metrics as metrics
+    import hybrid_force.result as result
+    import hybrid_force.scenario as scenario
+    import hybrid_force.scenario.loader as loader
+
+    for name in scenario.__all__:
+        assert getattr(loader, name) is getattr(scenario, name), name
+    for name in ("MAX_FILE_BYTES", "PATH_CHECK_STEP", "PATH_CHECK_SAMPLES"):
+        assert hasattr(loader, name), name
+    for name in ("Metrics", "CONVERGE_TOLERANCE", "DEFAULT_SETTLE_TIME"):
+        assert getattr(result, name) is getattr(metrics, name), name
+    assert hybrid_force.Metrics is metrics.Metrics
