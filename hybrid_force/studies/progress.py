@@ -11,7 +11,6 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
-from types import TracebackType
 from typing import Literal, TextIO
 
 __all__ = ["Progress", "ProgressReporter", "format_duration", "progress_enabled"]
@@ -143,10 +142,5 @@ class ProgressReporter:
         self.draw()
         return self
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()
