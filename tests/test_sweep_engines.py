@@ -200,3 +200,23 @@ def test_the_parts_of_a_sweep_are_importable_from_the_sweep_module() -> None:
     for module in (engines, sweep, table, tasks, variants):
         assert module.__file__ is not None
         assert len(Path(module.__file__).read_text().splitlines()) <= 600, module.__name__
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_a_run_stopped_by_a_signal_stops_the_sweep_with_that_signal(
+    scenario: Path, monkeypatch: pytest.MonkeyPatch, sig: str
+) -> None:
+    """In the sweep's own process (the warm-up before a fork, run_one), a run interrupted by
+    SIGTERM raises Terminated (exit status 143), by Ctrl-C a KeyboardInterrupt (130)."""
+    from hybrid_force._signals import Terminated
+    from hybrid_force.errors import RunInterruptedError
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise RunInterruptedError("stopped", signal=sig)
+
+    monkeypatch.setattr("hybrid_force.sim.loop.simulate", interrupted)
+    task = tasks._Source(scenario).job(run_id({}), {}, keep=False)
+    assert isinstance(task, tasks._Task)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        tasks.warm_up(task)
+    assert isinstance(caught.value, Terminated) == (sig == "SIGTERM")

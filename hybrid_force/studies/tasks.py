@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force._atomic import atomic_file
+from hybrid_force._signals import Terminated
 from hybrid_force.errors import BadInputError, ScenarioError, SimulationError, SweepError
 from hybrid_force.studies.table import METRIC_COLUMNS, TIMING_COLUMNS
 from hybrid_force.studies.variants import run_id
@@ -327,7 +328,9 @@ def _simulate_into(
         scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
         result = simulate(scenario)
     except RunInterruptedError as exc:
-        raise KeyboardInterrupt from exc  # the sweep is being stopped: not a verdict on the run
+        # the sweep is being stopped (e.g. in the warm-up of its own process): not a verdict
+        stop = Terminated if exc.signal == "SIGTERM" else KeyboardInterrupt
+        raise stop from exc
     except RunFailedError as exc:
         # "error": an unexpected exception inside the run, retried on resume like any other
         row["status"] = (
