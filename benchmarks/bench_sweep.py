@@ -10,13 +10,14 @@ For each engine and number of workers it runs, as a user would, one command in a
     hybrid-force sweep scenarios/paper_contact.toml --grid control.Lambda=<R values>
         --grid sim.duration=<D> --workers W --out <tmp> --no-progress [engine options]
 
-(R runs of D simulated seconds, the paper's section 6.3), ``--repeat`` times, and reports the
-best and the median of: the command's wall time, runs per second, the speed-up over one worker
-of the same engine (best over best), the median per-run time of the rows (``wall_time``), the
-first-row time (from the command's start until ``sweep.csv`` holds a row: start-up plus one
-run) and the fixed overhead (wall time minus the runs' time spread over the workers:
-``wall - sum(wall_time) / W``); and whether every row's results are identical, bit for bit,
-to those of the first sweep. It first times the fixed cost of a command: a sweep of one 0.01 s
+(R runs of D simulated seconds, the paper's section 6.3), ``--repeat`` times (the repeats
+interleaved over the points, so a slow spell of the machine hits them all), and reports the best
+and the median of: the command's wall time, runs per second, the speed-up over the first number
+of workers of the same engine (best over best), the median per-run time of the rows
+(``wall_time``), the first-row time (from the command's start until ``sweep.csv`` holds a row:
+start-up plus one run) and the fixed overhead (wall time minus the runs' time spread over the
+workers: ``wall - sum(wall_time) / W``); and whether every row's results are identical, bit for
+bit, to those of the first sweep. It first times the fixed cost of a command: a sweep of one 0.01 s
 run (the Numba cache warm, which a first, untimed, sweep makes sure of).
 
 Engines: ``pool`` is the default process pool (``--start-method auto``: forked from the
@@ -139,28 +140,35 @@ def main() -> None:
         )
         print("|---|---|---|---|---|---|---|---|---|")
         reference: list[dict[str, str]] | None = None
+        points = [(engine, w) for engine in engines for w in counts]
+        samples: dict[tuple[str, int], list[tuple[float, float, float, float, bool | None]]] = {
+            p: [] for p in points
+        }
+        for i in range(args.repeat):  # interleaved: a slow spell of the machine hits every point
+            for engine, w in points:
+                out = base / f"{engine}{w}_{i}"
+                wall, first = sweep(out, args.runs, args.duration, w, engine)
+                table = rows(out)
+                times = [float(r["wall_time"]) for r in table]
+                same = None
+                if reference is None:
+                    reference = results_of(table)
+                else:
+                    same = results_of(table) == reference
+                overhead = wall - sum(times) / w
+                samples[engine, w].append((wall, first, statistics.median(times), overhead, same))
         entries = []
-        for engine in engines:
-            one_worker: float | None = None
-            for w in counts:
-                walls, firsts, per_runs, overheads = [], [], [], []
-                same: bool | None = None
-                for i in range(args.repeat):
-                    out = base / f"{engine}{w}_{i}"
-                    wall, first = sweep(out, args.runs, args.duration, w, engine)
-                    table = rows(out)
-                    times = [float(r["wall_time"]) for r in table]
-                    walls.append(wall)
-                    firsts.append(first)
-                    per_runs.append(statistics.median(times))
-                    overheads.append(wall - sum(times) / w)
-                    if reference is None:
-                        reference = results_of(table)
-                    else:
-                        same = (same is not False) and results_of(table) == reference
-                best = min(walls)
-                one_worker = one_worker or best
-                entry = {
+        med = statistics.median
+        for engine, w in points:
+            walls, firsts, per_runs, overheads, sames = (
+                list(c) for c in zip(*samples[engine, w], strict=True)
+            )
+            best = min(walls)
+            one_worker = min(s[0] for s in samples[engine, counts[0]])
+            checked = [s for s in sames if s is not None]
+            same = all(checked) if checked else None
+            entries.append(
+                {
                     "engine": engine,
                     "workers": w,
                     "wall_s": walls,
@@ -171,15 +179,14 @@ def main() -> None:
                     "fixed_overhead_s": overheads,
                     "rows_identical_to_first": same,
                 }
-                entries.append(entry)
-                med = statistics.median
-                print(
-                    f"| {engine} | {w} | {_fmt(best, med(walls))} | "
-                    f"{args.runs / best:.2f} ({args.runs / med(walls):.2f}) | "
-                    f"{one_worker / best:.2f} | {_fmt(min(per_runs), med(per_runs))} | "
-                    f"{_fmt(min(firsts), med(firsts))} | "
-                    f"{_fmt(min(overheads), med(overheads))} | {'-' if same is None else same} |"
-                )
+            )
+            print(
+                f"| {engine} | {w} | {_fmt(best, med(walls))} | "
+                f"{args.runs / best:.2f} ({args.runs / med(walls):.2f}) | "
+                f"{one_worker / best:.2f} | {_fmt(min(per_runs), med(per_runs))} | "
+                f"{_fmt(min(firsts), med(firsts))} | "
+                f"{_fmt(min(overheads), med(overheads))} | {'-' if same is None else same} |"
+            )
         report["sweeps"] = entries
     report["loadavg_end"] = os.getloadavg()
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
