@@ -18,7 +18,8 @@ of workers of the same engine (best over best), the median per-run time of the r
 start-up plus one run) and the fixed overhead (wall time minus the runs' time spread over the
 workers: ``wall - sum(wall_time) / W``); and whether every row's results are identical, bit for
 bit, to those of the first sweep. It first times the fixed cost of a command: a sweep of one 0.01 s
-run (the Numba cache warm, which a first, untimed, sweep makes sure of).
+run (the Numba cache warm, which a first, untimed, sweep makes sure of), and what the machine
+itself gives W CPU-bound processes at once (the ceiling of the speed-up on it).
 
 Engines: ``pool`` is the default process pool (``--start-method auto``: forked from the
 sweep's process where that is safe), ``spawn`` the pool with ``--start-method spawn``, ``dask``
@@ -73,6 +74,28 @@ def sweep(out: Path, runs: int, duration: float, workers: int, engine: str) -> t
     if proc.returncode != 0:
         raise SystemExit(f"sweep failed ({proc.returncode}): {stderr.strip()}")
     return wall, first if first == first else wall
+
+
+_SPIN = "s = 0\nfor i in range(6_000_000):\n    s += i * i\n"
+
+
+def machine_speed_up(workers: int, repeat: int) -> list[float]:
+    """What this machine gives W independent CPU-bound processes: W × (one process's wall time)
+    / (wall time of W at once), for a pure-Python loop with no I/O, measured ``repeat`` times
+    (one alone, then W at once, each time). The ceiling of a sweep's speed-up here (a VM's
+    cores may be shared, hyper-threads, or slowed by other work)."""
+    cmd = [sys.executable, "-c", _SPIN]
+    ratios = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True)
+        one = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        procs = [subprocess.Popen(cmd) for _ in range(workers)]
+        for proc in procs:
+            proc.wait()
+        ratios.append(workers * one / (time.perf_counter() - t0))
+    return ratios
 
 
 def _has_row(path: Path) -> bool:
@@ -133,6 +156,14 @@ def main() -> None:
             f"fixed cost of a command (one 0.01 s run, 1 worker, 5 times): best "
             f"{min(fixed):.2f} s, median {statistics.median(fixed):.2f} s"
         )
+        ceiling = {w: machine_speed_up(w, 2 * args.repeat + 1) for w in counts if w > 1}
+        report["machine_speed_up"] = ceiling
+        for w, ratios in ceiling.items():
+            print(
+                f"machine: {w} CPU-bound processes at once do {statistics.median(ratios):.2f}x "
+                f"the work of one (median of {len(ratios)}; from {min(ratios):.2f} to "
+                f"{max(ratios):.2f})"
+            )
         print(f"{args.runs} runs of {args.duration:g} s; best (median) of {args.repeat}:")
         print(
             "| engine | workers | wall [s] | runs/s | speed-up | per run [s] | first row [s] "

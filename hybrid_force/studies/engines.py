@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import gc
 import multiprocessing
 import os
 import signal
@@ -205,12 +206,16 @@ def _start_worker(parent_pid: int, warm: _Task | None, forked: bool) -> None:
     Runs once per worker process, before its first task and while the sweep still prepares
     (the workers are started first), so no run pays for the imports and the kernels. A forked
     worker has them already; it drops the sweep's SIGTERM handler (the sweep stops its
-    workers itself) and the thread pools the numeric libraries started before the fork.
+    workers itself) and the thread pools the numeric libraries started before the fork, and
+    freezes the objects it inherited (see :func:`gc.freeze`).
     """
     _watch_parent(parent_pid)
     if forked:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _one_blas_thread()
+        # what the fork copied (modules, kernels) lives as long as the worker: out of the
+        # garbage collector's scans, which would otherwise walk it again and again
+        gc.freeze()
     if warm is not None:
         warm_up(warm)
 
