@@ -187,6 +187,7 @@ def run_sweep(
         raise SweepError(f"--workers must be a positive integer, got {workers!r}")
     source = _Source(scenario)  # read here, never by a worker; ScenarioError if unreadable
     out = Path(out_dir)
+    created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -210,8 +211,9 @@ def run_sweep(
             engine.start(_warm_task(source, guess, keep=keep_dir is not None))
         # one command at a time writes into a folder: a second sweep (or a run) is refused
         with locked_folder(out, "--out"):
+            sha = _file_sha256(scenario)
+            _check_same_scenario(out, scenario, sha)
             table = _Table(out / _CSV_NAME, variants)
-            _check_same_scenario(out, scenario, sha := _file_sha256(scenario))
             if check is not None:
                 check()
             todo = [
@@ -230,7 +232,9 @@ def run_sweep(
             }
             _write_atomic(out / _JSON_NAME, json.dumps(info, indent=1, default=str) + "\n")
             table.write()
-            if todo and engine is None:  # the folder changed since the guess: workers now
+            if todo and engine is None:
+                # the folder changed since the guess: workers now, spawned (a fork would copy
+                # the lock)
                 engine = PoolEngine(workers, len(todo), "spawn") if scheduler is None else (
                     DaskEngine(workers, scheduler)
                 )  # fmt: skip
@@ -240,6 +244,9 @@ def run_sweep(
     finally:
         if engine is not None:
             engine.close(failed)
+        if failed and created:  # refused before anything was written: leave no empty folder
+            with contextlib.suppress(OSError):
+                out.rmdir()
     if lost:
         missing = sum(1 for rid in ids if rid not in table.rows)
         raise SimulationError(
