@@ -364,6 +364,7 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     home = tmp_path / "cluster" / "home"  # not a sibling of the caller's folder
     (home / "tmp").mkdir(parents=True)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(REPO)  # the same hybrid_force as the sweep's, not the caller's folder
     env["TMPDIR"] = str(home / "tmp")
     bin_dir = Path(sys.executable).parent
     dask_cmd = str(bin_dir / "dask") if (bin_dir / "dask").exists() else "dask"

@@ -1,0 +1,222 @@
+"""hybrid_force.studies engines: rows identical whatever the workers, start method, chunks or
+engine; chunk sizes; warm-up; the scenario checked as the variants see it; module layout."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hybrid_force.studies import engines, sweep, table, tasks, variants
+from hybrid_force.studies.engines import CHUNK_SECONDS, _ChunkSize
+from hybrid_force.studies.sweep import (
+    TIMING_COLUMNS,
+    SweepError,
+    expand,
+    read_sweep_csv,
+    run_id,
+    run_one,
+    run_sweep,
+)
+from hybrid_force.studies.table import _cell
+
+REPO = Path(__file__).resolve().parents[1]
+
+PAPER = REPO / "scenarios" / "paper_contact.toml"  # section 6.3, 20 s: shortened per variant
+
+
+@pytest.fixture()
+def scenario(tmp_path: Path) -> Path:
+    path = tmp_path / "tiny.toml"
+    path.write_text(PAPER.read_text().replace("duration = 20.0", "duration = 0.1"))
+    return path
+
+
+def _results(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows]
+
+
+def test_rows_are_identical_whatever_the_workers_start_method_chunks_or_engine(
+    tmp_path: Path, scenario: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each row equals the one its variant gives when run alone in this process (run_one: no
+    pool, no warm-up, no chunk), on 1 to 3 forked or spawned workers and on Dask."""
+    lambdas = [2.0, 3.0, 5.0, 8.0, 10.0, 15.0, 20.0, 30.0, 1e4, -1.0]
+    todo = expand({"control.Lambda": lambdas}, {}, 0, 0)
+    alone = [run_one(str(scenario), v, None) for v in todo]
+    reference = [{k: _cell(v) for k, v in r.items() if k not in TIMING_COLUMNS} for r in alone]
+    assert [r["status"] for r in reference][-2:] == ["diverged", "bad input"]
+    sizes: list[int] = []
+    next_size = _ChunkSize.next
+
+    def spy(self: _ChunkSize) -> int:
+        sizes.append(next_size(self))
+        return sizes[-1]
+
+    monkeypatch.setattr(_ChunkSize, "next", spy)
+    setups: list[dict] = [
+        {"workers": 1, "start_method": "spawn"},
+        {"workers": 3, "start_method": "spawn"},
+        {"workers": 2, "scheduler": "local"},
+    ]
+    paths = [
+        run_sweep(scenario, todo, out_dir=tmp_path / f"s{i}", progress=False, **setup)
+        for i, setup in enumerate(setups)
+    ]
+    if sys.platform.startswith("linux"):
+        # forked workers, from a process with no other thread (a Dask client leaves some here)
+        code = (
+            "import sys, json\n"
+            "from hybrid_force.studies.sweep import run_sweep\n"
+            "run_sweep(sys.argv[1], json.loads(sys.argv[2]), workers=2, out_dir=sys.argv[3],\n"
+            "          progress=False, start_method='fork')\n"
+        )
+        env = dict(os.environ, PYTHONPATH=str(REPO))
+        argv = [sys.executable, "-c", code, str(scenario), json.dumps(todo), str(tmp_path / "f")]
+        subprocess.run(argv, env=env, check=True, capture_output=True)
+        setups.append({"workers": 2, "start_method": "fork"})
+        paths.append(tmp_path / "f" / "sweep.csv")
+    for setup, path in zip(setups, paths, strict=True):
+        _, rows = read_sweep_csv(path)
+        assert [r["run_id"] for r in rows] == [run_id(v) for v in todo], setup
+        assert _results(rows) == reference, setup
+    assert max(sizes) > 1  # short runs were sent in chunks of several
+
+
+def test_chunk_sizes_fill_the_target_time_and_keep_the_work_shared() -> None:
+    sizes = _ChunkSize(n_jobs=1000, workers=4)
+    assert sizes.next() == 1  # nothing measured yet
+    for wall in (0.01, 0.02, 0.01, 5.0, 0.01):  # median 0.01 s
+        sizes.observe({"wall_time": wall, "status": "ok"})
+    sizes.observe({"wall_time": 0.0, "status": "bad input"})  # not a run: ignored
+    assert sizes.next() == int(CHUNK_SECONDS / 0.01)
+    sizes.left = 40  # fair share: 40 left over 2 × 4 workers
+    assert sizes.next() == 5
+    sizes.left = 3
+    assert sizes.next() == 1
+    slow = _ChunkSize(n_jobs=100, workers=2)
+    slow.observe({"wall_time": 3.0, "status": "ok"})
+    assert slow.next() == 1  # long runs go one by one
+
+
+def test_warm_up_never_raises_and_changes_no_row(tmp_path: Path, scenario: Path) -> None:
+    source = tasks._Source(scenario)
+    good = source.job(run_id({}), {}, keep=False)
+    assert isinstance(good, tasks._Task)
+    before, _ = tasks._execute(good)
+    tasks.warm_up(good)
+    after, _ = tasks._execute(good)
+    drop = set(TIMING_COLUMNS)
+    assert {k: v for k, v in before.items() if k not in drop} == {
+        k: v for k, v in after.items() if k not in drop
+    }
+    broken = tasks._Task("x", {}, {"robot": {"model": "no-such-arm"}}, "b.toml", None, False)
+    tasks.warm_up(broken)  # a variant that cannot run: nothing raised
+
+
+def test_the_scenario_is_checked_as_every_variant_sees_it(tmp_path: Path) -> None:
+    """A key the grid fixes to one value is part of the scenario the command checks; a file
+    broken elsewhere is refused before anything is written, and its workers are stopped."""
+    import argparse
+
+    from hybrid_force.errors import BadInputError
+    from hybrid_force.studies.sweep import add_sweep_arguments, sweep_command
+
+    def args(*argv: str) -> argparse.Namespace:
+        parser = argparse.ArgumentParser()
+        add_sweep_arguments(parser)
+        return parser.parse_args(list(argv))
+
+    broken = tmp_path / "broken.toml"
+    broken.write_text(PAPER.read_text().replace("duration = 20.0", "duration = -1.0"))
+    out = tmp_path / "fixed"
+    code = sweep_command(
+        args(str(broken), "--grid", "sim.duration=0.05", "--workers", "1", "--out", str(out))
+    )
+    assert code == 0
+    _, rows = read_sweep_csv(out / "sweep.csv")
+    assert [r["status"] for r in rows] == ["ok"] and float(rows[0]["t_end"]) == 0.05
+    refused = tmp_path / "refused"
+    with pytest.raises(BadInputError, match=r"sim\.duration"):
+        sweep_command(
+            args(
+                str(broken), "--grid", "control.Lambda=2,3", "--workers", "2", "--out", str(refused)
+            )
+        )
+    assert not refused.exists()  # nothing written, not even the folder
+    import multiprocessing
+
+    assert multiprocessing.active_children() == []  # the pool's workers were stopped
+
+
+def test_a_bad_start_method_is_refused(tmp_path: Path, scenario: Path) -> None:
+    with pytest.raises(SweepError, match="start_method"):
+        run_sweep(scenario, [{}], out_dir=tmp_path / "o", start_method="thread")  # type: ignore[arg-type]
+
+
+def test_forked_workers_run_openblas_on_one_thread() -> None:
+    """The thread variables do not reach a library loaded before the fork: a forked worker
+    sets every loaded OpenBLAS to one thread itself (read back through OpenBLAS's getter)."""
+    code = (
+        "import ctypes, numpy\n"
+        "from hybrid_force.studies.engines import _one_blas_thread\n"
+        "paths = {l.split()[-1] for l in open('/proc/self/maps') if 'openblas' in l.lower()}\n"
+        "getters = []\n"
+        "for p in paths:\n"
+        "    lib = ctypes.CDLL(p)\n"
+        "    for n in ('scipy_openblas_get_num_threads64_', 'scipy_openblas_get_num_threads',\n"
+        "              'openblas_get_num_threads64_', 'openblas_get_num_threads'):\n"
+        "        if hasattr(lib, n):\n"
+        "            getters.append(getattr(lib, n)); break\n"
+        "_one_blas_thread()\n"
+        "print(len(getters), [g() for g in getters])\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    env["PYTHONPATH"] = str(REPO)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    ).stdout.split(maxsplit=1)
+    if out[0] == "0" or not sys.platform.startswith("linux"):
+        pytest.skip("no OpenBLAS with the usual entry points here")
+    assert out[1].strip() == str([1] * int(out[0]))
+
+
+def test_the_parts_of_a_sweep_are_importable_from_the_sweep_module() -> None:
+    import importlib
+
+    old = importlib.import_module("hybrid_force.sweep")  # the path before 0.2
+    assert old is sweep
+    assert sweep.run_id is variants.run_id and sweep.expand is variants.expand
+    assert sweep.read_sweep_csv is table.read_sweep_csv
+    assert sweep.METRIC_COLUMNS is table.METRIC_COLUMNS and sweep.run_one is tasks.run_one
+    assert sweep.single_threaded_workers is engines.single_threaded_workers
+    assert sweep._watch_parent is engines._watch_parent and sweep._execute is tasks._execute
+    for name in sweep.__all__:
+        assert getattr(sweep, name) is not None, name
+    for module in (engines, sweep, table, tasks, variants):
+        assert module.__file__ is not None
+        assert len(Path(module.__file__).read_text().splitlines()) <= 600, module.__name__
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_a_run_stopped_by_a_signal_stops_the_sweep_with_that_signal(
+    scenario: Path, monkeypatch: pytest.MonkeyPatch, sig: str
+) -> None:
+    """In the sweep's own process (the warm-up before a fork, run_one), a run interrupted by
+    SIGTERM raises Terminated (exit status 143), by Ctrl-C a KeyboardInterrupt (130)."""
+    from hybrid_force._signals import Terminated
+    from hybrid_force.errors import RunInterruptedError
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise RunInterruptedError("stopped", signal=sig)
+
+    monkeypatch.setattr("hybrid_force.sim.loop.simulate", interrupted)
+    task = tasks._Source(scenario).job(run_id({}), {}, keep=False)
+    assert isinstance(task, tasks._Task)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        tasks.warm_up(task)
+    assert isinstance(caught.value, Terminated) == (sig == "SIGTERM")
