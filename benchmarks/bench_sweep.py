@@ -18,8 +18,9 @@ of workers of the same engine (best over best), the median per-run time of the r
 start-up plus one run) and the fixed overhead (wall time minus the runs' time spread over the
 workers: ``wall - sum(wall_time) / W``); and whether every row's results are identical, bit for
 bit, to those of the first sweep. It first times the fixed cost of a command: a sweep of one 0.01 s
-run (the Numba cache warm, which a first, untimed, sweep makes sure of), and what the machine
-itself gives W CPU-bound processes at once (the ceiling of the speed-up on it).
+run (the Numba cache warm, which a first, untimed, sweep makes sure of) and where its time goes
+(the command's functions wrapped by timers), and what the machine itself gives W CPU-bound
+processes at once (the ceiling of the speed-up on it).
 
 Engines: ``pool`` is the default process pool (``--start-method auto``: forked from the
 sweep's process where that is safe), ``spawn`` the pool with ``--start-method spawn``, ``dask``
@@ -98,6 +99,57 @@ def machine_speed_up(workers: int, repeat: int) -> list[float]:
     return ratios
 
 
+# A one-run sweep command with the time of its phases: the command's functions wrapped by
+# timers (this process imports what the command would, so the import is timed first).
+_PHASES = """
+import json, sys, time
+t0 = time.perf_counter()
+import hybrid_force
+spent = {"import hybrid_force": time.perf_counter() - t0}
+import hybrid_force.scenario.loader as loader
+from hybrid_force import cli
+from hybrid_force.studies import engines
+
+def timed(owner, name, label):
+    inner = getattr(owner, name)
+    def wrapper(*args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            spent[label] = spent.get(label, 0.0) + time.perf_counter() - t
+    setattr(owner, name, wrapper)
+
+timed(engines, "warm_up", "warm-up (load the kernels)")
+timed(loader, "load_scenario", "check the scenario")
+timed(engines.PoolEngine, "run", "runs and rows")
+status = cli.main(sys.argv[1:])
+spent["until the command returns"] = time.perf_counter() - t0
+print(json.dumps(spent), file=sys.stderr)
+sys.exit(status)
+"""
+
+
+def phases(out: Path) -> dict[str, float]:
+    """Where a one-run sweep's wall time goes [s] (``--start-method fork``; see _PHASES)."""
+    argv = [
+        sys.executable, "-c", _PHASES, "sweep", str(SCENARIO), "--grid", "sim.duration=0.01",
+        "--workers", "1", "--out", str(out), "--no-progress", "--start-method", "fork",
+    ]  # fmt: skip
+    t0 = time.perf_counter()
+    proc = subprocess.run(argv, capture_output=True, text=True, check=True)
+    wall = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "pass"], check=True)
+    spent: dict[str, float] = json.loads(proc.stderr.strip().splitlines()[-1])
+    spent["Python's start (python -c pass)"] = time.perf_counter() - t0
+    spent["the whole command"] = wall
+    spent["exit"] = (
+        wall - spent["until the command returns"] - spent["Python's start (python -c pass)"]
+    )
+    return spent
+
+
 def _has_row(path: Path) -> bool:
     try:
         with path.open(encoding="utf-8") as fh:
@@ -152,6 +204,12 @@ def main() -> None:
         sweep(base / "warm", 1, 0.01, 1, "pool")  # fills the Numba cache if it is empty
         fixed = [sweep(base / f"fixed{i}", 1, 0.01, 1, "pool")[0] for i in range(5)]
         report["fixed_cost_s"] = {"best": min(fixed), "median": statistics.median(fixed)}
+        parts = [phases(base / f"phases{i}") for i in range(5)]
+        fastest = min(parts, key=lambda p: p["the whole command"])
+        report["fixed_cost_phases_s"] = parts
+        print("where a one-run sweep's time goes (fork; the fastest of 5) [s]:")
+        for name, value in fastest.items():
+            print(f"  {name}: {value:.3f}")
         print(
             f"fixed cost of a command (one 0.01 s run, 1 worker, 5 times): best "
             f"{min(fixed):.2f} s, median {statistics.median(fixed):.2f} s"

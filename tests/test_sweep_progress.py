@@ -96,7 +96,10 @@ def test_sweep_command_draws_progress_on_stderr_only(
     forced = capsys.readouterr()
     assert "\rsweep [" in forced.err and "2/2 100%" in forced.err and "left done" in forced.err
     assert "\r" not in forced.out and "sweep: 2 runs (2 ok)" in forced.out
-    assert main([*common, "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+    assert (
+        main([*common, "--out", str(tmp_path / "b"), "--no-progress", "--start-method", "spawn"])
+        == 0
+    )
     quiet = capsys.readouterr()
     assert "\r" not in quiet.err
     # stdout is the same machine-readable summary either way (but for its wall time)

@@ -7,9 +7,15 @@ the same keys as ``hybrid-force run --set``) and writes one row per run to ``DIR
   each a dict of overrides with a stable run id (a hash of its sorted parameters).
 * :func:`run_one` runs one variant and returns a flat row; it never raises.
 * :func:`run_sweep` runs the variants that ``DIR/sweep.csv`` does not hold yet, on local worker
-  processes (:class:`concurrent.futures.ProcessPoolExecutor`, "spawn" start method) or on a
-  Dask distributed cluster, and rewrites ``sweep.csv`` atomically after every finished run.
+  processes (forked from this process once it has loaded the compiled kernels, or spawned) or
+  on a Dask distributed cluster, and rewrites ``sweep.csv`` atomically as rows come back.
 * :func:`add_sweep_arguments` / :func:`sweep_command`: the ``hybrid-force sweep`` command.
+
+The parts live in their own modules, and their names stay importable from this one:
+:mod:`~hybrid_force.studies.variants` (grid, samples, run ids),
+:mod:`~hybrid_force.studies.table` (columns, ``sweep.csv``), :mod:`~hybrid_force.studies.tasks`
+(one run in a worker), :mod:`~hybrid_force.studies.engines` (process pool, Dask; warm-up,
+chunks), :mod:`~hybrid_force.studies.progress` (the progress line).
 
 Row statuses: ``"ok"``; ``"diverged"`` (the simulation failed at run time; the metrics are those
 of the partial run); ``"failed"`` (the run failed otherwise: it lost contact, or its desired
