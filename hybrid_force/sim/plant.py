@@ -229,10 +229,7 @@ class Plant:
             return self._free(terms, cmd), self._zeros_k
         c = self.contact
         f = compliant_force(c, penetration, rate)
-        u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
-        if self.effort is not None and bool(np.any(np.abs(u) > self.effort)):
-            u = self.applied = np.clip(u, -self.effort, self.effort)
-        tau = u + cons.A.T @ f
+        tau = self._clipped(cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f) + cons.A.T @ f
         friction = 0.0
         if c.friction > 0.0:
             F, speed = self._friction_matrix(terms)
@@ -243,10 +240,13 @@ class Plant:
         return free_acceleration(terms.M, terms.nle, tau), f
 
     def _free(self, terms: RobotTerms, cmd: Command) -> np.ndarray:
-        u = cmd.u0
+        return free_acceleration(terms.M, terms.nle, self._clipped(cmd.u0))
+
+    def _clipped(self, u: np.ndarray) -> np.ndarray:
+        """The motor torque u (n,) clipped at the effort limits; :attr:`applied` set if it was."""
         if self.effort is not None and bool(np.any(np.abs(u) > self.effort)):
             u = self.applied = np.clip(u, -self.effort, self.effort)
-        return free_acceleration(terms.M, terms.nle, u)
+        return u
 
     def _saturated(
         self,
