@@ -54,6 +54,19 @@ __all__ = ["build_parser", "main"]
 Handler = Callable[[argparse.Namespace], int]
 
 
+def _cmd_laws(args: argparse.Namespace) -> int:
+    """Print the control laws a scenario's ``control.law`` may name, one line each; with
+    ``--options`` also each law's ``[control.<law>]`` keys."""
+    from hybrid_force.control.laws.base import LAWS
+
+    width = max(len(name) for name in LAWS)
+    for name, spec in LAWS.items():
+        print(f"{name:<{width}}  {spec.summary}")
+        for key, option in spec.options.items() if args.options else ():
+            print(f"{'':<{width}}    control.{name}.{key}: {option.doc}")
+    return 0
+
+
 def _cmd_robots(args: argparse.Namespace) -> int:
     """Print a table of the named robots (name, joints, default tip, source), or with
     ``--check MODEL`` what loading that model finds (hybrid_force.model.report)."""
@@ -389,6 +402,14 @@ def build_parser(*, sweep_options: bool = True) -> argparse.ArgumentParser:
         help="with --check: keep the joints off the chain to the tip free (not locked)",
     )
     robots.set_defaults(handler=_cmd_robots)
+    laws = sub.add_parser(
+        "laws",
+        help="list the control laws a scenario can name (control.law)",
+        description="List the control laws a scenario's control.law can name, one line each "
+        "with its source; --options also lists the keys of each law's [control.<law>] table.",
+    )
+    laws.add_argument("--options", action="store_true", help="also list each law's settings")
+    laws.set_defaults(handler=_cmd_laws)
     _add_run(sub)
     _add_plot(sub)
     _add_replay(sub)

@@ -506,7 +506,7 @@ def test_law_workspace_equals_the_reference_laws(
             u0, B, trace = cmd.u0.copy(), cmd.B, ws.trace(e_q, np.zeros(k), np.zeros(k))
             ref_cmd, ref_trace = free_space_law(gains, terms, v, e_q, desired)
             assert B is None and ref_cmd.B is None
-            assert ws.hybrid is False
+            assert ws.in_contact_law is False
         else:
             e_F = rng.uniform(-1, 1, k)
             f_d = rng.uniform(0, 20, k)
@@ -517,7 +517,7 @@ def test_law_workspace_equals_the_reference_laws(
             ref_cmd, ref_trace = arimoto_law(
                 gains, terms, cons, v, e_q, desired, e_F, f_d, approach
             )
-            assert ws.hybrid is True
+            assert ws.in_contact_law is True
             if beta == 0.0:
                 assert B is None and ref_cmd.B is None
             else:

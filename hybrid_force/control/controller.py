@@ -7,7 +7,8 @@ u (n,) [N·m or N], which the simulator holds until the next tick (zero-order ho
 never handed the plant's terms, its multiplier or its state: it computes what it needs from
 its own model (:class:`ControllerModel`).
 
-The paper's law (``control.law = "arimoto"``, the default) is built in
+The scenario's law (``control.law``: the paper's ``"arimoto"`` by default, or another of
+:data:`hybrid_force.control.laws.base.LAWS`) runs inside the phase supervisor
 (:class:`hybrid_force.control.supervisor.HybridController`): with ideal sensing at the plant's rate
 the simulator also uses its affine form u = u0 + B f to resolve the force loop exactly, the
 paper's setting; a controller given to :func:`hybrid_force.sim.loop.simulate` runs sampled.
@@ -26,15 +27,11 @@ from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 
 __all__ = [
-    "LAWS",
     "Controller",
     "ControllerModel",
     "ReferenceControllerModel",
     "check_same_joints",
 ]
-
-#: The control laws a scenario can name (``control.law``).
-LAWS: tuple[str, ...] = ("arimoto",)
 
 
 @runtime_checkable

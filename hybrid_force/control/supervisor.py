@@ -33,7 +33,9 @@ from __future__ import annotations
 import math
 import numbers
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -52,12 +54,11 @@ from hybrid_force.control.laws.arimoto import (
     ControlTrace,
     Desired,
     Gains,
-    LawWorkspace,
-    ReferenceLaw,
     check_damping_gain,
     default_damping_gain,
     make_gains,
 )
+from hybrid_force.control.laws.base import Law, LawContext, build_law, check_options, law_spec
 from hybrid_force.errors import ControlError, GainError
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot, RobotTerms
@@ -101,7 +102,11 @@ class ControlSettings:
         branch_check_time: in contact for longer than this [s] with a task error above
             ``branch_error`` that no longer decreases → "branch" event and a warning.
         branch_error: [m].
-        law: the control law, ``"arimoto"`` (the paper's, with this supervisor).
+        law: the control law, a name of :data:`hybrid_force.control.laws.base.LAWS`
+            (``"arimoto"``, the paper's, by default); every law runs inside this supervisor.
+        options: each law's own settings, ``{law: {key: value}}`` (the scenario's
+            ``[control.<law>]`` tables), checked against the law's keys; only the running
+            law's table is used.
         rate: the control rate [Hz]: the controller reads its sensors and computes a new
             torque every 1/rate s and the torque is held in between (zero-order hold); None:
             every plant step (1/sim.dt). Must be a whole number of plant steps (checked with
@@ -130,6 +135,7 @@ class ControlSettings:
     branch_error: float = 1e-2
     rate: float | None = None
     law: str = "arimoto"
+    options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         """Check every field (types, signs, finiteness) and store numbers as floats.
@@ -155,9 +161,8 @@ class ControlSettings:
                 f"need max_dist > contact_tol > 0, got max_dist={self.max_dist!r}, "
                 f"contact_tol={self.contact_tol!r}"
             )
-        from hybrid_force.control.controller import LAWS
-
-        checks.one_of(self.law, "control.law", ControlError, LAWS)
+        law_spec(self.law)
+        set_(self, "options", check_options(self.options))
         supervisor = checks.flag(self.supervisor, "ControlSettings.supervisor", ControlError)
         set_(self, "supervisor", supervisor)
         set_(self, "f_d", _desired_force(self.f_d))
@@ -247,7 +252,7 @@ class HybridController:
     """
 
     _joint_path: type[DesiredJointPath] = DesiredJointPath
-    _law_type: type[LawWorkspace] | type[ReferenceLaw] = LawWorkspace
+    _reference = False  # build the law's readable numpy form
 
     def __init__(
         self,
@@ -285,7 +290,9 @@ class HybridController:
         self._zeros_k = np.zeros(k)
         self._e_q = np.zeros(n)
         self._e_F = np.zeros(k)
-        self._law = self._law_type(n, k, self.gains)
+        self._law: Law = build_law(
+            LawContext(robot, constraint, s, self.gains, M0, q0, dt, reference=self._reference)
+        )
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._scaled = RobotTerms.zeros(n)
         # per-step tests, decided once
@@ -293,8 +300,7 @@ class HybridController:
         self._exact_model = s.mass_factor == 1.0
         self._subtract = robot.euclidean  # e_q = q − q_d (else pin.difference)
         self._next_branch_check = -np.inf
-        c = self.clik
-        self._desired = Desired(q=c.q, qd=c.qd, qdd=c.qdd)
+        self._desired = self._sample_desired()
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -306,9 +312,18 @@ class HybridController:
     def desired(self) -> Desired:
         """q_d, q̇_d, q̈_d now (arrays that the next step may overwrite)."""
         c, d = self.clik, self._desired
-        if d.q is not c.q or d.qd is not c.qd or d.qdd is not c.qdd:  # new arrays (reference)
-            self._desired = d = Desired(q=c.q, qd=c.qd, qdd=c.qdd)
+        if d.q is not c.q or d.qd is not c.qd or d.qdd is not c.qdd or d.p is not c.p_d:
+            self._desired = d = self._sample_desired()  # new arrays (reference, a new sample)
         return d
+
+    def _sample_desired(self) -> Desired:
+        c = self.clik
+        return Desired(q=c.q, qd=c.qd, qdd=c.qdd, p=c.p_d, pd=c.pdot_d, pdd=c.pddot_d)
+
+    @property
+    def law(self) -> Law:
+        """The control law this supervisor runs (``settings.law``)."""
+        return self._law
 
     @property
     def trace(self) -> ControlTrace | None:
@@ -402,7 +417,7 @@ class HybridController:
                 self._check_branch(t, terms, cons, e_q)
         e_F = self._e_F  # F − F_d, kept up to date by update()
         self._last = (e_q, e_F, st.f_d)
-        command = law.arimoto(model, cons, v, e_q, desired, e_F, st.f_d, approach)
+        command = law.hybrid(model, cons, v, e_q, desired, e_F, st.f_d, approach)
         self.V = law.V
         return command
 
@@ -444,6 +459,7 @@ class HybridController:
         """Advance the controller's integrators over one step with the force f (k,) [N]."""
         if self.phase == CONTACT:
             self._accumulate(f, dt)
+        self._law.update(dt, f)
         self.clik.advance(dt)
 
     def _accumulate(self, f: np.ndarray, dt: float) -> None:
@@ -459,7 +475,7 @@ class ReferenceController(HybridController):
     loader checks a controller with (no Numba to load)."""
 
     _joint_path = ReferenceJointPath
-    _law_type = ReferenceLaw
+    _reference = True
 
     def _accumulate(self, f: np.ndarray, dt: float) -> None:
         st = self._int

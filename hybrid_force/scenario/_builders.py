@@ -310,11 +310,15 @@ def _control_settings(
     ctx: _Context,
 ) -> Any:
     from hybrid_force.control.laws.arimoto import make_gains
+    from hybrid_force.control.laws.base import law_names
     from hybrid_force.control.supervisor import ControlSettings
 
     defaults = ControlSettings()
     kwargs = dict(values)
     kwargs.pop("model", None)  # the controller's own model: loaded by _controller_model
+    options = {law: kwargs.pop(law) for law in law_names() if law in kwargs}  # checked
+    if options:
+        kwargs["options"] = options
     n = robot.nv
     if "Kd" in kwargs:
         try:

@@ -16,8 +16,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from hybrid_force.control.controller import LAWS
-from hybrid_force.errors import ScenarioError, did_you_mean
+from hybrid_force.control.laws.base import check_options, law_names
+from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
 
 
 # --- schema --------------------------------------------------------------------------------------
@@ -29,7 +29,8 @@ class _Key:
     (a list of numbers),
     "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
     "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
-    table of texts: strings, or numbers and booleans turned into their TOML text).
+    table of texts: strings, or numbers and booleans turned into their TOML text),
+    "law_table" (a control law's own settings, checked against the law's keys).
     """
 
     kind: str
@@ -102,8 +103,10 @@ _CONTROL: dict[str, _Key] = {
     "approach_rate": _Key("number"),
     "supervisor": _Key("bool"),
     "rate": _Key("number"),
-    "law": _Key("choice", choices=LAWS),
+    "law": _Key("choice", choices=law_names()),
     "model": _Key("str"),
+    # [control.<law>]: each law's own settings (hybrid_force.control.laws.base.LAWS)
+    **{name: _Key("law_table") for name in law_names()},
 }
 
 _SIM: dict[str, _Key] = {
@@ -287,6 +290,16 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
                 )
             out[name] = xacro_argument_text(x)
         return out
+    if kind == "law_table":
+        if not isinstance(value, dict):
+            raise ctx.error(key, value, f"must be a table [{key}], got {_type_name(value)}")
+        law = key.rsplit(".", 1)[-1]
+        try:
+            return check_options({law: value})[law]
+        except BadInputError as exc:
+            raise ScenarioError(
+                f"{ctx.file}: {exc}", key=exc.key, value=exc.value, file=ctx.file
+            ) from None
     if kind == "bool":
         if not isinstance(value, bool):
             raise ctx.error(key, value, f"must be true or false, got {_type_name(value)}")

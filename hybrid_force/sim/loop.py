@@ -384,8 +384,10 @@ def _meta(sc: Scenario, ctrl: _ControlSide, k: int, nq: int) -> dict:
         "surfaces": [s.to_dict() for s in sc.surfaces],
         "path": _path_meta(sc.path),
         "controller": {
-            "law": "arimoto" if law is not None else type(ctrl.user).__name__,
+            "law": sc.control.law if law is not None else type(ctrl.user).__name__,
             "model": ctrl.model_robot.reference,
+            # the running law's own gains and settings (the paper's K_d, Λ, β, γ for arimoto)
+            "settings": _jsonable(law.law.info()) if law is not None else None,
         },
         "gains": None
         if law is None

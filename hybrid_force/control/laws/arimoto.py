@@ -31,6 +31,7 @@ import numpy as np
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
+from hybrid_force.control.laws.base import LawContext
 from hybrid_force.errors import GainError
 from hybrid_force.model.robot import RobotTerms
 
@@ -44,6 +45,7 @@ __all__ = [
     "LawWorkspace",
     "ReferenceLaw",
     "arimoto_law",
+    "build",
     "check_damping_gain",
     "default_damping_gain",
     "free_space_law",
@@ -154,11 +156,16 @@ def make_gains(
 
 @dataclass(frozen=True)
 class Desired:
-    """Desired joint motion at one instant: q_d, q̇_d, q̈_d, each (n,)."""
+    """Desired motion at one instant: q_d, q̇_d, q̈_d, each (n,) [rad or m, /s, /s²], and the
+    task-space path it follows, p_d, ṗ_d, p̈_d, each (3,) [m, m/s, m/s²] (None when not given).
+    """
 
     q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray
+    p: np.ndarray | None = None
+    pd: np.ndarray | None = None
+    pdd: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -290,7 +297,7 @@ class LawWorkspace:
     Attributes:
         u0, s, s0, s1, qdot_r, qddot_r0: (n,) as in :class:`ControlTrace`.
         B, qddot_r_f: (n, k) of the hybrid law. V: [J] of the last call.
-        hybrid: True when the last call was the hybrid law.
+        in_contact_law: True when the last call was the hybrid law.
     """
 
     def __init__(self, n: int, k: int, gains: Gains) -> None:
@@ -302,7 +309,7 @@ class LawWorkspace:
         self.u0, self.s, self.s0, self.s1, self.qdot_r, self.qddot_r0 = self._vectors
         self.B, self.qddot_r_f = self._matrices
         self.V = 0.0
-        self.hybrid = False
+        self.in_contact_law = False
         self._zeros_k = np.zeros(k)
         self._no_force = np.zeros(0)
         # the free-space law is the hybrid law with no constraint rows: Q = I, Q̇ = 0
@@ -311,7 +318,7 @@ class LawWorkspace:
         self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
         self._free = Command(u0=self.u0, B=None)
 
-    def arimoto(
+    def hybrid(
         self,
         robot: RobotTerms,
         cons: ConstraintTerms,
@@ -326,7 +333,7 @@ class LawWorkspace:
         if approach is None:
             approach = self._zeros_k
         self._run(robot, cons, v, e_q, desired, e_F, f_d, approach, self._matrices)
-        self.hybrid = True
+        self.in_contact_law = True
         return self._hybrid
 
     def free_space(
@@ -335,8 +342,18 @@ class LawWorkspace:
         """:func:`free_space_law` (eq. 29–30); same arguments, the gains are this workspace's."""
         none = self._no_force
         self._run(robot, self._free_space, v, e_q, desired, none, none, none, self._free_matrices)
-        self.hybrid = False
+        self.in_contact_law = False
         return self._free
+
+    arimoto = hybrid  # the name before laws became plug-ins
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Nothing to advance: the law's only integrals are the supervisor's F and F_d."""
+
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ as JSON-able data."""
+        g = self.gains
+        return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
 
     def _run(
         self,
@@ -364,12 +381,12 @@ class LawWorkspace:
             s=self.s.copy(),
             s0=self.s0.copy(),
             s1=self.s1.copy(),
-            e_F=e_F.copy() if self.hybrid else np.zeros(0),
+            e_F=e_F.copy() if self.in_contact_law else np.zeros(0),
             qdot_r=self.qdot_r.copy(),
             qddot_r0=self.qddot_r0.copy(),
-            qddot_r_f=self.qddot_r_f.copy() if self.hybrid else None,
+            qddot_r_f=self.qddot_r_f.copy() if self.in_contact_law else None,
             V=self.V,
-            f_d=f_d.copy() if self.hybrid else np.zeros(0),
+            f_d=f_d.copy() if self.in_contact_law else np.zeros(0),
         )
 
 
@@ -382,7 +399,7 @@ class ReferenceLaw:
         self.V = 0.0
         self._trace: ControlTrace | None = None
 
-    def arimoto(
+    def hybrid(
         self,
         robot: RobotTerms,
         cons: ConstraintTerms,
@@ -408,7 +425,23 @@ class ReferenceLaw:
         self.V = self._trace.V
         return command
 
+    arimoto = hybrid  # the name before laws became plug-ins
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Nothing to advance: the law's only integrals are the supervisor's F and F_d."""
+
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ as JSON-able data."""
+        g = self.gains
+        return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
+
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
         """The :class:`ControlTrace` of the last call."""
         assert self._trace is not None
         return self._trace
+
+
+def build(context: LawContext) -> LawWorkspace | ReferenceLaw:
+    """The registry's factory of ``control.law = "arimoto"`` (the paper's gains, no options)."""
+    law_type = ReferenceLaw if context.reference else LawWorkspace
+    return law_type(context.robot.nv, context.constraint.k, context.gains)

@@ -1,0 +1,281 @@
+"""What a control law is to the supervisor, and the registry of the laws a scenario can name.
+
+A law is the part of the controller that turns one step's errors into joint torques. The
+supervisor (:class:`~hybrid_force.control.supervisor.HybridController`) owns what every law
+shares: the desired joint path of the CLIK (eq. 27) with its task-space samples, the phases
+(section 6.4), the momenta F = ∫f, F_d = ∫f_d and e_F = F − F_d (eq. 3). It calls
+
+* :meth:`Law.free_space` away from the surface, and
+* :meth:`Law.hybrid` near it (f_d = 0 and an approach velocity) and in contact (f_d),
+
+and after each step :meth:`Law.update` with the force the controller measured, so a law can
+advance its own states (parameter estimates, an admittance reference). A command is affine
+in the contact force the plant will produce, u = u0 + B f (:class:`Command`): a law that feeds
+the measured force straight through says so in B, and with ideal sensing at the plant's rate
+the simulator resolves u and f together, exactly; sampled, the law's B meets the last reading.
+
+A law is built by its registry entry's factory from a :class:`LawContext`: the controller's own
+model, the surfaces' constraint, the control settings (with this law's ``[control.<law>]``
+table as ``options``) and the paper's gains with K_d = κ M(q0), which scale with the arm; a law
+derives its default gains the same way so that one scenario file serves every law.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import numbers
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from hybrid_force.errors import ControlError, GainError, did_you_mean
+
+if TYPE_CHECKING:  # annotations only: the registry is read without importing any law
+    from hybrid_force.control.constraint import Constraint, ConstraintTerms
+    from hybrid_force.control.laws.arimoto import Command, ControlTrace, Desired, Gains
+    from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.model.robot import Robot, RobotTerms
+
+__all__ = [
+    "LAWS",
+    "Law",
+    "LawContext",
+    "LawSpec",
+    "Option",
+    "build_law",
+    "check_options",
+    "law_names",
+    "law_spec",
+]
+
+
+class Law(Protocol):
+    """A control law as the supervisor runs it (see the module docstring).
+
+    Attributes:
+        V: the law's Lyapunov function (or NaN when it has none) at the last call [J].
+    """
+
+    V: float
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """Torques away from the surface: track q_d (or p_d).
+
+        Args:
+            robot: the controller's model terms at the measured (q, v).
+            v: (n,) joint velocity [rad/s or m/s]. e_q: (n,) q − q_d.
+            desired: q_d, q̇_d, q̈_d (n,) and p_d, ṗ_d, p̈_d (3,) [m, m/s, m/s²] now.
+        """
+        ...
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Torques near and on the surface: track the path along it and f_d across it.
+
+        Args:
+            cons: the constraint rows at (q, v) (A (k, n), its normal, distance, Q, …).
+            e_F: (k,) momentum error F − F_d [N·s] (eq. 3); 0 outside contact.
+            f_d: (k,) desired force [N]; 0 in the near phase.
+            approach: (k,) normal reference velocity [m/s per row scaling] of the near phase,
+                which brings the tool onto the surface slowly; None in contact.
+        """
+        ...
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Advance the law's own states over dt [s] with the measured force f (k,) [N]."""
+        ...
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace | None:
+        """What the last call computed, for logs and tests (None if the law keeps none)."""
+        ...
+
+    def info(self) -> dict[str, Any]:
+        """The law's gains and settings as JSON-able data (stored in the result's meta)."""
+        ...
+
+
+@dataclass(frozen=True)
+class LawContext:
+    """Everything a law's factory may use.
+
+    Attributes:
+        robot: the controller's model of the arm (kinematics; its dynamics scaled by
+            ``settings.mass_factor`` in the terms the law receives).
+        constraint: the controller's constraint rows of the surfaces.
+        settings: the control settings; ``settings.options.get(name, {})`` is this law's table.
+        gains: the paper's gains (K_d (n, n) = κ M(q0) by default, Λ, β, γ).
+        M0: (n, n) the controller's mass matrix at the start [kg·m² …].
+        q0: (nq,) the start configuration.
+        dt: the control period [s].
+        reference: True: build the readable numpy form (no compiled kernels).
+    """
+
+    robot: Robot
+    constraint: Constraint
+    settings: ControlSettings
+    gains: Gains
+    M0: np.ndarray
+    q0: np.ndarray
+    dt: float
+    reference: bool = False
+
+    @property
+    def options(self) -> Mapping[str, Any]:
+        """This law's ``[control.<law>]`` table (checked values; empty when absent)."""
+        return self.settings.options.get(self.settings.law, {})
+
+
+@dataclass(frozen=True)
+class Option:
+    """One key of a law's ``[control.<law>]`` table.
+
+    Attributes:
+        doc: what it is, with its unit and default (shown by ``hybrid-force laws --options``).
+        kind: "number" (a finite real number), "choice" (one of ``choices``) or "bool".
+        minimum: the smallest number allowed (numbers only); ``strict``: excluded.
+    """
+
+    doc: str
+    kind: str = "number"
+    choices: tuple[str, ...] = ()
+    minimum: float | None = 0.0
+    strict: bool = True
+
+
+@dataclass(frozen=True)
+class LawSpec:
+    """A registry entry: the law's name, one line about it and where its factory lives.
+
+    Attributes:
+        summary: one line for ``hybrid-force laws`` (with its source).
+        factory: ``"module:function"``, imported only when the law is built.
+        options: the keys of its ``[control.<law>]`` table.
+    """
+
+    name: str
+    summary: str
+    factory: str
+    options: Mapping[str, Option] = field(default_factory=dict)
+
+    def load(self) -> Callable[[LawContext], Law]:
+        """The factory function (imports its module)."""
+        module, _, function = self.factory.partition(":")
+        return getattr(importlib.import_module(module), function)
+
+
+# Each law adds its entry here; the modules are imported only when a law is built.
+LAWS: dict[str, LawSpec] = {
+    spec.name: spec
+    for spec in (
+        LawSpec(
+            "arimoto",
+            "the paper's modified Arimoto hybrid law with its phase supervisor (eq. 4, 11, 29-31)",
+            "hybrid_force.control.laws.arimoto:build",
+        ),
+    )
+}
+
+
+def law_names() -> tuple[str, ...]:
+    """The names a scenario's ``control.law`` may take, in registry order."""
+    return tuple(LAWS)
+
+
+def law_spec(name: object) -> LawSpec:
+    """The registry entry of ``name`` (ControlError naming ``control.law`` and the valid names)."""
+    if not isinstance(name, str) or name not in LAWS:
+        hint = did_you_mean(name, LAWS) if isinstance(name, str) else ""
+        raise ControlError(
+            f"control.law = {name!r} is not a known law{hint}; valid: {', '.join(LAWS)}",
+            key="control.law",
+            value=name,
+        )
+    return LAWS[name]
+
+
+def check_options(options: object) -> dict[str, dict[str, Any]]:
+    """Check ``{law: {key: value}}`` against each law's :class:`Option` keys.
+
+    Returns:
+        A new dict of new dicts, numbers as floats.
+
+    Raises:
+        ControlError: an unknown law or key (naming ``control.<law>.<key>`` and the valid
+            ones), or GainError: a value of the wrong kind or out of range.
+    """
+    if not isinstance(options, Mapping):
+        raise ControlError(
+            f"ControlSettings.options must be a mapping {{law: {{key: value}}}}, got {options!r}",
+            key="control",
+            value=options,
+        )
+    out: dict[str, dict[str, Any]] = {}
+    for law, table in options.items():
+        spec = law_spec(law)
+        if not isinstance(table, Mapping):
+            raise ControlError(
+                f"control.{law} must be a table of the law's settings, got {table!r}",
+                key=f"control.{law}",
+                value=table,
+            )
+        checked: dict[str, Any] = {}
+        for key, value in table.items():
+            where = f"control.{law}.{key}"
+            if key not in spec.options:
+                valid = ", ".join(spec.options) or "(none: this law has no settings of its own)"
+                raise ControlError(
+                    f"{where} is not a setting of law {law!r}{did_you_mean(str(key), spec.options)}"
+                    f"; valid: {valid}",
+                    key=where,
+                    value=value,
+                )
+            checked[key] = _check_option(where, value, spec.options[key])
+        out[law] = checked
+    return out
+
+
+def _check_option(where: str, value: object, option: Option) -> object:
+    if option.kind == "bool":
+        if not isinstance(value, bool):
+            raise ControlError(
+                f"{where} must be true or false, got {value!r}", key=where, value=value
+            )
+        return value
+    if option.kind == "choice":
+        if not isinstance(value, str) or value not in option.choices:
+            hint = did_you_mean(value, option.choices) if isinstance(value, str) else ""
+            raise ControlError(
+                f"{where} = {value!r} is not valid{hint}; valid: {', '.join(option.choices)}",
+                key=where,
+                value=value,
+            )
+        return value
+    if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
+        raise GainError(
+            f"{where} must be a finite real number, got {value!r}", key=where, value=value
+        )
+    number = float(value)
+    low = option.minimum
+    if low is not None and (number < low or (option.strict and number == low)):
+        relation = ">" if option.strict else ">="
+        raise GainError(f"{where} = {number!r} must be {relation} {low:g}", key=where, value=value)
+    return number
+
+
+def build_law(context: LawContext) -> Law:
+    """Build the law named by ``context.settings.law`` (ControlError if it is unknown)."""
+    return law_spec(context.settings.law).load()(context)
