@@ -926,14 +926,14 @@ def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPat
     import hybrid_force.control.clik as clik
     from hybrid_force.scenario.loader import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
 
-    solve = clik.inverse_kinematics
+    solve = clik.newton_ik
     calls: list[int] = []
 
-    def counting(*args: object, **kwargs: object) -> np.ndarray:
+    def counting(*args: object, **kwargs: object) -> tuple[np.ndarray, float]:
         calls.append(1)
         return solve(*args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(clik, "inverse_kinematics", counting)
+    monkeypatch.setattr(clik, "newton_ik", counting)
     for path in SHIPPED:
         calls.clear()
         sc = load_scenario(path)

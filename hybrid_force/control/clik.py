@@ -16,6 +16,7 @@ The joint acceleration q̈_d is the exact time derivative of q̇_d, null-space p
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,27 +130,43 @@ def inverse_kinematics(
     what = "inverse_kinematics: tol"
     tol = checks.number(tol, what, ControlError, minimum=0, strict=True, unit="m")
     max_iter = checks.integer(max_iter, "inverse_kinematics: max_iter", ControlError, minimum=1)
-    model, data = robot.model, robot.new_data()
     q = robot.neutral() if seed is None else robot.check_q(seed, "seed").copy()
-    err = np.inf
-    for _ in range(max_iter):
-        pin.forwardKinematics(model, data, q)
-        p = pin.updateFramePlacement(model, data, robot.tip_id).translation
-        e = target - p
-        err = float(np.linalg.norm(e))
-        if err < tol:
-            return q
-        pin.computeJointJacobians(model, data, q)
-        J = pin.getFrameJacobian(model, data, robot.tip_id, _LWA)[:3]
-        # Levenberg–Marquardt step: damping grows with the error so far-off seeds stay stable.
-        lam2 = 1e-10 + 1e-3 * err * err
-        dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(3), e)
-        q = pin.integrate(model, q, dq)
+    q, err = newton_ik(robot, robot.new_data(), target, q, tol, max_iter)
+    if err < tol:
+        return q
     raise ReachError(
         f"tip position {np.round(target, 6).tolist()} is out of reach of '{robot.name}' "
         f"from seed {np.round(robot.neutral() if seed is None else seed, 4).tolist()}: "
         f"Newton iterations stopped {err:.3g} m away after {max_iter} iterations"
     )
+
+
+def newton_ik(
+    robot: Robot, data: pin.Data, target: np.ndarray, q: np.ndarray, tol: float, max_iter: int
+) -> tuple[np.ndarray, float]:
+    """The iterations of :func:`inverse_kinematics` on checked inputs, with the caller's data.
+
+    Returns:
+        (q, err): the last configuration (nq,) and its residual ‖p(q) − target‖ [m]; err < tol
+        means converged. Leaves ``data`` with the forward kinematics of the returned q.
+    """
+    model = robot.model
+    eye = np.eye(3)
+    err = np.inf
+    for _ in range(max_iter):
+        pin.forwardKinematics(model, data, q)
+        p = pin.updateFramePlacement(model, data, robot.tip_id).translation
+        e = target - p
+        err = math.sqrt(float(e @ e))
+        if err < tol:
+            return q, err
+        pin.computeJointJacobians(model, data, q)
+        J = pin.getFrameJacobian(model, data, robot.tip_id, _LWA)[:3]
+        # Levenberg–Marquardt step: damping grows with the error so far-off seeds stay stable.
+        lam2 = 1e-10 + 1e-3 * err * err
+        dq = J.T @ np.linalg.solve(J @ J.T + lam2 * eye, e)
+        q = pin.integrate(model, q, dq)
+    return q, err
 
 
 class DesiredJointPath:

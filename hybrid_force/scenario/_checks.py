@@ -165,18 +165,23 @@ def _check_path_followable(
     (``hybrid_force.control.clik``). A singular instant between two samples can still stop the run;
     the run then keeps its partial result. Returns the configurations found (one per sample).
     """
-    from hybrid_force.control.clik import _COND_MAX, ClikSettings, inverse_kinematics
+    import pinocchio as pin
+
+    from hybrid_force.control.clik import _COND_MAX, ClikSettings, newton_ik
+    from hybrid_force.model.robot import LWA
 
     n = int(min(PATH_CHECK_SAMPLES, max(2, math.ceil(duration / PATH_CHECK_STEP) + 1)))
     damping = ClikSettings().damping if robot.nv > 3 else 0.0
     shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
-    q = q0
+    model, data = robot.model, robot.new_data()
+    q = robot.check_q(q0, "q0").copy()
     found: list[np.ndarray] = []
     for t in np.linspace(0.0, duration, n):
         target = path.position(float(t))
-        try:
-            q = inverse_kinematics(robot, target, seed=q, tol=1e-9, max_iter=50)
-        except ReachError:
+        # what inverse_kinematics(robot, target, seed=q, tol=1e-9, max_iter=50) does, on one
+        # Pinocchio data for the whole path (this check runs before every run of a sweep)
+        q, err = newton_ik(robot, data, target, q, 1e-9, 50)
+        if not err < 1e-9:
             p = [round(float(x), 6) for x in target]
             raise ScenarioError(
                 f"{ctx.file}: {shown}: the desired path is out of reach at t = {t:.4g} s "
@@ -184,7 +189,9 @@ def _check_path_followable(
                 f"[0, sim.duration = {duration:g} s]"
             ) from None
         # the CLIK's test: cond(J Jᵀ + λ² I) < _COND_MAX, λ its damping (0 for three joints)
-        sv = np.linalg.svd(robot.jacobian(q), compute_uv=False)
+        pin.computeJointJacobians(model, data, q)
+        J = pin.getFrameJacobian(model, data, robot.tip_id, LWA)[:3]
+        sv = np.linalg.svd(J, compute_uv=False)
         if not (sv[0] ** 2 + damping**2) < _COND_MAX * (sv[-1] ** 2 + damping**2):
             p = [round(float(x), 6) for x in target]
             s_text = ", ".join(f"{x:.3g}" for x in sv)
