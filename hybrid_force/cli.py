@@ -30,6 +30,8 @@ functions, so ``--help`` stays fast.
 from __future__ import annotations
 
 import argparse
+import atexit
+import gc
 import os
 import sys
 import time
@@ -336,13 +338,7 @@ def _cmd_sweep_missing(args: argparse.Namespace) -> int:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     """A parameter sweep (delegated to hybrid_force.studies.sweep)."""
-    import atexit
-    import gc
-
     sweep = _import_feature("hybrid_force.studies.sweep", "the sweep command")
-    # When the process exits, Python's last garbage collection walks every object the loaded
-    # kernels left (about 0.2 s of a short sweep's wall time); frozen, they are skipped.
-    atexit.register(gc.freeze)
     return int(sweep.sweep_command(args))
 
 
@@ -506,6 +502,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help (0) or a usage error (2, already printed)
         return exc.code if isinstance(exc.code, int) else 0
     handler: Handler = args.handler
+    # When the process exits, Python's last garbage collection walks every object the loaded
+    # kernels left (about 0.2 s of a short run's or sweep's wall time); frozen, they are skipped.
+    atexit.register(gc.freeze)
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
