@@ -35,6 +35,7 @@ from numpy.lib.npyio import NpzFile
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
+from hybrid_force.events import EVENT_KINDS  # re-exported: the kinds a run records
 from hybrid_force.metrics import (  # re-exported: the metrics of a result, computed there
     CONVERGE_TOLERANCE,
     DEFAULT_SETTLE_TIME,
@@ -78,20 +79,6 @@ OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd")
 #: Phase codes of the ``phase`` array.
 PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT
 _PHASES = tuple(int(p) for p in Phase)
-#: Event kinds the simulator records in ``meta["events"]`` (other kinds are accepted as well).
-#: A failed run ends with an event named after its reason ("diverged", "lost contact", ...).
-EVENT_KINDS: tuple[str, ...] = (
-    "free",
-    "near",
-    "contact",
-    "impact",
-    "release",
-    "branch",
-    "diverged",
-    "path",
-    "interrupted",
-    "error",
-)
 _STATUSES = ("ok", "failed")
 _META_KEY = "meta"
 #: Deepest nesting of lists and objects accepted in a loaded result's meta.

@@ -255,7 +255,7 @@ def test_compliant_plant_force_and_acceleration_by_hand(point_mass: Robot) -> No
     terms, cons = plant.evaluate(np.array([0.1, 0.0, 1e-3]), v)
     ddq, f = plant.accelerate(terms, cons, Command(u, None), 0.5)
     assert f[0] == 0.0 and not plant.in_contact
-    assert plant.events[-1]["kind"] == "release"
+    assert plant.events[-1].kind == "release"
 
 
 # --- runs ----------------------------------------------------------------------------------------

@@ -737,7 +737,7 @@ def test_hybrid_controller_fast_equals_reference(
         ref.update(DT, f)
         _compare_clik(fast.clik, ref.clik)
     assert phases[0] == FREE and NEAR in phases and phases[-1] == CONTACT
-    assert [e["kind"] for e in fast.events] == [e["kind"] for e in ref.events]
+    assert [e.kind for e in fast.events] == [e.kind for e in ref.events]
 
 
 # --- 11. constrained dynamics with its factorisation, Baumgarte γ, the run's table -------------

@@ -60,9 +60,10 @@ from hybrid_force.control.laws.arimoto import (
 )
 from hybrid_force.control.laws.base import Law, LawContext, build_law, check_options, law_spec
 from hybrid_force.errors import ControlError, GainError
+from hybrid_force.events import Branch, Event, PhaseChange
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot, RobotTerms
-from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES
+from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES, Phase
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
@@ -229,7 +230,7 @@ class _Integrators:
     best_error: float = np.inf
     best_error_time: float = 0.0
     branch_reported: bool = False
-    events: list[dict] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
 
 
 class HybridController:
@@ -304,8 +305,8 @@ class HybridController:
 
     # ------------------------------------------------------------------ helpers
     @property
-    def events(self) -> list[dict]:
-        """Phase changes and warnings, each {"t": s, "kind": ...}."""
+    def events(self) -> list[Event]:
+        """Phase changes and a wrong branch (:mod:`hybrid_force.events`), in time order."""
         return self._int.events
 
     @property
@@ -381,7 +382,7 @@ class HybridController:
         st = self._int
         if phase != self.phase or self._first:
             if not self._first or phase != FREE:
-                st.events.append({"t": float(t), "kind": PHASE_NAMES[phase]})
+                st.events.append(PhaseChange(float(t), Phase(phase)))
             # F and F_d restart at every phase change: they only mean something in contact,
             # and a stale e_F would keep pushing (γ e_F) after a release.
             st.F[:] = 0.0
@@ -452,7 +453,7 @@ class HybridController:
                 "the arm is probably on another inverse-kinematics branch than q_d and the hybrid "
                 "law cannot bring it back (change the start configuration or the gains)"
             )
-            st.events.append({"t": float(t), "kind": "branch", "error": err})
+            st.events.append(Branch(float(t), err))
             warnings.warn(msg, RuntimeWarning, stacklevel=2)
 
     def update(self, dt: float, f: np.ndarray) -> None:

@@ -38,7 +38,7 @@ import platform
 import time
 import uuid
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -62,6 +62,7 @@ from hybrid_force.errors import (
     RunWarning,
     SingularConfigurationError,
 )
+from hybrid_force.events import Event, RunStopped
 from hybrid_force.geometry.paths import Path, PathParameterError
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.phases import CONTACT, FREE, NEAR
@@ -224,7 +225,7 @@ def simulate(
             status="failed",
             reason=failure.reason,
             error=f"{type(exc).__name__}: {exc}",
-            events=_merge(ctrl.events, [*plant.events, {"t": t, "kind": failure.reason}]),
+            events=_merge(ctrl.events, [*plant.events, RunStopped(t, failure.reason)]),
             steps_per_second=i / wall if wall > 0 else 0.0,
             wall_time=wall,
         )
@@ -297,7 +298,7 @@ class _ControlSide:
         self._held: Command | None = None
 
     @property
-    def events(self) -> list[dict]:
+    def events(self) -> list[Event]:
         return self.law.events if self.law is not None else []
 
     def command(
@@ -571,8 +572,10 @@ def _path_meta(path: Path) -> dict:
         return {"type": "function", "repr": repr(path)}
 
 
-def _merge(a: list[dict], b: list[dict]) -> list[dict]:
-    events: list[dict] = _jsonable(a + b)  # type: ignore[assignment]  # a list stays a list
+def _merge(a: Sequence[Event | dict], b: Sequence[Event | dict]) -> list[dict]:
+    """Both lists of events as the stored dicts (:meth:`Event.to_dict`), in time order."""
+    stored = [e.to_dict() if isinstance(e, Event) else e for e in [*a, *b]]
+    events: list[dict] = _jsonable(stored)  # type: ignore[assignment]  # a list stays a list
     return sorted(events, key=lambda e: e["t"])
 
 

@@ -32,6 +32,7 @@ from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.events import Event, Impact, Release, Touch
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 from hybrid_force.sim.contact import (
@@ -125,7 +126,7 @@ class Plant:
         #: (then the applied torque is the command u0 + B f itself)
         self.applied: np.ndarray | None = None
         self.in_contact = self.ever_in_contact = False
-        self.events: list[dict] = []
+        self.events: list[Event] = []
         k, n = constraint.k, robot.nv
         # the dynamics' data: robot.terms fills M (crba) that the solver then factorises
         self.data = robot.new_data()
@@ -187,7 +188,7 @@ class Plant:
             ddq, f = self._saturated(terms, cons, cmd, ddq, f)
         # f[0]: one surface, without numpy's reduction overhead (a few µs per step)
         if self.unilateral and float(f[0] if f.shape[0] == 1 else f.min()) < -self.release_tol:
-            self.events.append({"t": t, "kind": "release", "force": float(f.min())})
+            self.events.append(Release(t, float(f.min())))
             self.in_contact = False
             self.applied = None  # the contact's saturated torque no longer applies
             self._friction = None
@@ -220,9 +221,9 @@ class Plant:
         touching = float(penetration.max()) > -self.GEOMETRIC_TOL
         if touching != self.in_contact:
             if touching:
-                self.events.append({"t": t, "kind": "touch", "speed": float(rate.max())})
+                self.events.append(Touch(t, float(rate.max())))
             else:
-                self.events.append({"t": t, "kind": "release", "force": 0.0})
+                self.events.append(Release(t, 0.0))
             self.in_contact = touching
             self.ever_in_contact |= touching
         if not touching:
@@ -340,14 +341,7 @@ class Plant:
         speed = A @ v
         if float(speed.min()) < 0.0:
             v, impulse = plastic_impact(self.robot.model, self.robot.new_data(), q, v, A)
-            self.events.append(
-                {
-                    "t": t,
-                    "kind": "impact",
-                    "impulse": float(np.abs(impulse).sum()),
-                    "speed": float(-speed.min()),
-                }
-            )
+            self.events.append(Impact(t, float(np.abs(impulse).sum()), float(-speed.min())))
         self.in_contact = self.ever_in_contact = True
         return q, v
 

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from hybrid_force.errors import BadInputError
+from hybrid_force.events import LimitCrossed
 
 __all__ = [
     "LOG_COPIES",
@@ -157,11 +158,11 @@ def limit_violations(
     return out
 
 
-def limit_events(limits: dict[str, list[dict[str, Any]]]) -> list[dict[str, Any]]:
-    """One event per joint that crossed a position or velocity limit, at the first crossing:
-    ``{"t": s, "kind": "joint_limit" | "velocity_limit", "joint": name, "limit": bound}``."""
+def limit_events(limits: dict[str, list[dict[str, Any]]]) -> list[LimitCrossed]:
+    """One event per joint that crossed a position or velocity limit, at the first crossing
+    (kind ``"joint_limit"`` or ``"velocity_limit"``)."""
     return [
-        {"t": item["first_t"], "kind": kind, "joint": item["joint"], "limit": item["limit"]}
+        LimitCrossed(item["first_t"], item["joint"], item["limit"], kind)
         for key, kind in (("position", "joint_limit"), ("velocity", "velocity_limit"))
         for item in limits.get(key, [])
     ]
