@@ -153,38 +153,50 @@ class TaskSpace:
     Attributes:
         Lambda: (3, 3) Λ = (J M⁻¹ Jᵀ)⁻¹ [kg].
         Jbar: (n, 3) J̄ = M⁻¹ Jᵀ Λ.
-        N: (n, n) I − J̄ J (exactly 0 when n = 3).
+        J: (3, n) the tip Jacobian they were computed from.
     """
 
     Lambda: np.ndarray
     Jbar: np.ndarray
-    N: np.ndarray
+    J: np.ndarray
+
+    @property
+    def N(self) -> np.ndarray:
+        """(n, n) the null-space projector I − J̄ J (exactly 0 when n = 3), a new array."""
+        n = self.J.shape[1]
+        return np.zeros((n, n)) if n == 3 else np.eye(n) - self.Jbar @ self.J
+
+    def null(self, y: np.ndarray) -> np.ndarray:
+        """N y = y − J̄ (J y) for y (n,), without forming N (0 when n = 3)."""
+        if self.J.shape[1] == 3:
+            return np.zeros(3)
+        return y - self.Jbar @ (self.J @ y)
 
 
 def task_space(M: np.ndarray, J: np.ndarray) -> TaskSpace:
-    """Λ, J̄ and N of the mass matrix M (n, n) and the tip Jacobian J (3, n).
+    """Λ and J̄ of the mass matrix M (n, n) and the tip Jacobian J (3, n).
 
     Raises:
         SingularConfigurationError: J M⁻¹ Jᵀ is (nearly) singular (the tip cannot move in
             some direction): Λ is undefined there.
     """
-    n = M.shape[0]
     Minv_Jt = np.linalg.solve(M, J.T)  # (n, 3)
     inv_Lambda = J @ Minv_Jt
-    eig = np.linalg.eigvalsh(inv_Lambda)
-    if not eig[0] > eig[2] / _COND_MAX:
+    try:
+        Lambda = np.linalg.inv(inv_Lambda)
+        # ‖S‖_F ‖S⁻¹‖_F bounds cond₂(S) within a factor 3 for 3×3 matrices
+        cond = float(np.linalg.norm(inv_Lambda) * np.linalg.norm(Lambda))
+    except np.linalg.LinAlgError:  # exactly singular
+        cond = math.inf
+    if not cond < _COND_MAX:
         raise SingularConfigurationError(
-            f"law {_NAME!r}: the task-space inertia (J M⁻¹ Jᵀ)⁻¹ is undefined: J M⁻¹ Jᵀ has "
-            f"eigenvalues {eig.tolist()} (the tip Jacobian is rank deficient: a singular "
-            "configuration, or fewer than 3 joints move the tip)",
+            f"law {_NAME!r}: the task-space inertia (J M⁻¹ Jᵀ)⁻¹ is undefined: cond(J M⁻¹ Jᵀ) "
+            f"≈ {cond:.3g} (the tip Jacobian is rank deficient: a singular configuration, or "
+            "fewer than 3 joints move the tip)",
             key="control.law",
             value=_NAME,
         )
-    Lambda = np.linalg.inv(inv_Lambda)
-    Lambda = 0.5 * (Lambda + Lambda.T)
-    Jbar = Minv_Jt @ Lambda
-    N = np.zeros((n, n)) if n == 3 else np.eye(n) - Jbar @ J
-    return TaskSpace(Lambda=Lambda, Jbar=Jbar, N=N)
+    return TaskSpace(Lambda=Lambda, Jbar=Minv_Jt @ Lambda, J=J)
 
 
 @dataclass(frozen=True)
@@ -249,7 +261,10 @@ def osc_hybrid_law(
     F = task.Lambda @ (a - robot.Jdot_v)
     if hybrid is not None:
         cons, W, e_F, f_d, approach = hybrid
-        WtW_inv_Wt = np.linalg.solve(W.T @ W, W.T)  # (k, 3): Ω̃ = W WtW_inv_Wt
+        # (k, 3) (WᵀW)⁻¹Wᵀ, so that Ω̃ = W (WᵀW)⁻¹Wᵀ
+        WtW_inv_Wt = (
+            W.T / float(W[:, 0] @ W[:, 0]) if W.shape[1] == 1 else np.linalg.solve(W.T @ W, W.T)
+        )
         nu = cons.rate
         c = W.T @ robot.Jdot_v - cons.drift
         if approach is None:  # contact: damp the normal speed
@@ -262,7 +277,7 @@ def osc_hybrid_law(
         if gains.force_p > 0 and approach is None:
             B = gains.force_p * cons.A.T
     y = desired.qdd - gains.null_kp * e_q - gains.null_kd * (v - desired.qd)
-    null_torque = robot.M @ (task.N @ y)
+    null_torque = robot.M @ task.null(y)  # Nᵀ M y = M N y
     u0 = robot.J.T @ F + robot.nle + null_torque
     trace = OscTrace(a=a, F0=F, phi=phi, null_torque=null_torque, task=task)
     return Command(u0=u0, B=B), trace
