@@ -166,8 +166,8 @@ def _on_surfaces(name: str, rtr: Robot, ur5: Robot):
 @pytest.mark.parametrize("case", ["rtr_cylinder", "ur5_sphere", "ur5_edge"])
 def test_rigid_contact_force_and_decoupling(case: str, normalization: str, rtr, ur5, rng) -> None:
     """On the surface at a tangent velocity (ν = 0), exact model, no stabilisation: the force
-    is f_d − k_I e_F / (1 + k_P) and the motion along the surface is Ω a_m; the curvature
-    feedforward c matters (without it f is off by Σ⁻¹ c, tens of newtons here)."""
+    is f_d − k_I e_F / (1 + k_P) and the motion along the surface is Ω a_m (on the curved
+    surfaces this holds only with the curvature term c: without it f is off by Σ⁻¹ c)."""
     robot, q, surfaces = _on_surfaces(case, rtr, ur5)
     constraint = Constraint(surfaces, normalization=normalization)
     gains = osc_gains({"force_p": 0.5, "force_i": 7.0}, approach_rate=10.0)

@@ -17,9 +17,9 @@ N = 0 when n = 3 (the RTR): J is square and the null space empty. The command is
 
     τ = Jᵀ F + C q̇ + g + Nᵀ τ₀,       F = Λ (a − J̇ q̇) + W φ                       (1)
 
-which is Khatib's Jᵀ(F* + μ + p) + Nᵀ Γ₀ with the null-space part Nᵀ(C q̇ + g) of the
-model's forces compensated too (Jᵀ J̄ᵀ = I − Nᵀ), so the posture torque τ₀ below sees the
-arm without its Coriolis and gravity. With the exact model the plant
+which is Khatib's Jᵀ(Λ a + W φ + μ + p) + Nᵀ Γ₀ with Γ₀ = τ₀ + C q̇ + g: the null-space
+part of the model's forces is compensated too (Jᵀ J̄ᵀ = I − Nᵀ), so the posture torque τ₀
+below sees the arm without its Coriolis and gravity. With the exact model the plant
 M q̈ + C q̇ + g = τ + Aᵀ f (A = Wᵀ J, k contact rows) gives, since J M⁻¹ Nᵀ = 0,
 
     p̈ = J q̈ + J̇ q̇ = a + Λ⁻¹ W (φ + f).                                             (2)
@@ -62,8 +62,9 @@ surface Wᵀ p̈ = c − Baumgarte terms, and WᵀΩ = 0, so (2, 4, 5) give, wit
 i.e. e_F → 0 at the rate k_I / (1 + k_P) and the motion along the surface decoupled from the
 force (ν = 0 on the surface). On a compliant surface of stiffness k_s the normal loop is
 Λ_n s³ + Λ_n K_n s² + (1 + k_P) k_s s + k_I k_s (Λ_n = Σ⁻¹): stable iff K_n (1 + k_P) > k_I.
-Sampled at a control rate on a rigid surface the force reading of the last tick enters
-through k_P: f − f_d is multiplied by −k_P at every tick, so k_P < 1 there (default 0).
+Sampled at a control rate T on a rigid surface, the reading of the last tick enters through
+k_P: the tick-to-tick map of (f − f_d, e_F) has determinant −k_P, so k_P < 1 there
+(default 0); with k_P = 0 force noise σ leaves |f − f_d| of RMS σ √(k_I T / (2 − k_I T)).
 
 What it cannot do: it needs a tip Jacobian of full row rank (3 ≤ n and away from a singular
 configuration, else SingularConfigurationError); it has no Lyapunov function in joules
