@@ -186,6 +186,32 @@ LAWS: dict[str, LawSpec] = {
             "the paper's modified Arimoto hybrid law with its phase supervisor (eq. 4, 11, 29-31)",
             "hybrid_force.control.laws.arimoto:build",
         ),
+        LawSpec(
+            "osc_hybrid",
+            "operational-space hybrid motion/force control, dynamically consistent, with a "
+            "null-space posture (Khatib 1987, IEEE J. Robot. Autom. 3(1))",
+            "hybrid_force.control.laws.osc_hybrid:build",
+            {
+                "omega": Option("task-space bandwidth ω [rad/s]: K_p = ω², K_v = 2ζω (default 20)"),
+                "zeta": Option("damping ratio ζ of the task-space error (default 1: critical)"),
+                "normal_damping": Option(
+                    "K_n [1/s]: damping of the normal speed in contact, rate of the approach "
+                    "speed in the near phase (default K_v = 2ζω)"
+                ),
+                "force_p": Option(
+                    "k_P [-]: proportional force gain on f − f_d (default 0; keep it < 1 at a "
+                    "control rate)",
+                    minimum=0.0,
+                    strict=False,
+                ),
+                "force_i": Option(
+                    "k_I [1/s]: integral force gain on e_F = ∫(f − f_d) dt (default 20)"
+                ),
+                "null_omega": Option(
+                    "null-space posture bandwidth ω_n [rad/s]: k_n = ω_n², d_n = 2ω_n (default 10)"
+                ),
+            },
+        ),
     )
 }
 

@@ -1,0 +1,358 @@
+"""Operational-space hybrid motion/force control (Khatib 1987) as a plug-in law.
+
+Source: O. Khatib, "A unified approach for motion and force control of robot manipulators:
+the operational space formulation", IEEE J. Robotics and Automation 3(1), 43–53, 1987,
+cited below by the subject of its sections: [EoM] the end-effector equations of motion,
+[R] redundant manipulators, [U] the unified motion and force control.
+
+The task is the tip position p (3,) [m] with the world-aligned Jacobian J (3, n); M, C, g are
+the controller's model (:class:`~hybrid_force.model.robot.RobotTerms`). Operational space:
+
+    Λ  = (J M⁻¹ Jᵀ)⁻¹        (3, 3) [kg]  task-space inertia                       [EoM, R]
+    J̄  = M⁻¹ Jᵀ Λ            (n, 3)       dynamically consistent inverse: J J̄ = I   [R]
+    N  = I − J̄ J             (n, n)       null space: J M⁻¹ Nᵀ τ₀ = 0 for every τ₀  [R]
+    μ + p = J̄ᵀ(C q̇ + g) − Λ J̇ q̇           task Coriolis/centrifugal and gravity     [EoM, R]
+
+N = 0 when n = 3 (the RTR): J is square and the null space empty. The command is [R, U]
+
+    τ = Jᵀ F + C q̇ + g + Nᵀ τ₀,       F = Λ (a − J̇ q̇) + W φ                       (1)
+
+which is Khatib's Jᵀ(Λ a + W φ + μ + p) + Nᵀ Γ₀ with Γ₀ = τ₀ + C q̇ + g: the null-space
+part of the model's forces is compensated too (Jᵀ J̄ᵀ = I − Nᵀ), so the posture torque τ₀
+below sees the arm without its Coriolis and gravity. With the exact model the plant
+M q̈ + C q̇ + g = τ + Aᵀ f (A = Wᵀ J, k contact rows) gives, since J M⁻¹ Nᵀ = 0,
+
+    p̈ = J q̈ + J̇ q̇ = a + Λ⁻¹ W (φ + f).                                             (2)
+
+Selection [U]: the contact rows are A_i = w_iᵀ J with w_i = ∇Φ_i / s_i (the "tip" scaling:
+w = n̂, the unit normal), W = [w_1 … w_k] (3, k); Khatib's selection matrices become the
+projections Ω̃ = W (WᵀW)⁻¹ Wᵀ onto the normals (force) and Ω = I − Ω̃ (motion along the
+surface). With e = p − p_d, ė = ṗ − ṗ_d and K_p = ω², K_v = 2ζω [U]:
+
+    free space:  a = a_m = p̈_d − K_v ė − K_p e,     φ = 0                           (3)
+    near, contact: a = Ω a_m + W (WᵀW)⁻¹ (c + x)                                     (4)
+
+where ν = A q̇ (k,) [m/s] is the normal speed, c = Wᵀ J̇ q̇ − drift = −q̇ᵀJᵀ∇²ΦJq̇ / s the
+normal acceleration that keeps it constant on the curved surface (the constraint's own
+A q̈ + drift = Φ̈ / s), so that Wᵀ a = c + x means Φ̈ / s = x, and
+
+    near:    x = K_n (ν_a − ν) − λ_a ν   (ν_a = −λ_a d the supervisor's approach speed,
+                                           −λ_a ν its derivative: d̈ + (λ_a + K_n) ḋ + λ_a K_n d = 0,
+                                           so the tip touches at ḋ ≈ −min(λ_a, K_n) d)
+    contact: x = −K_n ν                  (the Λ-weighted damping of the normal speed [U])
+
+and the force part [U] (Khatib's Ω̃ F_d + Λ Ω̃ F*_f with the PI F*_f written on the force
+itself, so its gains are a number and a rate for every arm):
+
+    φ = −f_d + k_I e_F + k_P (f − f_d),   e_F = ∫(f − f_d) dt (the supervisor's).     (5)
+
+The term k_P f is the command's dependence on the force measured now: u = u0 + B f with
+B = k_P Aᵀ (n, k) (None when k_P = 0). Null-space posture [R], toward the CLIK's joint path
+q_d, which already lies on the task path:
+
+    τ₀ = M (q̈_d − k_n e_q − d_n ė_q),   Nᵀ τ₀ = M N (q̈_d − k_n e_q − d_n ė_q)        (6)
+
+(Nᵀ M = M N; the q̈_d feedforward and ė_q = q̇ − q̇_d instead of q̇ because q_d moves).
+
+Closed loop with the exact model. Free space, from (2, 3): ë + K_v ė + K_p e = 0. On a rigid
+surface Wᵀ p̈ = c − Baumgarte terms, and WᵀΩ = 0, so (2, 4, 5) give, with Σ = WᵀΛ⁻¹W,
+
+    (1 + k_P)(f − f_d) = −k_I e_F + Σ⁻¹ K_n ν,   Ω p̈ = Ω a_m + ΩΛ⁻¹W Σ⁻¹ K_n ν,
+
+i.e. e_F → 0 at the rate k_I / (1 + k_P) and the motion along the surface decoupled from the
+force (ν = 0 on the surface). On a compliant surface of stiffness k_s the normal loop is
+Λ_n s³ + Λ_n K_n s² + (1 + k_P) k_s s + k_I k_s (Λ_n = Σ⁻¹): stable iff K_n (1 + k_P) > k_I.
+Sampled at a control rate T on a rigid surface, the reading of the last tick enters through
+k_P: the tick-to-tick map of (f − f_d, e_F) has determinant −k_P, so k_P < 1 there
+(default 0); with k_P = 0 force noise σ leaves |f − f_d| of RMS σ √(k_I T / (2 − k_I T)).
+
+What it cannot do: it needs a tip Jacobian of full row rank (3 ≤ n and away from a singular
+configuration, else SingularConfigurationError); it has no Lyapunov function in joules
+(``V`` is NaN): the decoupling of (2) is exact only with the exact model.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.laws.arimoto import Command, Desired
+from hybrid_force.control.laws.base import LawContext
+from hybrid_force.errors import ControlError, SingularConfigurationError
+from hybrid_force.model.robot import RobotTerms
+
+__all__ = [
+    "OscGains",
+    "OscHybridLaw",
+    "OscTrace",
+    "TaskSpace",
+    "build",
+    "osc_gains",
+    "osc_hybrid_law",
+    "task_space",
+]
+
+_NAME = "osc_hybrid"
+_COND_MAX = 1e12  # cond(J M⁻¹ Jᵀ) above this: the tip Jacobian is (nearly) rank deficient
+
+
+@dataclass(frozen=True)
+class OscGains:
+    """Gains of the operational-space law (module docstring, eq. 3–6).
+
+    Attributes:
+        kp: K_p = ω² [1/s²]. kv: K_v = 2ζω [1/s]. kn: K_n [1/s] normal-speed gain.
+        force_p: k_P [-]. force_i: k_I [1/s].
+        null_kp: k_n = ω_n² [1/s²]. null_kd: d_n = 2ω_n [1/s].
+        approach_rate: λ_a [1/s] of the supervisor's approach speed ν_a = −λ_a d.
+    """
+
+    kp: float
+    kv: float
+    kn: float
+    force_p: float
+    force_i: float
+    null_kp: float
+    null_kd: float
+    approach_rate: float
+
+
+def osc_gains(options: Mapping[str, Any], approach_rate: float) -> OscGains:
+    """The gains from a checked ``[control.osc_hybrid]`` table (its keys: the registry's).
+
+    The defaults are rates, and the law multiplies them by Λ (or M), so they serve every arm.
+
+    Args:
+        options: the law's table (values already checked by the registry).
+        approach_rate: λ_a [1/s], the supervisor's.
+    """
+    omega = float(options.get("omega", 20.0))
+    zeta = float(options.get("zeta", 1.0))
+    kv = 2.0 * zeta * omega
+    null_omega = float(options.get("null_omega", 10.0))
+    return OscGains(
+        kp=omega * omega,
+        kv=kv,
+        kn=float(options.get("normal_damping", kv)),
+        force_p=float(options.get("force_p", 0.0)),
+        force_i=float(options.get("force_i", 20.0)),
+        null_kp=null_omega * null_omega,
+        null_kd=2.0 * null_omega,
+        approach_rate=float(approach_rate),
+    )
+
+
+@dataclass(frozen=True)
+class TaskSpace:
+    """The operational-space model at one state (module docstring, [EoM, R]).
+
+    Attributes:
+        Lambda: (3, 3) Λ = (J M⁻¹ Jᵀ)⁻¹ [kg].
+        Jbar: (n, 3) J̄ = M⁻¹ Jᵀ Λ.
+        J: (3, n) the tip Jacobian they were computed from.
+    """
+
+    Lambda: np.ndarray
+    Jbar: np.ndarray
+    J: np.ndarray
+
+    @property
+    def N(self) -> np.ndarray:
+        """(n, n) the null-space projector I − J̄ J (exactly 0 when n = 3), a new array."""
+        n = self.J.shape[1]
+        return np.zeros((n, n)) if n == 3 else np.eye(n) - self.Jbar @ self.J
+
+    def null(self, y: np.ndarray) -> np.ndarray:
+        """N y = y − J̄ (J y) for y (n,), without forming N (0 when n = 3)."""
+        if self.J.shape[1] == 3:
+            return np.zeros(3)
+        return y - self.Jbar @ (self.J @ y)
+
+
+def task_space(M: np.ndarray, J: np.ndarray) -> TaskSpace:
+    """Λ and J̄ of the mass matrix M (n, n) and the tip Jacobian J (3, n).
+
+    Raises:
+        SingularConfigurationError: J M⁻¹ Jᵀ is (nearly) singular (the tip cannot move in
+            some direction): Λ is undefined there.
+    """
+    Minv_Jt = np.linalg.solve(M, J.T)  # (n, 3)
+    inv_Lambda = J @ Minv_Jt
+    try:
+        Lambda = np.linalg.inv(inv_Lambda)
+        # ‖S‖_F ‖S⁻¹‖_F bounds cond₂(S) within a factor 3 for 3×3 matrices
+        cond = float(np.linalg.norm(inv_Lambda) * np.linalg.norm(Lambda))
+    except np.linalg.LinAlgError:  # exactly singular
+        cond = math.inf
+    if not cond < _COND_MAX:
+        raise SingularConfigurationError(
+            f"law {_NAME!r}: the task-space inertia (J M⁻¹ Jᵀ)⁻¹ is undefined: cond(J M⁻¹ Jᵀ) "
+            f"≈ {cond:.3g} (the tip Jacobian is rank deficient: a singular configuration, or "
+            "fewer than 3 joints move the tip)",
+            key="control.law",
+            value=_NAME,
+        )
+    return TaskSpace(Lambda=Lambda, Jbar=Minv_Jt @ Lambda, J=J)
+
+
+@dataclass(frozen=True)
+class OscTrace:
+    """What :func:`osc_hybrid_law` computed at one step (for tests and logs).
+
+    Attributes:
+        a: (3,) commanded task acceleration a of eq. 3–4 [m/s²].
+        F0: (3,) task force F of eq. 1 at f = 0 [N].
+        phi: (k,) force part φ at f = 0 [N] (empty in free space).
+        null_torque: (n,) Nᵀ τ₀ [N·m or N].
+        task: the :class:`TaskSpace` terms used.
+    """
+
+    a: np.ndarray
+    F0: np.ndarray
+    phi: np.ndarray
+    null_torque: np.ndarray
+    task: TaskSpace
+
+
+def normal_directions(constraint: Constraint, p: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """W (3, k): the task-space direction w_i = ∇Φ_i(p) / s_i of each row (A = Wᵀ J)."""
+    W = np.empty((3, constraint.k))
+    for i, surface in enumerate(constraint.surfaces):
+        W[:, i] = surface.evaluate(p)[1] / scale[i]
+    return W
+
+
+def osc_hybrid_law(
+    gains: OscGains,
+    robot: RobotTerms,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    desired: Desired,
+    hybrid: tuple[ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
+    | None = None,
+) -> tuple[Command, OscTrace]:
+    """One step of the law (module docstring, eq. 1, 3–6), in readable numpy.
+
+    Args:
+        robot: the controller's model terms at (q, v).
+        v: (n,) joint velocity. e_q: (n,) q − q_d.
+        desired: q_d, q̇_d, q̈_d (n,) and p_d, ṗ_d, p̈_d (3,) [m, m/s, m/s²].
+        hybrid: None in free space (eq. 3); near and in contact (cons, W (3, k) of
+            :func:`normal_directions`, e_F (k,) [N·s], f_d (k,) [N], approach (k,) [m/s] in
+            the near phase or None in contact) (eq. 4–5).
+
+    Returns:
+        The command u = u0 + B f and the trace.
+    """
+    if desired.p is None or desired.pd is None or desired.pdd is None:
+        raise ControlError(
+            f"law {_NAME!r} needs the task-space path p_d, ṗ_d, p̈_d in Desired",
+            key="control.law",
+            value=_NAME,
+        )
+    task = task_space(robot.M, robot.J)
+    a = desired.pdd - gains.kv * (robot.pdot - desired.pd) - gains.kp * (robot.p - desired.p)
+    B = None
+    phi = np.zeros(0)
+    F = task.Lambda @ (a - robot.Jdot_v)
+    if hybrid is not None:
+        cons, W, e_F, f_d, approach = hybrid
+        # (k, 3) (WᵀW)⁻¹Wᵀ, so that Ω̃ = W (WᵀW)⁻¹Wᵀ
+        WtW_inv_Wt = (
+            W.T / float(W[:, 0] @ W[:, 0]) if W.shape[1] == 1 else np.linalg.solve(W.T @ W, W.T)
+        )
+        nu = cons.rate
+        c = W.T @ robot.Jdot_v - cons.drift
+        if approach is None:  # contact: damp the normal speed
+            x = -gains.kn * nu
+        else:  # near: follow ν_a = −λ_a d, whose derivative is −λ_a ν
+            x = gains.kn * (approach - nu) - gains.approach_rate * nu
+        a = a - W @ (WtW_inv_Wt @ a) + WtW_inv_Wt.T @ (c + x)
+        phi = -f_d + gains.force_i * e_F - gains.force_p * f_d
+        F = task.Lambda @ (a - robot.Jdot_v) + W @ phi
+        if gains.force_p > 0 and approach is None:
+            B = gains.force_p * cons.A.T
+    y = desired.qdd - gains.null_kp * e_q - gains.null_kd * (v - desired.qd)
+    null_torque = robot.M @ task.null(y)  # Nᵀ M y = M N y
+    u0 = robot.J.T @ F + robot.nle + null_torque
+    trace = OscTrace(a=a, F0=F, phi=phi, null_torque=null_torque, task=task)
+    return Command(u0=u0, B=B), trace
+
+
+class OscHybridLaw:
+    """The :class:`~hybrid_force.control.laws.base.Law` of :func:`osc_hybrid_law`.
+
+    Args:
+        gains: see :class:`OscGains`.
+        constraint: the controller's surfaces (for the directions W of the rows).
+
+    Attributes:
+        V: NaN (no Lyapunov function in joules: see the module docstring).
+        last: the :class:`OscTrace` of the last call (None before the first).
+    """
+
+    def __init__(self, gains: OscGains, constraint: Constraint) -> None:
+        self.gains = gains
+        self.constraint = constraint
+        self.V = math.nan
+        self.last: OscTrace | None = None
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """Full-task motion control (eq. 3) with the null-space posture (eq. 6)."""
+        command, self.last = osc_hybrid_law(self.gains, robot, v, e_q, desired)
+        return command
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Motion along the surface, force (contact) or approach speed (near) across it."""
+        W = normal_directions(self.constraint, robot.p, cons.scale)
+        command, self.last = osc_hybrid_law(
+            self.gains, robot, v, e_q, desired, (cons, W, e_F, f_d, approach)
+        )
+        return command
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Nothing to advance: the force integral e_F is the supervisor's."""
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
+        """None: the arimoto trace's sliding variables do not exist here (see :attr:`last`)."""
+        return None
+
+    def info(self) -> dict[str, Any]:
+        """The gains as JSON-able data."""
+        return {"law": _NAME, **vars(self.gains)}
+
+
+def build(context: LawContext) -> OscHybridLaw:
+    """The registry's factory of ``control.law = "osc_hybrid"`` (one numpy form for both uses).
+
+    Raises:
+        ControlError: the arm has fewer than 3 joints (a 3-D tip task needs n ≥ 3).
+    """
+    n = context.robot.nv
+    if n < 3:
+        raise ControlError(
+            f"law {_NAME!r} controls the 3-D tip position and needs at least 3 joints; "
+            f"the arm has {n}",
+            key="control.law",
+            value=_NAME,
+        )
+    s = context.settings
+    approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
+    return OscHybridLaw(osc_gains(context.options, approach_rate), context.constraint)
