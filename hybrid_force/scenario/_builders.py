@@ -194,7 +194,8 @@ def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any,
 
     kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
     if kind in ("waypoints", "raster"):
-        return _surface_path(kind, values, surfaces, ctx), {"type": kind, **values}
+        raw = table if isinstance(table, dict) else {}
+        return _surface_path(kind, values, raw, surfaces, ctx), {"type": kind, **values}
     path: DesiredPath
     try:
         if kind == "helix":
@@ -219,9 +220,11 @@ def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any,
     return path, {"type": kind, **values}
 
 
-def _surface_path(kind: str, values: dict[str, Any], surfaces: list[Any], ctx: _Context) -> Any:
-    """A waypoints or raster path on surface ``trajectory.surface`` (default 0); its
-    PathWarnings re-issued naming the file and the key."""
+def _surface_path(
+    kind: str, values: dict[str, Any], raw: Mapping[str, Any], surfaces: list[Any], ctx: _Context
+) -> Any:
+    """A waypoints or raster path on surface ``trajectory.surface`` (default 0); its refusals
+    name the key and the value as written (``raw``), its PathWarnings the file and the key."""
     from hybrid_force.errors import PathWarning
     from hybrid_force.geometry.raster import RasterPath
     from hybrid_force.geometry.waypoints import WaypointPath
@@ -243,11 +246,11 @@ def _surface_path(kind: str, values: dict[str, Any], surfaces: list[Any], ctx: _
     except BadInputError as exc:
         if exc.key in params:
             message = " ".join(str(exc).split())
-            raise ctx.error(f"trajectory.{exc.key}", params[exc.key], message) from None
+            raise ctx.error(f"trajectory.{exc.key}", raw.get(exc.key), message) from None
         raise _wrap(ctx, "trajectory", params, exc) from None
     for w in caught:
         if issubclass(w.category, PathWarning):
-            message = f"{ctx.file}: trajectory.points = {_fmt(values['points'])}: {w.message}"
+            message = f"{ctx.file}: trajectory.points = {_fmt(raw.get('points'))}: {w.message}"
             warnings.warn(PathWarning(message), stacklevel=2)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
