@@ -162,11 +162,13 @@ def write_xacro_rtr() -> Callable[[Path], Path]:
 
 # --- checks of a desired path's smoothness (tests of the paths on surfaces) ---------------------
 def path_breaks(path: Any) -> np.ndarray:
-    """The times [s] where a SurfacePath's p⃛ may jump: its junctions and the ends of its ramps."""
+    """The times [s] where a SurfacePath's p⃛ may jump: the junctions of its curve and of its
+    arc-length map, and the ends of the ramps of its time law."""
     law = path.law
     ramp = min(law.ramp, 0.5 * law.duration)
     own = [0.0, ramp, law.duration - ramp, law.duration]
-    return np.unique(np.concatenate((path.junction_times, own)))
+    arc = [law.time_at(float(ell)) for ell in path.arc.breaks]
+    return np.unique(np.concatenate((path.junction_times, arc, own)))
 
 
 def assert_continuous_at(path: Any, times: np.ndarray, delta: float = 1e-7) -> None:

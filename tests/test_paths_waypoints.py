@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 import warnings
 from pathlib import Path
@@ -21,6 +20,7 @@ from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
 
 SCENARIOS = Path(__file__).parents[1] / "scenarios"
+FLOOR = Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # (u, v) = (x, y)
 
 CASES = {  # surface, waypoints in its coordinates
     "cylinder": (Cylinder(0.4), [[0.0, 7.0], [0.5, 7.1], [1.5, 7.0], [2.0, 7.3], [8.0, 7.2]]),
@@ -77,25 +77,32 @@ def test_starts_and_ends_at_rest_and_holds_the_end(case: tuple) -> None:
     np.testing.assert_array_equal(path.position(path.duration + 5.0), end)
 
 
-def _arc_length(path: WaypointPath, t0: float, t1: float) -> float:
-    """∫‖ṗ‖ dt by Simpson's rule on 2001 points."""
-    t = np.linspace(t0, t1, 2001)
-    speed = np.array([np.linalg.norm(path.evaluate(x)[1]) for x in t])
-    h = t[1] - t[0]
-    return float(h / 3 * (speed[0] + speed[-1] + 4 * speed[1:-1:2].sum() + 2 * speed[2:-1:2].sum()))
-
-
-def test_between_waypoints_in_the_cruise_the_mean_speed_is_the_speed(case: tuple) -> None:
+def test_moves_at_the_speed_outside_the_ramps(case: tuple) -> None:
     path = case[2]
-    times = path.junction_times
-    cruise = [
-        (a, b)
-        for a, b in itertools.pairwise(times)
-        if a >= path.law.ramp and b <= path.duration - path.law.ramp
-    ]
-    assert cruise
-    for a, b in cruise:
-        assert _arc_length(path, a, b) / (b - a) == pytest.approx(0.2, rel=1e-7)
+    for t in np.linspace(path.law.ramp, path.duration - path.law.ramp, 500):
+        assert np.linalg.norm(path.evaluate(t)[1]) == pytest.approx(0.2, rel=1e-8)
+    for t in np.linspace(0.0, path.law.ramp, 50):  # the ramp: ‖ṗ‖ = speed (3x² − 2x³)
+        x = t / path.law.ramp
+        assert np.linalg.norm(path.evaluate(t)[1]) == pytest.approx(
+            0.2 * x * x * (3 - 2 * x), abs=1e-9
+        )
+
+
+def test_three_points_on_a_plane_by_hand() -> None:
+    # the natural spline with chord-length knots h0, h1 through P0, P1, P2: M1 = 3(s1 − s0) /
+    # (h0 + h1) (s the chord slopes), pieces P0 + b0 x + M1 x³ / (6 h0) and
+    # P1 + b1 x + M1 x² / 2 − M1 x³ / (6 h1); the path takes their lengths at the speed
+    points = np.array([[0.0, 0.0], [0.3, 0.1], [0.4, 0.4]])
+    h0, h1 = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    s0, s1 = (points[1] - points[0]) / h0, (points[2] - points[1]) / h1
+    m1 = 3.0 * (s1 - s0) / (h0 + h1)
+    x0, x1 = np.linspace(0.0, h0, 20001)[:, None], np.linspace(0.0, h1, 20001)[:, None]
+    first = points[0] + (s0 - h0 * m1 / 6) * x0 + m1 * x0**3 / (6 * h0)
+    second = points[1] + (s1 - h1 * m1 / 3) * x1 + m1 * x1**2 / 2 - m1 * x1**3 / (6 * h1)
+    l0, l1 = (np.linalg.norm(np.diff(c, axis=0), axis=1).sum() for c in (first, second))
+    path = WaypointPath(FLOOR, points, 0.1, frame="surface", ramp=0.2)
+    assert path.duration == pytest.approx((l0 + l1) / 0.1 + 0.2, rel=1e-8)
+    assert path.junction_times[1] == pytest.approx(l0 / 0.1 + 0.1, rel=1e-8)  # in the cruise
 
 
 def test_two_points_on_a_cylinder_give_a_helix_at_the_speed() -> None:

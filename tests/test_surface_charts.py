@@ -62,6 +62,15 @@ def test_chart_derivatives_are_central_differences(
             np.testing.assert_allclose(exact, difference, rtol=0, atol=1e-8)
 
 
+@pytest.mark.parametrize("surface", SURFACES, ids=repr)
+def test_the_scalar_chart_is_the_vectorised_one(surface: object, rng: np.random.Generator) -> None:
+    chart = chart_for(surface)
+    u, v = _random_coordinates(rng, 20)
+    many = chart.derivatives(u, v)
+    for i, (uu, vv) in enumerate(zip(u, v, strict=True)):
+        np.testing.assert_allclose(chart.derivatives_at(uu, vv), many[:, i], rtol=0, atol=1e-15)
+
+
 def test_charts_by_hand() -> None:
     # the paper's cylinder: S(θ, h) = (r cos θ, r sin θ, h), θ from world x as a helix's phase
     cylinder = chart_for(Cylinder(0.4))
@@ -135,16 +144,17 @@ def test_natural_spline_interpolates_is_c2_and_keeps_lines(rng: np.random.Genera
         np.testing.assert_allclose(g2, 0.0, atol=1e-12)
 
 
-def test_blend_matches_its_ends() -> None:
+@pytest.mark.parametrize("bends", [(0.0, 0.0), (np.array([2.0, -1.0]), np.array([0.5, 3.0]))])
+def test_blend_matches_value_slope_and_bend_at_its_ends(bends: tuple) -> None:
     p0, d0, p1, d1 = np.array([1.0, 2.0]), np.array([3.0, 0.0]), np.array([1.0, 2.5]), -np.ones(2)
     length = 0.7
-    c = blend_piece(p0, d0, p1, d1, length)
-    powers = np.arange(6)
-    for x, (p, d) in ((0.0, (p0, d0)), (length, (p1, d1))):
-        np.testing.assert_allclose(c.T @ (x**powers), p, atol=1e-14)
-        np.testing.assert_allclose(c[1:].T @ (powers[1:] * x ** (powers[1:] - 1)), d, atol=1e-13)
-        second = c[2:].T @ (powers[2:] * (powers[2:] - 1) * x ** (powers[2:] - 2))
-        np.testing.assert_allclose(second, 0.0, atol=1e-12)
+    c = blend_piece(p0, d0, p1, d1, length, *bends)
+    j = np.arange(6)
+    for x, p, d, a in ((0.0, p0, d0, bends[0]), (length, p1, d1, bends[1])):
+        np.testing.assert_allclose(c.T @ (x**j), p, atol=1e-14)
+        np.testing.assert_allclose(c[1:].T @ (j[1:] * x ** (j[1:] - 1)), d, atol=1e-13)
+        second = c[2:].T @ (j[2:] * (j[2:] - 1) * x ** (j[2:] - 2))
+        np.testing.assert_allclose(second, np.broadcast_to(a, (2,)), atol=1e-12)
 
 
 @pytest.mark.parametrize(("length", "speed", "ramp"), [(2.0, 0.5, 0.4), (0.05, 0.5, 0.4)])

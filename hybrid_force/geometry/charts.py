@@ -37,6 +37,9 @@ from hybrid_force.geometry.paths import axis_frame
 
 __all__ = ["CylinderChart", "PlaneChart", "SphereChart", "SurfaceChart", "chart_for"]
 
+Vec3 = tuple[float, float, float]
+_ZERO: Vec3 = (0.0, 0.0, 0.0)
+
 _PARALLEL_TOL = 1e-6
 """A ``u_axis`` whose component in the plane is shorter than this times its length counts as
 parallel to the normal (no in-plane direction)."""
@@ -66,6 +69,10 @@ class SurfaceChart(abc.ABC):
         """
 
     @abc.abstractmethod
+    def derivatives_at(self, u: float, v: float) -> tuple[Vec3, Vec3, Vec3, Vec3, Vec3, Vec3]:
+        """:meth:`derivatives` at one (u, v), as six 3-tuples of floats (the hot path)."""
+
+    @abc.abstractmethod
     def coordinates(self, p: ArrayLike) -> tuple[float, float]:
         """(u, v) of a point p (3,) [m] on the surface (the inverse of the chart).
 
@@ -74,7 +81,7 @@ class SurfaceChart(abc.ABC):
 
     def point(self, u: float, v: float) -> np.ndarray:
         """S(u, v): (3,) [m]."""
-        return self.derivatives(u, v)[0, 0]
+        return np.array(self.derivatives_at(float(u), float(v))[0])
 
     def unwrap(self, uv: tuple[float, float], near: tuple[float, float]) -> tuple[float, float]:
         """``uv`` with each periodic coordinate shifted by whole periods to within half a period
@@ -108,6 +115,7 @@ class CylinderChart(SurfaceChart):
         self.surface = surface
         self._e1, self._e2, self._a = axis_frame(surface.axis)
         self._c = np.asarray(surface.center, dtype=float)
+        self._lists = [x.tolist() for x in (self._e1, self._e2, self._a, self._c)]
 
     def derivatives(self, u: ArrayLike, v: ArrayLike) -> np.ndarray:
         """(6, N, 3): S, S_θ = r(−sin θ e1 + cos θ e2), S_h = a, S_θθ = −r(cos θ e1 + sin θ e2),
@@ -121,6 +129,18 @@ class CylinderChart(SurfaceChart):
         out[2] = self._a
         out[3] = -r * radial
         return out
+
+    def derivatives_at(self, u: float, v: float) -> tuple[Vec3, Vec3, Vec3, Vec3, Vec3, Vec3]:
+        """:meth:`derivatives` at one (θ, h)."""
+        r, co, si = self.surface.radius, math.cos(u), math.sin(u)
+        e1, e2, a, c = self._lists
+        radial = [co * x + si * y for x, y in zip(e1, e2, strict=True)]
+        s = (c[0] + v * a[0] + r * radial[0], c[1] + v * a[1] + r * radial[1],
+             c[2] + v * a[2] + r * radial[2])  # fmt: skip
+        su = (r * (co * e2[0] - si * e1[0]), r * (co * e2[1] - si * e1[1]),
+              r * (co * e2[2] - si * e1[2]))  # fmt: skip
+        suu = (-r * radial[0], -r * radial[1], -r * radial[2])
+        return s, su, (a[0], a[1], a[2]), suu, _ZERO, _ZERO
 
     def coordinates(self, p: ArrayLike) -> tuple[float, float]:
         """θ = atan2(w·e2, w·e1), h = w·a with w = p − center."""
@@ -154,6 +174,21 @@ class SphereChart(SurfaceChart):
         out[5] = -r * np.hstack((cp * cl, cp * sl, zero))
         return out
 
+    def derivatives_at(self, u: float, v: float) -> tuple[Vec3, Vec3, Vec3, Vec3, Vec3, Vec3]:
+        """:meth:`derivatives` at one (φ, λ)."""
+        r = self.surface.radius
+        cx, cy, cz = self.surface.center
+        cp, sp, cl, sl = math.cos(u), math.sin(u), math.cos(v), math.sin(v)
+        x, y, z = r * cp * cl, r * cp * sl, r * sp  # S − c
+        return (
+            (cx + x, cy + y, cz + z),
+            (-r * sp * cl, -r * sp * sl, r * cp),
+            (-y, x, 0.0),
+            (-x, -y, -z),
+            (r * sp * sl, -r * sp * cl, 0.0),
+            (-x, -y, 0.0),
+        )
+
     def coordinates(self, p: ArrayLike) -> tuple[float, float]:
         """φ = atan2(w_z, √(w_x² + w_y²)), λ = atan2(w_y, w_x) with w = p − center."""
         wx, wy, wz = (np.asarray(p, dtype=float) - self._c).tolist()
@@ -183,6 +218,7 @@ class PlaneChart(SurfaceChart):
         e_u = axis_frame(n)[0] if self._given is None else self._given
         self._e_u, self._e_v = e_u, np.cross(n, e_u)
         self._o = np.asarray(surface.point, dtype=float)
+        self._lists = [x.tolist() for x in (self._o, self._e_u, self._e_v)]
 
     @property
     def axes(self) -> tuple[np.ndarray, np.ndarray]:
@@ -197,6 +233,12 @@ class PlaneChart(SurfaceChart):
         out[1] = self._e_u
         out[2] = self._e_v
         return out
+
+    def derivatives_at(self, u: float, v: float) -> tuple[Vec3, Vec3, Vec3, Vec3, Vec3, Vec3]:
+        """:meth:`derivatives` at one (u, v)."""
+        o, a, b = self._lists
+        s = (o[0] + u * a[0] + v * b[0], o[1] + u * a[1] + v * b[1], o[2] + u * a[2] + v * b[2])
+        return s, (a[0], a[1], a[2]), (b[0], b[1], b[2]), _ZERO, _ZERO, _ZERO
 
     def coordinates(self, p: ArrayLike) -> tuple[float, float]:
         """u = w·e_u, v = w·e_v with w = p − point."""

@@ -8,21 +8,21 @@ Construction (:class:`RasterPath`), in the surface coordinates (u, v) of :mod:`.
   the first from the origin forwards, the next back, and so on. There are
   n = ⌈L_across / spacing⌉ + 1 passes, evenly spaced L_across / (n − 1) ≤ ``spacing`` apart, so
   the first and the last lie on the rectangle's edges.
-* Each pass is a straight line in (u, v), which on the built-in charts is a coordinate line of
-  constant ‖S_along‖ (a circle or a line of the cylinder, a parallel or a meridian of the
-  sphere, a line of the plane): parametrised by arc length, the path moves along it at exactly
-  σ̇, i.e. ``speed`` once past the start ramp.
+* Each pass is a straight line in (u, v): on the built-in charts a coordinate line (a circle or
+  a line of the cylinder, a parallel or a meridian of the sphere, a line of the plane).
 * Between two passes a turn: the quintic blend (:func:`.piecewise.blend_piece`) from the end
   of one pass to the start of the next, matching position, first and second derivative (0) at
   both ends, so γ, and with it p, ṗ, p̈, are continuous at every junction: a semicircle would
   be only C¹ (its curvature, the acceleration ‖ṗ‖²/ρ, would jump on and off). The turn keeps
-  the pass's direction at its ends, so it swings beyond the rectangle's edge (on a plane by
-  0.586 × the pass spacing). Its σ-length is the shortest for which ‖dS/dσ‖ ≤ 1 all along it
-  (found by iteration from the chord), so the path never moves faster than ``speed``: the
-  turns are slower than the passes (on a plane: between 0.89 and 1 × ``speed``, 1.875 × the
-  spacing of σ per turn).
-* The time law (:class:`.surface_path.TimeLaw`): rest at t = 0 at the origin, ramp up, cruise,
-  ramp down, rest at the end of the last pass, held after.
+  the pass's direction at its ends, so it swings beyond the rectangle's edge. Its parameter
+  length L is the shortest for which the blend's own parametrisation never moves faster on the
+  surface than the passes' (‖dS/dσ‖ ≤ 1, found by iteration from the chord): a longer blend
+  swings out farther, a shorter one turns more sharply. On a plane, by hand, L = 1.875 × the
+  pass spacing w (the blend's speed peaks at 1.875 w / L half way) and the turn swings
+  0.3125 L = 0.586 w beyond the edge.
+* Traversed by arc length (:mod:`.arc_length`) under the time law
+  (:class:`.surface_path.TimeLaw`): rest at t = 0 at the origin, ramp up, cruise at ``speed``
+  over passes and turns alike, ramp down, rest at the end of the last pass, held after.
 
 The sphere's passes along a parallel need it away from the poles (there a parallel has no
 length): a rectangle reaching latitude ±π/2 with ``direction = "v"`` is refused.
@@ -38,16 +38,10 @@ from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
 from hybrid_force.errors import PathParameterError
+from hybrid_force.geometry.arc_length import piece_lengths, surface_speeds
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.piecewise import PiecewiseCurve, blend_piece, line_piece
-from hybrid_force.geometry.surface_path import (
-    DEFAULT_RAMP,
-    SurfacePath,
-    TimeLaw,
-    piece_lengths,
-    positive,
-    surface_speeds,
-)
+from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, positive
 
 __all__ = ["RasterPath"]
 
@@ -127,7 +121,7 @@ class RasterPath(SurfacePath):
         curve, self.turn_lengths = _raster_curve(
             chart, start, extent, along, passes, self.pass_spacing, given=size
         )
-        super().__init__(chart, curve, TimeLaw(curve.length, cruise, ramp_time))
+        super().__init__(chart, curve, cruise, ramp_time)
         self.origin, self.size, self.spacing, self.speed = start, extent, step, cruise
         self.direction, self.ramp, self.passes = direction, ramp_time, passes
         self._u_axis = None if u_axis is None else np.asarray(u_axis, dtype=float).tolist()

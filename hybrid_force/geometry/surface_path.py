@@ -1,14 +1,16 @@
 """A desired path on a surface: a curve in the surface's coordinates, traversed by a time law.
 
-p_d(t) = S(γ(σ(t))): S the surface's chart (:mod:`.charts`), γ(σ) a C² piecewise polynomial
-curve in (u, v) (:mod:`.piecewise`) whose parameter σ is arc length on the surface [m] at its
-junctions, and σ(t) the rest-to-rest :class:`TimeLaw`. The path lies on the surface by
-construction and its derivatives follow by the chain rule::
+p_d(t) = S(γ(σ(ℓ(t)))): S the surface's chart (:mod:`.charts`), γ(σ) a C² piecewise polynomial
+curve in (u, v) (:mod:`.piecewise`), σ(ℓ) its parameter as a C² function of the arc length ℓ
+on the surface (:mod:`.arc_length`), and ℓ(t) the rest-to-rest :class:`TimeLaw`. The path
+lies on the surface by construction, moves at ‖ṗ_d‖ = ℓ̇ (the speed of the time law, to the
+1e-8 of the arc-length map), and its derivatives follow by the chain rule::
 
-    p' = S_u u' + S_v v',    p'' = S_uu u'² + 2 S_uv u' v' + S_vv v'² + S_u u'' + S_v v'',
-    ṗ = p' σ̇,               p̈ = p'' σ̇² + p' σ̈          (' = d/dσ, ˙ = d/dt).
+    p' = S_u u' + S_v v',    p'' = S_uu u'² + 2 S_uv u' v' + S_vv v'² + S_u u'' + S_v v''
+    dp/dℓ = p' σ_ℓ,          d²p/dℓ² = p'' σ_ℓ² + p' σ_ℓℓ          (' = d/dσ)
+    ṗ = dp/dℓ ℓ̇,             p̈ = d²p/dℓ² ℓ̇² + dp/dℓ ℓ̈.
 
-γ ∈ C² and σ ∈ C² make p, ṗ, p̈ continuous for all t. The waypoint path
+γ, σ(ℓ) and ℓ(t) all C² make p, ṗ, p̈ continuous for all t. The waypoint path
 (:mod:`.waypoints`) and the raster (:mod:`.raster`) are built on :class:`SurfacePath`.
 """
 
@@ -22,44 +24,34 @@ import numpy as np
 
 from hybrid_force import _checks as checks
 from hybrid_force.errors import BadInputError, PathParameterError, did_you_mean
-from hybrid_force.geometry.charts import SurfaceChart
+from hybrid_force.geometry.arc_length import SUBDIVISIONS, arc_length_map
+from hybrid_force.geometry.charts import SurfaceChart, Vec3
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.piecewise import PiecewiseCurve
 
-__all__ = [
-    "DEFAULT_RAMP",
-    "SurfacePath",
-    "TimeLaw",
-    "piece_lengths",
-    "positive",
-    "surface_speeds",
-]
+__all__ = ["DEFAULT_RAMP", "SurfacePath", "TimeLaw", "positive"]
 
 DEFAULT_RAMP = 0.5
 """Default duration [s] of the start and stop ramps of a :class:`TimeLaw`."""
 
-_GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(16)
-_SUBDIVISIONS = 8
-"""Each piece is integrated as 8 sub-intervals of 16 Gauss–Legendre nodes."""
-
 
 @dataclass(frozen=True)
 class TimeLaw:
-    """σ(t) from 0 to ``length`` starting and ending at rest, C² in t.
+    """ℓ(t) from 0 to ``length`` starting and ending at rest, C² in t.
 
     With x = t / T_r (T_r = ``ramp``) and the cruise rate c = min(``speed``, length / T_r):
 
-    * t ≤ 0: σ = 0; t ≥ duration: σ = length; σ̇ = σ̈ = 0 (the path holds its ends);
-    * start ramp, 0 ≤ t ≤ T_r: σ̇ = c (3x² − 2x³), σ = c T_r (x³ − x⁴/2),
-      σ̈ = (c / T_r) 6x(1 − x): σ̇ and σ̈ are 0 at t = 0 and σ̈ is 0 again at t = T_r;
-    * cruise: σ̇ = c; the stop ramp mirrors the start ramp.
+    * t ≤ 0: ℓ = 0; t ≥ duration: ℓ = length; ℓ̇ = ℓ̈ = 0 (the path holds its ends);
+    * start ramp, 0 ≤ t ≤ T_r: ℓ̇ = c (3x² − 2x³), ℓ = c T_r (x³ − x⁴/2),
+      ℓ̈ = (c / T_r) 6x(1 − x): ℓ̇ and ℓ̈ are 0 at t = 0 and ℓ̈ is 0 again at t = T_r;
+    * cruise: ℓ̇ = c; the stop ramp mirrors the start ramp.
 
     Each ramp covers c T_r / 2, so duration = length / c + T_r. A path shorter than
     ``speed`` · T_r never reaches ``speed``: its peak rate is length / T_r (no cruise).
-    The peak of |σ̈| is 1.5 c / T_r.
+    The peak of |ℓ̈| is 1.5 c / T_r.
 
     Attributes:
-        length: σ at the end [m], > 0.
+        length: ℓ at the end [m], > 0.
         speed: the cruise rate [m/s], > 0.
         ramp: T_r [s], > 0.
     """
@@ -90,7 +82,7 @@ class TimeLaw:
         )
 
     def sample(self, t: float) -> tuple[float, float, float]:
-        """(σ [m], σ̇ [m/s], σ̈ [m/s²]) at t [s]."""
+        """(ℓ [m], ℓ̇ [m/s], ℓ̈ [m/s²]) at t [s]."""
         if t <= 0.0:
             return 0.0, 0.0, 0.0
         if t >= self.duration:
@@ -103,7 +95,7 @@ class TimeLaw:
         return self.rate * (0.5 * self.ramp + t - self.ramp), self.rate, 0.0
 
     def time_at(self, sigma: float) -> float:
-        """The t [s] at which σ(t) = sigma (0 ≤ sigma ≤ length); bisection in the ramps."""
+        """The t [s] at which ℓ(t) = sigma (0 ≤ sigma ≤ length); bisection in the ramps."""
         if sigma <= 0.0:
             return 0.0
         if sigma >= self.length:
@@ -114,7 +106,7 @@ class TimeLaw:
         mirrored = sigma > self.length - edge
         target = self.length - sigma if mirrored else sigma
         lo, hi = 0.0, self.ramp
-        for _ in range(200):  # σ is increasing on the ramp
+        for _ in range(200):  # ℓ is increasing on the ramp
             mid = 0.5 * (lo + hi)
             if mid in (lo, hi):
                 break
@@ -126,35 +118,18 @@ class TimeLaw:
         return self.duration - t if mirrored else t
 
 
-def surface_speeds(chart: SurfaceChart, curve: PiecewiseCurve, k: int, x: np.ndarray) -> np.ndarray:
-    """‖dS(γ(σ))/dσ‖ on piece k at local parameters x (N,): (N,) [m per unit of σ]."""
-    g, g1 = curve.sample_piece(k, x)
-    d = chart.derivatives(g[:, 0], g[:, 1])
-    return np.linalg.norm(d[1] * g1[:, :1] + d[2] * g1[:, 1:], axis=1)
-
-
-def piece_lengths(chart: SurfaceChart, curve: PiecewiseCurve) -> np.ndarray:
-    """Arc length on the surface [m] of each piece of ``curve``: (m,).
-
-    ∫‖S_u u' + S_v v'‖ dσ by Gauss–Legendre quadrature (16 nodes on each of 8 equal
-    sub-intervals of a piece): exact to rounding for the smooth integrands of the built-in
-    charts unless the curve nearly stops within a piece.
-    """
-    cells = (np.arange(_SUBDIVISIONS)[:, None] + 0.5 * (_GAUSS_NODES + 1.0)) / _SUBDIVISIONS
-    weights = np.tile(_GAUSS_WEIGHTS, _SUBDIVISIONS) / (2.0 * _SUBDIVISIONS)
-    out = np.empty(curve.coeffs.shape[0])
-    for k, h in enumerate(np.diff(curve.breaks)):
-        out[k] = h * float(weights @ surface_speeds(chart, curve, k, h * cells.ravel()))
-    return out
-
-
 class SurfacePath(Path):
-    """p_d(t) = S(γ(σ(t))) (see the module doc); subclasses build the curve and the time law.
+    """p_d(t) = S(γ(σ(ℓ(t)))) (see the module doc); subclasses build the curve.
 
     Args:
         chart: the surface's chart.
-        curve: γ(σ) in the chart's coordinates, C², its parameter arc length at the junctions.
-        law: σ(t), with ``law.length`` = ``curve.length``.
+        curve: γ(σ) in the chart's coordinates, C².
+        speed: the cruise speed [m/s] of the time law.
+        ramp: the duration [s] of its start and stop ramps.
+
+    Attributes:
+        chart, curve, law: as above; ``law`` is the :class:`TimeLaw` over the curve's length.
+        arc: σ(ℓ), the curve's parameter against the arc length (:mod:`.arc_length`).
     """
 
     TYPE: ClassVar[str]
@@ -162,11 +137,15 @@ class SurfacePath(Path):
     """The keys of :meth:`to_dict` that the constructor requires (after ``surface``)."""
     OPTIONAL: ClassVar[tuple[str, ...]]
     """Its optional keys (keyword arguments)."""
-    DERIVED: ClassVar[tuple[str, ...]] = ("duration", "junction_times")
+    DERIVED: ClassVar[tuple[str, ...]] = ("length", "duration", "junction_times")
     """Keys of :meth:`to_dict` computed from the others (ignored by :meth:`from_dict`)."""
 
-    def __init__(self, chart: SurfaceChart, curve: PiecewiseCurve, law: TimeLaw) -> None:
-        self.chart, self.curve, self.law = chart, curve, law
+    def __init__(
+        self, chart: SurfaceChart, curve: PiecewiseCurve, speed: float, ramp: float
+    ) -> None:
+        self.chart, self.curve = chart, curve
+        self.arc = arc_length_map(chart, curve)
+        self.law = TimeLaw(self.arc.length, speed, ramp)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> SurfacePath:
@@ -213,34 +192,51 @@ class SurfacePath(Path):
     def junction_times(self) -> np.ndarray:
         """(m + 1,) the times [s] at which the path passes the curve's junctions (waypoints,
         or the ends of passes and turns)."""
-        return np.array([self.law.time_at(float(s)) for s in self.curve.breaks])
+        ends = self.arc.breaks[::SUBDIVISIONS]  # ℓ at the curve's breaks
+        return np.array([self.law.time_at(float(ell)) for ell in ends])
+
+    def _sample(self, t: float) -> tuple[Vec3, list[float], list[float]]:
+        """(p, ṗ, p̈) at t as floats, by the chain rule (the module doc)."""
+        ell, rate, accel = self.law.sample(t)
+        (sigma,), (slope,), (bend,) = self.arc.evaluate(ell)
+        (u, v), (du, dv), (ddu, ddv) = self.curve.evaluate(sigma)
+        s, su, sv, suu, suv, svv = self.chart.derivatives_at(u, v)
+        a, b, c = slope * slope, rate * rate, 2.0 * du * dv
+        velocity, acceleration = [], []
+        for i in range(3):
+            first = su[i] * du + sv[i] * dv  # dp/dσ
+            second = suu[i] * du * du + suv[i] * c + svv[i] * dv * dv + su[i] * ddu + sv[i] * ddv
+            tangent = first * slope  # dp/dℓ, of unit length
+            velocity.append(tangent * rate)
+            acceleration.append((second * a + first * bend) * b + tangent * accel)
+        return s, velocity, acceleration
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p_d (3,) [m], ṗ_d (3,) [m/s], p̈_d (3,) [m/s²]) at t [s], by the chain rule."""
-        sigma, rate, accel = self.law.sample(float(t))
-        g, g1, g2 = self.curve.evaluate(sigma)
-        s, su, sv, suu, suv, svv = self.chart.derivatives(g[0], g[1])[:, 0]
-        du, dv = float(g1[0]), float(g1[1])
-        first = su * du + sv * dv
-        second = suu * (du * du) + suv * (2.0 * du * dv) + svv * (dv * dv)
-        second += su * float(g2[0]) + sv * float(g2[1])
-        return s, first * rate, second * (rate * rate) + first * accel
+        p, v, a = self._sample(float(t))
+        return np.array(p), np.array(v), np.array(a)
+
+    def evaluate_into(self, t: float, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
+        """:meth:`evaluate` written into the (3,) arrays p, v, a (hot path)."""
+        p[:], v[:], a[:] = self._sample(float(t))
 
     def position(self, t: float) -> np.ndarray:
         """p_d(t) (3,) [m]."""
-        g = self.curve.evaluate(self.law.sample(float(t))[0])[0]
-        return self.chart.point(float(g[0]), float(g[1]))
+        (sigma,), _, _ = self.arc.evaluate(self.law.sample(float(t))[0])
+        (u, v), _, _ = self.curve.evaluate(sigma)
+        return np.array(self.chart.derivatives_at(u, v)[0])
 
     def _timing_dict(self) -> dict[str, object]:
-        """The derived timing for ``to_dict`` (ignored when read back)."""
+        """The derived length and timing for ``to_dict`` (ignored when read back)."""
         return {
+            "length": self.arc.length,
             "duration": self.duration,
             "junction_times": [round(float(t), 12) for t in self.junction_times],
         }
 
     def __repr__(self) -> str:
         return (
-            f"{type(self).__name__}(surface={self.surface!r}, length={self.curve.length:.6g} m, "
+            f"{type(self).__name__}(surface={self.surface!r}, length={self.arc.length:.6g} m, "
             f"duration={self.duration:.6g} s)"
         )
 

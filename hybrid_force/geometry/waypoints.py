@@ -9,18 +9,16 @@ Construction (:class:`WaypointPath`):
    in the surface's own coordinates (``frame="surface"``, see :mod:`.charts`: used as given, so
    an angle may wind past 2π).
 2. The natural cubic spline γ(σ) through them in (u, v) (:func:`.piecewise.natural_cubic_spline`)
-   with knots σ_i at the arc length *on the surface* along the spline itself: the knots start
-   at the lengths of straight lines in (u, v) and are replaced by the arc lengths of the
-   spline's pieces until they agree to 1e-12 (the fixed point of "knot spacing = length of the
-   piece"; a few iterations).
-3. The :class:`.surface_path.TimeLaw` σ(t): rest at t = 0, a C² ramp up to ``speed`` over
-   ``ramp`` seconds, cruise, a ramp down to rest at the last point, which is then held.
+   with knots σ_i spaced by the lengths on the surface of the straight lines in (u, v) between
+   consecutive points (chord-length knots: on a plane the chords themselves, on a cylinder the
+   helices between the points).
+3. Traversed by arc length (:mod:`.arc_length`) under the :class:`.surface_path.TimeLaw`: rest
+   at t = 0, a C² ramp up to ``speed`` over ``ramp`` seconds, cruise at exactly ``speed`` (to
+   the 1e-8 of the arc-length map), a ramp down to rest at the last point, which is then held.
 
-So the path lies on the surface by construction, passes waypoint i at ``junction_times[i]``,
-and between two waypoints that are both past the start ramp and before the stop ramp it takes
-(arc length between them) / ``speed``: its mean speed there is ``speed``. Its instantaneous
-speed is ``speed`` · ‖dS/dσ‖, which the spline keeps near 1 but not equal to it (the arc length
-is not a polynomial of σ).
+So the path lies on the surface by construction and passes waypoint i at
+``junction_times[i]``: in the cruise, one waypoint to the next takes the arc length of the
+spline between them divided by ``speed``.
 
 Why rest to rest: an arm starts at rest, so ṗ_d(0) = 0 starts without a velocity error,
 and a path that stops with p̈_d = 0 can be held for any ``sim.duration`` beyond its end
@@ -37,15 +35,10 @@ from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
 from hybrid_force.errors import PathParameterError, PathWarning, SingularConfigurationError
+from hybrid_force.geometry.arc_length import piece_lengths
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.piecewise import PiecewiseCurve, line_piece, natural_cubic_spline
-from hybrid_force.geometry.surface_path import (
-    DEFAULT_RAMP,
-    SurfacePath,
-    TimeLaw,
-    piece_lengths,
-    positive,
-)
+from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, positive
 
 __all__ = ["DEFAULT_PROJECTION_TOL", "REPEATED_TOL", "WaypointPath"]
 
@@ -53,8 +46,6 @@ DEFAULT_PROJECTION_TOL = 1e-3
 """A world waypoint farther than this [m] from its surface is projected with a PathWarning."""
 REPEATED_TOL = 1e-9
 """Two consecutive waypoints closer than this [m] on the surface are the same point (refused)."""
-_LENGTH_RTOL = 1e-12
-_MAX_ITERATIONS = 100
 
 
 class WaypointPath(SurfacePath):
@@ -116,8 +107,8 @@ class WaypointPath(SurfacePath):
             coordinates, distances = _project(chart, given, points)
         else:
             coordinates, distances = given, None
-        curve = _arc_length_spline(chart, coordinates, points)
-        super().__init__(chart, curve, TimeLaw(curve.length, cruise, ramp_time))
+        curve = _chord_length_spline(chart, coordinates, points)
+        super().__init__(chart, curve, cruise, ramp_time)
         self.frame, self.points, self.speed, self.ramp = frame, given, cruise, ramp_time
         self.projection_tol = tol
         self.coordinates = coordinates
@@ -197,8 +188,9 @@ def _project(
     return coordinates, distances
 
 
-def _arc_length_spline(chart: SurfaceChart, uv: np.ndarray, given: object) -> PiecewiseCurve:
-    """The natural spline through uv whose knot spacings are its own pieces' arc lengths."""
+def _chord_length_spline(chart: SurfaceChart, uv: np.ndarray, given: object) -> PiecewiseCurve:
+    """The natural spline through uv with knots spaced by the surface lengths of the straight
+    (u, v) lines between the points; refuses two consecutive points that are the same."""
     steps = np.diff(uv, axis=0)
     straight = PiecewiseCurve.join(
         [1.0] * steps.shape[0], [line_piece(a, d) for a, d in zip(uv[:-1], steps, strict=True)]
@@ -213,15 +205,4 @@ def _arc_length_spline(chart: SurfaceChart, uv: np.ndarray, given: object) -> Pi
                 key="points",
                 value=given,
             )
-    for _ in range(_MAX_ITERATIONS):
-        knots = np.concatenate(([0.0], np.cumsum(lengths)))
-        curve = natural_cubic_spline(knots, uv)
-        lengths = piece_lengths(chart, curve)
-        if float(np.max(np.abs(lengths - np.diff(knots)))) <= _LENGTH_RTOL * knots[-1]:
-            return curve
-    raise PathParameterError(  # pragma: no cover - not met with any waypoints tried
-        f"WaypointPath.points: the spline's arc lengths did not settle in {_MAX_ITERATIONS} "
-        "iterations; space the points more evenly",
-        key="points",
-        value=given,
-    )
+    return natural_cubic_spline(np.concatenate(([0.0], np.cumsum(lengths))), uv)
