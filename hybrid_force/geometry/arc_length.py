@@ -97,11 +97,11 @@ def arc_length_map(chart: SurfaceChart, curve: PiecewiseCurve) -> PiecewiseCurve
         sigma = curve.breaks[k] + x
         slope = 1.0 / q  # dσ/dℓ, and d²σ/dℓ² = −q'/q³ with q' = p'·p''/q
         bend = -np.einsum("ij,ij->i", first, second) / q**4
-        for j in range(SUBDIVISIONS):
-            width = float(ell[j + 1] - ell[j])
-            lengths.append(width)
-            p0, p1 = sigma[j : j + 1], sigma[j + 1 : j + 2]
-            d0, d1 = slope[j : j + 1], slope[j + 1 : j + 2]
-            pieces.append(blend_piece(p0, d0, p1, d1, width, bend[j], bend[j + 1]))
+        widths = np.diff(ell)
+        lengths.extend(widths.tolist())
+        nodes = np.stack((sigma, slope, bend), axis=1)[:, :, None]  # (n + 1, 3, 1)
+        p0, d0, a0 = nodes[:-1, 0], nodes[:-1, 1], nodes[:-1, 2]
+        p1, d1, a1 = nodes[1:, 0], nodes[1:, 1], nodes[1:, 2]
+        pieces.append(blend_piece(p0, d0, p1, d1, widths, a0, a1))
         start_l = float(ell[-1])
-    return PiecewiseCurve.join(lengths, pieces)
+    return PiecewiseCurve.join(lengths, np.concatenate(pieces))

@@ -50,7 +50,7 @@ class PiecewiseCurve:
             array.setflags(write=False)
 
     @classmethod
-    def join(cls, lengths: list[float], pieces: list[np.ndarray]) -> PiecewiseCurve:
+    def join(cls, lengths: list[float], pieces: list[np.ndarray] | np.ndarray) -> PiecewiseCurve:
         """Pieces (each (DEGREE + 1, d) in its local parameter) laid end to end from σ = 0."""
         breaks = np.concatenate(([0.0], np.cumsum(lengths)))
         return cls(breaks, np.array(pieces, dtype=float))
@@ -133,32 +133,34 @@ def blend_piece(
     d0: np.ndarray,
     p1: np.ndarray,
     d1: np.ndarray,
-    length: float,
+    length: float | np.ndarray,
     a0: np.ndarray | float = 0.0,
     a1: np.ndarray | float = 0.0,
 ) -> np.ndarray:
     """The quintic with value p0, first derivative d0 and second a0 at x = 0, and p1, d1, a1 at
-    x = ``length``: (DEGREE + 1, d) coefficients in x.
+    x = ``length``: (DEGREE + 1, d) coefficients in x (each argument (d,) or a number), or
+    (..., DEGREE + 1, d) for many pieces at once (``length`` (...,), the others (..., d)).
 
     In s = x / length it is p0 H0 + p1 H5 + L (d0 H1 + d1 H4) + L² (a0 H2 + a1 H3), L = length,
     with the quintic Hermite basis H0 = 1 − 10s³ + 15s⁴ − 6s⁵, H5 = 1 − H0,
     H1 = s − 6s³ + 8s⁴ − 3s⁵, H4 = −4s³ + 7s⁴ − 3s⁵, H2 = (s² − 3s³ + 3s⁴ − s⁵) / 2,
     H3 = (s³ − 2s⁴ + s⁵) / 2.
     """
+    big_l = np.asarray(length, dtype=float)[..., None]  # broadcasts against the columns
     start = np.asarray(p0, dtype=float)
     jump = np.asarray(p1, dtype=float) - start
-    a, b = length * np.asarray(d0, dtype=float), length * np.asarray(d1, dtype=float)
-    c = 0.5 * length**2 * np.asarray(a0, dtype=float) * np.ones_like(start)
-    e = 0.5 * length**2 * np.asarray(a1, dtype=float) * np.ones_like(start)
-    in_s = np.array(
+    a, b = big_l * np.asarray(d0, dtype=float), big_l * np.asarray(d1, dtype=float)
+    c = 0.5 * big_l**2 * np.asarray(a0, dtype=float) * np.ones_like(start)
+    e = 0.5 * big_l**2 * np.asarray(a1, dtype=float) * np.ones_like(start)
+    in_s = np.stack(
         [
-            start,
+            start * np.ones_like(a),
             a,
             c,
             10.0 * jump - 6.0 * a - 4.0 * b - 3.0 * c + e,
             -15.0 * jump + 8.0 * a + 7.0 * b + 3.0 * c - 2.0 * e,
             6.0 * jump - 3.0 * a - 3.0 * b - c + e,
         ],
-        dtype=float,
+        axis=-2,
     )
-    return in_s / (length ** np.arange(DEGREE + 1))[:, None]
+    return in_s / big_l[..., None] ** np.arange(DEGREE + 1)[:, None]
