@@ -41,7 +41,7 @@ from hybrid_force.errors import PathParameterError
 from hybrid_force.geometry.arc_length import piece_lengths, surface_speeds
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.piecewise import PiecewiseCurve, blend_piece, line_piece
-from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, positive
+from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, one_of, positive
 
 __all__ = ["RasterPath"]
 
@@ -94,12 +94,7 @@ class RasterPath(SurfacePath):
         u_axis: ArrayLike | None = None,
     ) -> None:
         owner = "RasterPath"
-        if direction not in ("u", "v"):
-            raise PathParameterError(
-                f"{owner}.direction must be 'u' or 'v', got {checks.shown(direction)}",
-                key="direction",
-                value=direction,
-            )
+        one_of(owner, "direction", direction, ("u", "v"))
         start = _pair(owner, "origin", origin, positive_values=False)
         extent = _pair(owner, "size", size, positive_values=True)
         step = positive(owner, "spacing", spacing, "surface coordinate")
@@ -124,26 +119,12 @@ class RasterPath(SurfacePath):
         super().__init__(chart, curve, cruise, ramp_time)
         self.origin, self.size, self.spacing, self.speed = start, extent, step, cruise
         self.direction, self.ramp, self.passes = direction, ramp_time, passes
-        self._u_axis = None if u_axis is None else np.asarray(u_axis, dtype=float).tolist()
+        given = {"origin": list(start), "size": list(extent), "spacing": step, "speed": cruise}
+        self._record({**given, "direction": direction, "ramp": ramp_time}, u_axis)
 
-    def to_dict(self) -> dict[str, Any]:
-        """``{"type": "raster", "surface", "origin", "size", "spacing", "speed", "direction",
-        "ramp", ["u_axis"]}`` and, derived (ignored when read back): ``passes``,
-        ``pass_spacing``, ``duration``, ``junction_times`` (ends of the passes and turns)."""
-        out: dict[str, Any] = {
-            "type": self.TYPE,
-            "surface": self.chart.surface.to_dict(),
-            "origin": list(self.origin),
-            "size": list(self.size),
-            "spacing": self.spacing,
-            "speed": self.speed,
-            "direction": self.direction,
-            "ramp": self.ramp,
-        }
-        if self._u_axis is not None:
-            out["u_axis"] = self._u_axis
-        out.update(passes=self.passes, pass_spacing=self.pass_spacing)
-        return {**out, **self._timing_dict()}
+    def _derived(self) -> dict[str, Any]:
+        """``passes``, ``pass_spacing``, with the length and the timing."""
+        return {"passes": self.passes, "pass_spacing": self.pass_spacing, **super()._derived()}
 
 
 def _pair(owner: str, name: str, value: object, positive_values: bool) -> tuple[float, float]:

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
 from hybrid_force.errors import BadInputError, PathParameterError, did_you_mean
@@ -29,7 +30,7 @@ from hybrid_force.geometry.charts import SurfaceChart, Vec3
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.piecewise import PiecewiseCurve
 
-__all__ = ["DEFAULT_RAMP", "SurfacePath", "TimeLaw", "positive"]
+__all__ = ["DEFAULT_RAMP", "SurfacePath", "TimeLaw", "one_of", "positive"]
 
 DEFAULT_RAMP = 0.5
 """Default duration [s] of the start and stop ramps of a :class:`TimeLaw`."""
@@ -226,19 +227,43 @@ class SurfacePath(Path):
         (u, v), _, _ = self.curve.evaluate(sigma)
         return np.array(self.chart.derivatives_at(u, v)[0])
 
-    def _timing_dict(self) -> dict[str, object]:
-        """The derived length and timing for ``to_dict`` (ignored when read back)."""
+    def _record(self, params: dict[str, Any], u_axis: ArrayLike | None) -> None:
+        """Keep the parameters :meth:`to_dict` writes, in their checked forms (``u_axis`` as
+        given, only when given)."""
+        if u_axis is not None:
+            params["u_axis"] = np.asarray(u_axis, dtype=float).tolist()
+        self._params = params
+
+    def _derived(self) -> dict[str, Any]:
+        """Values computed from the parameters that :meth:`to_dict` adds (subclasses extend)."""
         return {
             "length": self.arc.length,
             "duration": self.duration,
             "junction_times": [round(float(t), 12) for t in self.junction_times],
         }
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type", "surface" (its dict), <the constructor's parameters>, <derived>}``; the
+        derived keys (``DERIVED``: ``length`` [m], ``duration`` [s], ``junction_times`` [s],
+        ...) are ignored when read back (:meth:`from_dict`)."""
+        head = {"type": self.TYPE, "surface": self.chart.surface.to_dict()}
+        return {**head, **self._params, **self._derived()}
+
     def __repr__(self) -> str:
         return (
             f"{type(self).__name__}(surface={self.surface!r}, length={self.arc.length:.6g} m, "
             f"duration={self.duration:.6g} s)"
         )
+
+
+def one_of(owner: str, name: str, value: object, choices: tuple[str, ...]) -> str:
+    """``value`` if it is one of ``choices``, or PathParameterError naming ``owner.name``."""
+    if not isinstance(value, str) or value not in choices:
+        shown = " or ".join(repr(c) for c in choices)
+        raise PathParameterError(
+            f"{owner}.{name} must be {shown}, got {checks.shown(value)}", key=name, value=value
+        )
+    return value
 
 
 def positive(owner: str, name: str, value: object, unit: str) -> float:

@@ -38,7 +38,7 @@ from hybrid_force.errors import PathParameterError, PathWarning, SingularConfigu
 from hybrid_force.geometry.arc_length import piece_lengths
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.piecewise import PiecewiseCurve, line_piece, natural_cubic_spline
-from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, positive
+from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, one_of, positive
 
 __all__ = ["DEFAULT_PROJECTION_TOL", "REPEATED_TOL", "WaypointPath"]
 
@@ -92,12 +92,7 @@ class WaypointPath(SurfacePath):
         projection_tol: float = DEFAULT_PROJECTION_TOL,
     ) -> None:
         owner = "WaypointPath"
-        if frame not in ("world", "surface"):
-            raise PathParameterError(
-                f"{owner}.frame must be 'world' or 'surface', got {checks.shown(frame)}",
-                key="frame",
-                value=frame,
-            )
+        one_of(owner, "frame", frame, ("world", "surface"))
         cruise = positive(owner, "speed", speed, "m/s")
         ramp_time = positive(owner, "ramp", ramp, "s")
         tol = positive(owner, "projection_tol", projection_tol, "m")
@@ -113,7 +108,8 @@ class WaypointPath(SurfacePath):
         self.projection_tol = tol
         self.coordinates = coordinates
         self.projection_distances = distances
-        self._u_axis = None if u_axis is None else np.asarray(u_axis, dtype=float).tolist()
+        params = {"points": given.tolist(), "speed": cruise, "frame": frame, "ramp": ramp_time}
+        self._record({**params, "projection_tol": tol}, u_axis)
         if distances is not None and float(distances.max()) > tol:
             i = int(np.argmax(distances))
             warnings.warn(
@@ -125,24 +121,12 @@ class WaypointPath(SurfacePath):
                 stacklevel=2,
             )
 
-    def to_dict(self) -> dict[str, Any]:
-        """``{"type": "waypoints", "surface", "points", "speed", "frame", "ramp", ["u_axis"],
-        "projection_tol"}`` and, derived (ignored when read back): ``projection_distances``
-        (world points), ``duration``, ``junction_times`` (the waypoints' times)."""
-        out: dict[str, Any] = {
-            "type": self.TYPE,
-            "surface": self.chart.surface.to_dict(),
-            "points": self.points.tolist(),
-            "speed": self.speed,
-            "frame": self.frame,
-            "ramp": self.ramp,
-        }
-        if self._u_axis is not None:
-            out["u_axis"] = self._u_axis
-        out["projection_tol"] = self.projection_tol
+    def _derived(self) -> dict[str, Any]:
+        """``projection_distances`` [m] of world points, with the length and the timing."""
+        out = super()._derived()
         if self.projection_distances is not None:
             out["projection_distances"] = self.projection_distances.tolist()
-        return {**out, **self._timing_dict()}
+        return out
 
 
 def _point_array(points: ArrayLike, width: int, frame: str) -> np.ndarray:
