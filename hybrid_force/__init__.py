@@ -45,6 +45,7 @@ from hybrid_force.errors import (
     JointLimitError,
     LostContactError,
     OutputError,
+    PathWarning,
     ReachError,
     ResultFileError,
     RobotError,
@@ -73,6 +74,7 @@ from hybrid_force.geometry.paths import (
     paper_helix,
     path_from_dict,
 )
+from hybrid_force.geometry.raster import RasterPath
 from hybrid_force.geometry.surfaces import (
     Cylinder,
     FunctionSurface,
@@ -81,6 +83,7 @@ from hybrid_force.geometry.surfaces import (
     Surface,
     surface_from_dict,
 )
+from hybrid_force.geometry.waypoints import WaypointPath
 from hybrid_force.model.robot import Robot, RobotTerms, load_robot
 from hybrid_force.result import Metrics, Result, load_result
 from hybrid_force.scenario.loader import load_scenario, parse_override
@@ -177,8 +180,10 @@ __all__ = [
     "OutputError",
     "Path",
     "PathParameterError",
+    "PathWarning",
     "Plane",
     "PlotError",
+    "RasterPath",
     "ReachError",
     "Replay",
     "ReplaySettings",
@@ -205,6 +210,7 @@ __all__ = [
     "URDFError",
     "UnknownRobotError",
     "ViewerError",
+    "WaypointPath",
     "__version__",
     "arimoto_law",
     "check_on_surface",

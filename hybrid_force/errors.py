@@ -32,6 +32,7 @@ __all__ = [
     "ModelWarning",
     "OutputError",
     "PathParameterError",
+    "PathWarning",
     "PlotError",
     "ReachError",
     "ResultFileError",
@@ -187,6 +188,11 @@ class ModelWarning(HybridForceWarning):
 class RunWarning(HybridForceWarning):
     """A run finished but did something the user must know: it left a joint's range,
     exceeded an effort limit, or lost contact with the surface (also in its summary)."""
+
+
+class PathWarning(HybridForceWarning):
+    """A desired path was built from input it had to adjust: a waypoint given in world
+    coordinates lay farther from its surface than the tolerance and was projected onto it."""
 
 
 class OutputError(BadInputError):

@@ -6,7 +6,7 @@ import os
 import struct
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -158,3 +158,48 @@ def write_xacro_rtr() -> Callable[[Path], Path]:
         return path
 
     return write
+
+
+# --- checks of a desired path's smoothness (tests of the paths on surfaces) ---------------------
+def path_breaks(path: Any) -> np.ndarray:
+    """The times [s] where a SurfacePath's p⃛ may jump: the junctions of its curve and of its
+    arc-length map, and the ends of the ramps of its time law."""
+    law = path.law
+    ramp = min(law.ramp, 0.5 * law.duration)
+    own = [0.0, ramp, law.duration - ramp, law.duration]
+    arc = [law.time_at(float(ell)) for ell in path.arc.breaks]
+    return np.unique(np.concatenate((path.junction_times, arc, own)))
+
+
+def assert_continuous_at(path: Any, times: np.ndarray, delta: float = 1e-7) -> None:
+    """p, ṗ, p̈ continuous at each time: across [t − δ, t + δ] each changes by at most 2δ times
+    (twice) the largest next derivative, measured on a grid of the whole path."""
+    grid = np.linspace(-1.0, path.law.duration + 1.0, 4001)
+    samples = np.array([path.evaluate(t) for t in grid])
+    jerk = np.abs(np.diff(samples[:, 2], axis=0)).max() / (grid[1] - grid[0])
+    bounds = 2.0 * np.array([*np.abs(samples[:, 1:]).max(axis=(0, 2)), jerk])
+    for t in times:
+        before = np.array(path.evaluate(t - delta))
+        after = np.array(path.evaluate(t + delta))
+        jumps = np.abs(after - before).max(axis=1)
+        assert np.all(jumps <= 2.0 * delta * bounds + 1e-13), (t, jumps, bounds)
+
+
+def assert_derivatives_are_differences(
+    path: Any, rng: np.random.Generator, n: int = 60, h: float = 1e-4, tol: float = 1e-6
+) -> None:
+    """ṗ and p̈ against central differences of p and ṗ (step h [s], error ~ h²) at n random
+    times at least 3h from the breaks, where p⃛ may jump."""
+    breaks = path_breaks(path)
+    duration = float(breaks[-1])
+    times: list[float] = []
+    while len(times) < n:
+        t = float(rng.uniform(-0.5, duration + 0.5))
+        if np.abs(breaks - t).min() > 3.0 * h:
+            times.append(t)
+    for t in times:
+        _, v, a = path.evaluate(t)
+        p_plus, v_plus, _ = path.evaluate(t + h)
+        p_minus, v_minus, _ = path.evaluate(t - h)
+        np.testing.assert_allclose(v, (p_plus - p_minus) / (2.0 * h), rtol=0, atol=tol)
+        np.testing.assert_allclose(a, (v_plus - v_minus) / (2.0 * h), rtol=0, atol=tol)

@@ -9,6 +9,9 @@ kinematics of the paper (eq. 27) turns it into a desired joint path q_d(t).
 * :class:`Circle` – a circle in an arbitrary plane (a helix that does not rise).
 * :class:`FunctionPath` – any path given as Python callables of t; missing
   derivatives come from fourth-order central finite differences.
+* paths on a surface, in its own coordinates: waypoints joined by a C² spline
+  (:mod:`.waypoints`) and a back-and-forth raster (:mod:`.raster`), both
+  :class:`~hybrid_force.geometry.surface_path.SurfacePath`.
 * :func:`check_on_surface` (in :mod:`.on_surface`) – the worst |d| of a path against a
   surface over a time span, so a scenario can verify that its desired path lies on the
   obstacle (the paper requires p_d to lie on Φ(p) = 0, eq. 26).
@@ -30,6 +33,7 @@ Paths round-trip through plain dictionaries (:meth:`Path.to_dict`,
 from __future__ import annotations
 
 import abc
+import importlib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import KW_ONLY, dataclass, field
@@ -442,7 +446,7 @@ class FunctionPath(Path):
         """Not available: Python callables cannot be stored in a scenario or result file."""
         raise PathParameterError(
             f"{self!r} holds Python callables and cannot be written to a dict; "
-            f"serialisable path types are {sorted(_PATH_TYPES)}"
+            f"serialisable path types are {_TYPE_NAMES}"
         )
 
 
@@ -458,8 +462,17 @@ _OPTIONAL: dict[str, tuple[str, ...]] = {
 }
 
 
+_SURFACE_PATHS = {
+    # paths on a surface, built by their own modules (which import this one)
+    "waypoints": ("hybrid_force.geometry.waypoints", "WaypointPath"),
+    "raster": ("hybrid_force.geometry.raster", "RasterPath"),
+}
+_TYPE_NAMES = sorted([*_PATH_TYPES, *_SURFACE_PATHS])
+
+
 def path_from_dict(d: Mapping[str, Any]) -> Path:
-    """Build a path from ``{"type": "helix" | "circle", <parameters>}`` (inverse of to_dict).
+    """Build a path from ``{"type": "helix" | "circle" | "waypoints" | "raster", <parameters>}``
+    (inverse of to_dict; a waypoint or raster dict holds its surface's dict).
 
     Raises PathParameterError for an unknown type, missing or unknown keys, or bad values.
     """
@@ -469,14 +482,17 @@ def path_from_dict(d: Mapping[str, Any]) -> Path:
         )
     if "type" not in d:
         raise PathParameterError(
-            f"path dict has no 'type' key; valid types: {sorted(_PATH_TYPES)}; got {dict(d)!r}"
+            f"path dict has no 'type' key; valid types: {_TYPE_NAMES}; got {dict(d)!r}"
         )
     kind = d["type"]
+    if isinstance(kind, str) and kind in _SURFACE_PATHS:
+        module, name = _SURFACE_PATHS[kind]
+        cls = getattr(importlib.import_module(module), name)
+        built: Path = cls.from_dict(d)
+        return built
     if not isinstance(kind, str) or kind not in _PATH_TYPES:
-        hint = did_you_mean(kind, _PATH_TYPES) if isinstance(kind, str) else ""
-        raise PathParameterError(
-            f"path.type {kind!r} is unknown{hint}; valid types: {sorted(_PATH_TYPES)}"
-        )
+        hint = did_you_mean(kind, _TYPE_NAMES) if isinstance(kind, str) else ""
+        raise PathParameterError(f"path.type {kind!r} is unknown{hint}; valid types: {_TYPE_NAMES}")
     valid = (*_REQUIRED[kind], *_OPTIONAL[kind])
     params = {k: v for k, v in d.items() if k != "type"}
     for key in params:

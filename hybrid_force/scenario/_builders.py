@@ -8,6 +8,7 @@ The rules across tables, which need the model, are :mod:`hybrid_force.scenario._
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -188,10 +189,13 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
     return surfaces, checked
 
 
-def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
+def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any, dict[str, Any]]:
     from hybrid_force.geometry.paths import Circle, Helix
 
     kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
+    if kind in ("waypoints", "raster"):
+        raw = table if isinstance(table, dict) else {}
+        return _surface_path(kind, values, raw, surfaces, ctx), {"type": kind, **values}
     path: DesiredPath
     try:
         if kind == "helix":
@@ -214,6 +218,43 @@ def _trajectory(table: object, ctx: _Context) -> tuple[Any, dict[str, Any]]:
     except BadInputError as exc:
         raise _wrap(ctx, "trajectory", values, exc) from None
     return path, {"type": kind, **values}
+
+
+def _surface_path(
+    kind: str, values: dict[str, Any], raw: Mapping[str, Any], surfaces: list[Any], ctx: _Context
+) -> Any:
+    """A waypoints or raster path on surface ``trajectory.surface`` (default 0); its refusals
+    name the key and the value as written (``raw``), its PathWarnings the file and the key."""
+    from hybrid_force.errors import PathWarning
+    from hybrid_force.geometry.raster import RasterPath
+    from hybrid_force.geometry.waypoints import WaypointPath
+
+    index = values.get("surface", 0)
+    params = {k: v for k, v in values.items() if k != "surface"}
+    if not 0 <= index < len(surfaces):
+        raise ctx.error(
+            "trajectory.surface",
+            index,
+            f"must be the index of a surface, 0 to {len(surfaces) - 1} (the scenario has "
+            f"{len(surfaces)})",
+        )
+    cls = WaypointPath if kind == "waypoints" else RasterPath
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PathWarning)
+            path = cls(surfaces[index], **params)
+    except BadInputError as exc:
+        if exc.key in params:
+            message = " ".join(str(exc).split())
+            raise ctx.error(f"trajectory.{exc.key}", raw.get(exc.key), message) from None
+        raise _wrap(ctx, "trajectory", params, exc) from None
+    for w in caught:
+        if issubclass(w.category, PathWarning):
+            message = f"{ctx.file}: trajectory.points = {_fmt(raw.get('points'))}: {w.message}"
+            warnings.warn(PathWarning(message), stacklevel=2)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return path
 
 
 def _controller_model(

@@ -133,9 +133,11 @@ def _check_controller(
         period = control_steps(control, sim) * sim.dt  # the law runs at the control rate
         ReferenceController(robot, constraint, path, q0, control, dt=period)
     except ReachError as exc:
+        given = path.to_dict()
+        start = next((k for k in ("points", "origin") if k in given), "center")
         raise ctx.error(
-            "trajectory.center",
-            path.to_dict().get("center"),
+            f"trajectory.{start}",
+            given.get(start),
             f"the start of the trajectory is out of reach from the start configuration: "
             f"{' '.join(str(exc).split())}",
         ) from None

@@ -28,6 +28,7 @@ class _Key:
     kinds: "str", "number", "integer" (a whole number), "bool", "vec3" (3 numbers), "vector"
     (a list of numbers),
     "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
+    "points" (a list of lists of numbers),
     "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
     table of texts: strings, or numbers and booleans turned into their TOML text),
     "law_table" (a control law's own settings, checked against the law's keys).
@@ -63,7 +64,7 @@ _SURFACE: dict[str, dict[str, _Key]] = {
     "plane": {"point": _Key("vec3", True), "normal": _Key("vec3", True)},
 }
 
-_PATH_TYPES = ("helix", "circle")
+_PATH_TYPES = ("helix", "circle", "waypoints", "raster")
 _TRAJECTORY: dict[str, dict[str, _Key]] = {
     "helix": {
         "center": _Key("vec3", True),
@@ -79,6 +80,27 @@ _TRAJECTORY: dict[str, dict[str, _Key]] = {
         "normal": _Key("vec3", True),
         "omega": _Key("number", True),
         "phase": _Key("number"),
+    },
+    # paths on a surface (hybrid_force.geometry.waypoints, .raster): `surface` is the index of
+    # the [[surfaces]] table they lie on
+    "waypoints": {
+        "points": _Key("points", True),
+        "speed": _Key("number", True),
+        "frame": _Key("choice", choices=("world", "surface")),
+        "surface": _Key("integer"),
+        "ramp": _Key("number"),
+        "u_axis": _Key("vec3"),
+        "projection_tol": _Key("number"),
+    },
+    "raster": {
+        "origin": _Key("vector", True),
+        "size": _Key("vector", True),
+        "spacing": _Key("number", True),
+        "speed": _Key("number", True),
+        "direction": _Key("choice", choices=("u", "v")),
+        "surface": _Key("integer"),
+        "ramp": _Key("number"),
+        "u_axis": _Key("vec3"),
     },
 }
 
@@ -322,6 +344,11 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
         return vec
     if kind == "vector":
         return _vector(ctx, key, value, "an array of numbers")
+    if kind == "points":
+        what = "an array of points, each an array of numbers ([[x, y, z], ...] or [[u, v], ...])"
+        if not isinstance(value, list) or not all(isinstance(row, list) for row in value):
+            raise ctx.error(key, value, f"must be {what}")
+        return [_vector(ctx, key, row, what) for row in value]
     if kind == "number_or_vector":
         if _is_number(value) or isinstance(value, bool):
             return _number(ctx, key, value)

@@ -210,7 +210,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 
     robot = _robot(doc["robot"], file, ctx)
     surfaces, surface_tables = _surfaces(doc, ctx)
-    path, traj = _trajectory(doc["trajectory"], ctx)
+    path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
     sim_values = _check_table(ctx, "sim", doc.get("sim", {}), _SIM)
     sim = _sim_settings(sim_values, ctx)
