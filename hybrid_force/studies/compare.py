@@ -348,13 +348,16 @@ def compare_command(args: argparse.Namespace) -> int:
         return outcome
     _, rows = read_table(outcome, "compare")
     _print_table(rows, sys.stdout)
+    wall = format_duration(time.monotonic() - t0)
     print(
-        f"compare: {len(rows)} laws, {n_new} new run(s) in {format_duration(time.monotonic() - t0)}"
-        f"; wrote {outcome} and the figures beside it"
+        f"compare: {len(rows)} law(s), {n_new} new run(s) in {wall}; wrote {outcome} and the "
+        "figures beside it"
     )
     bad = [r for r in rows if r["status"] != "ok"]
     for r in bad:
-        print(f"warning: law {r['law']}: {r['status']}: {r['error']}", file=sys.stderr)
+        # a run's error starts with its reason ("diverged: ..."); bad input's does not
+        why = r["error"] if r["error"].startswith(r["status"]) else f"{r['status']}: {r['error']}"
+        print(f"warning: law {r['law']}: {why}", file=sys.stderr)
     errors = [r["law"] for r in bad if r["status"] == "error"]
     if errors:
         print(

@@ -101,8 +101,12 @@ def _panel(
             y = np.where(y > 0.0, y, np.nan)
         if not np.any(np.isfinite(y)):
             continue
-        label = curve.law if curve.status == "ok" else f"{curve.law} ({curve.status})"
-        ax.plot(curve.t, y, lw=1.2, label=label, ls="-" if curve.status == "ok" else "--")
+        if curve.status == "ok":
+            ax.plot(curve.t, y, lw=1.2, label=curve.law)
+        else:  # dashed, and a cross where it stops
+            (line,) = ax.plot(curve.t, y, lw=1.2, ls="--", label=f"{curve.law} ({curve.status})")
+            last = int(np.flatnonzero(np.isfinite(y))[-1])
+            ax.plot(curve.t[last], y[last], "x", color=line.get_color(), ms=7, clip_on=True)
         drawn.append(y)
     if not drawn:
         _note(ax, "no finite values" + (" above 0" if log else ""))
