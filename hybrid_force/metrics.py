@@ -435,6 +435,7 @@ def compute_tracking_metrics(
     path_tolerance: float = CONVERGE_TOLERANCE,
     force_tolerance: float = FORCE_TOLERANCE,
     impact_window: float = IMPACT_WINDOW,
+    path_errors: np.ndarray | None = None,
 ) -> TrackingMetrics:
     """Compute the :class:`TrackingMetrics` of one run.
 
@@ -446,6 +447,8 @@ def compute_tracking_metrics(
             ["settle_time"]``, else :data:`DEFAULT_SETTLE_TIME`.
         path_tolerance [m], force_tolerance [N]: the tolerances of ``time_to_settle``.
         impact_window: [s] see :func:`impact_force_peak`.
+        path_errors: (N,) ``‖e_t‖`` [m] when the caller has it already
+            (:func:`path_error` of the same result and surfaces); computed here if None.
     """
     settle = _settle_time(result, settle_time)
     for name, value in (
@@ -466,7 +469,13 @@ def compute_tracking_metrics(
         )
     base = compute_metrics(result, settle)
     t = result.t
-    e_t = path_error(result, surfaces)  # (N,) [m], NaN where not finite
+    e_t = path_error(result, surfaces) if path_errors is None else np.asarray(path_errors, float)
+    if e_t.shape != t.shape:
+        raise DimensionError(
+            f"metrics: path_errors must have shape {t.shape}, got {e_t.shape}",
+            key="path_errors",
+            value=e_t.shape,
+        )
     settled = (t >= settle) & np.isfinite(e_t)
     ef = force_error(result)
     contact = result.phase == CONTACT

@@ -214,6 +214,8 @@ def test_tracking_metrics_refuse_the_wrong_number_of_surfaces() -> None:
     t = np.arange(4) * DT
     with pytest.raises(DimensionError, match="2 surface"):
         compute_tracking_metrics(_result(t), [Cylinder(0.4), Cylinder(0.5)])
+    with pytest.raises(DimensionError, match="path_errors"):
+        compute_tracking_metrics(_result(t), [Cylinder(0.4)], path_errors=np.zeros(3))
 
 
 # ----------------------------------------------------------------------------- the command

@@ -131,7 +131,11 @@ def _variants(laws: Sequence[str], overrides: Mapping[str, Any]) -> list[dict[st
 
 
 def compare_row(
-    law: str, run: Mapping[str, str], result: Any, surfaces: Sequence[Any]
+    law: str,
+    run: Mapping[str, str],
+    result: Any,
+    surfaces: Sequence[Any],
+    path_errors: Any = None,
 ) -> dict[str, Any]:
     """The ``compare.csv`` row of one law.
 
@@ -140,6 +144,8 @@ def compare_row(
         run: its row of the sweep's table (strings; status, error, wall_time).
         result: its :class:`~hybrid_force.result.Result`, or None when the run left none.
         surfaces: the scenario's surfaces (their normals define the path error).
+        path_errors: (N,) the result's path error [m] if already computed
+            (:func:`~hybrid_force.metrics.path_error`).
 
     Returns:
         A dict with the keys of :data:`COMPARE_COLUMNS` but ``result``; metric values are
@@ -156,7 +162,7 @@ def compare_row(
             row["status"] = "error"
             row["error"] = "its result file is missing; delete DIR/runs to run it again"
         else:
-            metrics = compute_tracking_metrics(result, surfaces).to_dict()
+            metrics = compute_tracking_metrics(result, surfaces, path_errors=path_errors).to_dict()
             row.update({name: metrics[name] for name in METRIC_UNITS})
     return row
 
@@ -196,9 +202,11 @@ def run_compare(
             file (checked as every run sees it, before any run).
         SimulationError: runs were lost (a worker died); rerunning resumes.
     """
+    from hybrid_force.metrics import force_error, path_error
     from hybrid_force.result import Result
     from hybrid_force.run_output import locked_folder
     from hybrid_force.scenario.loader import load_scenario
+    from hybrid_force.viz.compare_plots import LawCurve, plot_comparison
 
     names = check_laws(laws)
     fixed = dict(overrides or {})
@@ -233,32 +241,23 @@ def run_compare(
     _, runs = read_sweep_csv(table)
     by_id = {r["run_id"]: r for r in runs}
     rows: list[dict[str, Any]] = []
-    curves = []
+    curves: list[LawCurve] = []
     with locked_folder(out, "--out"):
         for law, variant in zip(names, variants, strict=True):
             rid = run_id(variant)
             relative = Path(RUNS_DIR, "results", f"{rid}.npz")
             result = Result.load(out / relative) if (out / relative).is_file() else None
-            row = compare_row(law, by_id[rid], result, surfaces)
+            e_t = None if result is None else path_error(result, surfaces)
+            row = compare_row(law, by_id[rid], result, surfaces, e_t)
             row["result"] = relative.as_posix() if result is not None else None
             rows.append(row)
-            if figures and result is not None and result.n_samples >= 2:
-                curves.append(_curve(law, row["status"], result, surfaces))
+            if figures and result is not None and e_t is not None and result.n_samples >= 2:
+                curves.append(LawCurve(law, row["status"], result.t, force_error(result), e_t))
         cells = [{k: _cell(row.get(k)) for k in COMPARE_COLUMNS} for row in rows]
         _write_atomic(out / COMPARE_CSV, _csv_text(COMPARE_COLUMNS, cells))
         if curves:
-            from hybrid_force.viz.compare_plots import plot_comparison
-
             plot_comparison(curves, out, settle_time=loaded[0].sim.settle_time)
     return out / COMPARE_CSV
-
-
-def _curve(law: str, status: str, result: Any, surfaces: Sequence[Any]) -> Any:
-    """The law's curves for the figures: |f − f_d| and ‖e_t‖ against time."""
-    from hybrid_force.metrics import force_error, path_error
-    from hybrid_force.viz.compare_plots import LawCurve
-
-    return LawCurve(law, status, result.t, force_error(result), path_error(result, surfaces))
 
 
 # ----------------------------------------------------------------------------- command line
