@@ -219,30 +219,10 @@ def test_tracking_metrics_refuse_the_wrong_number_of_surfaces() -> None:
 
 
 # ----------------------------------------------------------------------------- the command
-SCENARIO = """\
-name = "tiny_contact"
-[robot]
-model = "rtr"
-[surface]
-type = "cylinder"
-radius = 0.4
-[trajectory]
-type = "helix"
-center = [0.0, 0.0, 10.0]
-radius = 0.4
-omega = 1.0
-rise = 0.1
-[initial]
-tip = [0.4, 0.0, 7.0]
-seed = [0.0, 6.0, 2.0]
-[control]
-supervisor = false
-f_d = 10.0
-[sim]
-duration = 0.3
-settle_time = 0.1
-dt = 1e-3
-"""
+# Paper section 6.3 (RTR arm on the cylinder, starting in contact), shortened.
+SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "paper_contact.toml"
+SHORT = {"sim.duration": 0.3, "sim.settle_time": 0.1}
+SHORT_ARGS = ["--set", "sim.duration=0.3", "--set", "sim.settle_time=0.1"]
 
 
 def _stiff_arimoto(context: base.LawContext) -> Any:
@@ -297,13 +277,6 @@ def two_laws(monkeypatch: pytest.MonkeyPatch) -> tuple[str, ...]:
     return base.law_names()
 
 
-@pytest.fixture()
-def scenario(tmp_path: Path) -> Path:
-    path = tmp_path / "tiny.toml"
-    path.write_text(SCENARIO)
-    return path
-
-
 def _rows(path: Path) -> list[dict[str, str]]:
     columns, rows = read_table(path)
     assert tuple(columns) == COMPARE_COLUMNS
@@ -311,22 +284,24 @@ def _rows(path: Path) -> list[dict[str, str]]:
 
 
 def test_laws_default_to_the_registry_and_unknown_or_repeated_are_refused(
-    two_laws: tuple[str, ...], scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    two_laws: tuple[str, ...], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from hybrid_force.cli import main
 
     assert check_laws(None) == two_laws and "runaway" in two_laws
     for laws, named in (("arimoto,nope", "'nope'"), ("arimoto,arimoto", "'arimoto' twice")):
-        assert main(["compare", str(scenario), "--laws", laws, "--out", str(tmp_path / "o")]) == 2
+        assert main(["compare", str(SCENARIO), "--laws", laws, "--out", str(tmp_path / "o")]) == 2
         err = capsys.readouterr().err
         assert named in err and "valid: " + ", ".join(two_laws) in err, err
-    assert main(["compare", str(scenario), "--set", "control.law=arimoto"]) == 2
+    assert main(["compare", str(SCENARIO), "--set", "control.law=arimoto"]) == 2
     assert "--laws" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()  # refused before anything was written
+    assert main(["compare", "--help"]) == 0
+    assert "--laws" in (text := capsys.readouterr().out) and "exit status" in text
 
 
 def test_rows_match_separate_runs_of_each_law_on_one_or_two_workers(
-    two_laws: tuple[str, ...], scenario: Path, tmp_path: Path
+    two_laws: tuple[str, ...], tmp_path: Path
 ) -> None:
     from hybrid_force.scenario.loader import load_scenario
     from hybrid_force.sim.loop import simulate
@@ -335,9 +310,10 @@ def test_rows_match_separate_runs_of_each_law_on_one_or_two_workers(
     tables = []
     for workers in (1, 2):
         csv_path = run_compare(
-            scenario,
+            SCENARIO,
             laws,
             out_dir=tmp_path / f"w{workers}",
+            overrides=SHORT,
             workers=workers,
             progress=False,
             start_method="fork",
@@ -348,7 +324,7 @@ def test_rows_match_separate_runs_of_each_law_on_one_or_two_workers(
         assert {**a, "wall_time": ""} == {**b, "wall_time": ""}
     assert [r["law"] for r in one] == list(laws)
     for law, row in zip(laws, one, strict=True):
-        sc = load_scenario(scenario, {"control.law": law})
+        sc = load_scenario(SCENARIO, {"control.law": law, **SHORT})
         expected = compute_tracking_metrics(simulate(sc), sc.surfaces).to_dict()
         assert row["status"] == "ok" and row["error"] == ""
         for name in METRIC_UNITS:
@@ -366,14 +342,13 @@ def test_rows_match_separate_runs_of_each_law_on_one_or_two_workers(
 
 def test_a_law_that_diverges_is_a_row_saying_so(
     two_laws: tuple[str, ...],
-    scenario: Path,
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     from hybrid_force.cli import main
 
     out = tmp_path / "out"
-    argv = ["compare", str(scenario), "--laws", "runaway,arimoto", "--out", str(out)]
+    argv = ["compare", str(SCENARIO), "--laws", "runaway,arimoto", "--out", str(out), *SHORT_ARGS]
     assert main([*argv, "--workers", "1", "--start-method", "fork", "--no-progress"]) == 0
     captured = capsys.readouterr()
     assert "warning: law runaway: diverged" in captured.err

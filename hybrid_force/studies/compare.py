@@ -322,14 +322,8 @@ def compare_command(args: argparse.Namespace) -> int:
         )
     out = Path(args.out) if args.out else Path("runs") / f"{scenario.stem}_compare"
     t0 = time.monotonic()
-    n_new = 0
-
-    def count(_row: dict[str, Any]) -> None:
-        nonlocal n_new
-        n_new += 1
-
-    outcome = run_stoppable(
-        lambda: run_compare(
+    outcome, n_new = run_stoppable(
+        lambda on_row: run_compare(
             scenario,
             laws,
             out_dir=out,
@@ -338,10 +332,9 @@ def compare_command(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             progress=args.progress,
             start_method=args.start_method,
-            on_row=count,
+            on_row=on_row,
         ),
         out / RUNS_DIR / _CSV_NAME,
-        lambda: n_new,
     )
     if isinstance(outcome, int):
         return outcome

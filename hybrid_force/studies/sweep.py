@@ -496,14 +496,8 @@ def sweep_command(args: argparse.Namespace) -> int:
         "seed": args.seed,
     }
     t0 = time.monotonic()
-    n_new = 0
-
-    def count(_row: dict[str, Any]) -> None:
-        nonlocal n_new
-        n_new += 1
-
-    outcome = run_stoppable(
-        lambda: run_sweep(
+    outcome, n_new = run_stoppable(
+        lambda on_row: run_sweep(
             scenario,
             variants,
             workers=args.workers,
@@ -513,14 +507,13 @@ def sweep_command(args: argparse.Namespace) -> int:
             progress=args.progress,
             start_method=args.start_method,
             arguments=arguments,
-            on_row=count,
+            on_row=on_row,
             # a broken scenario file is bad input, before any run; checked as every variant
             # sees it (with the keys the grid fixes to one value, e.g. sim.duration), while
             # the workers start
             check=lambda: load_scenario(scenario, fixed),
         ),
         out / _CSV_NAME,
-        lambda: n_new,
     )
     if isinstance(outcome, int):
         return outcome
@@ -549,33 +542,41 @@ def sweep_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_stoppable(run: Callable[[], Path], table: Path, n_new: Callable[[], int]) -> Path | int:
-    """Call ``run`` (a :func:`run_sweep`) with SIGTERM raising; return what it returns, or the
-    exit status of a command it stopped (each with one line on stderr).
+def run_stoppable(
+    run: Callable[[Callable[[dict[str, Any]], None]], Path], table: Path
+) -> tuple[Path | int, int]:
+    """Call ``run(on_row)`` (a :func:`run_sweep` passing ``on_row`` on) with SIGTERM raising.
 
-    143: SIGTERM; 130: Ctrl-C (both: the finished rows are in ``table`` and ``n_new()`` of them
-    are new); 1: runs were lost (a SimulationError). Bad input propagates.
+    Returns:
+        What ``run`` returns, or the exit status of a command it stopped (with one line on
+        stderr): 143 SIGTERM, 130 Ctrl-C (the finished rows are in ``table``), 1 runs were
+        lost (a SimulationError); and the number of new rows. Bad input propagates.
     """
+    n_new = 0
+
+    def count(_row: dict[str, Any]) -> None:
+        nonlocal n_new
+        n_new += 1
 
     def stopped(how: str) -> None:
         print(
-            f"{how} after {n_new()} new run(s); the finished rows are in '{table}'; run the "
+            f"{how} after {n_new} new run(s); the finished rows are in '{table}'; run the "
             "same command again to resume",
             file=sys.stderr,
         )
 
     try:
         with sigterm_raises():
-            return run()
+            return run(count), n_new
     except Terminated:  # before KeyboardInterrupt, which it is
         stopped("terminated (SIGTERM)")
-        return 128 + signal.SIGTERM
+        return 128 + signal.SIGTERM, n_new
     except KeyboardInterrupt:
         stopped("interrupted")
-        return 130
+        return 130, n_new
     except SimulationError as exc:
         print(f"error: {_one_line(str(exc))}", file=sys.stderr)
-        return 1
+        return 1, n_new
 
 
 def _print_summary(
