@@ -30,9 +30,10 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force.errors import SweepError, did_you_mean
+from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 from hybrid_force.studies.engines import StartMethod
 from hybrid_force.studies.progress import Progress, format_duration
-from hybrid_force.studies.sweep import add_engine_arguments, run_stoppable, run_sweep
+from hybrid_force.studies.sweep import run_sweep
 from hybrid_force.studies.table import (
     _CSV_NAME,
     _cell,

@@ -15,7 +15,9 @@ The parts live in their own modules, and their names stay importable from this o
 :mod:`~hybrid_force.studies.variants` (grid, samples, run ids),
 :mod:`~hybrid_force.studies.table` (columns, ``sweep.csv``), :mod:`~hybrid_force.studies.tasks`
 (one run in a worker), :mod:`~hybrid_force.studies.engines` (process pool, Dask; warm-up,
-chunks), :mod:`~hybrid_force.studies.progress` (the progress line).
+chunks), :mod:`~hybrid_force.studies.progress` (the progress line),
+:mod:`~hybrid_force.studies.command_line` (the engine options, a command stopped by a signal;
+shared with ``hybrid-force compare``).
 
 Row statuses: ``"ok"``; ``"diverged"`` (the simulation failed at run time; the metrics are those
 of the partial run); ``"failed"`` (the run failed otherwise: it lost contact, or its desired
@@ -49,7 +51,6 @@ import contextlib
 import json
 import os
 import shutil
-import signal
 import sys
 import tempfile
 import time
@@ -57,9 +58,9 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from hybrid_force._signals import Terminated, sigterm_raises
 from hybrid_force.errors import SimulationError, SweepError
 from hybrid_force.run_output import locked_folder
+from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 
 # The parts of a sweep live in their own modules; their public names (and the private ones
 # earlier versions of this module held) stay importable from here.
@@ -86,7 +87,8 @@ from hybrid_force.studies.table import (
     read_sweep_csv,
 )
 from hybrid_force.studies.tasks import _execute as _execute
-from hybrid_force.studies.tasks import _one_line, _save_blob, _Source, _Task, run_one
+from hybrid_force.studies.tasks import _one_line as _one_line
+from hybrid_force.studies.tasks import _save_blob, _Source, _Task, run_one
 from hybrid_force.studies.variants import (
     MAX_RUNS,
     expand,
@@ -372,49 +374,6 @@ def _scratch_dir(out: Path) -> str:
 
 
 # ----------------------------------------------------------------------------- command line
-def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
-    """Define the options of where and how visibly the runs go (``--workers``, ``--scheduler``,
-    ``--start-method``, ``--progress``/``--no-progress``): shared by ``sweep`` and ``compare``."""
-    parser.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="worker processes (default: one per core; 2 for --scheduler local)",
-    )
-    parser.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS|local",
-        help="run on a Dask cluster: a scheduler address (tcp://host:8786) or 'local' "
-        "(a LocalCluster on this machine); default: a local process pool",
-    )
-    parser.add_argument(
-        "--start-method",
-        choices=("auto", "fork", "spawn"),
-        default="auto",
-        help="how local workers start: fork (from this process, its kernels loaded once), "
-        "spawn (fresh interpreters); default auto: fork on Linux, else spawn",
-    )
-    parser.add_argument(
-        "--progress",
-        dest="progress",
-        action="store_const",
-        const="force",
-        default=True,
-        help="draw the progress line on stderr even when it is not a terminal "
-        "(default: only on a terminal)",
-    )
-    parser.add_argument(
-        "--no-progress",
-        "--quiet",
-        dest="progress",
-        action="store_const",
-        const=False,
-        help="no progress line",
-    )
-
-
 def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
     """Define the options of ``hybrid-force sweep`` on the given (sub)parser."""
     parser.epilog = _EXIT_STATUS_HELP
@@ -540,43 +499,6 @@ def sweep_command(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
-
-
-def run_stoppable(
-    run: Callable[[Callable[[dict[str, Any]], None]], Path], table: Path
-) -> tuple[Path | int, int]:
-    """Call ``run(on_row)`` (a :func:`run_sweep` passing ``on_row`` on) with SIGTERM raising.
-
-    Returns:
-        What ``run`` returns, or the exit status of a command it stopped (with one line on
-        stderr): 143 SIGTERM, 130 Ctrl-C (the finished rows are in ``table``), 1 runs were
-        lost (a SimulationError); and the number of new rows. Bad input propagates.
-    """
-    n_new = 0
-
-    def count(_row: dict[str, Any]) -> None:
-        nonlocal n_new
-        n_new += 1
-
-    def stopped(how: str) -> None:
-        print(
-            f"{how} after {n_new} new run(s); the finished rows are in '{table}'; run the "
-            "same command again to resume",
-            file=sys.stderr,
-        )
-
-    try:
-        with sigterm_raises():
-            return run(count), n_new
-    except Terminated:  # before KeyboardInterrupt, which it is
-        stopped("terminated (SIGTERM)")
-        return 128 + signal.SIGTERM, n_new
-    except KeyboardInterrupt:
-        stopped("interrupted")
-        return 130, n_new
-    except SimulationError as exc:
-        print(f"error: {_one_line(str(exc))}", file=sys.stderr)
-        return 1, n_new
 
 
 def _print_summary(
