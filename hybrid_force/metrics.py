@@ -69,14 +69,14 @@ def _settle_time(result: Result, settle_time: float | None) -> float:
     if isinstance(settle_time, bool) or not isinstance(settle_time, (int, float)):
         raise BadInputError(
             f"metrics: settle_time must be a number [s], got {settle_time!r}",
-            key="sim.settle_time",
+            key="settle_time",
             value=settle_time,
         )
     settle = float(settle_time)
     if not math.isfinite(settle):
         raise BadInputError(
             f"metrics: settle_time must be finite, got {settle_time!r}",
-            key="sim.settle_time",
+            key="settle_time",
             value=settle_time,
         )
     return settle
