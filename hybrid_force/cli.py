@@ -8,6 +8,9 @@ Subcommands:
 * ``plot FILE``: the figures of a saved run (``.npz``) or a plot of a sweep (``.csv``).
 * ``replay RESULT.npz``: the 3D replay of a saved run (hybrid_force.viz.replay).
 * ``sweep SCENARIO ...``: a parameter sweep (hybrid_force.studies.sweep defines its options).
+* ``compare SCENARIO --laws A,B,...``: the scenario once per control law, a table and overlay
+  figures of how each did (hybrid_force.studies.compare defines its options).
+* ``laws``: the control laws a scenario's ``control.law`` may name.
 * ``robots``: list the robot models known by name, with joint count, default tip frame and
   source; ``robots --check MODEL [--tip FRAME]``: what loading one model finds
   (hybrid_force.model.report).
@@ -331,15 +334,17 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return int(replay.replay_command(args))
 
 
-def _cmd_sweep_missing(args: argparse.Namespace) -> int:
-    _import_feature("hybrid_force.studies.sweep", "the sweep command")
-    raise FeatureUnavailableError("the sweep command is not available")  # pragma: no cover
+def _cmd_study_missing(args: argparse.Namespace) -> int:
+    _import_feature(f"hybrid_force.studies.{args.command}", f"the {args.command} command")
+    raise FeatureUnavailableError(
+        f"the {args.command} command is not available"
+    )  # pragma: no cover
 
 
-def _cmd_sweep(args: argparse.Namespace) -> int:
-    """A parameter sweep (delegated to hybrid_force.studies.sweep)."""
-    sweep = _import_feature("hybrid_force.studies.sweep", "the sweep command")
-    return int(sweep.sweep_command(args))
+def _cmd_study(args: argparse.Namespace) -> int:
+    """A sweep or a comparison of laws (delegated to hybrid_force.studies.<command>)."""
+    module = _import_feature(f"hybrid_force.studies.{args.command}", f"the {args.command} command")
+    return int(getattr(module, f"{args.command}_command")(args))
 
 
 class _Parser(argparse.ArgumentParser):
@@ -349,11 +354,14 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message} (see '{self.prog} --help')\n")
 
 
-def build_parser(*, sweep_options: bool = True) -> argparse.ArgumentParser:
+def build_parser(
+    *, sweep_options: bool = True, compare_options: bool = True
+) -> argparse.ArgumentParser:
     """The argument parser with every subcommand (each sets ``handler``).
 
-    sweep_options: let hybrid_force.studies.sweep add the options of ``sweep`` (imports that module;
-    :func:`main` does so only when the command is ``sweep``, so ``--help`` stays fast).
+    sweep_options, compare_options: let hybrid_force.studies.sweep (compare) add the options of
+    ``sweep`` (``compare``) (imports that module; :func:`main` does so only when the command
+    is that one, so ``--help`` stays fast).
     """
     parser = _Parser(
         prog="hybrid-force",
@@ -409,7 +417,23 @@ def build_parser(*, sweep_options: bool = True) -> argparse.ArgumentParser:
     _add_run(sub)
     _add_plot(sub)
     _add_replay(sub)
-    _add_sweep(sub, sweep_options)
+    _add_study(
+        sub,
+        "sweep",
+        "run a scenario over a grid of parameter values",
+        "Run a scenario over a grid of parameter values and write a CSV table.",
+        sweep_options,
+    )
+    _add_study(
+        sub,
+        "compare",
+        "run a scenario once per control law and compare them",
+        "Run a scenario once per control law (same plant, sensor and seed: only control.law "
+        "differs), on the sweep's workers, and write a CSV table of the laws' force and path "
+        "errors, impact peak, time off the surface, settling time, peak torque and wall time, "
+        "with overlay figures of the force and path errors (docs/compare.md).",
+        compare_options,
+    )
     return parser
 
 
@@ -473,30 +497,28 @@ def _add_replay(sub: Any) -> None:
     replay.set_defaults(handler=_cmd_replay)
 
 
-def _add_sweep(sub: Any, with_options: bool) -> None:
-    sweep = sub.add_parser(
-        "sweep",
-        help="run a scenario over a grid of parameter values",
-        description="Run a scenario over a grid of parameter values and write a CSV table.",
-    )
+def _add_study(sub: Any, name: str, summary: str, description: str, with_options: bool) -> None:
+    """The subcommand ``name`` of hybrid_force.studies.<name>, whose ``add_<name>_arguments``
+    defines its options (only when ``with_options``: importing the module costs time)."""
+    parser = sub.add_parser(name, help=summary, description=description)
     if not with_options:
-        sweep.set_defaults(handler=_cmd_sweep)
+        parser.set_defaults(handler=_cmd_study)
         return
     try:
-        module = _import_feature("hybrid_force.studies.sweep", "the sweep command")
+        module = _import_feature(f"hybrid_force.studies.{name}", f"the {name} command")
     except FeatureUnavailableError:
-        sweep.add_argument("args", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
-        sweep.set_defaults(handler=_cmd_sweep_missing)
+        parser.add_argument("args", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+        parser.set_defaults(handler=_cmd_study_missing)
         return
-    module.add_sweep_arguments(sweep)
-    sweep.set_defaults(handler=_cmd_sweep)
+    getattr(module, f"add_{name}_arguments")(parser)
+    parser.set_defaults(handler=_cmd_study)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status (0 ok, 1 run-time failure, 2 bad input)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     command = next((a for a in argv if not a.startswith("-")), None)
-    parser = build_parser(sweep_options=command == "sweep")
+    parser = build_parser(sweep_options=command == "sweep", compare_options=command == "compare")
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0) or a usage error (2, already printed)

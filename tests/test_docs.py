@@ -55,5 +55,5 @@ def test_api_reference_builds_strictly_and_documents_every_public_module(
     missing = sorted(modules - anchors - {"hybrid_force"})
     assert not missing, f"modules without an API page (add one in docs/api/): {missing}"
     # the guides are pages of the site too
-    for guide in ("index", "scenarios", "robots", "sweep", "replay"):
+    for guide in ("index", "scenarios", "robots", "sweep", "compare", "replay"):
         assert (site / f"{guide}.html").is_file(), guide

@@ -15,7 +15,9 @@ The parts live in their own modules, and their names stay importable from this o
 :mod:`~hybrid_force.studies.variants` (grid, samples, run ids),
 :mod:`~hybrid_force.studies.table` (columns, ``sweep.csv``), :mod:`~hybrid_force.studies.tasks`
 (one run in a worker), :mod:`~hybrid_force.studies.engines` (process pool, Dask; warm-up,
-chunks), :mod:`~hybrid_force.studies.progress` (the progress line).
+chunks), :mod:`~hybrid_force.studies.progress` (the progress line),
+:mod:`~hybrid_force.studies.command_line` (the engine options, a command stopped by a signal;
+shared with ``hybrid-force compare``).
 
 Row statuses: ``"ok"``; ``"diverged"`` (the simulation failed at run time; the metrics are those
 of the partial run); ``"failed"`` (the run failed otherwise: it lost contact, or its desired
@@ -49,7 +51,6 @@ import contextlib
 import json
 import os
 import shutil
-import signal
 import sys
 import tempfile
 import time
@@ -57,9 +58,9 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from hybrid_force._signals import Terminated, sigterm_raises
 from hybrid_force.errors import SimulationError, SweepError
 from hybrid_force.run_output import locked_folder
+from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 
 # The parts of a sweep live in their own modules; their public names (and the private ones
 # earlier versions of this module held) stay importable from here.
@@ -86,7 +87,8 @@ from hybrid_force.studies.table import (
     read_sweep_csv,
 )
 from hybrid_force.studies.tasks import _execute as _execute
-from hybrid_force.studies.tasks import _one_line, _save_blob, _Source, _Task, run_one
+from hybrid_force.studies.tasks import _one_line as _one_line
+from hybrid_force.studies.tasks import _save_blob, _Source, _Task, run_one
 from hybrid_force.studies.variants import (
     MAX_RUNS,
     expand,
@@ -103,11 +105,13 @@ __all__ = [
     "THREAD_VARIABLES",
     "TIMING_COLUMNS",
     "SweepError",
+    "add_engine_arguments",
     "add_sweep_arguments",
     "expand",
     "read_sweep_csv",
     "run_id",
     "run_one",
+    "run_stoppable",
     "run_sweep",
     "single_threaded_workers",
     "split_values",
@@ -128,6 +132,7 @@ def run_sweep(
     on_row: Callable[[dict[str, Any]], None] | None = None,
     check: Callable[[], None] | None = None,
     start_method: StartMethod = "auto",
+    label: str = "sweep",
 ) -> Path:
     """Run every variant not yet in ``out_dir/sweep.csv``; return the CSV path.
 
@@ -155,6 +160,7 @@ def run_sweep(
             kernels once and forks ready workers), "spawn" (fresh interpreters, each loading
             them), or "auto": fork on Linux when this process runs no other Python thread,
             else spawn. The rows are the same either way.
+        label: the word before the progress line (e.g. "compare" for a comparison of laws).
 
     Returns:
         ``out_dir/sweep.csv``: one row per variant in variant order (plus rows of earlier
@@ -245,7 +251,9 @@ def run_sweep(
                     DaskEngine(workers, scheduler)
                 )  # fmt: skip
                 engine.start(None)
-            lost = _run_todo(engine, source, todo, table, keep_dir, progress, on_row, scheduler)
+            lost = _run_todo(
+                engine, source, todo, table, keep_dir, progress, on_row, scheduler, label
+            )
             failed = False
     finally:
         if engine is not None:
@@ -288,6 +296,7 @@ def _run_todo(
     progress: Progress,
     on_row: Callable[[dict[str, Any]], None] | None,
     scheduler: str | None,
+    label: str = "sweep",
 ) -> list[str]:
     """Run the variants left on the engine, each row written as it comes back; the lost runs.
 
@@ -295,7 +304,7 @@ def _run_todo(
     the caller); the workers' temporary folders (``DIR/.scratch-<pid>-*``) are removed.
     """
     report = ProgressReporter(
-        len(table.ids), done=len(table.ids) - len(todo), progress=progress, label="sweep"
+        len(table.ids), done=len(table.ids) - len(todo), progress=progress, label=label
     )
     lost: list[str] = []
 
@@ -389,27 +398,6 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (0)")
     parser.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="worker processes (default: one per core; 2 for --scheduler local)",
-    )
-    parser.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS|local",
-        help="run on a Dask cluster: a scheduler address (tcp://host:8786) or 'local' "
-        "(a LocalCluster on this machine); default: a local process pool",
-    )
-    parser.add_argument(
-        "--start-method",
-        choices=("auto", "fork", "spawn"),
-        default="auto",
-        help="how local workers start: fork (from this process, its kernels loaded once), "
-        "spawn (fresh interpreters); default auto: fork on Linux, else spawn",
-    )
-    parser.add_argument(
         "--out",
         default=None,
         metavar="DIR",
@@ -420,23 +408,7 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="save every run's result to DIR/results/<run_id>.npz",
     )
-    parser.add_argument(
-        "--progress",
-        dest="progress",
-        action="store_const",
-        const="force",
-        default=True,
-        help="draw the progress line on stderr even when it is not a terminal "
-        "(default: only on a terminal)",
-    )
-    parser.add_argument(
-        "--no-progress",
-        "--quiet",
-        dest="progress",
-        action="store_const",
-        const=False,
-        help="no progress line",
-    )
+    add_engine_arguments(parser)
 
 
 _EXIT_STATUS_HELP = f"""\
@@ -483,46 +455,28 @@ def sweep_command(args: argparse.Namespace) -> int:
         "seed": args.seed,
     }
     t0 = time.monotonic()
-    n_new = 0
-
-    def count(_row: dict[str, Any]) -> None:
-        nonlocal n_new
-        n_new += 1
-
-    def stopped(how: str) -> None:
-        print(
-            f"{how} after {n_new} new run(s); the finished rows are in "
-            f"'{out / _CSV_NAME}'; run the same command again to resume",
-            file=sys.stderr,
-        )
-
-    try:
-        with sigterm_raises():
-            path = run_sweep(
-                scenario,
-                variants,
-                workers=args.workers,
-                scheduler=args.scheduler,
-                out_dir=out,
-                keep_results=args.keep_results,
-                progress=args.progress,
-                start_method=args.start_method,
-                arguments=arguments,
-                on_row=count,
-                # a broken scenario file is bad input, before any run; checked as every variant
-                # sees it (with the keys the grid fixes to one value, e.g. sim.duration), while
-                # the workers start
-                check=lambda: load_scenario(scenario, fixed),
-            )
-    except Terminated:  # before KeyboardInterrupt, which it is
-        stopped("terminated (SIGTERM)")
-        return 128 + signal.SIGTERM
-    except KeyboardInterrupt:
-        stopped("interrupted")
-        return 130
-    except SimulationError as exc:
-        print(f"error: {_one_line(str(exc))}", file=sys.stderr)
-        return 1
+    outcome, n_new = run_stoppable(
+        lambda on_row: run_sweep(
+            scenario,
+            variants,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            out_dir=out,
+            keep_results=args.keep_results,
+            progress=args.progress,
+            start_method=args.start_method,
+            arguments=arguments,
+            on_row=on_row,
+            # a broken scenario file is bad input, before any run; checked as every variant
+            # sees it (with the keys the grid fixes to one value, e.g. sim.duration), while
+            # the workers start
+            check=lambda: load_scenario(scenario, fixed),
+        ),
+        out / _CSV_NAME,
+    )
+    if isinstance(outcome, int):
+        return outcome
+    path = outcome
     counts = _print_summary(path, variants, n_new, time.monotonic() - t0)
     total = sum(counts.values())
     not_ok = total - counts["ok"]

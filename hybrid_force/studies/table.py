@@ -20,7 +20,7 @@ from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import SweepError
 from hybrid_force.studies.variants import _canonical, run_id
 
-__all__ = ["METRIC_COLUMNS", "STATUSES", "TIMING_COLUMNS", "read_sweep_csv"]
+__all__ = ["METRIC_COLUMNS", "STATUSES", "TIMING_COLUMNS", "read_sweep_csv", "read_table"]
 
 STATUSES = ("ok", "diverged", "failed", "bad input", "error")
 """Possible values of the ``status`` column (see the module docstring)."""
@@ -76,8 +76,14 @@ def _cell(value: Any) -> str:
     return json.dumps(_canonical(value), separators=(", ", ": "))
 
 
-def read_sweep_csv(path: str | os.PathLike[str]) -> tuple[list[str], list[dict[str, str]]]:
-    """Read a sweep CSV: (columns, rows as dicts of strings). Raises SweepError if unreadable."""
+def read_table(
+    path: str | os.PathLike[str], what: str = "sweep"
+) -> tuple[list[str], list[dict[str, str]]]:
+    """Read a CSV table: (columns, rows as dicts of strings).
+
+    Raises SweepError naming ``what`` file if it is unreadable or a row has the wrong number
+    of cells.
+    """
     src = Path(path)
     try:
         with src.open(newline="", encoding="utf-8") as fh:
@@ -85,15 +91,21 @@ def read_sweep_csv(path: str | os.PathLike[str]) -> tuple[list[str], list[dict[s
             rows = [dict(r) for r in reader]
             columns = list(reader.fieldnames or [])
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise SweepError(f"cannot read sweep file '{src}': {exc}") from exc
-    if columns and "run_id" not in columns:
-        raise SweepError(
-            f"'{src}' is not a sweep CSV (no run_id column; columns: {', '.join(columns)}); "
-            "choose another --out"
-        )
+        raise SweepError(f"cannot read {what} file '{src}': {exc}") from exc
     for i, r in enumerate(rows):
         if None in r or any(v is None for v in r.values()):
             raise SweepError(f"'{src}' row {i + 2} has the wrong number of cells")
+    return columns, rows
+
+
+def read_sweep_csv(path: str | os.PathLike[str]) -> tuple[list[str], list[dict[str, str]]]:
+    """Read a sweep CSV: (columns, rows as dicts of strings). Raises SweepError if unreadable."""
+    columns, rows = read_table(path)
+    if columns and "run_id" not in columns:
+        raise SweepError(
+            f"'{path}' is not a sweep CSV (no run_id column; columns: {', '.join(columns)}); "
+            "choose another --out"
+        )
     return columns, rows
 
 

@@ -38,6 +38,11 @@ def _note(ax: Axes, text: str) -> None:
     ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", color="0.35")
 
 
+def _legend_right(ax: Axes) -> None:
+    """A legend outside ax on its right (inside, it could hide data such as a divergence)."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+
+
 def _save_atomic(fig: Figure, path: Path) -> None:
     """Write fig as PNG to path via a temporary file in the same directory and os.replace."""
     with atomic_file(path) as fh:

@@ -39,7 +39,7 @@ from hybrid_force.viz._run_data import (
     _window_end,
     _zoom_end,
 )
-from hybrid_force.viz._style import _new_figure, _note, _out_dir, _save_atomic
+from hybrid_force.viz._style import _legend_right, _new_figure, _note, _out_dir, _save_atomic
 from hybrid_force.viz._wireframes import _finite_points, _projection, _surface_mesh
 
 if TYPE_CHECKING:
@@ -109,11 +109,6 @@ def _semilog(ax: Axes, t: np.ndarray, y: np.ndarray, **kw: Any) -> bool:
     ax.plot(t, yp, **kw)
     ax.set_yscale("log")
     return True
-
-
-def _legend_right(ax: Axes) -> None:
-    """A legend outside ax on its right (inside, it could hide data such as a divergence)."""
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
 
 
 def _mark_nonfinite(axes: Sequence[Axes], t: np.ndarray, a: np.ndarray, what: str) -> None:
