@@ -103,12 +103,22 @@ __all__ = [
     "build",
     "cartesian_inertia",
     "make_gains",
+    "pseudo_inverse",
     "selection_matrix",
 ]
 
 FORMS = ("corrected", "original")
 FEEDFORWARDS = ("model", "gravity")
 _SINGULAR = 1e12  # cond(J M⁻¹ Jᵀ) at q₀ above this: the Cartesian inertia is undefined
+
+
+def pseudo_inverse(J: np.ndarray) -> np.ndarray:
+    """J⁺ = Jᵀ (J Jᵀ)⁻¹ (n, 3) of a full-rank J (3, n), n ≥ 3 (J⁻¹ for n = 3); at a singularity,
+    where J Jᵀ cannot be inverted, the SVD's pseudo-inverse."""
+    try:
+        return J.T @ np.linalg.inv(J @ J.T)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(J)
 
 
 def selection_matrix(normals: np.ndarray) -> np.ndarray:
@@ -121,6 +131,8 @@ def selection_matrix(normals: np.ndarray) -> np.ndarray:
         (3, 3) symmetric, S² = S, S N = 0, rank 3 − k.
     """
     N = normals
+    if N.shape[1] == 1:
+        return np.eye(3) - N @ N.T
     return np.eye(3) - N @ np.linalg.solve(N.T @ N, N.T)
 
 
@@ -225,6 +237,7 @@ class RaibertCraigLaw:
         self.original = gains.form == "original"
         self.model_feedforward = gains.feedforward == "model"
         self.last_u_pos = np.zeros(gains.Kq.shape[0])
+        self.redundant = gains.Kq.shape[0] > 3
 
     # ---------------------------------------------------------------- the phases
     def free_space(
@@ -277,20 +290,23 @@ class RaibertCraigLaw:
         J = robot.J
         e = S @ (desired.p - robot.p)
         e_dot = S @ (desired.pd - robot.pdot)
-        J_pinv = np.linalg.pinv(J)
-        null = np.eye(J.shape[1]) - J_pinv @ J
+        J_pinv = pseudo_inverse(J)
         if self.original:
             u_pos = g.Kq @ (J_pinv @ e) + g.Dq @ (J_pinv @ e_dot)
         else:
             u_pos = J.T @ (S @ (g.Kx @ e + g.Dx @ e_dot))
         self.last_u_pos = u_pos
-        u_hold = null @ (-(g.Kq @ e_q) - g.Dq @ (v - desired.qd))
         if self.model_feedforward:
-            qdd_ff = J_pinv @ (desired.pdd - robot.Jdot_v) + null @ desired.qdd
-            u_ff = robot.M @ qdd_ff + robot.C @ v + robot.g
+            qdd_ff = J_pinv @ (desired.pdd - robot.Jdot_v)
+            u = robot.M @ qdd_ff + robot.C @ v + robot.g + u_pos
         else:
-            u_ff = robot.g.copy()
-        return u_ff + u_pos + u_hold
+            u = robot.g + u_pos
+        if self.redundant:  # the self-motion follows q_d (module docstring)
+            null = np.eye(J.shape[1]) - J_pinv @ J
+            u += null @ (-(g.Kq @ e_q) - g.Dq @ (v - desired.qd))
+            if self.model_feedforward:
+                u += robot.M @ (null @ desired.qdd)
+        return u
 
     def _approach(
         self,
@@ -312,9 +328,11 @@ class RaibertCraigLaw:
 
     def normals(self, p: np.ndarray) -> np.ndarray:
         """(3, k) the surfaces' unit normals ∇Φ/‖∇Φ‖ at the tip p (3,) [m], as columns."""
-        columns = [s.evaluate(p)[1] for s in self.surfaces]
-        N = np.array(columns).T
-        return N / np.linalg.norm(N, axis=0)
+        N = np.empty((3, len(self.surfaces)))
+        for i, surface in enumerate(self.surfaces):
+            gradient = surface.evaluate(p)[1]
+            N[:, i] = gradient / math.sqrt(float(gradient @ gradient))
+        return N
 
     # ---------------------------------------------------------------- the Law protocol
     def update(self, dt: float, f: np.ndarray) -> None:
