@@ -204,6 +204,11 @@ LAWS: dict[str, LawSpec] = {
                     kind="choice",
                     choices=("model", "gravity"),
                 ),
+                "decouple": Option(
+                    "true (default): project the position feedback so that, by the model, it "
+                    "cannot change the contact force; false: the published forms",
+                    kind="bool",
+                ),
                 "position_rate": Option("ω_p [1/s], slow pole of the position error (Λ)"),
                 "damping_rate": Option("ω_d [1/s], fast pole of the position error (kd_rate)"),
                 "kp": Option("k_p [-], proportional force gain (0.5)", strict=False),

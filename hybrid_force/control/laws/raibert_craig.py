@@ -8,15 +8,16 @@ surfaces at the tip (n̂ = ∇Φ/‖∇Φ‖),
     S = I − N (NᵀN)⁻¹ Nᵀ          (3, 3): S² = S = Sᵀ, S N = 0, rank 3 − k
 
 and, with e = p_d − p, ė = ṗ_d − ṗ [m, m/s] and e_F = ∫(f − f_d) dt the supervisor's
-momentum error (so ∫(f_d − f) dt = −e_F):
+momentum error (so ∫(f_d − f) dt = −e_F), the law in contact is
 
-    u = u_ff + u_pos + u_force
+    u = u_ff + P u_pos + u_force
     u_force = −Aᵀ [f_d + k_p (f_d − f) − k_i e_F] − Jᵀ N D_n Nᵀ ṗ                        (1)
 
 A = n̂ᵀJ are the constraint's rows (the "tip" scaling: f in newtons; the plant applies
-Aᵀ f, so −Aᵀ f_cmd presses with f_cmd). The normal damping D_n = (ω_p + ω_d) (NᵀΛ₀⁻¹N)⁻¹
-is ours: it does nothing on a rigid surface (Nᵀṗ = 0 in contact) and damps the contact
-spring of a compliant one. The position part is where the two forms differ:
+Aᵀ f, so −Aᵀ f_cmd presses with f_cmd). The normal damper D_n = (ω_p + ω_d)(Nᵀ J M⁻¹ Jᵀ N)⁻¹
+(the tip's inertia along the normals, from the model) is ours: it does nothing on a rigid
+surface (Nᵀṗ = 0 in contact) and damps the contact spring of a compliant one. The position
+part u_pos is where the two forms differ:
 
 * ``original`` — the selected error is mapped to the joints by the inverse Jacobian (J⁻¹ for a
   square J, the pseudo-inverse J⁺ = Jᵀ(JJᵀ)⁻¹ for n > 3) and servoed by constant joint gains:
@@ -35,26 +36,39 @@ spring of a compliant one. The position part is where the two forms differ:
 
       u_pos = Jᵀ S (K_x S e + D_x S ė),    K_x = ω_p ω_d Λ₀,  D_x = (ω_p + ω_d) Λ₀          (3)
 
-  Its joint stiffness −∂u_pos/∂q = Jᵀ S K_x S J at e = 0 is symmetric: the position loop is a
-  spring with the potential ½ eᵀ S K_x S e, which can do no net work over a closed motion.
+  Its stiffness Jᵀ S K_x S J and damping Jᵀ S D_x S J are symmetric positive semi-definite:
+  the position loop is a spring and a damper, it can only store or dissipate energy.
 
-At q₀ the original's K_P J⁻¹ = ω_p ω_d Jᵀ Λ₀: there it is the dynamically decoupled law of
-the operational space. Away from q₀ the joint stiffness K_P J⁻¹ S J is not symmetric: it is a
-circulatory force, and An and Hollerbach (1989, "The role of dynamic models in Cartesian force
-control of manipulators", IJRR 8(4)) found the resulting instability of revolute arms,
-independent of the environment's stiffness. On a rigid surface the constrained motion only
-feels the tangent block Eᵀ J⁻ᵀ K_P J⁻¹ E of that stiffness (E a tangent basis), which is
-symmetric, so both forms are stable there; on a compliant surface the contact oscillation
-along n̂ is coupled to the tangent by the arm's inertia, the tip runs around an ellipse in
-the (tangent, normal) plane, and the circulatory force feeds it energy every cycle: the
-original diverges at a rate that tends to a constant as the contact stiffens, the corrected
-form does not (benchmarks/study_raibert_craig.py, tests/test_law_raibert_craig.py).
+Why it matters (An and Hollerbach 1989, "The role of dynamic models in Cartesian force control
+of manipulators", IJRR 8(4): kinematic instability of the original for revolute arms). At q₀
+the original's K_P J⁻¹ = ω_p ω_d Jᵀ Λ₀, the dynamically decoupled law; away from q₀ its
+K_P J⁺ S J and K_D J⁺ S J are not symmetric. On a rigid surface the constrained motion only
+feels their tangent blocks Eᵀ J⁻ᵀ K J⁻¹ E (E a tangent basis), which are symmetric: both forms
+are stable there. On a compliant surface the tool vibrates on the contact spring, the joints
+moving along φ = M⁻¹Aᵀ with a tip velocity Λ⁻¹n̂ that has a tangential part; the original's
+damper answers it with a power φᵀ K_D J⁺ S J φ of no fixed sign, and where it is negative it
+feeds the vibration, at a rate that does not fall as the surface stiffens; the corrected
+damper can only drain it (:mod:`hybrid_force.studies.hybrid_stability`).
+
+The projection P (``decouple = true``, default; false: P = I, the published forms). FM's
+wrench S w exerts no static force along n̂, but it still accelerates the tip along n̂ through
+the arm's inertia (n̂ᵀΛ⁻¹S w ≠ 0 unless n̂ is an eigenvector of Λ): on a rigid surface the
+contact force answers that acceleration. A large tangential correction thus pulls the tool
+off: at the start of scenarios/paper_contact.toml (3 m below the path) the corrected form
+without P would need −35 kN of the surface and flies off. P = I − Aᵀ(A M⁻¹ Aᵀ)⁻¹ A M⁻¹ (the
+model's) removes from the position feedback what would change the contact force
+(A M⁻¹ P = 0); on tangent motions (A q̇ = 0) q̇ᵀ P u = q̇ᵀ u, so the tangent behaviour and its
+passivity are unchanged, and the feedback no longer does work on the contact vibration (the
+mode then decays at (ω_p + ω_d)/2 − λ_f/2 from D_n and the integral). Default: form
+``corrected`` with P, because P is exact only with an exact model; with a wrong one (a tool
+the model lacks) the residual of the original's feedback can still pump the vibration, the
+corrected's can only damp it (benchmarks/study_raibert_craig.py).
 
 Feed-forward (``feedforward = "model"``, default): u_ff = M q̈_ff + C q̇ + g from the
 controller's model, with the resolved acceleration q̈_ff = J⁺(p̈_d − J̇q̇) + (I − J⁺J) q̈_d;
-``"gravity"``: u_ff = g only, the 1981 law. The redundant directions of an arm with n > 3 are
-held on the supervisor's joint path q_d by (I − J⁺J)(−K_P e_q − K_D (q̇ − q̇_d)), which
-exerts no force at the tip.
+``"gravity"``: u_ff = g only, as in 1981. The redundant directions of an arm with n > 3 are
+held on the supervisor's joint path q_d by (I − J⁺J)(−K_P e_q − K_D (q̇ − q̇_d)) (part of
+u_pos for P), which exerts no force at the tip.
 
 Force loop. On a rigid surface the contact force answers the command at once:
 f = f_cmd + d, where d [N] collects what the rest of u does along n̂. With (1),
@@ -75,10 +89,10 @@ coincide; to first order J⁺(p_d − p) = q_d − q, and the law servoes the su
 path q_d (the inverse-kinematic image of p_d) itself, u = u_ff − K_P e_q − K_D (q̇ − q̇_d) with
 q̈_ff = q̈_d, so that a large start error is closed joint by joint as the paper's free-space law
 does, not along a straight task-space line that the changing inertia would bend. Near the
-surface: position along it and the approach velocity v_a across it, i.e. the velocity error
-S ė + N (v_a − Nᵀṗ) and the reference acceleration S p̈_d + N v̇_a with v̇_a = −λ_a Nᵀṗ
-(v_a = −λ_a d read as m/s along n̂: exact for the "tip" scaling); the corrected form applies
-S to its spring there, not to its damper.
+surface: u_ff + u_pos along it (eq. 2 or 3), and across it a torque Aᵀ w that sets, by the
+model, the rows' rate r = A q̇ (= ḋ for the "tip" scaling) to ṙ = −λ_a r + ω_d (v_a − r),
+v_a = −λ_a d the supervisor's approach velocity: d̈ + (λ_a + ω_d) ḋ + λ_a ω_d d = 0, and the
+tool lands at ḋ ≈ −λ_a·contact_tol.
 """
 
 from __future__ import annotations
@@ -165,7 +179,6 @@ class RaibertCraigGains:
         Kq, Dq: (n, n) joint gains ω_p ω_d M(q₀), (ω_p + ω_d) M(q₀) of the original form and
             of the redundant directions [N·m/rad, N·m·s/rad …].
         Kx, Dx: (3, 3) task gains ω_p ω_d Λ₀, (ω_p + ω_d) Λ₀ of the corrected form [N/m, N·s/m].
-        Lambda0_inv: (3, 3) Λ₀⁻¹ = J M⁻¹ Jᵀ at q₀ [1/kg] (normal damping D_n).
         kp: proportional force gain k_p ≥ 0 [-]. ki: integral force gain k_i > 0 [1/s].
     """
 
@@ -177,9 +190,9 @@ class RaibertCraigGains:
     Dq: np.ndarray
     Kx: np.ndarray
     Dx: np.ndarray
-    Lambda0_inv: np.ndarray
     kp: float
     ki: float
+    decouple: bool = True
 
     @property
     def force_rate(self) -> float:
@@ -207,9 +220,9 @@ def make_gains(context: LawContext) -> RaibertCraigGains:
         Dq=(wp + wd) * M0,
         Kx=wp * wd * Lambda0,
         Dx=(wp + wd) * Lambda0,
-        Lambda0_inv=np.linalg.inv(Lambda0),
         kp=kp,
         ki=ki,
+        decouple=bool(opts.get("decouple", True)),
     )
 
 
@@ -269,22 +282,29 @@ class RaibertCraigLaw:
         assert desired.p is not None and desired.pd is not None and desired.pdd is not None
         N = self.normals(robot.p)
         S = selection_matrix(N)
-        u = self._motion(robot, v, e_q, desired, S)
+        u_ff, u_fb = self._motion(robot, v, e_q, desired, S)
         if approach is not None:
+            u = u_ff + u_fb
             u += self._approach(robot, cons, v, u, approach)
             return Command(u0=u, B=None)
-        normal_speed = N.T @ robot.pdot
         g = self.gains
-        Dn = (g.position_rate + g.damping_rate) * np.linalg.inv(N.T @ g.Lambda0_inv @ N)
+        if g.decouple:  # the feedback may not change the contact force (module docstring)
+            MinvAT = np.linalg.solve(robot.M, cons.A.T)
+            u_fb = u_fb - cons.A.T @ np.linalg.solve(cons.A @ MinvAT, MinvAT.T @ u_fb)
+        # D_n = (ω_p + ω_d) × the tip's inertia along the normals, (Nᵀ J M⁻¹ Jᵀ N)⁻¹
+        JN = robot.J.T @ N
+        Dn = (g.position_rate + g.damping_rate) * np.linalg.inv(JN.T @ np.linalg.solve(robot.M, JN))
+        u = u_ff + u_fb
         u -= cons.A.T @ ((1.0 + g.kp) * f_d - g.ki * e_F)
-        u -= robot.J.T @ (N @ (Dn @ normal_speed))
+        u -= JN @ (Dn @ (N.T @ robot.pdot))
         B = g.kp * cons.A.T if g.kp > 0 else None
         return Command(u0=u, B=B)
 
     def _motion(
         self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired, S: np.ndarray
-    ) -> np.ndarray:
-        """u_ff + u_pos (eq. 2 or 3) + the redundant directions' hold, selection S (3, 3)."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(u_ff, u_pos + the redundant directions' hold) (n,) each, for the selection S (3, 3)
+        (eq. 2 or 3)."""
         assert desired.p is not None and desired.pd is not None and desired.pdd is not None
         g = self.gains
         J = robot.J
@@ -292,21 +312,20 @@ class RaibertCraigLaw:
         e_dot = S @ (desired.pd - robot.pdot)
         J_pinv = pseudo_inverse(J)
         if self.original:
-            u_pos = g.Kq @ (J_pinv @ e) + g.Dq @ (J_pinv @ e_dot)
+            u_fb = g.Kq @ (J_pinv @ e) + g.Dq @ (J_pinv @ e_dot)
         else:
-            u_pos = J.T @ (S @ (g.Kx @ e + g.Dx @ e_dot))
-        self.last_u_pos = u_pos
+            u_fb = J.T @ (S @ (g.Kx @ e + g.Dx @ e_dot))
+        self.last_u_pos = u_fb
         if self.model_feedforward:
-            qdd_ff = J_pinv @ (desired.pdd - robot.Jdot_v)
-            u = robot.M @ qdd_ff + robot.C @ v + robot.g + u_pos
+            u_ff = robot.M @ (J_pinv @ (desired.pdd - robot.Jdot_v)) + robot.C @ v + robot.g
         else:
-            u = robot.g + u_pos
+            u_ff = robot.g
         if self.redundant:  # the self-motion follows q_d (module docstring)
             null = np.eye(J.shape[1]) - J_pinv @ J
-            u += null @ (-(g.Kq @ e_q) - g.Dq @ (v - desired.qd))
+            u_fb = u_fb + null @ (-(g.Kq @ e_q) - g.Dq @ (v - desired.qd))
             if self.model_feedforward:
-                u += robot.M @ (null @ desired.qdd)
-        return u
+                u_ff = u_ff + robot.M @ (null @ desired.qdd)
+        return u_ff, u_fb
 
     def _approach(
         self,
