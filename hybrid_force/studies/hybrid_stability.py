@@ -15,13 +15,15 @@ force term, whose lag acts as a negative damper of k_i/(1 + k_p) × the modal ma
     σ = −φᵀ D φ / (2 φᵀ M φ) + k_i / (2 (1 + k_p))                                     (1)
 
 with D the controller's joint damping: K_D J⁺ S J (original) or Jᵀ S D_x S J (corrected), plus
-the normal damper Jᵀ n̂ D_n n̂ᵀ J of both (:mod:`hybrid_force.control.laws.raibert_craig`). σ
-does not depend on the contact stiffness: the instability survives a stiffer surface. The
-corrected form's Jᵀ S D_x S J is symmetric positive semi-definite, so its position damper can
-only take energy out; the original's K_D J⁺ S J is not symmetric, and where the vibration's
-tip velocity J φ = Λ⁻¹n̂ has a tangential part (n̂ not an eigenvector of the Cartesian
-inertia Λ) its answer can push the vibration along: φᵀ K_D J⁺ S J φ < 0. At q₀ it vanishes
-(M(q₀) J⁻¹ S Λ⁻¹n̂ · φ = n̂ᵀ S Λ⁻¹ n̂ = 0); the farther the arm works from q₀, the larger it is.
+the normal damper Jᵀ n̂ D_n n̂ᵀ J of both (:mod:`hybrid_force.control.laws.raibert_craig`), whose
+share of (1) is −(ω_p + ω_d)/2 everywhere. σ does not depend on the contact stiffness: the
+instability survives a stiffer surface. The corrected form's Jᵀ S D_x S J is symmetric positive
+semi-definite, so its position damper can only take energy out; the original's K_D J⁺ S J is
+not symmetric, and where the vibration's tip velocity J φ = Λ⁻¹n̂ has a tangential part (n̂ not
+an eigenvector of the Cartesian inertia Λ) its answer can push the vibration along:
+φᵀ K_D J⁺ S J φ < 0. At q₀ it vanishes (φᵀ M J⁻¹ S J φ = n̂ᵀ S Λ⁻¹ n̂ = 0); the farther the
+arm works from q₀, the larger it can be. With the law's projection P (``decouple``) the
+feedback becomes P D, and φᵀ P = 0: it drops out of (1), σ = −(ω_p + ω_d)/2 + λ_f/2 for both.
 
 :func:`contact_mode_growth` evaluates (1) from the gains; :func:`closed_loop_matrix` is the
 independent check: the Jacobian, by central differences, of the whole closed loop (plant with a
