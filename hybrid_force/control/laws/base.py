@@ -187,6 +187,35 @@ LAWS: dict[str, LawSpec] = {
             "hybrid_force.control.laws.arimoto:build",
         ),
         LawSpec(
+            "raibert_craig",
+            "task-space selection-matrix hybrid control with a PI force loop (Raibert & Craig "
+            "1981; corrected form: Fisher & Mujtaba 1992)",
+            "hybrid_force.control.laws.raibert_craig:build",
+            {
+                "form": Option(
+                    '"corrected" (default: the position servo exerts no force along the '
+                    'normals, Fisher & Mujtaba 1992) or "original" (J⁻¹ S, Raibert & Craig 1981)',
+                    kind="choice",
+                    choices=("corrected", "original"),
+                ),
+                "feedforward": Option(
+                    '"model" (default: M q̈_ff + C q̇ + g of the controller\'s model) or '
+                    '"gravity" (g only, as in 1981)',
+                    kind="choice",
+                    choices=("model", "gravity"),
+                ),
+                "decouple": Option(
+                    "true (default): project the position feedback so that, by the model, it "
+                    "cannot change the contact force; false: the published forms",
+                    kind="bool",
+                ),
+                "position_rate": Option("ω_p [1/s], slow pole of the position error (Λ)"),
+                "damping_rate": Option("ω_d [1/s], fast pole of the position error (kd_rate)"),
+                "kp": Option("k_p [-], proportional force gain (0.5)", strict=False),
+                "ki": Option("k_i [1/s], integral force gain ((1 + k_p) γ)"),
+            },
+        ),
+        LawSpec(
             "osc_hybrid",
             "operational-space hybrid motion/force control, dynamically consistent, with a "
             "null-space posture (Khatib 1987, IEEE J. Robot. Autom. 3(1))",

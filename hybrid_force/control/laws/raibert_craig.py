@@ -1,0 +1,385 @@
+"""Raibert & Craig's hybrid position/force control, as published and as corrected.
+
+Raibert and Craig (1981, "Hybrid position/force control of manipulators", ASME J. Dyn. Sys.
+Meas. Control 103(2)) split the task space with a selection matrix: position is servoed
+along the surface, force across it. With the unit normals N = [n̂₁ … n̂_k] (3, k) of the k
+surfaces at the tip (n̂ = ∇Φ/‖∇Φ‖),
+
+    S = I − N (NᵀN)⁻¹ Nᵀ          (3, 3): S² = S = Sᵀ, S N = 0, rank 3 − k
+
+and, with e = p_d − p, ė = ṗ_d − ṗ [m, m/s] and e_F = ∫(f − f_d) dt the supervisor's
+momentum error (so ∫(f_d − f) dt = −e_F), the law in contact is
+
+    u = u_ff + P u_pos + u_force
+    u_force = −Aᵀ [f_d + k_p (f_d − f) − k_i e_F] − Jᵀ N D_n Nᵀ ṗ                        (1)
+
+A = n̂ᵀJ are the constraint's rows (the "tip" scaling: f in newtons; the plant applies
+Aᵀ f, so −Aᵀ f_cmd presses with f_cmd). The normal damper D_n = (ω_p + ω_d)(Nᵀ J M⁻¹ Jᵀ N)⁻¹
+(the tip's inertia along the normals, from the model) is ours: it does nothing on a rigid
+surface (Nᵀṗ = 0 in contact) and damps the contact spring of a compliant one. The position
+part u_pos is where the two forms differ:
+
+* ``original`` — the selected error is mapped to the joints by the inverse Jacobian (J⁻¹ for a
+  square J, the pseudo-inverse J⁺ = Jᵀ(JJᵀ)⁻¹ for n > 3) and servoed by constant joint gains:
+
+      u_pos = K_P J⁺ S e + K_D J⁺ S ė,     K_P = ω_p ω_d M(q₀),  K_D = (ω_p + ω_d) M(q₀)   (2)
+
+* ``corrected`` — Fisher and Mujtaba (1992, "Hybrid position/force control: a correct
+  formulation", IJRR 11(4)) show that the joint error J⁻¹ S e is the wrong one: the torque
+  K_P J⁻¹ S e = Jᵀ (J⁻ᵀ K_P J⁻¹) S e is the tip wrench (J⁻ᵀK_PJ⁻¹) S e, whose component along
+  n̂ is not zero, so the position servo pushes along the force-controlled direction. Their
+  joint error (SJ)⁺ S e lies in the row space of SJ, so a scalar joint gain gives the torque
+  k (SJ)⁺ S e = Jᵀ S [k (SJJᵀS)⁺] S e: a wrench S(·) with no normal component, from a
+  symmetric stiffness. We keep that structure, u_pos = Jᵀ S w, with task-space gains scaled
+  by the arm's Cartesian inertia Λ₀ = (J M⁻¹ Jᵀ)⁻¹ at q₀ (so that one scenario serves every
+  arm, as K_d = κ M(q₀) does):
+
+      u_pos = Jᵀ S (K_x S e + D_x S ė),    K_x = ω_p ω_d Λ₀,  D_x = (ω_p + ω_d) Λ₀          (3)
+
+  Its stiffness Jᵀ S K_x S J and damping Jᵀ S D_x S J are symmetric positive semi-definite:
+  the position loop is a spring and a damper, it can only store or dissipate energy.
+
+Why it matters (An and Hollerbach 1989, "The role of dynamic models in Cartesian force control
+of manipulators", IJRR 8(4): kinematic instability of the original for revolute arms). At q₀
+the original's K_P J⁻¹ = ω_p ω_d Jᵀ Λ₀, the dynamically decoupled law; away from q₀ its
+K_P J⁺ S J and K_D J⁺ S J are not symmetric. On a rigid surface the constrained motion only
+feels their tangent blocks Eᵀ J⁻ᵀ K J⁻¹ E (E a tangent basis), which are symmetric: both forms
+are stable there. On a compliant surface the tool vibrates on the contact spring, the joints
+moving along φ = M⁻¹Aᵀ with a tip velocity Λ⁻¹n̂ that has a tangential part; the original's
+damper answers it with a power φᵀ K_D J⁺ S J φ of no fixed sign, and where it is negative it
+feeds the vibration, at a rate that does not fall as the surface stiffens; the corrected
+damper can only drain it (:mod:`hybrid_force.studies.hybrid_stability`).
+
+The projection P (``decouple = true``, default; false: P = I, the published forms). FM's
+wrench S w exerts no static force along n̂, but it still accelerates the tip along n̂ through
+the arm's inertia (n̂ᵀΛ⁻¹S w ≠ 0 unless n̂ is an eigenvector of Λ): on a rigid surface the
+contact force answers that acceleration. A large tangential correction thus pulls the tool
+off: at the start of scenarios/paper_contact.toml (3 m below the path) the corrected form
+without P would need −35 kN of the surface and flies off. P = I − Aᵀ(A M⁻¹ Aᵀ)⁻¹ A M⁻¹ (the
+model's) removes from the position feedback what would change the contact force
+(A M⁻¹ P = 0); on tangent motions (A q̇ = 0) q̇ᵀ P u = q̇ᵀ u, so the tangent behaviour and its
+passivity are unchanged, and the feedback no longer does work on the contact vibration (the
+mode then decays at (ω_p + ω_d)/2 − λ_f/2 from D_n and the integral). Default: form
+``corrected`` with P, because P is exact only with an exact model, and the corrected feedback
+is passive without it: with a 5 kg tool the model lacks, the contact mode of the original with P
+decays at only 7 /s 1.8 m out on the study's steep plane, the corrected's at 24 /s
+(benchmarks/study_raibert_craig.py).
+
+Feed-forward (``feedforward = "model"``, default): u_ff = M q̈_ff + C q̇ + g from the
+controller's model, with the resolved acceleration q̈_ff = J⁺(p̈_d − J̇q̇) + (I − J⁺J) q̈_d;
+``"gravity"``: u_ff = g only, as in 1981. The redundant directions of an arm with n > 3 are
+held on the supervisor's joint path q_d by (I − J⁺J)(−K_P e_q − K_D (q̇ − q̇_d)) (part of
+u_pos for P), which exerts no force at the tip.
+
+Force loop. On a rigid surface the contact force answers the command at once:
+f = f_cmd + d, where d [N] collects what the rest of u does along n̂. With (1),
+(1 + k_p)(f − f_d) = d − k_i e_F and ė_F = f − f_d, so
+
+    ė_F = −λ_f e_F + d / (1 + k_p),    λ_f = k_i / (1 + k_p)                               (4)
+
+a first-order decay at λ_f; a constant d leaves no force error. Because f enters u directly
+(k_p), the command is u = u0 + B f with B = k_p Aᵀ (n, k), solved exactly with f by the
+simulator. Defaults: ω_p = Λ and ω_d = κ (control.Lambda, control.kd_rate: the paper's
+poles of the position error), k_p = 0.5 and k_i = (1 + k_p) γ, so that λ_f = γ
+(control.gamma). k_p < 1 because a sampled controller reads a force one tick old while a
+rigid contact answers at once: the tick-to-tick map of the force is f ← −k_p f + …, which
+contracts only for k_p < 1.
+
+Phases (see :mod:`hybrid_force.control.supervisor`). Free space: S = I, where the two forms
+coincide; to first order J⁺(p_d − p) = q_d − q, and the law servoes the supervisor's joint
+path q_d (the inverse-kinematic image of p_d) itself, u = u_ff − K_P e_q − K_D (q̇ − q̇_d) with
+q̈_ff = q̈_d, so that a large start error is closed joint by joint as the paper's free-space law
+does, not along a straight task-space line that the changing inertia would bend. Near the
+surface: u_ff + u_pos along it (eq. 2 or 3), and across it a torque Aᵀ w that sets, by the
+model, the rows' rate r = A q̇ (= ḋ for the "tip" scaling) to ṙ = −λ_a r + ω_d (v_a − r),
+v_a = −λ_a d the supervisor's approach velocity: d̈ + (λ_a + ω_d) ḋ + λ_a ω_d d = 0, and the
+tool lands at ḋ ≈ −λ_a·contact_tol.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hybrid_force.control.constraint import ConstraintTerms
+from hybrid_force.control.laws.arimoto import Command, Desired
+from hybrid_force.control.laws.base import LawContext
+from hybrid_force.errors import ControlError
+from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.model.robot import RobotTerms
+
+__all__ = [
+    "FORMS",
+    "RaibertCraigGains",
+    "RaibertCraigLaw",
+    "build",
+    "cartesian_inertia",
+    "make_gains",
+    "pseudo_inverse",
+    "selection_matrix",
+]
+
+FORMS = ("corrected", "original")
+FEEDFORWARDS = ("model", "gravity")
+_SINGULAR = 1e12  # cond(J M⁻¹ Jᵀ) at q₀ above this: the Cartesian inertia is undefined
+
+
+def pseudo_inverse(J: np.ndarray) -> np.ndarray:
+    """J⁺ = Jᵀ (J Jᵀ)⁻¹ (n, 3) of a full-rank J (3, n), n ≥ 3 (J⁻¹ for n = 3); at a singularity,
+    where J Jᵀ cannot be inverted, the SVD's pseudo-inverse."""
+    try:
+        return J.T @ np.linalg.inv(J @ J.T)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(J)
+
+
+def selection_matrix(normals: np.ndarray) -> np.ndarray:
+    """S = I − N (NᵀN)⁻¹ Nᵀ: the projection onto the directions not along any normal.
+
+    Args:
+        normals: (3, k) the surfaces' unit normals at the tip, as columns (k ≥ 1, independent).
+
+    Returns:
+        (3, 3) symmetric, S² = S, S N = 0, rank 3 − k.
+    """
+    N = normals
+    if N.shape[1] == 1:
+        return np.eye(3) - N @ N.T
+    return np.eye(3) - N @ np.linalg.solve(N.T @ N, N.T)
+
+
+def cartesian_inertia(M: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """Λ = (J M⁻¹ Jᵀ)⁻¹ (3, 3) [kg]: the tip's inertia for a force at it.
+
+    Raises:
+        ControlError: J M⁻¹ Jᵀ is singular (the arm cannot move its tip along some direction).
+    """
+    W = J @ np.linalg.solve(M, J.T)
+    cond = np.linalg.cond(W)
+    if not math.isfinite(cond) or cond > _SINGULAR:
+        raise ControlError(
+            f"raibert_craig: the tip's Cartesian inertia (J M⁻¹ Jᵀ)⁻¹ is undefined at the start "
+            f"configuration (cond = {cond:.3g}): the arm is at a singularity; start elsewhere",
+            key="initial",
+            value=cond,
+        )
+    return np.linalg.inv(0.5 * (W + W.T))
+
+
+@dataclass(frozen=True)
+class RaibertCraigGains:
+    """Gains of the law (module docstring, eq. 1–3).
+
+    Attributes:
+        form: "corrected" (Fisher–Mujtaba) or "original" (Raibert–Craig).
+        feedforward: "model" (M q̈_ff + C q̇ + g) or "gravity" (g).
+        position_rate, damping_rate: ω_p, ω_d [1/s], the poles of the position error.
+        Kq, Dq: (n, n) joint gains ω_p ω_d M(q₀), (ω_p + ω_d) M(q₀) of the original form and
+            of the redundant directions [N·m/rad, N·m·s/rad …].
+        Kx, Dx: (3, 3) task gains ω_p ω_d Λ₀, (ω_p + ω_d) Λ₀ of the corrected form [N/m, N·s/m].
+        kp: proportional force gain k_p ≥ 0 [-]. ki: integral force gain k_i > 0 [1/s].
+    """
+
+    form: str
+    feedforward: str
+    position_rate: float
+    damping_rate: float
+    Kq: np.ndarray
+    Dq: np.ndarray
+    Kx: np.ndarray
+    Dx: np.ndarray
+    kp: float
+    ki: float
+    decouple: bool = True
+
+    @property
+    def force_rate(self) -> float:
+        """λ_f = k_i / (1 + k_p) [1/s]: the decay rate of e_F on a rigid surface (eq. 4)."""
+        return self.ki / (1.0 + self.kp)
+
+
+def make_gains(context: LawContext) -> RaibertCraigGains:
+    """The gains from the ``[control.raibert_craig]`` table and the arm at q₀ (defaults in the
+    module docstring: ω_p = Λ, ω_d = κ, k_p = 0.5, k_i = (1 + k_p) γ)."""
+    opts, s = context.options, context.settings
+    wp = float(opts.get("position_rate", s.Lambda))
+    wd = float(opts.get("damping_rate", s.kd_rate))
+    kp = float(opts.get("kp", 0.5))
+    ki = float(opts.get("ki", (1.0 + kp) * s.gamma))
+    M0 = 0.5 * (context.M0 + context.M0.T)
+    J0 = context.robot.jacobian(context.q0)
+    Lambda0 = cartesian_inertia(M0, J0)
+    return RaibertCraigGains(
+        form=str(opts.get("form", "corrected")),
+        feedforward=str(opts.get("feedforward", "model")),
+        position_rate=wp,
+        damping_rate=wd,
+        Kq=wp * wd * M0,
+        Dq=(wp + wd) * M0,
+        Kx=wp * wd * Lambda0,
+        Dx=(wp + wd) * Lambda0,
+        kp=kp,
+        ki=ki,
+        decouple=bool(opts.get("decouple", True)),
+    )
+
+
+class RaibertCraigLaw:
+    """The law of the module docstring in numpy (one object serves both forms).
+
+    Args:
+        gains: see :class:`RaibertCraigGains`.
+        surfaces: the controller's surfaces (their normals at the tip give S).
+        approach_rate: λ_a [1/s] of the supervisor's approach velocity v_a = −λ_a d.
+
+    Attributes:
+        V: NaN (the law has no Lyapunov function).
+        last_u_pos: (n,) the position part u_pos of the last call [N·m …], for tests.
+    """
+
+    V = math.nan
+
+    def __init__(
+        self, gains: RaibertCraigGains, surfaces: tuple[Surface, ...], approach_rate: float
+    ) -> None:
+        self.gains = gains
+        self.surfaces = surfaces
+        self.approach_rate = approach_rate
+        self.original = gains.form == "original"
+        self.model_feedforward = gains.feedforward == "model"
+        self.last_u_pos = np.zeros(gains.Kq.shape[0])
+        self.redundant = gains.Kq.shape[0] > 3
+
+    # ---------------------------------------------------------------- the phases
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """S = I: both forms servo every axis, J⁺(p_d − p) ≈ q_d − q; the joint path q_d
+        itself is servoed (module docstring), u = u_ff − K_P e_q − K_D (q̇ − q̇_d)."""
+        g = self.gains
+        u = -(g.Kq @ e_q) - g.Dq @ (v - desired.qd)
+        self.last_u_pos = u
+        if self.model_feedforward:
+            u += robot.M @ desired.qdd + robot.C @ v + robot.g
+        else:
+            u += robot.g
+        return Command(u0=u, B=None)
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Near (approach given): position along the surface, v_a across it. Contact: eq. 1–3."""
+        assert desired.p is not None and desired.pd is not None and desired.pdd is not None
+        N = self.normals(robot.p)
+        S = selection_matrix(N)
+        u_ff, u_fb = self._motion(robot, v, e_q, desired, S)
+        if approach is not None:
+            u = u_ff + u_fb
+            u += self._approach(robot, cons, v, u, approach)
+            return Command(u0=u, B=None)
+        g = self.gains
+        if g.decouple:  # the feedback may not change the contact force (module docstring)
+            MinvAT = np.linalg.solve(robot.M, cons.A.T)
+            u_fb = u_fb - cons.A.T @ np.linalg.solve(cons.A @ MinvAT, MinvAT.T @ u_fb)
+        # D_n = (ω_p + ω_d) × the tip's inertia along the normals, (Nᵀ J M⁻¹ Jᵀ N)⁻¹
+        JN = robot.J.T @ N
+        Dn = (g.position_rate + g.damping_rate) * np.linalg.inv(JN.T @ np.linalg.solve(robot.M, JN))
+        u = u_ff + u_fb
+        u -= cons.A.T @ ((1.0 + g.kp) * f_d - g.ki * e_F)
+        u -= JN @ (Dn @ (N.T @ robot.pdot))
+        B = g.kp * cons.A.T if g.kp > 0 else None
+        return Command(u0=u, B=B)
+
+    def _motion(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired, S: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(u_ff, u_pos + the redundant directions' hold) (n,) each, for the selection S (3, 3)
+        (eq. 2 or 3)."""
+        assert desired.p is not None and desired.pd is not None and desired.pdd is not None
+        g = self.gains
+        J = robot.J
+        e = S @ (desired.p - robot.p)
+        e_dot = S @ (desired.pd - robot.pdot)
+        J_pinv = pseudo_inverse(J)
+        if self.original:
+            u_fb = g.Kq @ (J_pinv @ e) + g.Dq @ (J_pinv @ e_dot)
+        else:
+            u_fb = J.T @ (S @ (g.Kx @ e + g.Dx @ e_dot))
+        self.last_u_pos = u_fb
+        if self.model_feedforward:
+            u_ff = robot.M @ (J_pinv @ (desired.pdd - robot.Jdot_v)) + robot.C @ v + robot.g
+        else:
+            u_ff = robot.g
+        if self.redundant:  # the self-motion follows q_d (module docstring)
+            null = np.eye(J.shape[1]) - J_pinv @ J
+            u_fb = u_fb + null @ (-(g.Kq @ e_q) - g.Dq @ (v - desired.qd))
+            if self.model_feedforward:
+                u_ff = u_ff + robot.M @ (null @ desired.qdd)
+        return u_ff, u_fb
+
+    def _approach(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        u: np.ndarray,
+        approach: np.ndarray,
+    ) -> np.ndarray:
+        """The near phase's normal torque Aᵀ w (n,). The rows' rate r = A q̇ (= ḋ [m/s] for the
+        "tip" scaling) accelerates, under the model, as ṙ = A M⁻¹(u − C q̇ − g) + Ȧ q̇ with the
+        torque u (n,); w sets ṙ = −λ_a r + ω_d (v_a − r) instead, so that d̈ + (λ_a + ω_d) ḋ
+        + λ_a ω_d d = 0: the tip lands at ḋ ≈ −λ_a d (module docstring)."""
+        M, A, rate = robot.M, cons.A, cons.rate
+        MinvAT = np.linalg.solve(M, A.T)
+        now = A @ np.linalg.solve(M, u - robot.C @ v - robot.g) + cons.Adot @ v
+        wanted = -self.approach_rate * rate + self.gains.damping_rate * (approach - rate)
+        return A.T @ np.linalg.solve(A @ MinvAT, wanted - now)
+
+    def normals(self, p: np.ndarray) -> np.ndarray:
+        """(3, k) the surfaces' unit normals ∇Φ/‖∇Φ‖ at the tip p (3,) [m], as columns."""
+        N = np.empty((3, len(self.surfaces)))
+        for i, surface in enumerate(self.surfaces):
+            gradient = surface.evaluate(p)[1]
+            N[:, i] = gradient / math.sqrt(float(gradient @ gradient))
+        return N
+
+    # ---------------------------------------------------------------- the Law protocol
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Nothing to advance: the force integral is the supervisor's e_F."""
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
+        """None: the law keeps no :class:`ControlTrace` (it has no sliding variable)."""
+        return None
+
+    def info(self) -> dict[str, Any]:
+        """The form, the feed-forward and the gains as JSON-able data."""
+        g = self.gains
+        return {
+            "form": g.form,
+            "feedforward": g.feedforward,
+            "position_rate": g.position_rate,
+            "damping_rate": g.damping_rate,
+            "kp": g.kp,
+            "ki": g.ki,
+            "force_rate": g.force_rate,
+            "Kx": g.Kx.tolist(),
+            "Kq": g.Kq.tolist(),
+        }
+
+
+def build(context: LawContext) -> RaibertCraigLaw:
+    """The registry's factory of ``control.law = "raibert_craig"`` (numpy in both forms)."""
+    s = context.settings
+    approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
+    return RaibertCraigLaw(make_gains(context), context.constraint.surfaces, approach_rate)
