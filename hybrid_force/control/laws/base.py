@@ -186,6 +186,18 @@ LAWS: dict[str, LawSpec] = {
             "the paper's modified Arimoto hybrid law with its phase supervisor (eq. 4, 11, 29-31)",
             "hybrid_force.control.laws.arimoto:build",
         ),
+        LawSpec(
+            "arimoto_adaptive",
+            "the paper's law with Slotine-Li adaptation of its model terms (Slotine & Li, IJRR "
+            "6(3) 1987; paper section 7)",
+            "hybrid_force.control.laws.arimoto_adaptive:build",
+            {
+                "adaptation_rate": Option(
+                    "ρ [1/s] of the default Γ_ii = ρ / E[Y_iᵀ K_d⁻¹ Y_i]: the rate at which one "
+                    "parameter's error alone decays, for any arm (default 5)"
+                ),
+            },
+        ),
     )
 }
 
