@@ -47,6 +47,7 @@ __all__ = [
     "Option",
     "build_law",
     "check_options",
+    "law_log_names",
     "law_names",
     "law_spec",
 ]
@@ -54,6 +55,12 @@ __all__ = [
 
 class Law(Protocol):
     """A control law as the supervisor runs it (see the module docstring).
+
+    Optional hook, for signals of the law's own that a run should record at every sample (its
+    parameter estimates, say): ``log_names() -> tuple[str, ...]`` (m names, fixed when the law
+    is built) and ``log_values(out)``, which writes the m current values into ``out`` (m,).
+    The simulator stores them as ``Result.law_log`` (N, m) (:mod:`hybrid_force.law_log`); a
+    law without the hook logs nothing (:func:`law_log_names`).
 
     Attributes:
         V: the law's Lyapunov function (or NaN when it has none) at the last call [J].
@@ -200,6 +207,16 @@ LAWS: dict[str, LawSpec] = {
         ),
     )
 }
+
+
+def law_log_names(law: object) -> tuple[str, ...]:
+    """The names of the signals ``law`` logs at every sample: its ``log_names()`` when it has
+    the optional hook of :class:`Law` (with ``log_values``), else none."""
+    if not (
+        callable(getattr(law, "log_names", None)) and callable(getattr(law, "log_values", None))
+    ):
+        return ()
+    return tuple(str(name) for name in law.log_names())  # type: ignore[attr-defined]
 
 
 def law_names() -> tuple[str, ...]:
