@@ -245,9 +245,9 @@ def adaptive_run() -> tuple[Result, list[dict], object]:
 
     def recording(self, robot, cons, v, e_q, desired, e_F, f_d, approach):  # type: ignore[no-untyped-def]
         command = hybrid(self, robot, cons, v, e_q, desired, e_F, f_d, approach)
-        q = desired.q + e_q
+        s = self.trace(e_q, e_F, f_d).s
         calls.append(
-            {"q": q, "s": self._s.copy(), "e_F": e_F.copy(), "theta": self.theta.copy(),
+            {"q": desired.q + e_q, "s": s, "e_F": e_F.copy(), "theta": self.theta.copy(),
              "sigma": self.sigma}
         )  # fmt: skip
         return command

@@ -173,11 +173,11 @@ class AdaptiveArimotoLaw:
         self._model = robot.model
         self._euclidean = robot.euclidean
         self._adapted = np.flatnonzero(adaptation.adapted)
-        # the last call's Y₀ (n, p), β Y_M(q, A⁺) (k, n, p) and s (n,): what update() needs
-        self._Y: np.ndarray | None = None
-        self._Yf: np.ndarray | None = None
-        self._s = np.zeros(robot.nv)
-        self._trace: ControlTrace | None = None
+        # the last call's Y₀ᵀ s (p,) and (β Y_M(q, A⁺_j))ᵀ s (k, p): update() needs only these,
+        # since Y(q̈_r0 + β A⁺ f)ᵀ s = Y₀ᵀ s + Σ_j f_j (β Y_M(q, A⁺_j))ᵀ s
+        self._gradient: np.ndarray | None = None
+        self._gradient_f: np.ndarray | None = None
+        self._last: tuple | None = None  # what trace() needs, built only when asked
         self.sigma = 0.0
         self._z_min = np.inf  # min over the past of Z = ½ wᵀ M w [J]
 
@@ -191,18 +191,12 @@ class AdaptiveArimotoLaw:
         qdot_r = desired.qd - lam * e_q
         qddot_r = desired.qdd - lam * (v - desired.qd)
         s = v - qdot_r
-        self._Y = Y = self.regressor(q, v, qdot_r, qddot_r)
-        self._Yf = None
-        self._s = s
+        Y = self.regressor(q, v, qdot_r, qddot_r)
+        self._gradient, self._gradient_f = Y.T @ s, None
         self._schedule(robot.M, qdot_r - desired.qd)
-        u0 = Y @ self.theta - self.gains.Kd @ s
         self.V = self._kinetic(q, s)
-        none = np.zeros(0)
-        self._trace = ControlTrace(
-            e_q=e_q.copy(), s=s, s0=s, s1=np.zeros_like(s), e_F=none, qdot_r=qdot_r,
-            qddot_r0=qddot_r, qddot_r_f=None, V=self.V, f_d=none,
-        )  # fmt: skip
-        return Command(u0=u0, B=None)
+        self._last = (False, s, qdot_r, qddot_r)
+        return Command(u0=Y @ self.theta - self.gains.Kd @ s, B=None)
 
     def hybrid(
         self,
@@ -228,43 +222,55 @@ class AdaptiveArimotoLaw:
             qdot_r = qdot_r + Ap @ approach
             qddot_r0 = qddot_r0 + Apd @ approach
         s = v - qdot_r
-        self._Y = Y = self.regressor(q, v, qdot_r, qddot_r0)
-        self._s = s
-        self._schedule(robot.M, qdot_r - desired.qd)
         theta = self.theta
+        Y = self.regressor(q, v, qdot_r, qddot_r0)
+        self._gradient = Y.T @ s
+        self._schedule(robot.M, qdot_r - desired.qd)
         u0 = Y @ theta - g.Kd @ s - cons.A.T @ (f_d - g.gamma * e_F)
         B = None
-        self._Yf = None
+        self._gradient_f = None
         if beta > 0:
             # β M̂ A⁺ column by column: the f-dependent part of Y θ̂ (q̈_r ∋ β A⁺ f)
-            self._Yf = Yf = np.stack(
-                [beta * self.regressor.inertial(q, Ap[:, j]) for j in range(Ap.shape[1])]
-            )
-            B = (Yf @ theta).T
+            k = Ap.shape[1]
+            B, self._gradient_f = np.empty((Ap.shape[0], k)), np.empty((k, theta.size))
+            for j in range(k):
+                Yj = self.regressor.inertial(q, Ap[:, j])
+                B[:, j] = beta * (Yj @ theta)
+                self._gradient_f[j] = beta * (Yj.T @ s)
         self.V = self._kinetic(q, s) + 0.5 * beta * float(e_F @ e_F)
-        self._trace = ControlTrace(
-            e_q=e_q.copy(), s=s, s0=Q @ (v - x), s1=-beta * (Ap @ e_F), e_F=e_F.copy(),
-            qdot_r=qdot_r, qddot_r0=qddot_r0, qddot_r_f=beta * Ap, V=self.V, f_d=f_d.copy(),
-        )  # fmt: skip
+        self._last = (True, s, qdot_r, qddot_r0, Q @ (v - x), Ap.copy())
         return Command(u0=u0, B=B)
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """θ̂ += dt · (−σ Γ₀ Yᵀ s) with the last call's Y at q̈_r(f), f (k,) [N] the force it
         met; then the masses are clipped to their floor (explicit Euler, then projection)."""
-        if self._Y is None:
+        if self._gradient is None:
             return
-        gradient = self._Y.T @ self._s
-        if self._Yf is not None:
-            gradient += f @ np.einsum("knp,n->kp", self._Yf, self._s)  # Σ_j f_j Yf_jᵀ s
+        gradient = (
+            self._gradient if self._gradient_f is None else self._gradient + f @ self._gradient_f
+        )
         theta, a = self.theta, self.adaptation
         theta -= (dt * self.sigma) * a.Gamma * gradient
         np.maximum(theta, a.floor, out=theta)
 
     # ------------------------------------------------------------------ reports
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
-        """The :class:`ControlTrace` of the last call (V without the parameter term)."""
-        assert self._trace is not None
-        return self._trace
+        """The :class:`ControlTrace` of the last call (V without the parameter term), with its
+        e_q (n,), e_F (k,) and f_d (k,) (copied)."""
+        assert self._last is not None
+        if not self._last[0]:  # free space
+            _, s, qdot_r, qddot_r = self._last
+            none = np.zeros(0)
+            return ControlTrace(
+                e_q=e_q.copy(), s=s, s0=s, s1=np.zeros_like(s), e_F=none, qdot_r=qdot_r,
+                qddot_r0=qddot_r, qddot_r_f=None, V=self.V, f_d=none,
+            )  # fmt: skip
+        _, s, qdot_r, qddot_r0, s0, Ap = self._last
+        beta = self.gains.beta
+        return ControlTrace(
+            e_q=e_q.copy(), s=s, s0=s0, s1=-beta * (Ap @ e_F), e_F=e_F.copy(), qdot_r=qdot_r,
+            qddot_r0=qddot_r0, qddot_r_f=beta * Ap, V=self.V, f_d=f_d.copy(),
+        )  # fmt: skip
 
     def info(self) -> dict[str, object]:
         """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
