@@ -60,13 +60,21 @@ evaluate; the parameter term needs the plant's θ (the tests add it).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command, ControlTrace, Desired, Gains
+from hybrid_force.control.laws.arimoto import (
+    Command,
+    ControlTrace,
+    Desired,
+    Gains,
+    arimoto_law,
+    free_space_law,
+)
 from hybrid_force.control.laws.base import LawContext
 from hybrid_force.model.regressor import (
     PARAMETER_LABELS,
@@ -177,7 +185,7 @@ class AdaptiveArimotoLaw:
         # since Y(q̈_r0 + β A⁺ f)ᵀ s = Y₀ᵀ s + Σ_j f_j (β Y_M(q, A⁺_j))ᵀ s
         self._gradient: np.ndarray | None = None
         self._gradient_f: np.ndarray | None = None
-        self._last: tuple | None = None  # what trace() needs, built only when asked
+        self._ref: ControlTrace | None = None  # the paper's law's trace of the last call
         self.sigma = 0.0
         self._z_min = np.inf  # min over the past of Z = ½ wᵀ M w [J]
 
@@ -186,17 +194,10 @@ class AdaptiveArimotoLaw:
         self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
     ) -> Command:
         """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
-        lam = self.gains.Lambda
+        _, ref = free_space_law(self.gains, robot, v, e_q, desired)  # q̇_r, q̈_r, s of eq. 29
         q = self._configuration(desired.q, e_q)
-        qdot_r = desired.qd - lam * e_q
-        qddot_r = desired.qdd - lam * (v - desired.qd)
-        s = v - qdot_r
-        Y = self.regressor(q, v, qdot_r, qddot_r)
-        self._gradient, self._gradient_f = Y.T @ s, None
-        self._schedule(robot.M, qdot_r - desired.qd)
-        self.V = self._kinetic(q, s)
-        self._last = (False, s, qdot_r, qddot_r)
-        return Command(u0=Y @ self.theta - self.gains.Kd @ s, B=None)
+        Y = self.regressor(q, v, ref.qdot_r, ref.qddot_r0)
+        return self._command(robot, q, Y, ref, desired, None, None)
 
     def hybrid(
         self,
@@ -209,37 +210,48 @@ class AdaptiveArimotoLaw:
         f_d: np.ndarray,
         approach: np.ndarray | None,
     ) -> Command:
-        """Eq. 4, 8, 11 adapted (module docstring); the same arguments as the paper's law."""
+        """Eq. 4, 8, 11 adapted (module docstring); the same arguments as the paper's law.
+
+        q̇_r, q̈_r (at f = 0) and s are the paper's law's own (:func:`~.arimoto.arimoto_law`,
+        whose torque with the model's M, C, g is not used)."""
         g = self.gains
-        lam, beta = g.Lambda, g.beta
-        Q, Qdot, Ap, Apd = cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot
+        _, ref = arimoto_law(g, robot, cons, v, e_q, desired, e_F, f_d, approach)
         q = self._configuration(desired.q, e_q)
-        x = desired.qd - lam * e_q
-        xdot = desired.qdd - lam * (v - desired.qd)
-        qdot_r = Q @ x + beta * (Ap @ e_F)
-        qddot_r0 = Qdot @ x + Q @ xdot + beta * (Apd @ e_F) - beta * (Ap @ f_d)
-        if approach is not None:
-            qdot_r = qdot_r + Ap @ approach
-            qddot_r0 = qddot_r0 + Apd @ approach
-        s = v - qdot_r
-        theta = self.theta
-        Y = self.regressor(q, v, qdot_r, qddot_r0)
-        self._gradient = Y.T @ s
-        self._schedule(robot.M, qdot_r - desired.qd)
-        u0 = Y @ theta - g.Kd @ s - cons.A.T @ (f_d - g.gamma * e_F)
-        B = None
-        self._gradient_f = None
-        if beta > 0:
+        Y = self.regressor(q, v, ref.qdot_r, ref.qddot_r0)
+        force = cons.A.T @ (f_d - g.gamma * e_F)
+        command = self._command(
+            robot, q, Y, ref, desired, cons.A_pinv if g.beta > 0 else None, force
+        )
+        self.V += 0.5 * g.beta * float(e_F @ e_F)
+        return command
+
+    def _command(
+        self,
+        robot: RobotTerms,
+        q: np.ndarray,
+        Y: np.ndarray,
+        ref: ControlTrace,
+        desired: Desired,
+        Ap: np.ndarray | None,
+        force: np.ndarray | None,
+    ) -> Command:
+        """u0 = Y θ̂ − K_d s − force (n,) and B = β M̂ A⁺ (None without Ap (n, k)); keeps what
+        update() and trace() need, advances the schedule, sets V = ½ sᵀ M̂ s."""
+        theta, s = self.theta, ref.s
+        self._gradient, self._gradient_f, B = Y.T @ s, None, None
+        if Ap is not None:
             # β M̂ A⁺ column by column: the f-dependent part of Y θ̂ (q̈_r ∋ β A⁺ f)
-            k = Ap.shape[1]
+            beta, k = self.gains.beta, Ap.shape[1]
             B, self._gradient_f = np.empty((Ap.shape[0], k)), np.empty((k, theta.size))
             for j in range(k):
                 Yj = self.regressor.inertial(q, Ap[:, j])
                 B[:, j] = beta * (Yj @ theta)
                 self._gradient_f[j] = beta * (Yj.T @ s)
-        self.V = self._kinetic(q, s) + 0.5 * beta * float(e_F @ e_F)
-        self._last = (True, s, qdot_r, qddot_r0, Q @ (v - x), Ap.copy())
-        return Command(u0=u0, B=B)
+        self._schedule(robot.M, ref.qdot_r - desired.qd)
+        self.V = self._kinetic(q, s)
+        self._ref = ref
+        u0 = Y @ theta - self.gains.Kd @ s
+        return Command(u0=u0 if force is None else u0 - force, B=B)
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """θ̂ += dt · (−σ Γ₀ Yᵀ s) with the last call's Y at q̈_r(f), f (k,) [N] the force it
@@ -256,21 +268,12 @@ class AdaptiveArimotoLaw:
     # ------------------------------------------------------------------ reports
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
         """The :class:`ControlTrace` of the last call (V without the parameter term), with its
-        e_q (n,), e_F (k,) and f_d (k,) (copied)."""
-        assert self._last is not None
-        if not self._last[0]:  # free space
-            _, s, qdot_r, qddot_r = self._last
-            none = np.zeros(0)
-            return ControlTrace(
-                e_q=e_q.copy(), s=s, s0=s, s1=np.zeros_like(s), e_F=none, qdot_r=qdot_r,
-                qddot_r0=qddot_r, qddot_r_f=None, V=self.V, f_d=none,
-            )  # fmt: skip
-        _, s, qdot_r, qddot_r0, s0, Ap = self._last
-        beta = self.gains.beta
-        return ControlTrace(
-            e_q=e_q.copy(), s=s, s0=s0, s1=-beta * (Ap @ e_F), e_F=e_F.copy(), qdot_r=qdot_r,
-            qddot_r0=qddot_r0, qddot_r_f=beta * Ap, V=self.V, f_d=f_d.copy(),
-        )  # fmt: skip
+        e_q (n,), e_F (k,) and f_d (k,) copied (those of the free-space law are empty)."""
+        assert self._ref is not None
+        ref = self._ref
+        if ref.qddot_r_f is None:  # free space
+            return dataclasses.replace(ref, e_q=e_q.copy(), V=self.V)
+        return dataclasses.replace(ref, e_q=e_q.copy(), e_F=e_F.copy(), f_d=f_d.copy(), V=self.V)
 
     def info(self) -> dict[str, object]:
         """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
