@@ -24,8 +24,8 @@ M ṡ + C s + K_d s = Y θ̃ + Aᵀ(ė_F + γ e_F). With
 Ṁ − 2C skew and A s = −β e_F give V̇ = −sᵀK_d s − βγ|e_F|² + θ̃ᵀ(Yᵀ s + Γ⁻¹ θ̂̇), and the
 adaptation cancels the last term: V̇ = −sᵀK_d s − βγ|e_F|² ≤ 0 for a constant Γ (and less with
 the schedule below), so s, e_F → 0 (Barbalat) and the estimates stay bounded, whatever the
-initial model error. The estimates need not converge to
-the plant's values (only the combinations the path excites do).
+initial model error. The estimates need not converge to the plant's values (only the
+combinations the path excites do).
 
 Which parameters adapt: those the joint torques depend on (the visible columns of Y,
 :func:`~hybrid_force.model.regressor.visible_columns`); the others keep the model's value (no
@@ -45,10 +45,11 @@ adaptation_rate``), for every arm and every parameter unit.
 Gain schedule: Γ(t) = σ(t) Γ₀. Γ₀ is normalised for unit velocities and accelerations; a large
 tracking error drives the reference far beyond them. At the start of section 6.3 (3 m below the
 helix, Λ = 10 1/s) q̇_r ≈ 30 m/s and the accelerations reach ~10³ m/s², so ‖Y‖² is ~10⁵ times
-the reference's and Γ₀ would adapt ~10⁵ times faster than ρ: the explicit update diverges within
-20 ms, and even in continuous time V lets the transient's ~18 kJ of ½sᵀMs move the estimates by
-up to √(2 Γ₀ V) ~ 10³ kg. Hence σ(t) = min(1, Z_ref / min_{τ≤t} Z(τ)), with Z = ½ wᵀ M w the
-energy of the error-driven part of the reference, w = q̇_r − q̇_d, and Z_ref = ½ tr M(q0) / Λ²
+the reference's and Γ₀ would adapt ~10⁵ times faster than ρ: the explicit update diverges
+within 25 ms (ρ = 5), and even in continuous time V lets the transient's ~18 kJ of ½sᵀMs move
+the estimates by up to √(2 Γ₀ V) ~ 10³ kg. Hence σ(t) = min(1, Z_ref / min_{τ≤t} Z(τ)), with
+Z = ½ wᵀ M w the energy of the error-driven part of the reference, w = q̇_r − q̇_d, and
+Z_ref = ½ tr M(q0) / Λ²
 (w of 1/Λ per joint: error-driven accelerations Λ w of unit size, what Γ₀ is normalised for).
 ‖Y‖² grows like Z in such a transient, so σ keeps the adaptation's rate near ρ; and σ never
 decreases, so Γ(t)⁻¹ never increases and V below (with Γ(t)) stays non-increasing:
