@@ -46,7 +46,7 @@ Gain schedule: Γ(t) = σ(t) Γ₀. Γ₀ is normalised for unit velocities and 
 tracking error drives the reference far beyond them. At the start of section 6.3 (3 m below the
 helix, Λ = 10 1/s) q̇_r ≈ 30 m/s and the accelerations reach ~10³ m/s², so ‖Y‖² is ~10⁵ times
 the reference's and Γ₀ would adapt ~10⁵ times faster than ρ: the explicit update diverges
-at t = 27 ms (ρ = 5), and even in continuous time V lets the transient's ~18 kJ of ½sᵀMs move
+early in the transient, and even in continuous time V lets the transient's ~18 kJ of ½sᵀMs move
 the estimates by up to √(2 Γ₀ V) ~ 10³ kg. Hence σ(t) = min(1, Z_ref / min_{τ≤t} Z(τ)), with
 Z = ½ wᵀ M w the energy of the error-driven part of the reference, w = q̇_r − q̇_d, and
 Z_ref = ½ tr M(q0) / Λ²
