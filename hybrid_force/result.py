@@ -36,6 +36,7 @@ from numpy.lib.npyio import NpzFile
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
 from hybrid_force.events import EVENT_KINDS  # re-exported: the kinds a run records
+from hybrid_force.law_log import check_law_log
 from hybrid_force.metrics import (  # re-exported: the metrics of a result, computed there
     CONVERGE_TOLERANCE,
     DEFAULT_SETTLE_TIME,
@@ -75,7 +76,7 @@ ARRAY_NAMES: tuple[str, ...] = (
 )
 #: Arrays a result file may hold beyond :data:`ARRAY_NAMES` (older files lack them; see
 #: :class:`Result` for the value then).
-OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd")
+OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd", "law_log")
 #: Phase codes of the ``phase`` array.
 PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT
 _PHASES = tuple(int(p) for p in Phase)
@@ -261,6 +262,9 @@ class Result:
             is f itself (also the value for files written before it existed).
         u_cmd: (N, n) the torque the controller commanded [N·m or N]; u itself where no
             effort limit acted (also the value for files written before it existed).
+        law_log: (N, m) the control law's own signals at each sample (e.g. its parameter
+            estimates), named by ``meta["law_log_names"]`` (:mod:`hybrid_force.law_log`);
+            (N, 0) when the law logs nothing (also the value for older files).
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
             steps_per_second counts the loop from its second step on (the first steps load
@@ -285,6 +289,7 @@ class Result:
     meta: dict[str, Any] = field(default_factory=dict)
     f_meas: np.ndarray | None = None
     u_cmd: np.ndarray | None = None
+    law_log: np.ndarray | None = None
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
@@ -350,10 +355,12 @@ class Result:
         u_cmd = arrays["u"] if self.u_cmd is None else _as_float_array("u_cmd", self.u_cmd)
         _check_shape("u_cmd", u_cmd, (n_samples, n))
         meta = self._normalise_meta(self.meta)
+        law_log = check_law_log(self.law_log, n_samples, meta)
         for name, arr in arrays.items():
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "f_meas", f_meas)
         object.__setattr__(self, "u_cmd", u_cmd)
+        object.__setattr__(self, "law_log", law_log)
         object.__setattr__(self, "meta", meta)
 
     @staticmethod

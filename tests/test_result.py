@@ -27,7 +27,8 @@ from hybrid_force.result import (
 )
 
 SCHEMA_NAMES = {
-    "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas", "u_cmd"
+    "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas", "u_cmd",
+    "law_log",
 }  # fmt: skip
 
 

@@ -50,6 +50,7 @@ from hybrid_force.control.controller import (
     ReferenceControllerModel,
 )
 from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import law_log_names
 from hybrid_force.control.supervisor import HybridController, ReferenceController
 from hybrid_force.errors import (
     ControlError,
@@ -64,6 +65,7 @@ from hybrid_force.errors import (
 )
 from hybrid_force.events import Event, RunStopped
 from hybrid_force.geometry.paths import Path, PathParameterError
+from hybrid_force.law_log import NAMES_KEY as LAW_LOG_NAMES
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.phases import CONTACT, FREE, NEAR
 from hybrid_force.result import Result
@@ -152,16 +154,23 @@ def simulate(
     )
     ctrl = _control_side(sc, controller, q, reference)
     law = ctrl.law
+    # the law's own signals (its optional log hook), recorded at every sample
+    law_signals = law_log_names(law.law if law is not None else None)
+    log_law_values = getattr(law.law, "log_values", None) if law is not None else None
+    if not law_signals:
+        log_law_values = None
     if float(plant.distance(q).max()) <= sc.control.contact_tol:
         q, v = plant.touch(q, v, 0.0)
     started_in_contact = plant.in_contact
-    check_log_memory(N, Record.width(nq, nv, k), sim.duration, dt)
+    check_log_memory(N, Record.width(nq, nv, k) + len(law_signals), sim.duration, dt)
     saturates = plant.effort is not None
     log = Record(
         N, nq, nv, k, sim.max_velocity, sim.max_force, measured=ctrl.measured,
-        commanded=saturates,
+        commanded=saturates, law_signals=len(law_signals),
     )  # fmt: skip
     meta = _meta(sc, ctrl, k, nq)
+    if law_signals:
+        meta[LAW_LOG_NAMES] = list(law_signals)
     no_q_d, no_B = np.full(nq, np.nan), np.zeros((nv, k))
     # sim.joint_limits = "stop": position and velocity limits checked at every sample
     stop_at = _JointLimits(robot) if sim.joint_limits == "stop" else None
@@ -204,6 +213,8 @@ def simulate(
                 log.f_meas[i] = ctrl.f_meas  # type: ignore[index]
             if saturates:  # the commanded torque, before the limits
                 log.u_cmd[i] = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f  # type: ignore[index]
+            if log_law_values is not None:
+                log_law_values(log.law_log[i])  # type: ignore[index]
             n_logged = i + 1
             if not ok:
                 _check_finite(t, q, v, f, sim)  # raises DivergenceError with the details

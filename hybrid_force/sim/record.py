@@ -44,12 +44,15 @@ class Record:
         *,
         measured: bool = False,
         commanded: bool = False,
+        law_signals: int = 0,
     ) -> None:
         self.max_velocity, self.max_force = max_velocity, max_force
         # the measured force (N, k), when it is not the plant's force (sampled sensing)
         self.f_meas: np.ndarray | None = np.zeros((N, k)) if measured else None
         # the commanded torque (N, n), when effort limits may make it differ from the applied
         self.u_cmd: np.ndarray | None = np.zeros((N, nv)) if commanded else None
+        # the law's own signals (N, m), when it logs some (Law.log_names)
+        self.law_log: np.ndarray | None = np.zeros((N, law_signals)) if law_signals else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -111,4 +114,5 @@ class Record:
             meta=meta,
             f_meas=None if self.f_meas is None else col(self.f_meas),
             u_cmd=None if self.u_cmd is None else own(self.u_cmd),
+            law_log=None if self.law_log is None else own(self.law_log),
         )

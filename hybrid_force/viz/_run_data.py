@@ -32,7 +32,8 @@ class _Run:
     t: (N,) [s]; p, p_d: (N, 3) [m]; f, f_d, phi: (N, k) [N, N, m]; f_meas: (N, k) the force
     the controller measured [N], or None when it is f (ideal sensing); V: (N,) [J];
     phase: (N,) int (0 free, 1 near, 2 contact); surfaces: surface dicts of the schema;
-    events: (t [s], kind) pairs of meta["events"], sorted by time.
+    events: (t [s], kind) pairs of meta["events"], sorted by time; law_log: (N, m) the law's
+    own signals named by law_log_names (m = 0 when it logged none).
     """
 
     name: str
@@ -46,6 +47,8 @@ class _Run:
     surfaces: tuple[Mapping[str, Any], ...]
     events: tuple[tuple[float, str], ...]
     f_meas: np.ndarray | None = None
+    law_log: np.ndarray | None = None
+    law_log_names: tuple[str, ...] = ()
 
     @property
     def k(self) -> int:
@@ -151,6 +154,7 @@ def _load_run(result: object) -> _Run:
         f_meas = _as_columns(np.asarray(f_meas, dtype=float), "f_meas", n)
         if f_meas.shape != f.shape or np.array_equal(f_meas, f):
             f_meas = None  # ideal sensing: nothing more to draw
+    law_log, law_names = _read_law_log(result, meta, n)
     return _Run(
         name=name,
         t=t,
@@ -163,7 +167,25 @@ def _load_run(result: object) -> _Run:
         surfaces=_read_surfaces(meta),
         events=_read_events(meta),
         f_meas=f_meas,
+        law_log=law_log,
+        law_log_names=law_names,
     )
+
+
+def _read_law_log(
+    result: object, meta: Mapping[str, Any], n: int
+) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """The law's own signals (N, m) and their names, or (None, ()) when it logged none."""
+    from hybrid_force.law_log import check_law_log, law_log_names
+
+    value = getattr(result, "law_log", None)
+    try:
+        names = law_log_names(meta)
+        if value is None or not names:
+            return None, ()
+        return check_law_log(np.asarray(value, dtype=float), n, meta), names
+    except (ValueError, TypeError) as exc:  # the checks' BadInputError is a ValueError
+        raise PlotError(f"result.law_log: {exc}") from exc
 
 
 # --------------------------------------------------------------------------------------------

@@ -14,6 +14,8 @@ file                  content (paper figure)
                       samples out of contact greyed (2b, 4b, 4c)
 ``desired_force.png`` f_d and f over the first 10 s with the phase switches marked (4a)
 ``lyapunov.png``      V = ½sᵀMs + ½βe_F² (section 5.1) with the contact phase shaded
+``law_log.png``       only when the law logged signals of its own (``Result.law_log``): each
+                      relative to its start, e.g. θ̂/θ_model (:mod:`.law_log_figure`)
 ===================== ===========================================================================
 
 Each figure is drawn on its own Agg canvas and written atomically (see :mod:`._style`).
@@ -41,12 +43,13 @@ from hybrid_force.viz._run_data import (
 )
 from hybrid_force.viz._style import _legend_right, _new_figure, _note, _out_dir, _save_atomic
 from hybrid_force.viz._wireframes import _finite_points, _projection, _surface_mesh
+from hybrid_force.viz.law_log_figure import LAW_LOG_FIGURE, law_log_figure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["FIGURE_NAMES", "PlotError", "plot_result"]
+__all__ = ["FIGURE_NAMES", "OPTIONAL_FIGURE_NAMES", "PlotError", "plot_result"]
 
 #: Base names of the files :func:`plot_result` writes, in order (each gets ``prefix`` and ``.png``).
 FIGURE_NAMES: tuple[str, ...] = (
@@ -57,6 +60,8 @@ FIGURE_NAMES: tuple[str, ...] = (
     "desired_force",
     "lyapunov",
 )
+#: Files :func:`plot_result` writes after those only when the run has what they show.
+OPTIONAL_FIGURE_NAMES: tuple[str, ...] = (LAW_LOG_FIGURE,)
 
 _MAX_3D_POINTS = 4000  # 3D/2D path lines are decimated to at most this many points
 _KIND_COLOURS = {
@@ -433,8 +438,9 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     p and p_d (N, 3) [m], f and f_d (N,) or (N, k) [N], V (N,) [J], phase (N,) and meta), or the
     path of a saved result. out_dir is created if needed. Files, in order:
     ``{prefix}path3d.png``, ``projection.png``, ``position_errors.png``, ``force_error.png``,
-    ``desired_force.png``, ``lyapunov.png`` (see the module docstring). Existing files are
-    replaced atomically. Raises :class:`PlotError` on a missing attribute or wrong shape.
+    ``desired_force.png``, ``lyapunov.png``, then ``law_log.png`` when the law logged signals
+    of its own (see the module docstring). Existing files are replaced atomically. Raises
+    :class:`PlotError` on a missing attribute or wrong shape.
     """
     if os.sep in prefix or (os.altsep and os.altsep in prefix):
         raise PlotError(
@@ -447,5 +453,10 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
         fig = _BUILDERS[name](run)
         path = out / f"{prefix}{name}.png"
         _save_atomic(fig, path)
+        written.append(path)
+    law_fig = law_log_figure(run)
+    if law_fig is not None:
+        path = out / f"{prefix}{LAW_LOG_FIGURE}.png"
+        _save_atomic(law_fig, path)
         written.append(path)
     return written

@@ -47,6 +47,7 @@ __all__ = [
     "Option",
     "build_law",
     "check_options",
+    "law_log_names",
     "law_names",
     "law_spec",
 ]
@@ -54,6 +55,12 @@ __all__ = [
 
 class Law(Protocol):
     """A control law as the supervisor runs it (see the module docstring).
+
+    Optional hook, for signals of the law's own that a run should record at every sample (its
+    parameter estimates, say): ``log_names() -> tuple[str, ...]`` (m names, fixed when the law
+    is built) and ``log_values(out)``, which writes the m current values into ``out`` (m,).
+    The simulator stores them as ``Result.law_log`` (N, m) (:mod:`hybrid_force.law_log`); a
+    law without the hook logs nothing (:func:`law_log_names`).
 
     Attributes:
         V: the law's Lyapunov function (or NaN when it has none) at the last call [J].
@@ -187,6 +194,18 @@ LAWS: dict[str, LawSpec] = {
             "hybrid_force.control.laws.arimoto:build",
         ),
         LawSpec(
+            "arimoto_adaptive",
+            "the paper's law with Slotine-Li adaptation of its model terms (Slotine & Li, IJRR "
+            "6(3) 1987; paper section 7)",
+            "hybrid_force.control.laws.arimoto_adaptive:build",
+            {
+                "adaptation_rate": Option(
+                    "ρ [1/s] of the default Γ_ii = ρ / E[Y_iᵀ K_d⁻¹ Y_i]: the rate at which one "
+                    "parameter's error alone decays, for any arm (default 5)"
+                ),
+            },
+        ),
+        LawSpec(
             "raibert_craig",
             "task-space selection-matrix hybrid control with a PI force loop (Raibert & Craig "
             "1981; corrected form: Fisher & Mujtaba 1992)",
@@ -243,6 +262,16 @@ LAWS: dict[str, LawSpec] = {
         ),
     )
 }
+
+
+def law_log_names(law: object) -> tuple[str, ...]:
+    """The names of the signals ``law`` logs at every sample: its ``log_names()`` when it has
+    the optional hook of :class:`Law` (with ``log_values``), else none."""
+    if not (
+        callable(getattr(law, "log_names", None)) and callable(getattr(law, "log_values", None))
+    ):
+        return ()
+    return tuple(str(name) for name in law.log_names())  # type: ignore[attr-defined]
 
 
 def law_names() -> tuple[str, ...]:

@@ -1,0 +1,327 @@
+"""The paper's modified Arimoto law with its model part adapted online (Slotine & Li 1987).
+
+The paper ends (section 7) noting that its law "can be easily transformed to adaptive case by
+using classical adaptive algorithm in position part". This is that law: the model terms
+M q̈_r + C q̇_r + g of eq. 11 become Y(q, q̇, q̇_r, q̈_r) θ̂, linear in the estimated inertial
+parameters θ̂ (:mod:`hybrid_force.model.regressor`), and θ̂ follows the gradient law of
+J.-J. E. Slotine and W. Li, "On the adaptive control of robot manipulators", IJRR 6(3), 1987:
+
+    q̇_r = Q x + β A⁺ e_F,   x = q̇_d − Λ e_q                              (eq. 4)
+    q̈_r = Q̇ x + Q ẋ + β Ȧ⁺ e_F + β A⁺ (f − f_d),   s = q̇ − q̇_r             (eq. 8)
+    u    = Y θ̂ − K_d s − Aᵀ (f_d − γ e_F)                                 (eq. 11, adapted)
+         = [Y₀ θ̂ − K_d s − Aᵀ(f_d − γ e_F)] + (β M̂ A⁺) f  =  u0 + B f
+    θ̂̇   = −Γ Yᵀ s                                                          (Slotine–Li)
+
+with Y₀ = Y(q, q̇, q̇_r, q̈_r at f = 0) and M̂ = M(q; θ̂) the mass matrix of the estimates, so the
+algebraic loop in f is kept exactly as in :func:`~.arimoto.arimoto_law`. Away from the surface
+the free-space law (eq. 29–30) is adapted the same way (Q = I, no force terms).
+
+Closed loop (rigid contact, A q̇ = 0): with θ̃ = θ̂ − θ and Y θ = M q̈_r + C q̇_r + g,
+M ṡ + C s + K_d s = Y θ̃ + Aᵀ(ė_F + γ e_F). With
+
+    V = ½ sᵀ M s + ½ β e_Fᵀ e_F + ½ θ̃ᵀ Γ⁻¹ θ̃,
+
+Ṁ − 2C skew and A s = −β e_F give V̇ = −sᵀK_d s − βγ|e_F|² + θ̃ᵀ(Yᵀ s + Γ⁻¹ θ̂̇), and the
+adaptation cancels the last term: V̇ = −sᵀK_d s − βγ|e_F|² ≤ 0 for a constant Γ (and less with
+the schedule below), so s, e_F → 0 (Barbalat) and the estimates stay bounded, whatever the
+initial model error. The estimates need not converge to the plant's values (only the
+combinations the path excites do).
+
+Which parameters adapt: those the joint torques depend on (the visible columns of Y,
+:func:`~hybrid_force.model.regressor.visible_columns`); the others keep the model's value (no
+measurement can tell them). θ̂(0) is the controller's model, the plant's parameters ×
+``control.mass_factor`` (``sim.model_mass_factor``). The masses are kept ≥ 1 % of the model's:
+with Γ diagonal, clipping one coordinate is the projection onto {m ≥ m_min} in the Γ⁻¹ metric
+of V, so it never increases V's parameter term while the plant's mass is above the floor.
+Physical consistency of the inertias (pseudo-inertia ⪰ 0) is not enforced.
+
+Default gain (scales with the arm): Γ₀,ii = ρ / E[Y_iᵀ K_d⁻¹ Y_i], the expectation over the
+regressor at random states near q0 with unit velocities and accelerations
+(:func:`~hybrid_force.model.regressor.sample_regressors`). Why: with s quasi-static
+(s ≈ K_d⁻¹ Y θ̃, valid while adaptation is slower than K_d's rate κ), θ̃_i alone decays as
+θ̃̇_i = −Γ_ii Y_iᵀ K_d⁻¹ Y_i θ̃_i, i.e. at the rate ρ [1/s] (``[control.arimoto_adaptive]
+adaptation_rate``), for every arm and every parameter unit.
+
+Gain schedule: Γ(t) = σ(t) Γ₀. Γ₀ is normalised for unit velocities and accelerations; a large
+tracking error drives the reference far beyond them. At the start of section 6.3 (3 m below the
+helix, Λ = 10 1/s) q̇_r ≈ 30 m/s and the accelerations reach ~10³ m/s², so ‖Y‖² is ~10⁵ times
+the reference's and Γ₀ would adapt ~10⁵ times faster than ρ: the explicit update diverges
+early in the transient, and even in continuous time V lets the transient's ~18 kJ of ½sᵀMs move
+the estimates by up to √(2 Γ₀ V) ~ 10³ kg. Hence σ(t) = min(1, Z_ref / min_{τ≤t} Z(τ)), with
+Z = ½ wᵀ M w the energy of the error-driven part of the reference, w = q̇_r − q̇_d, and
+Z_ref = ½ tr M(q0) / Λ²
+(w of 1/Λ per joint: error-driven accelerations Λ w of unit size, what Γ₀ is normalised for).
+‖Y‖² grows like Z in such a transient, so σ keeps the adaptation's rate near ρ; and σ never
+decreases, so Γ(t)⁻¹ never increases and V below (with Γ(t)) stays non-increasing:
+½ θ̃ᵀ (dΓ⁻¹/dt) θ̃ ≤ 0 only adds to V̇. A task that starts on its path has σ = 1 throughout.
+
+V reported (:attr:`AdaptiveArimotoLaw.V`): ½ sᵀ M̂ s + ½ β e_Fᵀ e_F, the part the controller can
+evaluate; the parameter term needs the plant's θ (the tests add it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from hybrid_force.control.constraint import ConstraintTerms
+from hybrid_force.control.laws.arimoto import (
+    Command,
+    ControlTrace,
+    Desired,
+    Gains,
+    arimoto_law,
+    free_space_law,
+)
+from hybrid_force.control.laws.base import LawContext
+from hybrid_force.model.regressor import (
+    PARAMETER_LABELS,
+    SlotineLiRegressor,
+    dynamic_parameters,
+    parameter_names,
+    sample_regressors,
+    visible_columns,
+)
+from hybrid_force.model.robot import Robot, RobotTerms
+
+__all__ = [
+    "DEFAULT_ADAPTATION_RATE",
+    "MASS_FLOOR",
+    "Adaptation",
+    "AdaptiveArimotoLaw",
+    "build",
+    "make_adaptation",
+]
+
+#: ρ [1/s] of the default Γ (module docstring).
+DEFAULT_ADAPTATION_RATE = 5.0
+#: Smallest estimated mass, as a fraction of the model's.
+MASS_FLOOR = 0.01
+_MASS = PARAMETER_LABELS.index("m")
+
+
+@dataclass(frozen=True)
+class Adaptation:
+    """What the adaptation starts from, fixed when the law is built.
+
+    Attributes:
+        theta0: (p,) θ̂(0): the controller's model's parameters [kg, kg·m, kg·m²].
+        adapted: (p,) bool, the parameters that adapt (the visible ones).
+        Gamma: (p,) the diagonal of Γ₀ [parameter unit² / J], 0 where not adapted.
+        floor: (p,) each estimate's lower bound (the masses' floor, −inf elsewhere).
+        names: (p,) ``"<link>.<label>"``.
+        rate: ρ [1/s] of Γ₀.
+        energy: Z_ref [J] of the gain schedule, ½ tr M(q0) / Λ².
+    """
+
+    theta0: np.ndarray
+    adapted: np.ndarray
+    Gamma: np.ndarray
+    floor: np.ndarray
+    names: tuple[str, ...]
+    rate: float
+    energy: float
+
+
+def make_adaptation(
+    robot: Robot, q0: np.ndarray, M0: np.ndarray, gains: Gains, mass_factor: float, rate: float
+) -> Adaptation:
+    """The adaptation of ``robot`` (the controller's model) started at q0 (module docstring).
+
+    Args:
+        robot: the controller's model of the arm; θ̂(0) = its parameters × mass_factor.
+        q0: (nq,) the start configuration. M0: (n, n) the controller's M(q0).
+        gains: the law's gains (K_d and Λ set Γ₀ and Z_ref).
+        rate: ρ [1/s]: each parameter's own decay rate, Γ₀,ii = ρ / E[Y_iᵀ K_d⁻¹ Y_i].
+    """
+    regressor = SlotineLiRegressor(robot.model)
+    theta0 = dynamic_parameters(robot.model) * mass_factor
+    samples = sample_regressors(regressor, q0)
+    adapted = visible_columns(samples)
+    # E[Y_iᵀ K_d⁻¹ Y_i], the diagonal of E[Yᵀ K_d⁻¹ Y]
+    weight = np.einsum("snp,nm,smp->p", samples, np.linalg.inv(gains.Kd), samples) / len(samples)
+    Gamma = np.zeros_like(theta0)
+    Gamma[adapted] = rate / weight[adapted]
+    floor = np.full_like(theta0, -np.inf)
+    masses = np.arange(_MASS, theta0.size, len(PARAMETER_LABELS))
+    floor[masses] = np.where(adapted[masses], MASS_FLOOR * theta0[masses], -np.inf)
+    return Adaptation(
+        theta0=theta0,
+        adapted=adapted,
+        Gamma=Gamma,
+        floor=floor,
+        names=parameter_names(robot.model),
+        rate=rate,
+        energy=0.5 * float(np.trace(M0)) / gains.Lambda**2,
+    )
+
+
+class AdaptiveArimotoLaw:
+    """The adaptive law (module docstring) as the supervisor runs it, in numpy.
+
+    Args:
+        robot: the controller's model of the arm (its kinematics and parameter layout).
+        gains: K_d, Λ, β, γ of the paper's law.
+        adaptation: θ̂(0), Γ and which parameters adapt (:func:`make_adaptation`).
+
+    Attributes:
+        theta: (p,) the current estimates θ̂ (updated by :meth:`update`).
+        sigma: σ of the gain schedule Γ = σ Γ₀ at the last call (non-decreasing, ≤ 1).
+        V: ½ sᵀ M̂ s + ½ β e_Fᵀ e_F [J] at the last call.
+    """
+
+    def __init__(self, robot: Robot, gains: Gains, adaptation: Adaptation) -> None:
+        self.gains = gains
+        self.adaptation = adaptation
+        self.regressor = SlotineLiRegressor(robot.model)
+        self.theta = adaptation.theta0.copy()
+        self.V = 0.0
+        self._model = robot.model
+        self._euclidean = robot.euclidean
+        self._adapted = np.flatnonzero(adaptation.adapted)
+        # the last call's Y₀ᵀ s (p,) and (β Y_M(q, A⁺_j))ᵀ s (k, p): update() needs only these,
+        # since Y(q̈_r0 + β A⁺ f)ᵀ s = Y₀ᵀ s + Σ_j f_j (β Y_M(q, A⁺_j))ᵀ s
+        self._gradient: np.ndarray | None = None
+        self._gradient_f: np.ndarray | None = None
+        self._ref: ControlTrace | None = None  # the paper's law's trace of the last call
+        self.sigma = 0.0
+        self._z_min = np.inf  # min over the past of Z = ½ wᵀ M w [J]
+
+    # ------------------------------------------------------------------ the law
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
+        _, ref = free_space_law(self.gains, robot, v, e_q, desired)  # q̇_r, q̈_r, s of eq. 29
+        q = self._configuration(desired.q, e_q)
+        Y = self.regressor(q, v, ref.qdot_r, ref.qddot_r0)
+        return self._command(robot, q, Y, ref, desired, None, None)
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Eq. 4, 8, 11 adapted (module docstring); the same arguments as the paper's law.
+
+        q̇_r, q̈_r (at f = 0) and s are the paper's law's own (:func:`~.arimoto.arimoto_law`,
+        whose torque with the model's M, C, g is not used)."""
+        g = self.gains
+        _, ref = arimoto_law(g, robot, cons, v, e_q, desired, e_F, f_d, approach)
+        q = self._configuration(desired.q, e_q)
+        Y = self.regressor(q, v, ref.qdot_r, ref.qddot_r0)
+        force = cons.A.T @ (f_d - g.gamma * e_F)
+        command = self._command(
+            robot, q, Y, ref, desired, cons.A_pinv if g.beta > 0 else None, force
+        )
+        self.V += 0.5 * g.beta * float(e_F @ e_F)
+        return command
+
+    def _command(
+        self,
+        robot: RobotTerms,
+        q: np.ndarray,
+        Y: np.ndarray,
+        ref: ControlTrace,
+        desired: Desired,
+        Ap: np.ndarray | None,
+        force: np.ndarray | None,
+    ) -> Command:
+        """u0 = Y θ̂ − K_d s − force (n,) and B = β M̂ A⁺ (None without Ap (n, k)); keeps what
+        update() and trace() need, advances the schedule, sets V = ½ sᵀ M̂ s."""
+        theta, s = self.theta, ref.s
+        self._gradient, self._gradient_f, B = Y.T @ s, None, None
+        if Ap is not None:
+            # β M̂ A⁺ column by column: the f-dependent part of Y θ̂ (q̈_r ∋ β A⁺ f)
+            beta, k = self.gains.beta, Ap.shape[1]
+            B, self._gradient_f = np.empty((Ap.shape[0], k)), np.empty((k, theta.size))
+            for j in range(k):
+                Yj = self.regressor.inertial(q, Ap[:, j])
+                B[:, j] = beta * (Yj @ theta)
+                self._gradient_f[j] = beta * (Yj.T @ s)
+        self._schedule(robot.M, ref.qdot_r - desired.qd)
+        self.V = self._kinetic(q, s)
+        self._ref = ref
+        u0 = Y @ theta - self.gains.Kd @ s
+        return Command(u0=u0 if force is None else u0 - force, B=B)
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """θ̂ += dt · (−σ Γ₀ Yᵀ s) with the last call's Y at q̈_r(f), f (k,) [N] the force it
+        met; then the masses are clipped to their floor (explicit Euler, then projection)."""
+        if self._gradient is None:
+            return
+        gradient = (
+            self._gradient if self._gradient_f is None else self._gradient + f @ self._gradient_f
+        )
+        theta, a = self.theta, self.adaptation
+        theta -= (dt * self.sigma) * a.Gamma * gradient
+        np.maximum(theta, a.floor, out=theta)
+
+    # ------------------------------------------------------------------ reports
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
+        """The :class:`ControlTrace` of the last call (V without the parameter term), with its
+        e_q (n,), e_F (k,) and f_d (k,) copied (those of the free-space law are empty)."""
+        assert self._ref is not None
+        ref = self._ref
+        if ref.qddot_r_f is None:  # free space
+            return dataclasses.replace(ref, e_q=e_q.copy(), V=self.V)
+        return dataclasses.replace(ref, e_q=e_q.copy(), e_F=e_F.copy(), f_d=f_d.copy(), V=self.V)
+
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
+        g, a, i = self.gains, self.adaptation, self._adapted
+        return {
+            "Kd": g.Kd.tolist(),
+            "Lambda": g.Lambda,
+            "beta": g.beta,
+            "gamma": g.gamma,
+            "adaptation_rate": a.rate,
+            "schedule_energy": a.energy,
+            "adapted": [a.names[j] for j in i],
+            "theta0": a.theta0[i].tolist(),
+            "Gamma0": a.Gamma[i].tolist(),
+        }
+
+    def log_names(self) -> tuple[str, ...]:
+        """The estimates this law logs at every sample: the adapted parameters' names."""
+        return tuple(self.adaptation.names[j] for j in self._adapted)
+
+    def log_values(self, out: np.ndarray) -> None:
+        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
+        out[:] = self.theta[self._adapted]
+
+    # ------------------------------------------------------------------ helpers
+    def _configuration(self, q_d: np.ndarray, e_q: np.ndarray) -> np.ndarray:
+        """q from q_d and e_q = q ⊖ q_d (the law's interface passes the error, not q)."""
+        return q_d + e_q if self._euclidean else pin.integrate(self._model, q_d, e_q)
+
+    def _kinetic(self, q: np.ndarray, s: np.ndarray) -> float:
+        """½ sᵀ M̂(q) s [J] with the estimated mass matrix."""
+        return 0.5 * float(s @ (self.regressor.inertial(q, s) @ self.theta))
+
+    def _schedule(self, M: np.ndarray, w: np.ndarray) -> None:
+        """σ = min(1, Z_ref / min_{τ≤t} Z) with Z = ½ wᵀ M w, w = q̇_r − q̇_d (n,) and M (n, n)
+        the controller's model (module docstring): it only ever grows."""
+        z = 0.5 * float(w @ M @ w)
+        if z < self._z_min:
+            self._z_min = z
+            z_ref = self.adaptation.energy
+            self.sigma = 1.0 if z <= z_ref else z_ref / z
+
+
+def build(context: LawContext) -> AdaptiveArimotoLaw:
+    """The registry's factory of ``control.law = "arimoto_adaptive"`` (numpy in both forms)."""
+    rate = float(context.options.get("adaptation_rate", DEFAULT_ADAPTATION_RATE))
+    adaptation = make_adaptation(
+        context.robot, context.q0, context.M0, context.gains, context.settings.mass_factor, rate
+    )
+    return AdaptiveArimotoLaw(context.robot, context.gains, adaptation)
