@@ -56,11 +56,12 @@ model misses (mass error, friction) adds the surface's share of it, (A M⁻¹ w)
   f/k_e and the impedance spring relaxes by as much: two springs in series).
 * **Force tracking** (default; Seraji and Colbaugh 1997, "Force tracking in impedance
   control", IJRR 16(1)): the depth follows the admittance b δ̇ = f_d − f with b = k_n/κ_f,
-  i.e. φ̇ = κ_f (f_d − f) from φ = f_d at each touch (held ≥ 0: the surface cannot pull).
+  i.e. φ̇ = κ_f (f_d − f) from φ = f_d at each touch.
   Its only rest is f = f_d, whatever the surface's stiffness, position or the model's error;
   it rests at φ = f_d − (A M⁻¹ w)/(A M⁻¹ Aᵀ), on a compliant surface at δ = f_d/k_n + f_d/k_e.
   On a rigid surface f ≈ φ at once, so the force error decays at κ_f; on a compliant one at
-  κ_f k_e/(k_e + k_n) (κ_f ≪ ω).
+  the slow root of m_n s³ + 2ζω m_n s² + (k_n + k_e) s + κ_f k_e, about κ_f k_e/(k_e + k_n)
+  when κ_f ≪ ω.
 
 With k stacked surfaces n̂ φ becomes Σ ∇Φ_i/s_i φ_i (the rows A = N̂ᵀJ, any row scaling), the
 depths δ = (A M⁻¹ Aᵀ) φ / ω² (k,), and f, f_d, φ are in the rows' units (newtons for "tip").
@@ -238,10 +239,13 @@ class ImpedanceLaw:
         return u
 
     def update(self, dt: float, f: np.ndarray) -> None:
-        """Force tracking in contact: φ += dt κ_f (f_d − f), held ≥ 0 (the surface only pushes)."""
+        """Force tracking in contact: φ += dt κ_f (f_d − f).
+
+        φ may turn negative (the reference then sits off the surface, on the free side): that
+        is how the law takes back a push the model does not know of (a gravity over-estimate).
+        """
         if self._in_contact and self.gains.force_tracking:
             self.preload += dt * self.gains.force_rate * (self._f_d - f)
-            np.maximum(self.preload, 0.0, out=self.preload)
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
         """None: the law keeps no :class:`ControlTrace` (see its attributes instead)."""
