@@ -306,3 +306,32 @@ def test_a_gain_too_fast_for_the_control_period_is_refused() -> None:
             SCENARIOS / "rtr_sphere.toml",
             overrides={"control.law": "impedance", "control.impedance.omega": 600.0},
         )
+
+
+@pytest.mark.parametrize("feedforward", [False, True])
+def test_path_feedforward_removes_the_predicted_lag(point_mass: Robot, feedforward: bool) -> None:
+    """A circle p_d = R e^{iΩt} at Ω = 2 rad/s in free space. Without the feed-forward the
+    error obeys ë + 2ζωė + ω²e = −p̈_d: it turns with the path at R Ω² / |ω² − Ω² + 2iζωΩ|
+    (4.4e-4 m). The plant's step x⁺ = x + h v⁺, v⁺ = v + h a turns at z = e^{iΩh}: the exact
+    steady amplitude |X − R| solves (z − 1)² X / (h² z) = a(X), with a the law's acceleration
+    (−Ω²R more with the feed-forward, whose only residue is this step's velocity offset)."""
+    radius, rate = 0.1, 2.0
+    control = dataclasses.replace(_options(feedforward=feedforward), supervisor=True)
+    run = simulate(
+        Scenario(
+            robot=point_mass,
+            surfaces=[Plane(point=(0, 0, -1.0), normal=(0, 0, 1))],
+            path=Circle(center=(-radius, 0, 0), radius=radius, normal=(0, 0, 1), omega=rate),
+            q0=np.zeros(3),
+            control=control,
+            sim=SimSettings(duration=2.0, dt=DT),
+        )
+    )
+    error = np.linalg.norm(run.p - run.p_d, axis=1)[run.t >= 1.0]
+    z = np.exp(1j * rate * DT)
+    to_v = (z - 1) / (DT * z)  # V = to_v X
+    path_force = OMEGA**2 + 2j * ZETA * OMEGA * rate - (rate**2 if feedforward else 0.0)
+    X = path_force * radius / (to_v * (z - 1) / DT + OMEGA**2 + 2 * ZETA * OMEGA * to_v)
+    np.testing.assert_allclose(error, abs(X - radius), rtol=1e-6)
+    lag = radius * rate**2 / abs(OMEGA**2 - rate**2 + 2j * ZETA * OMEGA * rate)
+    assert error.max() < (0.05 if feedforward else 1.0) * lag
