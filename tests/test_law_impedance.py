@@ -25,9 +25,14 @@ import pytest
 from hybrid_force import simulate
 from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.impedance import DEFAULTS, cartesian_inertia, impedance_matrices
+from hybrid_force.control.laws.impedance import (
+    DEFAULTS,
+    ImpedanceGains,
+    cartesian_inertia,
+    impedance_matrices,
+)
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.errors import ScenarioError
+from hybrid_force.errors import ControlError, GainError, ScenarioError
 from hybrid_force.geometry.paths import Circle
 from hybrid_force.geometry.surfaces import Cylinder, Plane
 from hybrid_force.model.robot import Robot
@@ -104,7 +109,7 @@ def test_stiffness_and_damping_are_the_cartesian_inertia_scaled(
         for _ in range(5):
             q = rng.uniform(np.maximum(lower, -3.0), np.minimum(upper, 3.0))
             terms = robot.terms(q, np.zeros(robot.nv))
-            Lam, _ = cartesian_inertia(terms)
+            Lam = cartesian_inertia(terms)
             K, D = impedance_matrices(Lam, OMEGA, ZETA)
             for G in (K, D):
                 np.testing.assert_array_equal(G, G.T)
@@ -300,7 +305,13 @@ def test_sampled_with_force_noise_lets_through_the_predicted_level() -> None:
     assert m.position_error_max_settled is not None and m.position_error_max_settled <= 1e-4
 
 
-def test_a_gain_too_fast_for_the_control_period_is_refused() -> None:
+def test_bad_settings_are_refused_naming_the_key() -> None:
+    for bad, error in (({"zeta": 0.0}, GainError), ({"feedforward": 1}, ControlError)):
+        with pytest.raises(error) as info:
+            ImpedanceGains(**bad)  # type: ignore[arg-type]
+        ((key, value),) = bad.items()
+        assert (info.value.key, info.value.value) == (f"control.impedance.{key}", value)
+    # ω·dt = 0.6: the explicit step would no longer follow the continuous loop
     with pytest.raises(ScenarioError, match=r"control\.impedance\.omega = 600"):
         load_scenario(
             SCENARIOS / "rtr_sphere.toml",

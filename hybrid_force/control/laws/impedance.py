@@ -69,6 +69,7 @@ depths δ = (A M⁻¹ Aᵀ) φ / ω² (k,), and f, f_d, φ are in the rows' unit
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -77,7 +78,7 @@ import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
-from hybrid_force.control.laws.base import LawContext
+from hybrid_force.control.laws.base import LawContext, check_options
 from hybrid_force.errors import GainError, SingularConfigurationError
 from hybrid_force.model.robot import RobotTerms
 
@@ -90,14 +91,6 @@ __all__ = [
     "impedance_matrices",
 ]
 
-#: Default ``[control.impedance]`` settings (see :class:`ImpedanceGains`).
-DEFAULTS: dict[str, Any] = {
-    "omega": 30.0,
-    "zeta": 1.0,
-    "force_tracking": True,
-    "force_rate": 10.0,
-    "feedforward": True,
-}
 _MAX_RATE_STEP = 0.5  # ω·dt and κ_f·dt must stay below this (explicit step, sampled control)
 
 
@@ -112,31 +105,44 @@ class ImpedanceGains:
             False: plain impedance with the model's depth f_d/k_n.
         force_rate: κ_f [1/s], rate of the force-tracking admittance.
         feedforward: True: add M q̈_d + C q̇_d of the desired joint path (g is always added).
+
+    Raises:
+        GainError or ControlError: a value the ``[control.impedance]`` table would refuse (a
+        rate ≤ 0, a flag that is not a bool), naming ``control.impedance.<key>``.
     """
 
-    omega: float = DEFAULTS["omega"]
-    zeta: float = DEFAULTS["zeta"]
-    force_tracking: bool = DEFAULTS["force_tracking"]
-    force_rate: float = DEFAULTS["force_rate"]
-    feedforward: bool = DEFAULTS["feedforward"]
+    omega: float = 30.0
+    zeta: float = 1.0
+    force_tracking: bool = True
+    force_rate: float = 10.0
+    feedforward: bool = True
+
+    def __post_init__(self) -> None:
+        """Check each field as the registry checks the scenario's table; numbers as floats."""
+        checked = check_options({"impedance": dataclasses.asdict(self)})["impedance"]
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)
 
 
-def cartesian_inertia(robot: RobotTerms) -> tuple[np.ndarray, np.ndarray]:
-    """Λ = (J M⁻¹ Jᵀ)⁻¹ (3, 3) [kg] and X = M⁻¹ Jᵀ (n, 3) of the model terms.
+#: The default ``[control.impedance]`` settings, as :meth:`ImpedanceLaw.info` gives them.
+DEFAULTS: dict[str, Any] = dataclasses.asdict(ImpedanceGains())
+
+
+def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
+    """Λ = (J M⁻¹ Jᵀ)⁻¹ (3, 3) [kg] of the model terms, symmetric.
 
     Raises:
         SingularConfigurationError: J M⁻¹ Jᵀ is singular (the tip cannot move along some
             direction, so no Cartesian stiffness acts there).
     """
-    X = np.linalg.solve(robot.M, robot.J.T)
     try:
-        Lam = np.linalg.inv(robot.J @ X)
+        Lam = np.linalg.inv(robot.J @ np.linalg.solve(robot.M, robot.J.T))
     except np.linalg.LinAlgError as exc:
         raise SingularConfigurationError(
             f"the tip at {robot.p.tolist()} cannot move in every direction (J M⁻¹ Jᵀ is "
             "singular): the Cartesian impedance is undefined there"
         ) from exc
-    return 0.5 * (Lam + Lam.T), X
+    return 0.5 * (Lam + Lam.T)
 
 
 def impedance_matrices(Lam: np.ndarray, omega: float, zeta: float) -> tuple[np.ndarray, np.ndarray]:
@@ -225,7 +231,7 @@ class ImpedanceLaw:
         """Eq. (1) for the error e = p_r − p (3,) [m], the reference velocity ṗ_r (3,) [m/s]
         and a reference acceleration p̈_r (3,) [m/s²] beyond the path's, fed forward as Λ p̈_r."""
         g = self.gains
-        Lam, _ = cartesian_inertia(robot)
+        Lam = cartesian_inertia(robot)
         K, D = impedance_matrices(Lam, g.omega, g.zeta)
         self.stiffness, self.damping = K, D
         force = K @ e + D @ (pd_r - robot.pdot)
@@ -253,14 +259,7 @@ class ImpedanceLaw:
 
     def info(self) -> dict[str, Any]:
         """The settings as JSON-able data."""
-        g = self.gains
-        return {
-            "omega": g.omega,
-            "zeta": g.zeta,
-            "force_tracking": g.force_tracking,
-            "force_rate": g.force_rate,
-            "feedforward": g.feedforward,
-        }
+        return dataclasses.asdict(self.gains)
 
 
 def _task(desired: Desired) -> tuple[np.ndarray, np.ndarray]:
@@ -276,7 +275,7 @@ def build(context: LawContext) -> ImpedanceLaw:
         GainError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
             not follow the continuous law), naming ``control.impedance.<key>``.
     """
-    gains = ImpedanceGains(**{**DEFAULTS, **context.options})
+    gains = ImpedanceGains(**context.options)
     for key, rate in (("omega", gains.omega), ("force_rate", gains.force_rate)):
         if rate * context.dt >= _MAX_RATE_STEP:
             raise GainError(
