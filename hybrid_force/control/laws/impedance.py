@@ -107,8 +107,9 @@ class ImpedanceGains:
         feedforward: True: add M q̈_d + C q̇_d of the desired joint path (g is always added).
 
     Raises:
-        GainError or ControlError: a value the ``[control.impedance]`` table would refuse (a
-        rate ≤ 0, a flag that is not a bool), naming ``control.impedance.<key>``.
+        ControlError: a value the ``[control.impedance]`` table would refuse (a GainError
+            for a rate ≤ 0, a ControlError for a flag that is not a bool), naming
+            ``control.impedance.<key>``.
     """
 
     omega: float = 30.0
