@@ -16,9 +16,10 @@ The tip is made to behave as a mass–spring–damper about a reference point p_
   the axis, where the tangential inertia is largest). The price: K(q) is not the stiffness of
   one conservative spring, so no Lyapunov function is claimed (V is NaN).
 * **Feed-forward** M q̈_d + C(q, q̇) q̇_d + g of the CLIK's joint path (the "PD+" of Paden and
-  Panja 1988): without it the tip would lag the path by about p̈_d/ω² (0.4 m/s² on the
-  paper's helix: 4e-4 m at ω = 30 1/s) and the contact force would carry the path's
-  centripetal load. With it, q ≡ q_d solves the closed loop exactly.
+  Panja 1988): without it (``feedforward = false``) the tip lags the path by about p̈_d/ω²
+  along the surface (4.3e-4 m on a point mass's circle of 0.1 m at 2 rad/s, see
+  tests/test_law_impedance.py) and the path's normal load goes into the contact force,
+  which only force tracking takes back. With it, q ≡ q_d solves the closed loop exactly.
 * **Null space** (redundant arms, n > 3): τ₀ = −M (ω² e_q + 2ζω ė_q) toward the CLIK's q_d,
   through I − Jᵀ J̄ᵀ with J̄ = M⁻¹ Jᵀ Λ (Khatib's dynamically consistent inverse): it adds no
   force at the tip (J M⁻¹ (I − Jᵀ J̄ᵀ) = 0) and is zero for a 3-joint arm.
