@@ -48,7 +48,10 @@ The reference per phase of the supervisor (n̂ the unit normal of the surface at
 
 **Steady force on a rigid surface.** With the exact model, q ≡ q_d turns the plant
 M q̈ + C q̇ + g = τ + Aᵀ f into Aᵀ (f − φ) = 0: f = φ, with no position error. A torque w the
-model misses (mass error, friction) adds the surface's share of it, (A M⁻¹ w)/(A M⁻¹ Aᵀ).
+command falls short of what the plant needs (w = (1 − m)(M q̈ + C q̇ + g) for a model m times
+the plant's mass; friction) adds the surface's share of it, (A M⁻¹ w)/(A M⁻¹ Aᵀ) (with k
+rows W⁻¹ A M⁻¹ w, W = A M⁻¹ Aᵀ); what is left, along the surface, is a position error
+Λ⁻¹w/ω² (no integral acts on position).
 
 * **Plain impedance** (``force_tracking = false``): φ = f_d, the depth δ₀ = f_d/k_n the
   model predicts. Its force is k_n × (the reference's penetration of the *real* surface):
