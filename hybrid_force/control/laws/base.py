@@ -260,6 +260,25 @@ LAWS: dict[str, LawSpec] = {
                 ),
             },
         ),
+        LawSpec(
+            "impedance",
+            "Cartesian impedance, K = ω²Λ(q) (Hogan 1985), with force tracking along the "
+            "normal (Seraji & Colbaugh 1997)",
+            "hybrid_force.control.laws.impedance:build",
+            {
+                "omega": Option("natural frequency ω of K = ω²Λ(q), D = 2ζωΛ(q) [1/s] (30)"),
+                "zeta": Option("damping ratio ζ of D = 2ζωΛ(q) (1: critical)"),
+                "force_tracking": Option(
+                    "true: the reference's depth adapts until f = f_d (φ̇ = κ_f (f_d − f)); "
+                    "false: plain impedance at the model's depth f_d/k_n (true)",
+                    kind="bool",
+                ),
+                "force_rate": Option("κ_f, rate of the force-tracking admittance [1/s] (10)"),
+                "feedforward": Option(
+                    "true: add M q̈_d + C q̇_d of the desired joint path (true)", kind="bool"
+                ),
+            },
+        ),
     )
 }
 

@@ -1,0 +1,293 @@
+"""Cartesian impedance control with force tracking along the surface normal (issue 16 item 5).
+
+The tip is made to behave as a mass–spring–damper about a reference point p_r (Hogan 1985,
+"Impedance control: an approach to manipulation", ASME J. Dyn. Syst. Meas. Control 107):
+
+    τ = M q̈_d + C(q, q̇) q̇_d + g + Jᵀ [K (p_r − p) + D (ṗ_r − ṗ)] + (I − Jᵀ J̄ᵀ) τ₀       (1)
+
+* **Stiffness and damping**, (3, 3) symmetric positive definite: K = ω² Λ(q), D = 2ζω Λ(q),
+  with Λ = (J M⁻¹ Jᵀ)⁻¹ the Cartesian inertia of the controller's model at the current
+  configuration. With the exact model every direction of the tip then has the natural
+  frequency ω and damping ratio ζ (ë + 2ζω ė + ω² e = Λ⁻¹ f_ext), for every arm and
+  everywhere on its path, so the defaults scale with the arm as K_d = κ M(q0) does, and the
+  explicit step's bound dt·ω is known in advance. Λ(q0) would not do: the RTR turns about its
+  base axis and Λ turns with it in world axes, so a world-fixed K = ω² Λ(q0) soon faces
+  Λ(q) an order of magnitude lighter or heavier in some direction (section 6.4 starts near
+  the axis, where the tangential inertia is largest). The price: K(q) is not the stiffness of
+  one conservative spring, so no Lyapunov function is claimed (V is NaN).
+* **Feed-forward** M q̈_d + C(q, q̇) q̇_d + g of the CLIK's joint path (the "PD+" of Paden and
+  Panja 1988): without it (``feedforward = false``) the tip lags the path by about p̈_d/ω²
+  along the surface (4.3e-4 m on a point mass's circle of 0.1 m at 2 rad/s, see
+  tests/test_law_impedance.py) and the path's normal load goes into the contact force,
+  which only force tracking takes back. With it, q ≡ q_d solves the closed loop exactly.
+* **Null space** (redundant arms, n > 3): τ₀ = −M (ω² e_q + 2ζω ė_q) toward the CLIK's q_d,
+  through I − Jᵀ J̄ᵀ with J̄ = M⁻¹ Jᵀ Λ (Khatib's dynamically consistent inverse): it adds no
+  force at the tip (J M⁻¹ (I − Jᵀ J̄ᵀ) = 0) and is zero for a 3-joint arm.
+
+The reference per phase of the supervisor (n̂ the unit normal of the surface at the tip):
+
+* free: p_r = p_d, ṗ_r = ṗ_d.
+* near: the reference keeps the tool's own height above the surface and descends at the
+  supervisor's approach speed a = −λ_a d: p_r = p_d + n̂n̂ᵀ(p − p_d), ṗ_r = (I − n̂n̂ᵀ) ṗ_d + n̂ a,
+  p̈_r = n̂ ȧ (fed forward as Λ p̈_r). As K, D and Λ are proportional, the normal motion is
+  decoupled: d̈ = ȧ + 2ζω (a − ḋ), i.e. (s + λ_a)(s + 2ζω) d = 0. The tool closes in at λ_a
+  (for any ω, ζ: both roots are real) and touches at about λ_a·contact_tol, as the paper's law
+  does. Without ȧ the roots of s² + 2ζω s + 2ζωλ_a are complex when ζω < 2λ_a, and the tool
+  would overshoot into the surface.
+* contact: the reference is pushed into the surface by a depth δ,
+
+      p_r = p_d − δ u,     u = K⁻¹n̂ / (n̂ᵀK⁻¹n̂),     ṗ_r = ṗ_d,                            (2)
+
+  so that K (p_r − p_d) = −k_n δ n̂ with the normal stiffness k_n = 1/(n̂ᵀK⁻¹n̂) = ω² m_n,
+  m_n = 1/(A M⁻¹ Aᵀ) the arm's mass along the normal. u has n̂ᵀu = 1 (δ is the depth along
+  n̂) and leans off n̂ where K is anisotropic, so that the spring pushes along n̂ only: pushed
+  straight along n̂, it would also drag the tool along the surface by (I − n̂n̂ᵀ)K⁻¹n̂ f. The
+  offset is kept as the force it asks for, φ = k_n δ [N], so (1) holds −Aᵀ φ and stays right
+  where k_n changes along the path. ṗ_r = ṗ_d: the depth is a slow preload; its own rate
+  (the measured force, the turning normal) is not fed to the damping.
+
+**Steady force on a rigid surface.** With the exact model, q ≡ q_d turns the plant
+M q̈ + C q̇ + g = τ + Aᵀ f into Aᵀ (f − φ) = 0: f = φ, with no position error. A torque w the
+command falls short of what the plant needs (w = (1 − m)(M q̈ + C q̇ + g) for a model m times
+the plant's mass; friction) adds the surface's share of it, (A M⁻¹ w)/(A M⁻¹ Aᵀ) (with k
+rows W⁻¹ A M⁻¹ w, W = A M⁻¹ Aᵀ); what is left, along the surface, is a position error
+Λ⁻¹w/ω² (no integral acts on position).
+
+* **Plain impedance** (``force_tracking = false``): φ = f_d, the depth δ₀ = f_d/k_n the
+  model predicts. Its force is k_n × (the reference's penetration of the *real* surface):
+  f_d only if the surface is rigid and where the model puts it, f_d + (A M⁻¹ w)/(A M⁻¹ Aᵀ)
+  with an unmodelled w, and f_d k_e/(k_e + k_n) on a surface of stiffness k_e (the tool sinks
+  f/k_e and the impedance spring relaxes by as much: two springs in series).
+* **Force tracking** (default; Seraji and Colbaugh 1997, "Force tracking in impedance
+  control", IJRR 16(1)): the depth follows the admittance b δ̇ = f_d − f with b = k_n/κ_f,
+  i.e. φ̇ = κ_f (f_d − f) from φ = f_d at each touch.
+  Its only rest is f = f_d, whatever the surface's stiffness, position or the model's error;
+  it rests at φ = f_d − (A M⁻¹ w)/(A M⁻¹ Aᵀ), on a compliant surface at δ = f_d/k_n + f_d/k_e.
+  On a rigid surface f ≈ φ at once, so the force error decays at κ_f; on a compliant one at
+  the slow root of m_n s³ + 2ζω m_n s² + (k_n + k_e) s + κ_f k_e, about κ_f k_e/(k_e + k_n)
+  when κ_f ≪ ω.
+
+With k stacked surfaces n̂ φ becomes Σ ∇Φ_i/s_i φ_i (the rows A = N̂ᵀJ, any row scaling), the
+depths δ = (A M⁻¹ Aᵀ) φ / ω² (k,), and f, f_d, φ are in the rows' units (newtons for "tip").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.laws.arimoto import Command, Desired
+from hybrid_force.control.laws.base import LawContext, check_options
+from hybrid_force.errors import GainError, SingularConfigurationError
+from hybrid_force.model.robot import RobotTerms
+
+__all__ = [
+    "DEFAULTS",
+    "ImpedanceGains",
+    "ImpedanceLaw",
+    "build",
+    "cartesian_inertia",
+    "impedance_matrices",
+]
+
+_MAX_RATE_STEP = 0.5  # ω·dt and κ_f·dt must stay below this (explicit step, sampled control)
+
+
+@dataclass(frozen=True)
+class ImpedanceGains:
+    """Settings of the impedance law (the ``[control.impedance]`` table).
+
+    Attributes:
+        omega: ω [1/s], natural frequency of K = ω² Λ(q) (and of the null-space posture).
+        zeta: ζ, damping ratio of D = 2ζω Λ(q) (1: critical).
+        force_tracking: True: the contact depth adapts so that f → f_d (φ̇ = κ_f (f_d − f));
+            False: plain impedance with the model's depth f_d/k_n.
+        force_rate: κ_f [1/s], rate of the force-tracking admittance.
+        feedforward: True: add M q̈_d + C q̇_d of the desired joint path (g is always added).
+
+    Raises:
+        ControlError: a value the ``[control.impedance]`` table would refuse (a GainError
+            for a rate ≤ 0, a ControlError for a flag that is not a bool), naming
+            ``control.impedance.<key>``.
+    """
+
+    omega: float = 30.0
+    zeta: float = 1.0
+    force_tracking: bool = True
+    force_rate: float = 10.0
+    feedforward: bool = True
+
+    def __post_init__(self) -> None:
+        """Check each field as the registry checks the scenario's table; numbers as floats."""
+        checked = check_options({"impedance": dataclasses.asdict(self)})["impedance"]
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)
+
+
+#: The default ``[control.impedance]`` settings, as :meth:`ImpedanceLaw.info` gives them.
+DEFAULTS: dict[str, Any] = dataclasses.asdict(ImpedanceGains())
+
+
+def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
+    """Λ = (J M⁻¹ Jᵀ)⁻¹ (3, 3) [kg] of the model terms, symmetric.
+
+    Raises:
+        SingularConfigurationError: J M⁻¹ Jᵀ is singular (the tip cannot move along some
+            direction, so no Cartesian stiffness acts there).
+    """
+    try:
+        Lam = np.linalg.inv(robot.J @ np.linalg.solve(robot.M, robot.J.T))
+    except np.linalg.LinAlgError as exc:
+        raise SingularConfigurationError(
+            f"the tip at {robot.p.tolist()} cannot move in every direction (J M⁻¹ Jᵀ is "
+            "singular): the Cartesian impedance is undefined there"
+        ) from exc
+    return 0.5 * (Lam + Lam.T)
+
+
+def impedance_matrices(Lam: np.ndarray, omega: float, zeta: float) -> tuple[np.ndarray, np.ndarray]:
+    """K = ω² Λ [N/m] and D = 2ζω Λ [N·s/m], each (3, 3), of a Cartesian inertia Λ (3, 3)."""
+    return (omega * omega) * Lam, (2.0 * zeta * omega) * Lam
+
+
+class ImpedanceLaw:
+    """The impedance law (module docstring) as the supervisor runs it, in numpy.
+
+    Args:
+        gains: the settings. constraint: the controller's surfaces (for their normals).
+        k: the number of surfaces.
+
+    Attributes:
+        V: NaN (no Lyapunov function is claimed, see the module docstring).
+        preload: (k,) φ = k_n δ [N], the force the reference's depth asks for (contact).
+        offset: (k,) δ [m for "tip" rows], the reference's depth below p_d at the last call.
+        stiffness, damping: (3, 3) K and D at the last call [N/m, N·s/m].
+    """
+
+    V = math.nan
+
+    def __init__(self, gains: ImpedanceGains, constraint: Constraint, k: int) -> None:
+        self.gains = gains
+        self.constraint = constraint
+        self.preload = np.zeros(k)
+        self.offset = np.zeros(k)
+        self.stiffness = np.zeros((3, 3))
+        self.damping = np.zeros((3, 3))
+        self._f_d = np.zeros(k)
+        self._in_contact = False  # the last call was the contact law
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """Eq. (1) with p_r = p_d, ṗ_r = ṗ_d (module docstring)."""
+        self._in_contact = False
+        p_d, pd_d = _task(desired)
+        return Command(self._torque(robot, v, e_q, desired, p_d - robot.p, pd_d), None)
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Eq. (1) near the surface (approach given) and in contact (eq. 2); e_F is unused."""
+        p_d, pd_d = _task(desired)
+        e = p_d - robot.p
+        if approach is not None:  # near: the reference at the tool's height, descending
+            self._in_contact = False
+            normals = np.array([s.normal(robot.p) for s in self.constraint.surfaces]).T  # (3, k)
+            along = np.linalg.pinv(normals)  # (k, 3): the projector onto the normals is N·along
+            e = e - normals @ (along @ e)
+            pd_r = pd_d - normals @ (along @ pd_d) + along.T @ approach
+            # a = −λ_a d, so ȧ = −λ_a ḋ = (a / d) ḋ: its feed-forward makes −λ_a a root
+            pdd_r = along.T @ (approach / cons.distance * (normals.T @ robot.pdot))
+            return Command(self._torque(robot, v, e_q, desired, e, pd_r, pdd_r), None)
+        if not self._in_contact:  # a touch: start from the model's depth
+            self.preload[:] = f_d
+            self._in_contact = True
+        if not self.gains.force_tracking:
+            self.preload[:] = f_d
+        self._f_d = f_d
+        u = self._torque(robot, v, e_q, desired, e, pd_d) - cons.A.T @ self.preload
+        W = cons.A @ np.linalg.solve(robot.M, cons.A.T)
+        self.offset = W @ self.preload / self.gains.omega**2
+        return Command(u, None)
+
+    def _torque(
+        self,
+        robot: RobotTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e: np.ndarray,
+        pd_r: np.ndarray,
+        pdd_r: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Eq. (1) for the error e = p_r − p (3,) [m], the reference velocity ṗ_r (3,) [m/s]
+        and a reference acceleration p̈_r (3,) [m/s²] beyond the path's, fed forward as Λ p̈_r."""
+        g = self.gains
+        Lam = cartesian_inertia(robot)
+        K, D = impedance_matrices(Lam, g.omega, g.zeta)
+        self.stiffness, self.damping = K, D
+        force = K @ e + D @ (pd_r - robot.pdot)
+        if pdd_r is not None:
+            force += Lam @ pdd_r
+        # null space: (I − Jᵀ J̄ᵀ)(−M y) = −M y + Jᵀ Λ J y, y = ω² e_q + 2ζω ė_q
+        y = g.omega**2 * e_q + (2.0 * g.zeta * g.omega) * (v - desired.qd)
+        u = robot.J.T @ (force + Lam @ (robot.J @ y)) - robot.M @ y + robot.g
+        if g.feedforward:
+            u += robot.M @ desired.qdd + robot.C @ desired.qd
+        return u
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Force tracking in contact: φ += dt κ_f (f_d − f).
+
+        φ may turn negative (the reference then sits off the surface, on the free side): that
+        is how the law takes back a push the model does not know of (a gravity over-estimate).
+        """
+        if self._in_contact and self.gains.force_tracking:
+            self.preload += dt * self.gains.force_rate * (self._f_d - f)
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
+        """None: the law keeps no :class:`ControlTrace` (see its attributes instead)."""
+        return None
+
+    def info(self) -> dict[str, Any]:
+        """The settings as JSON-able data."""
+        return dataclasses.asdict(self.gains)
+
+
+def _task(desired: Desired) -> tuple[np.ndarray, np.ndarray]:
+    """p_d, ṗ_d (3,) of the desired sample (the supervisor always gives them)."""
+    assert desired.p is not None and desired.pd is not None
+    return desired.p, desired.pd
+
+
+def build(context: LawContext) -> ImpedanceLaw:
+    """The registry's factory of ``control.law = "impedance"``.
+
+    Raises:
+        GainError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
+            not follow the continuous law), naming ``control.impedance.<key>``.
+    """
+    gains = ImpedanceGains(**context.options)
+    for key, rate in (("omega", gains.omega), ("force_rate", gains.force_rate)):
+        if rate * context.dt >= _MAX_RATE_STEP:
+            raise GainError(
+                f"control.impedance.{key} = {rate:g} 1/s is too fast for the control period "
+                f"{context.dt:g} s: {key}·dt = {rate * context.dt:.3g} must stay below "
+                f"{_MAX_RATE_STEP}",
+                key=f"control.impedance.{key}",
+                value=rate,
+            )
+    return ImpedanceLaw(gains, context.constraint, context.constraint.k)
