@@ -44,12 +44,15 @@ class Record:
         *,
         measured: bool = False,
         commanded: bool = False,
+        tool: bool = False,
     ) -> None:
         self.max_velocity, self.max_force = max_velocity, max_force
         # the measured force (N, k), when it is not the plant's force (sampled sensing)
         self.f_meas: np.ndarray | None = np.zeros((N, k)) if measured else None
         # the commanded torque (N, n), when effort limits may make it differ from the applied
         self.u_cmd: np.ndarray | None = np.zeros((N, nv)) if commanded else None
+        # the tool axis' angle from its desired direction (N,) [rad], when the run controls it
+        self.tool_angle: np.ndarray | None = np.zeros(N) if tool else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -111,4 +114,5 @@ class Record:
             meta=meta,
             f_meas=None if self.f_meas is None else col(self.f_meas),
             u_cmd=None if self.u_cmd is None else own(self.u_cmd),
+            tool_angle=None if self.tool_angle is None else own(self.tool_angle),
         )
