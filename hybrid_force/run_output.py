@@ -31,7 +31,7 @@ from typing import Any
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import OutputError
-from hybrid_force.viz.plots import FIGURE_NAMES
+from hybrid_force.viz.plots import FIGURE_NAMES, OPTIONAL_FIGURE_NAMES
 
 __all__ = ["RESULT_NAME", "SUMMARY_NAME", "RunOutput", "locked_folder"]
 
@@ -51,7 +51,9 @@ class RunOutput:
         self.folder = Path(folder)
         self.result = self.folder / RESULT_NAME
         self.summary = self.folder / SUMMARY_NAME
-        self.figures = tuple(self.folder / f"{name}.png" for name in FIGURE_NAMES)
+        self.figures = tuple(
+            self.folder / f"{name}.png" for name in (*FIGURE_NAMES, *OPTIONAL_FIGURE_NAMES)
+        )
         self._inputs = tuple(Path(p) for p in inputs)
         self._stack = contextlib.ExitStack()
 

@@ -55,7 +55,8 @@ __all__ = [
 
 ORIENTATIONS = ("free", "normal")
 ROLLS = ("free", "held")
-#: A direction built from a vector shorter than this (relative to its scale) is undefined.
+#: A direction built from a shorter vector is undefined ([-] for a cross product of unit
+#: vectors, [m/s] for the travel speed across the axis or the normal).
 _MIN_NORM = 1e-6
 _JERK_STEP = 1e-5  # [s] central difference of p̈_d for paths without a closed form
 _HESSIAN_STEP = 1e-4  # [m] central difference of ∇²Φ along ṗ_d (non-quadric surfaces)
@@ -97,16 +98,13 @@ class ToolSettings:
             except ControlError as exc:
                 raise ControlError(str(exc), key=f"tool.{name}", value=value) from None
         try:
-            tilt = checks.number(
-                self.tilt, "tool.tilt", ControlError, minimum=-math.pi / 2, maximum=math.pi / 2,
-                unit="rad",
-            )  # fmt: skip
+            tilt = checks.number(self.tilt, "tool.tilt", ControlError, unit="rad")
         except ControlError as exc:
             raise ControlError(str(exc), key="tool.tilt", value=self.tilt) from None
-        if tilt == -math.pi / 2:
+        if not abs(tilt) < math.pi / 2:
             raise ControlError(
-                "tool.tilt must be in (-pi/2, pi/2) [rad], got -pi/2: the tool would lie on "
-                "the surface",
+                f"tool.tilt must be in (-pi/2, pi/2) [rad], got {tilt!r}: at 90° or more from "
+                "the normal the tool would lie on the surface or point out of it",
                 key="tool.tilt",
                 value=self.tilt,
             )
@@ -118,7 +116,7 @@ class ToolSettings:
                 value = getattr(self, name)
                 if value != default:
                     raise ControlError(
-                        f'tool.{name} = {checks.shown(value)} needs tool.orientation = "normal" '
+                        f'tool.{name} = {value!r} needs tool.orientation = "normal" '
                         '(with "free" only the tip position is controlled)',
                         key=f"tool.{name}",
                         value=value,
@@ -192,9 +190,13 @@ def axis_angle(a: np.ndarray, a_d: np.ndarray) -> float:
 
 
 def _unit(j: np.ndarray) -> tuple[np.ndarray, float]:
-    """u = v/‖v‖ as a jet, and ‖v‖: u̇ = (v̇ − ṡu)/s, ü = (v̈ − 2ṡu̇ − s̈u)/s, s = ‖v‖."""
+    """u = v/‖v‖ as a jet, and ‖v‖: u̇ = (v̇ − ṡu)/s, ü = (v̈ − 2ṡu̇ − s̈u)/s, s = ‖v‖.
+
+    A zero jet for v = 0 (callers refuse a size below ``_MIN_NORM``)."""
     v, dv, ddv = j
     s = math.sqrt(float(v @ v))
+    if s == 0.0:
+        return np.zeros((3, 3)), 0.0
     u = v / s
     sd = float(u @ dv)
     du = (dv - sd * u) / s

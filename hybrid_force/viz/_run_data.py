@@ -32,7 +32,9 @@ class _Run:
     t: (N,) [s]; p, p_d: (N, 3) [m]; f, f_d, phi: (N, k) [N, N, m]; f_meas: (N, k) the force
     the controller measured [N], or None when it is f (ideal sensing); V: (N,) [J];
     phase: (N,) int (0 free, 1 near, 2 contact); surfaces: surface dicts of the schema;
-    events: (t [s], kind) pairs of meta["events"], sorted by time.
+    events: (t [s], kind) pairs of meta["events"], sorted by time; tool_angle: (N,) [rad] the
+    tool axis' angle from its desired direction, or None (a run that did not control it);
+    settle_time: meta["settings"]["settle_time"] [s], or None.
     """
 
     name: str
@@ -46,6 +48,8 @@ class _Run:
     surfaces: tuple[Mapping[str, Any], ...]
     events: tuple[tuple[float, str], ...]
     f_meas: np.ndarray | None = None
+    tool_angle: np.ndarray | None = None
+    settle_time: float | None = None
 
     @property
     def k(self) -> int:
@@ -151,6 +155,12 @@ def _load_run(result: object) -> _Run:
         f_meas = _as_columns(np.asarray(f_meas, dtype=float), "f_meas", n)
         if f_meas.shape != f.shape or np.array_equal(f_meas, f):
             f_meas = None  # ideal sensing: nothing more to draw
+    tool_angle = getattr(result, "tool_angle", None)
+    if tool_angle is not None:
+        tool_angle = np.asarray(tool_angle, dtype=float)
+        if tool_angle.shape != (n,):
+            raise PlotError(f"result.tool_angle has shape {tool_angle.shape}; expected ({n},)")
+    settle = (meta.get("settings") or {}).get("settle_time")
     return _Run(
         name=name,
         t=t,
@@ -163,6 +173,8 @@ def _load_run(result: object) -> _Run:
         surfaces=_read_surfaces(meta),
         events=_read_events(meta),
         f_meas=f_meas,
+        tool_angle=tool_angle,
+        settle_time=float(settle) if isinstance(settle, int | float) else None,
     )
 
 

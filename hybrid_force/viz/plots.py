@@ -1,8 +1,9 @@
 """The paper's figures (Fig. 2, 3, 4) as matplotlib PNGs for any run, and sweep plots.
 
 :func:`plot_result` draws one run (a :class:`hybrid_force.result.Result`, or anything with the
-same attributes, or the path of a saved ``.npz``) as the six PNGs of :data:`FIGURE_NAMES`, listed
-with their paper figures in :mod:`hybrid_force.viz.run_figures`.
+same attributes, or the path of a saved ``.npz``) as the six PNGs of :data:`FIGURE_NAMES` (and
+those of :data:`OPTIONAL_FIGURE_NAMES` a run has data for), listed with their paper figures in
+:mod:`hybrid_force.viz.run_figures`.
 
 :func:`plot_sweep` draws one metric of a sweep CSV against one swept parameter (line plot) or two
 (heat map).
@@ -19,7 +20,7 @@ The figures of a run live in :mod:`hybrid_force.viz.run_figures`, the sweep plot
 from __future__ import annotations
 
 from hybrid_force.errors import PlotError
-from hybrid_force.viz.run_figures import FIGURE_NAMES, plot_result
+from hybrid_force.viz.run_figures import FIGURE_NAMES, OPTIONAL_FIGURE_NAMES, plot_result
 from hybrid_force.viz.sweep_plots import plot_sweep
 
-__all__ = ["FIGURE_NAMES", "PlotError", "plot_result", "plot_sweep"]
+__all__ = ["FIGURE_NAMES", "OPTIONAL_FIGURE_NAMES", "PlotError", "plot_result", "plot_sweep"]

@@ -14,6 +14,8 @@ file                  content (paper figure)
                       samples out of contact greyed (2b, 4b, 4c)
 ``desired_force.png`` f_d and f over the first 10 s with the phase switches marked (4a)
 ``lyapunov.png``      V = ½sᵀMs + ½βe_F² (section 5.1) with the contact phase shaded
+``tool_angle.png``    only for a run with ``[tool] orientation = "normal"``: the angle between the
+                      tool axis and its desired direction, on a log scale, settling time marked
 ===================== ===========================================================================
 
 Each figure is drawn on its own Agg canvas and written atomically (see :mod:`._style`).
@@ -46,7 +48,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["FIGURE_NAMES", "PlotError", "plot_result"]
+__all__ = ["FIGURE_NAMES", "OPTIONAL_FIGURE_NAMES", "PlotError", "plot_result"]
 
 #: Base names of the files :func:`plot_result` writes, in order (each gets ``prefix`` and ``.png``).
 FIGURE_NAMES: tuple[str, ...] = (
@@ -57,6 +59,9 @@ FIGURE_NAMES: tuple[str, ...] = (
     "desired_force",
     "lyapunov",
 )
+#: Files :func:`plot_result` writes only for runs that have their data (``tool_angle``: a run
+#: that controlled the tool's direction).
+OPTIONAL_FIGURE_NAMES: tuple[str, ...] = ("tool_angle",)
 
 _MAX_3D_POINTS = 4000  # 3D/2D path lines are decimated to at most this many points
 _KIND_COLOURS = {
@@ -421,6 +426,30 @@ def _fig_lyapunov(run: _Run) -> Figure:
     return fig
 
 
+def _fig_tool_angle(run: _Run) -> Figure:
+    """The angle [rad] between the tool axis and its desired direction, log scale."""
+    fig = _new_figure(8.5, 4.5)
+    ax = fig.add_subplot()
+    angle = run.tool_angle
+    if angle is None:
+        _note(ax, 'no tool angle: the run did not control the tool\'s direction ("free")')
+    elif not _semilog(ax, run.t, angle, color="k", lw=1.0, label="tool angle"):
+        ax.plot(run.t, angle, color="k", lw=1.0, label="tool angle")
+        _note(ax, "the angle has no positive finite value: linear scale")
+    if run.settle_time is not None and run.t[0] <= run.settle_time <= run.t[-1]:
+        ax.axvline(run.settle_time, color="tab:blue", ls="--", lw=1.0, label="settle time")
+    _shade(ax, run.t, run.contact, "tab:green", "contact phase")
+    if angle is not None:
+        _mark_nonfinite([ax], run.t, angle, "tool angle")
+    ax.set_xlim(run.t[0], run.t[-1])
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(r"$\angle(a, a_d)$ [rad]")
+    ax.grid(True, which="both", alpha=0.3)
+    _legend_right(ax)
+    ax.set_title(f"{run.name}: tool axis from its desired direction")
+    return fig
+
+
 _BUILDERS = {
     "path3d": _fig_path3d,
     "projection": _fig_projection,
@@ -428,6 +457,7 @@ _BUILDERS = {
     "force_error": _fig_force_error,
     "desired_force": _fig_desired_force,
     "lyapunov": _fig_lyapunov,
+    "tool_angle": _fig_tool_angle,
 }
 
 
@@ -438,8 +468,9 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     p and p_d (N, 3) [m], f and f_d (N,) or (N, k) [N], V (N,) [J], phase (N,) and meta), or the
     path of a saved result. out_dir is created if needed. Files, in order:
     ``{prefix}path3d.png``, ``projection.png``, ``position_errors.png``, ``force_error.png``,
-    ``desired_force.png``, ``lyapunov.png`` (see the module docstring). Existing files are
-    replaced atomically. Raises :class:`PlotError` on a missing attribute or wrong shape.
+    ``desired_force.png``, ``lyapunov.png``, and ``tool_angle.png`` for a run with a
+    ``tool_angle`` (see the module docstring). Existing files are replaced atomically.
+    Raises :class:`PlotError` on a missing attribute or wrong shape.
     """
     if os.sep in prefix or (os.altsep and os.altsep in prefix):
         raise PlotError(
@@ -448,7 +479,8 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     run = _load_run(result)
     out = _out_dir(out_dir)
     written: list[Path] = []
-    for name in FIGURE_NAMES:
+    names = FIGURE_NAMES + (OPTIONAL_FIGURE_NAMES if run.tool_angle is not None else ())
+    for name in names:
         fig = _BUILDERS[name](run)
         path = out / f"{prefix}{name}.png"
         _save_atomic(fig, path)
