@@ -18,6 +18,7 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_clik import DT, history
 
 from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.pose_clik import PoseJointPath, pose_inverse_kinematics
@@ -27,7 +28,6 @@ from hybrid_force.geometry.paths import Circle, Helix
 from hybrid_force.geometry.surfaces import Cylinder, Sphere
 from hybrid_force.model.robot import Robot
 
-DT = 1e-3
 UR5_SEED = np.array([0.0, -1.57, 1.57, -1.57, -1.57, 0.0])
 PANDA_SEED = np.array([0.0, -0.5, 0.0, -2.3, 0.0, 1.8, 0.8])
 TILT = math.radians(15.0)
@@ -78,15 +78,8 @@ def _start(robot: Robot, which: str, roll: str) -> tuple[PoseJointPath, ToolTarg
 
 
 def _run(robot: Robot, which: str, roll: str, seconds: float = 2.0):
-    des, _ = _start(robot, which, roll)
-    ts, qs, qds, qdds = [des.t], [des.q.copy()], [des.qd.copy()], [des.qdd.copy()]
-    for _ in range(round(seconds / DT)):
-        des.advance(DT)
-        ts.append(des.t)
-        qs.append(des.q.copy())
-        qds.append(des.qd.copy())
-        qdds.append(des.qdd.copy())
-    return des, np.array(ts), np.array(qs), np.array(qds), np.array(qdds)
+    """(des, t, q, qd, qdd) of 2 s of advance(DT) (test_clik's helper)."""
+    return history(_start(robot, which, roll)[0], seconds)
 
 
 RUNS = [("ur5", "free"), ("ur5", "held"), ("panda", "free"), ("panda", "held")]

@@ -57,6 +57,22 @@ def test_bad_settings_name_their_key(kwargs: dict, key: str) -> None:
     assert info.value.key == key
 
 
+def test_free_orientation_keeps_the_compiled_position_clik(rtr: Robot) -> None:
+    """orientation = "free" (the default) builds the paper's compiled CLIK, not the pose one."""
+    from hybrid_force.control.clik import DesiredJointPath, inverse_kinematics
+    from hybrid_force.control.constraint import Constraint
+    from hybrid_force.control.pose_clik import PoseJointPath
+    from hybrid_force.control.supervisor import ControlSettings, HybridController
+
+    q0 = inverse_kinematics(rtr, [0.4, 0.0, 10.0], seed=[0.0, 9.0, 2.0])
+    settings = ControlSettings(supervisor=False)
+    for tool in (None, ToolSettings()):
+        law = HybridController(
+            rtr, Constraint(Cylinder(0.4)), paper_helix(), q0, settings, tool=tool
+        )
+        assert type(law.clik) is DesiredJointPath and not isinstance(law.clik, PoseJointPath)
+
+
 def test_settings_store_unit_axes() -> None:
     tool = ToolSettings(axis=[0, 0, 2], orientation="normal", tilt_axis=[3, 4, 0])
     assert tool.axis == (0.0, 0.0, 1.0) and tool.tilt_axis == (0.6, 0.8, 0.0)

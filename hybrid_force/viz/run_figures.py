@@ -416,13 +416,19 @@ def _fig_lyapunov(run: _Run) -> Figure:
         ax.plot(run.t, run.V, color="k", lw=1.0, label="V")
         _note(ax, "V has no positive finite value: linear scale")
     _shade(ax, run.t, run.phase == NEAR, "tab:orange", "near phase")
+    ylabel = r"$V = \frac{1}{2}s^T M s + \frac{1}{2}\beta e_F^2$ [J]"
+    return _time_panel(fig, ax, run, ylabel, "Lyapunov function")
+
+
+def _time_panel(fig: Figure, ax: Axes, run: _Run, ylabel: str, title: str) -> Figure:
+    """Finish a one-panel figure over the run's time: contact shaded, labels, legend, title."""
     _shade(ax, run.t, run.contact, "tab:green", "contact phase")
     ax.set_xlim(run.t[0], run.t[-1])
     ax.set_xlabel("t [s]")
-    ax.set_ylabel(r"$V = \frac{1}{2}s^T M s + \frac{1}{2}\beta e_F^2$ [J]")
+    ax.set_ylabel(ylabel)
     ax.grid(True, which="both", alpha=0.3)
     _legend_right(ax)
-    ax.set_title(f"{run.name}: Lyapunov function")
+    ax.set_title(f"{run.name}: {title}")
     return fig
 
 
@@ -438,16 +444,10 @@ def _fig_tool_angle(run: _Run) -> Figure:
         _note(ax, "the angle has no positive finite value: linear scale")
     if run.settle_time is not None and run.t[0] <= run.settle_time <= run.t[-1]:
         ax.axvline(run.settle_time, color="tab:blue", ls="--", lw=1.0, label="settle time")
-    _shade(ax, run.t, run.contact, "tab:green", "contact phase")
     if angle is not None:
         _mark_nonfinite([ax], run.t, angle, "tool angle")
-    ax.set_xlim(run.t[0], run.t[-1])
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel(r"$\angle(a, a_d)$ [rad]")
-    ax.grid(True, which="both", alpha=0.3)
-    _legend_right(ax)
-    ax.set_title(f"{run.name}: tool axis from its desired direction")
-    return fig
+    ylabel = r"$\angle(a, a_d)$ [rad]"
+    return _time_panel(fig, ax, run, ylabel, "tool axis from its desired direction")
 
 
 _BUILDERS = {
