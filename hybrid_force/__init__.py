@@ -33,6 +33,7 @@ from hybrid_force.control.supervisor import (
     ControlSettings,
     HybridController,
 )
+from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import (
     BadInputError,
     ContactSettingsError,
@@ -207,6 +208,7 @@ __all__ = [
     "Surface",
     "SurfaceError",
     "SurfaceParameterError",
+    "ToolSettings",
     "URDFError",
     "UnknownRobotError",
     "ViewerError",

@@ -199,8 +199,14 @@ def _print_summary(summary: dict[str, Any], out: Path, stream: TextIO) -> None:
         f"  contact at t = {_num(summary.get('contact_time'), 's', '.4g')}, "
         f"impact speed {_num(summary.get('impact_speed'), 'm/s')}, "
         f"worst distance in contact {_num(summary.get('worst_constraint_violation'), 'm')}",
-        f"  wrote {out / 'result.npz'} and {out / 'summary.json'}",
     ]
+    if summary.get("tool_angle_final") is not None:  # [tool] orientation = "normal"
+        lines.append(
+            f"  tool axis from its desired direction: final "
+            f"{_num(summary.get('tool_angle_final'), 'rad')}, worst after t = {settle:g} s "
+            f"{_num(summary.get('tool_angle_max_settled'), 'rad')}"
+        )
+    lines.append(f"  wrote {out / 'result.npz'} and {out / 'summary.json'}")
     print("\n".join(lines), file=stream)
 
 

@@ -129,6 +129,10 @@ class Metrics:
         time_to_converge: first time after which ``||e||`` stays below ``converge_tolerance``
             until the end of the run [s].
         converge_tolerance: the tolerance used for ``time_to_converge`` [m].
+        tool_angle_final: the angle between the tool axis and its desired direction at the
+            last sample [rad]; None when the run did not control it (``[tool] orientation =
+            "free"``: the result has no ``tool_angle``).
+        tool_angle_max_settled: its maximum for t ≥ settle_time [rad] (None likewise).
     """
 
     settle_time: float
@@ -148,6 +152,8 @@ class Metrics:
     n_impacts: int
     time_to_converge: float | None
     converge_tolerance: float = CONVERGE_TOLERANCE
+    tool_angle_final: float | None = None
+    tool_angle_max_settled: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able dict (floats, ints, lists, None) with the attribute names as keys."""
@@ -225,6 +231,14 @@ def compute_metrics(
     # non-finite counts as "not below"
     converge = time_staying_within(t, e_ok & (e_norm < tol))
 
+    tool_final: float | None = None
+    tool_max: float | None = None
+    tool_angle = getattr(result, "tool_angle", None)
+    if tool_angle is not None and result.n_samples:
+        tool_ok = np.isfinite(tool_angle)
+        tool_final = float(tool_angle[-1]) if tool_ok[-1] else None
+        tool_max = _max_or_none(tool_angle[tool_ok & settled])
+
     return Metrics(
         settle_time=settle,
         position_error_max_axis=max_axis,  # type: ignore[arg-type]
@@ -243,6 +257,8 @@ def compute_metrics(
         n_impacts=len(impacts),
         time_to_converge=converge,
         converge_tolerance=tol,
+        tool_angle_final=tool_final,
+        tool_angle_max_settled=tool_max,
     )
 
 

@@ -76,7 +76,7 @@ ARRAY_NAMES: tuple[str, ...] = (
 )
 #: Arrays a result file may hold beyond :data:`ARRAY_NAMES` (older files lack them; see
 #: :class:`Result` for the value then).
-OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd", "law_log")
+OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd", "law_log", "tool_angle")
 #: Phase codes of the ``phase`` array.
 PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT
 _PHASES = tuple(int(p) for p in Phase)
@@ -265,6 +265,9 @@ class Result:
         law_log: (N, m) the control law's own signals at each sample (e.g. its parameter
             estimates), named by ``meta["law_log_names"]`` (:mod:`hybrid_force.law_log`);
             (N, 0) when the law logs nothing (also the value for older files).
+        tool_angle: (N,) the angle [rad] between the actual tool axis and its desired direction
+            a_d(t) (``[tool] orientation = "normal"``); None, and absent from the file, when
+            the run did not control the tool's direction (``orientation = "free"``).
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
             steps_per_second counts the loop from its second step on (the first steps load
@@ -290,6 +293,7 @@ class Result:
     f_meas: np.ndarray | None = None
     u_cmd: np.ndarray | None = None
     law_log: np.ndarray | None = None
+    tool_angle: np.ndarray | None = None
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
@@ -354,6 +358,10 @@ class Result:
             )
         u_cmd = arrays["u"] if self.u_cmd is None else _as_float_array("u_cmd", self.u_cmd)
         _check_shape("u_cmd", u_cmd, (n_samples, n))
+        if self.tool_angle is not None:
+            tool_angle = _as_float_array("tool_angle", self.tool_angle)
+            _check_shape("tool_angle", tool_angle, (n_samples,))
+            object.__setattr__(self, "tool_angle", tool_angle)
         meta = self._normalise_meta(self.meta)
         law_log = check_law_log(self.law_log, n_samples, meta)
         for name, arr in arrays.items():
@@ -443,10 +451,12 @@ class Result:
                 f"truncated(n): n must be in [0, {self.n_samples}] (the number of samples), got {n}"
             )
         stop = int(n)
-        return Result(
-            **{name: getattr(self, name)[:stop] for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)},
-            meta=self.meta,
-        )
+        arrays: dict[str, Any] = {
+            name: getattr(self, name)[:stop]
+            for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
+            if getattr(self, name) is not None
+        }
+        return Result(**arrays, meta=self.meta)
 
     def slice(self, stop: int) -> Result:
         """Return a new Result with the first ``stop`` samples (same as :meth:`truncated`)."""
@@ -473,7 +483,9 @@ class Result:
             raise ResultFileError(f"cannot save result to '{target}': it is a directory")
         meta_text = _meta_to_json(self.meta)
         payload: dict[str, Any] = {
-            name: getattr(self, name) for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
+            name: getattr(self, name)
+            for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
+            if getattr(self, name) is not None  # tool_angle: only when the run has one
         }
         payload[_META_KEY] = np.array(meta_text, dtype=np.str_)
         try:

@@ -11,6 +11,8 @@ Independent references:
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -58,10 +60,13 @@ def test_ik_out_of_reach_raises_with_point(rtr: Robot) -> None:
 # --- the desired joint path ---------------------------------------------------------------------
 def _run(robot: Robot, path: Path, q0: np.ndarray, seconds: float = 2.0):
     """Advance a DesiredJointPath for `seconds`; return it and the history (t, q, qd, qdd)."""
-    des = DesiredJointPath(robot, path, q0)
-    steps = round(seconds / DT)
+    return history(DesiredJointPath(robot, path, q0), seconds)
+
+
+def history(des: Any, seconds: float) -> tuple[Any, ...]:
+    """Advance a desired joint path ``des`` by DT for `seconds`: (des, t, q, qd, qdd)."""
     ts, qs, qds, qdds = [des.t], [des.q.copy()], [des.qd.copy()], [des.qdd.copy()]
-    for _ in range(steps):
+    for _ in range(round(seconds / DT)):
         des.advance(DT)
         ts.append(des.t)
         qs.append(des.q.copy())

@@ -6,6 +6,7 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -922,18 +923,21 @@ def test_path_through_a_singular_configuration_in_the_middle_of_the_run(
 
 def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPatch) -> None:
     """Each shipped scenario still loads with the path check, which solves the inverse
-    kinematics at every sample of [0, duration] (each load takes well under a second)."""
+    kinematics (of the tip position, or of the tool pose with ``[tool] orientation =
+    "normal"``) at every sample of [0, duration] (each load takes well under a second)."""
     import hybrid_force.control.clik as clik
+    import hybrid_force.control.pose_clik as pose_clik
     from hybrid_force.scenario.loader import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
 
-    solve = clik.newton_ik
     calls: list[int] = []
+    for module, name in ((clik, "newton_ik"), (pose_clik, "_pose_newton")):
+        solve = getattr(module, name)
 
-    def counting(*args: object, **kwargs: object) -> tuple[np.ndarray, float]:
-        calls.append(1)
-        return solve(*args, **kwargs)  # type: ignore[arg-type]
+        def counting(*args: object, _solve: Any = solve, **kwargs: object) -> Any:
+            calls.append(1)
+            return _solve(*args, **kwargs)
 
-    monkeypatch.setattr(clik, "newton_ik", counting)
+        monkeypatch.setattr(module, name, counting)
     for path in SHIPPED:
         calls.clear()
         sc = load_scenario(path)

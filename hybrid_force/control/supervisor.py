@@ -59,6 +59,8 @@ from hybrid_force.control.laws.arimoto import (
     make_gains,
 )
 from hybrid_force.control.laws.base import Law, LawContext, build_law, check_options, law_spec
+from hybrid_force.control.pose_clik import PoseJointPath, pose_inverse_kinematics
+from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import ControlError, GainError
 from hybrid_force.events import Branch, Event, PhaseChange
 from hybrid_force.geometry.paths import Path
@@ -245,6 +247,10 @@ class HybridController:
         settings: see :class:`ControlSettings`.
         dt: time step [s] (used to check dt·λ_max(M⁻¹K_d)).
         t0: start time [s].
+        tool: the ``[tool]`` settings; with ``orientation = "normal"`` the desired joint path
+            also points the tool into the first surface
+            (:class:`~hybrid_force.control.pose_clik.PoseJointPath`, numpy); the laws are
+            unchanged: the orientation enters through q_d only.
 
     The CLIK and the laws run compiled, writing into preallocated arrays
     (:class:`~hybrid_force.control.clik.DesiredJointPath`,
@@ -264,15 +270,25 @@ class HybridController:
         settings: ControlSettings | None = None,
         dt: float = 1e-3,
         t0: float = 0.0,
+        tool: ToolSettings | None = None,
     ) -> None:
         self.robot = robot
         self.constraint = constraint
         self.path = path
         self.settings = s = settings or ControlSettings()
+        self.tool = tool = tool or ToolSettings()
         k, n = constraint.k, robot.nv
         q0 = robot.check_q(q0, "q0")
-        qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
-        self.clik = self._joint_path(robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0)
+        self.clik: DesiredJointPath | PoseJointPath
+        if tool.controlled:
+            tool.check_arm(robot)
+            target = ToolTarget(tool, constraint.surfaces[0], path)
+            qd0 = pose_inverse_kinematics(robot, target, t0, q0)
+            clik = ClikSettings(gamma=s.clik_gain)
+            self.clik = PoseJointPath(robot, path, target, qd0, clik, t0=t0)
+        else:
+            qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
+            self.clik = self._joint_path(robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0)
         M0 = robot.mass_matrix(q0) * s.mass_factor
         Kd = default_damping_gain(M0, s.kd_rate) if s.Kd is None else s.Kd
         self.gains: Gains = make_gains(Kd, s.Lambda, s.beta, s.gamma, n)

@@ -23,6 +23,7 @@ from hybrid_force.scenario._tables import (
     _ROBOT,
     _SENSOR,
     _SURFACE,
+    _TOOL,
     _TRAJECTORY,
     _check_table,
     _Context,
@@ -397,6 +398,41 @@ def _control_settings(
                 "sim.model_mass_factor", sim_values["model_mass_factor"], str(exc)
             ) from None
         raise _wrap(ctx, "control", merged, exc) from None
+
+
+def _tool_settings(table: object, robot: Any, ctx: _Context) -> Any:
+    """``[tool]``: the ToolSettings, refused for an arm with too few joints for its task."""
+    from hybrid_force.control.tool import ToolSettings
+
+    values = _check_table(ctx, "tool", table, _TOOL)
+    try:
+        tool = ToolSettings(**values)
+        tool.check_arm(robot)
+    except BadInputError as exc:
+        key = str(exc.key or "tool")
+        raise ctx.error(key, values.get(key.removeprefix("tool.")), str(exc)) from None
+    return tool
+
+
+def _tool_start(
+    tool: Any, robot: Any, surfaces: list[Any], path: Any, q0: Any, raw: object, ctx: _Context
+) -> Any:
+    """The start of ``initial.tip`` with the tool along a_d(0) too (``orientation = "normal"``):
+    the pose inverse kinematics from the position-only solution q0."""
+    from hybrid_force.control.pose_clik import pose_inverse_kinematics
+    from hybrid_force.control.tool import ToolTarget
+
+    try:
+        target = ToolTarget(tool, surfaces[0], path)
+        tip = robot.tip_position(q0)
+        return pose_inverse_kinematics(robot, target, 0.0, q0, position=tip)
+    except ReachError as exc:
+        raise ctx.error(
+            "initial.tip",
+            raw,
+            "start out of reach with the tool along its desired direction (tool.orientation = "
+            f'"normal"): {" ".join(str(exc).split())}',
+        ) from None
 
 
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:

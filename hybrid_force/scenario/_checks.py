@@ -120,6 +120,7 @@ def _check_controller(
     sim: Any,
     control_values: Mapping[str, Any],
     ctx: _Context,
+    tool: Any = None,
 ) -> None:
     """Build the controller once: checks q_d(0) in reach and dt·λ_max(M⁻¹K_d)."""
     from hybrid_force.control.constraint import Constraint
@@ -131,7 +132,7 @@ def _check_controller(
         # the numpy reference: the same checks without loading the compiled kernels (about
         # 1 s), which a sweep's parent, that never simulates, does not need
         period = control_steps(control, sim) * sim.dt  # the law runs at the control rate
-        ReferenceController(robot, constraint, path, q0, control, dt=period)
+        ReferenceController(robot, constraint, path, q0, control, dt=period, tool=tool)
     except ReachError as exc:
         given = path.to_dict()
         start = next((k for k in ("points", "origin") if k in given), "center")
@@ -204,6 +205,52 @@ def _check_path_followable(
             )
         found.append(q)
     return found
+
+
+def _check_pose_followable(
+    robot: Any,
+    surfaces: list[Any],
+    path: Any,
+    tool: Any,
+    q0: Any,
+    duration: float,
+    ctx: _Context,
+) -> list[np.ndarray]:
+    """:func:`_check_path_followable` for ``[tool] orientation = "normal"``: the tip position
+    and the tool direction (and the roll, when held) followed by the pose inverse kinematics
+    (:func:`hybrid_force.control.pose_clik.follow_pose`), the pose task Jacobian as well
+    conditioned as the pose CLIK needs. Returns the configurations found."""
+    from hybrid_force.control.clik import ClikSettings
+    from hybrid_force.control.pose_clik import follow_pose
+    from hybrid_force.control.tool import ToolTarget
+
+    n = int(min(PATH_CHECK_SAMPLES, max(2, math.ceil(duration / PATH_CHECK_STEP) + 1)))
+    what = f'tool.orientation = "normal", tool.roll = "{tool.roll}"'
+    target = ToolTarget(tool, surfaces[0], path)
+    try:
+        samples = follow_pose(
+            robot, target, robot.check_q(q0, "q0"), np.linspace(0.0, duration, n),
+            ClikSettings().damping,
+        )  # fmt: skip
+    except ReachError as exc:
+        raise ctx.error(
+            "tool.orientation",
+            tool.orientation,
+            f"{' '.join(str(exc).split())}, followed from the start ({what}); the tool pose must "
+            f"be reachable over [0, sim.duration = {duration:g} s]",
+        ) from None
+    t, q, singular = samples[-1]
+    if singular is not None:
+        p = [round(float(x), 6) for x in path.position(t)]
+        s_text = ", ".join(f"{x:.3g}" for x in singular)
+        raise ctx.error(
+            "tool.orientation",
+            tool.orientation,
+            f"the desired tool pose ({what}) passes a singular configuration at t = {t:.4g} s "
+            f"(p_d = {p}, q_d = {np.round(q, 6).tolist()}, singular values of the pose task "
+            f"Jacobian: {s_text}); the controller cannot follow it",
+        )
+    return [q for _, q, _ in samples]
 
 
 def _check_sampled_force_loop(

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hybrid_force.control.laws.base import check_options, law_names
+from hybrid_force.control.tool import ORIENTATIONS, ROLLS
 from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
 
 
@@ -42,6 +43,7 @@ class _Key:
 _TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
 _TABLES = (
     "robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "contact", "sim",
+    "tool",
 )  # fmt: skip
 
 _ROBOT: dict[str, _Key] = {
@@ -129,6 +131,14 @@ _CONTROL: dict[str, _Key] = {
     "model": _Key("str"),
     # [control.<law>]: each law's own settings (hybrid_force.control.laws.base.LAWS)
     **{name: _Key("law_table") for name in law_names()},
+}
+
+_TOOL: dict[str, _Key] = {
+    "axis": _Key("vec3"),
+    "orientation": _Key("choice", choices=ORIENTATIONS),
+    "tilt": _Key("number"),
+    "tilt_axis": _Key("vec3"),
+    "roll": _Key("choice", choices=ROLLS),
 }
 
 _SIM: dict[str, _Key] = {

@@ -14,7 +14,9 @@ Checked: TOML syntax (with tomllib's line and column), unknown tables and keys (
 did-you-mean), missing required keys, types and shapes, parameter ranges (by the constructors
 of the surfaces, paths and settings), the desired path lying on every surface over
 [0, sim.duration] (within 1e-6 m), the start in reach (inverse kinematics), the start on the
-surface when the run starts in contact (``control.supervisor = false``), and the gains.
+surface when the run starts in contact (``control.supervisor = false``), the gains, and with
+``[tool] orientation = "normal"`` the arm's joint count and the tool pose followable without a
+singular configuration.
 
 No Python code or expression is ever evaluated: values are plain TOML data, and a string
 where a number is expected is an error, whatever it contains.
@@ -48,6 +50,8 @@ from hybrid_force.scenario._builders import (
     _sensor_settings,
     _sim_settings,
     _surfaces,
+    _tool_settings,
+    _tool_start,
     _trajectory,
     resolve_robot_table,
 )
@@ -59,6 +63,7 @@ from hybrid_force.scenario._checks import (
     _check_controller,
     _check_path_followable,
     _check_path_on_surfaces,
+    _check_pose_followable,
     _check_sampled_force_loop,
     _check_start,
 )
@@ -218,12 +223,18 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     sensor = _sensor_settings(doc.get("sensor", {}), ctx)
     contact = _contact_settings(doc.get("contact", {}), sim, ctx)
     controller_model = _controller_model(control_values, robot, file, ctx)
+    tool = _tool_settings(doc.get("tool", {}), robot, ctx)
     _check_control_rate(control, sim, control_values, ctx)
     _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
+    if tool.controlled and start_key == "initial.tip":
+        q0 = _tool_start(tool, robot, surfaces, path, q0, start_value, ctx)
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
-    _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx)
-    configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
+    _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx, tool)
+    if tool.controlled:
+        configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)
+    else:
+        configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
     _check_sampled_force_loop(
         robot, surfaces, configurations, control, sim, sensor, control_values, ctx
     )
@@ -243,6 +254,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             sensor=sensor,
             controller_model=controller_model,
             contact=contact,
+            tool=tool,
         )
     except BadInputError as exc:  # a rule across tables (e.g. stacked surfaces need no approach)
         raise ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}") from None

@@ -51,7 +51,9 @@ from hybrid_force.control.controller import (
 )
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.control.laws.base import law_log_names
+from hybrid_force.control.pose_clik import PoseJointPath
 from hybrid_force.control.supervisor import HybridController, ReferenceController
+from hybrid_force.control.tool import ToolAngleProbe, ToolTarget
 from hybrid_force.errors import (
     ControlError,
     DivergenceError,
@@ -166,8 +168,9 @@ def simulate(
     saturates = plant.effort is not None
     log = Record(
         N, nq, nv, k, sim.max_velocity, sim.max_force, measured=ctrl.measured,
-        commanded=saturates, law_signals=len(law_signals),
+        commanded=saturates, law_signals=len(law_signals), tool=sc.tool.controlled,
     )  # fmt: skip
+    tool = _ToolLog(sc, law, ctrl.measured) if sc.tool.controlled else None
     meta = _meta(sc, ctrl, k, nq)
     if law_signals:
         meta[LAW_LOG_NAMES] = list(law_signals)
@@ -215,6 +218,8 @@ def simulate(
                 log.u_cmd[i] = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f  # type: ignore[index]
             if log_law_values is not None:
                 log_law_values(log.law_log[i])  # type: ignore[index]
+            if tool is not None:
+                log.tool_angle[i] = tool.angle(t, q)  # type: ignore[index]
             n_logged = i + 1
             if not ok:
                 _check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
@@ -359,6 +364,25 @@ class _ControlSide:
         return NEAR if float(distance.max()) <= self.max_dist else FREE
 
 
+class _ToolLog:
+    """The tool axis' angle from its desired direction a_d(t) at each sample (``[tool]``).
+
+    a_d is the desired joint path's own (it is at time t) when the law runs at the plant's
+    rate, else evaluated at t; the axis is the plant's, at its state q.
+    """
+
+    def __init__(self, sc: Scenario, law: HybridController | None, measured: bool) -> None:
+        self.probe = ToolAngleProbe(sc.robot, sc.tool)
+        clik = law.clik if law is not None else None
+        self.clik = clik if isinstance(clik, PoseJointPath) and not measured else None
+        self.target = ToolTarget(sc.tool, sc.surfaces[0], sc.path)
+
+    def angle(self, t: float, q: np.ndarray) -> float:
+        """[rad] at time t [s] and configuration q (nq,)."""
+        a_d = self.clik.a_d if self.clik is not None else self.target.axis(t)[0]
+        return self.probe.angle(q, a_d)
+
+
 def _control_side(
     sc: Scenario, user: Controller | None, q: np.ndarray, reference: bool
 ) -> _ControlSide:
@@ -378,7 +402,9 @@ def _control_side(
             own.constraint if own is not None else Constraint(sc.surfaces, sim.normalization)
         )
         law_type = ReferenceController if reference else HybridController
-        law = law_type(model_robot, constraint, sc.path, q, sc.control, dt=per_tick * sim.dt)
+        law = law_type(
+            model_robot, constraint, sc.path, q, sc.control, dt=per_tick * sim.dt, tool=sc.tool
+        )
     return _ControlSide(sc, law, user, own, model_robot, per_tick, measured)
 
 
@@ -431,6 +457,7 @@ def _meta(sc: Scenario, ctrl: _ControlSide, k: int, nq: int) -> dict:
         },
         "sensor": sc.sensor.to_dict(),
         "contact": sc.contact.to_dict(),
+        "tool": sc.tool.to_dict(),
         "versions": _versions(),
     }
 

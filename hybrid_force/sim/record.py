@@ -45,6 +45,7 @@ class Record:
         measured: bool = False,
         commanded: bool = False,
         law_signals: int = 0,
+        tool: bool = False,
     ) -> None:
         self.max_velocity, self.max_force = max_velocity, max_force
         # the measured force (N, k), when it is not the plant's force (sampled sensing)
@@ -53,6 +54,8 @@ class Record:
         self.u_cmd: np.ndarray | None = np.zeros((N, nv)) if commanded else None
         # the law's own signals (N, m), when it logs some (Law.log_names)
         self.law_log: np.ndarray | None = np.zeros((N, law_signals)) if law_signals else None
+        # the tool axis' angle from its desired direction (N,) [rad], when the run controls it
+        self.tool_angle: np.ndarray | None = np.zeros(N) if tool else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -115,4 +118,5 @@ class Record:
             f_meas=None if self.f_meas is None else col(self.f_meas),
             u_cmd=None if self.u_cmd is None else own(self.u_cmd),
             law_log=None if self.law_log is None else own(self.law_log),
+            tool_angle=None if self.tool_angle is None else own(self.tool_angle),
         )

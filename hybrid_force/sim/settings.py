@@ -11,6 +11,7 @@ import numpy as np
 
 from hybrid_force.control.controller import check_same_joints
 from hybrid_force.control.supervisor import ControlSettings
+from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import SensorError
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surfaces import Surface
@@ -138,6 +139,10 @@ class Scenario:
         controller_model: the controller's own model of the arm (``control.model``): another
             :class:`~hybrid_force.model.robot.Robot` with the plant's joints (a heavier link, say);
             None: the plant's own model. ``control.mass_factor`` applies on top of it.
+        tool: which way the tool points (the ``[tool]`` table,
+            :class:`~hybrid_force.control.tool.ToolSettings`; default: free, the paper's
+            position-only CLIK). An arm with fewer joints than the tool task has rows is refused
+            (ControlError naming ``tool.orientation`` or ``tool.roll``).
         name: a short name (used for output folders): letters, digits, '_', '-', '.', not
             starting with '.' or '-', at most ``NAME_MAX_LENGTH`` = 100 characters (the
             scenario file's rule, ``NAME_PATTERN``, matched in full). description: free text.
@@ -173,6 +178,7 @@ class Scenario:
     sensor: SensorSettings = field(default_factory=SensorSettings)
     controller_model: Robot | None = None
     contact: ContactSettings = field(default_factory=ContactSettings)
+    tool: ToolSettings = field(default_factory=ToolSettings)
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -258,6 +264,12 @@ class Scenario:
                     f"got {checks.shown(self.controller_model)}"
                 )
             check_same_joints(robot, self.controller_model)
+        if not isinstance(self.tool, ToolSettings):
+            raise Bad(
+                "Scenario.tool must be a hybrid_force.control.tool.ToolSettings, "
+                f"got {checks.shown(self.tool)}"
+            )
+        self.tool.check_arm(robot)
         self._check_start_and_path()
 
     def _check_contact(self) -> None:

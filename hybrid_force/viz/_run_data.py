@@ -33,7 +33,9 @@ class _Run:
     the controller measured [N], or None when it is f (ideal sensing); V: (N,) [J];
     phase: (N,) int (0 free, 1 near, 2 contact); surfaces: surface dicts of the schema;
     events: (t [s], kind) pairs of meta["events"], sorted by time; law_log: (N, m) the law's
-    own signals named by law_log_names (m = 0 when it logged none).
+    own signals named by law_log_names (m = 0 when it logged none); tool_angle: (N,) [rad] the
+    tool axis' angle from its desired direction, or None (a run that did not control it);
+    settle_time: meta["settings"]["settle_time"] [s], or None.
     """
 
     name: str
@@ -49,6 +51,8 @@ class _Run:
     f_meas: np.ndarray | None = None
     law_log: np.ndarray | None = None
     law_log_names: tuple[str, ...] = ()
+    tool_angle: np.ndarray | None = None
+    settle_time: float | None = None
 
     @property
     def k(self) -> int:
@@ -155,6 +159,12 @@ def _load_run(result: object) -> _Run:
         if f_meas.shape != f.shape or np.array_equal(f_meas, f):
             f_meas = None  # ideal sensing: nothing more to draw
     law_log, law_names = _read_law_log(result, meta, n)
+    tool_angle = getattr(result, "tool_angle", None)
+    if tool_angle is not None:
+        tool_angle = np.asarray(tool_angle, dtype=float)
+        if tool_angle.shape != (n,):
+            raise PlotError(f"result.tool_angle has shape {tool_angle.shape}; expected ({n},)")
+    settle = (meta.get("settings") or {}).get("settle_time")
     return _Run(
         name=name,
         t=t,
@@ -169,6 +179,8 @@ def _load_run(result: object) -> _Run:
         f_meas=f_meas,
         law_log=law_log,
         law_log_names=law_names,
+        tool_angle=tool_angle,
+        settle_time=float(settle) if isinstance(settle, int | float) else None,
     )
 
 

@@ -3,7 +3,8 @@
 :func:`plot_result` draws one run (a :class:`hybrid_force.result.Result`, or anything with the
 same attributes, or the path of a saved ``.npz``) as the six PNGs of :data:`FIGURE_NAMES`, listed
 with their paper figures in :mod:`hybrid_force.viz.run_figures`, and those of
-:data:`OPTIONAL_FIGURE_NAMES` when the run has what they show (the law's own signals).
+:data:`OPTIONAL_FIGURE_NAMES` when the run has what they show (the law's own signals, the tool
+angle).
 
 :func:`plot_sweep` draws one metric of a sweep CSV against one swept parameter (line plot) or two
 (heat map).

@@ -16,7 +16,10 @@ meshcat scene:
 * one force arrow per surface, ``/meshcat/replay/force/arrow_<i>``: it ends at the tip and points
   along −n̂ (n̂ = unit surface normal to the free side), i.e. it shows the force the tool applies on
   the surface; its length is ``force_scale · |f|`` [m] capped at ``force_cap``; it is hidden when
-  f = 0.
+  f = 0;
+* for a run with ``[tool] orientation = "normal"``, the tool axis ``/meshcat/replay/tool_axis``:
+  a rod of ``tool_length`` from the tip back along the actual tool axis a = R(q) â (the tool's
+  shaft, its tip on the surface).
 
 Time runs at real speed: the run is resampled at ``fps`` frames per second (linear interpolation
 of q, p and f between samples; the phase of the latest sample) into a

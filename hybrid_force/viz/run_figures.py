@@ -16,6 +16,8 @@ file                  content (paper figure)
 ``lyapunov.png``      V = ½sᵀMs + ½βe_F² (section 5.1) with the contact phase shaded
 ``law_log.png``       only when the law logged signals of its own (``Result.law_log``): each
                       relative to its start, e.g. θ̂/θ_model (:mod:`.law_log_figure`)
+``tool_angle.png``    only for a run with ``[tool] orientation = "normal"``: the angle between the
+                      tool axis and its desired direction, on a log scale, settling time marked
 ===================== ===========================================================================
 
 Each figure is drawn on its own Agg canvas and written atomically (see :mod:`._style`).
@@ -60,8 +62,9 @@ FIGURE_NAMES: tuple[str, ...] = (
     "desired_force",
     "lyapunov",
 )
-#: Files :func:`plot_result` writes after those only when the run has what they show.
-OPTIONAL_FIGURE_NAMES: tuple[str, ...] = (LAW_LOG_FIGURE,)
+#: Files :func:`plot_result` writes after those only when the run has what they show (the law's
+#: own signals; ``tool_angle``: a run that controlled the tool's direction).
+OPTIONAL_FIGURE_NAMES: tuple[str, ...] = (LAW_LOG_FIGURE, "tool_angle")
 
 _MAX_3D_POINTS = 4000  # 3D/2D path lines are decimated to at most this many points
 _KIND_COLOURS = {
@@ -411,14 +414,38 @@ def _fig_lyapunov(run: _Run) -> Figure:
         ax.plot(run.t, run.V, color="k", lw=1.0, label="V")
         _note(ax, "V has no positive finite value: linear scale")
     _shade(ax, run.t, run.phase == NEAR, "tab:orange", "near phase")
+    ylabel = r"$V = \frac{1}{2}s^T M s + \frac{1}{2}\beta e_F^2$ [J]"
+    return _time_panel(fig, ax, run, ylabel, "Lyapunov function")
+
+
+def _time_panel(fig: Figure, ax: Axes, run: _Run, ylabel: str, title: str) -> Figure:
+    """Finish a one-panel figure over the run's time: contact shaded, labels, legend, title."""
     _shade(ax, run.t, run.contact, "tab:green", "contact phase")
     ax.set_xlim(run.t[0], run.t[-1])
     ax.set_xlabel("t [s]")
-    ax.set_ylabel(r"$V = \frac{1}{2}s^T M s + \frac{1}{2}\beta e_F^2$ [J]")
+    ax.set_ylabel(ylabel)
     ax.grid(True, which="both", alpha=0.3)
     _legend_right(ax)
-    ax.set_title(f"{run.name}: Lyapunov function")
+    ax.set_title(f"{run.name}: {title}")
     return fig
+
+
+def _fig_tool_angle(run: _Run) -> Figure:
+    """The angle [rad] between the tool axis and its desired direction, log scale."""
+    fig = _new_figure(8.5, 4.5)
+    ax = fig.add_subplot()
+    angle = run.tool_angle
+    if angle is None:
+        _note(ax, 'no tool angle: the run did not control the tool\'s direction ("free")')
+    elif not _semilog(ax, run.t, angle, color="k", lw=1.0, label="tool angle"):
+        ax.plot(run.t, angle, color="k", lw=1.0, label="tool angle")
+        _note(ax, "the angle has no positive finite value: linear scale")
+    if run.settle_time is not None and run.t[0] <= run.settle_time <= run.t[-1]:
+        ax.axvline(run.settle_time, color="tab:blue", ls="--", lw=1.0, label="settle time")
+    if angle is not None:
+        _mark_nonfinite([ax], run.t, angle, "tool angle")
+    ylabel = r"$\angle(a, a_d)$ [rad]"
+    return _time_panel(fig, ax, run, ylabel, "tool axis from its desired direction")
 
 
 _BUILDERS = {
@@ -428,6 +455,7 @@ _BUILDERS = {
     "force_error": _fig_force_error,
     "desired_force": _fig_desired_force,
     "lyapunov": _fig_lyapunov,
+    "tool_angle": _fig_tool_angle,
 }
 
 
@@ -439,8 +467,9 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     path of a saved result. out_dir is created if needed. Files, in order:
     ``{prefix}path3d.png``, ``projection.png``, ``position_errors.png``, ``force_error.png``,
     ``desired_force.png``, ``lyapunov.png``, then ``law_log.png`` when the law logged signals
-    of its own (see the module docstring). Existing files are replaced atomically. Raises
-    :class:`PlotError` on a missing attribute or wrong shape.
+    of its own and ``tool_angle.png`` for a run with a ``tool_angle`` (see the module
+    docstring). Existing files are replaced atomically. Raises :class:`PlotError` on a missing
+    attribute or wrong shape.
     """
     if os.sep in prefix or (os.altsep and os.altsep in prefix):
         raise PlotError(
@@ -449,7 +478,8 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     run = _load_run(result)
     out = _out_dir(out_dir)
     written: list[Path] = []
-    for name in FIGURE_NAMES:
+    names = FIGURE_NAMES + (("tool_angle",) if run.tool_angle is not None else ())
+    for name in names:
         fig = _BUILDERS[name](run)
         path = out / f"{prefix}{name}.png"
         _save_atomic(fig, path)

@@ -31,6 +31,7 @@ _SURFACE_COLORS: tuple[int, ...] = (0x4A90D9, 0xB07AD9, 0x49B6A6, 0xD9C24A)
 _DESIRED_COLOR = 0x1F77B4
 _ACTUAL_COLOR = 0xD62728
 _FORCE_COLOR = 0xE0C000
+_TOOL_COLOR = 0x303030
 _ROOT = "replay"
 _ROBOT_ROOT = "robot"
 
@@ -49,6 +50,8 @@ class ReplaySettings:
         margin: extra size around the motion for surfaces [m] (at least; 10 % of the span
             is used if larger).
         tip_radius: radius of the tip marker sphere [m].
+        tool_length: length of the tool axis drawn for a run with ``[tool] orientation =
+            "normal"``: a rod from the tip back along the axis [m].
     """
 
     fps: float = 30.0
@@ -58,9 +61,10 @@ class ReplaySettings:
     surface_opacity: float = 0.3
     margin: float = 0.2
     tip_radius: float = 0.045
+    tool_length: float = 0.15
 
     def __post_init__(self) -> None:
-        for name in ("fps", "force_scale", "force_cap", "margin", "tip_radius"):
+        for name in ("fps", "force_scale", "force_cap", "margin", "tip_radius", "tool_length"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise BadInputError(f"ReplaySettings.{name} must be a number, got {value!r}")
@@ -326,7 +330,36 @@ class Replay:
             "force_arrows": [
                 f"/meshcat/{_ROOT}/force/arrow_{i}" for i in range(self.frame_f.shape[1])
             ],
+            "tool_axis": None if self.tool_axis is None else f"/meshcat/{_ROOT}/tool_axis",
         }
+
+    @property
+    def tool_axis(self) -> np.ndarray | None:
+        """(3,) the tool axis in the tip frame, for a run that controlled its direction
+        (``meta["tool"]["orientation"] == "normal"``); else None (no axis is drawn)."""
+        tool = self.result.meta.get("tool")
+        if not isinstance(tool, dict) or tool.get("orientation") != "normal":
+            return None
+        try:
+            axis = np.asarray(tool.get("axis"), dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            return None
+        norm = float(np.linalg.norm(axis))
+        return axis / norm if np.isfinite(norm) and norm > 0 else None
+
+    def _tool_poses(self) -> list[np.ndarray]:
+        """4×4 placement of the tool rod per frame: +y along −a (a = R(q) â), origin at the tip."""
+        import pinocchio as pin
+
+        axis = self.tool_axis
+        assert axis is not None
+        model, data, fid = self.robot.model, self.robot.new_data(), self.robot.tip_id
+        poses = []
+        for q in self.frame_q:
+            pin.forwardKinematics(model, data, q)
+            M = pin.updateFramePlacement(model, data, fid)
+            poses.append(_homogeneous(_rotation_onto(1, -(M.rotation @ axis)), M.translation))
+        return poses
 
     def _visual_objects(self) -> list[Any]:
         return list(self._visual_model().geometryObjects)
@@ -377,6 +410,12 @@ class Replay:
                     with anim.at_frame(vis, i) as frame:
                         frame[name].set_transform(T)
         self._animate_tip_and_force(vis, anim)
+        if self.tool_axis is not None:
+            for i, T in enumerate(self._tool_poses()):
+                if i == 0:
+                    vis[_ROOT]["tool_axis"].set_transform(T)
+                with anim.at_frame(vis, i) as frame:
+                    frame[_ROOT]["tool_axis"].set_transform(T)
         vis.set_animation(anim, play=play, repetitions=repetitions)
 
     def _motion_points(self) -> np.ndarray:
@@ -428,6 +467,15 @@ class Replay:
                 mg.Mesh(mg.Cylinder(head, radiusTop=0.035, radiusBottom=0.0), material)
             )
             arrow["head"].set_transform(_homogeneous(translation=(0, head / 2, 0)))
+        if self.tool_axis is not None:  # the tool: a rod from the tip back along its axis
+            rod = root["tool_axis"]["rod"]
+            rod.set_object(
+                mg.Mesh(
+                    mg.Cylinder(s.tool_length, radius=0.006),
+                    mg.MeshLambertMaterial(color=_TOOL_COLOR),
+                )
+            )
+            rod.set_transform(_homogeneous(translation=(0, s.tool_length / 2, 0)))
 
     def _surface_geometry(self, surface: Any, pts: np.ndarray) -> tuple[Any, np.ndarray]:
         """(meshcat geometry, 4×4 placement) of a surface patch sized around the motion."""

@@ -1,0 +1,384 @@
+"""The desired joint path for a tip position and a tool direction: eq. 27 extended to a pose.
+
+The paper's CLIK (eq. 27, :mod:`hybrid_force.control.clik`) drives the tip position k(q_d) to
+p_d(t). With ``[tool] orientation = "normal"`` the tool axis a(q) = R(q) â (â the axis in the
+tip frame, R the tip's rotation) must also follow a_d(t) (:mod:`hybrid_force.control.tool`).
+
+**Task.** The tip's angular velocity is ω = J_ω q̇ (J_ω the angular rows of the world-aligned
+frame Jacobian), and ȧ = ω × a: only ω across a moves the axis. With ĉ₁, ĉ₂ unit vectors of
+the tip frame completing â to an orthonormal basis, S = [ĉ₁ᵀ; ĉ₂ᵀ] Rᵀ (2×3: the world
+directions c_i = R ĉ_i as rows) selects those two components. The task (m rows) is
+
+    A q̇_d = y,   A = [J_p; S J_ω],   y = [ṗ_d − γ (k(q_d) − p_d); S w],   w = ω_d + γ e
+
+* roll free, m = 5: e = a × a_d (the axis error on SO(3): |e| = sin of the angle, along the
+  axis of the shortest rotation from a to a_d; no Euler angles) and ω_d = a_d × ȧ_d (the
+  angular velocity of a_d across itself). Along the solution, d(a·a_d)/dt = γ ‖a × a_d‖²:
+  the angle θ obeys θ̇ = −γ sin θ, and a = a_d is kept exactly (ω_d × a_d = ȧ_d);
+* roll held, m = 6: S = I and e = ½ Σ r_i × r_di (r_i, r_di the columns of R and R_d: the
+  rotation vector of R_d Rᵀ to first order, exact at zero), ω_d the angular velocity of R_d.
+
+**Solution.** q̇_d = A⁺ y + N z with the damped pseudo-inverse A⁺ = Aᵀ W, W = (AAᵀ + λ²I)⁻¹,
+and for n > m the null-space posture term N z, N = I − A⁺A, z = −k_n (q_d − q_posture). The
+rotation about the axis (roll free) is in that null space.
+
+**Acceleration.** q̈_d is the exact time derivative of q̇_d along q̇ = q̇_d:
+
+    q̈_d = Ȧ⁺ y + A⁺ ẏ + Ṅ z + N ż,   Ȧ⁺ = ȦᵀW + AᵀẆ,   Ẇ = −W(ȦAᵀ + AȦᵀ)W,
+    Ṅ = −(Ȧ⁺A + A⁺Ȧ),   ż = −k_n q̇_d,
+
+with ω = J_ω q̇_d, Ṡ = −S[ω]× (Ṙ = [ω]× R), so Ȧ = [J̇_p; S J̇_ω − S[ω]× J_ω] and
+ẏ = [p̈_d − γ (J_p q̇_d − ṗ_d); S ẇ − S[ω]× w], ẇ = ω̇_d + γ ė with
+ė = (ω × a) × a_d + a × ȧ_d (roll free; ω̇_d = a_d × ä_d) or
+ė = ½ Σ ((ω × r_i) × r_di + r_i × (ω_d × r_di)) (roll held; S = I, Ṡ = 0).
+ȧ_d and ä_d need ∇²Φ and p̈_d (:mod:`hybrid_force.control.tool`).
+
+**Integration.** As :class:`~hybrid_force.control.clik.DesiredJointPath`: each step predicts
+q_d(t + dt) by a second-order Taylor step and corrects it with one Newton step on the task
+residual [p_d − k(q_d); S e] (the pseudo-inverse of the previous step), so position and axis
+stay on their targets to round-off and q̇_d is the CLIK's own velocity. This module is numpy
+(no compiled kernel); the position-only CLIK keeps its compiled path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from hybrid_force.control.clik import _COND_MAX, ClikSettings
+from hybrid_force.control.tool import ToolTarget, axis_angle, cross3
+from hybrid_force.errors import ReachError
+from hybrid_force.geometry.paths import Path
+from hybrid_force.model.robot import LWA, Robot
+
+__all__ = ["PoseJointPath", "follow_pose", "pose_inverse_kinematics"]
+
+_START_TOL = 1e-9  # [m, rad] accepted start residual of position and axis
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    x, y, z = w
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def _complement(axis: np.ndarray) -> np.ndarray:
+    """(2, 3) rows ĉ₁, ĉ₂: with the unit axis, a right-handed orthonormal basis."""
+    ref = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    c1 = cross3(axis, ref)
+    c1 /= np.linalg.norm(c1)
+    return np.array([c1, cross3(axis, c1)])
+
+
+def _orientation_error(R: np.ndarray, R_d: np.ndarray) -> np.ndarray:
+    """e = ½ Σ r_i × r_di (3,): the rotation vector of R_d Rᵀ to first order.
+
+    Σ a_i × b_i = vee(B Aᵀ − A Bᵀ) for the columns a_i, b_i of A, B ([a × b]× = b aᵀ − a bᵀ).
+    """
+    M = R_d @ R.T
+    return 0.5 * np.array((M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1]))
+
+
+class _PoseTask:
+    """The rows of the pose task at one configuration: A, S and the error e (module docstring)."""
+
+    def __init__(self, robot: Robot, target: ToolTarget, held: bool | None = None) -> None:
+        self.robot = robot
+        self.held = target.settings.roll == "held" if held is None else held
+        self.m = 6 if self.held else 5
+        self.axis = np.array(target.settings.axis)
+        self.C = _complement(self.axis)
+
+    def kinematics(
+        self, data: pin.Data, q: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(p (3,), R (3, 3), J (6, n) world-aligned) of the tip at q (fills ``data``)."""
+        model, fid = self.robot.model, self.robot.tip_id
+        pin.computeJointJacobians(model, data, q)
+        M = pin.updateFramePlacement(model, data, fid)
+        return M.translation.copy(), M.rotation.copy(), pin.getFrameJacobian(model, data, fid, LWA)
+
+    def selector(self, R: np.ndarray) -> np.ndarray:
+        """S: (2, 3) the world directions across the axis (roll free), or I (roll held)."""
+        return np.eye(3) if self.held else self.C @ R.T
+
+    def error(self, R: np.ndarray, a_d: np.ndarray, R_d: np.ndarray | None) -> np.ndarray:
+        """e (3,): a × a_d (roll free) or ½ Σ r_i × r_di (roll held)."""
+        if R_d is not None:
+            return _orientation_error(R, R_d)
+        return cross3(R @ self.axis, a_d)
+
+    def rows(self, J: np.ndarray, S: np.ndarray) -> np.ndarray:
+        """A (m, n) = [J_p; S J_ω]."""
+        return np.vstack([J[:3], S @ J[3:]])
+
+
+def _damped_inverse(A: np.ndarray, damping: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """(A⁺ = AᵀW (n, m), W = (AAᵀ + λ²I)⁻¹ (m, m), a cheap upper bound of cond(AAᵀ + λ²I))."""
+    G = A @ A.T
+    G[np.diag_indices(G.shape[0])] += damping**2
+    try:
+        W = np.linalg.inv(G)
+    except np.linalg.LinAlgError:
+        return np.zeros(A.T.shape), np.zeros(G.shape), math.inf
+    m = G.shape[0]  # ‖G‖₂ ≤ m max|G_ij|: an upper bound of the condition number
+    return A.T @ W, W, float(m * m * np.abs(G).max() * np.abs(W).max())
+
+
+def pose_inverse_kinematics(
+    robot: Robot,
+    target: ToolTarget,
+    t: float,
+    seed: np.ndarray,
+    *,
+    position: np.ndarray | None = None,
+    tol: float = 1e-12,
+    max_iter: int = 200,
+) -> np.ndarray:
+    """q (nq,) with the tip at p_d(t) (or ``position``) and the tool axis along a_d(t).
+
+    Damped Newton (Levenberg–Marquardt) iterations on the 5-row residual [p − k(q); S (a × a_d)]
+    from ``seed``; the rotation about the axis stays near the seed's (minimal-norm steps).
+
+    Raises:
+        ReachError: the iterations do not converge (out of reach from the seed), naming the
+            target, the seed and the residual.
+    """
+    task = _PoseTask(robot, target, held=False)  # a held roll starts where the axis task ends
+    p_t = target.path.position(t) if position is None else np.asarray(position, dtype=float)
+    a_t = target.axis(t)[0]
+    q, err = _pose_newton(
+        task, robot.new_data(), p_t, a_t, None, np.array(seed, float), tol, max_iter
+    )
+    if err < tol:
+        return q
+    raise ReachError(
+        f"tip position {np.round(p_t, 6).tolist()} with the tool axis along "
+        f"{np.round(a_t, 6).tolist()} is out of reach of '{robot.name}' from seed "
+        f"{np.round(seed, 4).tolist()}: Newton iterations stopped {err:.3g} away after "
+        f"{max_iter} iterations"
+    )
+
+
+def _pose_newton(
+    task: _PoseTask,
+    data: pin.Data,
+    p_t: np.ndarray,
+    a_t: np.ndarray,
+    R_t: np.ndarray | None,
+    q: np.ndarray,
+    tol: float,
+    max_iter: int,
+) -> tuple[np.ndarray, float]:
+    """The iterations of :func:`pose_inverse_kinematics`: (q, ‖residual‖ [m and rad mixed])."""
+    model = task.robot.model
+    err = math.inf
+    for _ in range(max_iter):
+        p, R, J = task.kinematics(data, q)
+        S = task.selector(R)
+        r = np.concatenate([p_t - p, S @ task.error(R, a_t, R_t)])
+        err = math.sqrt(float(r @ r))
+        if err < tol:
+            return q, err
+        A = task.rows(J, S)
+        # Levenberg–Marquardt: the damping grows with the residual so far-off seeds stay stable
+        lam2 = 1e-10 + 1e-3 * err * err
+        q = pin.integrate(model, q, A.T @ np.linalg.solve(A @ A.T + lam2 * np.eye(task.m), r))
+    return q, err
+
+
+def follow_pose(
+    robot: Robot, target: ToolTarget, q: np.ndarray, times: np.ndarray, damping: float
+) -> list[tuple[float, np.ndarray, np.ndarray | None]]:
+    """The desired pose followed by inverse kinematics from q (the loader's path check).
+
+    Each sample is solved from the previous one (same branch). Returns, per time, (t, q,
+    singular values of A when cond(AAᵀ + λ²I) ≥ the CLIK's limit, else None); stops after
+    the first singular sample. Raises ReachError where a sample is out of reach.
+    """
+    task = _PoseTask(robot, target)
+    start = _PoseTask(robot, target, held=False)  # a held roll starts where the axis task ends
+    data = robot.new_data()
+    out: list[tuple[float, np.ndarray, np.ndarray | None]] = []
+    R_fix = None
+    for t in times:
+        t = float(t)
+        a_t = target.axis(t)[0]
+        R_t = None
+        if task.held:
+            F, _, _ = target.frame(t)
+            R_t = None if R_fix is None else F @ R_fix
+        solver = start if R_fix is None else task
+        q, err = _pose_newton(solver, data, target.path.position(t), a_t, R_t, q, 1e-9, 50)
+        if not err < 1e-9:
+            raise ReachError(f"the desired tool pose is out of reach at t = {t:.4g} s")
+        _, R, J = task.kinematics(data, q)
+        if task.held and R_fix is None:
+            R_fix = F.T @ R  # the roll of the start, kept relative to the travel direction
+        A = task.rows(J, task.selector(R))
+        sv = np.linalg.svd(A, compute_uv=False)
+        singular = not (sv[0] ** 2 + damping**2) < _COND_MAX * (sv[-1] ** 2 + damping**2)
+        out.append((t, q.copy(), sv if singular else None))
+        if singular:
+            break
+    return out
+
+
+class PoseJointPath:
+    """q_d(t), q̇_d(t), q̈_d(t) for a tip path and a tool direction (module docstring).
+
+    The interface of :class:`~hybrid_force.control.clik.DesiredJointPath` (q, qd, qdd, p_d,
+    pdot_d, pddot_d, t, :meth:`advance`, :meth:`task_error`) plus a_d (3,), the desired tool
+    axis now, and :meth:`axis_error`. New arrays every step.
+
+    Args:
+        robot: the arm (n ≥ 5 joints, n ≥ 6 for a held roll).
+        path: the task-space path p_d(t).
+        target: the desired tool direction (:class:`~hybrid_force.control.tool.ToolTarget`).
+        q0: (nq,) q_d(0), with the tip at p_d(0) and the axis along a_d(0)
+            (:func:`pose_inverse_kinematics`); also the null-space posture.
+        settings: the CLIK gains (γ for position and axis alike, damping λ, posture gain k_n).
+        t0: start time [s].
+
+    Raises:
+        ControlError: the arm has fewer joints than the task has rows.
+        ReachError: q0 is not on the start pose, or the task Jacobian is singular on the path.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        path: Path,
+        target: ToolTarget,
+        q0: np.ndarray,
+        settings: ClikSettings | None = None,
+        t0: float = 0.0,
+    ) -> None:
+        target.settings.check_arm(robot)
+        self.robot = robot
+        self.path = path
+        self.target = target
+        self.settings = settings or ClikSettings()
+        self._task = _PoseTask(robot, target)
+        self._data = robot.new_data()
+        n = robot.nv
+        self._redundant = n > self._task.m
+        self._eye = np.eye(n)
+        self.posture = robot.check_q(q0, "q_d(0)").copy()
+        self.q = self.posture.copy()
+        self.t = float(t0)
+        self._R_fix: np.ndarray | None = None
+        self._sample()
+        p, R, _ = self._task.kinematics(self._data, self.q)
+        angle = axis_angle(R @ self._task.axis, self.a_d)
+        if np.linalg.norm(p - self.p_d) > _START_TOL or angle > _START_TOL:
+            raise ReachError(
+                f"q_d(0) = {np.round(self.q, 6).tolist()} puts the tip at "
+                f"{np.round(p, 6).tolist()} with the tool axis {angle:.3g} rad from a_d, not on "
+                f"the start pose (p_d = {np.round(self.p_d, 6).tolist()}, a_d = "
+                f"{np.round(self.a_d, 6).tolist()}); use pose_inverse_kinematics to find q_d(0)"
+            )
+        if self._task.held:
+            F0 = self.R_d  # the frame of travel at t0 (set by _sample while R_fix is None)
+            self._R_fix = F0.T @ R
+            self._sample()
+        self._S = self._task.selector(R)
+        self._Ap = np.zeros((n, self._task.m))
+        self.qd, self.qdd = self._derivatives()
+
+    def _sample(self) -> None:
+        """The path and the desired direction (and frame) at self.t."""
+        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
+        if self._task.held:
+            F, self._w_d, self._wdot_d = self.target.frame(self.t)
+            self.a_d = F[:, 2].copy()
+            self.R_d = F if self._R_fix is None else F @ self._R_fix
+        else:
+            self._a = self.target.axis(self.t)
+            self.a_d = self._a[0]
+            self._w_d = cross3(self._a[0], self._a[1])
+            self._wdot_d = cross3(self._a[0], self._a[2])
+            self.R_d = None
+
+    def advance(self, dt: float) -> None:
+        """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction)."""
+        self.t += dt
+        model, task = self.robot.model, self._task
+        self._sample()
+        q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
+        pin.forwardKinematics(model, self._data, q)
+        M = pin.updateFramePlacement(model, self._data, self.robot.tip_id)
+        e = task.error(M.rotation, self.a_d, self.R_d)
+        r = np.concatenate([self.p_d - M.translation, self._S @ e])
+        self.q = pin.integrate(model, q, self._Ap @ r)
+        self.qd, self.qdd = self._derivatives()
+
+    def _derivatives(self) -> tuple[np.ndarray, np.ndarray]:
+        """q̇_d and its exact time derivative q̈_d at (t, q_d) (module docstring)."""
+        robot, task, cfg = self.robot, self._task, self.settings
+        model, data, fid, q, gamma = robot.model, self._data, robot.tip_id, self.q, cfg.gamma
+        p, R, J = task.kinematics(data, q)
+        S = task.selector(R)
+        A = task.rows(J, S)
+        Ap, W, cond = _damped_inverse(A, cfg.damping)
+        if not cond < _COND_MAX:
+            self._check_conditioning(A, q)
+        self._Ap, self._S = Ap, S
+        e = task.error(R, self.a_d, self.R_d)
+        w = self._w_d + gamma * e
+        y = np.concatenate([self.pdot_d - gamma * (p - self.p_d), S @ w])
+        qd = Ap @ y
+        z = None
+        if self._redundant and cfg.posture_gain > 0:
+            N = self._eye - Ap @ A
+            z = -cfg.posture_gain * pin.difference(model, self.posture, q)
+            qd = qd + N @ z
+        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
+        Jdot = pin.getFrameJacobianTimeVariation(model, data, fid, LWA)
+        omega = J[3:] @ qd
+        Sw = S @ _skew(omega) if not task.held else np.zeros((3, 3))
+        e_dot = self._error_rate(R, omega)
+        w_dot = self._wdot_d + gamma * e_dot
+        A_dot = np.vstack([Jdot[:3], S @ Jdot[3:] - Sw @ J[3:]])
+        y_dot = np.concatenate(
+            [self.pddot_d - gamma * (J[:3] @ qd - self.pdot_d), S @ w_dot - Sw @ w]
+        )
+        W_dot = -W @ (A_dot @ A.T + A @ A_dot.T) @ W
+        Ap_dot = A_dot.T @ W + A.T @ W_dot
+        qdd = Ap_dot @ y + Ap @ y_dot
+        if z is not None:
+            N_dot = -(Ap_dot @ A + Ap @ A_dot)
+            qdd = qdd + N_dot @ z + N @ (-cfg.posture_gain * qd)
+        return qd, qdd
+
+    def _error_rate(self, R: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """ė (3,) along q̇_d: the derivative of a × a_d, or of ½ Σ r_i × r_di."""
+        if self.R_d is None:
+            a = R @ self._task.axis
+            return cross3(cross3(omega, a), self.a_d) + cross3(a, self._a[1])
+        Rdot = _skew(omega) @ R
+        Rd_dot = _skew(self._w_d) @ self.R_d
+        return _orientation_error(Rdot, self.R_d) + _orientation_error(R, Rd_dot)
+
+    def _check_conditioning(self, A: np.ndarray, q: np.ndarray) -> None:
+        """ReachError naming t, q_d and the singular values when cond(AAᵀ + λ²I) ≥ the limit."""
+        s = np.linalg.svd(A, compute_uv=False)
+        lam2 = self.settings.damping**2
+        if (s[0] ** 2 + lam2) < _COND_MAX * (s[-1] ** 2 + lam2):
+            return
+        raise ReachError(
+            f"the pose task Jacobian of '{self.robot.name}' (tip position and tool axis) is "
+            f"singular on the desired path at t = {self.t:.6g} s, q_d = "
+            f"{np.round(q, 6).tolist()} (singular values {s.tolist()})"
+        )
+
+    def task_error(self) -> float:
+        """‖k(q_d) − p_d‖ at the current time [m]."""
+        p, _, _ = self._task.kinematics(self._data, self.q)
+        return float(np.linalg.norm(p - self.p_d))
+
+    def axis_error(self) -> float:
+        """The angle [rad] between the tool axis at q_d and a_d at the current time."""
+        _, R, _ = self._task.kinematics(self._data, self.q)
+        return axis_angle(R @ self._task.axis, self.a_d)
