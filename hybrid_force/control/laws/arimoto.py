@@ -286,7 +286,22 @@ def arimoto_law(
     return Command(u0=u0, B=B), trace
 
 
-class LawWorkspace:
+class _PaperGains:
+    """What both forms of the paper's law share as a :class:`~.base.Law`: their gains, no
+    states of their own (the only integrals are the supervisor's F and F_d)."""
+
+    gains: Gains
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Nothing to advance."""
+
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ as JSON-able data."""
+        g = self.gains
+        return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
+
+
+class LawWorkspace(_PaperGains):
     """Both laws as one compiled call each, writing into arrays preallocated here (hot path).
 
     :func:`arimoto_law` and :func:`free_space_law` above are the readable references; this
@@ -347,14 +362,6 @@ class LawWorkspace:
 
     arimoto = hybrid  # the name before laws became plug-ins
 
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """Nothing to advance: the law's only integrals are the supervisor's F and F_d."""
-
-    def info(self) -> dict[str, object]:
-        """K_d, Λ, β, γ as JSON-able data."""
-        g = self.gains
-        return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
-
     def _run(
         self,
         robot: RobotTerms,
@@ -390,7 +397,7 @@ class LawWorkspace:
         )
 
 
-class ReferenceLaw:
+class ReferenceLaw(_PaperGains):
     """:class:`LawWorkspace`'s interface over the numpy references :func:`arimoto_law` and
     :func:`free_space_law` (new arrays every call): what the reference controller runs."""
 
@@ -426,14 +433,6 @@ class ReferenceLaw:
         return command
 
     arimoto = hybrid  # the name before laws became plug-ins
-
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """Nothing to advance: the law's only integrals are the supervisor's F and F_d."""
-
-    def info(self) -> dict[str, object]:
-        """K_d, Λ, β, γ as JSON-able data."""
-        g = self.gains
-        return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
         """The :class:`ControlTrace` of the last call."""
