@@ -32,9 +32,9 @@ UR5_SEED = np.array([0.0, -1.57, 1.57, -1.57, -1.57, 0.0])
 PANDA_SEED = np.array([0.0, -0.5, 0.0, -2.3, 0.0, 1.8, 0.8])
 TILT = math.radians(15.0)
 
-# UR5: circle of latitude 0.2 m above the centre of a sphere of radius 0.3 (the shipped
-# scenarios/ur5_sphere_normal.toml); Panda: helix on the bottom of a pipe of radius 0.15
-# along world x (scenarios/panda_pipe_tilt.toml), with a faster turn.
+# UR5: circle of latitude 0.2 m above the centre of the sphere of radius 0.3 of the shipped
+# scenarios/ur5_sphere_normal.toml; Panda: helix on the bottom of the pipe of radius 0.15
+# along world x of scenarios/panda_pipe_tilt.toml (closed-form paths, fast turns).
 SPHERE = Sphere(0.3, [0.45, 0.1, 0.0])
 SPHERE_PATH = Circle([0.45, 0.1, 0.2], math.sqrt(0.3**2 - 0.2**2), [0, 0, 1], omega=0.5)
 PIPE = Cylinder(0.15, [0.45, 0.0, 0.4], [1.0, 0.0, 0.0], inside=True)

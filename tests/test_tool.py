@@ -26,7 +26,9 @@ from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import ControlError, ScenarioError
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle, Helix, paper_helix
+from hybrid_force.geometry.raster import RasterPath
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.waypoints import WaypointPath
 from hybrid_force.model.robot import Robot, load_robot
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
@@ -110,6 +112,10 @@ CASES = {
     "plane-tilt-axis": (PLANE, Circle([0.4, 0.1, 0.3], 0.1, [0, 0, 1], 0.7), {
         "tilt": 0.2, "tilt_axis": [0.0, 1.0, 0.5]}),
     "function-surface": (_wavy(), Circle([0.4, 0.1, 0.3], 0.1, [0, 0.3, 1], 0.9), {"tilt": 0.1}),
+    "pipe-waypoints-tilt": (PIPE, WaypointPath(PIPE, [[-2.17, -0.06], [-1.8, -0.04], [-1.4, -0.05]],
+        0.05, frame="surface", ramp=0.25), {"tilt": 0.26}),
+    "sphere-raster-tilt": (SPHERE, RasterPath(SPHERE, (0.6, -0.3), (0.2, 0.6), 0.1, 0.05,
+        direction="v", ramp=0.25), {"tilt": -0.2}),
 }  # fmt: skip
 
 
@@ -141,7 +147,10 @@ def test_axis_derivatives_match_finite_differences(case: str) -> None:
         np.testing.assert_allclose(a[2], fd2, atol=1e-7 * (1 + np.abs(a[2]).max()))
 
 
-@pytest.mark.parametrize("case", ["sphere-tilt", "pipe-tilt", "plane-tilt-axis"])
+@pytest.mark.parametrize(
+    "case",
+    ["sphere-tilt", "pipe-tilt", "plane-tilt-axis", "pipe-waypoints-tilt", "sphere-raster-tilt"],
+)
 def test_frame_rates_match_finite_differences(case: str) -> None:
     target = _target(case, roll="held")
     for t in (0.2, 2.5):
@@ -175,6 +184,22 @@ def test_tilt_is_the_asked_angle_from_the_inward_normal(case: str, tilt: float) 
         else:  # about the tilt axis projected on the tangent plane
             k = np.array(settings.tilt_axis)
             assert abs(a @ (k - (k @ n) * n)) < 1e-12
+
+
+@pytest.mark.parametrize("case", ["pipe-waypoints-tilt", "sphere-raster-tilt"])
+def test_lean_and_roll_are_defined_where_a_surface_path_rests(case: str) -> None:
+    """ṗ_d = 0 at a surface path's start and end: the lean towards the travel and the held
+    roll's frame use the direction it leaves in or arrives from, the limit from inside."""
+    target = _target(case, roll="held")
+    path = target.path
+    for rest, inside in ((0.0, 1e-5), (path.duration, path.duration - 1e-5)):
+        assert np.linalg.norm(path.evaluate(rest)[1]) < 1e-9
+        np.testing.assert_allclose(target.axis(rest)[0], target.axis(inside)[0], atol=1e-6)
+        np.testing.assert_allclose(target.frame(rest)[0], target.frame(inside)[0], atol=1e-6)
+        a, (_, v, _) = target.axis(inside)[0], path.evaluate(inside)
+        n = target.normal(inside)[0][0]
+        assert np.sign(a @ v) == np.sign(target.settings.tilt)  # leaning to or from the travel
+        assert abs(np.linalg.det(np.array([a, n, v]))) < 1e-9 * np.linalg.norm(v)
 
 
 def test_undefined_lean_direction_names_the_time() -> None:
@@ -327,8 +352,8 @@ def pipe_run() -> Result:
 def _simulate(name: str) -> Result:
     from hybrid_force.sim.loop import simulate
 
-    # 8 s: three seconds after the settling time (5 s) of the shipped 12 s runs
-    sc = load_scenario(REPO_ROOT / "scenarios" / f"{name}.toml", {"sim.duration": 8.0})
+    # the whole run: the path moves, passes its turns or waypoints, and stops after settling
+    sc = load_scenario(REPO_ROOT / "scenarios" / f"{name}.toml")
     assert sc.sim.dt == 1e-3 and sc.sensor.ideal and sc.sim.settle_time == 5.0
     return simulate(sc)
 

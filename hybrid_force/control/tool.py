@@ -41,6 +41,7 @@ from hybrid_force import _checks as checks
 from hybrid_force.errors import ControlError, ReachError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import Circle, Helix, Path
+from hybrid_force.geometry.surface_path import SurfacePath
 from hybrid_force.geometry.surfaces import Surface
 
 __all__ = [
@@ -262,7 +263,13 @@ class ToolTarget:
         k = settings.tilt_axis
         self._k = None if k is None else np.array([k, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
 
-    def _velocity_jet(self, t: float, pd: np.ndarray, pdd: np.ndarray) -> np.ndarray:
+    def _travel_jet(self, t: float, pd: np.ndarray, pdd: np.ndarray) -> np.ndarray:
+        """(3, 3) a jet along the direction of travel: only its direction is used.
+
+        A path on a surface gives its unit tangent (defined where it rests, at its ends);
+        other paths give ṗ_d, p̈_d, p⃛_d (undefined where ṗ_d = 0)."""
+        if isinstance(self.path, SurfacePath):
+            return self.path.direction_jet(t)
         return np.array([pd, pdd, path_jerk(self.path, t)])
 
     def normal(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -292,7 +299,7 @@ class ToolTarget:
             d, size = _unit(_cross(n, self._k))
             why = "tool.tilt_axis is along the surface normal"
         else:
-            d, size = _unit(_across(n, self._velocity_jet(t, sample[1], sample[2])))
+            d, size = _unit(_across(n, self._travel_jet(t, sample[1], sample[2])))
             why = "the path does not move across the normal (tool.tilt leans towards the travel)"
         if not size > _MIN_NORM:
             raise ReachError(f"the tool's lean direction is undefined at t = {t:.6g} s: {why}")
@@ -302,7 +309,7 @@ class ToolTarget:
         """(F (3, 3) columns x, a_d × x, a_d; ω_F (3,) [rad/s]; ω̇_F (3,) [rad/s²]) at t [s]."""
         a = self.axis(t)
         _, pd, pdd = self.path.evaluate(t)
-        x, size = _unit(_across(a, self._velocity_jet(t, pd, pdd)))
+        x, size = _unit(_across(a, self._travel_jet(t, pd, pdd)))
         if not size > _MIN_NORM:
             raise ReachError(
                 f'the tool\'s roll is undefined at t = {t:.6g} s: tool.roll = "held" keeps it '
