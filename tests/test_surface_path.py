@@ -29,13 +29,13 @@ PATHS = {
         0.1,
         direction="v",
         ramp=0.3,
-    ),  # fmt: skip
+    ),
     "cylinder waypoints": lambda: WaypointPath(
         Cylinder(0.4, inside=True),
         [[-2.0, 0.0], [-1.6, 0.05], [-1.2, 0.02]],
         0.05,
         frame="surface",
-    ),  # fmt: skip
+    ),
 }
 
 

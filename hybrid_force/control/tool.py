@@ -8,14 +8,19 @@ The tool axis â is a fixed unit vector of the tip frame (``axis``). With ``orie
 
 so the angle between a_d and −n is exactly |θ|. The lean direction d is
 
-* the direction of travel, d = P_n ṗ_d / ‖P_n ṗ_d‖ (P_n = I − n nᵀ), by default: a positive
+* the direction of travel, d = P_n τ / ‖P_n τ‖ (P_n = I − n nᵀ), by default: a positive
   tilt puts the tool's back behind its tip (the tool is pushed), a negative one ahead of it
   (the tool is dragged);
 * d = n × k / ‖n × k‖ with k = ``tilt_axis`` (world): the tool turns by θ about k projected
   on the tangent plane.
 
+τ is ṗ_d for a helix, a circle or a user path (undefined where ṗ_d = 0), and the unit tangent
+dp_d/dℓ for a path on a surface (waypoints, raster), defined also at its rest points, so a
+lean or a held roll works on paths that start and stop at rest
+(:meth:`~hybrid_force.geometry.surface_path.SurfacePath.direction_jet`).
+
 With ``roll = "held"`` the tip frame's whole orientation is prescribed: the desired rotation
-R_d(t) = F(t) F(0)ᵀ R(q_d(0)), F = [x, a_d × x, a_d] with x = P_a ṗ_d / ‖P_a ṗ_d‖ the
+R_d(t) = F(t) F(0)ᵀ R(q_d(0)), F = [x, a_d × x, a_d] with x = P_a τ / ‖P_a τ‖ the
 direction of travel across the axis, keeps the roll the tool has at t = 0 relative to the
 direction of travel (R_d â = a_d, since R(q_d(0)) â = a_d(0)). Its angular velocity is
 ω_d = ½ Σ f_i × ḟ_i and ω̇_d = ½ Σ f_i × f̈_i (f_i the columns of F).
@@ -25,7 +30,8 @@ pose CLIK (:mod:`hybrid_force.control.pose_clik`) needs ȧ_d and ä_d for an exa
 use ∇Φ, ∇²Φ ṗ_d and ∇²Φ p̈_d + (d/dt ∇²Φ) ṗ_d, whose last term is zero on the built-in
 (quadric) surfaces and a central difference of the Hessian otherwise, and, for a lean towards
 the direction of travel or a held roll, the path's third derivative p⃛_d (closed form for a
-helix or a circle, a central difference of p̈_d, error ~1e-10 relative, for other paths).
+helix or a circle, a central difference of p̈_d, error ~1e-10 relative, for user paths) or, on
+a path on a surface, d³p/dℓ³ (a central difference of d²p/dℓ² in arc length).
 """
 
 from __future__ import annotations

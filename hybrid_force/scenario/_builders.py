@@ -7,6 +7,7 @@ The rules across tables, which need the model, are :mod:`hybrid_force.scenario._
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from collections.abc import Mapping
@@ -16,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybrid_force.errors import BadInputError, FrameError, ReachError, RobotError
+from hybrid_force.errors import BadInputError, FrameError, ReachError, RobotError, RunWarning
 from hybrid_force.scenario._tables import (
     _CONTACT,
     _INITIAL,
@@ -433,6 +434,103 @@ def _tool_start(
             "start out of reach with the tool along its desired direction (tool.orientation = "
             f'"normal"): {" ".join(str(exc).split())}',
         ) from None
+
+
+_START_SEEDS = 24
+"""Seeds (within the joint limits, fixed) tried when the start found from ``initial.seed``
+puts a joint outside its limits."""
+
+
+def _wrapped_into_limits(robot: Any, q: np.ndarray) -> np.ndarray:
+    """q with each revolute joint outside its limits turned by a multiple of 2π into them
+    where one fits (the same pose: only the joint's angle is renamed)."""
+    lower, upper = robot.position_limits
+    out = np.array(q, dtype=float)
+    for joint in robot.model.joints[1:]:
+        i = joint.idx_q
+        if joint.nq != 1 or "R" not in joint.shortname().removeprefix("JointModel")[:1]:
+            continue  # prismatic or a continuous (cos, sin) joint
+        if lower[i] <= out[i] <= upper[i]:
+            continue
+        k = math.ceil((lower[i] - out[i]) / (2.0 * math.pi))
+        if out[i] + 2.0 * math.pi * k <= upper[i]:
+            out[i] += 2.0 * math.pi * k
+    return out
+
+
+def _outside_limits(robot: Any, q: np.ndarray) -> list[str]:
+    """The joints of q (nq,) outside their position limits, as 'name = value [lo, hi]'."""
+    lower, upper = robot.position_limits
+    model, names = robot.model, []
+    for j, joint in enumerate(model.joints[1:], start=1):
+        i = joint.idx_q
+        if joint.nq == 1 and not lower[i] <= q[i] <= upper[i]:
+            names.append(f"{model.names[j]} = {q[i]:.4g} (limits [{lower[i]:.4g}, {upper[i]:.4g}])")
+    return names
+
+
+def _start_solver(tool: Any, robot: Any, surfaces: list[Any], path: Any, tip: object) -> Any:
+    """seed (nq,) → a start with the tip at ``tip`` (and the tool along a_d(0) when pointed),
+    as the loader finds it from ``initial.seed``; raises ReachError."""
+    from hybrid_force.control.clik import inverse_kinematics
+    from hybrid_force.control.pose_clik import pose_inverse_kinematics
+    from hybrid_force.control.tool import ToolTarget
+
+    position = np.array(tip, dtype=float)
+    target = ToolTarget(tool, surfaces[0], path) if tool.controlled else None
+
+    def solve(seed: np.ndarray) -> np.ndarray:
+        q = inverse_kinematics(robot, position, seed=seed)
+        if target is None:
+            return q
+        return pose_inverse_kinematics(robot, target, 0.0, q, position=position)
+
+    return solve
+
+
+def _start_in_limits(
+    robot: Any, q0: np.ndarray, solve: Any, seed: np.ndarray | None, key: str
+) -> np.ndarray:
+    """A start within the joint limits for ``initial.tip``.
+
+    The inverse kinematics of the start knows no joint limits: from ``initial.seed`` (or the
+    neutral configuration) it may land on a branch outside them. Then revolute angles are
+    first renamed by 2π, and if a joint is still out, ``solve`` (seed (nq,) → a start q for
+    the same tip, and tool direction when pointed; raises ReachError) is tried from fixed
+    seeds spread over the limits; the in-limits solution nearest to the seed is kept. When
+    none is found, q0 is kept with a RunWarning naming the joints (the run reports them too).
+    """
+    q = _wrapped_into_limits(robot, q0)
+    if not _outside_limits(robot, q):
+        return q
+    lower, upper = robot.position_limits
+    single = [j.idx_q for j in robot.model.joints[1:] if j.nq == 1]  # not (cos, sin) joints
+    lo = np.where(np.isfinite(lower), lower, -math.pi)[single]
+    hi = np.where(np.isfinite(upper), upper, math.pi)[single]
+    rng = np.random.default_rng(0)
+    ref = robot.neutral() if seed is None else np.asarray(seed, dtype=float)
+    best, best_distance = None, math.inf
+    for k in range(_START_SEEDS):
+        candidate = robot.neutral()
+        candidate[single] = 0.5 * (lo + hi) if k == 0 else rng.uniform(lo, hi)
+        try:
+            found = _wrapped_into_limits(robot, solve(candidate))
+        except ReachError:
+            continue
+        distance = float(np.linalg.norm(found - ref))
+        if not _outside_limits(robot, found) and distance < best_distance:
+            best, best_distance = found, distance
+    if best is not None:
+        return best
+    warnings.warn(
+        RunWarning(
+            f"{key}: the start found from the seed puts {', '.join(_outside_limits(robot, q))} "
+            f"outside the joint limits, and none of {_START_SEEDS} other seeds gave a start "
+            "within them; give initial.seed (or initial.q) on the branch you want"
+        ),
+        stacklevel=2,
+    )
+    return q
 
 
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:

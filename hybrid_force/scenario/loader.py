@@ -49,6 +49,8 @@ from hybrid_force.scenario._builders import (
     _robot,
     _sensor_settings,
     _sim_settings,
+    _start_in_limits,
+    _start_solver,
     _surfaces,
     _tool_settings,
     _tool_start,
@@ -229,6 +231,11 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     if tool.controlled and start_key == "initial.tip":
         q0 = _tool_start(tool, robot, surfaces, path, q0, start_value, ctx)
+    if start_key == "initial.tip":
+        q0 = _start_in_limits(
+            robot, q0, _start_solver(tool, robot, surfaces, path, doc["initial"]["tip"]),
+            doc["initial"].get("seed"), start_key,
+        )  # fmt: skip
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
     _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx, tool)
     if tool.controlled:
