@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import BadInputError, HybridForceError, ViewerError
 from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.result import Result
@@ -109,6 +110,7 @@ class Replay:
         settings: :class:`ReplaySettings` (frame rate, force arrow scale, ...).
 
     Raises:
+        MissingExtraError: meshcat cannot be imported (the ``replay`` extra).
         ResultFileError: the file is missing, truncated or not a result.
         ViewerError: the result's robot model cannot be loaded, or a surface cannot be rebuilt.
 
@@ -126,6 +128,7 @@ class Replay:
     def __init__(
         self, result: Result | str | os.PathLike[str], settings: ReplaySettings | None = None
     ) -> None:
+        require_extra("replay", "the 3D replay")  # before loading anything: it draws with meshcat
         self.settings = settings if settings is not None else ReplaySettings()
         self.result = _load_result(result)
         if self.result.n_samples < 1:
