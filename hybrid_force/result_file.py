@@ -28,7 +28,7 @@ from typing import Any, BinaryIO
 import numpy as np
 from numpy.lib.npyio import NpzFile
 
-from hybrid_force._atomic import atomic_file
+from hybrid_force._atomic import atomic_file, prepare_target
 from hybrid_force.errors import BadInputError, ResultFileError
 
 __all__ = [
@@ -186,16 +186,9 @@ def write_arrays(target: Path, arrays: Mapping[str, np.ndarray], meta_text: str)
     Raises:
         ResultFileError: ``target`` is a directory, or its parent cannot be created.
     """
-    if target.is_dir():
-        raise ResultFileError(f"cannot save result to '{target}': it is a directory")
+    prepare_target(target, ResultFileError, "save result")
     payload: dict[str, Any] = dict(arrays)
     payload[META_KEY] = np.array(meta_text, dtype=np.str_)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ResultFileError(
-            f"cannot save result to '{target}': cannot create directory '{target.parent}': {exc}"
-        ) from exc
     with atomic_file(target) as fh:
         np.savez(fh, **payload)
     _fsync_directory(target.parent)
