@@ -1,6 +1,6 @@
 """Benchmark of ``hybrid-force sweep``: how its wall time scales with the number of workers.
 
-Run from the repository root (after ``pip install .``):
+Run from the repository root (after ``pip install ".[all]"``: the Dask engine needs the extra):
 
     python benchmarks/bench_sweep.py [--runs 16] [--duration 5] [--workers 1,2]
                                      [--engines pool,spawn,dask] [--repeat 3] [--json PATH]

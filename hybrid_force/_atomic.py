@@ -16,7 +16,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["atomic_file"]
+from hybrid_force.errors import BadInputError
+
+__all__ = ["atomic_file", "prepare_target"]
 
 
 def _umask() -> int:
@@ -46,3 +48,26 @@ def atomic_file(path: str | os.PathLike[str], mode: str = "wb", **open_kwargs: A
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def prepare_target(
+    target: Path, error: type[BadInputError], action: str, key: str | None = None
+) -> None:
+    """Refuse a ``target`` that is a directory, and create its folder, before
+    :func:`atomic_file` writes it.
+
+    Raises:
+        error: with the message ``cannot <action> to '<target>': ...`` (action: "save result",
+            "write HTML", ...) saying which of the two failed; ``key`` (e.g. the option that
+            named the file) and the target as the error's key and value.
+    """
+    if target.is_dir():
+        raise error(f"cannot {action} to '{target}': it is a directory", key=key, value=target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise error(
+            f"cannot {action} to '{target}': cannot create directory '{target.parent}': {exc}",
+            key=key,
+            value=target,
+        ) from exc

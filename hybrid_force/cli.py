@@ -4,7 +4,8 @@ Subcommands:
 
 * ``run SCENARIO``: load a scenario file (with ``--set table.key=value`` overrides), simulate
   it, print a short summary, write ``DIR/result.npz`` and ``DIR/summary.json`` (and with
-  ``--plot`` the figures, ``--html`` a 3D replay, ``--view`` a live viewer).
+  ``--plot`` the figures, ``--html`` a 3D replay, ``--view`` a live viewer: these need the
+  ``plots`` and ``replay`` extras, checked before the run).
 * ``plot FILE``: the figures of a saved run (``.npz``) or a plot of a sweep (``.csv``).
 * ``replay RESULT.npz``: the 3D replay of a saved run (hybrid_force.viz.replay).
 * ``sweep SCENARIO ...``: a parameter sweep (hybrid_force.studies.sweep defines its options).
@@ -21,7 +22,8 @@ Exit status (the contract README.md documents):
   ``warning: ...`` lines and stored in summary.json);
 * 2: bad input, refused before anything runs (any :class:`~hybrid_force.errors.BadInputError`:
   scenario, model, an output folder that is not writable or is locked by another run, an
-  output path that would replace the run's own files): one line ``error: <message>``;
+  output path that would replace the run's own files, an option whose extra is not installed,
+  :class:`~hybrid_force.errors.MissingExtraError`): one line ``error: <message>``;
 * 1: a run that started and failed (:class:`~hybrid_force.errors.RunFailedError`: diverged,
   lost contact, path singular on the way, an unexpected exception); its partial result and
   summary are saved with ``status = "failed"`` and ``reason``;
@@ -43,6 +45,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force._signals import sigterm_raises
 from hybrid_force.errors import (
     BadInputError,
@@ -220,6 +223,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from hybrid_force.scenario.loader import load_scenario, parse_override
     from hybrid_force.sim.loop import simulate
 
+    # what the options ask for beyond the core, before anything runs (MissingExtraError, exit 2)
+    if args.plot:
+        require_extra("plots", "--plot (the figures)")
+    if args.html is not None or args.view:
+        require_extra("replay", "--html and --view (the 3D replay)")
     overrides: dict[str, object] = {}
     for text in args.set or []:
         key, value = parse_override(text)
@@ -302,6 +310,7 @@ def _plot_result(result: Any, out: Path, *, quiet: bool) -> list[Path]:
 
 def _cmd_plot(args: argparse.Namespace) -> int:
     """Figures of a saved run (.npz) or a sweep plot (.csv)."""
+    require_extra("plots", "figures")  # before the output folder is made
     path = Path(args.file)
     suffix = path.suffix.lower()
     if suffix == ".npz":

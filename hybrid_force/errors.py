@@ -29,6 +29,7 @@ __all__ = [
     "HybridForceWarning",
     "JointLimitError",
     "LostContactError",
+    "MissingExtraError",
     "ModelWarning",
     "OutputError",
     "PathParameterError",
@@ -248,6 +249,22 @@ class PlotError(BadInputError):
 
 class SweepError(BadInputError):
     """A sweep specification (grid, random range, samples, output directory) is invalid."""
+
+
+class MissingExtraError(BadInputError):
+    """A part of the toolkit was asked for whose optional library is not installed: figures
+    (matplotlib, the ``plots`` extra), the 3D replay (meshcat, ``replay``) or the Dask engine
+    (dask and distributed, ``dask``). The message names the extra to install.
+
+    Attributes:
+        module: the library that cannot be imported (``"matplotlib"``).
+        extra: the extra that installs it (``"plots"``): ``pip install "hybrid_force[plots]"``.
+        key, value: as for every :class:`BadInputError`: ``"extra"`` and the extra's name.
+    """
+
+    def __init__(self, message: str, *, module: str, extra: str) -> None:
+        super().__init__(message, key="extra", value=extra)
+        self.module, self.extra = module, extra
 
 
 class FeatureUnavailableError(HybridForceError):

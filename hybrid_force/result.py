@@ -1,18 +1,11 @@
-"""One simulation run on disk and in memory: the :class:`Result` object and its metrics.
+"""One simulation run in memory: the :class:`Result` dataclass, its checks and its metrics.
 
-A :class:`Result` holds the time series of one closed-loop run (issue 5 item 4)
-and a JSON-able ``meta`` dict (scenario, robot, surfaces, path, gains, settings, events, status,
-software versions, speed).  It is saved to, and loaded from, a single ``.npz`` file with exactly
-the arrays ``t q v q_d u p p_d f f_d phi V phase`` plus ``meta`` (the JSON text as a 0-d numpy
-unicode array); no pickle is involved, so ``np.load(path, allow_pickle=False)`` reads it.
-
-Saving is atomic: the archive is written to a temporary file in the target's directory, flushed
-and fsync'ed, then moved onto the target with :func:`os.replace`.  A crash or Ctrl-C during the
-write leaves any earlier file at the target untouched and removes the temporary file.
-
-:meth:`Result.metrics` computes the numbers the paper (section 6) and issue 5 report (position
-and force errors, constraint drift, contact, impacts, convergence) with
-:func:`hybrid_force.metrics.compute_metrics`.
+A :class:`Result` holds the time series of one closed-loop run and a JSON-able ``meta`` dict
+(scenario, robot, surfaces, path, gains, settings, events, status, software versions, speed).
+Its arrays are checked on construction (shapes, dtypes, phase codes, increasing time).
+Saving and loading the single ``.npz`` file are in :mod:`hybrid_force.result_file` (atomic
+write, checked read), the summary in :mod:`hybrid_force.result_summary`, the metrics in
+:mod:`hybrid_force.metrics`; :class:`Result` calls them.
 
 Units: SI throughout (s, m, rad, N, N·m, J, N·s).
 """
@@ -21,19 +14,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
-import zipfile
-import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.lib.npyio import NpzFile
 
-from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
 from hybrid_force.events import EVENT_KINDS  # re-exported: the kinds a run records
 from hybrid_force.law_log import check_law_log
@@ -44,12 +32,22 @@ from hybrid_force.metrics import (  # re-exported: the metrics of a result, comp
     compute_metrics,
 )
 from hybrid_force.phases import Phase
+from hybrid_force.result_file import (  # re-exported: the file's schema
+    ARRAY_NAMES,
+    MAX_META_DEPTH,
+    OPTIONAL_ARRAYS,
+    meta_to_json,
+    read_arrays,
+    write_arrays,
+)
+from hybrid_force.result_summary import summarise
 
 __all__ = [
     "ARRAY_NAMES",
     "CONVERGE_TOLERANCE",
     "DEFAULT_SETTLE_TIME",
     "EVENT_KINDS",
+    "MAX_META_DEPTH",
     "OPTIONAL_ARRAYS",
     "PHASE_CONTACT",
     "PHASE_FREE",
@@ -59,59 +57,13 @@ __all__ = [
     "load_result",
 ]
 
-#: The arrays of a result file, in schema order (``meta`` is stored beside them).
-ARRAY_NAMES: tuple[str, ...] = (
-    "t",
-    "q",
-    "v",
-    "q_d",
-    "u",
-    "p",
-    "p_d",
-    "f",
-    "f_d",
-    "phi",
-    "V",
-    "phase",
-)
-#: Arrays a result file may hold beyond :data:`ARRAY_NAMES` (older files lack them; see
-#: :class:`Result` for the value then).
-OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd", "law_log", "tool_angle")
 #: Phase codes of the ``phase`` array.
 PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT
 _PHASES = tuple(int(p) for p in Phase)
 _STATUSES = ("ok", "failed")
-_META_KEY = "meta"
-#: Deepest nesting of lists and objects accepted in a loaded result's meta.
-MAX_META_DEPTH = 64
-#: Most members an archive may hold (a result has 13).
-_MAX_MEMBERS = 64
 
 
 # --------------------------------------------------------------------------- helpers
-def _json_default(obj: Any) -> Any:
-    """Turn numpy scalars/arrays and paths into plain JSON values (used by ``json.dumps``)."""
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    if isinstance(obj, (tuple, set, frozenset)):
-        return list(obj)
-    raise TypeError(f"{type(obj).__name__} is not JSON-able")
-
-
-def _meta_to_json(meta: Mapping[str, Any]) -> str:
-    """Serialise ``meta`` to strict JSON text (no NaN/inf); BadInputError if impossible."""
-    try:
-        return json.dumps(meta, default=_json_default, allow_nan=False, sort_keys=False)
-    except (TypeError, ValueError) as exc:
-        raise BadInputError(
-            f"Result meta must be JSON-able without NaN/inf (use None): {exc}"
-        ) from exc
-
-
 def _as_float_array(name: str, value: Any) -> np.ndarray:
     """Return ``value`` as a new read-only float64 array; BadInputError for non-real data."""
     arr = np.asarray(value)
@@ -152,92 +104,10 @@ def _check_shape(name: str, arr: np.ndarray, expected: tuple[int, ...]) -> None:
         )
 
 
-def _json_depth(value: Any) -> int:
-    """Nesting depth of JSON data (0 for a scalar), without recursion."""
-    deepest, stack = 0, [(value, 0)]
-    while stack:
-        node, depth = stack.pop()
-        if isinstance(node, dict):
-            node = list(node.values())
-        if isinstance(node, list):
-            deepest = max(deepest, depth + 1)
-            if deepest > MAX_META_DEPTH:
-                return deepest
-            stack.extend((child, depth + 1) for child in node)
-    return deepest
-
-
-def _check_archive(fh: Any, src: Path) -> None:
-    """Refuse, before anything is decompressed or allocated, an archive whose arrays would not
-    fit in memory or whose .npy headers claim more data than their member holds.
-
-    The sizes checked are the zip directory's uncompressed sizes, which ``zipfile`` enforces
-    while reading, and each array header's shape × item size against its member's size (numpy
-    allocates the claimed shape before reading). Zip and header errors propagate to
-    :meth:`Result.load`, which reports them as an unreadable archive.
-    """
-    from numpy.lib import format as npy_format
-
-    from hybrid_force.sim.run_checks import available_memory
-
-    if fh.read(6) == b"\x93NUMPY":
-        raise ResultFileError(
-            f"result file '{src}' holds a single numpy array, not an .npz result archive"
-        )
-    fh.seek(0)
-    with zipfile.ZipFile(fh) as archive:
-        members = archive.infolist()
-        if len(members) > _MAX_MEMBERS:
-            raise ResultFileError(
-                f"result file '{src}' has {len(members)} members; a result has "
-                f"{len(ARRAY_NAMES) + 1}"
-            )
-        total = sum(m.file_size for m in members)
-        free = available_memory()
-        if free is not None and 2 * total > free:
-            raise ResultFileError(
-                f"result file '{src}' would take {total / 2**30:.3g} GiB once decompressed "
-                f"(twice that while loading); {free / 2**30:.3g} GiB of memory is available"
-            )
-        for member in members:
-            # numpy serves "t" as well as "t.npy" as array "t": check every member that
-            # holds an array, whatever its name
-            with archive.open(member) as npy:
-                if npy.read(6) != b"\x93NUMPY":
-                    continue
-                npy.seek(0)
-                version = npy_format.read_magic(npy)
-                if version == (1, 0):
-                    shape, _, dtype = npy_format.read_array_header_1_0(npy)
-                else:
-                    shape, _, dtype = npy_format.read_array_header_2_0(npy)
-            claimed = math.prod(shape) * dtype.itemsize
-            if claimed > member.file_size:
-                name = member.filename.removesuffix(".npy")
-                raise ResultFileError(
-                    f"result file '{src}': array '{name}' claims shape "
-                    f"{shape} ({claimed} bytes) but its member holds {member.file_size} bytes"
-                )
-
-
-def _fsync_directory(directory: Path) -> None:
-    """Best-effort fsync of a directory so a completed rename survives a power cut (POSIX)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
 # --------------------------------------------------------------------------- result
 @dataclass(frozen=True, eq=False, repr=False)
 class Result:
-    """Time series and metadata of one run (the result schema of issue 5 item 4).
+    """Time series and metadata of one run.
 
     N samples, n joints, k constraints (k = 1 in the paper).  Arrays are copied on
     construction, converted to float64 (``phase``: int64) and made read-only.
@@ -376,7 +246,7 @@ class Result:
         """Return a JSON round-tripped copy of ``meta`` after checking status and events."""
         if not isinstance(meta, Mapping):
             raise BadInputError(f"Result meta must be a dict, got {type(meta).__name__}")
-        out = json.loads(_meta_to_json(meta))
+        out = json.loads(meta_to_json(meta))
         status = out.get("status", "ok")
         if status not in _STATUSES:
             raise BadInputError(
@@ -479,25 +349,12 @@ class Result:
         directory is created if missing.  The file name is used as given (no suffix added).
         """
         target = Path(path)
-        if target.is_dir():
-            raise ResultFileError(f"cannot save result to '{target}': it is a directory")
-        meta_text = _meta_to_json(self.meta)
-        payload: dict[str, Any] = {
+        arrays = {
             name: getattr(self, name)
             for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
             if getattr(self, name) is not None  # tool_angle: only when the run has one
         }
-        payload[_META_KEY] = np.array(meta_text, dtype=np.str_)
-        try:
-            target.parent.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ResultFileError(
-                f"cannot save result to '{target}': cannot create directory "
-                f"'{target.parent}': {exc}"
-            ) from exc
-        with atomic_file(target) as fh:
-            np.savez(fh, **payload)
-        _fsync_directory(target.parent)
+        write_arrays(target, arrays, meta_to_json(self.meta))
         return target
 
     @classmethod
@@ -510,71 +367,7 @@ class Result:
                 inconsistent shapes or dtypes.
         """
         src = Path(path)
-        if not src.exists():
-            raise ResultFileError(f"result file '{src}' does not exist")
-        if not src.is_file():
-            raise ResultFileError(f"result file '{src}' is not a regular file")
-        data: dict[str, np.ndarray] = {}
-        try:
-            # open the file ourselves: np.load leaks its handle when the zip is corrupt
-            with src.open("rb") as fh:
-                _check_archive(fh, src)
-                fh.seek(0)
-                loaded = np.load(fh, allow_pickle=False)
-                if not isinstance(loaded, NpzFile):
-                    raise ResultFileError(
-                        f"result file '{src}' holds a single numpy array, not an .npz result "
-                        f"archive"
-                    )
-                with loaded as npz:
-                    names = set(npz.files)
-                    missing = [n for n in (*ARRAY_NAMES, _META_KEY) if n not in names]
-                    if missing:
-                        found = ", ".join(sorted(names)) or "none"
-                        raise ResultFileError(
-                            f"result file '{src}' is not a complete hybrid_force result: "
-                            f"missing array(s) {', '.join(missing)} (found: {found})"
-                        )
-                    for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS, _META_KEY):
-                        if name in names:
-                            data[name] = npz[name]
-        except ResultFileError:
-            raise
-        except (
-            OSError,
-            ValueError,
-            EOFError,
-            zipfile.BadZipFile,
-            zlib.error,
-            KeyError,
-            RuntimeError,
-        ) as exc:  # RuntimeError: an encrypted member; NotImplementedError: unknown compression
-            raise ResultFileError(
-                f"result file '{src}' is not a readable .npz archive (truncated or not a "
-                f"hybrid_force result): {type(exc).__name__}: {exc}"
-            ) from exc
-        meta_arr = data.pop(_META_KEY)
-        if meta_arr.shape != () or meta_arr.dtype.kind != "U":
-            raise ResultFileError(
-                f"result file '{src}': 'meta' must be a 0-d unicode string array of JSON text, "
-                f"got dtype {meta_arr.dtype} shape {meta_arr.shape}"
-            )
-        try:
-            meta = json.loads(str(meta_arr))
-        except json.JSONDecodeError as exc:
-            raise ResultFileError(f"result file '{src}': 'meta' is not valid JSON: {exc}") from exc
-        except RecursionError:
-            meta = None  # nested beyond Python's recursion limit: refused just below
-        depth = _json_depth(meta) if meta is not None else MAX_META_DEPTH + 1
-        if depth > MAX_META_DEPTH:
-            raise ResultFileError(
-                f"result file '{src}': 'meta' is nested more than {MAX_META_DEPTH} levels deep "
-                "(a result's meta needs about 5)"
-            )
-        if not isinstance(meta, dict):
-            raise ResultFileError(
-                f"result file '{src}': 'meta' must be a JSON object, got {type(meta).__name__}"
-            )
+        data, meta = read_arrays(src)
         try:
             return cls(**data, meta=meta)
         except BadInputError as exc:
@@ -596,44 +389,9 @@ class Result:
         return compute_metrics(self, settle_time, converge_tolerance)
 
     def summary(self, settle_time: float | None = None) -> dict[str, Any]:
-        """JSON-able dict: what the run was and how it ended, then its :class:`Metrics`.
-
-        Keys: name, run_id (the same in result.npz's meta: a summary and a result with the same
-        run_id describe the same run), status ("ok" or "failed"), reason (None, "diverged",
-        "lost contact", "interrupted", "path", "error"), error, warnings (lines), steps_per_second,
-        n_samples, t_end [s] (the last sample: earlier than the duration for a failed run),
-        n_events, contact_at_end, lost_contact, left_contact_at [s], joint_range_exceeded,
-        velocity_exceeded and effort_exceeded (joint names; details in meta["limits"]),
-        saturated_time ({joint: seconds} the applied torque was held at an effort limit),
-        friction_energy and damping_energy [J] (dissipated by the contact's friction and
-        compliant damping, docs/contact.md), then the metrics. Keys whose
-        value the run did not record (older results) are None or empty.
-        """
-        meta = self.meta
-        limits = meta.get("limits") or {}
-        out: dict[str, Any] = {
-            "name": meta.get("name"),
-            "run_id": meta.get("run_id"),
-            "status": self.status,
-            "reason": meta.get("reason"),
-            "error": meta.get("error"),
-            "warnings": list(meta.get("warnings") or []),
-            "steps_per_second": meta.get("steps_per_second"),
-            "n_samples": self.n_samples,
-            "t_end": float(self.t[-1]) if self.n_samples else None,
-            "n_events": len(self.events),
-            "contact_at_end": meta.get("contact_at_end"),
-            "lost_contact": meta.get("lost_contact"),
-            "left_contact_at": meta.get("left_at"),
-            "joint_range_exceeded": [v["joint"] for v in limits.get("position", [])],
-            "velocity_exceeded": [v["joint"] for v in limits.get("velocity", [])],
-            "effort_exceeded": [v["joint"] for v in limits.get("effort", [])],
-            "saturated_time": dict(meta.get("saturated_time") or {}),
-            "friction_energy": meta.get("friction_energy"),
-            "damping_energy": meta.get("damping_energy"),
-        }
-        out.update(self.metrics(settle_time).to_dict())
-        return out
+        """JSON-able dict: what the run was and how it ended, then its :class:`Metrics`
+        (the keys: :func:`~hybrid_force.result_summary.summarise`)."""
+        return summarise(self, settle_time)
 
 
 def load_result(path: str | os.PathLike[str]) -> Result:

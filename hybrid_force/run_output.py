@@ -29,7 +29,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from hybrid_force._atomic import atomic_file
+from hybrid_force._atomic import atomic_file, prepare_target
 from hybrid_force.errors import OutputError
 from hybrid_force.viz.plots import FIGURE_NAMES, OPTIONAL_FIGURE_NAMES
 
@@ -70,14 +70,7 @@ class RunOutput:
         what = mine.get(_key(target))
         if what is not None:
             raise OutputError(f"{option} {str(path)!r} is {what}: choose another file")
-        if target.is_dir():
-            raise OutputError(f"{option} {str(path)!r} is a directory, not a file")
-        try:
-            target.parent.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(
-                f"{option} {str(path)!r}: cannot create its folder: {exc.strerror or exc}"
-            ) from None
+        prepare_target(target, OutputError, f"write {option}", key=option)
         _probe(target.parent, option)
         return target
 

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
+import tomllib
+from pathlib import Path
 
 import hybrid_force
 
@@ -70,3 +73,55 @@ def test_names_of_split_modules_stay_importable_from_their_old_module() -> None:
     for name in ("Metrics", "CONVERGE_TOLERANCE", "DEFAULT_SETTLE_TIME"):
         assert getattr(result, name) is getattr(metrics, name), name
     assert hybrid_force.Metrics is metrics.Metrics
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _project() -> dict:
+    return tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+
+
+def test_citation_file_and_changelog_name_the_version_of_the_metadata() -> None:
+    import yaml  # PyYAML comes with mkdocs (the test extra)
+
+    version = _project()["version"]
+    assert hybrid_force.__version__ == version
+    citation = yaml.safe_load((REPO / "docs" / "CITATION.cff").read_text())
+    assert citation["cff-version"] == "1.2.0"
+    assert citation["version"] == version
+    assert citation["license"] == _project()["license"] == "BSD-3-Clause"
+    titles = [ref["title"].strip().lower() for ref in citation["references"]]
+    assert titles == [
+        "modified position-force control for a manipulator geometrically constrained by round "
+        "obstacles"
+    ]
+    changelog = (REPO / "docs" / "changelog.md").read_text()
+    headings = re.findall(r"^## \[([^\]]+)\]", changelog, flags=re.MULTILINE)
+    assert headings[0] == "Unreleased"
+    assert version in headings
+    assert re.search(rf"^## \[{re.escape(version)}\] - \d{{4}}-\d{{2}}-\d{{2}}$", changelog, re.M)
+
+
+def test_licence_file_is_the_bsd_3_clause_text_named_by_the_metadata() -> None:
+    project = _project()
+    assert project["license-files"] == ["hybrid_force/LICENSE"]
+    text = " ".join((REPO / "hybrid_force" / "LICENSE").read_text().split())
+    assert text.startswith("BSD 3-Clause License Copyright (c) 2026, the hybrid_force developers")
+    clauses = [
+        "1. Redistributions of source code must retain the above copyright notice, this list of "
+        "conditions and the following disclaimer.",
+        "2. Redistributions in binary form must reproduce the above copyright notice, this list "
+        "of conditions and the following disclaimer in the documentation and/or other materials "
+        "provided with the distribution.",
+        "3. Neither the name of the copyright holder nor the names of its contributors may be "
+        "used to endorse or promote products derived from this software without specific prior "
+        "written permission.",
+    ]
+    positions = [text.find(clause) for clause in clauses]
+    assert -1 not in positions and positions == sorted(positions), positions
+    assert "4." not in text  # three clauses, not the four of the original BSD licence
+    assert 'THIS SOFTWARE IS PROVIDED BY THE COPYRIGHT HOLDERS AND CONTRIBUTORS "AS IS"' in text
+    assert text.endswith("EVEN IF ADVISED OF THE POSSIBILITY OF SUCH DAMAGE.")
+    # PEP 639: no licence classifier beside a licence expression
+    assert not [c for c in project["classifiers"] if c.startswith("License ::")]

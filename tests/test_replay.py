@@ -27,7 +27,7 @@ from hybrid_force.errors import BadInputError, ResultFileError, ViewerError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.model.robot import load_robot
 from hybrid_force.result import Result
-from hybrid_force.viz import scene
+from hybrid_force.viz import scene_objects
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 
@@ -259,7 +259,7 @@ def test_thin_polyline_keeps_ends_and_bound() -> None:
     t = np.linspace(0.0, 20.0, 20001)
     pts = np.column_stack([np.cos(t), np.sin(t), 0.1 * t])
     pts[:300, 2] = np.linspace(-8.0, 0.0, 300)  # a fast segment at the start
-    idx = scene._thin_polyline(t, pts, 500)
+    idx = scene_objects._thin_polyline(t, pts, 500)
     assert idx[0] == 0 and idx[-1] == t.size - 1
     assert idx.size <= 502 and np.all(np.diff(idx) > 0)
     # the fast segment keeps points: no gap between kept points longer than 0.2 m

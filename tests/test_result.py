@@ -22,9 +22,9 @@ from hybrid_force.result import (
     MAX_META_DEPTH,
     Metrics,
     Result,
-    _json_depth,
     load_result,
 )
+from hybrid_force.result_file import _json_depth
 
 SCHEMA_NAMES = {
     "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas", "u_cmd",

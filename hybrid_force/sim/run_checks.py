@@ -10,25 +10,36 @@ Checks made around :func:`hybrid_force.sim.loop.simulate`, none of which changes
 * :func:`contact_outcome`: whether the tool was on the surface at the end, and when it left.
 
 Each returns plain JSON-able data stored in the result's ``meta`` and shown in the summary.
+Three more stop a run: :func:`check_contact_step` refuses a time step too long for the
+contact model before it starts, :func:`check_finite` (a non-finite or runaway state) and
+:class:`JointLimits` (``sim.joint_limits = "stop"``) raise at the sample that breaks them.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybrid_force.errors import BadInputError
+from hybrid_force.errors import BadInputError, DivergenceError, JointLimitError
 from hybrid_force.events import LimitCrossed
+
+if TYPE_CHECKING:  # annotations only: the loop's settings import this module's callers
+    from hybrid_force.model.robot import Robot
+    from hybrid_force.sim.settings import Scenario, SimSettings
 
 __all__ = [
     "LOG_COPIES",
+    "JointLimits",
     "available_memory",
+    "check_contact_step",
+    "check_finite",
     "check_log_memory",
     "contact_outcome",
     "describe",
+    "joint_names",
     "limit_events",
     "limit_slack",
     "limit_violations",
@@ -237,3 +248,96 @@ def describe(
         when = f" at t = {left:.6g} s" if left is not None else ""
         notes.append(f"the tool left the surface{when} and was not on it at the end")
     return notes
+
+
+class JointLimits:
+    """The position and velocity limits a run with ``sim.joint_limits = "stop"`` stops at."""
+
+    def __init__(self, robot: Robot) -> None:
+        # the slack of run_checks.limit_violations: round-off on a bound is no crossing
+        lower, upper = robot.position_limits
+        self.lower, self.upper = lower - limit_slack(lower), upper + limit_slack(upper)
+        velocity = robot.velocity_limits
+        self.velocity = velocity + limit_slack(velocity, relative=True)
+        self.names = joint_names(robot)
+        self.any = bool(np.isfinite(lower).any() or np.isfinite(upper).any())
+        self.any |= bool(np.isfinite(velocity).any())
+
+    def check(self, t: float, q: np.ndarray, v: np.ndarray) -> None:
+        """Raise JointLimitError naming the first joint beyond a limit at time t [s]."""
+        if (
+            np.all(q >= self.lower)
+            and np.all(q <= self.upper)
+            and np.all(np.abs(v) <= self.velocity)
+        ):
+            return
+        for j, name in enumerate(self.names):
+            if not self.lower[j] <= q[j] <= self.upper[j]:
+                raise JointLimitError(
+                    f"joint {name} left its range [{self.lower[j]:.6g}, {self.upper[j]:.6g}] at "
+                    f't = {t:.6g} s (q = {q[j]:.6g}; sim.joint_limits = "stop")'
+                )
+            if j < v.shape[0] and not abs(v[j]) <= self.velocity[j]:
+                raise JointLimitError(
+                    f"joint {name} exceeded its velocity limit {self.velocity[j]:.6g} at "
+                    f't = {t:.6g} s (v = {v[j]:.6g}; sim.joint_limits = "stop")'
+                )
+
+
+def joint_names(robot: Robot) -> list[str]:
+    """Names of the joints, one per column of q (nq = nv for every arm the loader builds)."""
+    model = robot.model
+    names = [""] * robot.nq
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        for c in range(joint.nq):
+            names[joint.idx_q + c] = model.names[j] if joint.nq == 1 else f"{model.names[j]}[{c}]"
+    return names
+
+
+def check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: SimSettings) -> None:
+    """Raise DivergenceError, with the state, if q (nq,), v (nv,) or f (k,) at time t [s] is
+    not finite or |q̇| or |f| exceeds ``sim.max_velocity`` or ``sim.max_force``."""
+    vmax = float(np.abs(v).max())
+    fmax = float(np.abs(f).max()) if f.size else 0.0
+    if vmax <= sim.max_velocity and fmax <= sim.max_force and np.isfinite(q @ q):
+        return
+    if not (np.isfinite(vmax) and np.isfinite(fmax) and np.all(np.isfinite(q))):
+        raise DivergenceError(
+            f"non-finite state at t = {t:.6g} s: q = {q.tolist()}, v = {v.tolist()}"
+        )
+    if vmax > sim.max_velocity:
+        raise DivergenceError(
+            f"runaway at t = {t:.6g} s: |q̇| = {vmax:.3g} > {sim.max_velocity:.3g} "
+            f"(q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()})"
+        )
+    raise DivergenceError(
+        f"runaway at t = {t:.6g} s: |f| = {fmax:.3g} N > {sim.max_force:.3g} N "
+        f"(q = {np.round(q, 6).tolist()})"
+    )
+
+
+def check_contact_step(sc: Scenario, q0: np.ndarray, f0: float) -> None:
+    """Refuse a time step too long for the contact model (compliant stiffness, friction's
+    regularisation) at the start configuration q0 (nq,); f0 [N]: the task's force."""
+    from hybrid_force.errors import ContactSettingsError
+    from hybrid_force.sim.contact import largest_stable_dt, step_text
+
+    dt_max = largest_stable_dt(sc.contact, sc.robot, sc.surfaces, [q0], f0)
+    if sc.sim.dt > dt_max:
+        raise ContactSettingsError(
+            f"sim.dt = {sc.sim.dt:g} s is too long for the contact "
+            f"({_contact_text(sc.contact.to_dict())}): the largest stable step at the start "
+            f"is {step_text(dt_max)} s (docs/contact.md, time step)",
+            key="sim.dt",
+            value=sc.sim.dt,
+        )
+
+
+def _contact_text(contact: dict) -> str:
+    """The contact settings as the ``[contact]`` keys that matter for the time step."""
+    keys: tuple[str, ...] = ()
+    if contact["model"] == "compliant":
+        keys = ("stiffness", "damping", "exponent")
+    keys += ("friction", "friction_velocity") if contact["friction"] > 0 else ()
+    return ", ".join(f"contact.{k} = {contact[k]:g}" for k in keys)

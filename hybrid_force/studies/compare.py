@@ -29,6 +29,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from hybrid_force._extras import available as extra_available
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import SweepError, did_you_mean
 from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 from hybrid_force.studies.engines import StartMethod
@@ -192,12 +194,13 @@ def run_compare(
         workers, scheduler, progress, start_method: as for
             :func:`~hybrid_force.studies.sweep.run_sweep`.
         on_row: called with every new row of the sweep's table (a finished run).
-        figures: also draw the overlay figures.
+        figures: also draw the overlay figures (needs matplotlib, the ``plots`` extra).
 
     Returns:
         The path of ``compare.csv``.
 
     Raises:
+        MissingExtraError: ``figures`` without matplotlib (checked before any run).
         SweepError: a bad law list, ``control.law`` among the overrides, or anything
             :func:`~hybrid_force.studies.sweep.run_sweep` refuses; ScenarioError: the scenario
             file (checked as every run sees it, before any run).
@@ -209,6 +212,8 @@ def run_compare(
     from hybrid_force.scenario.loader import load_scenario
     from hybrid_force.viz.compare_plots import LawCurve, plot_comparison
 
+    if figures:
+        require_extra("plots", "the overlay figures")
     names = check_laws(laws)
     fixed = dict(overrides or {})
     variants = _variants(names, fixed)
@@ -322,6 +327,13 @@ def compare_command(args: argparse.Namespace) -> int:
             value=args.workers,
         )
     out = Path(args.out) if args.out else Path("runs") / f"{scenario.stem}_compare"
+    # the table does not need matplotlib: without it the figures are skipped, said once
+    figures = extra_available("plots")
+    if not figures:
+        print(
+            'note: no figures: matplotlib is not installed (pip install "hybrid_force[plots]")',
+            file=sys.stderr,
+        )
     t0 = time.monotonic()
     outcome, n_new = run_stoppable(
         lambda on_row: run_compare(
@@ -334,6 +346,7 @@ def compare_command(args: argparse.Namespace) -> int:
             progress=args.progress,
             start_method=args.start_method,
             on_row=on_row,
+            figures=figures,
         ),
         out / RUNS_DIR / _CSV_NAME,
     )
@@ -342,10 +355,8 @@ def compare_command(args: argparse.Namespace) -> int:
     _, rows = read_table(outcome, "compare")
     _print_table(rows, sys.stdout)
     wall = format_duration(time.monotonic() - t0)
-    print(
-        f"compare: {len(rows)} law(s), {n_new} new run(s) in {wall}; wrote {outcome} and the "
-        "figures beside it"
-    )
+    beside = " and the figures beside it" if figures else ""
+    print(f"compare: {len(rows)} law(s), {n_new} new run(s) in {wall}; wrote {outcome}{beside}")
     bad = [r for r in rows if r["status"] != "ok"]
     for r in bad:
         # a run's error starts with its reason ("diverged: ..."); bad input's does not

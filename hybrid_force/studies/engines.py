@@ -22,6 +22,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as _futures_wait
 from typing import Any, Literal
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import SweepError
 from hybrid_force.studies.tasks import _execute, _one_line, _Outcome, _Task, warm_up
 
@@ -358,12 +359,11 @@ class DaskEngine:
 
     def start(self, warm: _Task | None) -> None:
         """Start (or connect to) the cluster and warm its workers with ``warm``."""
-        try:
-            from dask.distributed import Client, LocalCluster
+        require_extra("dask", "the Dask engine (--scheduler)")
+        from dask.distributed import Client, LocalCluster
 
-            from hybrid_force.studies._dask_warm import WarmUp
-        except ImportError as exc:  # pragma: no cover - dask is a dependency
-            raise SweepError(f"--scheduler needs dask.distributed: {exc}") from exc
+        from hybrid_force.studies._dask_warm import WarmUp
+
         stack = self.stack
         if self.scheduler == "local":
             stack.enter_context(single_threaded_workers())

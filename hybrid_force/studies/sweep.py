@@ -58,6 +58,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import SimulationError, SweepError
 from hybrid_force.run_output import locked_folder
 from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
@@ -172,6 +173,7 @@ def run_sweep(
     run ids it holds (except rows with status "error").
 
     Raises:
+        MissingExtraError: a ``scheduler`` without dask installed (the ``dask`` extra).
         SweepError: duplicate variants, more than :data:`MAX_RUNS` of them, a bad out_dir, a
             DIR made from another scenario file, a scenario file changed during the sweep, a
             result that cannot be saved.
@@ -197,6 +199,8 @@ def run_sweep(
         raise SweepError(f"the variant {dup!r} appears more than once")
     if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
         raise SweepError(f"--workers must be a positive integer, got {workers!r}")
+    if scheduler is not None:  # before anything is written
+        require_extra("dask", "the Dask engine (--scheduler)")
     source = _Source(scenario)  # read here, never by a worker; ScenarioError if unreadable
     out = Path(out_dir)
     created = not out.exists()

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import PlotError
 from hybrid_force.viz._style import _legend_right, _new_figure, _note, _out_dir, _save_atomic
 
@@ -141,7 +142,9 @@ def plot_comparison(
 
     Raises:
         PlotError: no curve, or an output folder that cannot be made.
+        MissingExtraError: matplotlib cannot be imported (the ``plots`` extra).
     """
+    require_extra("plots", "figures")
     if not curves:
         raise PlotError("plot_comparison: no law to draw")
     out = _out_dir(out_dir)

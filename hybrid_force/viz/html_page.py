@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from hybrid_force._atomic import atomic_file
+from hybrid_force._atomic import atomic_file, prepare_target
 from hybrid_force.errors import ViewerError
 
 
@@ -93,14 +93,7 @@ window.viewer = viewer;
 
 def _atomic_write_text(target: Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``target`` through a temp file in its folder and os.replace."""
-    if target.is_dir():
-        raise ViewerError(f"cannot write HTML to '{target}': it is a directory")
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ViewerError(
-            f"cannot write HTML to '{target}': cannot create directory '{target.parent}': {exc}"
-        ) from exc
+    prepare_target(target, ViewerError, "write HTML")
     try:
         with atomic_file(target, "w", encoding="utf-8") as fh:
             fh.write(text)

@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import ViewerError
 
 if TYPE_CHECKING:
@@ -87,6 +88,7 @@ class LiveServer:
 
     Raises:
         ViewerError: the port is in use or invalid, or the server did not start.
+        MissingExtraError: meshcat cannot be imported (the ``replay`` extra).
 
     ``url`` is the page to open; ``visualizer()`` returns a ``meshcat.Visualizer`` connected to
     it. ``close()`` (or leaving the ``with`` block) terminates the process and waits for it; the
@@ -98,6 +100,7 @@ class LiveServer:
             isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535
         ):
             raise ViewerError(f"port must be an int in 1..65535 or None (pick one), got {port!r}")
+        require_extra("replay", "the live 3D viewer")
         self.port_requested = port
         self.process: subprocess.Popen[bytes] | None = None
         self._window: _ZmqWindow | None = None

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import PlotError
 from hybrid_force.phases import NEAR
 from hybrid_force.viz._run_data import (
@@ -469,8 +470,10 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     ``desired_force.png``, ``lyapunov.png``, then ``law_log.png`` when the law logged signals
     of its own and ``tool_angle.png`` for a run with a ``tool_angle`` (see the module
     docstring). Existing files are replaced atomically. Raises :class:`PlotError` on a missing
-    attribute or wrong shape.
+    attribute or wrong shape, :class:`~hybrid_force.errors.MissingExtraError` without matplotlib
+    (the ``plots`` extra).
     """
+    require_extra("plots", "figures")
     if os.sep in prefix or (os.altsep and os.altsep in prefix):
         raise PlotError(
             f"prefix {prefix!r} must be a file-name prefix, not contain a path separator"

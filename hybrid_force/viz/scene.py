@@ -1,9 +1,11 @@
-"""The replay scene: a run as meshcat geometry and a real-time animation.
+"""The replay scene: a run prepared for display as meshcat geometry and a real-time animation.
 
 :class:`Replay` loads the run's robot (with its visual geometry, :mod:`.robot_visuals`) and
 surfaces, resamples the run at ``fps`` frames per second and draws the scene on any meshcat
 visualizer: the one recording the self-contained page (:mod:`.html_page`) or a live server's
-(:mod:`.live_server`). The scene's nodes are listed in :mod:`hybrid_force.viz.replay`.
+(:mod:`.live_server`). The fixed objects are drawn by :mod:`.scene_objects`, the animation
+that moves them built by :mod:`.scene_animation`. The scene's nodes are listed in
+:mod:`hybrid_force.viz.replay`.
 """
 
 from __future__ import annotations
@@ -16,24 +18,24 @@ from typing import Any
 
 import numpy as np
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import BadInputError, HybridForceError, ViewerError
 from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.result import Result
 from hybrid_force.viz.html_page import _atomic_write_text, _RecordingWindow, _static_page
 from hybrid_force.viz.live_server import _serve_replay
 from hybrid_force.viz.robot_visuals import _load_options, visual_geometry
+from hybrid_force.viz.scene_animation import animate
+from hybrid_force.viz.scene_objects import (  # PHASE_COLORS re-exported
+    PHASE_COLORS,
+    ROBOT_ROOT,
+    ROOT,
+    draw_static,
+    motion_points,
+    set_camera,
+)
 
 __all__ = ["PHASE_COLORS", "Replay", "ReplaySettings"]
-
-#: Colours (0xRRGGBB) of the tip marker per phase: 0 free, 1 near, 2 contact.
-PHASE_COLORS: tuple[int, int, int] = (0x8C8C8C, 0xF08C1E, 0x2CA02C)
-_SURFACE_COLORS: tuple[int, ...] = (0x4A90D9, 0xB07AD9, 0x49B6A6, 0xD9C24A)
-_DESIRED_COLOR = 0x1F77B4
-_ACTUAL_COLOR = 0xD62728
-_FORCE_COLOR = 0xE0C000
-_TOOL_COLOR = 0x303030
-_ROOT = "replay"
-_ROBOT_ROOT = "robot"
 
 
 # --------------------------------------------------------------------------- settings
@@ -99,88 +101,6 @@ def _load_result(result_or_path: Result | str | os.PathLike[str]) -> Result:
     )
 
 
-def _rotation_onto(axis: int, direction: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) that maps the unit vector of ``axis`` (0 x, 1 y, 2 z) onto the
-    unit vector along ``direction`` (3,)."""
-    import pinocchio as pin
-
-    d = np.asarray(direction, dtype=float)
-    d = d / np.linalg.norm(d)
-    quat = pin.Quaternion.FromTwoVectors(np.eye(3)[axis], d)
-    return np.asarray(quat.toRotationMatrix())
-
-
-def _homogeneous(rotation: np.ndarray | None = None, translation: Any = (0, 0, 0)) -> np.ndarray:
-    """4×4 homogeneous transform from a (3, 3) rotation and a (3,) translation [m]."""
-    T = np.eye(4)
-    if rotation is not None:
-        T[:3, :3] = rotation
-    T[:3, 3] = np.asarray(translation, dtype=float)
-    return T
-
-
-def _thin_polyline(t: np.ndarray, points: np.ndarray, max_points: int) -> np.ndarray:
-    """Indices (M,) ≤ max_points of a polyline, spread evenly in time plus arc length.
-
-    The parameter s = τ/T + ℓ/L (τ elapsed time, ℓ arc length, T and L their totals) grows
-    fast where the path moves fast, so fast segments keep enough points and slow ones are
-    not over-sampled. The first and last samples are always kept.
-    """
-    n = points.shape[0]
-    if n <= max_points:
-        return np.arange(n)
-    finite = np.all(np.isfinite(points), axis=1)
-    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    steps[~(finite[1:] & finite[:-1])] = 0.0
-    arc = np.concatenate(([0.0], np.cumsum(steps)))
-    span_t = float(t[-1] - t[0])
-    s = (t - t[0]) / span_t if span_t > 0 else np.zeros(n)
-    if arc[-1] > 0:
-        s = s + arc / arc[-1]
-    targets = np.linspace(0.0, float(s[-1]), max_points)
-    idx = np.unique(np.clip(np.searchsorted(s, targets), 0, n - 1))
-    idx = np.unique(np.concatenate(([0], idx, [n - 1])))
-    return idx[finite[idx]]
-
-
-class _OpenCylinderGeometry:
-    """Factory for a meshcat CylinderGeometry without end caps (a surface, not a solid)."""
-
-    @staticmethod
-    def make(height: float, radius: float) -> Any:
-        import meshcat.geometry as mg
-
-        class OpenCylinder(mg.Cylinder):
-            def lower(self, object_data: Any) -> dict[str, Any]:
-                out = super().lower(object_data)
-                out["openEnded"] = True
-                out["heightSegments"] = 1
-                return out
-
-        return OpenCylinder(height, radius)
-
-
-class _PlacementCapture:
-    """Stand-in for ``MeshcatVisualizer.viewer`` that records ``set_transform`` per node name."""
-
-    def __init__(self) -> None:
-        self.transforms: dict[str, np.ndarray] = {}
-
-    def __getitem__(self, name: str) -> _PlacementCapture._Node:
-        return _PlacementCapture._Node(self, name)
-
-    class _Node:
-        def __init__(self, owner: _PlacementCapture, name: str) -> None:
-            self.owner = owner
-            self.name = name
-
-        def set_transform(self, matrix: np.ndarray) -> None:
-            self.owner.transforms[self.name] = np.array(matrix, dtype=float)
-
-        def set_property(self, key: str, value: Any) -> None:
-            """Ignored (visibility of visuals is set once on the real viewer)."""
-
-
 # --------------------------------------------------------------------------- the replay
 class Replay:
     """A run prepared for display: robot visuals, surfaces, paths and resampled frames.
@@ -190,6 +110,7 @@ class Replay:
         settings: :class:`ReplaySettings` (frame rate, force arrow scale, ...).
 
     Raises:
+        MissingExtraError: meshcat cannot be imported (the ``replay`` extra).
         ResultFileError: the file is missing, truncated or not a result.
         ViewerError: the result's robot model cannot be loaded, or a surface cannot be rebuilt.
 
@@ -207,6 +128,7 @@ class Replay:
     def __init__(
         self, result: Result | str | os.PathLike[str], settings: ReplaySettings | None = None
     ) -> None:
+        require_extra("replay", "the 3D replay")  # before loading anything: it draws with meshcat
         self.settings = settings if settings is not None else ReplaySettings()
         self.result = _load_result(result)
         if self.result.n_samples < 1:
@@ -315,22 +237,22 @@ class Replay:
 
     def node_paths(self) -> dict[str, Any]:
         """Scene paths (meshcat, '/'-separated) of the drawn objects, by role."""
-        robot_nodes = [f"/meshcat/{_ROBOT_ROOT}/visuals/{g.name}" for g in self._visual_objects()]
+        robot_nodes = [f"/meshcat/{ROBOT_ROOT}/visuals/{g.name}" for g in self._visual_objects()]
         return {
             "robot": robot_nodes,
             "surfaces": [
-                f"/meshcat/{_ROOT}/surfaces/surface_{i}"
+                f"/meshcat/{ROOT}/surfaces/surface_{i}"
                 for i, s in enumerate(self.surfaces)
                 if s is not None
             ],
-            "desired_path": f"/meshcat/{_ROOT}/paths/desired",
-            "actual_path": f"/meshcat/{_ROOT}/paths/actual",
-            "tip": f"/meshcat/{_ROOT}/tip",
-            "phase_markers": [f"/meshcat/{_ROOT}/tip/{name}" for name in PHASE_NAMES],
+            "desired_path": f"/meshcat/{ROOT}/paths/desired",
+            "actual_path": f"/meshcat/{ROOT}/paths/actual",
+            "tip": f"/meshcat/{ROOT}/tip",
+            "phase_markers": [f"/meshcat/{ROOT}/tip/{name}" for name in PHASE_NAMES],
             "force_arrows": [
-                f"/meshcat/{_ROOT}/force/arrow_{i}" for i in range(self.frame_f.shape[1])
+                f"/meshcat/{ROOT}/force/arrow_{i}" for i in range(self.frame_f.shape[1])
             ],
-            "tool_axis": None if self.tool_axis is None else f"/meshcat/{_ROOT}/tool_axis",
+            "tool_axis": None if self.tool_axis is None else f"/meshcat/{ROOT}/tool_axis",
         }
 
     @property
@@ -346,20 +268,6 @@ class Replay:
             return None
         norm = float(np.linalg.norm(axis))
         return axis / norm if np.isfinite(norm) and norm > 0 else None
-
-    def _tool_poses(self) -> list[np.ndarray]:
-        """4×4 placement of the tool rod per frame: +y along −a (a = R(q) â), origin at the tip."""
-        import pinocchio as pin
-
-        axis = self.tool_axis
-        assert axis is not None
-        model, data, fid = self.robot.model, self.robot.new_data(), self.robot.tip_id
-        poses = []
-        for q in self.frame_q:
-            pin.forwardKinematics(model, data, q)
-            M = pin.updateFramePlacement(model, data, fid)
-            poses.append(_homogeneous(_rotation_onto(1, -(M.rotation @ axis)), M.translation))
-        return poses
 
     def _visual_objects(self) -> list[Any]:
         return list(self._visual_model().geometryObjects)
@@ -382,182 +290,15 @@ class Replay:
             play: start playing at once.
             repetitions: how many times the animation plays.
         """
-        import meshcat.animation as ma
         from pinocchio.visualize import MeshcatVisualizer
 
         visual_model = self._visual_model()
         viz = MeshcatVisualizer(self.robot.model, None, visual_model)
         viz.initViewer(viewer=vis)
-        viz.loadViewerModel(rootNodeName=_ROBOT_ROOT)
-        self._draw_static(vis)
-        self._set_camera(vis)
-
-        anim = ma.Animation(default_framerate=self.settings.fps)
-        # robot: record every visual's placement per frame; animate only those that move
-        capture = _PlacementCapture()
-        viz.viewer = capture
-        placements: dict[str, list[np.ndarray]] = {}
-        for q in self.frame_q:
-            viz.display(q)
-            for name, T in capture.transforms.items():
-                placements.setdefault(name, []).append(T)
-        viz.viewer = vis
-        for name, mats in placements.items():
-            stack = np.stack(mats)
-            vis[name].set_transform(stack[0])
-            if np.max(np.abs(stack - stack[0])) > 1e-12:
-                for i, T in enumerate(stack):
-                    with anim.at_frame(vis, i) as frame:
-                        frame[name].set_transform(T)
-        self._animate_tip_and_force(vis, anim)
-        if self.tool_axis is not None:
-            for i, T in enumerate(self._tool_poses()):
-                if i == 0:
-                    vis[_ROOT]["tool_axis"].set_transform(T)
-                with anim.at_frame(vis, i) as frame:
-                    frame[_ROOT]["tool_axis"].set_transform(T)
-        vis.set_animation(anim, play=play, repetitions=repetitions)
-
-    def _motion_points(self) -> np.ndarray:
-        pts = np.vstack([self.result.p, self.result.p_d])
-        return pts[np.all(np.isfinite(pts), axis=1)]
-
-    def _draw_static(self, vis: Any) -> None:
-        import meshcat.geometry as mg
-
-        s = self.settings
-        root = vis[_ROOT]
-        pts = self._motion_points()
-        for i, surface in enumerate(self.surfaces):
-            if surface is None:
-                continue
-            color = _SURFACE_COLORS[i % len(_SURFACE_COLORS)]
-            material = mg.MeshLambertMaterial(
-                color=color, opacity=s.surface_opacity, transparent=True, side=2
-            )
-            material.depthWrite = False
-            geometry, transform = self._surface_geometry(surface, pts)
-            node = root["surfaces"][f"surface_{i}"]
-            node.set_object(mg.Mesh(geometry, material))
-            node.set_transform(transform)
-        # paths
-        r = self.result
-        for name, data, color in (
-            ("desired", r.p_d, _DESIRED_COLOR),
-            ("actual", r.p, _ACTUAL_COLOR),
-        ):
-            idx = _thin_polyline(r.t, data, s.max_path_points)
-            positions = np.ascontiguousarray(data[idx].T, dtype=np.float32)
-            root["paths"][name].set_object(
-                mg.Line(mg.PointsGeometry(positions), mg.LineBasicMaterial(color=color))
-            )
-        # tip marker: one sphere per phase, only the current phase visible
-        for phase, pname in enumerate(PHASE_NAMES):
-            root["tip"][pname].set_object(
-                mg.Mesh(mg.Sphere(s.tip_radius), mg.MeshLambertMaterial(color=PHASE_COLORS[phase]))
-            )
-        # force arrows: unit length along +y, head at the group's origin (the tip)
-        head = 0.25
-        for i in range(self.frame_f.shape[1]):
-            arrow = root["force"][f"arrow_{i}"]
-            material = mg.MeshLambertMaterial(color=_FORCE_COLOR)
-            arrow["shaft"].set_object(mg.Mesh(mg.Cylinder(1.0 - head, radius=0.012), material))
-            arrow["shaft"].set_transform(_homogeneous(translation=(0, head + (1 - head) / 2, 0)))
-            arrow["head"].set_object(
-                mg.Mesh(mg.Cylinder(head, radiusTop=0.035, radiusBottom=0.0), material)
-            )
-            arrow["head"].set_transform(_homogeneous(translation=(0, head / 2, 0)))
-        if self.tool_axis is not None:  # the tool: a rod from the tip back along its axis
-            rod = root["tool_axis"]["rod"]
-            rod.set_object(
-                mg.Mesh(
-                    mg.Cylinder(s.tool_length, radius=0.006),
-                    mg.MeshLambertMaterial(color=_TOOL_COLOR),
-                )
-            )
-            rod.set_transform(_homogeneous(translation=(0, s.tool_length / 2, 0)))
-
-    def _surface_geometry(self, surface: Any, pts: np.ndarray) -> tuple[Any, np.ndarray]:
-        """(meshcat geometry, 4×4 placement) of a surface patch sized around the motion."""
-        import meshcat.geometry as mg
-
-        kind = surface.kind
-        margin = self.settings.margin
-        if kind == "cylinder":
-            axis = np.asarray(surface.axis, dtype=float)
-            center = np.asarray(surface.center, dtype=float)
-            along = (pts - center) @ axis if pts.size else np.zeros(1)
-            lo, hi = float(along.min()), float(along.max())
-            pad = max(margin, 0.1 * (hi - lo))
-            lo, hi = lo - pad, hi + pad
-            mid = center + 0.5 * (lo + hi) * axis
-            geom = _OpenCylinderGeometry.make(hi - lo, float(surface.radius))
-            return geom, _homogeneous(_rotation_onto(1, axis), mid)
-        if kind == "sphere":
-            return mg.Sphere(float(surface.radius)), _homogeneous(
-                translation=np.asarray(surface.center, dtype=float)
-            )
-        if kind == "plane":
-            normal = np.asarray(surface.normal_vector, dtype=float)
-            point = np.asarray(surface.point, dtype=float)
-            if pts.size:
-                centroid = pts.mean(axis=0)
-                foot = centroid - float((centroid - point) @ normal) * normal
-                rel = pts - foot
-                rel = rel - np.outer(rel @ normal, normal)
-                half = float(np.max(np.linalg.norm(rel, axis=1)))
-            else:
-                foot, half = point, 0.0
-            side = 2.0 * (half + max(margin, 0.1 * half))
-            return mg.Box([side, side, 0.004]), _homogeneous(_rotation_onto(2, normal), foot)
-        raise ViewerError(f"cannot draw surface type {kind!r}; valid: cylinder, sphere, plane")
-
-    def _animate_tip_and_force(self, vis: Any, anim: Any) -> None:
-        root = vis[_ROOT]
-        tip_node = root["tip"]
-        force_root = root["force"]
-        n_k = self.frame_f.shape[1]
-        for i in range(self.n_frames):
-            p = self.frame_p[i]
-            phase = int(self.frame_phase[i])
-            arrows = [self._arrow_pose(k, p, self.frame_f[i, k]) for k in range(n_k)]
-            if i == 0:  # the initial state, before the animation starts
-                tip_node.set_transform(_homogeneous(translation=p))
-                for j, pname in enumerate(PHASE_NAMES):
-                    tip_node[pname].set_property("visible", j == phase)
-                for k, (T, length, visible) in enumerate(arrows):
-                    node = force_root[f"arrow_{k}"]
-                    node.set_transform(T)
-                    node.set_property("scale", [1.0, length, 1.0])
-                    node.set_property("visible", visible)
-            with anim.at_frame(vis, i) as frame:
-                ftip = frame[_ROOT]["tip"]
-                ftip.set_transform(_homogeneous(translation=p))
-                for j, pname in enumerate(PHASE_NAMES):
-                    ftip[pname].set_property("visible", "boolean", j == phase)
-                for k, (T, length, visible) in enumerate(arrows):
-                    node = frame[_ROOT]["force"][f"arrow_{k}"]
-                    node.set_transform(T)
-                    node.set_property("scale", "vector3", [1.0, length, 1.0])
-                    node.set_property("visible", "boolean", visible)
-
-    def _arrow_pose(self, k: int, p: np.ndarray, f: float) -> tuple[np.ndarray, float, bool]:
-        """(4×4 placement, length [m], visible) of force arrow k at tip p for force f [N].
-
-        The arrow's local +y axis is the unit normal n̂ to the free side (the arrow, drawn from
-        +y towards its head at the origin, points along −n̂ for f > 0: the force on the surface).
-        """
-        s = self.settings
-        surface = self.surfaces[k] if k < len(self.surfaces) else None
-        if surface is None or not (f != 0.0 and math.isfinite(f)):
-            return _homogeneous(translation=p), 1e-6, False
-        try:
-            n: np.ndarray = np.asarray(surface.normal(p), dtype=np.float64)
-        except HybridForceError:
-            return _homogeneous(translation=p), 1e-6, False
-        direction = n if f > 0 else -n
-        length = min(s.force_scale * abs(float(f)), s.force_cap)
-        return _homogeneous(_rotation_onto(1, direction), p), max(length, 1e-6), True
+        viz.loadViewerModel(rootNodeName=ROBOT_ROOT)
+        draw_static(vis, self)
+        set_camera(vis, self.view_center(), self.result.p_d)
+        animate(vis, viz, self, play=play, repetitions=repetitions)
 
     def view_center(self) -> np.ndarray:
         """(3,) point of the run's world frame shown at the centre of the view [m].
@@ -567,30 +308,10 @@ class Replay:
         """
         pts = self.result.p_d[np.all(np.isfinite(self.result.p_d), axis=1)]
         if not pts.size:
-            pts = self._motion_points()
+            pts = motion_points(self.result)
         if not pts.size:
             return np.zeros(3)
         return 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-
-    def _set_camera(self, vis: Any) -> None:
-        """Centre the view on the task: shift the scene and the grid, place the camera.
-
-        meshcat's orbit controls turn about the three.js origin, so the run's world frame
-        (``/meshcat``, holding the robot and every replay object) is translated by −c, c =
-        :meth:`view_center`; the grid and axes are shifted likewise so they stay on z = 0 of the
-        run. Positions in the run's world frame are positions relative to the ``/meshcat`` node.
-        """
-        center = self.view_center()
-        pts = self.result.p_d[np.all(np.isfinite(self.result.p_d), axis=1)]
-        half = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) / 2 if pts.size else 0.0
-        radius = max(half, 1.2)
-        shift = _homogeneous(translation=-center)
-        vis.set_transform(shift)
-        vis["/Grid"].set_transform(shift)
-        vis["/Axes"].set_transform(shift)
-        # camera position in the y-up 'rotated' frame: (x, z_up, -y)
-        eye = 2.4 * radius * np.array([0.8, 0.45, 0.6])
-        vis["/Cameras/default/rotated/<object>"].set_property("position", eye.tolist())
 
     # ------------------------------------------------------------------ outputs
     def html(self) -> str:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import PlotError, did_you_mean
 from hybrid_force.viz._style import _new_figure, _note, _out_dir, _save_atomic
 
@@ -281,8 +282,10 @@ def plot_sweep(
     colour (or y) scale is logarithmic when the positive metric spans more than 2 decades.
     Writes a PNG to out_path atomically (parent directories created) and returns out_path.
     Raises :class:`PlotError` naming the file and listing the columns when x, y or metric is not
-    a column, when the metric holds text in an ok row, and when the file is missing or empty.
+    a column, when the metric holds text in an ok row, and when the file is missing or empty;
+    :class:`~hybrid_force.errors.MissingExtraError` without matplotlib (the ``plots`` extra).
     """
+    require_extra("plots", "figures")
     sweep = _read_sweep(csv_path)
     sweep.require(x, "x")
     sweep.require(metric, "metric")

@@ -1,0 +1,58 @@
+"""The summary of a run: what it was, how it ended, and its metrics, as one JSON-able dict.
+
+:func:`summarise` is what :meth:`hybrid_force.result.Result.summary` returns and what
+``hybrid-force run`` writes as ``summary.json`` beside ``result.npz``; the sweep's table rows
+are built from it too.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # for annotations only: the Result imports this module
+    from hybrid_force.result import Result
+
+__all__ = ["summarise"]
+
+
+def summarise(result: Result, settle_time: float | None = None) -> dict[str, Any]:
+    """JSON-able dict: what the run was and how it ended, then its metrics.
+
+    Keys: name, run_id (the same in result.npz's meta: a summary and a result with the same
+    run_id describe the same run), status ("ok" or "failed"), reason (None, "diverged",
+    "lost contact", "interrupted", "path", "error"), error, warnings (lines), steps_per_second,
+    n_samples, t_end [s] (the last sample: earlier than the duration for a failed run),
+    n_events, contact_at_end, lost_contact, left_contact_at [s], joint_range_exceeded,
+    velocity_exceeded and effort_exceeded (joint names; details in meta["limits"]),
+    saturated_time ({joint: seconds} the applied torque was held at an effort limit),
+    friction_energy and damping_energy [J] (dissipated by the contact's friction and
+    compliant damping, docs/contact.md), then the metrics
+    (:class:`~hybrid_force.metrics.Metrics`, with ``settle_time`` [s] as in
+    :meth:`~hybrid_force.result.Result.metrics`). Keys whose value the run did not record
+    (older results) are None or empty.
+    """
+    meta = result.meta
+    limits = meta.get("limits") or {}
+    out: dict[str, Any] = {
+        "name": meta.get("name"),
+        "run_id": meta.get("run_id"),
+        "status": result.status,
+        "reason": meta.get("reason"),
+        "error": meta.get("error"),
+        "warnings": list(meta.get("warnings") or []),
+        "steps_per_second": meta.get("steps_per_second"),
+        "n_samples": result.n_samples,
+        "t_end": float(result.t[-1]) if result.n_samples else None,
+        "n_events": len(result.events),
+        "contact_at_end": meta.get("contact_at_end"),
+        "lost_contact": meta.get("lost_contact"),
+        "left_contact_at": meta.get("left_at"),
+        "joint_range_exceeded": [v["joint"] for v in limits.get("position", [])],
+        "velocity_exceeded": [v["joint"] for v in limits.get("velocity", [])],
+        "effort_exceeded": [v["joint"] for v in limits.get("effort", [])],
+        "saturated_time": dict(meta.get("saturated_time") or {}),
+        "friction_energy": meta.get("friction_energy"),
+        "damping_energy": meta.get("damping_energy"),
+    }
+    out.update(result.metrics(settle_time).to_dict())
+    return out

@@ -1,0 +1,191 @@
+"""What a run records about itself: its meta before it starts, its Result and failure at the end.
+
+:func:`run_meta` is the metadata known before the loop starts (scenario, robot, surfaces,
+path, the controller's gains and settings, software versions). :func:`finish_result` turns the
+loop's log into the :class:`~hybrid_force.result.Result` with what the run must say about itself
+(limits crossed, effort saturation, the contact outcome, warnings; the checks are in
+:mod:`hybrid_force.sim.run_checks`). :func:`run_failure` is the
+:class:`~hybrid_force.errors.RunFailedError` that reports whatever stopped a run.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import uuid
+import warnings
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from hybrid_force.errors import (
+    DivergenceError,
+    JointLimitError,
+    ReachError,
+    RunFailedError,
+    RunInterruptedError,
+    RunWarning,
+    SingularConfigurationError,
+)
+from hybrid_force.events import Event
+from hybrid_force.geometry.paths import Path, PathParameterError
+from hybrid_force.model.robot import Robot
+from hybrid_force.result import Result
+from hybrid_force.sim.record import Record
+from hybrid_force.sim.run_checks import (
+    contact_outcome,
+    describe,
+    joint_names,
+    limit_events,
+    limit_violations,
+    saturated_time,
+)
+from hybrid_force.sim.settings import Scenario
+
+if TYPE_CHECKING:  # annotations only
+    from hybrid_force.sim.control_side import ControlSide
+    from hybrid_force.sim.plant import Plant
+
+__all__ = ["finish_result", "merge_events", "run_failure", "run_meta"]
+
+
+def _versions() -> dict:
+    from hybrid_force import __version__
+
+    return {
+        "hybrid_force": __version__,
+        "pinocchio": pin.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def _jsonable(x: object) -> object:
+    return json.loads(json.dumps(x, default=lambda o: np.asarray(o).tolist()))
+
+
+def run_meta(sc: Scenario, ctrl: ControlSide, k: int, nq: int) -> dict:
+    """The run's metadata known before it starts (the loop adds status, events, timing)."""
+    sim, law = sc.sim, ctrl.law
+    return {
+        "name": sc.name,
+        "run_id": uuid.uuid4().hex,
+        "description": sc.description,
+        "scenario": _jsonable(sc.source) if sc.source is not None else None,
+        # what re-loads the arm from any folder: model (registry name or absolute path), tip,
+        # package_dirs, xacro_args, lock_off_chain
+        "robot": {**sc.robot.reference, "nq": nq},
+        "surfaces": [s.to_dict() for s in sc.surfaces],
+        "path": _path_meta(sc.path),
+        "controller": {
+            "law": sc.control.law if law is not None else type(ctrl.user).__name__,
+            "model": ctrl.model_robot.reference,
+            # the running law's own gains and settings (the paper's K_d, Λ, β, γ for arimoto)
+            "settings": _jsonable(law.law.info()) if law is not None else None,
+        },
+        "gains": None
+        if law is None
+        else {
+            "Kd": law.gains.Kd.tolist(),
+            "Lambda": law.gains.Lambda,
+            "beta": law.gains.beta,
+            "gamma": law.gains.gamma,
+            "f_d": law.f_d_contact.tolist(),
+            "clik_gain": sc.control.clik_gain,
+            "max_dist": sc.control.max_dist,
+            "contact_tol": sc.control.contact_tol,
+            "P": sc.control.P,
+            "approach_rate": law.approach_rate,
+            "mass_factor": sc.control.mass_factor,
+            "supervisor": sc.control.supervisor,
+        },
+        "settings": {
+            "dt": sim.dt,
+            "duration": sim.duration,
+            "integrator": sim.integrator,
+            "settle_time": sim.settle_time,
+            "baumgarte_alpha": sim.baumgarte.alpha,
+            "baumgarte_beta": sim.baumgarte.beta,
+            "unilateral": sim.unilateral,
+            "normalization": sim.normalization,
+            "control_rate": 1.0 / ctrl.period,
+            "seed": sim.seed,
+        },
+        "sensor": sc.sensor.to_dict(),
+        "contact": sc.contact.to_dict(),
+        "tool": sc.tool.to_dict(),
+        "versions": _versions(),
+    }
+
+
+def _path_meta(path: Path) -> dict:
+    """The path for the result's metadata: its dict, or its type and repr for a FunctionPath
+    (Python callables cannot be stored; the run itself is not affected)."""
+    try:
+        return path.to_dict()
+    except PathParameterError:
+        return {"type": "function", "repr": repr(path)}
+
+
+def merge_events(a: Sequence[Event | dict], b: Sequence[Event | dict]) -> list[dict]:
+    """Both lists of events as the stored dicts (:meth:`Event.to_dict`), in time order."""
+    stored = [e.to_dict() if isinstance(e, Event) else e for e in [*a, *b]]
+    events: list[dict] = _jsonable(stored)  # type: ignore[assignment]  # a list stays a list
+    return sorted(events, key=lambda e: e["t"])
+
+
+def run_failure(exc: BaseException, name: str, t: float) -> RunFailedError:
+    """The RunFailedError that reports ``exc``, which stopped run ``name`` at time t [s]."""
+    where = f"run '{name}' stopped at t = {t:.6g} s"
+    if isinstance(exc, KeyboardInterrupt):
+        signal_name = getattr(exc, "signal", "SIGINT")
+        return RunInterruptedError(f"{where}: interrupted ({signal_name})", signal=signal_name)
+    if isinstance(exc, JointLimitError):
+        return JointLimitError(f"{where}: {exc}")
+    if isinstance(exc, DivergenceError):
+        return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
+    if isinstance(exc, ReachError):
+        failure = RunFailedError(f"{where}: the desired path cannot be followed: {exc}")
+        failure.reason = "path"
+        return failure
+    if isinstance(exc, SingularConfigurationError | np.linalg.LinAlgError):
+        return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
+    return RunFailedError(f"{where} by an unexpected error: {type(exc).__name__}: {exc}")
+
+
+def finish_result(
+    log: Record, n: int, meta: dict, k: int, robot: Robot, plant: Plant, warn: bool = True
+) -> Result:
+    """The Result of the first n samples, with what the run must say about itself in meta.
+
+    Adds ``limits`` (joints beyond their range, velocity or effort limit, see
+    :func:`~hybrid_force.sim.run_checks.limit_violations`; the effort against the commanded
+    torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
+    ``saturated_time`` ({joint: s} held at an effort limit, when the plant enforces them),
+    ``friction_energy`` and ``damping_energy`` [J] (dissipated by the contact),
+    ``contact_at_end``, ``lost_contact``, ``left_at`` and ``warnings`` (one line each, also
+    issued as Python warnings with ``warn``: a failed run reports its failure, not them).
+    """
+    names = joint_names(robot)
+    lower, upper = robot.position_limits
+    u_cmd = log.u[:n] if log.u_cmd is None else log.u_cmd[:n]
+    limits = limit_violations(
+        names, lower, upper, robot.effort_limits, log.t[:n], log.q[:n], u_cmd,
+        robot.velocity_limits, log.v[:n],
+    )  # fmt: skip
+    saturated = None
+    if plant.effort is not None:
+        saturated = saturated_time(names, plant.effort, u_cmd, float(meta["settings"]["dt"]))
+    outcome = contact_outcome(plant.ever_in_contact, plant.in_contact, meta.get("events", []))
+    notes = describe(limits, outcome, saturated)
+    for note in notes if warn else ():
+        warnings.warn(f"run '{meta.get('name')}': {note}", RunWarning, stacklevel=3)
+    events = merge_events(meta.get("events", []), limit_events(limits))
+    meta.update(
+        limits=limits, saturated_time=saturated or {}, warnings=notes, events=events, **outcome
+    )
+    # [J] dissipated by the plant's friction and compliant damping (docs/contact.md)
+    meta.update(friction_energy=plant.friction_energy, damping_energy=plant.damping_energy)
+    return log.result(n, meta, k)
