@@ -6,12 +6,76 @@ arithmetic, so the formulas are written as loops and compiled once (cached on di
 ``_kernels`` module sits beside the concept it computes and is imported only on first use
 (:class:`hybrid_force._lazy.LazyKernels`; Numba takes about 0.5 s to import). Conventions:
 outputs are preallocated arrays passed last and written in place.
+
+Numba is imported by the first :func:`jit`, not by this module, so that the command line can
+say beforehand (:func:`own_kernels_only`) that its process runs no other compiled code.
 """
 
 from __future__ import annotations
 
-import numba
+import contextlib
+import sys
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
 
-# error_model="numpy": a division by zero gives inf/nan (checked by the caller) instead of
-# raising inside compiled code. No fastmath: the IEEE operation order is kept.
-jit = numba.njit(cache=True, error_model="numpy")
+__all__ = ["jit", "own_kernels_only"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+_decorator: Callable[[Any], Any] | None = None
+_without_scipy = False
+
+
+def jit(func: F) -> F:
+    """Compile ``func`` with Numba: nopython, cached on disk, numpy's error model.
+
+    error_model="numpy": a division by zero gives inf/nan (checked by the caller) instead of
+    raising inside compiled code. No fastmath: the IEEE operation order is kept.
+    """
+    global _decorator
+    if _decorator is None:
+        import numba
+
+        if _without_scipy:
+            _load_numpy_support_without_scipy()
+        _decorator = numba.njit(cache=True, error_model="numpy")
+    compiled: F = _decorator(func)
+    return compiled
+
+
+@contextlib.contextmanager
+def own_kernels_only() -> Iterator[None]:
+    """While open, Numba is loaded (by the first :func:`jit`) without importing SciPy.
+
+    Numba's NumPy support checks at its import whether SciPy's BLAS is there, by importing
+    ``scipy.linalg`` (about 0.1 s, a tenth of a short command). The answer changes only how
+    np.convolve and np.correlate are compiled (a loop instead of a BLAS call); no kernel uses
+    them (they use loops, np.empty, np.zeros and np.abs), and np.dot or np.linalg still find
+    SciPy when first compiled. For processes that compile no other code than the kernels: the
+    command line's. A Python program that imports hybrid_force keeps Numba's default.
+    """
+    global _without_scipy
+    before = _without_scipy
+    _without_scipy = True
+    try:
+        yield
+    finally:
+        _without_scipy = before
+
+
+def _load_numpy_support_without_scipy() -> None:
+    """Import Numba's NumPy support while ``scipy.linalg.cython_blas`` is marked absent.
+
+    A None in ``sys.modules`` makes an import of that name fail at once (Python's documented
+    way to block one), so Numba records "no BLAS" instead of importing SciPy; the mark is
+    removed afterwards, and a later ``import scipy.linalg`` works as usual.
+    """
+    name = "scipy.linalg.cython_blas"
+    if "numba.np.arraymath" in sys.modules or name in sys.modules:
+        return
+    sys.modules[name] = None  # type: ignore[assignment]
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        if sys.modules.get(name, 0) is None:
+            del sys.modules[name]
