@@ -22,7 +22,7 @@ __all__ = ["jit", "own_kernels_only"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-_decorator: Callable[[Any], Any] | None = None
+_decorator: Any = None  # numba.njit(...), made by the first jit()
 _without_scipy = False
 
 
