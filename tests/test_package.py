@@ -16,11 +16,12 @@ def test_every_public_name_resolves() -> None:
 
 
 def test_import_does_not_load_plotting_viewer_or_cluster_libraries() -> None:
+    # nor Numba (the kernels load on first use), SciPy, or the package metadata (__version__)
     code = (
         "import sys, hybrid_force; "
         "print(','.join(m for m in ('matplotlib', 'meshcat', 'dask', 'distributed', 'zmq', "
         "'playwright', 'hybrid_force.viz.plots', 'hybrid_force.viz.replay', "
-        "'hybrid_force.studies.sweep') "
+        "'hybrid_force.studies.sweep', 'numba', 'scipy', 'importlib.metadata') "
         "if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
