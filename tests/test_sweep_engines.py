@@ -118,6 +118,33 @@ def test_warm_up_never_raises_and_changes_no_row(tmp_path: Path, scenario: Path)
     tasks.warm_up(broken)  # a variant that cannot run: nothing raised
 
 
+@pytest.mark.parametrize("enabled", [True, False])
+def test_warm_up_pauses_the_garbage_collector_and_leaves_it_as_it_was(
+    scenario: Path, monkeypatch: pytest.MonkeyPatch, enabled: bool
+) -> None:
+    import gc
+
+    task = tasks._Source(scenario).job(run_id({}), {}, keep=False)
+    assert isinstance(task, tasks._Task)
+    seen: list[bool] = []
+    execute = tasks._execute
+
+    def spy(t: tasks._Task) -> tasks._Outcome:
+        seen.append(gc.isenabled())
+        if enabled:
+            raise RuntimeError("a warm-up that fails still gives the collector back")
+        return execute(t)
+
+    monkeypatch.setattr(tasks, "_execute", spy)
+    was = gc.isenabled()
+    try:
+        (gc.enable if enabled else gc.disable)()
+        tasks.warm_up(task)
+        assert seen == [False] and gc.isenabled() is enabled
+    finally:
+        (gc.enable if was else gc.disable)()
+
+
 def test_the_scenario_is_checked_as_every_variant_sees_it(tmp_path: Path) -> None:
     """A key the grid fixes to one value is part of the scenario the command checks; a file
     broken elsewhere is refused before anything is written, and its workers are stopped."""
