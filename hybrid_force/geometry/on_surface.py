@@ -78,7 +78,8 @@ def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray
         p = np.asarray(raw, dtype=float)
     except (TypeError, ValueError, OverflowError):
         p = np.full(1, np.nan)
-    if p.shape != (3,) or not np.isfinite(p).all():
+    # math.isfinite on the 3 floats: a fifth of np.isfinite(p).all()'s cost, 2001+ times a check
+    if p.shape != (3,) or not all(map(math.isfinite, p.tolist())):
         raise PathParameterError(
             f"path {path!r} gives a non-finite or wrongly shaped position "
             f"{checks.shown(raw)} at t={t!r}"
