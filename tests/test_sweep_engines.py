@@ -180,6 +180,62 @@ def test_the_scenario_is_checked_as_every_variant_sees_it(tmp_path: Path) -> Non
     assert multiprocessing.active_children() == []  # the pool's workers were stopped
 
 
+def test_tasks_sent_ahead_are_run_once_and_their_rows_kept_only_if_still_to_do(
+    scenario: Path,
+) -> None:
+    source = tasks._Source(scenario)
+    a, b, c = (
+        source.job(run_id(v), v, keep=False)
+        for v in expand({"control.Lambda": [2.0, 3.0, 5.0]}, {}, 0, 0)
+    )
+    assert all(isinstance(t, tasks._Task) for t in (a, b, c))
+    engine = engines.PoolEngine(1, 3, "spawn")
+    try:
+        engine.start(None)
+        engine.send_ahead(iter([a, b]))  # one worker: only the first is sent
+        assert engine.sent_ahead == {a.run_id}
+        rows: list[dict] = []
+        lost: list[str] = []
+        # a's variant is no longer to do (say, finished by another sweep): its row is dropped
+        engine.run(iter([(c.run_id, c)]), 1, lambda row, blob: rows.append(row), lost, ahead=())
+        assert [r["run_id"] for r in rows] == [c.run_id] and lost == []
+    finally:
+        engine.close()
+    engine = engines.PoolEngine(1, 3, "spawn")
+    try:
+        engine.start(None)
+        engine.send_ahead(iter([a]))
+        rows = []
+        engine.run(
+            iter([(b.run_id, b)]), 1, lambda row, blob: rows.append(row), lost, ahead={a.run_id}
+        )
+    finally:
+        engine.close()
+    # each once, with the row it gives when run alone
+    assert sorted(r["run_id"] for r in rows) == sorted([a.run_id, b.run_id])
+    alone = tasks._execute(a)[0]
+    drop = set(TIMING_COLUMNS)
+    kept = next(r for r in rows if r["run_id"] == a.run_id)
+    assert {k: v for k, v in kept.items() if k not in drop} == {
+        k: v for k, v in alone.items() if k not in drop
+    }
+
+
+def test_a_sweep_runs_each_variant_once_with_the_first_sent_ahead(
+    tmp_path: Path, scenario: Path
+) -> None:
+    todo = expand({"control.Lambda": [2.0, 3.0, 5.0, 8.0]}, {}, 0, 0)
+    seen: list[str] = []
+    path = run_sweep(
+        scenario, todo, workers=2, out_dir=tmp_path / "o", progress=False,
+        start_method="spawn", on_row=lambda row: seen.append(row["run_id"]),
+    )  # fmt: skip
+    assert sorted(seen) == sorted(run_id(v) for v in todo)  # every row once, none twice
+    _, rows = read_sweep_csv(path)
+    assert [r["run_id"] for r in rows] == [run_id(v) for v in todo]
+    assert not list((tmp_path / "o").glob(".scratch-*"))  # the runs' folders removed
+
+
 def test_a_bad_start_method_is_refused(tmp_path: Path, scenario: Path) -> None:
     with pytest.raises(SweepError, match="start_method"):
         run_sweep(scenario, [{}], out_dir=tmp_path / "o", start_method="thread")  # type: ignore[arg-type]

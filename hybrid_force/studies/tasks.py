@@ -134,15 +134,7 @@ class _Source:
         """
         from hybrid_force.scenario.loader import read_scenario_document
 
-        try:
-            unchanged = _signature(self.path) == self.signature
-        except OSError:
-            unchanged = False
-        if not unchanged:
-            raise SweepError(
-                f"the scenario file '{self.path}' was changed or removed during the sweep; "
-                "the finished rows are kept, but a new version of the file needs another --out"
-            )
+        self.check_unchanged()
         try:
             doc = read_scenario_document(self.path, dict(params))
             urdf, robot_meta = self._urdf(doc)
@@ -153,6 +145,19 @@ class _Source:
             row["wall_time"] = 0.0
             return row
         return _Task(rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta)
+
+    def check_unchanged(self) -> None:
+        """SweepError if the file was changed or removed since it was first read (the rows of
+        two versions of a scenario would share a table)."""
+        try:
+            unchanged = _signature(self.path) == self.signature
+        except OSError:
+            unchanged = False
+        if not unchanged:
+            raise SweepError(
+                f"the scenario file '{self.path}' was changed or removed during the sweep; "
+                "the finished rows are kept, but a new version of the file needs another --out"
+            )
 
     def _urdf(self, doc: Mapping[str, Any]) -> tuple[_Urdf | None, dict[str, Any]]:
         """The model file ``robot.model`` names (relative to the scenario's folder; None for a
