@@ -30,8 +30,9 @@ def test_import_does_not_load_plotting_viewer_or_cluster_libraries() -> None:
 
 def test_a_command_loads_numba_without_scipy_and_runs_the_same(tmp_path) -> None:
     # A command compiles only the kernels, so Numba's check for SciPy's BLAS (importing
-    # scipy.linalg) is skipped there (hybrid_force._jit.own_kernels_only); the run is the same
-    # as in a process that imports hybrid_force and keeps Numba's default.
+    # scipy.linalg) and its look for extensions in every package's entry points are skipped
+    # there (hybrid_force._jit.own_kernels_only); the run is the same as in a process that
+    # imports hybrid_force and keeps Numba's defaults.
     import numpy as np
 
     from hybrid_force.result import load_result
@@ -40,17 +41,20 @@ def test_a_command_loads_numba_without_scipy_and_runs_the_same(tmp_path) -> None
 
     scenario = Path(__file__).parents[1] / "scenarios" / "paper_contact.toml"
     code = (
-        "import sys\n"
+        "import sys, importlib.metadata as md\n"
+        "scans, entry_points = [], md.entry_points\n"  # Numba's look for its extensions
+        "md.entry_points = lambda *a, **k: scans.append(a) or entry_points(*a, **k)\n"
         "from hybrid_force import cli\n"
         f"status = cli.main(['run', {str(scenario)!r}, '--set', 'sim.duration=0.05', "
         f"'--out', {str(tmp_path)!r}, '--quiet'])\n"
         "import numba.np.arraymath as am\n"
         "print(status, 'scipy.linalg' in sys.modules, am._HAVE_BLAS)\n"
+        "print(len(scans))\n"
         "import scipy.linalg.cython_blas\n"  # still importable: the mark was taken off
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["0", "False", "False"]
+    assert out.stdout.split() == ["0", "False", "False", "0"]
     # a Python program keeps Numba's default (SciPy's BLAS found)
     code = "import hybrid_force.sim._kernels, numba.np.arraymath as am; print(am._HAVE_BLAS)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
