@@ -197,7 +197,8 @@ def test_tasks_sent_ahead_are_run_once_and_their_rows_kept_only_if_still_to_do(
         rows: list[dict] = []
         lost: list[str] = []
         # a's variant is no longer to do (say, finished by another sweep): its row is dropped
-        engine.run(iter([(c.run_id, c)]), 1, lambda row, blob: rows.append(row), lost, ahead=())
+        assert engine.keep_ahead({b.run_id, c.run_id}) == frozenset()
+        engine.run(iter([(c.run_id, c)]), 1, lambda row, blob: rows.append(row), lost)
         assert [r["run_id"] for r in rows] == [c.run_id] and lost == []
     finally:
         engine.close()
@@ -205,10 +206,9 @@ def test_tasks_sent_ahead_are_run_once_and_their_rows_kept_only_if_still_to_do(
     try:
         engine.start(None)
         engine.send_ahead(iter([a]))
+        assert engine.keep_ahead({a.run_id, b.run_id}) == {a.run_id}
         rows = []
-        engine.run(
-            iter([(b.run_id, b)]), 1, lambda row, blob: rows.append(row), lost, ahead={a.run_id}
-        )
+        engine.run(iter([(b.run_id, b)]), 1, lambda row, blob: rows.append(row), lost)
     finally:
         engine.close()
     # each once, with the row it gives when run alone

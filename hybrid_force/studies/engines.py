@@ -320,20 +320,18 @@ class PoolEngine:
 
     @property
     def sent_ahead(self) -> frozenset[str]:
-        """The run ids of the tasks :meth:`send_ahead` started."""
+        """The run ids of the tasks :meth:`send_ahead` started (and :meth:`keep_ahead` kept)."""
         return frozenset(self.ahead.values())
 
-    def run(
-        self,
-        jobs: Iterator[Job],
-        n_jobs: int,
-        finish: Finish,
-        lost: list[str],
-        ahead: Collection[str] = (),
-    ) -> None:
-        """Run every job, rows handed to ``finish`` as they come back, with the tasks sent
-        ahead whose run ids are in ``ahead`` (the others' rows are dropped); ``n_jobs``: how
-        many ``jobs`` yields."""
+    def keep_ahead(self, todo: Collection[str]) -> frozenset[str]:
+        """Keep the tasks sent ahead whose run ids are in ``todo`` (:meth:`run` takes their
+        rows; the others' are dropped); return the run ids kept."""
+        self.ahead = {f: rid for f, rid in self.ahead.items() if rid in todo}
+        return self.sent_ahead
+
+    def run(self, jobs: Iterator[Job], n_jobs: int, finish: Finish, lost: list[str]) -> None:
+        """Run every job (``n_jobs`` of them) and the tasks kept ahead, rows handed to
+        ``finish`` as they come back."""
         pool = self.pool
         assert pool is not None, "start() first"
         _pump(
@@ -345,7 +343,7 @@ class PoolEngine:
             lost,
             _ChunkSize(n_jobs, self.n),
             stop_on_loss=True,
-            in_flight={f: [rid] for f, rid in self.ahead.items() if rid in ahead},
+            in_flight={f: [rid] for f, rid in self.ahead.items()},
         )
 
     def close(self, failed: bool = False) -> None:
@@ -417,21 +415,15 @@ class DaskEngine:
             with contextlib.suppress(Exception):
                 self.client.register_plugin(WarmUp(warm), name=WarmUp.name)
 
-    #: Nothing is sent ahead to a cluster (its workers warm up on their own schedule).
-    sent_ahead: frozenset[str] = frozenset()
-
     def send_ahead(self, tasks: Iterable[_Task]) -> None:
-        """Nothing: see :attr:`sent_ahead`."""
+        """Nothing is sent ahead to a cluster (its workers warm up on their own schedule)."""
 
-    def run(
-        self,
-        jobs: Iterator[Job],
-        n_jobs: int,
-        finish: Finish,
-        lost: list[str],
-        ahead: Collection[str] = (),
-    ) -> None:
-        """Run every job, rows handed to ``finish`` as they come back (``ahead``: unused)."""
+    def keep_ahead(self, todo: Collection[str]) -> frozenset[str]:
+        """None sent ahead, none kept."""
+        return frozenset()
+
+    def run(self, jobs: Iterator[Job], n_jobs: int, finish: Finish, lost: list[str]) -> None:
+        """Run every job, rows handed to ``finish`` as they come back."""
         from dask.distributed import wait as dask_wait
 
         client = self.client

@@ -332,11 +332,11 @@ def _run_todo(
         report.draw()
         report.close()
         return lost
-    ahead = engine.sent_ahead & {rid for rid, _ in todo}
+    ahead = engine.keep_ahead({rid for rid, _ in todo})
     rest = [(rid, v) for rid, v in todo if rid not in ahead]
     try:
         with report:
-            engine.run(_jobs(source, rest, keep_dir), len(rest), finish, lost, ahead)
+            engine.run(_jobs(source, rest, keep_dir), len(rest), finish, lost)
     finally:
         table.write()
     return lost
