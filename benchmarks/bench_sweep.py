@@ -127,7 +127,7 @@ timed(engines, "warm_up", "warm-up (load the kernels)")
 timed(_jit, "jit", "  of which: import Numba (the first jit)", first_only=True)
 timed(loader, "scenario_from_document", "  of which: build the warm-up's scenario")
 timed(loader, "load_scenario", "check the scenario")
-timed(engines.PoolEngine, "run", "runs and rows")
+timed(engines.PoolEngine, "run", "runs and rows (waited for after the check)")
 status = cli.main(sys.argv[1:])
 spent["until the command returns"] = time.perf_counter() - t0
 print(json.dumps(spent), file=sys.stderr)
