@@ -8,8 +8,6 @@ on Pinocchio and URDF. The public names are re-exported here; see README.md.
 from __future__ import annotations
 
 import sys as _sys
-from importlib.metadata import PackageNotFoundError as _NotInstalled
-from importlib.metadata import version as _version
 
 from hybrid_force import _compat
 from hybrid_force.control.clik import ClikSettings, DesiredJointPath, inverse_kinematics
@@ -101,10 +99,7 @@ from hybrid_force.sim.dynamics import (
 from hybrid_force.sim.loop import Scenario, SimSettings, simulate
 from hybrid_force.sim.sensors import SensorSettings
 
-try:  # one source: the version in pyproject.toml, as installed
-    __version__: str = _version("hybrid_force")
-except _NotInstalled:  # run from a source tree that is not installed
-    __version__ = "0+unknown"
+__version__: str  # the version in pyproject.toml, as installed: read on first use (below)
 
 # Module paths of versions before 0.2 (hybrid_force.robot, hybrid_force.simulate, ...) stay
 # importable. hybrid_force.simulate is seeded here: it names the function above, which the
@@ -112,8 +107,9 @@ except _NotInstalled:  # run from a source tree that is not installed
 _compat.install()
 _sys.modules.setdefault("hybrid_force.simulate", _sys.modules["hybrid_force.sim.loop"])
 
-# The edges (figures, 3D replay, sweeps) load on first use, so `import hybrid_force` and a plain
-# `hybrid-force run` do not pay for them (PEP 562 module __getattr__).
+# The edges (figures, 3D replay, sweeps) and the version (importlib.metadata) load on first use,
+# so `import hybrid_force` and a plain `hybrid-force run` do not pay for them (PEP 562 module
+# __getattr__).
 _LAZY = {
     "PlotError": "hybrid_force.viz.plots",
     "plot_result": "hybrid_force.viz.plots",
@@ -128,18 +124,32 @@ _LAZY = {
 
 
 def __getattr__(name: str) -> object:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'hybrid_force' has no attribute {name!r}")
-    import importlib
+    value: object
+    if name == "__version__":
+        value = _installed_version()
+    else:
+        module = _LAZY.get(name)
+        if module is None:
+            raise AttributeError(f"module 'hybrid_force' has no attribute {name!r}")
+        import importlib
 
-    value = getattr(importlib.import_module(module), name)
+        value = getattr(importlib.import_module(module), name)
     globals()[name] = value
     return value
 
 
+def _installed_version() -> str:
+    """One source: the version in pyproject.toml, as installed (importlib.metadata: ~0.02 s)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("hybrid_force")
+    except PackageNotFoundError:  # run from a source tree that is not installed
+        return "0+unknown"
+
+
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_LAZY) | {"__version__"})
 
 
 __all__ = [

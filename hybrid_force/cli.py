@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
 from hybrid_force._extras import require as require_extra
+from hybrid_force._jit import own_kernels_only
 from hybrid_force._signals import sigterm_raises
 from hybrid_force.errors import (
     BadInputError,
@@ -543,7 +544,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     # kernels left (about 0.2 s of a short run's or sweep's wall time); frozen, they are skipped.
     atexit.register(gc.freeze)
     try:
-        with warnings.catch_warnings():
+        # a command compiles no code but the kernels: Numba can skip SciPy (see _jit)
+        with warnings.catch_warnings(), own_kernels_only():
             warnings.showwarning = _show_warning
             return handler(args)
     except BadInputError as exc:

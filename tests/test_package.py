@@ -18,15 +18,53 @@ def test_every_public_name_resolves() -> None:
 
 
 def test_import_does_not_load_plotting_viewer_or_cluster_libraries() -> None:
+    # nor Numba (the kernels load on first use), SciPy, or the package metadata (__version__)
     code = (
         "import sys, hybrid_force; "
         "print(','.join(m for m in ('matplotlib', 'meshcat', 'dask', 'distributed', 'zmq', "
         "'playwright', 'hybrid_force.viz.plots', 'hybrid_force.viz.replay', "
-        "'hybrid_force.studies.sweep') "
+        "'hybrid_force.studies.sweep', 'numba', 'scipy', 'importlib.metadata') "
         "if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_a_command_loads_numba_without_scipy_and_runs_the_same(tmp_path) -> None:
+    # A command compiles only the kernels, so Numba's check for SciPy's BLAS (importing
+    # scipy.linalg) and its look for extensions in every package's entry points are skipped
+    # there (hybrid_force._jit.own_kernels_only); the run is the same as in a process that
+    # imports hybrid_force and keeps Numba's defaults.
+    import numpy as np
+
+    from hybrid_force.result import load_result
+    from hybrid_force.scenario.loader import load_scenario
+    from hybrid_force.sim.loop import simulate
+
+    scenario = Path(__file__).parents[1] / "scenarios" / "paper_contact.toml"
+    code = (
+        "import sys, importlib.metadata as md\n"
+        "scans, entry_points = [], md.entry_points\n"  # Numba's look for its extensions
+        "md.entry_points = lambda *a, **k: scans.append(a) or entry_points(*a, **k)\n"
+        "from hybrid_force import cli\n"
+        f"status = cli.main(['run', {str(scenario)!r}, '--set', 'sim.duration=0.05', "
+        f"'--out', {str(tmp_path)!r}, '--quiet'])\n"
+        "import numba.np.arraymath as am\n"
+        "print(status, 'scipy.linalg' in sys.modules, am._HAVE_BLAS)\n"
+        "print(len(scans))\n"
+        "import scipy.linalg.cython_blas\n"  # still importable: the mark was taken off
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["0", "False", "False", "0"]
+    # a Python program keeps Numba's default (SciPy's BLAS found)
+    code = "import hybrid_force.sim._kernels, numba.np.arraymath as am; print(am._HAVE_BLAS)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.strip() == "True", out.stderr
+    there = load_result(tmp_path / "result.npz")
+    here = simulate(load_scenario(scenario, {"sim.duration": 0.05}))
+    for name in ("t", "q", "v", "u", "f"):
+        assert np.array_equal(getattr(there, name), getattr(here, name)), name
 
 
 def test_module_paths_of_before_the_layers_still_import_the_same_modules() -> None:
@@ -49,9 +87,6 @@ def test_module_paths_of_before_the_layers_still_import_the_same_modules() -> No
 
 
 def test_version_has_one_source_the_project_metadata() -> None:
-    import tomllib
-    from pathlib import Path
-
     import hybrid_force
 
     pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())

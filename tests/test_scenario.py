@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hybrid_force.errors import ScenarioError
+from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.scenario.loader import load_scenario, parse_override
 from hybrid_force.sim.loop import Scenario
@@ -595,6 +595,45 @@ def test_trajectory_off_the_surface_says_how_far_and_when(tmp_path: Path) -> Non
     )
     msg = _error(_write(tmp_path, tilted, "tilted.toml"))
     assert "trajectory.axis = [0.0, 0.01, 1.0]" in msg and "at t = 2 s" in msg
+
+
+@pytest.mark.parametrize("supervisor", [False, True])
+def test_file_load_scans_the_path_once_and_a_run_built_by_hand_is_still_checked(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, supervisor: bool
+) -> None:
+    from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.geometry import on_surface
+    from hybrid_force.geometry.paths import Helix
+
+    scans: list[float] = []
+    scan = on_surface._scan
+
+    def counted(path, surface, a, b, n):  # type: ignore[no-untyped-def]
+        scans.append(b)
+        return scan(path, surface, a, b, n)
+
+    monkeypatch.setattr(on_surface, "_scan", counted)
+    text = BASE if not supervisor else BASE.replace("supervisor = false", "supervisor = true")
+    loaded = load_scenario(_write(tmp_path, text, "ok.toml"))
+    # the loader checks the path (naming the file) and so does Scenario (for a run that starts
+    # in contact): one scan of the single surface over [0, sim.duration]
+    assert scans == [2.0]
+    assert loaded.control.supervisor is supervisor
+    # the same objects in a Scenario built by hand: checked again (only when it starts in
+    # contact, the rule Scenario enforces), nothing remembered from the load
+    parts = {
+        "robot": loaded.robot,
+        "surfaces": loaded.surfaces,
+        "q0": loaded.q0,
+        "control": ControlSettings(supervisor=False, f_d=10.0),
+        "sim": loaded.sim,
+    }
+    Scenario(path=loaded.path, **parts)
+    assert scans == [2.0, 2.0]
+    off = Helix((0.0, 0.0, 10.0), 0.45, omega=1.0, rise=0.1)  # 5 cm outside the cylinder
+    with pytest.raises(BadInputError, match=r"path is not on surfaces\[0\]") as info:
+        Scenario(path=off, **parts)
+    assert "0.05 m away" in str(info.value) and len(scans) == 3
 
 
 def test_start_not_on_surface_when_starting_in_contact(tmp_path: Path) -> None:

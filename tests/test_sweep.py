@@ -552,9 +552,12 @@ def test_killing_the_sweep_leaves_no_worker(tmp_path: Path, engine: str, sig: in
     with log.open("wb") as err:
         proc = subprocess.Popen(cmd, cwd=tmp_path, stderr=err, start_new_session=True)
     try:
-        # a run has started when its private folder exists (in DIR/.scratch-<pid>-*/)
+        # a run has started when its private folder exists (in DIR/.scratch-<pid>-*/); the
+        # first starts while the sweep checks the scenario, before it writes sweep.csv
         deadline = time.monotonic() + 90
-        while not list(out.glob(".scratch-*/hybrid_force_run_*")):
+        while not (
+            list(out.glob(".scratch-*/hybrid_force_run_*")) and (out / "sweep.csv").exists()
+        ):
             assert proc.poll() is None, log.read_text()
             assert time.monotonic() < deadline, "no run started"
             time.sleep(0.05)
@@ -582,8 +585,13 @@ def test_killing_the_sweep_leaves_no_worker(tmp_path: Path, engine: str, sig: in
 
 
 def test_a_scenario_file_changed_during_the_sweep_stops_it(tmp_path: Path, scenario: Path) -> None:
-    """Rows of two versions of a scenario never share a table."""
-    variants = [{"robot.model": "nowhere/arm.urdf"}, {"control.Lambda": 5.0}]
+    """Rows of two versions of a scenario never share a table: the change is found when the
+    next task is made (the first runs, one per worker, were made before it, of the old one)."""
+    variants = [
+        {"robot.model": "nowhere/arm.urdf"},
+        {"control.Lambda": 5.0},  # sent ahead to the one worker before any row
+        {"control.Lambda": 6.0},  # made after the change: refused
+    ]
     seen: list[dict] = []
 
     def edit(row: dict) -> None:  # the first row is made here (the URDF is missing)

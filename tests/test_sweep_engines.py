@@ -118,6 +118,33 @@ def test_warm_up_never_raises_and_changes_no_row(tmp_path: Path, scenario: Path)
     tasks.warm_up(broken)  # a variant that cannot run: nothing raised
 
 
+@pytest.mark.parametrize("enabled", [True, False])
+def test_warm_up_pauses_the_garbage_collector_and_leaves_it_as_it_was(
+    scenario: Path, monkeypatch: pytest.MonkeyPatch, enabled: bool
+) -> None:
+    import gc
+
+    task = tasks._Source(scenario).job(run_id({}), {}, keep=False)
+    assert isinstance(task, tasks._Task)
+    seen: list[bool] = []
+    execute = tasks._execute
+
+    def spy(t: tasks._Task) -> tasks._Outcome:
+        seen.append(gc.isenabled())
+        if enabled:
+            raise RuntimeError("a warm-up that fails still gives the collector back")
+        return execute(t)
+
+    monkeypatch.setattr(tasks, "_execute", spy)
+    was = gc.isenabled()
+    try:
+        (gc.enable if enabled else gc.disable)()
+        tasks.warm_up(task)
+        assert seen == [False] and gc.isenabled() is enabled
+    finally:
+        (gc.enable if was else gc.disable)()
+
+
 def test_the_scenario_is_checked_as_every_variant_sees_it(tmp_path: Path) -> None:
     """A key the grid fixes to one value is part of the scenario the command checks; a file
     broken elsewhere is refused before anything is written, and its workers are stopped."""
@@ -151,6 +178,62 @@ def test_the_scenario_is_checked_as_every_variant_sees_it(tmp_path: Path) -> Non
     import multiprocessing
 
     assert multiprocessing.active_children() == []  # the pool's workers were stopped
+
+
+def test_tasks_sent_ahead_are_run_once_and_their_rows_kept_only_if_still_to_do(
+    scenario: Path,
+) -> None:
+    source = tasks._Source(scenario)
+    a, b, c = (
+        source.job(run_id(v), v, keep=False)
+        for v in expand({"control.Lambda": [2.0, 3.0, 5.0]}, {}, 0, 0)
+    )
+    assert all(isinstance(t, tasks._Task) for t in (a, b, c))
+    engine = engines.PoolEngine(1, 3, "spawn")
+    try:
+        engine.start(None)
+        engine.send_ahead(iter([a, b]))  # one worker: only the first is sent
+        assert engine.sent_ahead == {a.run_id}
+        rows: list[dict] = []
+        lost: list[str] = []
+        # a's variant is no longer to do (say, finished by another sweep): its row is dropped
+        assert engine.keep_ahead({b.run_id, c.run_id}) == frozenset()
+        engine.run(iter([(c.run_id, c)]), 1, lambda row, blob: rows.append(row), lost)
+        assert [r["run_id"] for r in rows] == [c.run_id] and lost == []
+    finally:
+        engine.close()
+    engine = engines.PoolEngine(1, 3, "spawn")
+    try:
+        engine.start(None)
+        engine.send_ahead(iter([a]))
+        assert engine.keep_ahead({a.run_id, b.run_id}) == {a.run_id}
+        rows = []
+        engine.run(iter([(b.run_id, b)]), 1, lambda row, blob: rows.append(row), lost)
+    finally:
+        engine.close()
+    # each once, with the row it gives when run alone
+    assert sorted(r["run_id"] for r in rows) == sorted([a.run_id, b.run_id])
+    alone = tasks._execute(a)[0]
+    drop = set(TIMING_COLUMNS)
+    kept = next(r for r in rows if r["run_id"] == a.run_id)
+    assert {k: v for k, v in kept.items() if k not in drop} == {
+        k: v for k, v in alone.items() if k not in drop
+    }
+
+
+def test_a_sweep_runs_each_variant_once_with_the_first_sent_ahead(
+    tmp_path: Path, scenario: Path
+) -> None:
+    todo = expand({"control.Lambda": [2.0, 3.0, 5.0, 8.0]}, {}, 0, 0)
+    seen: list[str] = []
+    path = run_sweep(
+        scenario, todo, workers=2, out_dir=tmp_path / "o", progress=False,
+        start_method="spawn", on_row=lambda row: seen.append(row["run_id"]),
+    )  # fmt: skip
+    assert sorted(seen) == sorted(run_id(v) for v in todo)  # every row once, none twice
+    _, rows = read_sweep_csv(path)
+    assert [r["run_id"] for r in rows] == [run_id(v) for v in todo]
+    assert not list((tmp_path / "o").glob(".scratch-*"))  # the runs' folders removed
 
 
 def test_a_bad_start_method_is_refused(tmp_path: Path, scenario: Path) -> None:

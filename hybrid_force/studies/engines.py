@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import gc
+import itertools
 import multiprocessing
 import os
 import signal
@@ -17,7 +18,7 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as _futures_wait
 from typing import Any, Literal
@@ -110,6 +111,7 @@ def _pump(
     sizes: _ChunkSize,
     *,
     stop_on_loss: bool,
+    in_flight: Mapping[Any, list[str]] | None = None,
 ) -> None:
     """Keep at most ``limit`` chunks in flight and hand each finished row to ``finish``.
 
@@ -117,8 +119,9 @@ def _pump(
     of them in memory, not all. A future that raised (a lost worker, not a failed run:
     :func:`_execute` never raises) is recorded in ``lost`` with its run ids; with
     ``stop_on_loss`` (a broken process pool takes no more work) nothing more is submitted.
+    ``in_flight``: chunks submitted already (future → run ids), waited for like the others.
     """
-    pending: dict[Any, list[str]] = {}
+    pending: dict[Any, list[str]] = dict(in_flight or {})
     more = True
 
     def refill() -> None:
@@ -285,6 +288,7 @@ class PoolEngine:
             start_method = "fork" if _fork_is_safe() else "spawn"
         self.start_method = start_method
         self.pool: ProcessPoolExecutor | None = None
+        self.ahead: dict[Future[list[_Outcome]], str] = {}
 
     def start(self, warm: _Task | None) -> None:
         """Start every worker now; each has the kernels of ``warm`` before taking work."""
@@ -306,8 +310,29 @@ class PoolEngine:
             for _ in range(self.n):
                 self.pool.submit(_ready)
 
+    def send_ahead(self, tasks: Iterable[_Task]) -> None:
+        """Start the first of ``tasks`` now, one per worker, while the sweep checks its
+        scenario and writes its files (a few hundredths of a second that the workers would
+        otherwise wait). Their rows are taken by :meth:`run` if their variants are still to
+        do then, and dropped if not; a failed check stops them with the workers."""
+        assert self.pool is not None, "start() first"
+        for task in itertools.islice(tasks, self.n):
+            self.ahead[self.pool.submit(_execute_chunk, [task])] = task.run_id
+
+    @property
+    def sent_ahead(self) -> frozenset[str]:
+        """The run ids of the tasks :meth:`send_ahead` started (and :meth:`keep_ahead` kept)."""
+        return frozenset(self.ahead.values())
+
+    def keep_ahead(self, todo: Collection[str]) -> frozenset[str]:
+        """Keep the tasks sent ahead whose run ids are in ``todo`` (:meth:`run` takes their
+        rows; the others' are dropped); return the run ids kept."""
+        self.ahead = {f: rid for f, rid in self.ahead.items() if rid in todo}
+        return self.sent_ahead
+
     def run(self, jobs: Iterator[Job], n_jobs: int, finish: Finish, lost: list[str]) -> None:
-        """Run every job, rows handed to ``finish`` as they come back."""
+        """Run every job (``n_jobs`` of them) and the tasks kept ahead, rows handed to
+        ``finish`` as they come back."""
         pool = self.pool
         assert pool is not None, "start() first"
         _pump(
@@ -319,6 +344,7 @@ class PoolEngine:
             lost,
             _ChunkSize(n_jobs, self.n),
             stop_on_loss=True,
+            in_flight={f: [rid] for f, rid in self.ahead.items()},
         )
 
     def close(self, failed: bool = False) -> None:
@@ -388,6 +414,13 @@ class DaskEngine:
             # a worker that cannot take the plugin (e.g. another version) fails its tasks instead
             with contextlib.suppress(Exception):
                 self.client.register_plugin(WarmUp(warm), name=WarmUp.name)
+
+    def send_ahead(self, tasks: Iterable[_Task]) -> None:
+        """Nothing is sent ahead to a cluster (its workers warm up on their own schedule)."""
+
+    def keep_ahead(self, todo: Collection[str]) -> frozenset[str]:
+        """None sent ahead, none kept."""
+        return frozenset()
 
     def run(self, jobs: Iterator[Job], n_jobs: int, finish: Finish, lost: list[str]) -> None:
         """Run every job, rows handed to ``finish`` as they come back."""

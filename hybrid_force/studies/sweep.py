@@ -154,8 +154,9 @@ def run_sweep(
             (False) or always ("force").
         arguments: extra JSON-able description of the sweep stored in sweep.json.
         on_row: called in this process with every new row (after it is written).
-        check: called once the workers are starting (they load their kernels meanwhile), before
-            sweep.json and sweep.csv are written: an exception it raises stops the sweep
+        check: called once the workers are starting (they load their kernels and start the
+            first variants meanwhile, one each), before sweep.json and sweep.csv are written:
+            an exception it raises stops the sweep and its workers, and no row is written
             (e.g. the command's validation of the scenario file, which is bad input).
         start_method: how the process pool's workers start: "fork" (this process loads the
             kernels once and forks ready workers), "spawn" (fresh interpreters, each loading
@@ -219,15 +220,23 @@ def run_sweep(
             guess = [(rid, v) for rid, v in guess if not done.finished(rid)]
     engine: PoolEngine | DaskEngine | None = None
     failed = True
+    scratch: str | None = None
     try:
+        # the local workers' temporary folders go in DIR/.scratch-<pid>-*: removed at the end,
+        # even when the sweep is interrupted (SIGTERM, Ctrl-C); after a kill -9, by the next one
+        if scheduler in (None, "local"):
+            scratch = source.scratch = _scratch_dir(out)
         if guess:
             engine = PoolEngine(workers, len(guess), start_method) if scheduler is None else (
                 DaskEngine(workers, scheduler)
             )  # fmt: skip
             engine.start(_warm_task(source, guess, keep=keep_dir is not None))
+            # the first runs start while the scenario is checked below (their rows wait)
+            engine.send_ahead(_first_tasks(source, guess, keep=keep_dir is not None))
         # one command at a time writes into a folder: a second sweep (or a run) is refused
         with locked_folder(out, "--out"):
             sha = _file_sha256(scenario)
+            source.check_unchanged()  # the tasks made so far are of the version hashed
             _check_same_scenario(out, scenario, sha)
             table = _Table(out / _CSV_NAME, variants)
             if check is not None:
@@ -255,13 +264,13 @@ def run_sweep(
                     DaskEngine(workers, scheduler)
                 )  # fmt: skip
                 engine.start(None)
-            lost = _run_todo(
-                engine, source, todo, table, keep_dir, progress, on_row, scheduler, label
-            )
+            lost = _run_todo(engine, source, todo, table, keep_dir, progress, on_row, label)
             failed = False
     finally:
         if engine is not None:
             engine.close(failed)
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
         if failed and created:  # refused before anything was written: leave no empty folder
             with contextlib.suppress(OSError):
                 out.rmdir()
@@ -299,13 +308,12 @@ def _run_todo(
     keep_dir: Path | None,
     progress: Progress,
     on_row: Callable[[dict[str, Any]], None] | None,
-    scheduler: str | None,
     label: str = "sweep",
 ) -> list[str]:
     """Run the variants left on the engine, each row written as it comes back; the lost runs.
 
     The CSV is rewritten at the end, even after an exception (then the engine is stopped by
-    the caller); the workers' temporary folders (``DIR/.scratch-<pid>-*``) are removed.
+    the caller).
     """
     report = ProgressReporter(
         len(table.ids), done=len(table.ids) - len(todo), progress=progress, label=label
@@ -328,18 +336,13 @@ def _run_todo(
         report.draw()
         report.close()
         return lost
-    # the local workers' temporary folders go in DIR/.scratch-<pid>-*: removed at the end,
-    # even when the sweep is interrupted (SIGTERM, Ctrl-C); after a kill -9, by the next sweep
-    remote = scheduler not in (None, "local")
-    scratch = None if remote else _scratch_dir(table.path.parent)
-    source.scratch = scratch
+    ahead = engine.keep_ahead({rid for rid, _ in todo})
+    rest = [(rid, v) for rid, v in todo if rid not in ahead]
     try:
         with report:
-            engine.run(_jobs(source, todo, keep_dir), len(todo), finish, lost)
+            engine.run(_jobs(source, rest, keep_dir), len(rest), finish, lost)
     finally:
         table.write()
-        if scratch is not None:
-            shutil.rmtree(scratch, ignore_errors=True)
     return lost
 
 
@@ -347,11 +350,17 @@ def _warm_task(
     source: _Source, todo: Sequence[tuple[str, Mapping[str, Any]]], *, keep: bool
 ) -> _Task | None:
     """The task the workers warm up on: the first of the first few variants that is one."""
+    return next(_first_tasks(source, todo, keep=keep), None)
+
+
+def _first_tasks(
+    source: _Source, todo: Sequence[tuple[str, Mapping[str, Any]]], *, keep: bool
+) -> Iterator[_Task]:
+    """The tasks of the first few variants (8 at most; bad input left out), made as asked."""
     for rid, params in todo[:8]:
         job = source.job(rid, params, keep=keep)
         if isinstance(job, _Task):
-            return job
-    return None
+            yield job
 
 
 def _jobs(

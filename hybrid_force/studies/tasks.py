@@ -9,12 +9,13 @@ compiled kernels a task's runs use, once per process.
 from __future__ import annotations
 
 import contextlib
+import gc
 import json
 import os
 import tempfile
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -133,15 +134,7 @@ class _Source:
         """
         from hybrid_force.scenario.loader import read_scenario_document
 
-        try:
-            unchanged = _signature(self.path) == self.signature
-        except OSError:
-            unchanged = False
-        if not unchanged:
-            raise SweepError(
-                f"the scenario file '{self.path}' was changed or removed during the sweep; "
-                "the finished rows are kept, but a new version of the file needs another --out"
-            )
+        self.check_unchanged()
         try:
             doc = read_scenario_document(self.path, dict(params))
             urdf, robot_meta = self._urdf(doc)
@@ -152,6 +145,19 @@ class _Source:
             row["wall_time"] = 0.0
             return row
         return _Task(rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta)
+
+    def check_unchanged(self) -> None:
+        """SweepError if the file was changed or removed since it was first read (the rows of
+        two versions of a scenario would share a table)."""
+        try:
+            unchanged = _signature(self.path) == self.signature
+        except OSError:
+            unchanged = False
+        if not unchanged:
+            raise SweepError(
+                f"the scenario file '{self.path}' was changed or removed during the sweep; "
+                "the finished rows are kept, but a new version of the file needs another --out"
+            )
 
     def _urdf(self, doc: Mapping[str, Any]) -> tuple[_Urdf | None, dict[str, Any]]:
         """The model file ``robot.model`` names (relative to the scenario's folder; None for a
@@ -283,6 +289,10 @@ def warm_up(task: _Task) -> None:
 
     Later runs are unchanged by it: a run's result depends only on its task (the kernels are
     the same compiled code, loaded sooner).
+
+    The garbage collector is paused meanwhile: loading Numba and the kernels makes some 10⁵
+    objects that live as long as the process and no garbage worth collecting, and the full
+    collections their number triggers would cost a tenth of the warm-up.
     """
     import copy
     import dataclasses
@@ -294,8 +304,20 @@ def warm_up(task: _Task) -> None:
     if isinstance(dt, (int, float)) and not isinstance(dt, bool) and dt > 0:
         sim["duration"] = 5.0 * float(dt)
     doc["sim"] = sim
-    with contextlib.suppress(Exception):
+    with contextlib.suppress(Exception), _collector_paused():
         _execute(dataclasses.replace(task, doc=doc, keep=False, scratch=None))
+
+
+@contextlib.contextmanager
+def _collector_paused() -> Iterator[None]:
+    """While open, Python's cyclic garbage collector does not run (then as it was before)."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
 
 
 def _simulate_into(
