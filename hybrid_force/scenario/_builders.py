@@ -444,13 +444,14 @@ puts a joint outside its limits."""
 def _wrapped_into_limits(robot: Any, q: np.ndarray) -> np.ndarray:
     """q with each revolute joint outside its limits turned by a multiple of 2π into them
     where one fits (the same pose: only the joint's angle is renamed)."""
-    lower, upper = robot.position_limits
     out = np.array(q, dtype=float)
+    outside = {int(i) for i in _outside_joints(robot, out)}
+    lower, upper = robot.position_limits
     for joint in robot.model.joints[1:]:
         i = joint.idx_q
         if joint.nq != 1 or "R" not in joint.shortname().removeprefix("JointModel")[:1]:
             continue  # prismatic or a continuous (cos, sin) joint
-        if lower[i] <= out[i] <= upper[i]:
+        if i not in outside:
             continue
         k = math.ceil((lower[i] - out[i]) / (2.0 * math.pi))
         if out[i] + 2.0 * math.pi * k <= upper[i]:
@@ -459,14 +460,25 @@ def _wrapped_into_limits(robot: Any, q: np.ndarray) -> np.ndarray:
 
 
 def _outside_limits(robot: Any, q: np.ndarray) -> list[str]:
-    """The joints of q (nq,) outside their position limits, as 'name = value [lo, hi]'."""
+    """The joints of q (nq,) outside their position limits (:func:`_outside_joints`), as
+    'name = value (limits [lo, hi])'."""
+    from hybrid_force.sim.run_checks import joint_names
+
     lower, upper = robot.position_limits
-    model, names = robot.model, []
-    for j, joint in enumerate(model.joints[1:], start=1):
-        i = joint.idx_q
-        if joint.nq == 1 and not lower[i] <= q[i] <= upper[i]:
-            names.append(f"{model.names[j]} = {q[i]:.4g} (limits [{lower[i]:.4g}, {upper[i]:.4g}])")
-    return names
+    names = joint_names(robot)
+    return [
+        f"{names[i]} = {q[i]:.4g} (limits [{lower[i]:.4g}, {upper[i]:.4g}])"
+        for i in _outside_joints(robot, q)
+    ]
+
+
+def _outside_joints(robot: Any, q: np.ndarray) -> np.ndarray:
+    """Indices into q (nq,) beyond their position limits by the run's rule (round-off on a
+    bound is no crossing: :func:`~hybrid_force.sim.run_checks.limit_slack`)."""
+    from hybrid_force.sim.run_checks import limit_slack
+
+    lower, upper = robot.position_limits
+    return np.flatnonzero((q < lower - limit_slack(lower)) | (q > upper + limit_slack(upper)))
 
 
 def _start_solver(tool: Any, robot: Any, surfaces: list[Any], path: Any, tip: object) -> Any:
