@@ -509,3 +509,18 @@ def test_bad_parameters_are_named(cls, good, name, value) -> None:
 def test_axis_frame_rejects_zero_axis() -> None:
     with pytest.raises(PathParameterError, match="axis"):
         axis_frame((0.0, 0.0, 0.0))
+
+
+def test_direction_jet_closed_form_against_central_differences() -> None:
+    """A helix's p⃛ in closed form against the base class's central difference of p̈."""
+    from hybrid_force.geometry.paths import Circle, Helix, Path
+
+    for path in (
+        Helix([0.1, 0.2, 0.3], 0.4, axis=[1.0, 2.0, 2.0], omega=1.3, rise=0.05, phase=0.7),
+        Circle([0.0, 0.0, 1.0], 0.2, [0.0, 1.0, 1.0], omega=-2.0),
+    ):
+        for t in (0.0, 0.4, 3.3):
+            jet = path.direction_jet(t)
+            _, v, a = path.evaluate(t)
+            np.testing.assert_array_equal(jet[:2], [v, a])
+            np.testing.assert_allclose(jet[2], Path.direction_jet(path, t)[2], atol=1e-8)

@@ -46,8 +46,7 @@ import pinocchio as pin
 from hybrid_force import _checks as checks
 from hybrid_force.errors import ControlError, ReachError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
-from hybrid_force.geometry.paths import Circle, Helix, Path
-from hybrid_force.geometry.surface_path import SurfacePath
+from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surfaces import Surface
 
 __all__ = [
@@ -65,7 +64,6 @@ ROLLS = ("free", "held")
 #: A direction built from a shorter vector is undefined ([-] for a cross product of unit
 #: vectors, [m/s] for the travel speed across the axis or the normal).
 _MIN_NORM = 1e-6
-_JERK_STEP = 1e-5  # [s] central difference of p̈_d for paths without a closed form
 _HESSIAN_STEP = 1e-4  # [m] central difference of ∇²Φ along ṗ_d (non-quadric surfaces)
 
 
@@ -233,17 +231,6 @@ def _across(a: np.ndarray, v: np.ndarray) -> np.ndarray:
     )
 
 
-def path_jerk(path: Path, t: float) -> np.ndarray:
-    """p⃛_d(t): (3,) [m/s³], in closed form for a helix or a circle, else by central
-    differences of p̈_d (step 1e-5 s; error ~1e-10 relative for a smooth path)."""
-    if isinstance(path, Helix | Circle):
-        e1, e2, _ = path.frame
-        th = path.phase + path.omega * t
-        return path.radius * path.omega**3 * (math.sin(th) * e1 - math.cos(th) * e2)
-    h = _JERK_STEP
-    return (path.evaluate(t + h)[2] - path.evaluate(t - h)[2]) / (2.0 * h)
-
-
 class ToolTarget:
     """The desired tool direction a_d(t) (and frame, roll held) along ``path`` on ``surface``.
 
@@ -269,15 +256,6 @@ class ToolTarget:
         k = settings.tilt_axis
         self._k = None if k is None else np.array([k, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
 
-    def _travel_jet(self, t: float, pd: np.ndarray, pdd: np.ndarray) -> np.ndarray:
-        """(3, 3) a jet along the direction of travel: only its direction is used.
-
-        A path on a surface gives its unit tangent (defined where it rests, at its ends);
-        other paths give ṗ_d, p̈_d, p⃛_d (undefined where ṗ_d = 0)."""
-        if isinstance(self.path, SurfacePath):
-            return self.path.direction_jet(t)
-        return np.array([pd, pdd, path_jerk(self.path, t)])
-
     def normal(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(n jet (3, 3), path sample (3, 3) rows p_d, ṗ_d, p̈_d) at time t [s]."""
         sample = np.array(self.path.evaluate(t))
@@ -298,14 +276,14 @@ class ToolTarget:
 
     def axis(self, t: float) -> np.ndarray:
         """a_d(t) with ȧ_d, ä_d: (3, 3) rows [-, 1/s, 1/s²]."""
-        n, sample = self.normal(t)
+        n, _ = self.normal(t)
         if self._sin == 0.0:
             return -n
         if self._k is not None:
             d, size = _unit(_cross(n, self._k))
             why = "tool.tilt_axis is along the surface normal"
         else:
-            d, size = _unit(_across(n, self._travel_jet(t, sample[1], sample[2])))
+            d, size = _unit(_across(n, self.path.direction_jet(t)))
             why = "the path does not move across the normal (tool.tilt leans towards the travel)"
         if not size > _MIN_NORM:
             raise ReachError(f"the tool's lean direction is undefined at t = {t:.6g} s: {why}")
@@ -314,8 +292,7 @@ class ToolTarget:
     def frame(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(F (3, 3) columns x, a_d × x, a_d; ω_F (3,) [rad/s]; ω̇_F (3,) [rad/s²]) at t [s]."""
         a = self.axis(t)
-        _, pd, pdd = self.path.evaluate(t)
-        x, size = _unit(_across(a, self._travel_jet(t, pd, pdd)))
+        x, size = _unit(_across(a, self.path.direction_jet(t)))
         if not size > _MIN_NORM:
             raise ReachError(
                 f'the tool\'s roll is undefined at t = {t:.6g} s: tool.roll = "held" keeps it '

@@ -129,6 +129,9 @@ def axis_frame(axis: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 # --- the path interface --------------------------------------------------------------------------
+_JERK_STEP = 1e-5  # [s] central difference of p̈_d (Path.direction_jet)
+
+
 class Path(abc.ABC):
     """A desired task-space path p_d(t) with its first two time derivatives."""
 
@@ -154,6 +157,18 @@ class Path(abc.ABC):
         The default copies the result of :meth:`evaluate`; analytic paths override it.
         """
         p[:], v[:], a[:] = self.evaluate(t)
+
+    def direction_jet(self, t: float) -> np.ndarray:
+        """(3, 3) rows w, ẇ, ẅ with w along the direction of travel at t [s]; only the
+        direction of w and its rates are meaningful (callers normalise it).
+
+        The default is w = ṗ_d (rows ṗ_d, p̈_d, p⃛_d, p⃛_d a central difference of p̈_d, step
+        1e-5 s, error ~1e-10 relative for a smooth path): undefined where the path stops.
+        Paths on a surface override it with their unit tangent, defined at rest too.
+        """
+        _, v, a = self.evaluate(t)
+        h = _JERK_STEP
+        return np.array([v, a, (self.evaluate(t + h)[2] - self.evaluate(t - h)[2]) / (2.0 * h)])
 
     @abc.abstractmethod
     def to_dict(self) -> dict[str, Any]:
@@ -234,6 +249,14 @@ class _CircularPath(Path):
         t = float(t)
         th = self.phase + self.omega * t
         return np.array((math.cos(th), math.sin(th), t, 1.0)) @ self._basis
+
+    def direction_jet(self, t: float) -> np.ndarray:
+        """ṗ, p̈ and p⃛ = r ω³ (sin θ e1 − cos θ e2) in closed form: (3, 3) [m/s, m/s², m/s³]."""
+        _, v, a = self.evaluate(t)
+        e1, e2, _ = self._frame
+        th = self.phase + self.omega * float(t)
+        jerk = self.radius * self.omega**3 * (math.sin(th) * e1 - math.cos(th) * e2)
+        return np.array([v, a, jerk])
 
 
 @dataclass(frozen=True)
