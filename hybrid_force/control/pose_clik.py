@@ -201,7 +201,7 @@ def follow_pose(
     start = _PoseTask(robot, target, held=False)  # a held roll starts where the axis task ends
     data = robot.new_data()
     out: list[tuple[float, np.ndarray, np.ndarray | None]] = []
-    smallest: list[float] = []
+    smallest = math.nan  # of the pose task Jacobian at the last sample solved
     R_fix = None
     for t in times:
         t = float(t)
@@ -218,7 +218,7 @@ def follow_pose(
                 t_prev = out[-1][0]
                 near = (
                     f" (from the configuration at t = {t_prev:.4g} s, whose pose task Jacobian "
-                    f"has its smallest singular value {smallest[-1]:.3g}: a singular "
+                    f"has its smallest singular value {smallest:.3g}: a singular "
                     "configuration may lie between them)"
                 )
             raise ReachError(f"the desired tool pose is out of reach at t = {t:.4g} s{near}")
@@ -227,7 +227,7 @@ def follow_pose(
             R_fix = F.T @ R  # the roll of the start, kept relative to the travel direction
         A = task.rows(J, task.selector(R))
         sv = np.linalg.svd(A, compute_uv=False)
-        smallest.append(float(sv[-1]))
+        smallest = float(sv[-1])
         singular = not (sv[0] ** 2 + damping**2) < _COND_MAX * (sv[-1] ** 2 + damping**2)
         out.append((t, q.copy(), sv if singular else None))
         if singular:
