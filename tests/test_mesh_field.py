@@ -1,0 +1,283 @@
+"""The smooth field of a mesh part against exact surfaces, the mesh's own exact distance
+(trimesh, independent of libigl which builds the field) and finite differences."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from hybrid_force.errors import ModelWarning, SurfaceParameterError
+from hybrid_force.geometry.mesh_field import (
+    MAX_NODES,
+    _grid,
+    build_field,
+    default_resolution,
+    load_field,
+    read_mesh,
+    rpy_matrix,
+)
+from hybrid_force.geometry.mesh_surface import MeshSurface
+
+RADIUS = 0.3
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("HYBRID_FORCE_CACHE", str(tmp_path / "cache"))
+
+
+@pytest.fixture(scope="module")
+def sphere_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("mesh") / "sphere.stl"
+    mesh = trimesh.creation.icosphere(subdivisions=5, radius=RADIUS)  # 20,480 faces
+    assert len(mesh.faces) == 20480
+    mesh.export(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def sphere(sphere_file: Path, tmp_path_factory: pytest.TempPathFactory) -> MeshSurface:
+    return MeshSurface.from_file(sphere_file, resolution=0.0105, cache=False)
+
+
+def _near_surface(rng: np.random.Generator, count: int, band: float) -> tuple[np.ndarray, ...]:
+    """Points within ``band`` of the sphere: (points, unit directions, radii)."""
+    d = rng.normal(size=(count, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    r = RADIUS + rng.uniform(-band, band, count)
+    return d * r[:, None], d, r
+
+
+def _sagitta(part_file: Path) -> float:
+    """Largest depth of a face's circumcentre below the true sphere: rc² / (2R) to first order."""
+    mesh = trimesh.load(part_file)
+    tri = mesh.vertices[mesh.faces]
+    a = np.linalg.norm(tri[:, 1] - tri[:, 2], axis=1)
+    b = np.linalg.norm(tri[:, 0] - tri[:, 2], axis=1)
+    c = np.linalg.norm(tri[:, 0] - tri[:, 1], axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    rc = a * b * c / (4 * area)
+    return float(RADIUS - np.sqrt(RADIUS**2 - rc.max() ** 2))
+
+
+def test_sphere_field_is_the_mesh_distance_within_a_tenth_of_a_millimetre(
+    sphere: MeshSurface, sphere_file: Path
+) -> None:
+    rng = np.random.default_rng(1)
+    points, _, r = _near_surface(rng, 1500, 0.005)
+    exact = -trimesh.proximity.signed_distance(trimesh.load(sphere_file), points)  # >0 outside
+    phi = sphere.field.values(points)
+    assert np.abs(phi - exact).max() <= 1e-4
+    # against the true sphere: the fit plus the mesh's own faceting (its inscribed faces)
+    assert np.abs(phi - (r - RADIUS)).max() <= 1e-4 + _sagitta(sphere_file)
+
+
+def test_sphere_field_normal_gradient_norm_and_smoothness(sphere: MeshSurface) -> None:
+    rng = np.random.default_rng(2)
+    points, directions, _ = _near_surface(rng, 1500, 0.005)
+    worst_angle = worst_turn = 0.0
+    norms = []
+    for p, n in zip(points, directions, strict=True):
+        _, g, _ = sphere.evaluate(p)
+        norms.append(np.linalg.norm(g))
+        worst_angle = max(worst_angle, math.degrees(math.acos(min(1.0, g @ n / norms[-1]))))
+        tangent = np.cross(n, rng.normal(size=3))
+        tangent /= np.linalg.norm(tangent)
+        _, g2, _ = sphere.evaluate(p + 1e-4 * tangent)  # 0.1 mm along the surface
+        cos = g @ g2 / (np.linalg.norm(g) * np.linalg.norm(g2))
+        worst_turn = max(worst_turn, math.degrees(math.acos(min(1.0, cos))))
+    assert worst_angle <= 0.5
+    # the true normal turns by 0.1 mm / 0.3 m = 0.019°; the facets add at most this much
+    assert worst_turn <= 0.05
+    assert min(norms) >= 0.98 and max(norms) <= 1.02
+
+
+def test_gradient_and_hessian_are_central_differences(sphere: MeshSurface) -> None:
+    rng = np.random.default_rng(3)
+    points, _, _ = _near_surface(rng, 20, 0.02)
+    step = 1e-6
+    for p in points:
+        _, g, hess = sphere.evaluate(p)
+        for k in range(3):
+            e = np.zeros(3)
+            e[k] = step
+            plus, g_plus, _ = sphere.evaluate(p + e)
+            minus, g_minus, _ = sphere.evaluate(p - e)
+            assert (plus - minus) / (2 * step) == pytest.approx(g[k], abs=1e-8)
+            np.testing.assert_allclose((g_plus - g_minus) / (2 * step), hess[:, k], atol=1e-6)
+        np.testing.assert_array_equal(hess, hess.T)
+
+
+def test_field_interpolates_its_samples_and_is_continuous_out_of_its_box(
+    sphere: MeshSurface,
+) -> None:
+    import igl
+
+    field = sphere.field
+    rng = np.random.default_rng(4)
+    idx = rng.integers(0, np.array(field.shape), size=(50, 3))
+    nodes = field.origin + field.spacing * idx
+    part = sphere.part
+    exact, *_ = igl.signed_distance(nodes, part.vertices, part.faces)
+    np.testing.assert_allclose(field.values(nodes), exact, atol=1e-12)
+    # across the box's face: the value and the gradient along the outward axis are continuous
+    top = field.origin + field.spacing * (np.array(field.shape) - 1)
+    p = np.array([top[0], 0.01, -0.02])
+    inside, g_in, _ = field.evaluate(p - np.array([1e-9, 0, 0]))
+    outside, g_out, _ = field.evaluate(p + np.array([1e-9, 0, 0]))
+    assert outside == pytest.approx(inside, abs=1e-8)
+    assert g_out[0] == pytest.approx(g_in[0], abs=1e-6)
+    far, _, _ = field.evaluate(p + np.array([1.0, 0, 0]))
+    assert far == pytest.approx(inside + g_in[0] * 1.0, abs=1e-8)
+
+
+def test_cylinder_mesh_matches_the_exact_cylinder(tmp_path: Path) -> None:
+    radius, sections = 0.4, 512
+    mesh = trimesh.creation.cylinder(radius=radius, height=0.2, sections=sections)
+    path = tmp_path / "cyl.obj"
+    mesh.export(path)
+    surface = MeshSurface.from_file(path, cache=False)
+    rng = np.random.default_rng(5)
+    angle = rng.uniform(0, 2 * np.pi, 500)
+    rho = radius + rng.uniform(-0.005, 0.005, 500)
+    points = np.column_stack(
+        [rho * np.cos(angle), rho * np.sin(angle), rng.uniform(-0.05, 0.05, 500)]
+    )
+    sagitta = radius * (1 - math.cos(math.pi / sections))  # faces inside the vertices' circle
+    phi = surface.field.values(points)
+    assert np.abs(phi - (rho - radius)).max() <= sagitta + 2e-5
+    for p, a in zip(points[:40], angle[:40], strict=True):
+        n = surface.normal(p)
+        assert n @ np.array([math.cos(a), math.sin(a), 0.0]) >= math.cos(math.radians(0.1))
+        foot = surface.closest_point(p)
+        assert abs(surface.phi(foot)) <= 1e-12
+        assert math.hypot(foot[0], foot[1]) == pytest.approx(radius, abs=sagitta + 2e-5)
+
+
+def test_inside_flips_the_sign_and_placement_moves_the_part(sphere_file: Path) -> None:
+    rpy, position = (0.3, -0.2, 1.1), (0.5, -0.1, 0.2)
+    placed = MeshSurface.from_file(
+        sphere_file, position=position, rpy=rpy, scale=0.5, inside=True, resolution=0.01
+    )
+    centre = np.array(position)
+    rot = rpy_matrix(rpy)
+    # free inside: Φ > 0 there; 0.1 m from the centre (away from its medial point) Φ = 0.05 m
+    probe = centre + rot @ np.array([0.0, 0.1, 0.0])
+    assert placed.phi(probe) == pytest.approx(0.5 * RADIUS - 0.1, abs=2e-4)
+    assert placed.phi(centre + np.array([0.3, 0, 0])) < 0
+    np.testing.assert_allclose(rot @ rot.T, np.eye(3), atol=1e-15)
+    # Rz(y) Ry(p) Rx(r), each written out
+    r, p, y = rpy
+    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
+    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
+    np.testing.assert_allclose(rot, rz @ ry @ rx, atol=1e-15)
+
+
+def test_cache_reload_is_bit_identical_and_a_corrupt_cache_is_rebuilt(sphere_file: Path) -> None:
+    part = read_mesh(sphere_file)
+    first = build_field(part, 0.03)
+    assert first.cache_file and Path(first.cache_file).is_file()
+    again = build_field(part, 0.03)
+    np.testing.assert_array_equal(again.coefficients, first.coefficients)
+    assert again.build_seconds == 0.0  # read, not built
+    Path(first.cache_file).write_bytes(b"not a field")
+    assert load_field(first.cache_file) is None
+    rebuilt = build_field(part, 0.03)
+    np.testing.assert_array_equal(rebuilt.coefficients, first.coefficients)
+    other = build_field(part, 0.031)  # other settings: another file
+    assert other.cache_file != first.cache_file
+
+
+def test_default_resolution_follows_the_facets(sphere_file: Path, tmp_path: Path) -> None:
+    part = read_mesh(sphere_file)
+    shortest = np.median(part.shortest_edges())
+    assert default_resolution(part) == pytest.approx(2 * shortest)
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))  # 12 faces: h bounded by diagonal / 16
+    box.export(tmp_path / "box.ply")
+    coarse = read_mesh(tmp_path / "box.ply")
+    assert default_resolution(coarse) == pytest.approx(math.sqrt(3) / 16)
+
+
+def test_bad_mesh_files_are_refused_naming_key_and_file(tmp_path: Path) -> None:
+    with pytest.raises(SurfaceParameterError, match=r"surface\.file = '.*missing\.stl'.*read"):
+        read_mesh(tmp_path / "missing.stl")
+    garbage = tmp_path / "garbage.stl"
+    garbage.write_bytes(b"\x00\x01binary garbage" * 7)
+    with pytest.raises(SurfaceParameterError, match=r"surface\.file = '.*garbage\.stl'"):
+        read_mesh(garbage)
+    empty = tmp_path / "empty.obj"
+    empty.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(SurfaceParameterError, match="no triangle faces"):
+        read_mesh(empty)
+    nan = tmp_path / "nan.obj"
+    nan.write_text("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(SurfaceParameterError, match=r"non-finite|no triangle"):
+        read_mesh(nan)
+    other = tmp_path / "part.step"
+    other.write_text("ISO-10303-21;")
+    with pytest.raises(SurfaceParameterError, match=r"valid: \.stl, \.obj, \.ply"):
+        read_mesh(other)
+    box = tmp_path / "box.stl"
+    trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(box)
+    with pytest.raises(SurfaceParameterError, match="scale must be"):
+        read_mesh(box, scale=-1.0)
+    with pytest.raises(SurfaceParameterError, match=r"1e-6 to 1e3 m"):
+        read_mesh(box, scale=1e6)
+
+
+def test_a_grid_above_the_memory_bound_is_refused_with_the_finest_valid_spacing(
+    tmp_path: Path,
+) -> None:
+    box = tmp_path / "box.stl"
+    trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(box)
+    part = read_mesh(box)
+    with pytest.raises(SurfaceParameterError, match=r"surface\.resolution = 0\.001 m") as info:
+        build_field(part, 0.001, cache=False)
+    finest = float(str(info.value).rsplit(">= ", 1)[1].split(" m")[0])
+    assert f"{MAX_NODES:,}" in str(info.value)
+    _grid(part, finest * 1.05, "surface.resolution")  # the suggestion, rounded up, is accepted
+    with pytest.raises(SurfaceParameterError):
+        _grid(part, finest * 0.95, "surface.resolution")
+    for bad in (0.0, -1.0, math.nan, math.inf):
+        with pytest.raises(SurfaceParameterError, match="finite number > 0"):
+            build_field(part, bad, cache=False)
+
+
+def test_open_mesh_loads_with_a_warning_about_the_sign(tmp_path: Path) -> None:
+    mesh = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
+    mesh.update_faces(np.arange(len(mesh.faces)) != 0)  # one face removed: a hole
+    path = tmp_path / "open.stl"
+    mesh.export(path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        surface = MeshSurface.from_file(path, resolution=0.02, cache=False)
+    messages = [str(w.message) for w in caught if issubclass(w.category, ModelWarning)]
+    assert any("not watertight" in m and "near the surface" in m for m in messages)
+    assert surface.phi(np.array([0.0, 0.0, 0.25])) > 0  # outside, near the surface
+
+
+def _sphere(folder: Path) -> Path:
+    path = folder / "small_sphere.stl"
+    trimesh.creation.icosphere(subdivisions=3, radius=0.1).export(path)
+    return path
+
+
+def test_concave_radius_of_a_torus_hole(tmp_path: Path) -> None:
+    # a torus (R = 0.2, r = 0.05): on its inner equator, the curvature across the tube is
+    # convex (1/r) and along the ring concave, of radius R − r = 0.15 m
+    mesh = trimesh.creation.torus(
+        major_radius=0.2, minor_radius=0.05, major_sections=128, minor_sections=48
+    )
+    path = tmp_path / "torus.stl"
+    mesh.export(path)
+    surface = MeshSurface.from_file(path, cache=False)  # h = 2 x the facets
+    # a lower estimate: the fit's facet ripple at the vertices lowers it (by 25 % here)
+    assert 0.7 * 0.15 <= surface.smallest_concave_radius() <= 1.02 * 0.15
+    convex = MeshSurface.from_file(_sphere(path.parent), cache=False)
+    assert convex.smallest_concave_radius() == math.inf
