@@ -483,7 +483,12 @@ def _write_model(folder: Path, model: _Urdf, renames: list[tuple[str, str]]) -> 
     folder.mkdir(parents=True, exist_ok=True)
     local = folder / (model.name or "robot.urdf")
     local.write_bytes(model.data)
-    renames.append((str(local), model.path))
+    # "key = value" in the loader's messages: the value as the scenario writes it, as in run's
+    quoted = (
+        json.dumps(str(local), ensure_ascii=False),
+        json.dumps(model.model, ensure_ascii=False),
+    )
+    renames.extend([quoted, (str(local), model.path)])
     return str(local)
 
 
