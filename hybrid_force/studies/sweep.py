@@ -146,7 +146,8 @@ def run_sweep(
 
     Args:
         scenario_path: the scenario TOML file, read by this process only (workers, which
-            need hybrid_force installed, get its data and its URDF file's content).
+            need hybrid_force installed, get its data and the content of the model files
+            its robot.model and control.model name, resolved against its folder).
         variants: dicts of overrides, e.g. from :func:`expand`; run ids must be distinct.
         workers: local worker processes (default ``os.cpu_count()``), or the number of workers
             of a ``"local"`` Dask cluster (default 2).

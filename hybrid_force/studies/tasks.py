@@ -327,8 +327,9 @@ def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) ->
         warnings the run raised, joined by " | ", or None), the :data:`METRIC_COLUMNS`
         (None when undefined) and the :data:`TIMING_COLUMNS` (wall_time [s]).
 
-    The run goes through the same steps as a sweep's: the scenario's data and its URDF file
-    are read here, then built and simulated from a private temporary folder.
+    The run goes through the same steps as a sweep's: the scenario's data and its model files
+    (``robot.model``, ``control.model``) are read here, then built and simulated from a
+    private temporary folder.
     """
     rid = run_id(params)
     try:
