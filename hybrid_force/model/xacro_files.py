@@ -61,6 +61,7 @@ def expand_xacro(
     package_dirs: Sequence[str | os.PathLike[str]],
     *,
     check: bool = False,
+    includes: list[str] | None = None,
 ) -> str:
     """The URDF text that the xacro file ``path`` expands to, with the arguments ``args``.
 
@@ -77,6 +78,9 @@ def expand_xacro(
         check: also check the expansion as :func:`load_robot` does
             (:func:`~hybrid_force.model.urdf_check.check_urdf`; its messages and warnings name
             ``<path> (as expanded by xacro)``).
+        includes: if given, the absolute paths of the files the expansion included (not
+            ``path`` itself) are appended to it, also when it fails (those read until then):
+            what a sweep hashes to know that its rows saw the same model.
 
     Raises:
         URDFError: the ``xacro`` package is missing, or xacro cannot expand the file (XML
@@ -143,6 +147,8 @@ def expand_xacro(
                 why = " ".join(str(exc).split()) or type(exc).__name__
             raise URDFError(f"xacro cannot expand {path}{where}: {why}") from None
         finally:
+            if includes is not None:
+                includes.extend(str(f) for f in getattr(xacro, "all_includes", None) or [])
             if saved_find is not None:
                 substitution_args._eval_find = saved_find
             if saved_eval is not None:

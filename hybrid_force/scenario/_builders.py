@@ -82,6 +82,25 @@ def resolve_robot_table(
     return _robot_table(doc["robot"], Path(path), ctx)
 
 
+def resolve_control_model(
+    doc: Mapping[str, Any], path: str | Path, origin: str | None = None
+) -> tuple[str, Path, str] | None:
+    """``control.model`` when it names a model file: (the text as written, the file resolved
+    against the scenario's folder as the loader resolves it, its kind); None when there is no
+    ``control.model``, it names a registry arm, or it is not a text (the loader says why).
+
+    Raises:
+        ScenarioError: the file does not exist, with the loader's message.
+    """
+    control = doc.get("control")
+    model = control.get("model") if isinstance(control, Mapping) else None
+    if not isinstance(model, str):
+        return None
+    ctx = _Context(str(path) if origin is None else origin)
+    target, kind = _model_target(model, "control.model", Path(path), ctx)
+    return None if kind == "name" else (model, Path(target), kind)
+
+
 def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
     """A model reference of a scenario: (the registry name, "name") or (the model file,
     resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""

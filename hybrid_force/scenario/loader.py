@@ -56,6 +56,7 @@ from hybrid_force.scenario._builders import (
     _tool_settings,
     _tool_start,
     _trajectory,
+    resolve_control_model,
     resolve_robot_table,
 )
 from hybrid_force.scenario._checks import (
@@ -92,6 +93,7 @@ __all__ = [
     "load_scenario",
     "parse_override",
     "read_scenario_document",
+    "resolve_control_model",
     "resolve_robot_table",
     "scenario_from_document",
     "xacro_argument_text",

@@ -25,6 +25,7 @@ import contextlib
 import os
 import sys
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -300,10 +301,12 @@ output: DIR/compare.csv (one row per law; columns and units in docs/compare.md),
   DIR/compare_force_error.png, DIR/compare_path_error.png, and DIR/runs/ (the runs: the
   sweep's table and each law's result, runs/results/<run_id>.npz).
 exit status:
-  0    every law has a row; laws whose run failed (diverged, lost contact, bad input) are
-       rows saying so, listed on stderr ("warning: ...")
-  1    some runs hit an unexpected error (status "error"), or runs were lost (a worker died)
-  2    bad input: the scenario file, an option, an unknown or repeated law
+  0    every law has a row and at least one law's run is ok; laws whose run failed
+       (diverged, lost contact, bad input) are rows saying so, listed on stderr ("warning: ...")
+  1    no law's run is ok ("error: no law ran ..."), some runs hit an unexpected error
+       (status "error"), or runs were lost (a worker died)
+  2    bad input: the scenario file, an option, an unknown or repeated law, or DIR holds
+       runs made from another version of the scenario, of a model file or of hybrid_force
   130  Ctrl-C;  143  SIGTERM (the workers are stopped, the finished runs are kept)
 With 1, 130 and 143, running the same command again resumes.
 """
@@ -369,6 +372,11 @@ def compare_command(args: argparse.Namespace) -> int:
             "verdict on the law); running the same command again retries it",
             file=sys.stderr,
         )
+        return 1
+    if len(bad) == len(rows):  # as a sweep with no run ok: nothing was compared
+        counts = Counter(r["status"] for r in rows)
+        detail = ", ".join(f"{n} {s}" for s, n in counts.items())
+        print(f"error: no law ran ({detail}); see the error column of '{outcome}'", file=sys.stderr)
         return 1
     return 0
 

@@ -28,16 +28,21 @@ resumed; all others are final.
 
 Resuming: run again with the same arguments and ``--out DIR``. Rows already in
 ``DIR/sweep.csv`` (matched by run id) are kept and not run again; ``DIR/sweep.json`` records
-the arguments and a hash of the scenario file, and a sweep refuses to resume in a DIR made
-from a different scenario file content.
+the arguments, the hybrid_force version and the sha256 of the scenario file and of every file
+its rows read (model files of ``robot.model`` and ``control.model``, xacro includes). A sweep
+refuses to resume (SweepError, exit status 2, naming the file) in a DIR whose rows were made
+from another content of any of them or by another version
+(:mod:`~hybrid_force.studies.resume`): a table never mixes two worlds.
 
 Workers get data, never paths: this process reads the scenario file (with each variant's
-overrides) and the model file its ``robot.model`` names, and sends both with the task: a
-URDF's or an MJCF file's bytes, or for a xacro file the URDF text it expands to here (with
-``robot.xacro_args`` and ``robot.package_dirs``), so workers need neither xacro nor the
-files it includes. Meshes are never sent: simulating reads none (the package folders are
-checked here and recorded in the kept results' meta for the replay). A worker writes the
-model into a private temporary folder, builds the scenario from the data, and sends back
+overrides) and the model files its ``robot.model`` and ``control.model`` name (resolved
+against the scenario's folder, as ``hybrid-force run`` does, whatever the working directory
+and ``--out``), and sends them with the task: a URDF's or an MJCF file's bytes, or for a
+xacro file the URDF text it expands to here (with ``robot.xacro_args`` and
+``robot.package_dirs``), so workers need neither xacro nor the files it includes. Meshes
+are never sent: simulating reads none (the package folders are checked here and recorded in
+the kept results' meta for the replay). A worker writes the model files into a private
+temporary folder (an absolute path), builds the scenario from the data, and sends back
 the row and, with ``keep_results``, the saved result's bytes, which this process writes
 into ``DIR/results/``. So a Dask worker on another machine or in another folder needs only
 hybrid_force installed. Local workers die with the sweep (even on ``kill -9``), and SIGTERM
@@ -76,6 +81,8 @@ from hybrid_force.studies.engines import (
     _watch_parent as _watch_parent,
 )
 from hybrid_force.studies.progress import Progress, ProgressReporter, format_duration
+from hybrid_force.studies.resume import _check_same_inputs, _version
+from hybrid_force.studies.resume import _check_same_scenario as _check_same_scenario
 from hybrid_force.studies.table import (
     _CSV_NAME,
     _JSON_NAME,
@@ -139,7 +146,8 @@ def run_sweep(
 
     Args:
         scenario_path: the scenario TOML file, read by this process only (workers, which
-            need hybrid_force installed, get its data and its URDF file's content).
+            need hybrid_force installed, get its data and the content of the model files
+            its robot.model and control.model name, resolved against its folder).
         variants: dicts of overrides, e.g. from :func:`expand`; run ids must be distinct.
         workers: local worker processes (default ``os.cpu_count()``), or the number of workers
             of a ``"local"`` Dask cluster (default 2).
@@ -176,8 +184,8 @@ def run_sweep(
     Raises:
         MissingExtraError: a ``scheduler`` without dask installed (the ``dask`` extra).
         SweepError: duplicate variants, more than :data:`MAX_RUNS` of them, a bad out_dir, a
-            DIR made from another scenario file, a scenario file changed during the sweep, a
-            result that cannot be saved.
+            DIR made from another scenario file, model file or hybrid_force version, a
+            scenario or model file changed during the sweep, a result that cannot be saved.
         ScenarioError: the scenario file cannot be read or is not TOML.
         SimulationError: runs were lost (a worker process died); the finished rows are saved
             and rerunning the same sweep runs the missing ones.
@@ -238,6 +246,7 @@ def run_sweep(
             sha = _file_sha256(scenario)
             source.check_unchanged()  # the tasks made so far are of the version hashed
             _check_same_scenario(out, scenario, sha)
+            kept_inputs = _check_same_inputs(out, source)
             table = _Table(out / _CSV_NAME, variants)
             if check is not None:
                 check()
@@ -247,6 +256,8 @@ def run_sweep(
             info = {
                 "scenario": str(scenario.resolve()),
                 "scenario_sha256": sha,
+                "hybrid_force_version": _version(),
+                "inputs": {},
                 "n_variants": len(variants),
                 "workers": workers,
                 "scheduler": scheduler,
@@ -255,7 +266,14 @@ def run_sweep(
                 "arguments": dict(arguments or {}),
                 "variants": [{"run_id": rid, **v} for rid, v in zip(ids, variants, strict=True)],
             }
-            _write_atomic(out / _JSON_NAME, json.dumps(info, indent=1, default=str) + "\n")
+
+            def write_info() -> None:
+                # every file a row in the table read, its sha256 (those of earlier sweeps in
+                # this folder kept): written before the rows that read them
+                info["inputs"] = {**kept_inputs, **source.inputs}
+                _write_atomic(out / _JSON_NAME, json.dumps(info, indent=1, default=str) + "\n")
+
+            write_info()
             table.write()
             if todo and engine is None:
                 # the folder changed since the guess: workers now, spawned (a fork would copy
@@ -264,7 +282,9 @@ def run_sweep(
                     DaskEngine(workers, scheduler)
                 )  # fmt: skip
                 engine.start(None)
-            lost = _run_todo(engine, source, todo, table, keep_dir, progress, on_row, label)
+            lost = _run_todo(
+                engine, source, todo, table, keep_dir, progress, on_row, label, write_info
+            )
             failed = False
     finally:
         if engine is not None:
@@ -284,22 +304,6 @@ def run_sweep(
     return table.path
 
 
-def _check_same_scenario(out: Path, scenario: Path, sha: str) -> None:
-    """SweepError if ``out`` holds a sweep of another version of the scenario file."""
-    info_path = out / _JSON_NAME
-    if info_path.exists() and (out / _CSV_NAME).exists():
-        try:
-            old = json.loads(info_path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
-            old = {}
-        if old.get("scenario_sha256") not in (None, sha):
-            raise SweepError(
-                f"'{out}' holds a sweep of a different version of the scenario "
-                f"(sha256 {old.get('scenario_sha256')}, now {sha} for '{scenario}'); "
-                "use another --out or delete that directory"
-            )
-
-
 def _run_todo(
     engine: PoolEngine | DaskEngine | None,
     source: _Source,
@@ -309,18 +313,25 @@ def _run_todo(
     progress: Progress,
     on_row: Callable[[dict[str, Any]], None] | None,
     label: str = "sweep",
+    write_info: Callable[[], None] | None = None,
 ) -> list[str]:
     """Run the variants left on the engine, each row written as it comes back; the lost runs.
 
     The CSV is rewritten at the end, even after an exception (then the engine is stopped by
-    the caller).
+    the caller). ``write_info`` rewrites sweep.json: called before a row is added when the
+    tasks made since read new files, so that sweep.json names every file a row read.
     """
+    recorded = len(source.inputs)
     report = ProgressReporter(
         len(table.ids), done=len(table.ids) - len(todo), progress=progress, label=label
     )
     lost: list[str] = []
 
     def finish(row: dict[str, Any], blob: bytes | None) -> None:
+        nonlocal recorded
+        if write_info is not None and len(source.inputs) != recorded:
+            recorded = len(source.inputs)
+            write_info()
         if blob is not None and keep_dir is not None:
             try:
                 _save_blob(keep_dir, str(row["run_id"]), blob)
@@ -383,7 +394,8 @@ def _scratch_dir(out: Path) -> str:
             shutil.rmtree(old, ignore_errors=True)  # its sweep was killed
         except OSError:
             pass  # alive (another user's process): leave it
-    return tempfile.mkdtemp(prefix=f".scratch-{os.getpid()}-", dir=out)
+    # absolute: a worker's model paths are written into its scenario, whatever its cwd
+    return tempfile.mkdtemp(prefix=f".scratch-{os.getpid()}-", dir=out.resolve())
 
 
 # ----------------------------------------------------------------------------- command line

@@ -1,7 +1,10 @@
 """One run of a sweep: a variant turned into a task (data, not paths), run in a worker.
 
-:class:`_Source` reads the scenario file and its model file on the sweep's machine and makes
-each variant's :class:`_Task`; :func:`_execute` runs a task in any process (a pool worker, a
+:class:`_Source` reads the scenario file and the model files it names (``robot.model``,
+``control.model``) on the sweep's machine, resolved against the scenario's folder as
+``hybrid-force run`` resolves them, and makes each variant's :class:`_Task`; it records the
+sha256 of every file it read (:attr:`_Source.inputs`), so that a resumed sweep knows whether
+its rows saw the same files. :func:`_execute` runs a task in any process (a pool worker, a
 Dask worker, or this one) and returns its row, never raising; :func:`warm_up` loads the
 compiled kernels a task's runs use, once per process.
 """
@@ -10,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import hashlib
 import json
 import os
 import tempfile
@@ -58,11 +62,12 @@ def _new_row(rid: str, params: Mapping[str, Any]) -> dict[str, Any]:
 class _Urdf:
     """A model file of the sweep's machine, sent with a task (a worker may not see the file).
 
-    ``model`` is ``robot.model`` as the scenario writes it (e.g. ``"rtr.urdf"``), ``path`` the
+    ``model`` is the key's value as the scenario writes it (e.g. ``"rtr.urdf"``), ``path`` the
     file's absolute path on the sweep's machine (what the kept result's meta names), ``data``
     the bytes the worker writes as ``name`` in its folder: a URDF's or MJCF file's own bytes,
     or the URDF text a xacro file expands to (``expanded``: the worker then drops
-    ``robot.xacro_args``). Kinematics and inertias only are used: meshes are never read.
+    ``robot.xacro_args``). ``key`` is the scenario key that names it (``robot.model`` or
+    ``control.model``). Kinematics and inertias only are used: meshes are never read.
     """
 
     model: str
@@ -70,6 +75,7 @@ class _Urdf:
     data: bytes
     name: str = "robot.urdf"
     expanded: bool = False
+    key: str = "robot.model"
 
 
 @dataclass(frozen=True)
@@ -82,7 +88,8 @@ class _Task:
     for workers on that machine; None: the worker's own temporary directory);
     ``robot_meta``: what the kept result's ``meta["robot"]`` records besides the model
     (``package_dirs`` absolute on the sweep's machine, ``xacro_args``, ``lock_off_chain``),
-    so that its replay loads the same arm.
+    so that its replay loads the same arm; ``control``: the file ``control.model`` names
+    (None: no such key, or a registry arm, which every worker has).
     """
 
     run_id: str
@@ -93,6 +100,7 @@ class _Task:
     keep: bool
     scratch: str | None = None
     robot_meta: dict[str, Any] | None = None
+    control: _Urdf | None = None
 
 
 _Outcome = tuple[dict[str, Any], bytes | None]
@@ -124,27 +132,135 @@ class _Source:
         except OSError as exc:
             raise SweepError(f"cannot read scenario file '{path}': {exc}") from exc
         self._urdfs: dict[str, _Urdf | str] = {}  # model and options → file, or why not
+        # every file the tasks made so far read, absolute path → {"key", "sha256"} (None: the
+        # file was missing): a resumed sweep reuses rows only if each is unchanged
+        self.inputs: dict[str, dict[str, str | None]] = {}
 
     def job(self, rid: str, params: Mapping[str, Any], keep: bool) -> _Task | dict[str, Any]:
         """The task of one variant, or its finished row when it is bad input already here.
 
         Raises:
-            SweepError: the scenario file was changed since the sweep started (its rows would
-                mix two versions of the scenario).
+            SweepError: the scenario file was changed since the sweep started, or a model file
+                the variant reads was read before with another content (its rows would mix two
+                versions of the scenario or of the arm).
         """
         from hybrid_force.scenario.loader import read_scenario_document
 
         self.check_unchanged()
         try:
             doc = read_scenario_document(self.path, dict(params))
+            self._note_missing(doc)  # a bad-input row depends on a missing file too
             urdf, robot_meta = self._urdf(doc)
+            control = self._control(doc)
+        except SweepError:
+            raise  # a file changed during the sweep: no verdict on the variant
         except BadInputError as exc:
             row = _new_row(rid, params)
             row["status"] = "bad input"
             row["error"] = _one_line(str(exc))
             row["wall_time"] = 0.0
             return row
-        return _Task(rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta)
+        return _Task(
+            rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta, control
+        )
+
+    def _record(self, key: str, path: str, digest: str | None) -> None:
+        """Note that a task read the file ``path`` (for ``key``) with this sha256.
+
+        Raises:
+            SweepError: the file was read before with another content during this sweep
+                (its rows would mix two versions of it).
+        """
+        path = os.path.abspath(path)
+        seen = self.inputs.get(path)
+        if seen is not None and seen["sha256"] != digest:
+            raise SweepError(
+                f"the file '{path}' ({key} of '{self.path}') was changed during the sweep "
+                f"(sha256 {seen['sha256']}, now {digest}); the finished rows are kept, but a "
+                "new version of the file needs another --out"
+            )
+        self.inputs[path] = {"key": key, "sha256": digest}
+
+    def _note_missing(self, doc: Mapping[str, Any]) -> None:
+        """Record the model files the variant names that do not exist (their sha256 None)."""
+        from hybrid_force.model.robot import _is_path
+
+        for name in ("robot", "control"):
+            table = doc.get(name)
+            key = f"{name}.model"
+            model = table.get("model") if isinstance(table, dict) else None
+            if isinstance(model, str) and _is_path(model):
+                target = Path(model) if Path(model).is_absolute() else self.path.parent / model
+                if not target.is_file():
+                    self._record(key, str(target), None)
+
+    def _read_model(
+        self,
+        key: str,
+        model: str,
+        target: Path,
+        kind: str,
+        xacro_args: Mapping[str, str],
+        package_dirs: tuple[str, ...],
+    ) -> _Urdf:
+        """The model file ``target`` (the value ``model`` of ``key``) as a task sends it, read
+        or expanded once per set of options; the files read are recorded in :attr:`inputs`.
+
+        Raises:
+            ScenarioError: it cannot be read or expanded, naming the file and key as the
+                scenario loader does.
+        """
+        from hybrid_force.errors import ModelWarning, RobotError
+        from hybrid_force.model.robot import expand_xacro
+
+        cache = json.dumps([key, str(target), xacro_args, package_dirs], sort_keys=True)
+        if cache not in self._urdfs:
+            includes: list[str] = []
+            try:
+                if kind == "xacro":
+                    with warnings.catch_warnings():  # the worker's load warns, in the row
+                        warnings.simplefilter("ignore", ModelWarning)
+                        try:
+                            text = expand_xacro(
+                                target, xacro_args, package_dirs, check=True, includes=includes
+                            )
+                        finally:  # the files xacro read, also when it failed
+                            for name in (str(target), *includes):
+                                self._record(key, name, _sha256_or_none(Path(name)))
+                    name = target.name.removesuffix(".xacro")
+                    name = name if name.endswith(".urdf") else f"{name or 'robot'}.urdf"
+                    found = _Urdf(
+                        model, str(target.resolve()), text.encode("utf-8"), name, True, key
+                    )
+                else:
+                    data = target.read_bytes()
+                    self._record(key, str(target), hashlib.sha256(data).hexdigest())
+                    found = _Urdf(model, str(target.resolve()), data, target.name, key=key)
+                self._urdfs[cache] = found
+            except RobotError as exc:
+                self._urdfs[cache] = _one_line(str(exc))
+            except FileNotFoundError:
+                self._urdfs[cache] = (
+                    f"model file not found (paths are relative to the scenario file): {target}"
+                )
+            except OSError as exc:
+                self._urdfs[cache] = f"cannot read the model file {target}: {exc}"
+        found_or_why = self._urdfs[cache]
+        if isinstance(found_or_why, str):
+            raise ScenarioError(f"{self.origin}: {key} = {json.dumps(model)}: {found_or_why}")
+        return found_or_why
+
+    def _control(self, doc: Mapping[str, Any]) -> _Urdf | None:
+        """The file ``control.model`` names (relative to the scenario's folder), as
+        ``hybrid-force run`` loads it (a xacro file without arguments); None for none or a
+        registry arm."""
+        from hybrid_force.scenario.loader import resolve_control_model
+
+        found = resolve_control_model(doc, self.path, origin=self.origin)
+        if found is None:
+            return None
+        model, target, kind = found
+        return self._read_model("control.model", model, target, kind, {}, ())
 
     def check_unchanged(self) -> None:
         """SweepError if the file was changed or removed since it was first read (the rows of
@@ -166,8 +282,6 @@ class _Source:
         A xacro file is expanded here, once per set of arguments and package folders; its
         failure is bad input naming ``robot.model``, as the scenario loader says it.
         """
-        from hybrid_force.errors import ModelWarning, RobotError
-        from hybrid_force.model.robot import expand_xacro
         from hybrid_force.scenario.loader import resolve_robot_table
 
         table = resolve_robot_table(doc, self.path, origin=self.origin)
@@ -179,39 +293,23 @@ class _Source:
         }
         if table.kind == "name":
             return None, robot_meta
-        target = Path(table.target)
-        key = json.dumps([str(target), table.xacro_args, table.package_dirs], sort_keys=True)
-        if key not in self._urdfs:
-            try:
-                if table.kind == "xacro":
-                    with warnings.catch_warnings():  # the worker's load warns, in the row
-                        warnings.simplefilter("ignore", ModelWarning)
-                        text = expand_xacro(
-                            target, table.xacro_args, table.package_dirs, check=True
-                        )
-                    name = target.name.removesuffix(".xacro")
-                    name = name if name.endswith(".urdf") else f"{name or 'robot'}.urdf"
-                    found = _Urdf(
-                        table.model, str(target.resolve()), text.encode("utf-8"), name, True
-                    )
-                else:
-                    data = target.read_bytes()
-                    found = _Urdf(table.model, str(target.resolve()), data, target.name)
-                self._urdfs[key] = found
-            except RobotError as exc:
-                self._urdfs[key] = _one_line(str(exc))
-            except FileNotFoundError:
-                self._urdfs[key] = (
-                    f"model file not found (paths are relative to the scenario file): {target}"
-                )
-            except OSError as exc:
-                self._urdfs[key] = f"cannot read the model file {target}: {exc}"
-        found_or_why = self._urdfs[key]
-        if isinstance(found_or_why, str):
-            raise ScenarioError(
-                f"{self.origin}: robot.model = {json.dumps(table.model)}: {found_or_why}"
-            )
-        return found_or_why, robot_meta
+        found = self._read_model(
+            "robot.model",
+            table.model,
+            Path(table.target),
+            table.kind,
+            table.xacro_args,
+            table.package_dirs,
+        )
+        return found, robot_meta
+
+
+def _sha256_or_none(path: Path) -> str | None:
+    """The sha256 of a file's bytes, or None when it cannot be read (missing)."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
 
 
 def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) -> dict[str, Any]:
@@ -229,8 +327,9 @@ def run_one(scenario_path: str, params: dict[str, Any], keep_dir: str | None) ->
         warnings the run raised, joined by " | ", or None), the :data:`METRIC_COLUMNS`
         (None when undefined) and the :data:`TIMING_COLUMNS` (wall_time [s]).
 
-    The run goes through the same steps as a sweep's: the scenario's data and its URDF file
-    are read here, then built and simulated from a private temporary folder.
+    The run goes through the same steps as a sweep's: the scenario's data and its model files
+    (``robot.model``, ``control.model``) are read here, then built and simulated from a
+    private temporary folder.
     """
     rid = run_id(params)
     try:
@@ -268,7 +367,9 @@ def _execute(task: _Task) -> _Outcome:
             with tempfile.TemporaryDirectory(
                 prefix="hybrid_force_run_", dir=scratch, ignore_cleanup_errors=True
             ) as tmp:
-                blob = _simulate_into(row, task, Path(tmp), renames)
+                # absolute: the model paths written into the scenario must not be joined to
+                # the folder again (a relative scratch, e.g. a relative --out, did that)
+                blob = _simulate_into(row, task, Path(os.path.abspath(tmp)), renames)
         except Exception as exc:
             row["status"] = "error"
             row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
@@ -338,13 +439,14 @@ def _simulate_into(
         # the package folders were checked by the sweep: simulating reads no mesh
         robot = {k: v for k, v in robot.items() if k != "package_dirs"}
         if task.urdf is not None:
-            local = tmp / (task.urdf.name or "robot.urdf")
-            local.write_bytes(task.urdf.data)
-            robot["model"] = str(local)
+            robot["model"] = _write_model(tmp / "robot", task.urdf, renames)
             if task.urdf.expanded:
                 robot.pop("xacro_args", None)
-            renames.append((str(local), task.urdf.path))
         doc["robot"] = robot
+    control = doc.get("control")
+    if isinstance(control, dict) and task.control is not None:
+        # its own folder: it may have the robot's file name and another content
+        doc["control"] = {**control, "model": _write_model(tmp / "control", task.control, renames)}
     result: Any = None
     try:
         scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
@@ -376,22 +478,41 @@ def _simulate_into(
     return result.save(tmp / "result.npz").read_bytes()
 
 
+def _write_model(folder: Path, model: _Urdf, renames: list[tuple[str, str]]) -> str:
+    """Write a sent model file into ``folder``; its absolute path (what the worker's scenario
+    names), noted in ``renames`` as the sweep's machine calls it."""
+    folder.mkdir(parents=True, exist_ok=True)
+    local = folder / (model.name or "robot.urdf")
+    local.write_bytes(model.data)
+    # "key = value" in the loader's messages: the value as the scenario writes it, as in run's
+    quoted = (
+        json.dumps(str(local), ensure_ascii=False),
+        json.dumps(model.model, ensure_ascii=False),
+    )
+    renames.extend([quoted, (str(local), model.path)])
+    return str(local)
+
+
 def _with_original_model(result: Any, task: _Task) -> Any:
     """The Result with its meta naming the robot as the sweep's machine does, not the worker.
 
     ``meta["robot"]``: ``model`` the registry name, or the model file's absolute path on the
     sweep's machine, and the task's ``robot_meta`` (package folders, xacro arguments,
-    locking: what the replay passes to ``load_robot``); ``meta["scenario"]["robot"]``: the
-    ``[robot]`` table as the scenario file (with the variant's overrides) writes it.
+    locking: what the replay passes to ``load_robot``); ``meta["scenario"]["robot"]`` and
+    ``["control"]``: the tables as the scenario file (with the variant's overrides) writes
+    them, not naming the worker's copies of the model files.
     """
     robot = dict(result.meta.get("robot") or {})
     if task.urdf is not None:
         robot["model"] = task.urdf.path
     robot.update(task.robot_meta or {})
     source = result.meta.get("scenario")
-    original = task.doc.get("robot")
-    if isinstance(source, dict) and isinstance(original, dict):
-        source = {**source, "robot": dict(original)}
+    if isinstance(source, dict):
+        source = dict(source)
+        for name in ("robot", "control"):
+            original = task.doc.get(name)
+            if isinstance(original, dict):
+                source[name] = dict(original)
     return result.with_meta(robot=robot, scenario=source)
 
 
