@@ -1,0 +1,212 @@
+"""What polishing removes: the tool's contact patch (Hertz or flat pad) and Preston's law.
+
+Preston (1927): the removal rate is ḣ = k_p · p · v, pressure p [Pa] times sliding speed v
+[m/s], with Preston's coefficient k_p [m²/N]. The depth accumulates on a grid of cells laid on
+the surface (:class:`RemovalGrid`), each step adding k_p p_i |v_i| dt to the cells under the
+patch only (:func:`._removal_kernels.deposit`).
+
+Pads:
+
+* :class:`HertzPad` – an elastic pad of radius of curvature R [m] and effective modulus E* [Pa]
+  pressed with F on a part (Hertz; Johnson, *Contact Mechanics*, 1985, §4.2 and §5.2): contact
+  radius a = (3 F R_eff / 4E*)^(1/3), p(ρ) = p₀ √(1 − ρ²/a²), p₀ = 3F / (2πa²). The part's
+  principal curvatures κ₁, κ₂ (> 0 convex, from ∇²Φ) give 1/R' = 1/R + κ₁, 1/R'' = 1/R + κ₂;
+  an elliptical patch is replaced by the circle of the same area, R_eff = √(R'R'') (Johnson
+  §4.2, the equivalent-radius approximation; within a few % of the ellipse's a·b for R'/R'' ≤ 5).
+  Valid for small strains (a ≪ R), frictionless, elastic contact.
+* :class:`FlatPad` – a flat pad of radius a [m] with a uniform pressure F / (πa²) (a compliant
+  foam pad fully in contact; no edge peak).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hybrid_force._lazy import LazyKernels
+from hybrid_force.errors import ContactSettingsError
+
+__all__ = [
+    "FlatPad",
+    "HertzPad",
+    "RemovalGrid",
+    "flat_profile",
+    "hertz_profile",
+]
+
+_K = LazyKernels("hybrid_force.sim._removal_kernels")
+_HERTZ, _FLAT = 0, 1
+
+
+@dataclass(frozen=True)
+class HertzPad:
+    """An elastic pad: ``radius`` R [m] of curvature, ``modulus`` E* [Pa] (effective)."""
+
+    radius: float
+    modulus: float
+
+    def __post_init__(self) -> None:
+        for key, value in (("tool.pad.radius", self.radius), ("tool.pad.modulus", self.modulus)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ContactSettingsError(
+                    f"{key} must be a finite number > 0, got {value!r}", key=key, value=value
+                )
+
+    def patch(self, force: float, kappa1: float = 0.0, kappa2: float = 0.0) -> tuple[float, float]:
+        """(a [m], p₀ [Pa]) of the patch under ``force`` [N] on a part of principal curvatures
+        κ₁, κ₂ [1/m] (> 0 convex; a concave part with 1/R + κ ≤ 0 conforms: refused)."""
+        inv1, inv2 = 1.0 / self.radius + kappa1, 1.0 / self.radius + kappa2
+        if not (inv1 > 0 and inv2 > 0):
+            raise ContactSettingsError(
+                f"tool.pad.radius = {self.radius:g} m: the part is concave with a radius of "
+                f"curvature {1 / -min(kappa1, kappa2):.4g} m <= the pad's: Hertz contact does "
+                "not apply (the pad conforms to the part)",
+                key="tool.pad.radius",
+                value=self.radius,
+            )
+        r_eff = 1.0 / math.sqrt(inv1 * inv2)
+        if force <= 0:
+            return 0.0, 0.0
+        a = (3.0 * force * r_eff / (4.0 * self.modulus)) ** (1.0 / 3.0)
+        return a, 3.0 * force / (2.0 * math.pi * a * a)
+
+
+@dataclass(frozen=True)
+class FlatPad:
+    """A flat pad of ``radius`` a [m]: uniform pressure F / (πa²)."""
+
+    radius: float
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius)) or not (
+            self.radius > 0
+        ):
+            raise ContactSettingsError(
+                f"tool.pad.radius must be a finite number > 0, got {self.radius!r}",
+                key="tool.pad.radius",
+                value=self.radius,
+            )
+
+    def patch(self, force: float, kappa1: float = 0.0, kappa2: float = 0.0) -> tuple[float, float]:
+        """(a [m], p [Pa]): the pad's radius and F / (πa²)."""
+        a = self.radius
+        return a, max(force, 0.0) / (math.pi * a * a)
+
+
+def hertz_profile(y: np.ndarray, a: float, p0: float, k_p: float) -> np.ndarray:
+    """Depth h(y) [m] across a straight pass of a Hertz patch: k_p ∫ p dx = k_p p₀ π (a² − y²)/(2a).
+
+    Independent of the feed: the time under the patch is the path length over the speed.
+    """
+    y = np.asarray(y, dtype=float)
+    return np.where(np.abs(y) < a, k_p * p0 * math.pi * (a * a - y * y) / (2.0 * a), 0.0)
+
+
+def flat_profile(y: np.ndarray, a: float, p: float, k_p: float) -> np.ndarray:
+    """Depth h(y) [m] across a straight pass of a flat pad: 2 k_p p √(a² − y²)."""
+    y = np.asarray(y, dtype=float)
+    return np.where(np.abs(y) < a, 2.0 * k_p * p * np.sqrt(np.maximum(a * a - y * y, 0.0)), 0.0)
+
+
+class RemovalGrid:
+    """Cells on the surface: centres (M, 3) [m], areas (M,) [m²], and the depth (M,) [m].
+
+    The cells are sorted into cubic buckets of side ``bucket`` [m] so that a step visits only
+    the buckets its patch overlaps.
+    """
+
+    def __init__(self, points: np.ndarray, areas: np.ndarray, bucket: float) -> None:
+        self.points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        self.areas = np.ascontiguousarray(areas, dtype=np.float64).reshape(-1)
+        if self.points.shape[0] != self.areas.shape[0] or self.points.shape[0] == 0:
+            raise ValueError("RemovalGrid: points (M, 3) and areas (M,) with M > 0")
+        self.depth = np.zeros(self.points.shape[0])
+        #: the cells' chart coordinates (M, 2), for a grid laid on a chart
+        self.uv: np.ndarray | None = None
+        origin = self.points.min(axis=0) - 1e-9
+        dims = np.floor((self.points.max(axis=0) - origin) / bucket).astype(np.int64) + 1
+        index = np.floor((self.points - origin) / bucket).astype(np.int64)
+        flat = (index[:, 0] * dims[1] + index[:, 1]) * dims[2] + index[:, 2]
+        self.order = np.argsort(flat, kind="stable").astype(np.int64)
+        counts = np.bincount(flat, minlength=int(np.prod(dims)))
+        self.starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.box = np.array([*origin, bucket])
+        self.dims = dims
+
+    @classmethod
+    def on_chart(
+        cls,
+        chart: object,
+        u_range: tuple[float, float],
+        v_range: tuple[float, float],
+        resolution: float,
+    ) -> RemovalGrid:
+        """Cells of a chart S(u, v) (:mod:`hybrid_force.geometry.charts`) over a (u, v) box.
+
+        The cell counts give cells about ``resolution`` [m] wide on the surface; each cell's
+        area is |S_u × S_v| du dv at its centre (midpoint rule).
+        """
+        derivatives = chart.derivatives  # type: ignore[attr-defined]
+        mid_u, mid_v = 0.5 * sum(u_range), 0.5 * sum(v_range)
+        _, su, sv = derivatives(mid_u, mid_v)[:3, 0]
+        nu = max(1, math.ceil((u_range[1] - u_range[0]) * np.linalg.norm(su) / resolution))
+        nv = max(1, math.ceil((v_range[1] - v_range[0]) * np.linalg.norm(sv) / resolution))
+        du, dv = (u_range[1] - u_range[0]) / nu, (v_range[1] - v_range[0]) / nv
+        u = u_range[0] + du * (np.arange(nu) + 0.5)
+        v = v_range[0] + dv * (np.arange(nv) + 0.5)
+        uu, vv = (x.ravel() for x in np.meshgrid(u, v, indexing="ij"))
+        d = derivatives(uu, vv)
+        areas = np.linalg.norm(np.cross(d[1], d[2]), axis=1) * du * dv
+        grid = cls(d[0], areas, bucket=4.0 * resolution)
+        grid.uv = np.column_stack([uu, vv])
+        return grid
+
+    @classmethod
+    def on_mesh(cls, vertices: np.ndarray, faces: np.ndarray) -> RemovalGrid:
+        """One cell per triangle: its centroid and area."""
+        tri = np.asarray(vertices, dtype=float)[np.asarray(faces)]
+        areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        edge = float(np.sqrt(np.median(areas)))
+        return cls(tri.mean(axis=1), areas, bucket=4.0 * max(edge, 1e-6))
+
+    def add(
+        self,
+        pad: HertzPad | FlatPad,
+        k_p: float,
+        dt: float,
+        centre: np.ndarray,
+        normal: np.ndarray,
+        velocity: np.ndarray,
+        force: float,
+        omega: float = 0.0,
+        curvatures: tuple[float, float] = (0.0, 0.0),
+    ) -> int:
+        """One step of Preston removal (:func:`._removal_kernels.deposit`); the cells touched."""
+        a, _ = pad.patch(force, *curvatures)
+        shape = _HERTZ if isinstance(pad, HertzPad) else _FLAT
+        return int(
+            _K.deposit(
+                self.points,
+                self.areas,
+                self.order,
+                self.starts,
+                self.box,
+                self.dims,
+                self.depth,
+                np.ascontiguousarray(centre, dtype=np.float64),
+                np.ascontiguousarray(normal, dtype=np.float64),
+                np.ascontiguousarray(velocity, dtype=np.float64),
+                float(omega),
+                float(a),
+                shape,
+                float(force),
+                float(k_p) * float(dt),
+            )
+        )
+
+    @property
+    def volume(self) -> float:
+        """Σ depth_i A_i [m³]."""
+        return float(self.depth @ self.areas)
