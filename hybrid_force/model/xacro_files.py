@@ -1,5 +1,6 @@
 """xacro files: their expansion to URDF text, with ``$(find NAME)`` resolved through package
-folders (the ones given, then ``ROS_PACKAGE_PATH``'s, then the file's own folder).
+folders (the ones given, then ``ROS_PACKAGE_PATH``'s, then the file's own folder), and its
+expressions evaluated as data (:mod:`hybrid_force.model.xacro_eval`) unless the file is trusted.
 """
 
 from __future__ import annotations
@@ -61,6 +62,7 @@ def expand_xacro(
     package_dirs: Sequence[str | os.PathLike[str]],
     *,
     check: bool = False,
+    trust: bool = False,
 ) -> str:
     """The URDF text that the xacro file ``path`` expands to, with the arguments ``args``.
 
@@ -70,6 +72,12 @@ def expand_xacro(
     to the including file. What xacro prints as warnings becomes one :class:`ModelWarning`
     naming the file.
 
+    Expanding a file never runs code it carries: every ``${...}`` and ``$(eval ...)``
+    expression (also an include's file name, a property's or a macro parameter's value) is
+    evaluated by :func:`~hybrid_force.model.xacro_eval.eval_expression` /
+    :func:`~hybrid_force.model.xacro_eval.eval_substitution`, not by Python's ``eval``. Only
+    with ``trust`` does xacro evaluate them itself, as Python with its builtins.
+
     Args:
         path: the ``.xacro`` file.
         args: ``{name: text}`` values of its ``<xacro:arg>`` (``$(arg name)``).
@@ -77,18 +85,23 @@ def expand_xacro(
         check: also check the expansion as :func:`load_robot` does
             (:func:`~hybrid_force.model.urdf_check.check_urdf`; its messages and warnings name
             ``<path> (as expanded by xacro)``).
+        trust: let xacro evaluate the file's expressions as Python (the file's code runs).
 
     Raises:
         URDFError: the ``xacro`` package is missing, or xacro cannot expand the file (XML
             syntax, an undefined argument or property, a missing include, ``$(find NAME)``
             with no folder NAME); the message names the file (and the included file where it
             happened) and xacro's own message. With ``check``: an expansion that is not a
-            URDF the toolkit can simulate.
+            URDF the toolkit can simulate. Without ``trust``: an expression outside the
+            safe evaluator's allowlist (the message names the file, the expression and how
+            to opt in).
     """
     path = Path(path)
     try:
         import xacro
         from xacro import substitution_args
+
+        from hybrid_force.model.xacro_eval import eval_expression, eval_substitution
     except ImportError as exc:
         raise URDFError(
             f"cannot expand {path}: the 'xacro' package is missing ({exc}); pip install xacro"
@@ -116,8 +129,12 @@ def expand_xacro(
     with _XACRO_LOCK, contextlib.redirect_stderr(said), contextlib.redirect_stdout(said):
         saved_find = getattr(substitution_args, "_eval_find", None)
         saved_eval = substitution_args._eval_dict.get("find")
+        saved_safe_eval, saved_sub_eval = xacro.safe_eval, substitution_args._eval
         substitution_args._eval_find = find
         substitution_args._eval_dict["find"] = find
+        if not trust:  # xacro's two calls of Python's eval: ${...} and $(eval ...)
+            xacro.safe_eval = lambda expr, symbols, _locals=None: eval_expression(expr, symbols)
+            substitution_args._eval = eval_substitution
         xacro.all_includes = []  # xacro's record of every file it read: never emptied by it
         try:
             doc = xacro.process_file(target, mappings=dict(args), verbosity=0)
@@ -131,10 +148,10 @@ def expand_xacro(
                     where += f" (in macro '{macros[-1].body.getAttribute('name')}')"
             cause: BaseException | None = exc  # xacro wraps our $(find) error: unwrap it
             for _ in range(10):
-                if cause is None or isinstance(cause, _FindError):
+                if cause is None or isinstance(cause, (_FindError, URDFError)):
                     break
                 cause = getattr(cause, "exc", None) or cause.__cause__ or cause.__context__
-            cause = cause if isinstance(cause, _FindError) else None
+            cause = cause if isinstance(cause, (_FindError, URDFError)) else None
             if isinstance(exc, xml.parsers.expat.ExpatError):
                 why = f"XML syntax error: {exc}"
             elif cause is not None:
@@ -143,6 +160,7 @@ def expand_xacro(
                 why = " ".join(str(exc).split()) or type(exc).__name__
             raise URDFError(f"xacro cannot expand {path}{where}: {why}") from None
         finally:
+            xacro.safe_eval, substitution_args._eval = saved_safe_eval, saved_sub_eval
             if saved_find is not None:
                 substitution_args._eval_find = saved_find
             if saved_eval is not None:
