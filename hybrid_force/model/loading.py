@@ -46,6 +46,7 @@ def load_robot(
     *,
     xacro_args: Mapping[str, str] | None = None,
     lock_off_chain: bool | None = None,
+    xacro_trust: bool = False,
 ) -> Robot:
     """Load an arm by name or model file, refusing models the toolkit cannot simulate.
 
@@ -56,7 +57,10 @@ def load_robot(
 
     Model files: a ``*.xacro`` file is expanded with the ``xacro`` package (arguments
     ``xacro_args``; ``$(find NAME)`` is the folder NAME inside the first package folder that
-    holds one), then read as a URDF. A ``*.xml`` file whose root element is ``<mujoco>`` is
+    holds one), then read as a URDF. Its ``${...}`` and ``$(eval ...)`` expressions are
+    evaluated as data (numbers, texts, properties, math: see
+    :mod:`hybrid_force.model.xacro_eval`), never as Python code, unless ``xacro_trust``. A
+    ``*.xml`` file whose root element is ``<mujoco>`` is
     read by Pinocchio's MJCF parser (one whose root is ``<robot>`` is a URDF). Anything else
     is a URDF.
 
@@ -99,6 +103,9 @@ def load_robot(
             the working directory. Meshes are read by the replay only: simulating needs none.
         xacro_args: ``{name: value}`` texts passed to a xacro file as its ``<xacro:arg>``
             values (``$(arg name)``); only for a ``.xacro`` model.
+        xacro_trust: let xacro evaluate a ``.xacro`` model's expressions as Python (code in
+            the file runs: only for files you trust); no effect on other models. Not part of
+            :attr:`Robot.reference`: a result file never grants it.
         lock_off_chain: lock every joint off the chain from the root to the tip (step 3).
             Default (None): True for a model file, False for a registry arm (whose entry
             names what it locks: the Panda's fingers; ``z1`` keeps its gripper joint and
@@ -108,7 +115,9 @@ def load_robot(
         UnknownRobotError: a name that is not known (lists the known names).
         URDFError: the file is missing, malformed, physically impossible, outside the
             toolkit's scope, or xacro cannot expand it (the message names the file and the
-            cause; for xacro, its own message).
+            cause; for xacro, its own message), or, without ``xacro_trust``, one of its
+            expressions is outside the safe evaluator's allowlist (the message names the
+            file, the expression and how to opt in).
         FrameError: ``tip`` is not a frame of the model (lists the frames), or no moving
             joint lies between the root and it while the joints off its chain are locked.
     """
@@ -120,6 +129,8 @@ def load_robot(
     args = _xacro_arguments(xacro_args)
     if lock_off_chain is not None and not isinstance(lock_off_chain, bool):
         raise RobotError(f"lock_off_chain must be True, False or None, got {lock_off_chain!r}")
+    if not isinstance(xacro_trust, bool):
+        raise RobotError(f"xacro_trust must be True or False, got {xacro_trust!r}")
     locked: tuple[str, ...] = ()
     if _is_path(model):
         path = Path(model)
@@ -146,7 +157,7 @@ def load_robot(
         pin_model = _build_mjcf(path)
     else:
         if kind == "xacro":
-            xml = expand_xacro(path, args, given, check=True)
+            xml = expand_xacro(path, args, given, check=True, trust=xacro_trust)
         else:
             xml = urdf_text(path)
             _check_urdf_text(path, xml, expanded=False)

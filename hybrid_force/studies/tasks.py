@@ -163,8 +163,9 @@ class _Source:
         """The model file ``robot.model`` names (relative to the scenario's folder; None for a
         registry arm), and the options the result's ``meta["robot"]`` records.
 
-        A xacro file is expanded here, once per set of arguments and package folders; its
-        failure is bad input naming ``robot.model``, as the scenario loader says it.
+        A xacro file is expanded here, once per set of arguments and package folders, its
+        expressions as data unless ``robot.xacro_trust``; its failure is bad input naming
+        ``robot.model``, as the scenario loader says it.
         """
         from hybrid_force.errors import ModelWarning, RobotError
         from hybrid_force.model.robot import expand_xacro
@@ -180,14 +181,15 @@ class _Source:
         if table.kind == "name":
             return None, robot_meta
         target = Path(table.target)
-        key = json.dumps([str(target), table.xacro_args, table.package_dirs], sort_keys=True)
+        trust = table.values.get("xacro_trust") is True  # the file's own robot.xacro_trust
+        key = json.dumps([str(target), table.xacro_args, table.package_dirs, trust], sort_keys=True)
         if key not in self._urdfs:
             try:
                 if table.kind == "xacro":
                     with warnings.catch_warnings():  # the worker's load warns, in the row
                         warnings.simplefilter("ignore", ModelWarning)
                         text = expand_xacro(
-                            target, table.xacro_args, table.package_dirs, check=True
+                            target, table.xacro_args, table.package_dirs, check=True, trust=trust
                         )
                     name = target.name.removesuffix(".xacro")
                     name = name if name.endswith(".urdf") else f"{name or 'robot'}.urdf"
