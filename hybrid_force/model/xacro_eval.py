@@ -11,9 +11,9 @@ arithmetic, comparison and boolean operators; ``a if c else b``; subscripts; and
 ``ns.name`` only on a xacro namespace (an include's ``ns``, a YAML mapping, ``math``,
 ``python``, ``xacro``), read as a lookup, never as a Python attribute.
 
-Anything else (attribute access, other calls, ``lambda``, comprehensions, f-strings,
-double-underscore names, a result beyond :data:`MAX_INT_BITS` bits or :data:`MAX_LENGTH`
-items) raises :class:`~hybrid_force.errors.URDFError` saying how to opt in to xacro's own
+Anything else (attribute access, other calls, ``lambda``, comprehensions, f-strings, a
+double underscore anywhere in the text, a result beyond :data:`MAX_INT_BITS` bits or
+:data:`MAX_LENGTH` items) raises :class:`~hybrid_force.errors.URDFError` saying how to opt in to xacro's own
 evaluation (``robot.xacro_trust = true``, ``--trust-xacro``). An ordinary mistake (an
 undefined name, a division by zero, a type error) raises the same Python error that xacro's
 evaluation would, so xacro's message about it is unchanged.
@@ -326,6 +326,8 @@ def _parse(text: str) -> ast.expr:
     """The expression's syntax tree, within the size bounds."""
     if len(text) > _MAX_TEXT:
         raise _Refused(f"is longer than {_MAX_TEXT} characters")
+    if "__" in text:  # before parsing: even an unfinished expression is refused for it
+        raise _Refused("contains a double underscore (__)")
     try:
         tree = ast.parse(text.strip(), mode="eval")  # a SyntaxError is xacro's to report
     except (RecursionError, MemoryError):
