@@ -14,9 +14,9 @@ arithmetic, comparison and boolean operators; ``a if c else b``; subscripts; and
 Anything else (attribute access, other calls, ``lambda``, comprehensions, f-strings, a
 double underscore anywhere in the text, a result beyond :data:`MAX_INT_BITS` bits or
 :data:`MAX_LENGTH` items) raises :class:`~hybrid_force.errors.URDFError` saying how to opt in
-to xacro's own evaluation (``robot.xacro_trust = true``, ``--trust-xacro``). An ordinary mistake (an
-undefined name, a division by zero, a type error) raises the same Python error that xacro's
-evaluation would, so xacro's message about it is unchanged.
+to xacro's own evaluation (``robot.xacro_trust = true``, ``--trust-xacro``). An ordinary
+mistake (an undefined name, a division by zero, a type error) raises the same Python error
+that xacro's evaluation would, so xacro's message about it is unchanged.
 """
 
 from __future__ import annotations
