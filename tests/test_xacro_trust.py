@@ -201,6 +201,26 @@ def test_the_bounds_are_not_in_the_way_of_ordinary_numbers() -> None:
         eval_expression("1 / 0", table)
 
 
+def test_a_macro_bomb_is_refused(tmp_path: Path) -> None:
+    """Macros calling macros twice, 30 deep (2**30 links): refused after MAX_MACRO_CALLS."""
+    from hybrid_force.model.xacro_eval import MAX_MACRO_CALLS
+
+    body = ['<xacro:macro name="m0"><link name="x"/></xacro:macro>']
+    body += [
+        f'<xacro:macro name="m{i}"><xacro:m{i - 1}/><xacro:m{i - 1}/></xacro:macro>'
+        for i in range(1, 30)
+    ]
+    path = tmp_path / "bomb.xacro"
+    path.write_text(
+        '<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        f"{''.join(body)}<xacro:m29/></robot>"
+    )
+    with pytest.raises(URDFError, match=rf"{path}.*more than {MAX_MACRO_CALLS} macro calls"):
+        load_robot(path)
+    with pytest.raises(URDFError, match=r"rounds to -1000000000000 digits"):
+        eval_expression("round(5, -10**12)", {})
+
+
 # --- the command line ------------------------------------------------------------------------
 CLI_PAYLOADS = [p for p in PAYLOADS if p[0] in ("escaped-exec", "vars-chain", "open")]
 

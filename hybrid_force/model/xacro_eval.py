@@ -36,7 +36,9 @@ __all__ = [
     "MATH_NAMES",
     "MAX_INT_BITS",
     "MAX_LENGTH",
+    "MAX_MACRO_CALLS",
     "TRUST_HINT",
+    "counted_macro_calls",
     "eval_expression",
     "eval_substitution",
 ]
@@ -45,6 +47,8 @@ __all__ = [
 MAX_INT_BITS = 4096
 #: Most characters of a text, or items of a list or tuple, a safe expression may make.
 MAX_LENGTH = 100_000
+#: Most macro calls one expansion may make (nested macros could otherwise grow it without bound).
+MAX_MACRO_CALLS = 5_000
 #: Longest expression text and most syntax nodes and nesting levels of one expression.
 _MAX_TEXT = 10_000
 _MAX_NODES = 2_000
@@ -87,6 +91,13 @@ def _sum(values: Any) -> Any:
     return builtins.sum(values)  # one argument: no list concatenation through start=[]
 
 
+def _round(number: Any, ndigits: Any = None) -> Any:
+    # round(n, -k) of an integer computes 10**k first: k is bounded
+    if isinstance(ndigits, int) and abs(ndigits) > 400:
+        raise _Refused(f"rounds to {ndigits} digits (at most 400)")
+    return round(number, ndigits)
+
+
 _MATH_FUNCTIONS = (
     "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh",
     "acosh", "atanh", "sqrt", "exp", "log", "log10", "log2", "pow", "hypot", "radians",
@@ -100,7 +111,7 @@ MATH_NAMES: dict[str, Any] = {
 }
 _BUILTINS: dict[str, Callable[..., Any]] = {
     "abs": abs, "min": min, "max": max, "float": float, "int": int, "str": str,
-    "bool": bool, "len": len, "round": round, "sum": _sum, "sorted": sorted,
+    "bool": bool, "len": len, "round": _round, "sum": _sum, "sorted": sorted,
     "list": list, "tuple": tuple,
 }  # fmt: skip
 #: The builtins a safe expression may call, directly and as ``python.NAME``.
@@ -475,3 +486,22 @@ def eval_substitution(text: str, context: dict[str, Any]) -> str:
         raise _unknown(name)
 
     return str(_run(str(text), lookup, _member))
+
+
+def counted_macro_calls(handle: Callable[..., bool]) -> Callable[..., bool]:
+    """xacro's ``handle_macro_call``, refusing the call after :data:`MAX_MACRO_CALLS` macro
+    calls (of this wrapper: one per expansion)."""
+    calls = 0
+
+    def counted(node: Any, macros: Any, symbols: Any) -> bool:
+        nonlocal calls
+        if str(getattr(node, "tagName", "")).startswith("xacro:"):
+            calls += 1
+            if calls > MAX_MACRO_CALLS:
+                raise URDFError(
+                    f"more than {MAX_MACRO_CALLS} macro calls (the last one: <{node.tagName}>): "
+                    f"the expansion is refused as unbounded; {TRUST_HINT}"
+                )
+        return handle(node, macros, symbols)
+
+    return counted

@@ -101,7 +101,11 @@ def expand_xacro(
         import xacro
         from xacro import substitution_args
 
-        from hybrid_force.model.xacro_eval import eval_expression, eval_substitution
+        from hybrid_force.model.xacro_eval import (
+            counted_macro_calls,
+            eval_expression,
+            eval_substitution,
+        )
     except ImportError as exc:
         raise URDFError(
             f"cannot expand {path}: the 'xacro' package is missing ({exc}); pip install xacro"
@@ -130,11 +134,13 @@ def expand_xacro(
         saved_find = getattr(substitution_args, "_eval_find", None)
         saved_eval = substitution_args._eval_dict.get("find")
         saved_safe_eval, saved_sub_eval = xacro.safe_eval, substitution_args._eval
+        saved_macro_call = xacro.handle_macro_call
         substitution_args._eval_find = find
         substitution_args._eval_dict["find"] = find
         if not trust:  # xacro's two calls of Python's eval: ${...} and $(eval ...)
             xacro.safe_eval = lambda expr, symbols, _locals=None: eval_expression(expr, symbols)
             substitution_args._eval = eval_substitution
+            xacro.handle_macro_call = counted_macro_calls(saved_macro_call)
         xacro.all_includes = []  # xacro's record of every file it read: never emptied by it
         try:
             doc = xacro.process_file(target, mappings=dict(args), verbosity=0)
@@ -161,6 +167,7 @@ def expand_xacro(
             raise URDFError(f"xacro cannot expand {path}{where}: {why}") from None
         finally:
             xacro.safe_eval, substitution_args._eval = saved_safe_eval, saved_sub_eval
+            xacro.handle_macro_call = saved_macro_call
             if saved_find is not None:
                 substitution_args._eval_find = saved_find
             if saved_eval is not None:
