@@ -378,3 +378,33 @@ def test_replay_of_an_old_urdf_result_reads_the_urdf_as_data(tmp_path: Path) -> 
     old = _result_file(tmp_path, {"model": str(rtr), "tip": "tip", "nq": 3})
     assert Replay(old).robot.nv == 3
     assert os.listdir(tmp_path) == ["result.npz"]
+
+
+# --- sweep and compare -----------------------------------------------------------------------
+@pytest.mark.parametrize("command", ["sweep", "compare"])
+def test_sweep_and_compare_refuse_the_payload_and_trust_on_request(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    marker = tmp_path / "PWNED"
+    path = _write(
+        tmp_path / "arm", f'<xacro:property name="p" value="{_EXEC}"/>', "$(eval ${p})", marker
+    )
+    scen = tmp_path / "s.toml"
+    scen.write_text(SCENARIO.format(robot=""))
+    out = tmp_path / "out"
+    options = ["--grid", "sim.duration=0.02"] if command == "sweep" else ["--laws", "raibert_craig"]
+    argv = [command, str(scen), *options, "--out", str(out), "--workers", "1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "the expression 'exec(" in err and "--trust-xacro" in err
+    assert not marker.exists() and not list(out.rglob("*.csv")) and not list(out.rglob("*.npz"))
+    # a file that needs trust for a method call: refused, then expanded with --trust-xacro
+    _write(tmp_path / "arm", "", "x", marker)
+    path.write_text(path.read_text().replace('name="link3"', "name=\"${'LINK3'.lower()}\""))
+    assert main([*argv, "--trust-xacro"]) == 0, capsys.readouterr().err
+    assert list(out.rglob("*.csv"))
+    assert command == "sweep" or list(out.rglob("*.npz"))
+    for kept in out.rglob("*.npz"):  # compare keeps its runs: the expansion, not the file
+        robot_meta = json.loads(str(np.load(kept)["meta"]))["robot"]
+        assert robot_meta["model"] == str(path.resolve())
+        assert 'name="link3"' in robot_meta["model_text"] and "xacro_trust" not in robot_meta

@@ -112,10 +112,13 @@ class _Source:
     construction if it cannot be read or is not TOML.
     """
 
-    def __init__(self, path: Path, *, scratch: str | None = None) -> None:
+    def __init__(
+        self, path: Path, *, scratch: str | None = None, trust_xacro: bool = False
+    ) -> None:
         from hybrid_force.scenario.loader import read_scenario_document
 
         self.path = path
+        self.trust_xacro = trust_xacro  # --trust-xacro: as robot.xacro_trust = true
         self.origin = str(path)
         self.scratch = scratch
         read_scenario_document(path)  # unreadable file or bad TOML: ScenarioError now
@@ -164,8 +167,8 @@ class _Source:
         registry arm), and the options the result's ``meta["robot"]`` records.
 
         A xacro file is expanded here, once per set of arguments and package folders, its
-        expressions as data unless ``robot.xacro_trust``; its failure is bad input naming
-        ``robot.model``, as the scenario loader says it.
+        expressions as data unless ``robot.xacro_trust`` (or ``--trust-xacro``); its failure
+        is bad input naming ``robot.model``, as the scenario loader says it.
         """
         from hybrid_force.errors import ModelWarning, RobotError
         from hybrid_force.model.robot import expand_xacro
@@ -181,7 +184,7 @@ class _Source:
         if table.kind == "name":
             return None, robot_meta
         target = Path(table.target)
-        trust = table.values.get("xacro_trust") is True  # the file's own robot.xacro_trust
+        trust = self.trust_xacro or table.values.get("xacro_trust") is True
         key = json.dumps([str(target), table.xacro_args, table.package_dirs, trust], sort_keys=True)
         if key not in self._urdfs:
             try:
