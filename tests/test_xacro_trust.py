@@ -59,6 +59,8 @@ PAYLOADS: list[tuple[str, str, str, str]] = [
     ("huge-power", "", "${9**9**9}", "9**9**9"),
     ("huge-text", "", "${'a' * 10**9}", "'a' * 10**9"),
     ("huge-format", "", "${'%999999999d' % 1}", "%999999999d"),
+    ("nested-repeat", "", "${str([[0] * 99999] * 99999)}", "str([[0] * 99999]"),
+    ("huge-round", "", "${round(5, -10**12)}", "round(5, -10**12)"),
     ("eval-builtin", "", "$(eval open)", "open"),
 ]
 

@@ -296,9 +296,29 @@ def _checked(value: Any) -> Any:
     if isinstance(value, int) and not isinstance(value, bool):
         if value.bit_length() > MAX_INT_BITS:
             raise _Refused(f"makes an integer of more than {MAX_INT_BITS} bits")
-    elif isinstance(value, (str, list, tuple, dict)) and len(value) > MAX_LENGTH:
-        raise _Refused(f"makes a text or list of more than {MAX_LENGTH} items")
+    elif isinstance(value, (str, list, tuple, dict)):
+        size = len(value) if isinstance(value, str) else _size(value)
+        if size > MAX_LENGTH:
+            raise _Refused(f"makes a text or list of more than {MAX_LENGTH} items")
     return value
+
+
+def _size(value: Any) -> int:
+    """Items and characters of a nested list, tuple or dict, counted up to just past
+    :data:`MAX_LENGTH` (a list repeated inside a list is counted each time: it is printed
+    each time)."""
+    total, stack = 0, [value]
+    while stack and total <= MAX_LENGTH:
+        item = stack.pop()
+        total += 1
+        if isinstance(item, str):
+            total += len(item)
+        elif isinstance(item, dict):
+            stack.extend(item.keys())
+            stack.extend(item.values())
+        elif isinstance(item, (list, tuple)):
+            stack.extend(item[: MAX_LENGTH + 1])
+    return total
 
 
 def _checked_value(value: Any, name: str) -> Any:
