@@ -135,14 +135,15 @@ def expand_xacro(
         saved_eval = substitution_args._eval_dict.get("find")
         saved_safe_eval, saved_sub_eval = xacro.safe_eval, substitution_args._eval
         saved_macro_call = xacro.handle_macro_call
-        substitution_args._eval_find = find
-        substitution_args._eval_dict["find"] = find
-        if not trust:  # xacro's two calls of Python's eval: ${...} and $(eval ...)
-            xacro.safe_eval = lambda expr, symbols, _locals=None: eval_expression(expr, symbols)
-            substitution_args._eval = eval_substitution
-            xacro.handle_macro_call = counted_macro_calls(saved_macro_call)
-        xacro.all_includes = []  # xacro's record of every file it read: never emptied by it
         try:
+            substitution_args._eval_find = find
+            substitution_args._eval_dict["find"] = find
+            if not trust:  # xacro's two calls of Python's eval: ${...} and $(eval ...)
+                xacro.safe_eval = lambda expr, symbols, _=None: eval_expression(expr, symbols)
+                substitution_args._eval = eval_substitution
+                # nested macros can double the document at each level: calls are bounded
+                xacro.handle_macro_call = counted_macro_calls(saved_macro_call)
+            xacro.all_includes = []  # xacro's record of every file it read: never emptied by it
             doc = xacro.process_file(target, mappings=dict(args), verbosity=0)
             text = doc.toxml()
         except Exception as exc:
