@@ -190,6 +190,33 @@ def test_ordinary_xacro_expands_as_xacro_expands_it(tmp_path: Path, args: dict[s
     assert 'a="1.5707963267948966"' in ours and 'e="6"' in ours
 
 
+def test_namespaces_yaml_and_dynamic_calls_expand_as_xacro_expands_them(tmp_path: Path) -> None:
+    """An include's namespace (ns.name, ns['name'], ns.macro), xacro.load_yaml with a unit
+    tag and dotted access, xacro:call: equal to xacro's own expansion."""
+    import xacro
+
+    (tmp_path / "cfg.yaml").write_text(
+        "arm:\n  length: 0.4\n  angle: !degrees 90\n  names: [a, b]\n"
+    )
+    (tmp_path / "inc.xacro").write_text(
+        '<robot xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:property name="w" value="0.3"/>'
+        '<xacro:macro name="m" params="v"><link name="inc_${v}"/></xacro:macro></robot>'
+    )
+    path = tmp_path / "ns.xacro"
+    path.write_text(
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:include filename="inc.xacro" ns="parts"/>'
+        '<xacro:property name="cfg" value="${xacro.load_yaml(\'cfg.yaml\')}"/>'
+        '<xacro:parts.m v="${parts.w * 2}"/>'
+        '<link name="a" l="${cfg[\'arm\'][\'length\']}" m="${cfg.arm.length}" '
+        'n="${cfg.arm.angle}" o="${cfg.arm.names[1]}" p="${parts[\'w\']}"/>'
+        '<xacro:call macro="parts.m" v="x"/></robot>'
+    )
+    ours = expand_xacro(path, {}, [])
+    assert ours == xacro.process_file(str(path.resolve())).toxml()
+    assert 'n="1.5707963267948966"' in ours and '<link name="inc_0.6"/>' in ours
+
+
 def test_the_bounds_are_not_in_the_way_of_ordinary_numbers() -> None:
     table: dict[str, object] = {}
     assert eval_expression("2**4000 > 0", table) is True
