@@ -160,8 +160,9 @@ def _short(text: str, limit: int = 80) -> str:
 
 
 class _Evaluator:
-    """Walks one parsed expression; ``lookup(name)`` gives a name's value or raises
-    NameError; ``namespaces`` are the xacro tables read by ``ns.name``."""
+    """Walks one parsed expression, one method per allowed node type (any other is refused);
+    ``lookup(name)`` gives a name's value (or raises NameError or _Refused), ``member(owner,
+    name)`` the value of ``owner.name`` (or raises _Refused)."""
 
     def __init__(self, lookup: Callable[[str], Any], member: Callable[[Any, str], Any]) -> None:
         self.lookup = lookup
