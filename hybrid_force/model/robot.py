@@ -157,7 +157,8 @@ class Robot:
             arguments of :attr:`reference` for a xacro file or extra package folders.
         reference: (read-only) ``{"model", "tip", "package_dirs", "xacro_args",
             "lock_off_chain"}``: ``load_robot(**robot.reference)`` loads the same arm from
-            any working directory (JSON-able; package folders absolute).
+            any working directory (JSON-able; package folders absolute). ``xacro_trust`` is
+            not part of it: what a result file records never grants trust.
         urdf_path: the model file (a URDF, a ``.xacro`` or an MJCF ``.xml`` file).
         kind: ``"urdf"``, ``"xacro"`` or ``"mjcf"``: how the model file was read (a
             registry arm is ``"urdf"``).
