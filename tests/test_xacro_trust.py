@@ -335,8 +335,11 @@ def test_the_scenario_key_and_its_type(tmp_path: Path) -> None:
 
 
 # --- result files and the replay -------------------------------------------------------------
-def _result_file(folder: Path, robot_meta: dict[str, object], nq: int = 3) -> Path:
-    """A short hand-made result of an nq-joint arm whose meta["robot"] is ``robot_meta``."""
+def _result_file(
+    folder: Path, robot_meta: dict[str, object], nq: int = 3, scenario: object = None
+) -> Path:
+    """A short hand-made result of an nq-joint arm whose meta["robot"] is ``robot_meta``
+    (and meta["scenario"] ``scenario``)."""
     from hybrid_force.geometry.surfaces import Plane
 
     t = np.arange(11) * 0.01
@@ -346,6 +349,7 @@ def _result_file(folder: Path, robot_meta: dict[str, object], nq: int = 3) -> Pa
     meta = {
         "name": "xacro_trust",
         "robot": robot_meta,
+        "scenario": scenario,
         "surfaces": [Plane([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]).to_dict()],
         "events": [],
         "status": "ok",
@@ -366,7 +370,10 @@ def test_replay_never_expands_the_xacro_file_named_in_meta(
     pytest.importorskip("meshcat")
     marker = tmp_path / "PWNED"
     hostile = _write(tmp_path / "arm", extra, value, marker)
-    old = _result_file(tmp_path, {"model": str(hostile), "tip": "tip", "nq": 3})
+    # the result's own scenario claims trust: a result file never grants it
+    table = {"model": "arm/arm.urdf.xacro", "xacro_trust": True}
+    robot_meta = {"model": str(hostile), "tip": "tip", "nq": 3, "xacro_trust": True}
+    old = _result_file(tmp_path, robot_meta, scenario={"robot": table})
     page = tmp_path / "replay.html"
     assert main(["replay", str(old), "--html", str(page)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
