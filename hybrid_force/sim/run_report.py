@@ -16,7 +16,7 @@ import platform
 import uuid
 import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -68,7 +68,7 @@ def _jsonable(x: object) -> object:
     return json.loads(json.dumps(x, default=lambda o: np.asarray(o).tolist()))
 
 
-def _model_text(robot: Any) -> dict[str, str]:
+def _model_text(robot: Robot) -> dict[str, str]:
     """``{"model_text", "model_format"}``: the XML a model file's arm was built from (a
     xacro file's expansion) and ``"urdf"`` or ``"mjcf"``; empty for a registry arm (its name
     re-loads it) or a text that cannot be had (a hand-built Robot's missing file)."""
