@@ -171,7 +171,8 @@ BENIGN = """\
   </xacro:if>
   <xacro:unless value="${l > 0.1}"><link name="no"/></xacro:unless>
   <xacro:property name="n" value="3" lazy_eval="false"/>
-  <link name="last" note="${n + 1} $(arg scale) ${'q' * 3} ${1e3} ${-(-4) // 3} ${7 % 4}"/>
+  <link name="last" note="${n + 1} $(arg scale) ${'q' * 3} ${1e3} ${-(-4) // 3} ${7 % 4}"
+        env="$(optenv HYBRID_FORCE_UNSET_VARIABLE fallback) $(env HOME)"/>
 </robot>
 """
 
