@@ -172,23 +172,26 @@ BENIGN = """\
   <xacro:unless value="${l > 0.1}"><link name="no"/></xacro:unless>
   <xacro:property name="n" value="3" lazy_eval="false"/>
   <link name="last" note="${n + 1} $(arg scale) ${'q' * 3} ${1e3} ${-(-4) // 3} ${7 % 4}"
-        env="$(optenv HYBRID_FORCE_UNSET_VARIABLE fallback) $(env HOME)"/>
+        env="$(optenv HYBRID_FORCE_UNSET_VARIABLE fallback) $(env HYBRID_FORCE_XACRO_TEST)"/>
 </robot>
 """
 
 
 @pytest.mark.parametrize("args", [{}, {"prefix": "left", "scale": "4"}])
-def test_ordinary_xacro_expands_as_xacro_expands_it(tmp_path: Path, args: dict[str, str]) -> None:
+def test_ordinary_xacro_expands_as_xacro_expands_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: dict[str, str]
+) -> None:
     """Math, properties, macros with parameters and blocks, conditionals and $(eval): the safe
     evaluator's expansion equals xacro's own (Python eval), the independent reference."""
     import xacro
 
+    monkeypatch.setenv("HYBRID_FORCE_XACRO_TEST", "from-env")
     path = tmp_path / "benign.xacro"
     path.write_text(BENIGN)
     ours = expand_xacro(path, args, [])
     reference = xacro.process_file(str(path.resolve()), mappings=dict(args)).toxml()
     assert ours == reference
-    assert 'a="1.5707963267948966"' in ours and 'e="6"' in ours
+    assert 'a="1.5707963267948966"' in ours and 'e="6"' in ours and "fallback from-env" in ours
 
 
 def test_namespaces_yaml_and_dynamic_calls_expand_as_xacro_expands_them(tmp_path: Path) -> None:
