@@ -94,6 +94,7 @@ def _cmd_robots(args: argparse.Namespace) -> int:
             package_dirs=args.package_dir,
             xacro_args=xacro_args or None,
             lock_off_chain=False if args.keep_off_chain else None,
+            xacro_trust=args.trust_xacro,
         )
         sys.stdout.write(format_report(report))
         return 0
@@ -104,6 +105,7 @@ def _cmd_robots(args: argparse.Namespace) -> int:
             ("--package-dir", args.package_dir),
             ("--xacro-arg", args.xacro_arg),
             ("--keep-off-chain", args.keep_off_chain),
+            ("--trust-xacro", args.trust_xacro),
         )
         if v
     ]
@@ -233,6 +235,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     for text in args.set or []:
         key, value = parse_override(text)
         overrides[key] = value
+    if args.trust_xacro:
+        overrides["robot.xacro_trust"] = True
     scenario = load_scenario(args.scenario, overrides)
     output = RunOutput(
         args.out if args.out is not None else Path("runs") / scenario.name,
@@ -421,6 +425,12 @@ def build_parser(
         action="store_true",
         help="with --check: keep the joints off the chain to the tip free (not locked)",
     )
+    robots.add_argument(
+        "--trust-xacro",
+        action="store_true",
+        help="with --check: let xacro run the .xacro model's Python expressions (trusted "
+        "files only; by default they are evaluated as data, docs/robots.md)",
+    )
     robots.set_defaults(handler=_cmd_robots)
     laws = sub.add_parser(
         "laws",
@@ -479,6 +489,12 @@ def _add_run(sub: Any) -> None:
     run.add_argument("--html", metavar="FILE", default=None, help="write a 3D replay (HTML)")
     run.add_argument("--view", action="store_true", help="open the 3D viewer after the run")
     run.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
+    run.add_argument(
+        "--trust-xacro",
+        action="store_true",
+        help="let xacro run the .xacro model's Python expressions (as robot.xacro_trust = "
+        "true; trusted files only, docs/robots.md)",
+    )
     run.set_defaults(handler=_cmd_run)
 
 

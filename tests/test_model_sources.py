@@ -25,7 +25,14 @@ import umsgpack
 from conftest import ROD_MACRO, RTR_MJCF
 
 from hybrid_force import replay
-from hybrid_force.errors import FrameError, ModelWarning, RobotError, ScenarioError, URDFError
+from hybrid_force.errors import (
+    FrameError,
+    ModelWarning,
+    RobotError,
+    ScenarioError,
+    URDFError,
+    ViewerError,
+)
 from hybrid_force.geometry.surfaces import Plane
 from hybrid_force.model.robot import Robot, expand_xacro, load_robot
 from hybrid_force.result import Result
@@ -410,21 +417,21 @@ def test_xacro_arguments_only_for_a_xacro_file(tmp_path: Path) -> None:
         load_robot(_xacro_arm(tmp_path), xacro_args={"l1": 2.0})  # type: ignore[dict-item]
 
 
-def test_a_replay_expands_the_xacro_file_again_with_its_arguments(tmp_path: Path) -> None:
+def test_a_replay_rebuilds_a_xacro_arm_from_the_stored_expansion(tmp_path: Path) -> None:
     path = _xacro_arm(tmp_path)
     robot = load_robot(path, xacro_args={"l1": "0.6"})
-    result = _result(robot)
+    meta_robot = {**robot.reference, "nq": 2, "model_text": robot.urdf_xml, "model_format": "urdf"}
+    result = _result(robot, meta_robot)
     assert result.meta["robot"]["xacro_args"] == {"l1": "0.6"}
+    path.write_text("not xacro any more")  # the replay never reads (nor expands) the file
     rep = replay.Replay(result)
     np.testing.assert_allclose(rep.robot.tip_position([0.0, 0.0]), [1.1, 0.0, 0.0], atol=1e-15)
-    # without them in meta['robot'] (simulate stores model and tip), from the scenario table
-    meta_robot = {"model": robot.source, "tip": "tip", "nq": 2}
-    old = _result(robot, meta_robot).with_meta(
+    # an older result, without the expansion: refused, the xacro file is not expanded
+    old = _result(robot, {"model": robot.source, "tip": "tip", "nq": 2}).with_meta(
         scenario={"robot": {"model": "arm.urdf.xacro", "xacro_args": {"l1": 0.6}}}
     )
-    np.testing.assert_allclose(
-        replay.Replay(old).robot.tip_position([0.0, 0.0]), [1.1, 0.0, 0.0], atol=1e-15
-    )
+    with pytest.raises(ViewerError, match=r"arm\.urdf\.xacro' is a xacro file .* does not store"):
+        replay.Replay(old)
 
 
 # Paper section 6.3, shortened (tests/test_sweep.py): the RTR on the cylinder r = 0.4.

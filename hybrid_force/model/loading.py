@@ -31,7 +31,7 @@ from hybrid_force.model.xacro_files import (
 if TYPE_CHECKING:
     from hybrid_force.model.robot import Robot
 
-__all__ = ["MODEL_SUFFIXES", "load_robot", "model_kind"]
+__all__ = ["MODEL_SUFFIXES", "load_robot", "model_kind", "robot_from_text"]
 
 MODEL_SUFFIXES: tuple[str, ...] = (".urdf", ".xacro", ".xml")
 """Endings that make a text a model path, not a registry name (also: a path separator)."""
@@ -46,6 +46,7 @@ def load_robot(
     *,
     xacro_args: Mapping[str, str] | None = None,
     lock_off_chain: bool | None = None,
+    xacro_trust: bool = False,
 ) -> Robot:
     """Load an arm by name or model file, refusing models the toolkit cannot simulate.
 
@@ -56,7 +57,10 @@ def load_robot(
 
     Model files: a ``*.xacro`` file is expanded with the ``xacro`` package (arguments
     ``xacro_args``; ``$(find NAME)`` is the folder NAME inside the first package folder that
-    holds one), then read as a URDF. A ``*.xml`` file whose root element is ``<mujoco>`` is
+    holds one), then read as a URDF. Its ``${...}`` and ``$(eval ...)`` expressions are
+    evaluated as data (numbers, texts, properties, math: see
+    :mod:`hybrid_force.model.xacro_eval`), never as Python code, unless ``xacro_trust``. A
+    ``*.xml`` file whose root element is ``<mujoco>`` is
     read by Pinocchio's MJCF parser (one whose root is ``<robot>`` is a URDF). Anything else
     is a URDF.
 
@@ -99,6 +103,9 @@ def load_robot(
             the working directory. Meshes are read by the replay only: simulating needs none.
         xacro_args: ``{name: value}`` texts passed to a xacro file as its ``<xacro:arg>``
             values (``$(arg name)``); only for a ``.xacro`` model.
+        xacro_trust: let xacro evaluate a ``.xacro`` model's expressions as Python (code in
+            the file runs: only for files you trust); no effect on other models. Not part of
+            :attr:`Robot.reference`: a result file never grants it.
         lock_off_chain: lock every joint off the chain from the root to the tip (step 3).
             Default (None): True for a model file, False for a registry arm (whose entry
             names what it locks: the Panda's fingers; ``z1`` keeps its gripper joint and
@@ -108,18 +115,21 @@ def load_robot(
         UnknownRobotError: a name that is not known (lists the known names).
         URDFError: the file is missing, malformed, physically impossible, outside the
             toolkit's scope, or xacro cannot expand it (the message names the file and the
-            cause; for xacro, its own message).
+            cause; for xacro, its own message), or, without ``xacro_trust``, one of its
+            expressions is outside the safe evaluator's allowlist (the message names the
+            file, the expression and how to opt in).
         FrameError: ``tip`` is not a frame of the model (lists the frames), or no moving
             joint lies between the root and it while the joints off its chain are locked.
     """
     from hybrid_force.model.registry import resolve_robot
-    from hybrid_force.model.robot import Robot
-    from hybrid_force.model.urdf_check import check_arm_model, urdf_text
+    from hybrid_force.model.urdf_check import urdf_text
 
     given = _absolute_dirs(package_dirs)
     args = _xacro_arguments(xacro_args)
     if lock_off_chain is not None and not isinstance(lock_off_chain, bool):
         raise RobotError(f"lock_off_chain must be True, False or None, got {lock_off_chain!r}")
+    if not isinstance(xacro_trust, bool):
+        raise RobotError(f"xacro_trust must be True or False, got {xacro_trust!r}")
     locked: tuple[str, ...] = ()
     if _is_path(model):
         path = Path(model)
@@ -146,12 +156,88 @@ def load_robot(
         pin_model = _build_mjcf(path)
     else:
         if kind == "xacro":
-            xml = expand_xacro(path, args, given, check=True)
+            xml = expand_xacro(path, args, given, check=True, trust=xacro_trust)
         else:
             xml = urdf_text(path)
             _check_urdf_text(path, xml, expanded=False)
         pin_model, mimic = _build_model(path, xml)
-    tip_name = tip if tip is not None else default_tip or _default_tip(pin_model)
+    return _arm(
+        pin_model, mimic, path, name, tip if tip is not None else default_tip, locked, lock_all,
+        search=search, source=source, kind=kind, xml=xml,
+        reference={"package_dirs": given, "xacro_args": args, "lock_off_chain": lock_off_chain},
+    )  # fmt: skip
+
+
+def robot_from_text(
+    text: str,
+    fmt: str,
+    path: str | os.PathLike[str],
+    tip: str | None = None,
+    package_dirs: Sequence[str | os.PathLike[str]] = (),
+    *,
+    lock_off_chain: bool | None = None,
+) -> Robot:
+    """An arm built from a model's XML text, as :func:`load_robot` builds a model file's.
+
+    What the replay rebuilds a run's arm from: the text its result file stores (a xacro
+    model's expansion), so no xacro file is expanded and no model file read again.
+
+    Args:
+        text: the URDF (``fmt="urdf"``) or MJCF (``fmt="mjcf"``) text.
+        fmt: ``"urdf"`` or ``"mjcf"``.
+        path: the model file the text came from: it names the arm in messages, and relative
+            mesh paths of its visuals resolve against its folder; it is not read.
+        tip, package_dirs, lock_off_chain: as for :func:`load_robot` (a model file's).
+
+    Raises:
+        URDFError, FrameError: as :func:`load_robot` for the text.
+    """
+    from hybrid_force.model.urdf_check import check_urdf
+
+    if fmt not in ("urdf", "mjcf") or not isinstance(text, str):
+        raise RobotError(f"a model text must be 'urdf' or 'mjcf' text, got {fmt!r}")
+    if lock_off_chain is not None and not isinstance(lock_off_chain, bool):
+        raise RobotError(f"lock_off_chain must be True, False or None, got {lock_off_chain!r}")
+    given = _absolute_dirs(package_dirs)
+    model_path = Path(path)
+    xml: str | None = None
+    mimic: dict[str, tuple[str, float, float]] = {}
+    if fmt == "mjcf":
+        pin_model = _build_mjcf(model_path, text)
+    else:
+        xml = text
+        check_urdf(model_path, text=xml)
+        pin_model, mimic = _build_model(model_path, xml)
+    search = (*given, *_ros_package_path(), str(model_path.parent))
+    return _arm(
+        pin_model, mimic, model_path, str(path), tip, (), lock_off_chain is not False,
+        search=search, source=str(path), kind=fmt, xml=xml, mjcf_xml=text if xml is None else None,
+        reference={"package_dirs": given, "xacro_args": {}, "lock_off_chain": lock_off_chain},
+    )  # fmt: skip
+
+
+def _arm(
+    pin_model: pin.Model,
+    mimic: Mapping[str, tuple[str, float, float]],
+    path: Path,
+    name: str,
+    tip: str | None,
+    locked: Sequence[str],
+    lock_all: bool,
+    *,
+    search: Sequence[str],
+    source: str,
+    kind: str,
+    xml: str | None,
+    reference: Mapping[str, object],
+    mjcf_xml: str | None = None,
+) -> Robot:
+    """Steps 3 and 4 of :func:`load_robot`: the tip frame, the locked joints, the checks and
+    the :class:`Robot`."""
+    from hybrid_force.model.robot import Robot
+    from hybrid_force.model.urdf_check import check_arm_model
+
+    tip_name = tip if tip is not None else _default_tip(pin_model)
     _require_frame(pin_model, tip_name, path)
     pin_model = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all)
     check_arm_model(pin_model, path, tip=tip_name, mimic={j: m[0] for j, m in mimic.items()})
@@ -164,7 +250,8 @@ def load_robot(
         source=source,
         kind=kind,
         urdf_xml=xml,
-        reference={"package_dirs": given, "xacro_args": args, "lock_off_chain": lock_off_chain},
+        mjcf_xml=mjcf_xml,
+        reference=reference,
     )
 
 
@@ -347,7 +434,7 @@ def _build_model(
     return model, mimic
 
 
-def _build_mjcf(path: Path) -> pin.Model:
+def _build_mjcf(path: Path, text: str | None = None) -> pin.Model:
     """Pinocchio model of an MJCF file (``pin.buildModelFromMJCF``), fixed-base arms only.
 
     Refused before the parser runs (URDFError naming the file): malformed XML, a root
@@ -356,10 +443,11 @@ def _build_mjcf(path: Path) -> pin.Model:
     (:class:`ModelWarning`): a body without ``<inertial>`` whose inertia would come from a
     mesh geom (Pinocchio does not compute a mesh's inertia as MuJoCo does), and
     ``<equality>`` constraints (ignored: the joints they couple move independently).
-    Meshes and other assets are not read to build the model.
+    Meshes and other assets are not read to build the model. With ``text``, that is the
+    file's text (``path`` is not read; Pinocchio parses a temporary copy).
     """
     try:
-        root = ET.parse(path).getroot()
+        root = ET.parse(path).getroot() if text is None else ET.fromstring(text)
     except ET.ParseError as exc:
         raise URDFError(f"malformed MJCF {path}: XML parse error: {exc}") from None
     except OSError as exc:
@@ -405,9 +493,13 @@ def _build_mjcf(path: Path) -> pin.Model:
             "its <equality> constraints are ignored (the joints they couple move "
             "independently; joints off the tip's chain are locked by default)"
         )
-    with _native_stderr(path, "MJCF") as said:
+    with _native_stderr(path, "MJCF") as said, tempfile.TemporaryDirectory() as tmp:
+        parsed = path
+        if text is not None:
+            parsed = Path(tmp) / (path.name or "model.xml")
+            parsed.write_text(text, encoding="utf-8")
         try:
-            model = pin.buildModelFromMJCF(str(path))
+            model = pin.buildModelFromMJCF(str(parsed))
         except (RuntimeError, ValueError, IndexError) as exc:
             why = said()
             detail = f" ({why[0]})" if why else ""

@@ -170,13 +170,14 @@ def model_report(
     package_dirs: Sequence[str | Path] = (),
     xacro_args: Mapping[str, str] | None = None,
     lock_off_chain: bool | None = None,
+    xacro_trust: bool = False,
 ) -> ModelReport:
     """Load ``model`` as a scenario would and report what the simulation will see.
 
     Args:
         model: a registry name or a model path (see :func:`~hybrid_force.load_robot`).
         tip: the tip frame (default: the model's default tip).
-        package_dirs, xacro_args, lock_off_chain: as for
+        package_dirs, xacro_args, lock_off_chain, xacro_trust: as for
             :func:`~hybrid_force.model.robot.load_robot` (the scenario's ``[robot]`` keys).
 
     Raises:
@@ -189,6 +190,7 @@ def model_report(
         "package_dirs": tuple(package_dirs),
         "xacro_args": xacro_args,
         "lock_off_chain": lock_off_chain,
+        "xacro_trust": xacro_trust,
     }
     with _recorded_model_warnings() as said:
         robot = load_robot(model, tip=tip, **options)

@@ -44,7 +44,13 @@ import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import DimensionError, FrameError, RobotError
-from hybrid_force.model.loading import MODEL_SUFFIXES, _default_tip, load_robot, model_kind
+from hybrid_force.model.loading import (
+    MODEL_SUFFIXES,
+    _default_tip,
+    load_robot,
+    model_kind,
+    robot_from_text,
+)
 from hybrid_force.model.loading import _is_path as _is_path  # the scenario loader's import
 from hybrid_force.model.xacro_files import expand_xacro, find_package
 
@@ -58,6 +64,7 @@ __all__ = [
     "load_robot",
     "model_kind",
     "reference_terms",
+    "robot_from_text",
 ]
 _K = LazyKernels("hybrid_force.model._kernels")
 
@@ -150,12 +157,16 @@ class Robot:
             arguments of :attr:`reference` for a xacro file or extra package folders.
         reference: (read-only) ``{"model", "tip", "package_dirs", "xacro_args",
             "lock_off_chain"}``: ``load_robot(**robot.reference)`` loads the same arm from
-            any working directory (JSON-able; package folders absolute).
+            any working directory (JSON-able; package folders absolute). ``xacro_trust`` is
+            not part of it: what a result file records never grants trust.
         urdf_path: the model file (a URDF, a ``.xacro`` or an MJCF ``.xml`` file).
         kind: ``"urdf"``, ``"xacro"`` or ``"mjcf"``: how the model file was read (a
             registry arm is ``"urdf"``).
         urdf_xml: the URDF text the model was built from (the file's text, or xacro's
             expansion); None for an MJCF model. The replay reads its visuals from it.
+        model_xml: (read-only) the XML text the model was built from: :attr:`urdf_xml`, or
+            an MJCF model's file text (what a result file stores: :func:`robot_from_text`
+            rebuilds the arm from it).
         package_dirs: folders that resolve ``package://NAME/...`` mesh URIs (each holds a
             folder NAME), in search order: the ones given to :func:`load_robot`, then
             ``ROS_PACKAGE_PATH``'s, then the model file's own folder (or the registry's).
@@ -182,6 +193,7 @@ class Robot:
         kind: str = "urdf",
         urdf_xml: str | None = None,
         reference: Mapping[str, Any] | None = None,
+        mjcf_xml: str | None = None,
     ) -> None:
         """Wrap a Pinocchio model: nv > 0 and M(q0) positive definite are checked here (so a
         hand-built model cannot crash Pinocchio); :func:`load_robot` makes the other checks.
@@ -197,6 +209,7 @@ class Robot:
             urdf_xml: the URDF text of the model (None: read ``urdf_path`` when needed).
             reference: the extra :func:`load_robot` arguments of :attr:`reference`
                 (``package_dirs``, ``xacro_args``, ``lock_off_chain``); default: none.
+            mjcf_xml: an MJCF model's text (None: read ``urdf_path`` when needed).
         """
         if not isinstance(model, pin.Model):
             raise RobotError(f"robot '{name}': model must be a pinocchio.Model, got {model!r}")
@@ -220,6 +233,7 @@ class Robot:
             )
         self.kind = kind
         self._urdf_xml = urdf_xml
+        self._mjcf_xml = mjcf_xml
         extra = dict(reference or {})
         self._reference_extra: dict[str, Any] = {
             "package_dirs": [str(d) for d in extra.get("package_dirs", ())],
@@ -271,6 +285,18 @@ class Robot:
 
             self._urdf_xml = urdf_text(self.urdf_path)
         return self._urdf_xml
+
+    @property
+    def model_xml(self) -> str:
+        """The XML text the model was built from: :attr:`urdf_xml`, or the MJCF file's text
+        (read once, when first asked for, unless given)."""
+        if self.kind != "mjcf":
+            xml = self.urdf_xml
+            assert xml is not None  # a URDF model always has its text
+            return xml
+        if self._mjcf_xml is None:
+            self._mjcf_xml = self.urdf_path.read_text(encoding="utf-8")
+        return self._mjcf_xml
 
     @property
     def position_limits(self) -> tuple[np.ndarray, np.ndarray]:

@@ -1,5 +1,6 @@
 """xacro files: their expansion to URDF text, with ``$(find NAME)`` resolved through package
-folders (the ones given, then ``ROS_PACKAGE_PATH``'s, then the file's own folder).
+folders (the ones given, then ``ROS_PACKAGE_PATH``'s, then the file's own folder), and its
+expressions evaluated as data (:mod:`hybrid_force.model.xacro_eval`) unless the file is trusted.
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ def expand_xacro(
     *,
     check: bool = False,
     includes: list[str] | None = None,
+    trust: bool = False,
 ) -> str:
     """The URDF text that the xacro file ``path`` expands to, with the arguments ``args``.
 
@@ -70,6 +72,12 @@ def expand_xacro(
     own ``$(find)`` needs ROS 2's ament index, which is not used). Includes are read relative
     to the including file. What xacro prints as warnings becomes one :class:`ModelWarning`
     naming the file.
+
+    Expanding a file never runs code it carries: every ``${...}`` and ``$(eval ...)``
+    expression (also an include's file name, a property's or a macro parameter's value) is
+    evaluated by :func:`~hybrid_force.model.xacro_eval.eval_expression` /
+    :func:`~hybrid_force.model.xacro_eval.eval_substitution`, not by Python's ``eval``. Only
+    with ``trust`` does xacro evaluate them itself, as Python with its builtins.
 
     Args:
         path: the ``.xacro`` file.
@@ -81,18 +89,27 @@ def expand_xacro(
         includes: if given, the absolute paths of the files the expansion included (not
             ``path`` itself) are appended to it, also when it fails (those read until then):
             what a sweep hashes to know that its rows saw the same model.
+        trust: let xacro evaluate the file's expressions as Python (the file's code runs).
 
     Raises:
         URDFError: the ``xacro`` package is missing, or xacro cannot expand the file (XML
             syntax, an undefined argument or property, a missing include, ``$(find NAME)``
             with no folder NAME); the message names the file (and the included file where it
             happened) and xacro's own message. With ``check``: an expansion that is not a
-            URDF the toolkit can simulate.
+            URDF the toolkit can simulate. Without ``trust``: an expression outside the
+            safe evaluator's allowlist (the message names the file, the expression and how
+            to opt in).
     """
     path = Path(path)
     try:
         import xacro
         from xacro import substitution_args
+
+        from hybrid_force.model.xacro_eval import (
+            counted_macro_calls,
+            eval_expression,
+            eval_substitution,
+        )
     except ImportError as exc:
         raise URDFError(
             f"cannot expand {path}: the 'xacro' package is missing ({exc}); pip install xacro"
@@ -120,10 +137,17 @@ def expand_xacro(
     with _XACRO_LOCK, contextlib.redirect_stderr(said), contextlib.redirect_stdout(said):
         saved_find = getattr(substitution_args, "_eval_find", None)
         saved_eval = substitution_args._eval_dict.get("find")
-        substitution_args._eval_find = find
-        substitution_args._eval_dict["find"] = find
-        xacro.all_includes = []  # xacro's record of every file it read: never emptied by it
+        saved_safe_eval, saved_sub_eval = xacro.safe_eval, substitution_args._eval
+        saved_macro_call = xacro.handle_macro_call
         try:
+            substitution_args._eval_find = find
+            substitution_args._eval_dict["find"] = find
+            if not trust:  # xacro's two calls of Python's eval: ${...} and $(eval ...)
+                xacro.safe_eval = lambda expr, symbols, _=None: eval_expression(expr, symbols)
+                substitution_args._eval = eval_substitution
+                # nested macros can double the document at each level: calls are bounded
+                xacro.handle_macro_call = counted_macro_calls(saved_macro_call)
+            xacro.all_includes = []  # xacro's record of every file it read: never emptied by it
             doc = xacro.process_file(target, mappings=dict(args), verbosity=0)
             text = doc.toxml()
         except Exception as exc:
@@ -135,10 +159,10 @@ def expand_xacro(
                     where += f" (in macro '{macros[-1].body.getAttribute('name')}')"
             cause: BaseException | None = exc  # xacro wraps our $(find) error: unwrap it
             for _ in range(10):
-                if cause is None or isinstance(cause, _FindError):
+                if cause is None or isinstance(cause, (_FindError, URDFError)):
                     break
                 cause = getattr(cause, "exc", None) or cause.__cause__ or cause.__context__
-            cause = cause if isinstance(cause, _FindError) else None
+            cause = cause if isinstance(cause, (_FindError, URDFError)) else None
             if isinstance(exc, xml.parsers.expat.ExpatError):
                 why = f"XML syntax error: {exc}"
             elif cause is not None:
@@ -149,6 +173,8 @@ def expand_xacro(
         finally:
             if includes is not None:
                 includes.extend(str(f) for f in getattr(xacro, "all_includes", None) or [])
+            xacro.safe_eval, substitution_args._eval = saved_safe_eval, saved_sub_eval
+            xacro.handle_macro_call = saved_macro_call
             if saved_find is not None:
                 substitution_args._eval_find = saved_find
             if saved_eval is not None:

@@ -159,6 +159,7 @@ def _robot(table: object, file: Path, ctx: _Context) -> Any:
             package_dirs=resolved.package_dirs,
             xacro_args=resolved.xacro_args or None,
             lock_off_chain=values.get("lock_off_chain"),
+            xacro_trust=values.get("xacro_trust", False),
         )
     except FrameError as exc:
         raise ctx.error("robot.tip", values.get("tip"), " ".join(str(exc).split())) from None
@@ -279,10 +280,11 @@ def _surface_path(
 
 
 def _controller_model(
-    control_values: Mapping[str, Any], robot: Any, file: Path, ctx: _Context
+    control_values: Mapping[str, Any], robot: Any, file: Path, ctx: _Context, trust: bool = False
 ) -> Any:
     """``control.model``: the controller's own model of the arm (a name, or a model path
-    relative to the scenario file), with the plant's tip and joints; None when not given."""
+    relative to the scenario file), with the plant's tip and joints; None when not given.
+    ``trust``: ``robot.xacro_trust``, which covers a xacro ``control.model`` too."""
     from hybrid_force.control.controller import check_same_joints
     from hybrid_force.model.robot import load_robot
 
@@ -291,10 +293,10 @@ def _controller_model(
     model: str = control_values["model"]
     target, _ = _model_target(model, "control.model", file, ctx)
     try:
-        own = load_robot(target)
+        own = load_robot(target, xacro_trust=trust)
         check_same_joints(robot, own)
         if own.tip != robot.tip:  # the same arm: the plant's tip frame
-            own = load_robot(target, tip=robot.tip)
+            own = load_robot(target, tip=robot.tip, xacro_trust=trust)
     except BadInputError as exc:
         raise ctx.error("control.model", model, " ".join(str(exc).split())) from None
     return own

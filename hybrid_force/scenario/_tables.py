@@ -52,6 +52,7 @@ _ROBOT: dict[str, _Key] = {
     "package_dirs": _Key("str_list"),
     "xacro_args": _Key("str_table"),
     "lock_off_chain": _Key("bool"),
+    "xacro_trust": _Key("bool"),
 }
 
 _SURFACE_TYPES = ("cylinder", "sphere", "plane")

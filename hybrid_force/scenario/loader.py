@@ -234,7 +234,8 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
     sensor = _sensor_settings(doc.get("sensor", {}), ctx)
     contact = _contact_settings(doc.get("contact", {}), sim, ctx)
-    controller_model = _controller_model(control_values, robot, file, ctx)
+    trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
+    controller_model = _controller_model(control_values, robot, file, ctx, trust)
     tool = _tool_settings(doc.get("tool", {}), robot, ctx)
     _check_control_rate(control, sim, control_values, ctx)
     _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)

@@ -11,6 +11,7 @@ loop's log into the :class:`~hybrid_force.result.Result` with what the run must 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import uuid
 import warnings
@@ -22,6 +23,7 @@ import pinocchio as pin
 
 from hybrid_force.errors import (
     DivergenceError,
+    HybridForceError,
     JointLimitError,
     ReachError,
     RunFailedError,
@@ -66,6 +68,19 @@ def _jsonable(x: object) -> object:
     return json.loads(json.dumps(x, default=lambda o: np.asarray(o).tolist()))
 
 
+def _model_text(robot: Robot) -> dict[str, str]:
+    """``{"model_text", "model_format"}``: the XML a model file's arm was built from (a
+    xacro file's expansion) and ``"urdf"`` or ``"mjcf"``; empty for a registry arm (its name
+    re-loads it) or a text that cannot be had (a hand-built Robot's missing file)."""
+    if not os.path.isabs(str(robot.source)):
+        return {}
+    try:
+        text = robot.model_xml
+    except (OSError, UnicodeDecodeError, HybridForceError):
+        return {}
+    return {"model_text": text, "model_format": "mjcf" if robot.kind == "mjcf" else "urdf"}
+
+
 def run_meta(sc: Scenario, ctrl: ControlSide, k: int, nq: int) -> dict:
     """The run's metadata known before it starts (the loop adds status, events, timing)."""
     sim, law = sc.sim, ctrl.law
@@ -75,8 +90,9 @@ def run_meta(sc: Scenario, ctrl: ControlSide, k: int, nq: int) -> dict:
         "description": sc.description,
         "scenario": _jsonable(sc.source) if sc.source is not None else None,
         # what re-loads the arm from any folder: model (registry name or absolute path), tip,
-        # package_dirs, xacro_args, lock_off_chain
-        "robot": {**sc.robot.reference, "nq": nq},
+        # package_dirs, xacro_args, lock_off_chain; and the model's text, which the replay
+        # rebuilds it from (a xacro file is never expanded again)
+        "robot": {**sc.robot.reference, "nq": nq, **_model_text(sc.robot)},
         "surfaces": [s.to_dict() for s in sc.surfaces],
         "path": _path_meta(sc.path),
         "controller": {

@@ -183,6 +183,7 @@ def run_compare(
     start_method: StartMethod = "auto",
     on_row: Callable[[dict[str, Any]], None] | None = None,
     figures: bool = True,
+    trust_xacro: bool = False,
 ) -> Path:
     """Run the scenario once per law and write ``out_dir/compare.csv`` (and the figures).
 
@@ -196,6 +197,7 @@ def run_compare(
             :func:`~hybrid_force.studies.sweep.run_sweep`.
         on_row: called with every new row of the sweep's table (a finished run).
         figures: also draw the overlay figures (needs matplotlib, the ``plots`` extra).
+        trust_xacro: as for :func:`~hybrid_force.studies.sweep.run_sweep`.
 
     Returns:
         The path of ``compare.csv``.
@@ -218,6 +220,7 @@ def run_compare(
     names = check_laws(laws)
     fixed = dict(overrides or {})
     variants = _variants(names, fixed)
+    checked = {**variants[0], **({"robot.xacro_trust": True} if trust_xacro else {})}
     scenario = Path(scenario_path)
     out = Path(out_dir)
     created = not out.exists()
@@ -235,9 +238,10 @@ def run_compare(
             on_row=on_row,
             # bad input before any run, as the runs see it (the first law stands for all:
             # the surfaces, path and plant do not depend on the law)
-            check=lambda: loaded.append(load_scenario(scenario, variants[0])),
+            check=lambda: loaded.append(load_scenario(scenario, checked)),
             start_method=start_method,
             label="compare",
+            trust_xacro=trust_xacro,
         )
     except BaseException:
         if created:  # refused before anything was written: leave no empty folder
@@ -292,6 +296,12 @@ def add_compare_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="TABLE.KEY=VALUE",
         help="override a key of the file for every law (TOML value), e.g. --set "
         "sim.duration=5; repeatable; not control.law",
+    )
+    parser.add_argument(
+        "--trust-xacro",
+        action="store_true",
+        help="let xacro run the .xacro model's Python expressions (as robot.xacro_trust = "
+        "true; trusted files only, docs/robots.md)",
     )
     add_engine_arguments(parser)
 
@@ -350,6 +360,7 @@ def compare_command(args: argparse.Namespace) -> int:
             start_method=args.start_method,
             on_row=on_row,
             figures=figures,
+            trust_xacro=args.trust_xacro,
         ),
         out / RUNS_DIR / _CSV_NAME,
     )

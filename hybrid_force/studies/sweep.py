@@ -141,6 +141,7 @@ def run_sweep(
     check: Callable[[], None] | None = None,
     start_method: StartMethod = "auto",
     label: str = "sweep",
+    trust_xacro: bool = False,
 ) -> Path:
     """Run every variant not yet in ``out_dir/sweep.csv``; return the CSV path.
 
@@ -171,6 +172,9 @@ def run_sweep(
             them), or "auto": fork on Linux when this process runs no other Python thread,
             else spawn. The rows are the same either way.
         label: the word before the progress line (e.g. "compare" for a comparison of laws).
+        trust_xacro: let xacro evaluate a xacro model's expressions as Python, as
+            ``robot.xacro_trust = true`` does (``--trust-xacro``); the model is expanded by
+            this process only.
 
     Returns:
         ``out_dir/sweep.csv``: one row per variant in variant order (plus rows of earlier
@@ -210,7 +214,8 @@ def run_sweep(
         raise SweepError(f"--workers must be a positive integer, got {workers!r}")
     if scheduler is not None:  # before anything is written
         require_extra("dask", "the Dask engine (--scheduler)")
-    source = _Source(scenario)  # read here, never by a worker; ScenarioError if unreadable
+    # read here, never by a worker; ScenarioError if unreadable
+    source = _Source(scenario, trust_xacro=trust_xacro)
     out = Path(out_dir)
     created = not out.exists()
     try:
@@ -433,6 +438,12 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="save every run's result to DIR/results/<run_id>.npz",
     )
+    parser.add_argument(
+        "--trust-xacro",
+        action="store_true",
+        help="let xacro run the .xacro model's Python expressions (as robot.xacro_trust = "
+        "true; trusted files only, docs/robots.md)",
+    )
     add_engine_arguments(parser)
 
 
@@ -472,6 +483,8 @@ def sweep_command(args: argparse.Namespace) -> int:
         raise SweepError(f"--workers must be a positive integer, got {args.workers}")
     variants = expand(grid, random, args.samples or 0, args.seed)
     fixed = {key: values[0] for key, values in grid.items() if len(values) == 1}
+    if args.trust_xacro:
+        fixed["robot.xacro_trust"] = True  # for the check; the runs get it from trust_xacro
     out = Path(args.out) if args.out else Path("runs") / f"{scenario.stem}_sweep"
     arguments = {
         "grid": grid,
@@ -496,6 +509,7 @@ def sweep_command(args: argparse.Namespace) -> int:
             # sees it (with the keys the grid fixes to one value, e.g. sim.duration), while
             # the workers start
             check=lambda: load_scenario(scenario, fixed),
+            trust_xacro=args.trust_xacro,
         ),
         out / _CSV_NAME,
     )

@@ -120,10 +120,13 @@ class _Source:
     construction if it cannot be read or is not TOML.
     """
 
-    def __init__(self, path: Path, *, scratch: str | None = None) -> None:
+    def __init__(
+        self, path: Path, *, scratch: str | None = None, trust_xacro: bool = False
+    ) -> None:
         from hybrid_force.scenario.loader import read_scenario_document
 
         self.path = path
+        self.trust_xacro = trust_xacro  # --trust-xacro: as robot.xacro_trust = true
         self.origin = str(path)
         self.scratch = scratch
         read_scenario_document(path)  # unreadable file or bad TOML: ScenarioError now
@@ -202,9 +205,12 @@ class _Source:
         kind: str,
         xacro_args: Mapping[str, str],
         package_dirs: tuple[str, ...],
+        *,
+        trust: bool = False,
     ) -> _Urdf:
         """The model file ``target`` (the value ``model`` of ``key``) as a task sends it, read
-        or expanded once per set of options; the files read are recorded in :attr:`inputs`.
+        or expanded once per set of options (a xacro file's expressions as data unless
+        ``trust``); the files read are recorded in :attr:`inputs`.
 
         Raises:
             ScenarioError: it cannot be read or expanded, naming the file and key as the
@@ -213,7 +219,7 @@ class _Source:
         from hybrid_force.errors import ModelWarning, RobotError
         from hybrid_force.model.robot import expand_xacro
 
-        cache = json.dumps([key, str(target), xacro_args, package_dirs], sort_keys=True)
+        cache = json.dumps([key, str(target), xacro_args, package_dirs, trust], sort_keys=True)
         if cache not in self._urdfs:
             includes: list[str] = []
             try:
@@ -222,7 +228,12 @@ class _Source:
                         warnings.simplefilter("ignore", ModelWarning)
                         try:
                             text = expand_xacro(
-                                target, xacro_args, package_dirs, check=True, includes=includes
+                                target,
+                                xacro_args,
+                                package_dirs,
+                                check=True,
+                                includes=includes,
+                                trust=trust,
                             )
                         finally:  # the files xacro read, also when it failed
                             for name in (str(target), *includes):
@@ -260,7 +271,9 @@ class _Source:
         if found is None:
             return None
         model, target, kind = found
-        return self._read_model("control.model", model, target, kind, {}, ())
+        robot = doc.get("robot")  # robot.xacro_trust covers a xacro control.model too
+        trust = self.trust_xacro or (isinstance(robot, dict) and robot.get("xacro_trust") is True)
+        return self._read_model("control.model", model, target, kind, {}, (), trust=trust)
 
     def check_unchanged(self) -> None:
         """SweepError if the file was changed or removed since it was first read (the rows of
@@ -279,8 +292,9 @@ class _Source:
         """The model file ``robot.model`` names (relative to the scenario's folder; None for a
         registry arm), and the options the result's ``meta["robot"]`` records.
 
-        A xacro file is expanded here, once per set of arguments and package folders; its
-        failure is bad input naming ``robot.model``, as the scenario loader says it.
+        A xacro file is expanded here, once per set of arguments and package folders, its
+        expressions as data unless ``robot.xacro_trust`` (or ``--trust-xacro``); its failure
+        is bad input naming ``robot.model``, as the scenario loader says it.
         """
         from hybrid_force.scenario.loader import resolve_robot_table
 
@@ -300,6 +314,7 @@ class _Source:
             table.kind,
             table.xacro_args,
             table.package_dirs,
+            trust=self.trust_xacro or table.values.get("xacro_trust") is True,
         )
         return found, robot_meta
 

@@ -168,8 +168,8 @@ def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str)
     import tempfile
 
     try:
-        if robot.kind == "mjcf":
-            root = ET.parse(robot.urdf_path).getroot()
+        if robot.kind == "mjcf":  # its text (a replayed arm's, from its result file)
+            root = ET.fromstring(robot.model_xml)
         else:
             root = ET.fromstring(robot.urdf_xml)
     except (OSError, ET.ParseError) as exc:

@@ -139,7 +139,11 @@ class Replay:
 
     # ------------------------------------------------------------------ loading
     def _load_robot(self) -> Any:
-        from hybrid_force.model.robot import load_robot
+        """The run's arm: rebuilt from the model text ``meta["robot"]`` stores
+        (:func:`~hybrid_force.model.robot.robot_from_text`: no xacro file is expanded and the
+        model file is not read), or a registry arm by its name. A result saved before results
+        stored the text replays a plain URDF or MJCF file read again, never a xacro file."""
+        from hybrid_force.model.robot import _is_path, load_robot, model_kind, robot_from_text
 
         info = self.result.meta.get("robot")
         if not isinstance(info, dict) or not isinstance(info.get("model"), str):
@@ -149,15 +153,32 @@ class Replay:
             )
         model = info["model"]
         tip = info.get("tip")
+        tip = tip if isinstance(tip, str) else None
         options = _load_options(self.result.meta)
+        text, fmt = info.get("model_text"), info.get("model_format")
+        if text is not None and not (isinstance(text, str) and fmt in ("urdf", "mjcf")):
+            raise ViewerError(
+                f"result's robot '{model}': meta['robot'] has a model_text that is not a "
+                f"URDF or MJCF text (model_format {fmt!r})"
+            )
+        if text is None and _is_path(model) and model_kind(model) == "xacro":
+            raise ViewerError(
+                f"result's robot '{model}' is a xacro file and the result does not store its "
+                "expansion (it was saved by an older version): replaying it would expand the "
+                "file, which may run code it carries; run the scenario again to replay it"
+            )
+
+        def load(**extra: Any) -> Any:
+            if isinstance(text, str):
+                kept = {k: v for k, v in options.items() if k != "xacro_args"}
+                return robot_from_text(text, str(fmt), model, tip, **kept, **extra)
+            return load_robot(model, tip=tip, **options, **extra)
+
         try:
-            robot = load_robot(model, tip=tip if isinstance(tip, str) else None, **options)
+            robot = load()
             if robot.nq != self.result.nq and "lock_off_chain" not in options:
                 # a result made before joints off the tip's chain were locked by default
-                unlocked = load_robot(
-                    model, tip=tip if isinstance(tip, str) else None, **options,
-                    lock_off_chain=False,
-                )  # fmt: skip
+                unlocked = load(lock_off_chain=False)
                 robot = unlocked if unlocked.nq == self.result.nq else robot
         except HybridForceError as exc:
             raise ViewerError(f"result's robot '{model}' cannot be found: {exc}") from exc
