@@ -351,13 +351,21 @@ def _build_mjcf(path: Path) -> pin.Model:
     """Pinocchio model of an MJCF file (``pin.buildModelFromMJCF``), fixed-base arms only.
 
     Refused before the parser runs (URDFError naming the file): malformed XML, a root
-    element other than ``<mujoco>``, an ``<include>`` (Pinocchio's parser silently ignores
-    it: the included bodies would be missing), a free or ball joint. Warned
+    element other than ``<mujoco>``, and what :func:`~hybrid_force.model.mjcf.prepare_mjcf`
+    refuses (``<include>``, ``<attach>``, a free or ball joint, …). The parser reads the
+    file as :func:`~hybrid_force.model.mjcf.prepare_mjcf` rewrites it (frames and replicates
+    expanded, orientations as quaternions, the bodies in one jointless body ``world``:
+    Pinocchio issue #2782), written to a temporary folder under the file's own name (the
+    parser names unnamed bodies after the file); the joints' limits, damping, friction and
+    armature are then MuJoCo's (:func:`~hybrid_force.model.mjcf.apply_joints`). Warned
     (:class:`ModelWarning`): a body without ``<inertial>`` whose inertia would come from a
-    mesh geom (Pinocchio does not compute a mesh's inertia as MuJoCo does), and
-    ``<equality>`` constraints (ignored: the joints they couple move independently).
-    Meshes and other assets are not read to build the model.
+    mesh geom (Pinocchio does not compute a mesh's inertia as MuJoCo does), ``<equality>``
+    constraints (ignored: the joints they couple move independently), and what
+    :func:`~hybrid_force.model.mjcf.prepare_mjcf` warns about. Meshes and other assets are not
+    read to build the model.
     """
+    from hybrid_force.model.mjcf import apply_joints, prepare_mjcf
+
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:
@@ -369,23 +377,9 @@ def _build_mjcf(path: Path) -> pin.Model:
             f"not an MJCF file: {path}: root element is <{root.tag}>, expected <mujoco> "
             "(or <robot> for a URDF)"
         )
-    include = root.find(".//include")
-    if include is not None:
-        raise URDFError(
-            f"unsupported MJCF {path}: <include file={include.get('file')!r}>: Pinocchio's "
-            "MJCF parser ignores includes (the included bodies would be missing); write the "
-            "included file's content in place of the <include>"
-        )
+    text, joints = prepare_mjcf(path, root)
     mesh_bodies = []
     for body in root.iter("body"):
-        where = f"body {body.get('name', '?')!r}"
-        for child in body:
-            jtype = "free" if child.tag == "freejoint" else child.get("type", "hinge")
-            if child.tag in ("joint", "freejoint") and jtype in ("free", "ball"):
-                raise URDFError(
-                    f"unsupported MJCF {path}: {where} has a {jtype} joint "
-                    f"{child.get('name', '(unnamed)')!r}; {_MJCF_SCOPE}"
-                )
         meshes = [
             g
             for g in body.findall("geom")
@@ -405,24 +399,21 @@ def _build_mjcf(path: Path) -> pin.Model:
             "its <equality> constraints are ignored (the joints they couple move "
             "independently; joints off the tip's chain are locked by default)"
         )
-    with _native_stderr(path, "MJCF") as said:
-        try:
-            model = pin.buildModelFromMJCF(str(path))
-        except (RuntimeError, ValueError, IndexError) as exc:
-            why = said()
-            detail = f" ({why[0]})" if why else ""
-            raise URDFError(
-                f"Pinocchio cannot parse MJCF {path}: {_pinocchio_message(exc)}{detail}"
-            ) from None
+    with tempfile.TemporaryDirectory(prefix="hybrid_force_mjcf_") as folder:
+        copy = Path(folder) / path.name
+        copy.write_text(text, encoding="utf-8")
+        with _native_stderr(path, "MJCF") as said:
+            try:
+                model = pin.buildModelFromMJCF(str(copy))
+            except (RuntimeError, ValueError, IndexError) as exc:
+                why = said()
+                detail = f" ({why[0]})" if why else ""
+                message = _pinocchio_message(exc).replace(str(copy), str(path))
+                raise URDFError(f"Pinocchio cannot parse MJCF {path}: {message}{detail}") from None
+    apply_joints(model, joints)
     for note in notes:
         warnings.warn(f"{path}: {note}", ModelWarning, stacklevel=3)
     return model
-
-
-_MJCF_SCOPE = (
-    "hybrid_force simulates fixed-base arms with one-coordinate joints (hinge, slide) only: "
-    "remove the joint (the body is then welded to its parent) or replace it"
-)
 
 
 def _pinocchio_message(exc: BaseException) -> str:
