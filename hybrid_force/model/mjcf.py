@@ -134,6 +134,8 @@ def prepare_mjcf(path: Path, root: ET.Element) -> tuple[str, dict[str, MjcfJoint
     _expand_replicates(path, worldbody, compiler)
     _expand_frames(path, worldbody)
     defaults = _defaults(root)
+    for default in root.findall("default"):
+        default.set("class", default.get("class", "main"))  # Pinocchio knows no "main"
     joints = _joints(path, worldbody, defaults, compiler)
     _wrap_world(worldbody)
     _set_compiler(path, root)
