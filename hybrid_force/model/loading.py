@@ -46,6 +46,7 @@ def load_robot(
     *,
     xacro_args: Mapping[str, str] | None = None,
     lock_off_chain: bool | None = None,
+    locked_positions: Mapping[str, float] | None = None,
 ) -> Robot:
     """Load an arm by name or model file, refusing models the toolkit cannot simulate.
 
@@ -80,7 +81,8 @@ def load_robot(
        with ``lock_off_chain``, every other joint off that chain (grippers, fingers, a
        humanoid's other limbs). A locked joint is held at 0 (Pinocchio's neutral position:
        0 rad or 0 m), or at the middle of its range when 0 is outside it (at its one finite
-       bound when the other is infinite);
+       bound when the other is infinite), unless ``locked_positions`` gives its position (a
+       mimic joint is then held where it says too);
     4. :func:`~hybrid_force.model.urdf_check.check_arm_model` (nv > 0, one coordinate per joint, no
        mimic joint on the tip's chain) and :class:`Robot` (M(q0) positive definite).
 
@@ -103,6 +105,10 @@ def load_robot(
             Default (None): True for a model file, False for a registry arm (whose entry
             names what it locks: the Panda's fingers; ``z1`` keeps its gripper joint and
             ``g1`` its 29 joints). Mimic joints off the chain are locked whatever this says.
+        locked_positions: ``{joint: position}`` [rad or m] of joints this load locks (step
+            3): where each is held instead of its default. A scenario's ``initial.q`` (or
+            ``initial.seed``) listing every joint of the file gives them. Every name must be
+            a locked joint, every value a finite number within the joint's range.
 
     Raises:
         UnknownRobotError: a name that is not known (lists the known names).
@@ -111,6 +117,8 @@ def load_robot(
             cause; for xacro, its own message).
         FrameError: ``tip`` is not a frame of the model (lists the frames), or no moving
             joint lies between the root and it while the joints off its chain are locked.
+        RobotError: ``locked_positions`` names a joint that is not locked, or holds a value
+            that is not a finite number within the joint's range.
     """
     from hybrid_force.model.registry import resolve_robot
     from hybrid_force.model.robot import Robot
@@ -120,6 +128,7 @@ def load_robot(
     args = _xacro_arguments(xacro_args)
     if lock_off_chain is not None and not isinstance(lock_off_chain, bool):
         raise RobotError(f"lock_off_chain must be True, False or None, got {lock_off_chain!r}")
+    positions = _locked_positions(locked_positions)
     locked: tuple[str, ...] = ()
     if _is_path(model):
         path = Path(model)
@@ -153,8 +162,16 @@ def load_robot(
         pin_model, mimic = _build_model(path, xml)
     tip_name = tip if tip is not None else default_tip or _default_tip(pin_model)
     _require_frame(pin_model, tip_name, path)
-    pin_model = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all)
+    file_joints = tuple(pin_model.names[j] for j in range(1, pin_model.njoints))
+    pin_model, held = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all, positions)
     check_arm_model(pin_model, path, tip=tip_name, mimic={j: m[0] for j, m in mimic.items()})
+    reference: dict[str, object] = {
+        "package_dirs": given,
+        "xacro_args": args,
+        "lock_off_chain": lock_off_chain,
+    }
+    if positions:
+        reference["locked_positions"] = positions
     return Robot(
         pin_model,
         name=name,
@@ -164,7 +181,9 @@ def load_robot(
         source=source,
         kind=kind,
         urdf_xml=xml,
-        reference={"package_dirs": given, "xacro_args": args, "lock_off_chain": lock_off_chain},
+        reference=reference,
+        locked_joints=held,
+        file_joints=file_joints,
     )
 
 
@@ -200,6 +219,29 @@ def _xacro_arguments(args: Mapping[str, str] | None) -> dict[str, str]:
     return out
 
 
+def _locked_positions(positions: Mapping[str, float] | None) -> dict[str, float]:
+    """``locked_positions`` as a new {joint: float} dict; RobotError for anything else."""
+    if positions is None:
+        return {}
+    if not isinstance(positions, Mapping):
+        raise RobotError(
+            f"locked_positions must be a mapping of joint names to numbers, got {positions!r}"
+        )
+    out = {}
+    for key, value in positions.items():
+        if (
+            not isinstance(key, str)
+            or isinstance(value, bool)
+            or not isinstance(value, int | float | np.floating | np.integer)
+            or not np.isfinite(value)
+        ):
+            raise RobotError(
+                f"locked_positions must map joint names to finite numbers; got {key!r}: {value!r}"
+            )
+        out[key] = float(value)
+    return out
+
+
 def _lock_joints(
     model: pin.Model,
     path: Path,
@@ -207,9 +249,11 @@ def _lock_joints(
     locked: Sequence[str],
     mimic: Mapping[str, tuple[str, float, float]],
     lock_all: bool,
-) -> pin.Model:
+    positions: Mapping[str, float],
+) -> tuple[pin.Model, dict[str, float]]:
     """The model with ``locked``, the mimic joints off the tip's chain and, with
-    ``lock_all``, every joint off that chain, removed (see :func:`load_robot`, step 3)."""
+    ``lock_all``, every joint off that chain, removed (see :func:`load_robot`, step 3), and
+    ``{locked joint: the position it is held at}`` in the model's joint order."""
     chain_ids = set(model.supports[model.frames[model.getFrameId(tip)].parentJoint])
     off_chain = [model.names[j] for j in range(1, model.njoints) if j not in chain_ids]
     if lock_all and off_chain and chain_ids <= {0}:
@@ -219,16 +263,42 @@ def _lock_joints(
         )
     extra = [j for j in off_chain if (lock_all or j in mimic) and j not in locked]
     to_lock = [*locked, *extra]
+    unknown = [j for j in positions if j not in to_lock]
+    if unknown:
+        held_names = ", ".join(to_lock) or "none"
+        raise RobotError(
+            f"locked_positions names {', '.join(map(repr, unknown))}, which this load of {path} "
+            f"does not lock (locked joints: {held_names})"
+        )
     if not to_lock:
-        return model
+        return model, {}
     q_ref = pin.neutral(model)
     for joint in to_lock:
         if joint not in mimic:
             q_ref[_q_index(model, joint)] = _lock_position(model, joint)
+    for joint, value in positions.items():
+        if joint not in mimic:
+            q_ref[_q_index(model, joint)] = _checked_position(model, path, joint, value)
     for joint, (master, multiplier, offset) in mimic.items():
         q_ref[_q_index(model, joint)] = offset + multiplier * q_ref[_q_index(model, master)]
-    ids = [model.getJointId(j) for j in to_lock]
-    return pin.buildReducedModel(model, ids, q_ref)
+    for joint, value in positions.items():
+        if joint in mimic:  # given: held there, whatever its master says
+            q_ref[_q_index(model, joint)] = _checked_position(model, path, joint, value)
+    ids = sorted(model.getJointId(j) for j in to_lock)
+    held = {model.names[j]: float(q_ref[model.idx_qs[j]]) for j in ids}
+    return pin.buildReducedModel(model, ids, q_ref), held
+
+
+def _checked_position(model: pin.Model, path: Path, joint: str, value: float) -> float:
+    """``value`` when it is within the joint's range (any value for an empty range)."""
+    iq = _q_index(model, joint)
+    lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+    if lo < hi and not lo <= value <= hi:
+        raise RobotError(
+            f"locked joint {joint!r} of {path}: position {value:g} is outside its range "
+            f"[{lo:g}, {hi:g}]"
+        )
+    return value
 
 
 def _lock_position(model: pin.Model, joint: str) -> float:

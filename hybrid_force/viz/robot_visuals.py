@@ -20,12 +20,13 @@ __all__ = ["PLACEHOLDER_SIZE", "visual_geometry"]
 def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
     """The :func:`~hybrid_force.model.robot.load_robot` options a result's meta records.
 
-    From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``: what
-    :attr:`~hybrid_force.model.robot.Robot.reference` gives). A key ``meta["robot"]`` lacks is taken
-    from the scenario's ``[robot]`` table (``meta["scenario"]["robot"]``): ``xacro_args`` and
-    ``lock_off_chain`` as written; ``package_dirs`` (relative to the scenario file) only when
-    the scenario's ``robot.model`` is a relative path without ``..`` whose parts end
-    ``meta["robot"]["model"]`` (the scenario's folder is then known). Values of the wrong type
+    From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``,
+    ``locked_positions``: what :attr:`~hybrid_force.model.robot.Robot.reference` gives). A key
+    ``meta["robot"]`` lacks is taken from the scenario's ``[robot]`` table
+    (``meta["scenario"]["robot"]``): ``xacro_args`` and ``lock_off_chain`` as written;
+    ``package_dirs`` (relative to the scenario file) only when the scenario's ``robot.model``
+    is a relative path without ``..`` whose parts end ``meta["robot"]["model"]`` (the
+    scenario's folder is then known). Values of the wrong type
     are ignored (the arm is then loaded without them).
     """
     robot_meta = meta.get("robot")
@@ -42,6 +43,12 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
     lock = info.get("lock_off_chain", table.get("lock_off_chain"))
     if isinstance(lock, bool):
         out["lock_off_chain"] = lock
+    held = info.get("locked_positions")
+    if isinstance(held, dict) and all(
+        isinstance(k, str) and isinstance(v, int | float) and not isinstance(v, bool)
+        for k, v in held.items()
+    ):
+        out["locked_positions"] = {k: float(v) for k, v in held.items()}
     dirs = info.get("package_dirs")
     if dirs is None:
         dirs = _scenario_package_dirs(info.get("model"), table)
