@@ -120,3 +120,46 @@ def test_locked_positions_must_name_locked_joints() -> None:
         load_robot(SO101_URDF, locked_positions={"elbow_flex": 0.1})
     with pytest.raises(RobotError, match=r"finite numbers; got 'gripper': nan"):
         load_robot(SO101_URDF, locked_positions={"gripper": float("nan")})
+
+
+def _link(name: str, mass: float = 1.0) -> str:
+    return (
+        f'<link name="{name}"><inertial><origin xyz="0.1 0 0"/><mass value="{mass}"/>'
+        '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+    )
+
+
+def _joint(name: str, parent: str, child: str, damping: float, kind: str = "revolute") -> str:
+    limit = '<limit lower="-2" upper="2" effort="5" velocity="3"/>' if kind != "continuous" else ""
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<origin xyz="0.2 0 0"/><axis xyz="0 1 0"/>{limit}'
+        f'<dynamics damping="{damping}" friction="{damping / 10}"/></joint>'
+    )
+
+
+def test_urdf_damping_and_friction_survive_locking_in_order(tmp_path: Path) -> None:
+    """<dynamics damping friction> of each joint is model.damping / model.friction by name,
+    the gripper branch locked between the arm's joints, a continuous joint included."""
+    damping = {"j1": 0.1, "g1": 9.0, "j2": 0.2, "j3": 0.3}
+    urdf = "".join(
+        [
+            '<robot name="branch">',
+            _link("base"), _link("l1"), _link("finger", 0.1), _link("l2"), _link("l3"),
+            _joint("j1", "base", "l1", damping["j1"]),
+            _joint("g1", "l1", "finger", damping["g1"]),
+            _joint("j2", "l1", "l2", damping["j2"], "continuous"),
+            _joint("j3", "l2", "l3", damping["j3"]),
+            "</robot>",
+        ]
+    )  # fmt: skip
+    path = tmp_path / "branch.urdf"
+    path.write_text(urdf)
+    full = load_robot(path, tip="l3", lock_off_chain=False)
+    robot = load_robot(path, tip="l3")
+    assert list(full.model.names[1:]) == list(full.file_joints) == ["j1", "g1", "j2", "j3"]
+    assert robot.locked_joints == {"g1": 0.0} and robot.file_joints == full.file_joints
+    for arm in (full, robot):
+        names = list(arm.model.names[1:])
+        np.testing.assert_array_equal(arm.model.damping, [damping[n] for n in names])
+        np.testing.assert_allclose(arm.model.friction, [damping[n] / 10 for n in names])
