@@ -391,9 +391,7 @@ def format_report(report: ModelReport) -> str:
     ]
     lines.append(f"fixed joints: {', '.join(report.fixed_joints) or 'none'}")
     if report.locked_joints:
-        lines.append(
-            f"locked joints (held fixed): {', '.join(report.locked_joints)}"
-        )
+        lines.append(f"locked joints (held fixed): {', '.join(report.locked_joints)}")
     if report.tip == report.default_tip:
         lines.append(f"tip: {report.tip} (default)")
     else:
