@@ -49,6 +49,7 @@ UR5E = """\
   <worldbody>
     <light name="spotlight" mode="targetbodycom" target="wrist_2_link" pos="0 -1 2"/>
     <geom name="floor" type="plane" size="2 2 0.1"/>
+    <site name="world_mark" pos="0.5 0 0"/>
     <body name="base" quat="0 0 0 -1" childclass="ur5e">
       <inertial mass="4.0" pos="0 0 0" diaginertia="0.00443333156 0.00443333156 0.0072"/>
       <body name="shoulder_link" pos="0 0 0.163">
@@ -97,6 +98,10 @@ PANDA = """\
   </default>
  </default>
  <worldbody>
+  <body name="table" pos="0.5 0 -0.4">
+   <inertial mass="20" pos="0 0 0" diaginertia="1 1 1"/>
+   <site name="table_corner" pos="0.3 0.3 0.4"/>
+  </body>
   <body name="link0" childclass="panda" pos="0.2 -0.1 0.05">
    <inertial mass="0.629769" pos="-0.041018 -0.00014 0.049974"
         fullinertia="0.00315 0.00388 0.004285 8.2904e-07 0.00015 8.2299e-06"/>
@@ -244,7 +249,39 @@ REPLICATE = """\
 </mujoco>
 """
 
+#: Inertias from primitive geoms (no <inertial>), a fromto geom in a frame, two joints in
+#: one body (a chain of one-joint bodies here), the second with a ref.
+GEOMS = """\
+<mujoco model="geoms">
+  <compiler angle="radian"/>
+  <default><geom density="800"/></default>
+  <worldbody>
+    <body name="a">
+      <joint name="j1" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <frame pos="0 0 0.05" euler="0.2 0 0">
+        <geom type="box" pos="0.3 0 0" size="0.02 0.03 0.04" mass="0.5" euler="0.1 0.2 0.3"/>
+        <geom type="cylinder" fromto="0 0 0 0 0.2 0.1" size="0.01"/>
+      </frame>
+      <body name="b" pos="0.3 0 0">
+        <joint name="j2" axis="0 1 0"/>
+        <geom type="sphere" size="0.05" pos="0.1 0 0"/>
+        <geom type="cylinder" size="0.02 0.1" pos="0.2 0 0" quat="1 0 1 0"/>
+        <geom type="ellipsoid" size="0.02 0.03 0.05" pos="0.3 0 0"/>
+        <body name="c" pos="0.3 0 0" euler="0 0.4 0">
+          <joint name="j3a" axis="0 1 0" damping="0.7"/>
+          <joint name="j3b" axis="1 0 1" pos="0 0 0.05" ref="0.3" armature="0.01"/>
+          <inertial pos="0.1 0 0" mass="1" diaginertia="0.01 0.012 0.014"/>
+          <site name="tip" pos="0.2 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
 MODELS = {
+    "geoms": GEOMS,
     "ur5e": UR5E,
     "panda": PANDA,
     "orientations": ORIENTATIONS,

@@ -427,14 +427,14 @@ def _build_mjcf(path: Path) -> pin.Model:
     expanded, orientations as quaternions, the bodies in one jointless body ``world``:
     Pinocchio issue #2782), written to a temporary folder under the file's own name (the
     parser names unnamed bodies after the file); the joints' limits, damping, friction and
-    armature are then MuJoCo's (:func:`~hybrid_force.model.mjcf.apply_joints`). Warned
+    armature are then MuJoCo's (:func:`~hybrid_force.model.mjcf.complete_model`). Warned
     (:class:`ModelWarning`): a body without ``<inertial>`` whose inertia would come from a
     mesh geom (Pinocchio does not compute a mesh's inertia as MuJoCo does), ``<equality>``
     constraints (ignored: the joints they couple move independently), and what
     :func:`~hybrid_force.model.mjcf.prepare_mjcf` warns about. Meshes and other assets are not
     read to build the model.
     """
-    from hybrid_force.model.mjcf import apply_joints, prepare_mjcf
+    from hybrid_force.model.mjcf import complete_model, prepare_mjcf
 
     try:
         root = ET.parse(path).getroot()
@@ -447,7 +447,7 @@ def _build_mjcf(path: Path) -> pin.Model:
             f"not an MJCF file: {path}: root element is <{root.tag}>, expected <mujoco> "
             "(or <robot> for a URDF)"
         )
-    text, joints = prepare_mjcf(path, root)
+    prepared = prepare_mjcf(path, root)
     mesh_bodies = []
     for body in root.iter("body"):
         meshes = [
@@ -471,7 +471,7 @@ def _build_mjcf(path: Path) -> pin.Model:
         )
     with tempfile.TemporaryDirectory(prefix="hybrid_force_mjcf_") as folder:
         copy = Path(folder) / path.name
-        copy.write_text(text, encoding="utf-8")
+        copy.write_text(prepared.text, encoding="utf-8")
         with _native_stderr(path, "MJCF") as said:
             try:
                 model = pin.buildModelFromMJCF(str(copy))
@@ -480,7 +480,7 @@ def _build_mjcf(path: Path) -> pin.Model:
                 detail = f" ({why[0]})" if why else ""
                 message = _pinocchio_message(exc).replace(str(copy), str(path))
                 raise URDFError(f"Pinocchio cannot parse MJCF {path}: {message}{detail}") from None
-    apply_joints(model, joints)
+    complete_model(model, prepared)
     for note in notes:
         warnings.warn(f"{path}: {note}", ModelWarning, stacklevel=3)
     return model

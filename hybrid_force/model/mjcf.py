@@ -2,7 +2,7 @@
 
 :func:`prepare_mjcf` rewrites an MJCF tree (a copy; the file is never changed) into a form that
 Pinocchio 4.1's MJCF parser reads the way MuJoCo does, and reads the joint data the toolkit
-takes from MuJoCo's definitions; :func:`apply_joints` writes that data into the built model.
+takes from MuJoCo's definitions; :func:`complete_model` writes that data into the built model.
 What each element maps to is listed in ``docs/robots.md``; in short:
 
 * orientations (``quat``, ``axisangle``, ``euler`` with the compiler's ``eulerseq``,
@@ -55,7 +55,7 @@ import pinocchio as pin
 
 from hybrid_force.errors import ModelWarning, URDFError
 
-__all__ = ["MjcfJoint", "apply_joints", "prepare_mjcf"]
+__all__ = ["MjcfJoint", "PreparedMjcf", "complete_model", "prepare_mjcf"]
 
 WORLD_BODY = "world"
 """Name of the jointless body at the origin that holds the bodies of ``<worldbody>``."""
@@ -102,7 +102,24 @@ class _Compiler:
     autolimits: bool
 
 
-def prepare_mjcf(path: Path, root: ET.Element) -> tuple[str, dict[str, MjcfJoint]]:
+@dataclass(frozen=True)
+class PreparedMjcf:
+    """What :func:`prepare_mjcf` gives: the text Pinocchio parses and what it would miss.
+
+    Attributes:
+        text: the rewritten MJCF text (module docstring).
+        joints: ``{joint name: MjcfJoint}`` of every hinge and slide joint, in file order.
+        world_sites: ``{name: pose}`` of the named sites of ``<worldbody>`` itself, which
+            Pinocchio 4.1 does not make frames of in the first body (:func:`complete_model`
+            adds them as frames of the universe).
+    """
+
+    text: str
+    joints: dict[str, MjcfJoint]
+    world_sites: dict[str, pin.SE3]
+
+
+def prepare_mjcf(path: Path, root: ET.Element) -> PreparedMjcf:
     """The MJCF text to give Pinocchio's parser, and every hinge or slide joint's data.
 
     Args:
@@ -110,8 +127,7 @@ def prepare_mjcf(path: Path, root: ET.Element) -> tuple[str, dict[str, MjcfJoint
         root: its parsed ``<mujoco>`` element (not changed).
 
     Returns:
-        the rewritten MJCF text (module docstring), and ``{joint name: MjcfJoint}`` in file
-        order.
+        the rewritten text, the joints' data and the world's sites (:class:`PreparedMjcf`).
 
     Raises:
         URDFError: an element refused (module docstring), naming the file and the element.
@@ -133,18 +149,29 @@ def prepare_mjcf(path: Path, root: ET.Element) -> tuple[str, dict[str, MjcfJoint
         raise URDFError(f"unsupported MJCF {path}: no <worldbody>: the model has no body")
     _expand_replicates(path, worldbody, compiler)
     _expand_frames(path, worldbody)
+    _split_joints(worldbody)
     defaults = _defaults(root)
     for default in root.findall("default"):
         default.set("class", default.get("class", "main"))  # Pinocchio knows no "main"
     joints = _joints(path, worldbody, defaults, compiler)
+    sites = {
+        site.get("name", ""): _pose(path, site)
+        for site in worldbody.findall("site")
+        if site.get("name")
+    }
     _wrap_world(worldbody)
     _set_compiler(path, root)
-    return ET.tostring(root, encoding="unicode"), joints
+    return PreparedMjcf(ET.tostring(root, encoding="unicode"), joints, sites)
 
 
-def apply_joints(model: pin.Model, joints: Mapping[str, MjcfJoint]) -> None:
-    """Write each joint's limits, damping, friction and armature into ``model`` (in place)."""
-    for name, joint in joints.items():
+def complete_model(model: pin.Model, prepared: PreparedMjcf) -> None:
+    """Write each joint's limits, damping, friction and armature into ``model``, and add the
+    world's sites as frames (in place)."""
+    world = model.getFrameId(WORLD_BODY) if model.existFrame(WORLD_BODY) else 0
+    for name, pose in prepared.world_sites.items():
+        if not model.existFrame(name):
+            model.addFrame(pin.Frame(name, 0, world, pose, pin.FrameType.OP_FRAME))
+    for name, joint in prepared.joints.items():
         if not model.existJointName(name):
             continue
         jid = model.getJointId(name)
@@ -394,6 +421,38 @@ def _compose(path: Path, element: ET.Element, pose: pin.SE3) -> None:
         )
 
 
+def _split_joints(element: ET.Element) -> None:
+    """A body with k > 1 joints becomes a chain of k bodies, one joint each: k - 1 massless
+    bodies ``<body>__<joint>`` holding the first joints (the first one at the body's pose),
+    then the body itself at their end with its last joint. MuJoCo moves a body by its joints
+    in order, each about its axis through its position in the body's frame as the previous
+    ones left it: the chain is the same motion, with one-coordinate joints (Pinocchio would
+    build one composite joint)."""
+    for index, child in enumerate(list(element)):
+        if child.tag != "body":
+            continue
+        _split_joints(child)
+        joints = [c for c in child if c.tag == "joint"]
+        if len(joints) < 2:
+            continue
+        name = child.get("name", "body")
+        chain = []
+        for joint in joints[:-1]:
+            link = ET.Element("body", {"name": f"{name}__{joint.get('name', 'joint')}"})
+            if child.get("childclass") is not None:
+                link.set("childclass", child.get("childclass", ""))
+            child.remove(joint)
+            link.append(joint)
+            chain.append(link)
+        for key in ("pos", "quat"):
+            if child.get(key) is not None:
+                chain[0].set(key, child.attrib.pop(key))
+        for outer, inner in zip(chain, [*chain[1:], child], strict=True):
+            outer.append(inner)
+        element.remove(child)
+        element.insert(index, chain[0])
+
+
 # --- defaults and joints --------------------------------------------------------------------
 def _defaults(root: ET.Element) -> dict[str, dict[str, dict[str, str]]]:
     """``{class: {element tag: attributes}}``, each class with what it inherits."""
@@ -460,13 +519,7 @@ def _joints(
             if _float(path, name, attrs, "stiffness") != 0.0:
                 stiff.append(name)
             ref = _float(path, name, attrs, "ref")
-            if ref != 0.0:
-                if len(elements) > 1:
-                    raise URDFError(
-                        f"unsupported MJCF {path}: joint {name!r} has ref={attrs['ref']!r} in "
-                        f"body {body.get('name', '?')!r}, which has {len(elements)} joints: "
-                        "a ref is supported on a body's only joint"
-                    )
+            if ref != 0.0:  # the body's only joint (_split_joints)
                 _move_ref(path, body, element, attrs, kind, ref, compiler)
     notes = []
     if stiff:
