@@ -35,14 +35,17 @@ UR5E = """\
     <default class="ur5e">
       <joint axis="0 1 0" range="-6.28319 6.28319" armature="0.1" damping="0.5"/>
       <site size="0.001" rgba="0.5 0.5 0.5 0.3" group="4"/>
+      <general gaintype="fixed" biastype="affine" ctrlrange="-6.2831 6.2831"
+               gainprm="2000" biasprm="0 -2000 -400" forcerange="-150 150"/>
       <default class="size3">
-        <joint actuatorfrcrange="-150 150" frictionloss="0.2"/>
+        <joint actuatorfrcrange="-200 200" frictionloss="0.2"/>
         <default class="size3_limited">
           <joint range="-3.1415 3.1415"/>
         </default>
       </default>
       <default class="size1">
-        <joint actuatorfrcrange="-28 28" damping="0.1"/>
+        <joint damping="0.1"/>
+        <general gainprm="500" biasprm="0 -500 -100" forcerange="-28 28"/>
       </default>
     </default>
   </default>
@@ -82,6 +85,13 @@ UR5E = """\
   </worldbody>
   <actuator>
     <general class="size3" name="shoulder_pan" joint="shoulder_pan_joint"/>
+    <general class="size3" name="shoulder_lift" joint="shoulder_lift_joint"/>
+    <general class="size3_limited" name="elbow" joint="elbow_joint"/>
+    <general class="size1" name="wrist_1" joint="wrist_1_joint"/>
+    <general class="size1" name="wrist_2" joint="wrist_2_joint"/>
+    <motor name="wrist_3" joint="wrist_3_joint" gear="2" ctrlrange="-7 7"/>
+    <general name="wrist_3_assist" joint="wrist_3_joint" biastype="none" gainprm="3"
+             ctrlrange="-1 1" forcerange="-100 100"/>
   </actuator>
 </mujoco>
 """
@@ -296,6 +306,33 @@ def _write(folder: Path, name: str, text: str) -> Path:
     return path
 
 
+def _effort_limits(mj: object) -> np.ndarray:
+    """The bound of each joint's torque by MuJoCo's compiled model: its actuatorfrcrange
+    when limited, and the sum over the actuators acting on it of |gear| times their force
+    bound (forcerange; gain × ctrlrange when the force is a fixed gain times the control)."""
+    joint_limit = np.where(mj.jnt_actfrclimited, mj.jnt_actfrcrange[:, 1], np.inf)
+    total = np.full(mj.njnt, np.inf)
+    acted = np.zeros(mj.njnt, dtype=bool)
+    sums = np.zeros(mj.njnt)
+    for a in range(mj.nu):
+        joint_types = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
+        if int(mj.actuator_trntype[a]) not in joint_types:
+            continue
+        joint = mj.actuator_trnid[a, 0]
+        bound = mj.actuator_forcerange[a, 1] if mj.actuator_forcelimited[a] else np.inf
+        plain = (
+            int(mj.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
+            and int(mj.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_NONE)
+            and int(mj.actuator_dyntype[a]) == int(mujoco.mjtDyn.mjDYN_NONE)
+        )
+        if plain and mj.actuator_ctrllimited[a]:
+            bound = min(bound, abs(mj.actuator_gainprm[a, 0]) * mj.actuator_ctrlrange[a, 1])
+        sums[joint] += abs(mj.actuator_gear[a, 0]) * bound
+        acted[joint] = True
+    total[acted] = sums[acted]
+    return np.minimum(joint_limit, total)
+
+
 def _compare(path: Path, seed: int = 7) -> dict[str, float]:
     """Max differences to MuJoCo at 3 random states; asserts the joint data are MuJoCo's."""
     robot = load_robot(path, lock_off_chain=False)
@@ -313,10 +350,7 @@ def _compare(path: Path, seed: int = 7) -> dict[str, float]:
     np.testing.assert_array_equal(
         model.upperPositionLimit[iq], np.where(limited, mj.jnt_range[:, 1], np.inf)
     )
-    force_limited = mj.jnt_actfrclimited.astype(bool)
-    np.testing.assert_array_equal(
-        model.effortLimit[iv], np.where(force_limited, mj.jnt_actfrcrange[:, 1], np.inf)
-    )
+    np.testing.assert_array_equal(model.effortLimit[iv], _effort_limits(mj))
     np.testing.assert_array_equal(model.damping[iv], mj.dof_damping)
     np.testing.assert_array_equal(model.friction[iv], mj.dof_frictionloss)
     np.testing.assert_array_equal(model.armature[iv], mj.dof_armature)
@@ -379,7 +413,9 @@ def test_the_ur5e_base_turn_is_kept(tmp_path: Path) -> None:
     lower, upper = robot.position_limits
     assert math.isinf(lower[5]) and math.isinf(upper[5])  # limited="false"
     assert lower[2] == -3.1415 and upper[0] == 6.28319
-    np.testing.assert_array_equal(robot.effort_limits, [150, 150, 150, 28, 28, 28])
+    # actuators: forcerange 150 (actuatorfrcrange 200 is looser), 28, and on the last joint a
+    # motor (gear 2 × ctrl 7) plus a general actuator (gain 3 × ctrl 1): 14 + 3
+    np.testing.assert_array_equal(robot.effort_limits, [150, 150, 150, 28, 28, 17])
 
 
 def test_robots_check_counts_the_frames_arms_joints_and_mass(
@@ -419,6 +455,13 @@ def test_locked_fingers_keep_each_joints_damping(tmp_path: Path) -> None:
         (
             ('<joint name="j1" axis="0 0 1"/>', '<joint name="j1" actuatorfrcrange="-1 2"/>'),
             r"frames.xml: joint 'j1': actuatorfrcrange='-1 2' is not symmetric",
+        ),
+        (
+            (
+                "</worldbody>",
+                '</worldbody><actuator><motor joint="j2" ctrlrange="0 1"/></actuator>',
+            ),
+            r"frames.xml: actuator 'motor' \(on joint 'j2'\): range 0 1 is not symmetric",
         ),
         (
             ('<compiler angle="radian"/>', '<compiler angle="radian" autolimits="false"/>'),

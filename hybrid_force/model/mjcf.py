@@ -47,7 +47,7 @@ import os
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -153,7 +153,7 @@ def prepare_mjcf(path: Path, root: ET.Element) -> PreparedMjcf:
     defaults = _defaults(root)
     for default in root.findall("default"):
         default.set("class", default.get("class", "main"))  # Pinocchio knows no "main"
-    joints = _joints(path, worldbody, defaults, compiler)
+    joints = _actuated(path, root, _joints(path, worldbody, defaults, compiler), defaults, compiler)
     sites = {
         site.get("name", ""): _pose(path, site)
         for site in worldbody.findall("site")
@@ -516,9 +516,9 @@ def _joints(
                 continue  # Pinocchio's parser names it in its refusal
             joint = _joint(path, name, kind, attrs, compiler)
             joints[name] = joint
-            if _float(path, name, attrs, "stiffness") != 0.0:
+            if _float(path, f"joint {name!r}", attrs, "stiffness") != 0.0:
                 stiff.append(name)
-            ref = _float(path, name, attrs, "ref")
+            ref = _float(path, f"joint {name!r}", attrs, "ref")
             if ref != 0.0:  # the body's only joint (_split_joints)
                 _move_ref(path, body, element, attrs, kind, ref, compiler)
     notes = []
@@ -535,55 +535,51 @@ def _joints(
     return joints
 
 
-def _float(path: Path, joint: str, attrs: Mapping[str, str], key: str) -> float:
+def _float(path: Path, who: str, attrs: Mapping[str, str], key: str) -> float:
     raw = attrs.get(key, "0")
     try:
         value = float(raw)
     except ValueError:
         value = math.nan
     if not math.isfinite(value):
-        raise URDFError(
-            f"malformed MJCF {path}: joint {joint!r}: {key}={raw!r} is not a finite number"
-        )
+        raise URDFError(f"malformed MJCF {path}: {who}: {key}={raw!r} is not a finite number")
     return value
 
 
-def _pair(path: Path, joint: str, attrs: Mapping[str, str], key: str) -> tuple[float, float]:
+def _pair(path: Path, who: str, attrs: Mapping[str, str], key: str) -> tuple[float, float]:
     raw = attrs.get(key, "0 0")
     try:
         values = [float(x) for x in raw.split()]
     except ValueError:
         values = []
     if len(values) != 2 or not all(math.isfinite(v) for v in values):
-        raise URDFError(
-            f"malformed MJCF {path}: joint {joint!r}: {key}={raw!r} must be 2 finite numbers"
-        )
+        raise URDFError(f"malformed MJCF {path}: {who}: {key}={raw!r} must be 2 finite numbers")
     return values[0], values[1]
 
 
 def _limited(
-    path: Path, joint: str, attrs: Mapping[str, str], flag: str, key: str, autolimits: bool
+    path: Path, who: str, attrs: Mapping[str, str], flag: str, key: str, autolimits: bool
 ) -> tuple[float, float] | None:
     """The range ``key`` when MuJoCo enforces it (``flag``: true, false or auto), else None."""
     value = attrs.get(flag, "auto")
     if value not in ("true", "false", "auto"):
         raise URDFError(
-            f"malformed MJCF {path}: joint {joint!r}: {flag}={value!r} must be true, false or auto"
+            f"malformed MJCF {path}: {who}: {flag}={value!r} must be true, false or auto"
         )
     if value == "auto":
         if key in attrs and not autolimits:
             raise URDFError(
-                f"malformed MJCF {path}: joint {joint!r} has {key} but no {flag}, and "
+                f"malformed MJCF {path}: {who} has {key} but no {flag}, and "
                 '<compiler autolimits="false">: MuJoCo refuses it (give limited="true" or '
                 '"false")'
             )
         value = "true" if key in attrs else "false"
     if value == "false":
         return None
-    lo, hi = _pair(path, joint, attrs, key)
+    lo, hi = _pair(path, who, attrs, key)
     if not lo < hi:
         raise URDFError(
-            f"malformed MJCF {path}: joint {joint!r}: {flag}=true needs {key} lower < upper, "
+            f"malformed MJCF {path}: {who}: {flag}=true needs {key} lower < upper, "
             f"got {attrs.get(key, '(none)')!r}"
         )
     return lo, hi
@@ -593,11 +589,11 @@ def _joint(
     path: Path, name: str, kind: str, attrs: Mapping[str, str], compiler: _Compiler
 ) -> MjcfJoint:
     auto = compiler.autolimits
-    limits = _limited(path, name, attrs, "limited", "range", auto)
+    limits = _limited(path, f"joint {name!r}", attrs, "limited", "range", auto)
     lower, upper = (-math.inf, math.inf) if limits is None else limits
     if limits is not None and kind == "hinge" and compiler.degrees:
         lower, upper = math.radians(lower), math.radians(upper)
-    force = _limited(path, name, attrs, "actuatorfrclimited", "actuatorfrcrange", auto)
+    force = _limited(path, f"joint {name!r}", attrs, "actuatorfrclimited", "actuatorfrcrange", auto)
     if force is not None and not (force[0] < 0.0 < force[1] and -force[0] == force[1]):
         raise URDFError(
             f"unsupported MJCF {path}: joint {name!r}: actuatorfrcrange="
@@ -606,7 +602,7 @@ def _joint(
         )
     values = {}
     for key in ("damping", "frictionloss", "armature"):
-        values[key] = _float(path, name, attrs, key)
+        values[key] = _float(path, f"joint {name!r}", attrs, key)
         if values[key] < 0.0:
             raise URDFError(
                 f"malformed MJCF {path}: joint {name!r}: {key}={attrs[key]!r} is negative"
@@ -619,6 +615,105 @@ def _joint(
         effort=math.inf if force is None else force[1],
         **values,
     )
+
+
+_ACTUATORS = (
+    "general", "motor", "position", "velocity", "intvelocity", "damper", "cylinder", "muscle",
+    "adhesion", "dcmotor",
+)  # fmt: skip
+
+
+def _actuated(
+    path: Path,
+    root: ET.Element,
+    joints: dict[str, MjcfJoint],
+    defaults: Mapping[str, Mapping[str, Mapping[str, str]]],
+    compiler: _Compiler,
+) -> dict[str, MjcfJoint]:
+    """The joints with the effort limit their actuators give.
+
+    An actuator acting on a joint (``joint`` or ``jointinparent``) applies |gear₀| times its
+    force there; that force is bounded by ``forcerange`` when MuJoCo limits it
+    (``forcelimited``, by the same rule as a joint's ``limited``) and, for a ``<motor>``
+    (force = control) or a ``<general>`` whose force is a fixed gain times the control, by
+    that gain times ``ctrlrange`` when the control is limited. A joint's effort limit
+    is the smaller of its ``actuatorfrcrange`` bound and the sum of its actuators' bounds
+    (unbounded when one of them is, or when no actuator acts on it). A range that is not
+    symmetric about 0 is refused (the toolkit's limit bounds |u|).
+    """
+    sums: dict[str, float] = {}
+    for block in root.findall("actuator"):
+        for element in block:
+            if element.tag not in _ACTUATORS:
+                continue
+            cls = element.get("class", "main")
+            if cls not in defaults:
+                raise URDFError(
+                    f"malformed MJCF {path}: {_where(element)} uses class {cls!r}, which no "
+                    "<default> defines"
+                )
+            attrs: dict[str, str] = {}
+            for tag in _ACTUATORS:  # one actuator default per class, whichever tag sets it
+                attrs.update(defaults[cls].get(tag, {}))
+            attrs.update(element.attrib)
+            joint = attrs.get("joint", attrs.get("jointinparent"))
+            if joint not in joints:
+                continue  # a tendon, site or body transmission: no joint's effort
+            who = f"actuator {element.get('name', element.tag)!r} (on joint {joint!r})"
+            bound = _symmetric(
+                path,
+                who,
+                _limited(path, who, attrs, "forcelimited", "forcerange", compiler.autolimits),
+            )
+            gain = _control_gain(path, who, element.tag, attrs)
+            if gain is not None:  # force = gain · control
+                ctrl = _limited(path, who, attrs, "ctrllimited", "ctrlrange", compiler.autolimits)
+                bound = min(bound, gain * _symmetric(path, who, ctrl))
+            gear = attrs.get("gear", "1").split()
+            try:
+                ratio = abs(float(gear[0]))
+            except (ValueError, IndexError):
+                raise URDFError(
+                    f"malformed MJCF {path}: {who}: gear={attrs.get('gear')!r} is not a number"
+                ) from None
+            sums[joint] = sums.get(joint, 0.0) + ratio * bound
+    return {
+        name: replace(joint, effort=min(joint.effort, sums[name])) if name in sums else joint
+        for name, joint in joints.items()
+    }
+
+
+def _control_gain(path: Path, who: str, tag: str, attrs: Mapping[str, str]) -> float | None:
+    """|force / control| of a ``<motor>`` (1), or of a ``<general>`` without activation
+    dynamics or bias whose gain is fixed (|gainprm₀|); None for the others."""
+    if tag == "motor":
+        return 1.0
+    plain = (
+        attrs.get("gaintype", "fixed") == "fixed"
+        and attrs.get("biastype", "none") == "none"
+        and attrs.get("dyntype", "none") == "none"
+    )
+    if tag != "general" or not plain:
+        return None
+    raw = attrs.get("gainprm", "1").split()
+    try:
+        return abs(float(raw[0]))
+    except (ValueError, IndexError):
+        raise URDFError(
+            f"malformed MJCF {path}: {who}: gainprm={attrs.get('gainprm')!r} is not a number"
+        ) from None
+
+
+def _symmetric(path: Path, who: str, span: tuple[float, float] | None) -> float:
+    """The bound e of a range (-e, e); +inf for None; URDFError for any other range."""
+    if span is None:
+        return math.inf
+    if not (span[0] < 0.0 < span[1] and -span[0] == span[1]):
+        raise URDFError(
+            f"unsupported MJCF {path}: {who}: range {span[0]:g} {span[1]:g} is not symmetric "
+            "about 0; the toolkit's effort limit bounds |u| (write -e e)"
+        )
+    return span[1]
 
 
 def _move_ref(
