@@ -21,22 +21,26 @@ What each element maps to is listed in ``docs/robots.md``; in short:
   parser drops the pose of the first body when it has no joint (Pinocchio issue #2782,
   https://github.com/stack-of-tasks/pinocchio/issues/2782, fixed upstream by PR #2934 after
   the 4.1.0 wheel) and reads only the first body of ``<worldbody>``; nested jointless bodies
-  keep their poses. Geoms of ``<worldbody>`` itself (floors, scenery) are static world
-  geometry and not part of the arm;
+  keep their poses. The named sites of ``<worldbody>`` become frames of the universe (the
+  parser makes none of a site in that first body). Geoms of ``<worldbody>`` itself (floors,
+  scenery) are static world geometry and not part of the arm;
+* a body with several joints becomes a chain of one-joint bodies (the first ones massless,
+  named ``<body>__<joint>``): the same motion, where the parser builds one composite joint;
 * a joint's ``ref`` (its position in the file's pose) is moved into its body's pose, so q is
   MuJoCo's qpos;
 * per joint, from the joint and its default classes (``class``, or the nearest ``childclass``)
   by MuJoCo's rules: ``range`` and ``limited`` (with ``<compiler autolimits>``: limited when
   a range is given, unless ``limited="false"``) give the position limits (±inf when not
-  limited); ``actuatorfrcrange`` and ``actuatorfrclimited`` the effort limit (+inf when not
-  limited; a range that is not symmetric about 0 is refused); ``damping``, ``frictionloss``
-  and ``armature`` Pinocchio's ``model.damping``, ``model.friction`` and ``model.armature``.
+  limited); ``actuatorfrcrange`` and the actuators acting on the joint the effort limit
+  (:func:`_actuated`; +inf when nothing bounds it); ``damping``, ``frictionloss`` and
+  ``armature`` Pinocchio's ``model.damping``, ``model.friction`` and ``model.armature``.
 
 Refused (:class:`~hybrid_force.errors.URDFError` naming the file and the element):
 ``<include>``, ``<attach>``, ``<composite>``, ``<flexcomp>``, free and ball joints, an element
-with two orientations, a non-zero ``ref`` on a body with several joints, numbers that do not
-parse, ranges MuJoCo refuses. Warned (:class:`~hybrid_force.errors.ModelWarning`): joint
-``stiffness`` and body ``gravcomp``, which are not modelled.
+with two orientations, a joint without its own axis in a turned frame, an undefined class,
+numbers that do not parse, ranges MuJoCo refuses, force and control ranges that are not
+symmetric about 0. Warned (:class:`~hybrid_force.errors.ModelWarning`): joint ``stiffness``
+and body ``gravcomp``, which are not modelled.
 """
 
 from __future__ import annotations
