@@ -497,3 +497,33 @@ def test_springs_are_warned_about(tmp_path: Path) -> None:
     text = FRAMES.replace('<joint name="j1" axis="0 0 1"/>', '<joint name="j1" stiffness="3"/>')
     with pytest.warns(ModelWarning, match=r"joint stiffness \(springs\) of 'j1' is not modelled"):
         load_robot(_write(tmp_path, "frames", text))
+
+
+def test_the_replay_draws_the_geoms_where_mujoco_puts_them(tmp_path: Path) -> None:
+    """The visual geometry is built from the same rewritten file: a box on the UR5e's last
+    link and one inside a frame are where MuJoCo places them, the base's turn included."""
+    pytest.importorskip("coal")
+    from hybrid_force.viz.robot_visuals import visual_geometry
+
+    text = UR5E.replace(
+        '<site name="attachment_site"',
+        '<geom name="tool" type="box" size="0.01 0.02 0.03" pos="0 0.05 0" contype="0"/>'
+        '<frame pos="0 0.02 0" euler="0.3 0 0"><geom name="fin" type="box" size="0.01 0.01 0.01"'
+        ' pos="0.02 0 0" contype="0"/></frame><site name="attachment_site"',
+    )
+    path = _write(tmp_path, "ur5e", text)
+    robot = load_robot(path, tip="attachment_site")
+    geometry = visual_geometry(robot)
+    q = np.array([0.3, -1.0, 0.8, -0.4, 0.9, 0.2])
+    data, geometry_data = robot.model.createData(), geometry.createData()
+    pin.updateGeometryPlacements(robot.model, data, geometry, geometry_data, q)
+    mj = mujoco.MjModel.from_xml_path(str(path))
+    md = mujoco.MjData(mj)
+    md.qpos[:] = q
+    mujoco.mj_forward(mj, md)
+    for name in ("tool", "fin"):
+        (index,) = [i for i, g in enumerate(geometry.geometryObjects) if g.name.startswith(name)]
+        g = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_GEOM, name)
+        placement = geometry_data.oMg[index]
+        np.testing.assert_allclose(placement.translation, md.geom_xpos[g], atol=1e-12)
+        np.testing.assert_allclose(placement.rotation, md.geom_xmat[g].reshape(3, 3), atol=1e-12)

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import ModelWarning, ViewerError
+from hybrid_force.errors import ModelWarning, URDFError, ViewerError
 
 __all__ = ["PLACEHOLDER_SIZE", "visual_geometry"]
 
@@ -176,10 +176,10 @@ def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str)
 
     try:
         if robot.kind == "mjcf":
-            root = ET.parse(robot.urdf_path).getroot()
+            root = _prepared_mjcf(Path(robot.urdf_path))
         else:
             root = ET.fromstring(robot.urdf_xml)
-    except (OSError, ET.ParseError) as exc:
+    except (OSError, ET.ParseError, URDFError) as exc:
         raise ViewerError(f"cannot load the visual geometry of {label}: {exc}") from exc
     base = Path(robot.urdf_path).resolve().parent
     dirs = [str(d) for d in robot.package_dirs]
@@ -208,6 +208,17 @@ def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str)
                 stacklevel=4,
             )
     return visual
+
+
+def _prepared_mjcf(path: Path) -> ET.Element:
+    """The MJCF tree as the loader gives it to Pinocchio (frames and replicates expanded, the
+    bodies in one body ``world``: :func:`~hybrid_force.model.mjcf.prepare_mjcf`), so that the
+    geoms sit on the bodies the model has; its warnings were given when the arm was loaded."""
+    from hybrid_force.model.mjcf import prepare_mjcf
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelWarning)
+        return ET.fromstring(prepare_mjcf(path, ET.parse(path).getroot()).text)
 
 
 def _resolve_mesh(uri: str, base: Path, dirs: list[str]) -> Path | None:
