@@ -454,14 +454,14 @@ def test_locked_fingers_keep_each_joints_damping(tmp_path: Path) -> None:
     [
         (
             ('<joint name="j1" axis="0 0 1"/>', '<joint name="j1" actuatorfrcrange="-1 2"/>'),
-            r"frames.xml: joint 'j1': actuatorfrcrange='-1 2' is not symmetric",
+            r"frames.xml: joint 'j1': the torque MuJoCo lets act on it .* is \[-1, 2\], not symm",
         ),
         (
             (
                 "</worldbody>",
                 '</worldbody><actuator><motor joint="j2" ctrlrange="0 1"/></actuator>',
             ),
-            r"frames.xml: actuator 'motor' \(on joint 'j2'\): range 0 1 is not symmetric",
+            r"frames.xml: joint 'j2': the torque MuJoCo lets act on it .* is \[0, 1\], not symm",
         ),
         (
             ('<compiler angle="radian"/>', '<compiler angle="radian" autolimits="false"/>'),
@@ -527,3 +527,16 @@ def test_the_replay_draws_the_geoms_where_mujoco_puts_them(tmp_path: Path) -> No
         placement = geometry_data.oMg[index]
         np.testing.assert_allclose(placement.translation, md.geom_xpos[g], atol=1e-12)
         np.testing.assert_allclose(placement.rotation, md.geom_xmat[g].reshape(3, 3), atol=1e-12)
+
+
+def test_an_uneven_torque_range_is_refused_unless_its_joint_is_locked(tmp_path: Path) -> None:
+    """A gripper's motor that only closes (ctrlrange 0 1): fine once its finger is locked
+    (off the chain to 'tcp'); refused when the finger is kept moving."""
+    text = PANDA.replace(
+        "</worldbody>",
+        '</worldbody><actuator><motor joint="finger_joint1" ctrlrange="0 1"/></actuator>',
+    )
+    path = _write(tmp_path, "panda", text)
+    assert load_robot(path, tip="tcp").nv == 7
+    with pytest.raises(URDFError, match=r"joint 'finger_joint1': .* is \[0, 1\], not symmetric"):
+        load_robot(path, tip="tcp", lock_off_chain=False)

@@ -151,8 +151,9 @@ def load_robot(
         )
     xml: str | None = None
     mimic: dict[str, tuple[str, float, float]] = {}
+    uneven: dict[str, tuple[float, float]] = {}  # MJCF joints whose torque range is uneven
     if kind == "mjcf":
-        pin_model = _build_mjcf(path)
+        pin_model, uneven = _build_mjcf(path)
     else:
         if kind == "xacro":
             xml = expand_xacro(path, args, given, check=True)
@@ -164,6 +165,15 @@ def load_robot(
     _require_frame(pin_model, tip_name, path)
     file_joints = tuple(pin_model.names[j] for j in range(1, pin_model.njoints))
     pin_model, held = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all, positions)
+    for joint, (lo, hi) in uneven.items():
+        if pin_model.existJointName(joint):
+            raise URDFError(
+                f"unsupported MJCF {path}: joint {joint!r}: the torque MuJoCo lets act on it "
+                f"(its actuatorfrcrange and actuators) is [{lo:g}, {hi:g}], not symmetric "
+                "about 0; the toolkit's effort limit bounds |u|: make the ranges symmetric "
+                "(-e e), or lock the joint (robot.lock_off_chain, for a joint off the tip's "
+                "chain)"
+            )
     check_arm_model(pin_model, path, tip=tip_name, mimic={j: m[0] for j, m in mimic.items()})
     reference: dict[str, object] = {
         "package_dirs": given,
@@ -417,8 +427,10 @@ def _build_model(
     return model, mimic
 
 
-def _build_mjcf(path: Path) -> pin.Model:
-    """Pinocchio model of an MJCF file (``pin.buildModelFromMJCF``), fixed-base arms only.
+def _build_mjcf(path: Path) -> tuple[pin.Model, dict[str, tuple[float, float]]]:
+    """Pinocchio model of an MJCF file (``pin.buildModelFromMJCF``), fixed-base arms only,
+    and ``{joint: (lowest, highest) torque}`` of the joints whose torque range is not
+    symmetric about 0 (refused unless they are locked).
 
     Refused before the parser runs (URDFError naming the file): malformed XML, a root
     element other than ``<mujoco>``, and what :func:`~hybrid_force.model.mjcf.prepare_mjcf`
@@ -483,7 +495,8 @@ def _build_mjcf(path: Path) -> pin.Model:
     complete_model(model, prepared)
     for note in notes:
         warnings.warn(f"{path}: {note}", ModelWarning, stacklevel=3)
-    return model
+    uneven = {n: j.torque for n, j in prepared.joints.items() if j.effort is None}
+    return model, uneven
 
 
 def _pinocchio_message(exc: BaseException) -> str:

@@ -38,9 +38,10 @@ What each element maps to is listed in ``docs/robots.md``; in short:
 Refused (:class:`~hybrid_force.errors.URDFError` naming the file and the element):
 ``<include>``, ``<attach>``, ``<composite>``, ``<flexcomp>``, free and ball joints, an element
 with two orientations, a joint without its own axis in a turned frame, an undefined class,
-numbers that do not parse, ranges MuJoCo refuses, force and control ranges that are not
-symmetric about 0. Warned (:class:`~hybrid_force.errors.ModelWarning`): joint ``stiffness``
-and body ``gravcomp``, which are not modelled.
+numbers that do not parse, ranges MuJoCo refuses; by the loader, once joints are locked, a
+moving joint whose torque range is not symmetric about 0 (:attr:`MjcfJoint.effort`).
+Warned (:class:`~hybrid_force.errors.ModelWarning`): joint ``stiffness`` and body
+``gravcomp``, which are not modelled.
 """
 
 from __future__ import annotations
@@ -83,7 +84,8 @@ class MjcfJoint:
         name: the joint's name.
         kind: ``"hinge"`` or ``"slide"``.
         lower, upper: position limits [rad or m]; ∓inf when the joint is not limited.
-        effort: effort limit [N·m or N] (``actuatorfrcrange``); +inf when not limited.
+        torque: (lowest, highest) torque [N·m or N] MuJoCo lets act on the joint (its
+            ``actuatorfrcrange`` and its actuators: :func:`_actuated`); ∓inf where unbounded.
         damping: viscous damping [N·m·s/rad or N·s/m].
         frictionloss: dry friction [N·m or N].
         armature: rotor inertia added to M's diagonal [kg·m² or kg].
@@ -93,10 +95,17 @@ class MjcfJoint:
     kind: str
     lower: float
     upper: float
-    effort: float
+    torque: tuple[float, float]
     damping: float
     frictionloss: float
     armature: float
+
+    @property
+    def effort(self) -> float | None:
+        """The effort limit e (|u| <= e; +inf when unbounded), None when the torque range
+        is not symmetric about 0 (the toolkit's limit cannot say it)."""
+        lo, hi = self.torque
+        return hi if -lo == hi and hi > 0.0 else None
 
 
 @dataclass(frozen=True)
@@ -184,7 +193,8 @@ def complete_model(model: pin.Model, prepared: PreparedMjcf) -> None:
         iq, iv = model.idx_qs[jid], model.idx_vs[jid]
         model.lowerPositionLimit[iq] = joint.lower
         model.upperPositionLimit[iq] = joint.upper
-        model.effortLimit[iv] = joint.effort
+        effort = joint.effort
+        model.effortLimit[iv] = max(map(abs, joint.torque)) if effort is None else effort
         model.damping[iv] = joint.damping
         model.friction[iv] = joint.frictionloss
         model.armature[iv] = joint.armature
@@ -598,12 +608,6 @@ def _joint(
     if limits is not None and kind == "hinge" and compiler.degrees:
         lower, upper = math.radians(lower), math.radians(upper)
     force = _limited(path, f"joint {name!r}", attrs, "actuatorfrclimited", "actuatorfrcrange", auto)
-    if force is not None and not (force[0] < 0.0 < force[1] and -force[0] == force[1]):
-        raise URDFError(
-            f"unsupported MJCF {path}: joint {name!r}: actuatorfrcrange="
-            f"{attrs['actuatorfrcrange']!r} is not symmetric about 0; the toolkit's effort "
-            "limit bounds |u| (write -e e)"
-        )
     values = {}
     for key in ("damping", "frictionloss", "armature"):
         values[key] = _float(path, f"joint {name!r}", attrs, key)
@@ -616,7 +620,7 @@ def _joint(
         kind=kind,
         lower=lower,
         upper=upper,
-        effort=math.inf if force is None else force[1],
+        torque=(-math.inf, math.inf) if force is None else force,
         **values,
     )
 
@@ -634,18 +638,18 @@ def _actuated(
     defaults: Mapping[str, Mapping[str, Mapping[str, str]]],
     compiler: _Compiler,
 ) -> dict[str, MjcfJoint]:
-    """The joints with the effort limit their actuators give.
+    """The joints with the torque range their actuators allow.
 
-    An actuator acting on a joint (``joint`` or ``jointinparent``) applies |gear₀| times its
-    force there; that force is bounded by ``forcerange`` when MuJoCo limits it
-    (``forcelimited``, by the same rule as a joint's ``limited``) and, for a ``<motor>``
-    (force = control) or a ``<general>`` whose force is a fixed gain times the control, by
-    that gain times ``ctrlrange`` when the control is limited. A joint's effort limit
-    is the smaller of its ``actuatorfrcrange`` bound and the sum of its actuators' bounds
-    (unbounded when one of them is, or when no actuator acts on it). A range that is not
-    symmetric about 0 is refused (the toolkit's limit bounds |u|).
+    An actuator acting on a joint (``joint`` or ``jointinparent``) applies gear₀ times its
+    force there; that force lies in ``forcerange`` when MuJoCo limits it (``forcelimited``,
+    by the same rule as a joint's ``limited``) and, for a ``<motor>`` (force = control) or a
+    ``<general>`` whose force is a fixed gain times the control, in that gain times
+    ``ctrlrange`` when the control is limited. A joint's torque range is its
+    ``actuatorfrcrange`` (when limited) met with the sum of its actuators' ranges (unbounded
+    when one of them is, or when no actuator acts on it).
     """
-    sums: dict[str, float] = {}
+    sums: dict[str, tuple[float, float]] = {}
+    auto = compiler.autolimits
     for block in root.findall("actuator"):
         for element in block:
             if element.tag not in _ACTUATORS:
@@ -664,32 +668,45 @@ def _actuated(
             if joint not in joints:
                 continue  # a tendon, site or body transmission: no joint's effort
             who = f"actuator {element.get('name', element.tag)!r} (on joint {joint!r})"
-            bound = _symmetric(
-                path,
-                who,
-                _limited(path, who, attrs, "forcelimited", "forcerange", compiler.autolimits),
-            )
+            force = _limited(path, who, attrs, "forcelimited", "forcerange", auto) or _ANY
             gain = _control_gain(path, who, element.tag, attrs)
-            if gain is not None:  # force = gain · control
-                ctrl = _limited(path, who, attrs, "ctrllimited", "ctrlrange", compiler.autolimits)
-                bound = min(bound, gain * _symmetric(path, who, ctrl))
+            ctrl = _limited(path, who, attrs, "ctrllimited", "ctrlrange", auto)
+            if gain is not None and ctrl is not None:  # force = gain · control
+                force = _meet(force, _scaled(gain, ctrl))
             gear = attrs.get("gear", "1").split()
             try:
-                ratio = abs(float(gear[0]))
+                ratio = float(gear[0])
             except (ValueError, IndexError):
                 raise URDFError(
                     f"malformed MJCF {path}: {who}: gear={attrs.get('gear')!r} is not a number"
                 ) from None
-            sums[joint] = sums.get(joint, 0.0) + ratio * bound
+            torque = _scaled(ratio, force)
+            total = sums.get(joint, (0.0, 0.0))
+            sums[joint] = (total[0] + torque[0], total[1] + torque[1])
     return {
-        name: replace(joint, effort=min(joint.effort, sums[name])) if name in sums else joint
+        name: replace(joint, torque=_meet(joint.torque, sums[name])) if name in sums else joint
         for name, joint in joints.items()
     }
 
 
+_ANY = (-math.inf, math.inf)
+
+
+def _scaled(factor: float, span: tuple[float, float]) -> tuple[float, float]:
+    """{factor · x : x in span} (a point at 0 for factor 0)."""
+    if factor == 0.0:
+        return 0.0, 0.0
+    ends = sorted((factor * span[0], factor * span[1]))
+    return ends[0], ends[1]
+
+
+def _meet(a: tuple[float, float], b: tuple[float, float]) -> tuple[float, float]:
+    return max(a[0], b[0]), min(a[1], b[1])
+
+
 def _control_gain(path: Path, who: str, tag: str, attrs: Mapping[str, str]) -> float | None:
-    """|force / control| of a ``<motor>`` (1), or of a ``<general>`` without activation
-    dynamics or bias whose gain is fixed (|gainprm₀|); None for the others."""
+    """force / control of a ``<motor>`` (1), or of a ``<general>`` without activation
+    dynamics or bias whose gain is fixed (gainprm₀); None for the others."""
     if tag == "motor":
         return 1.0
     plain = (
@@ -701,23 +718,11 @@ def _control_gain(path: Path, who: str, tag: str, attrs: Mapping[str, str]) -> f
         return None
     raw = attrs.get("gainprm", "1").split()
     try:
-        return abs(float(raw[0]))
+        return float(raw[0])
     except (ValueError, IndexError):
         raise URDFError(
             f"malformed MJCF {path}: {who}: gainprm={attrs.get('gainprm')!r} is not a number"
         ) from None
-
-
-def _symmetric(path: Path, who: str, span: tuple[float, float] | None) -> float:
-    """The bound e of a range (-e, e); +inf for None; URDFError for any other range."""
-    if span is None:
-        return math.inf
-    if not (span[0] < 0.0 < span[1] and -span[0] == span[1]):
-        raise URDFError(
-            f"unsupported MJCF {path}: {who}: range {span[0]:g} {span[1]:g} is not symmetric "
-            "about 0; the toolkit's effort limit bounds |u| (write -e e)"
-        )
-    return span[1]
 
 
 def _move_ref(
