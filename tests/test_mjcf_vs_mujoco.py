@@ -464,6 +464,10 @@ def test_locked_fingers_keep_each_joints_damping(tmp_path: Path) -> None:
             r"frames.xml: joint 'j2': the torque MuJoCo lets act on it .* is \[0, 1\], not symm",
         ),
         (
+            ('<compiler angle="radian"/>', '<compiler angle="radian" settotalmass="10"/>'),
+            r"frames.xml: <compiler settotalmass='10'>: MuJoCo changes the bodies' masses",
+        ),
+        (
             ('<compiler angle="radian"/>', '<compiler angle="radian" autolimits="false"/>'),
             r"frames.xml: joint 'j2' has range but no limited, and <compiler autolimits=\"false\">",
         ),

@@ -38,7 +38,9 @@ What each element maps to is listed in ``docs/robots.md``; in short:
 Refused (:class:`~hybrid_force.errors.URDFError` naming the file and the element):
 ``<include>``, ``<attach>``, ``<composite>``, ``<flexcomp>``, free and ball joints, an element
 with two orientations, a joint without its own axis in a turned frame, an undefined class,
-numbers that do not parse, ranges MuJoCo refuses; by the loader, once joints are locked, a
+``<compiler>`` options by which MuJoCo changes masses or inertias (``settotalmass``,
+``boundmass``, ``boundinertia``, ``balanceinertia``, ``inertiagrouprange``), numbers that do
+not parse, ranges MuJoCo refuses; by the loader, once joints are locked, a
 moving joint whose torque range is not symmetric about 0 (:attr:`MjcfJoint.effort`).
 Warned (:class:`~hybrid_force.errors.ModelWarning`): joint ``stiffness`` and body
 ``gravcomp``, which are not modelled.
@@ -213,7 +215,31 @@ def _compiler(path: Path, root: ET.Element) -> _Compiler:
         raise URDFError(
             f"malformed MJCF {path}: <compiler eulerseq={seq!r}>: three of x, y, z, X, Y, Z"
         )
+    for key, neutral in _MASS_OPTIONS.items():
+        raw = attrs.get(key)
+        if raw is None:
+            continue
+        try:
+            same = [float(x) for x in raw.split()] == [float(x) for x in neutral.split()]
+        except ValueError:
+            same = raw == neutral
+        if not same:
+            raise URDFError(
+                f"unsupported MJCF {path}: <compiler {key}={raw!r}>: MuJoCo changes the bodies' "
+                "masses or inertias by it and Pinocchio's parser does not: write the masses "
+                "and inertias the model should have"
+            )
     return _Compiler(angle == "degree", seq, _bool(path, "<compiler>", attrs, "autolimits", True))
+
+
+# <compiler> options by which MuJoCo changes masses or inertias, with their neutral values
+_MASS_OPTIONS = {
+    "settotalmass": "-1",
+    "boundmass": "0",
+    "boundinertia": "0",
+    "balanceinertia": "false",
+    "inertiagrouprange": "0 5",
+}
 
 
 def _set_compiler(path: Path, root: ET.Element) -> None:
