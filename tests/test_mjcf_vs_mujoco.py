@@ -468,6 +468,13 @@ def test_locked_fingers_keep_each_joints_damping(tmp_path: Path) -> None:
             r"frames.xml: <compiler settotalmass='10'>: MuJoCo changes the bodies' masses",
         ),
         (
+            (
+                '<compiler angle="radian"/>',
+                '<compiler angle="radian"/><option gravity="0 0 -1.62"/>',
+            ),
+            r"frames.xml: <option gravity='0 0 -1.62'>: the toolkit simulates gravity",
+        ),
+        (
             ('<compiler angle="radian"/>', '<compiler angle="radian" autolimits="false"/>'),
             r"frames.xml: joint 'j2' has range but no limited, and <compiler autolimits=\"false\">",
         ),

@@ -38,6 +38,7 @@ What each element maps to is listed in ``docs/robots.md``; in short:
 Refused (:class:`~hybrid_force.errors.URDFError` naming the file and the element):
 ``<include>``, ``<attach>``, ``<composite>``, ``<flexcomp>``, free and ball joints, an element
 with two orientations, a joint without its own axis in a turned frame, an undefined class,
+a gravity other than MuJoCo's default (0, 0, -9.81) m/s² (the toolkit's),
 ``<compiler>`` options by which MuJoCo changes masses or inertias (``settotalmass``,
 ``boundmass``, ``boundinertia``, ``balanceinertia``, ``inertiagrouprange``), numbers that do
 not parse, ranges MuJoCo refuses; by the loader, once joints are locked, a
@@ -156,6 +157,7 @@ def prepare_mjcf(path: Path, root: ET.Element) -> PreparedMjcf:
                 f"unsupported MJCF {path}: <{tag}{' ' + detail if detail else ''}>: {why}"
             )
     compiler = _compiler(path, root)
+    _check_gravity(path, root)
     for element in root.iter():
         if element.tag in _POSED:
             _to_quaternion(path, element, compiler)
@@ -230,6 +232,25 @@ def _compiler(path: Path, root: ET.Element) -> _Compiler:
                 "and inertias the model should have"
             )
     return _Compiler(angle == "degree", seq, _bool(path, "<compiler>", attrs, "autolimits", True))
+
+
+def _check_gravity(path: Path, root: ET.Element) -> None:
+    """The toolkit's gravity is (0, 0, -9.81) m/s², MuJoCo's default: refuse another one."""
+    for option in root.findall("option"):
+        raw = option.get("gravity")
+        if raw is not None:
+            values = _numbers(path, "<option>", option, "gravity", 3)
+            if not np.array_equal(values, [0.0, 0.0, -9.81]):
+                raise URDFError(
+                    f"unsupported MJCF {path}: <option gravity={raw!r}>: the toolkit simulates "
+                    "gravity (0, 0, -9.81) m/s² (MuJoCo's default)"
+                )
+        for flag in option.findall("flag"):
+            if flag.get("gravity", "enable") != "enable":
+                raise URDFError(
+                    f"unsupported MJCF {path}: <flag gravity={flag.get('gravity')!r}>: the "
+                    "toolkit simulates gravity (0, 0, -9.81) m/s² (MuJoCo's default)"
+                )
 
 
 # <compiler> options by which MuJoCo changes masses or inertias, with their neutral values
