@@ -163,3 +163,12 @@ def test_urdf_damping_and_friction_survive_locking_in_order(tmp_path: Path) -> N
         names = list(arm.model.names[1:])
         np.testing.assert_array_equal(arm.model.damping, [damping[n] for n in names])
         np.testing.assert_allclose(arm.model.friction, [damping[n] / 10 for n in names])
+
+
+def test_the_controllers_own_model_holds_the_locked_joint_alike(tmp_path: Path) -> None:
+    text = _scenario(tmp_path, f"q = {[*ARM_Q, 0.9]}").read_text()
+    path = tmp_path / "own.toml"
+    path.write_text(text.replace("[control]\n", f'[control]\nmodel = "{SO101_URDF}"\n'))
+    sc = load_scenario(path)
+    assert sc.controller_model is not None
+    assert sc.controller_model.locked_joints == sc.robot.locked_joints == {"gripper": 0.9}
