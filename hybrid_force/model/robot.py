@@ -149,8 +149,9 @@ class Robot:
             the same arm from any working directory (what results store), with the
             arguments of :attr:`reference` for a xacro file or extra package folders.
         reference: (read-only) ``{"model", "tip", "package_dirs", "xacro_args",
-            "lock_off_chain"}``: ``load_robot(**robot.reference)`` loads the same arm from
-            any working directory (JSON-able; package folders absolute).
+            "lock_off_chain"}`` (and ``"locked_positions"`` when given):
+            ``load_robot(**robot.reference)`` loads the same arm from any working directory
+            (JSON-able; package folders absolute).
         urdf_path: the model file (a URDF, a ``.xacro`` or an MJCF ``.xml`` file).
         kind: ``"urdf"``, ``"xacro"`` or ``"mjcf"``: how the model file was read (a
             registry arm is ``"urdf"``).
@@ -168,6 +169,8 @@ class Robot:
             Pinocchio calls). True for every arm :func:`load_robot` returns (continuous joints
             included); False only for a model built by hand with e.g. a JointModelRUBZ.
         position_limits, effort_limits: (read-only) the joint limits of the model.
+        locked_joints: (read-only) ``{joint: position}`` of the model file's joints the loader
+            locked; file_joints: (read-only) every joint of the model file, locked or not.
     """
 
     def __init__(
