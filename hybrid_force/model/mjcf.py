@@ -15,7 +15,8 @@ What each element maps to is listed in ``docs/robots.md``; in short:
   k padded to the digits of ``count`` (MuJoCo's names: ``leg-00`` … ``leg-11``);
 * ``<frame pos orientation childclass>`` is removed, its pose composed into each child
   (bodies, geoms, sites, cameras, inertials, joints' ``pos`` and ``axis``, lights'
-  ``pos`` and ``dir``), its ``childclass`` given to the children that name no class;
+  ``pos`` and ``dir``; also when the child's class gives them), its ``childclass`` given to
+  the children that name no class;
 * the bodies and sites of ``<worldbody>`` are moved into one jointless body ``world`` at the
   origin (MuJoCo's name for its world body, which no MJCF body may take). Pinocchio 4.1's
   parser drops the pose of the first body when it has no joint (Pinocchio issue #2782,
@@ -37,7 +38,7 @@ What each element maps to is listed in ``docs/robots.md``; in short:
 
 Refused (:class:`~hybrid_force.errors.URDFError` naming the file and the element):
 ``<include>``, ``<attach>``, ``<composite>``, ``<flexcomp>``, free and ball joints, an element
-with two orientations, a joint without its own axis in a turned frame, an undefined class,
+with two orientations, an undefined class,
 a gravity other than MuJoCo's default (0, 0, -9.81) m/s² (the toolkit's),
 ``<compiler>`` options by which MuJoCo changes masses or inertias (``settotalmass``,
 ``boundmass``, ``boundinertia``, ``balanceinertia``, ``inertiagrouprange``), numbers that do
@@ -164,10 +165,10 @@ def prepare_mjcf(path: Path, root: ET.Element) -> PreparedMjcf:
     worldbody = root.find("worldbody")
     if worldbody is None:
         raise URDFError(f"unsupported MJCF {path}: no <worldbody>: the model has no body")
-    _expand_replicates(path, worldbody, compiler)
-    _expand_frames(path, worldbody)
-    _split_joints(worldbody)
     defaults = _defaults(root)
+    _expand_replicates(path, worldbody, compiler)
+    _expand_frames(path, worldbody, defaults)
+    _split_joints(worldbody)
     for default in root.findall("default"):
         default.set("class", default.get("class", "main"))  # Pinocchio knows no "main"
     joints = _actuated(path, root, _joints(path, worldbody, defaults, compiler), defaults, compiler)
@@ -432,23 +433,48 @@ def _expand_replicates(path: Path, element: ET.Element, compiler: _Compiler) -> 
     element[:] = out
 
 
-def _expand_frames(path: Path, element: ET.Element) -> None:
-    """Each ``<frame>`` (innermost first) is replaced by its children, its pose composed in."""
+def _expand_frames(
+    path: Path,
+    element: ET.Element,
+    defaults: Mapping[str, Mapping[str, Mapping[str, str]]],
+    childclass: str = "main",
+) -> None:
+    """Each ``<frame>`` (innermost first) is replaced by its children, its pose composed in.
+
+    ``childclass``: the class the children of ``element`` default to. A child's placement
+    that comes from its class (a site's ``pos``, a joint's ``axis``) is written on it first,
+    so that the frame turns it too."""
     for child in list(element):
-        _expand_frames(path, child)
+        inner = child.get("childclass", childclass) if child.tag in ("body", "frame") else ""
+        _expand_frames(path, child, defaults, inner or childclass)
     out: list[ET.Element] = []
     for child in element:
         if child.tag != "frame":
             out.append(child)
             continue
-        pose, childclass = _pose(path, child), child.get("childclass")
+        pose, own = _pose(path, child), child.get("childclass")
         for part in child:
+            cls = part.get("class", own or childclass)
+            for key in _PLACEMENT.get(part.tag, ()):
+                value = defaults.get(cls, {}).get(part.tag, {}).get(key)
+                if part.get(key) is None and value is not None:
+                    part.set(key, value)
             _compose(path, part, pose)
             key = "childclass" if part.tag in ("body", "frame") else "class"
-            if childclass is not None and part.get(key) is None:
-                part.set(key, childclass)
+            if own is not None and part.get(key) is None:
+                part.set(key, own)
             out.append(part)
     element[:] = out
+
+
+# what places an element that a default class can give (written on it before a frame turns it)
+_PLACEMENT = {
+    "geom": ("pos", "quat", "fromto"),
+    "site": ("pos", "quat"),
+    "camera": ("pos", "quat"),
+    "joint": ("pos", "axis"),
+    "light": ("pos", "dir"),
+}
 
 
 def _compose(path: Path, element: ET.Element, pose: pin.SE3) -> None:
@@ -461,18 +487,12 @@ def _compose(path: Path, element: ET.Element, pose: pin.SE3) -> None:
         _set_pose(element, pose * _pose(path, element))
     elif element.tag == "joint":
         pos = _numbers(path, where, element, "pos", 3) if element.get("pos") else np.zeros(3)
+        axis = _numbers(path, where, element, "axis", 3) if element.get("axis") else np.eye(3)[2]
         element.set("pos", _text(pose.act(pos)))
-        if element.get("axis") is not None:
-            axis = _numbers(path, where, element, "axis", 3)
-            element.set("axis", _text(pose.rotation @ axis))
-        elif not np.allclose(pose.rotation, np.eye(3), rtol=0.0, atol=1e-15):
-            raise URDFError(
-                f"unsupported MJCF {path}: {where} inside a turned <frame> has no axis of its "
-                "own (its class's axis would have to be turned): give the joint an axis"
-            )
+        element.set("axis", _text(pose.rotation @ axis))
     elif element.tag == "light":
-        if element.get("pos") is not None:
-            element.set("pos", _text(pose.act(_numbers(path, where, element, "pos", 3))))
+        pos = _numbers(path, where, element, "pos", 3) if element.get("pos") else np.zeros(3)
+        element.set("pos", _text(pose.act(pos)))
         if element.get("dir") is not None:
             element.set("dir", _text(pose.rotation @ _numbers(path, where, element, "dir", 3)))
     else:
