@@ -47,6 +47,7 @@ def load_robot(
     xacro_args: Mapping[str, str] | None = None,
     lock_off_chain: bool | None = None,
     xacro_trust: bool = False,
+    locked_positions: Mapping[str, float] | None = None,
 ) -> Robot:
     """Load an arm by name or model file, refusing models the toolkit cannot simulate.
 
@@ -84,7 +85,8 @@ def load_robot(
        with ``lock_off_chain``, every other joint off that chain (grippers, fingers, a
        humanoid's other limbs). A locked joint is held at 0 (Pinocchio's neutral position:
        0 rad or 0 m), or at the middle of its range when 0 is outside it (at its one finite
-       bound when the other is infinite);
+       bound when the other is infinite), unless ``locked_positions`` gives its position (a
+       mimic joint is then held where it says too);
     4. :func:`~hybrid_force.model.urdf_check.check_arm_model` (nv > 0, one coordinate per joint, no
        mimic joint on the tip's chain) and :class:`Robot` (M(q0) positive definite).
 
@@ -110,6 +112,10 @@ def load_robot(
             Default (None): True for a model file, False for a registry arm (whose entry
             names what it locks: the Panda's fingers; ``z1`` keeps its gripper joint and
             ``g1`` its 29 joints). Mimic joints off the chain are locked whatever this says.
+        locked_positions: ``{joint: position}`` [rad or m] of joints this load locks (step
+            3): where each is held instead of its default. A scenario's ``initial.q`` (or
+            ``initial.seed``) listing every joint of the file gives them. Every name must be
+            a locked joint, every value a finite number within the joint's range.
 
     Raises:
         UnknownRobotError: a name that is not known (lists the known names).
@@ -120,6 +126,8 @@ def load_robot(
             file, the expression and how to opt in).
         FrameError: ``tip`` is not a frame of the model (lists the frames), or no moving
             joint lies between the root and it while the joints off its chain are locked.
+        RobotError: ``locked_positions`` names a joint that is not locked, or holds a value
+            that is not a finite number within the joint's range.
     """
     from hybrid_force.model.registry import resolve_robot
     from hybrid_force.model.urdf_check import urdf_text
@@ -130,6 +138,7 @@ def load_robot(
         raise RobotError(f"lock_off_chain must be True, False or None, got {lock_off_chain!r}")
     if not isinstance(xacro_trust, bool):
         raise RobotError(f"xacro_trust must be True or False, got {xacro_trust!r}")
+    positions = _locked_positions(locked_positions)
     locked: tuple[str, ...] = ()
     if _is_path(model):
         path = Path(model)
@@ -152,8 +161,9 @@ def load_robot(
         )
     xml: str | None = None
     mimic: dict[str, tuple[str, float, float]] = {}
+    uneven: dict[str, tuple[float, float]] = {}  # MJCF joints whose torque range is uneven
     if kind == "mjcf":
-        pin_model = _build_mjcf(path)
+        pin_model, uneven = _build_mjcf(path)
     else:
         if kind == "xacro":
             xml = expand_xacro(path, args, given, check=True, trust=xacro_trust)
@@ -161,10 +171,17 @@ def load_robot(
             xml = urdf_text(path)
             _check_urdf_text(path, xml, expanded=False)
         pin_model, mimic = _build_model(path, xml)
+    reference: dict[str, object] = {
+        "package_dirs": given,
+        "xacro_args": args,
+        "lock_off_chain": lock_off_chain,
+    }
+    if positions:
+        reference["locked_positions"] = positions
     return _arm(
         pin_model, mimic, path, name, tip if tip is not None else default_tip, locked, lock_all,
-        search=search, source=source, kind=kind, xml=xml,
-        reference={"package_dirs": given, "xacro_args": args, "lock_off_chain": lock_off_chain},
+        search=search, source=source, kind=kind, xml=xml, reference=reference,
+        positions=positions, uneven=uneven,
     )  # fmt: skip
 
 
@@ -176,6 +193,7 @@ def robot_from_text(
     package_dirs: Sequence[str | os.PathLike[str]] = (),
     *,
     lock_off_chain: bool | None = None,
+    locked_positions: Mapping[str, float] | None = None,
 ) -> Robot:
     """An arm built from a model's XML text, as :func:`load_robot` builds a model file's.
 
@@ -187,7 +205,8 @@ def robot_from_text(
         fmt: ``"urdf"`` or ``"mjcf"``.
         path: the model file the text came from: it names the arm in messages, and relative
             mesh paths of its visuals resolve against its folder; it is not read.
-        tip, package_dirs, lock_off_chain: as for :func:`load_robot` (a model file's).
+        tip, package_dirs, lock_off_chain, locked_positions: as for :func:`load_robot` (a
+            model file's).
 
     Raises:
         URDFError, FrameError: as :func:`load_robot` for the text.
@@ -199,20 +218,29 @@ def robot_from_text(
     if lock_off_chain is not None and not isinstance(lock_off_chain, bool):
         raise RobotError(f"lock_off_chain must be True, False or None, got {lock_off_chain!r}")
     given = _absolute_dirs(package_dirs)
+    positions = _locked_positions(locked_positions)
     model_path = Path(path)
     xml: str | None = None
     mimic: dict[str, tuple[str, float, float]] = {}
+    uneven: dict[str, tuple[float, float]] = {}
     if fmt == "mjcf":
-        pin_model = _build_mjcf(model_path, text)
+        pin_model, uneven = _build_mjcf(model_path, text)
     else:
         xml = text
         check_urdf(model_path, text=xml)
         pin_model, mimic = _build_model(model_path, xml)
     search = (*given, *_ros_package_path(), str(model_path.parent))
+    reference: dict[str, object] = {
+        "package_dirs": given,
+        "xacro_args": {},
+        "lock_off_chain": lock_off_chain,
+    }
+    if positions:
+        reference["locked_positions"] = positions
     return _arm(
         pin_model, mimic, model_path, str(path), tip, (), lock_off_chain is not False,
         search=search, source=str(path), kind=fmt, xml=xml, mjcf_xml=text if xml is None else None,
-        reference={"package_dirs": given, "xacro_args": {}, "lock_off_chain": lock_off_chain},
+        reference=reference, positions=positions, uneven=uneven,
     )  # fmt: skip
 
 
@@ -230,6 +258,8 @@ def _arm(
     kind: str,
     xml: str | None,
     reference: Mapping[str, object],
+    positions: Mapping[str, float],
+    uneven: Mapping[str, tuple[float, float]],
     mjcf_xml: str | None = None,
 ) -> Robot:
     """Steps 3 and 4 of :func:`load_robot`: the tip frame, the locked joints, the checks and
@@ -239,7 +269,17 @@ def _arm(
 
     tip_name = tip if tip is not None else _default_tip(pin_model)
     _require_frame(pin_model, tip_name, path)
-    pin_model = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all)
+    file_joints = tuple(pin_model.names[j] for j in range(1, pin_model.njoints))
+    pin_model, held = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all, positions)
+    for joint, (lo, hi) in uneven.items():
+        if pin_model.existJointName(joint):
+            raise URDFError(
+                f"unsupported MJCF {path}: joint {joint!r}: the torque MuJoCo lets act on it "
+                f"(its actuatorfrcrange and actuators) is [{lo:g}, {hi:g}], not symmetric "
+                "about 0; the toolkit's effort limit bounds |u|: make the ranges symmetric "
+                "(-e e), or lock the joint (robot.lock_off_chain, for a joint off the tip's "
+                "chain)"
+            )
     check_arm_model(pin_model, path, tip=tip_name, mimic={j: m[0] for j, m in mimic.items()})
     return Robot(
         pin_model,
@@ -252,6 +292,8 @@ def _arm(
         urdf_xml=xml,
         mjcf_xml=mjcf_xml,
         reference=reference,
+        locked_joints=held,
+        file_joints=file_joints,
     )
 
 
@@ -287,6 +329,29 @@ def _xacro_arguments(args: Mapping[str, str] | None) -> dict[str, str]:
     return out
 
 
+def _locked_positions(positions: Mapping[str, float] | None) -> dict[str, float]:
+    """``locked_positions`` as a new {joint: float} dict; RobotError for anything else."""
+    if positions is None:
+        return {}
+    if not isinstance(positions, Mapping):
+        raise RobotError(
+            f"locked_positions must be a mapping of joint names to numbers, got {positions!r}"
+        )
+    out = {}
+    for key, value in positions.items():
+        if (
+            not isinstance(key, str)
+            or isinstance(value, bool)
+            or not isinstance(value, int | float | np.floating | np.integer)
+            or not np.isfinite(value)
+        ):
+            raise RobotError(
+                f"locked_positions must map joint names to finite numbers; got {key!r}: {value!r}"
+            )
+        out[key] = float(value)
+    return out
+
+
 def _lock_joints(
     model: pin.Model,
     path: Path,
@@ -294,9 +359,11 @@ def _lock_joints(
     locked: Sequence[str],
     mimic: Mapping[str, tuple[str, float, float]],
     lock_all: bool,
-) -> pin.Model:
+    positions: Mapping[str, float],
+) -> tuple[pin.Model, dict[str, float]]:
     """The model with ``locked``, the mimic joints off the tip's chain and, with
-    ``lock_all``, every joint off that chain, removed (see :func:`load_robot`, step 3)."""
+    ``lock_all``, every joint off that chain, removed (see :func:`load_robot`, step 3), and
+    ``{locked joint: the position it is held at}`` in the model's joint order."""
     chain_ids = set(model.supports[model.frames[model.getFrameId(tip)].parentJoint])
     off_chain = [model.names[j] for j in range(1, model.njoints) if j not in chain_ids]
     if lock_all and off_chain and chain_ids <= {0}:
@@ -306,16 +373,42 @@ def _lock_joints(
         )
     extra = [j for j in off_chain if (lock_all or j in mimic) and j not in locked]
     to_lock = [*locked, *extra]
+    unknown = [j for j in positions if j not in to_lock]
+    if unknown:
+        held_names = ", ".join(to_lock) or "none"
+        raise RobotError(
+            f"locked_positions names {', '.join(map(repr, unknown))}, which this load of {path} "
+            f"does not lock (locked joints: {held_names})"
+        )
     if not to_lock:
-        return model
+        return model, {}
     q_ref = pin.neutral(model)
     for joint in to_lock:
         if joint not in mimic:
             q_ref[_q_index(model, joint)] = _lock_position(model, joint)
+    for joint, value in positions.items():
+        if joint not in mimic:
+            q_ref[_q_index(model, joint)] = _checked_position(model, path, joint, value)
     for joint, (master, multiplier, offset) in mimic.items():
         q_ref[_q_index(model, joint)] = offset + multiplier * q_ref[_q_index(model, master)]
-    ids = [model.getJointId(j) for j in to_lock]
-    return pin.buildReducedModel(model, ids, q_ref)
+    for joint, value in positions.items():
+        if joint in mimic:  # given: held there, whatever its master says
+            q_ref[_q_index(model, joint)] = _checked_position(model, path, joint, value)
+    ids = sorted(model.getJointId(j) for j in to_lock)
+    held = {model.names[j]: float(q_ref[model.idx_qs[j]]) for j in ids}
+    return pin.buildReducedModel(model, ids, q_ref), held
+
+
+def _checked_position(model: pin.Model, path: Path, joint: str, value: float) -> float:
+    """``value`` when it is within the joint's range (any value for an empty range)."""
+    iq = _q_index(model, joint)
+    lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+    if lo < hi and not lo <= value <= hi:
+        raise RobotError(
+            f"locked joint {joint!r} of {path}: position {value:g} is outside its range "
+            f"[{lo:g}, {hi:g}]"
+        )
+    return value
 
 
 def _lock_position(model: pin.Model, joint: str) -> float:
@@ -434,18 +527,30 @@ def _build_model(
     return model, mimic
 
 
-def _build_mjcf(path: Path, text: str | None = None) -> pin.Model:
-    """Pinocchio model of an MJCF file (``pin.buildModelFromMJCF``), fixed-base arms only.
+def _build_mjcf(
+    path: Path, text: str | None = None
+) -> tuple[pin.Model, dict[str, tuple[float, float]]]:
+    """Pinocchio model of an MJCF file (``pin.buildModelFromMJCF``), fixed-base arms only,
+    and ``{joint: (lowest, highest) torque}`` of the joints whose torque range is not
+    symmetric about 0 (refused unless they are locked). With ``text``, that is the file's
+    text (``path`` is then not read; it names the model in messages).
 
     Refused before the parser runs (URDFError naming the file): malformed XML, a root
-    element other than ``<mujoco>``, an ``<include>`` (Pinocchio's parser silently ignores
-    it: the included bodies would be missing), a free or ball joint. Warned
+    element other than ``<mujoco>``, and what :func:`~hybrid_force.model.mjcf.prepare_mjcf`
+    refuses (``<include>``, ``<attach>``, a free or ball joint, …). The parser reads the
+    file as :func:`~hybrid_force.model.mjcf.prepare_mjcf` rewrites it (frames and replicates
+    expanded, orientations as quaternions, the bodies in one jointless body ``world``:
+    Pinocchio issue #2782), written to a temporary folder under the file's own name (the
+    parser names unnamed bodies after the file); the joints' limits, damping, friction and
+    armature are then MuJoCo's (:func:`~hybrid_force.model.mjcf.complete_model`). Warned
     (:class:`ModelWarning`): a body without ``<inertial>`` whose inertia would come from a
-    mesh geom (Pinocchio does not compute a mesh's inertia as MuJoCo does), and
-    ``<equality>`` constraints (ignored: the joints they couple move independently).
-    Meshes and other assets are not read to build the model. With ``text``, that is the
-    file's text (``path`` is not read; Pinocchio parses a temporary copy).
+    mesh geom (Pinocchio does not compute a mesh's inertia as MuJoCo does), ``<equality>``
+    constraints (ignored: the joints they couple move independently), and what
+    :func:`~hybrid_force.model.mjcf.prepare_mjcf` warns about. Meshes and other assets are not
+    read to build the model.
     """
+    from hybrid_force.model.mjcf import complete_model, prepare_mjcf
+
     try:
         root = ET.parse(path).getroot() if text is None else ET.fromstring(text)
     except ET.ParseError as exc:
@@ -457,23 +562,9 @@ def _build_mjcf(path: Path, text: str | None = None) -> pin.Model:
             f"not an MJCF file: {path}: root element is <{root.tag}>, expected <mujoco> "
             "(or <robot> for a URDF)"
         )
-    include = root.find(".//include")
-    if include is not None:
-        raise URDFError(
-            f"unsupported MJCF {path}: <include file={include.get('file')!r}>: Pinocchio's "
-            "MJCF parser ignores includes (the included bodies would be missing); write the "
-            "included file's content in place of the <include>"
-        )
+    prepared = prepare_mjcf(path, root)
     mesh_bodies = []
     for body in root.iter("body"):
-        where = f"body {body.get('name', '?')!r}"
-        for child in body:
-            jtype = "free" if child.tag == "freejoint" else child.get("type", "hinge")
-            if child.tag in ("joint", "freejoint") and jtype in ("free", "ball"):
-                raise URDFError(
-                    f"unsupported MJCF {path}: {where} has a {jtype} joint "
-                    f"{child.get('name', '(unnamed)')!r}; {_MJCF_SCOPE}"
-                )
         meshes = [
             g
             for g in body.findall("geom")
@@ -493,28 +584,22 @@ def _build_mjcf(path: Path, text: str | None = None) -> pin.Model:
             "its <equality> constraints are ignored (the joints they couple move "
             "independently; joints off the tip's chain are locked by default)"
         )
-    with _native_stderr(path, "MJCF") as said, tempfile.TemporaryDirectory() as tmp:
-        parsed = path
-        if text is not None:
-            parsed = Path(tmp) / (path.name or "model.xml")
-            parsed.write_text(text, encoding="utf-8")
-        try:
-            model = pin.buildModelFromMJCF(str(parsed))
-        except (RuntimeError, ValueError, IndexError) as exc:
-            why = said()
-            detail = f" ({why[0]})" if why else ""
-            raise URDFError(
-                f"Pinocchio cannot parse MJCF {path}: {_pinocchio_message(exc)}{detail}"
-            ) from None
+    with tempfile.TemporaryDirectory(prefix="hybrid_force_mjcf_") as folder:
+        copy = Path(folder) / path.name
+        copy.write_text(prepared.text, encoding="utf-8")
+        with _native_stderr(path, "MJCF") as said:
+            try:
+                model = pin.buildModelFromMJCF(str(copy))
+            except (RuntimeError, ValueError, IndexError) as exc:
+                why = said()
+                detail = f" ({why[0]})" if why else ""
+                message = _pinocchio_message(exc).replace(str(copy), str(path))
+                raise URDFError(f"Pinocchio cannot parse MJCF {path}: {message}{detail}") from None
+    complete_model(model, prepared)
     for note in notes:
         warnings.warn(f"{path}: {note}", ModelWarning, stacklevel=3)
-    return model
-
-
-_MJCF_SCOPE = (
-    "hybrid_force simulates fixed-base arms with one-coordinate joints (hinge, slide) only: "
-    "remove the joint (the body is then welded to its parent) or replace it"
-)
+    uneven = {n: j.torque for n, j in prepared.joints.items() if j.effort is None}
+    return model, uneven
 
 
 def _pinocchio_message(exc: BaseException) -> str:

@@ -136,7 +136,8 @@ class ModelReport:
         urdf_path: the model file.
         joints: the moving joints, root to leaves (model order).
         fixed_joints: the URDF's fixed joints.
-        locked_joints: URDF moving joints the loader held at a fixed value (not in joints).
+        locked_joints: the model file's moving joints the loader held at a fixed value (not
+            in joints; :attr:`~hybrid_force.model.robot.Robot.locked_joints`).
         tip: the tip frame the load used; default_tip: the one it uses without ``tip``
             (None if that load is refused).
         tip_candidates: other body frames a tool could be put on (module docstring).
@@ -229,11 +230,7 @@ def model_report(
             )
         )
     fixed = tuple(j.name for j in urdf.robot.joints if j.type == "fixed") if urdf else ()
-    locked = tuple(
-        j.name
-        for j in (urdf.robot.joints if urdf is not None else ())
-        if j.type in ("revolute", "continuous", "prismatic") and j.name not in names
-    )
+    locked = tuple(robot.locked_joints)  # also an MJCF model's (no URDF to read)
     masses = [float(inertia.mass) for inertia in pin_model.inertias]
     return ModelReport(
         name=str(model),
@@ -396,9 +393,7 @@ def format_report(report: ModelReport) -> str:
     ]
     lines.append(f"fixed joints: {', '.join(report.fixed_joints) or 'none'}")
     if report.locked_joints:
-        lines.append(
-            f"locked joints (held at their neutral value): {', '.join(report.locked_joints)}"
-        )
+        lines.append(f"locked joints (held fixed): {', '.join(report.locked_joints)}")
     if report.tip == report.default_tip:
         lines.append(f"tip: {report.tip} (default)")
     else:

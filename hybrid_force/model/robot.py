@@ -156,9 +156,10 @@ class Robot:
             the same arm from any working directory (what results store), with the
             arguments of :attr:`reference` for a xacro file or extra package folders.
         reference: (read-only) ``{"model", "tip", "package_dirs", "xacro_args",
-            "lock_off_chain"}``: ``load_robot(**robot.reference)`` loads the same arm from
-            any working directory (JSON-able; package folders absolute). ``xacro_trust`` is
-            not part of it: what a result file records never grants trust.
+            "lock_off_chain"}`` (and ``"locked_positions"`` when given):
+            ``load_robot(**robot.reference)`` loads the same arm from any working directory
+            (JSON-able; package folders absolute). ``xacro_trust`` is not part of it: what a
+            result file records never grants trust.
         urdf_path: the model file (a URDF, a ``.xacro`` or an MJCF ``.xml`` file).
         kind: ``"urdf"``, ``"xacro"`` or ``"mjcf"``: how the model file was read (a
             registry arm is ``"urdf"``).
@@ -179,6 +180,8 @@ class Robot:
             Pinocchio calls). True for every arm :func:`load_robot` returns (continuous joints
             included); False only for a model built by hand with e.g. a JointModelRUBZ.
         position_limits, effort_limits: (read-only) the joint limits of the model.
+        locked_joints: (read-only) ``{joint: position}`` of the model file's joints the loader
+            locked; file_joints: (read-only) every joint of the model file, locked or not.
     """
 
     def __init__(
@@ -194,6 +197,8 @@ class Robot:
         urdf_xml: str | None = None,
         reference: Mapping[str, Any] | None = None,
         mjcf_xml: str | None = None,
+        locked_joints: Mapping[str, float] | None = None,
+        file_joints: tuple[str, ...] | None = None,
     ) -> None:
         """Wrap a Pinocchio model: nv > 0 and M(q0) positive definite are checked here (so a
         hand-built model cannot crash Pinocchio); :func:`load_robot` makes the other checks.
@@ -210,6 +215,12 @@ class Robot:
             reference: the extra :func:`load_robot` arguments of :attr:`reference`
                 (``package_dirs``, ``xacro_args``, ``lock_off_chain``); default: none.
             mjcf_xml: an MJCF model's text (None: read ``urdf_path`` when needed).
+                (``package_dirs``, ``xacro_args``, ``lock_off_chain``, and
+                ``locked_positions`` when given); default: none.
+            locked_joints: ``{joint: position}`` of the model file's joints the loader
+                locked (see :attr:`locked_joints`); default: none.
+            file_joints: every joint of the model file, locked ones included, in the order
+                of the model Pinocchio built before locking; default: the model's joints.
         """
         if not isinstance(model, pin.Model):
             raise RobotError(f"robot '{name}': model must be a pinocchio.Model, got {model!r}")
@@ -240,6 +251,13 @@ class Robot:
             "xacro_args": {str(k): str(v) for k, v in dict(extra.get("xacro_args") or {}).items()},
             "lock_off_chain": extra.get("lock_off_chain"),
         }
+        if extra.get("locked_positions"):
+            self._reference_extra["locked_positions"] = {
+                str(k): float(v) for k, v in dict(extra["locked_positions"]).items()
+            }
+        self._locked = {str(k): float(v) for k, v in dict(locked_joints or {}).items()}
+        moving = tuple(model.names[j] for j in range(1, model.njoints))
+        self._file_joints = moving if file_joints is None else tuple(file_joints)
         if tip is None:
             tip = _default_tip(model)
         if not model.existFrame(tip):
@@ -265,16 +283,34 @@ class Robot:
         ``model``: :attr:`source`; ``tip``: the tip frame; ``package_dirs``: the absolute
         folders given to :func:`load_robot` (not ``ROS_PACKAGE_PATH``'s nor the model's own
         folder, which the loader adds again); ``xacro_args``: ``{name: value}`` texts;
-        ``lock_off_chain``: as given (None: the default).
+        ``lock_off_chain``: as given (None: the default); ``locked_positions``: only when
+        the load was given some (``{joint: position}``).
         """
         extra = self._reference_extra
-        return {
+        out: dict[str, Any] = {
             "model": self.source,
             "tip": self.tip,
             "package_dirs": list(extra["package_dirs"]),
             "xacro_args": dict(extra["xacro_args"]),
             "lock_off_chain": extra["lock_off_chain"],
         }
+        if "locked_positions" in extra:
+            out["locked_positions"] = dict(extra["locked_positions"])
+        return out
+
+    @property
+    def locked_joints(self) -> dict[str, float]:
+        """``{joint: position [rad or m]}`` of the model file's joints that the loader locked
+        (removed from the model, held at that position), in the file's joint order; {} when
+        none is locked (a new dict)."""
+        return dict(self._locked)
+
+    @property
+    def file_joints(self) -> tuple[str, ...]:
+        """Every joint of the model file, the locked ones included, in the order of the model
+        Pinocchio built before locking (root to leaves; a scenario's full-length
+        ``initial.q`` follows it)."""
+        return self._file_joints
 
     @property
     def urdf_xml(self) -> str | None:
@@ -473,6 +509,8 @@ class Robot:
             kind=self.kind,
             urdf_xml=self._urdf_xml,
             reference=self._reference_extra,
+            locked_joints=self._locked,
+            file_joints=self._file_joints,
         )
 
     def __repr__(self) -> str:

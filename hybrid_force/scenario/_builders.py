@@ -147,24 +147,55 @@ def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
     return RobotTable(values, model, target, kind, tuple(dirs), dict(args))
 
 
-def _robot(table: object, file: Path, ctx: _Context) -> Any:
+def _robot(table: object, file: Path, ctx: _Context, initial: object = None) -> Any:
+    """The scenario's arm. When ``initial.q`` or ``initial.seed`` (the ``initial`` table)
+    lists every joint of the model file and the loader locks some, it is loaded again with
+    the locked joints held at their values there (:func:`_full_start`)."""
     from hybrid_force.model.robot import load_robot
 
     resolved = _robot_table(table, file, ctx)
     values = resolved.values
+    options: dict[str, Any] = {
+        "tip": values.get("tip"),
+        "package_dirs": resolved.package_dirs,
+        "xacro_args": resolved.xacro_args or None,
+        "lock_off_chain": values.get("lock_off_chain"),
+        "xacro_trust": values.get("xacro_trust", False),
+    }
     try:
-        return load_robot(
-            resolved.target,
-            tip=values.get("tip"),
-            package_dirs=resolved.package_dirs,
-            xacro_args=resolved.xacro_args or None,
-            lock_off_chain=values.get("lock_off_chain"),
-            xacro_trust=values.get("xacro_trust", False),
-        )
+        robot = load_robot(resolved.target, **options)
+        held = _full_start(robot, initial)
+        if held is not None:
+            key, numbers = held
+            try:
+                robot = load_robot(resolved.target, **options, locked_positions=numbers)
+            except RobotError as exc:
+                raw = initial.get(key) if isinstance(initial, dict) else None
+                raise ctx.error(f"initial.{key}", raw, " ".join(str(exc).split())) from None
     except FrameError as exc:
         raise ctx.error("robot.tip", values.get("tip"), " ".join(str(exc).split())) from None
     except RobotError as exc:
         raise ctx.error("robot.model", resolved.model, " ".join(str(exc).split())) from None
+    return robot
+
+
+def _full_start(robot: Any, initial: object) -> tuple[str, dict[str, float]] | None:
+    """(``"q"`` or ``"seed"``, {locked joint: its value}) when that key of the ``initial``
+    table lists one number per joint of the model file and the robot has locked joints;
+    None otherwise (a wrong count or type is refused later, by :func:`_initial`)."""
+    if not robot.locked_joints or not isinstance(initial, dict):
+        return None
+    names = robot.file_joints
+    for key in ("q", "seed"):
+        values = initial.get(key)
+        if (
+            isinstance(values, list)
+            and len(values) == len(names) != robot.nq
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
+        ):
+            locked = robot.locked_joints
+            return key, {n: float(v) for n, v in zip(names, values, strict=True) if n in locked}
+    return None
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
@@ -294,9 +325,15 @@ def _controller_model(
     target, _ = _model_target(model, "control.model", file, ctx)
     try:
         own = load_robot(target, xacro_trust=trust)
+        # held where the plant's are (initial.q listing every joint), when it locks them too
+        held = {k: v for k, v in robot.locked_joints.items() if k in own.locked_joints}
+        if held != {k: own.locked_joints[k] for k in held}:
+            own = load_robot(target, locked_positions=held, xacro_trust=trust)
         check_same_joints(robot, own)
         if own.tip != robot.tip:  # the same arm: the plant's tip frame
-            own = load_robot(target, tip=robot.tip, xacro_trust=trust)
+            own = load_robot(
+                target, tip=robot.tip, locked_positions=held or None, xacro_trust=trust
+            )
     except BadInputError as exc:
         raise ctx.error("control.model", model, " ".join(str(exc).split())) from None
     return own
@@ -582,13 +619,37 @@ def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, o
     if "seed" in values and "tip" not in values:
         raise ctx.error("initial.seed", raw["seed"], "a seed is only used with initial.tip")
     nq, nv = robot.nq, robot.nv
+    names, locked = robot.file_joints, robot.locked_joints
+    moving = [i for i, name in enumerate(names) if name not in locked]
     for key, size in (("seed", nq), ("q", nq), ("v", nv)):
-        if key in values and len(values[key]) != size:
+        if key not in values or len(values[key]) == size:
+            continue
+        if key != "v" and locked and len(values[key]) == len(names):
+            values[key] = [values[key][i] for i in moving]  # locked ones: held (_robot)
+            continue
+        if key != "v" and locked:
+            held = ", ".join(f"{n} (held at {v:g})" for n, v in locked.items())
+            counts = (
+                f"{size} numbers (its moving joints) or {len(names)} (every joint of the model "
+                "file, in the file's order: the locked joints' values become their locked "
+                "positions)"
+            )
+            why = (
+                "robot.lock_off_chain locks the joints off the chain to the tip (true by "
+                "default for a model file; false keeps them moving), a registry arm's entry "
+                "names the ones it locks"
+            )
             raise ctx.error(
                 f"initial.{key}",
                 raw[key],
-                f"must have {size} numbers for robot '{robot.name}', got {len(values[key])}",
+                f"must have {counts} for robot '{robot.name}', got {len(values[key])}; "
+                f"locked joints: {held}: {why}",
             )
+        raise ctx.error(
+            f"initial.{key}",
+            raw[key],
+            f"must have {size} numbers for robot '{robot.name}', got {len(values[key])}",
+        )
     v0 = np.array(values["v"]) if "v" in values else None
     if "q" in values:
         return np.array(values["q"]), v0, "initial.q", raw["q"]

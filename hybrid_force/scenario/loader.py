@@ -225,7 +225,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         if table not in doc:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
-    robot = _robot(doc["robot"], file, ctx)
+    robot = _robot(doc["robot"], file, ctx, doc["initial"])
     surfaces, surface_tables = _surfaces(doc, ctx)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)

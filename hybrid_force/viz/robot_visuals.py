@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import ModelWarning, ViewerError
+from hybrid_force.errors import ModelWarning, URDFError, ViewerError
 
 __all__ = ["PLACEHOLDER_SIZE", "visual_geometry"]
 
@@ -20,12 +20,13 @@ __all__ = ["PLACEHOLDER_SIZE", "visual_geometry"]
 def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
     """The :func:`~hybrid_force.model.robot.load_robot` options a result's meta records.
 
-    From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``: what
-    :attr:`~hybrid_force.model.robot.Robot.reference` gives). A key ``meta["robot"]`` lacks is taken
-    from the scenario's ``[robot]`` table (``meta["scenario"]["robot"]``): ``xacro_args`` and
-    ``lock_off_chain`` as written; ``package_dirs`` (relative to the scenario file) only when
-    the scenario's ``robot.model`` is a relative path without ``..`` whose parts end
-    ``meta["robot"]["model"]`` (the scenario's folder is then known). Values of the wrong type
+    From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``,
+    ``locked_positions``: what :attr:`~hybrid_force.model.robot.Robot.reference` gives). A key
+    ``meta["robot"]`` lacks is taken from the scenario's ``[robot]`` table
+    (``meta["scenario"]["robot"]``): ``xacro_args`` and ``lock_off_chain`` as written;
+    ``package_dirs`` (relative to the scenario file) only when the scenario's ``robot.model``
+    is a relative path without ``..`` whose parts end ``meta["robot"]["model"]`` (the
+    scenario's folder is then known). Values of the wrong type
     are ignored (the arm is then loaded without them).
     """
     robot_meta = meta.get("robot")
@@ -42,6 +43,12 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
     lock = info.get("lock_off_chain", table.get("lock_off_chain"))
     if isinstance(lock, bool):
         out["lock_off_chain"] = lock
+    held = info.get("locked_positions")
+    if isinstance(held, dict) and all(
+        isinstance(k, str) and isinstance(v, int | float) and not isinstance(v, bool)
+        for k, v in held.items()
+    ):
+        out["locked_positions"] = {k: float(v) for k, v in held.items()}
     dirs = info.get("package_dirs")
     if dirs is None:
         dirs = _scenario_package_dirs(info.get("model"), table)
@@ -169,10 +176,10 @@ def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str)
 
     try:
         if robot.kind == "mjcf":  # its text (a replayed arm's, from its result file)
-            root = ET.fromstring(robot.model_xml)
+            root = _prepared_mjcf(Path(robot.urdf_path), robot.model_xml)
         else:
             root = ET.fromstring(robot.urdf_xml)
-    except (OSError, ET.ParseError) as exc:
+    except (OSError, ET.ParseError, URDFError) as exc:
         raise ViewerError(f"cannot load the visual geometry of {label}: {exc}") from exc
     base = Path(robot.urdf_path).resolve().parent
     dirs = [str(d) for d in robot.package_dirs]
@@ -201,6 +208,18 @@ def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str)
                 stacklevel=4,
             )
     return visual
+
+
+def _prepared_mjcf(path: Path, text: str) -> ET.Element:
+    """The MJCF tree of ``text`` (the model's, named ``path``) as the loader gives it to
+    Pinocchio (frames and replicates expanded, the bodies in one body ``world``:
+    :func:`~hybrid_force.model.mjcf.prepare_mjcf`), so that the geoms sit on the bodies the
+    model has; its warnings were given when the arm was loaded."""
+    from hybrid_force.model.mjcf import prepare_mjcf
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelWarning)
+        return ET.fromstring(prepare_mjcf(path, ET.fromstring(text)).text)
 
 
 def _resolve_mesh(uri: str, base: Path, dirs: list[str]) -> Path | None:
