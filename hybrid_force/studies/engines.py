@@ -398,7 +398,9 @@ class DaskEngine:
                     n_workers=int(self.workers or 2),
                     threads_per_worker=1,
                     processes=True,
-                    dashboard_address=None,
+                    # any free port: None means Dask's default 8787, and a second cluster on
+                    # the machine (another sweep, a notebook) then makes it warn at start
+                    dashboard_address=":0",
                 )
             )
             self.client = stack.enter_context(Client(self.cluster))
