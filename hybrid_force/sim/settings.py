@@ -3,12 +3,14 @@ controller and sensor settings), each checked when it is built."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+from hybrid_force import _checks as checks
 from hybrid_force.control.controller import check_same_joints
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
@@ -364,14 +366,36 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
     """
     if control.rate is None:
         return 1
-    ratio = 1.0 / (control.rate * sim.dt)
-    steps = round(ratio)
-    if steps < 1 or abs(ratio - steps) > 1e-9 * ratio:
+    steps = _whole_steps(control.rate, sim.dt)
+    if steps is None:
+        ratio = _ratio(control.rate, sim.dt)
+        if ratio > 1e15:  # a rate so low that no nearby whole number is a different float
+            raise SensorError(
+                f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
+                f"sim.dt = {sim.dt:g} s: 1 / (rate · dt) = {ratio:.6g} is far beyond any run"
+            )
         fits = sorted({1.0 / (n * sim.dt) for n in (max(int(ratio), 1), int(ratio) + 1)})
+        # printed so that the text copied into control.rate is accepted (1000/3 Hz: 333.3333...)
+        shown = [checks.suggested(r, lambda x: _whole_steps(x, sim.dt) is not None) for r in fits]
         raise SensorError(
             f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
             f"sim.dt = {sim.dt:g} s (1 / (rate · dt) = {ratio:.6g}); the controller ticks every "
-            f"n plant steps: rates that fit nearby: {', '.join(f'{r:g} Hz' for r in fits)}"
+            f"n plant steps: rates that fit nearby: {', '.join(f'{r} Hz' for r in shown)}"
             + ("; it cannot be faster than the plant" if ratio < 1 else "")
         )
     return steps
+
+
+def _ratio(rate: float, dt: float) -> float:
+    """1/(rate·dt), inf where the product underflows or the quotient overflows."""
+    product = rate * dt
+    return 1.0 / product if product > 1e-300 else math.inf
+
+
+def _whole_steps(rate: float, dt: float) -> int | None:
+    """1/(rate·dt) as a whole number ≥ 1 of plant steps (to 1e-9 relative), or None."""
+    ratio = _ratio(rate, dt)
+    if not ratio <= 1e15:
+        return None
+    steps = round(ratio)
+    return None if steps < 1 or abs(ratio - steps) > 1e-9 * ratio else steps

@@ -1,0 +1,135 @@
+"""Issue 27, class 7: every computation before a run is bounded, and refused in seconds
+(exit 2, naming the key) beyond its documented maximum."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybrid_force.control.force_loop import max_stable_gain, spectral_radius
+from hybrid_force.errors import PathParameterError
+from hybrid_force.geometry.builtin_surfaces import Sphere
+from hybrid_force.geometry.raster import MAX_PASSES, RasterPath
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = REPO_ROOT / "scenarios"
+
+
+def _cli(*args: str | Path, cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hybrid_force.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=120,
+        check=False,
+    )
+
+
+def _refused(proc: subprocess.CompletedProcess[str], *named: str) -> str:
+    """Exit 2, one ``error:`` line on stderr naming each of ``named``; returns the line."""
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    for word in named:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+# --- the force-delay stability bound: O(1) in the delay --------------------------------------
+def _bisected_bound(alpha: float, delay: int) -> float:
+    """The old method, the oracle: bisection on the companion matrix's eigenvalues (∝ d³)."""
+    low, high = 0.0, 2.0 / alpha
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if spectral_radius(mid, alpha, delay) < 1.0 else (low, mid)
+    return low
+
+
+def test_the_closed_form_bound_agrees_with_the_eigenvalues_on_random_cases() -> None:
+    rng = np.random.default_rng(27)
+    for _ in range(25):
+        alpha = float(rng.uniform(0.005, 0.995))
+        delay = int(rng.integers(1, 40))
+        assert max_stable_gain(alpha, delay) == pytest.approx(
+            _bisected_bound(alpha, delay), rel=1e-9
+        ), (alpha, delay)
+
+
+@pytest.mark.parametrize(("alpha", "delay"), [(0.27, 1), (0.27, 3), (0.01, 2), (0.9, 7)])
+def test_the_closed_form_bound_puts_a_root_on_the_unit_circle(alpha: float, delay: int) -> None:
+    a = max_stable_gain(alpha, delay)
+    assert (
+        spectral_radius(a * (1 - 1e-7), alpha, delay)
+        < 1.0
+        < spectral_radius(a * (1 + 1e-7), alpha, delay)
+    )
+
+
+def test_the_bound_of_a_long_delay_takes_no_time() -> None:
+    start = time.perf_counter()
+    bounds = [max_stable_gain(0.3, d) for d in (400, 10**5, 10**12)]
+    assert time.perf_counter() - start < 1.0
+    # a long delay takes back all the filter gave: a* → 1 from above
+    assert all(1.0 <= b < 1.01 for b in bounds) and bounds == sorted(bounds, reverse=True)
+
+
+def test_a_400_period_delay_is_checked_in_seconds_by_the_cli(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    start = time.perf_counter()
+    proc = _cli(
+        "run",
+        SCENARIOS / "paper_contact.toml",
+        "--set",
+        "sensor.force_delay=400",
+        "--set",
+        "sensor.force_cutoff=50",
+        "--set",
+        "control.beta=100",
+        "--out",
+        out,
+    )
+    assert time.perf_counter() - start < 10.0  # the eigenvalue check took 99 s
+    _refused(proc, "paper_contact.toml", "control.beta", "sensor.force_delay = 400")
+    assert not out.exists()
+
+
+# --- raster passes -----------------------------------------------------------------------------
+def test_a_raster_of_more_than_max_passes_is_refused_before_it_is_built() -> None:
+    start = time.perf_counter()
+    with pytest.raises(PathParameterError, match="20001 passes") as info:
+        RasterPath(Sphere(0.3), [0.6, -0.3], [0.2, 0.6], 1e-5, 0.04, direction="v")
+    assert time.perf_counter() - start < 1.0
+    assert info.value.key == "spacing" and info.value.value == 1e-5
+    # the smallest spacing the message suggests is accepted
+    smallest = 0.2 / (MAX_PASSES - 1)
+    suggested = str(info.value).rsplit(" ", 1)[-1]
+    assert (
+        RasterPath(
+            Sphere(0.3), [0.6, -0.3], [0.2, 0.6], float(suggested), 0.04, direction="v"
+        ).passes
+        == MAX_PASSES
+    )
+    assert float(suggested) == pytest.approx(smallest, rel=1e-6)
+
+
+def test_a_tiny_raster_spacing_is_refused_by_the_cli_naming_the_key(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    start = time.perf_counter()
+    proc = _cli(
+        "run",
+        SCENARIOS / "ur5_sphere_normal.toml",
+        "--set",
+        "trajectory.spacing=1e-5",
+        "--out",
+        out,
+    )
+    assert time.perf_counter() - start < 10.0
+    _refused(proc, "ur5_sphere_normal.toml", "trajectory.spacing", "1e-05", str(MAX_PASSES))
+    assert not out.exists()

@@ -1,0 +1,52 @@
+"""Issue 27, class 8: every failure is one clear line (no traceback, no signal death), it
+names the file, key and value, and nothing is left half-written."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hybrid_force.errors import ScenarioError
+from hybrid_force.scenario.loader import load_scenario
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = REPO_ROOT / "scenarios"
+CONTACT = SCENARIOS / "paper_contact.toml"
+
+
+def _cli(*args: str | Path, cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hybrid_force.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=120,
+        check=False,
+    )
+
+
+def _one_line(proc: subprocess.CompletedProcess[str], status: int, *named: str) -> str:
+    """Exit ``status``, one ``error:`` line on stderr naming each of ``named``."""
+    assert proc.returncode == status, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    for word in named:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+# --- a suggestion, copied, is accepted ---------------------------------------------------------
+@pytest.mark.parametrize("rate", [300.0, 700.0, 450.0])
+def test_the_rates_a_message_suggests_are_accepted_when_copied(rate: float) -> None:
+    with pytest.raises(ScenarioError, match="rates that fit nearby") as info:
+        load_scenario(CONTACT, {"control.rate": rate})
+    shown = re.findall(r"([0-9.e+-]+) Hz", str(info.value).split("fit nearby:")[1])
+    assert len(shown) == 2
+    for text in shown:
+        scenario = load_scenario(CONTACT, {"control.rate": float(text)})
+        assert scenario.control.rate == float(text)
