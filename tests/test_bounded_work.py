@@ -133,3 +133,84 @@ def test_a_tiny_raster_spacing_is_refused_by_the_cli_naming_the_key(tmp_path: Pa
     assert time.perf_counter() - start < 10.0
     _refused(proc, "ur5_sphere_normal.toml", "trajectory.spacing", "1e-05", str(MAX_PASSES))
     assert not out.exists()
+
+
+# --- model size: counted before any parser sees the file ---------------------------------------
+_INERTIAL = (
+    '<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '
+    'izz="0.1"/></inertial>'
+)
+
+
+def _chain_urdf(path: Path, joints: int) -> Path:
+    """A serial chain of ``joints`` revolute joints, each link 0.1 m long."""
+    parts = ['<robot name="chain">', f'<link name="l0">{_INERTIAL}</link>']
+    for i in range(1, joints + 1):
+        parts.append(f'<link name="l{i}">{_INERTIAL}</link>')
+        parts.append(
+            f'<joint name="j{i}" type="revolute"><parent link="l{i - 1}"/><child link="l{i}"/>'
+            '<origin xyz="0 0 0.1"/><axis xyz="0 1 0"/>'
+            '<limit lower="-3" upper="3" effort="10" velocity="1"/></joint>'
+        )
+    parts.append("</robot>")
+    path.write_text("\n".join(parts))
+    return path
+
+
+@pytest.mark.parametrize("joints", [1200, 5000])
+def test_a_long_chain_is_refused_by_robots_check_in_seconds(tmp_path: Path, joints: int) -> None:
+    from hybrid_force.model.urdf_text import MAX_JOINTS
+
+    urdf = _chain_urdf(tmp_path / f"chain{joints}.urdf", joints)
+    start = time.perf_counter()
+    proc = _cli("robots", "--check", urdf)
+    assert time.perf_counter() - start < 10.0
+    assert proc.returncode > 0  # not killed by a signal (negative): 5,000 crashed Pinocchio
+    _refused(proc, str(urdf), f"MAX_JOINTS = {MAX_JOINTS}")
+
+
+def test_a_chain_at_the_maximum_loads(tmp_path: Path) -> None:
+    from hybrid_force import load_robot
+    from hybrid_force.model.urdf_text import MAX_JOINTS
+
+    robot = load_robot(_chain_urdf(tmp_path / "chain.urdf", MAX_JOINTS))
+    assert robot.nv == MAX_JOINTS
+
+
+def test_a_deep_mjcf_chain_is_refused_before_pinocchio_parses_it(tmp_path: Path) -> None:
+    from hybrid_force import load_robot
+    from hybrid_force.errors import URDFError
+
+    bodies = 400
+    inner = "".join(
+        f'<body name="b{i}" pos="0 0 0.1"><joint name="j{i}" type="hinge" axis="0 1 0"/>'
+        '<inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>'
+        for i in range(bodies)
+    )
+    mjcf = tmp_path / "deep.xml"
+    mjcf.write_text(
+        f'<mujoco model="m"><worldbody>{inner}{"</body>" * bodies}</worldbody></mujoco>'
+    )
+    with pytest.raises(URDFError, match="more than 100 joints") as info:
+        load_robot(mjcf)
+    assert str(mjcf) in str(info.value)
+    # nested deeper than any model, without a joint: the depth is the limit
+    empty = tmp_path / "nested.xml"
+    empty.write_text(
+        f"<mujoco><worldbody>{'<frame>' * 5000}{'</frame>' * 5000}</worldbody></mujoco>"
+    )
+    with pytest.raises(URDFError, match="nest more than 256 deep"):
+        load_robot(empty)
+
+
+def test_a_model_file_beyond_the_byte_limit_is_refused_unread(tmp_path: Path) -> None:
+    from hybrid_force import load_robot
+    from hybrid_force.errors import URDFError
+    from hybrid_force.model.urdf_text import MAX_MODEL_BYTES
+
+    big = tmp_path / "big.urdf"
+    with big.open("wb") as fh:  # sparse: nothing is written but the size
+        fh.truncate(MAX_MODEL_BYTES + 1)
+    with pytest.raises(URDFError, match="MAX_MODEL_BYTES") as info:
+        load_robot(big)
+    assert str(big) in str(info.value)

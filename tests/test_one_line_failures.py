@@ -3,6 +3,7 @@ names the file, key and value, and nothing is left half-written."""
 
 from __future__ import annotations
 
+import math
 import re
 import subprocess
 import sys
@@ -50,3 +51,27 @@ def test_the_rates_a_message_suggests_are_accepted_when_copied(rate: float) -> N
     for text in shown:
         scenario = load_scenario(CONTACT, {"control.rate": float(text)})
         assert scenario.control.rate == float(text)
+
+
+# --- public API: a clear error of errors.py, not Boost.Python's or math's -------------------
+@pytest.mark.parametrize("tip", [5, b"tip", ["tip"]])
+def test_a_tip_that_is_not_a_text_is_a_frame_error_listing_the_frames(tip: object) -> None:
+    from hybrid_force import load_robot
+    from hybrid_force.errors import FrameError
+
+    with pytest.raises(FrameError, match=r"tip must be a frame name \(a str\)") as info:
+        load_robot("rtr", tip=tip)  # type: ignore[arg-type]
+    assert info.value.key == "tip" and info.value.value == tip
+    assert "frames of" in str(info.value) and "link3" in str(info.value)
+
+
+@pytest.mark.parametrize("scenario", ["paper_contact", "ur5_sphere_normal"])
+@pytest.mark.parametrize("t", [math.inf, -math.inf, math.nan, "1"])
+def test_a_path_evaluated_at_a_non_finite_time_names_t(scenario: str, t: object) -> None:
+    from hybrid_force.errors import PathParameterError
+
+    path = load_scenario(SCENARIOS / f"{scenario}.toml").path
+    for method in (path.evaluate, path.position, path.direction_jet):
+        with pytest.raises(PathParameterError, match="the time t at which it is evaluated") as info:
+            method(t)  # type: ignore[arg-type]
+        assert info.value.key == "t"

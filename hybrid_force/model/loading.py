@@ -21,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.errors import FrameError, ModelWarning, RobotError, URDFError
+from hybrid_force.model.urdf_text import check_file_size, check_model_size
 from hybrid_force.model.xacro_files import (
     _absolute_dirs,
     _check_urdf_text,
@@ -359,6 +360,8 @@ def _build_mjcf(path: Path) -> pin.Model:
     Meshes and other assets are not read to build the model.
     """
     try:
+        # its size first, in one streaming pass: Pinocchio's parser recurses per body
+        check_model_size(f"MJCF {path}", _read_model_bytes(path, "MJCF"), "mjcf")
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:
         raise URDFError(f"malformed MJCF {path}: XML parse error: {exc}") from None
@@ -425,6 +428,12 @@ _MJCF_SCOPE = (
 )
 
 
+def _read_model_bytes(path: Path, label: str) -> bytes:
+    """The file's bytes, refused (URDFError) beyond MAX_MODEL_BYTES before it is read."""
+    check_file_size(path, label)
+    return path.read_bytes()
+
+
 def _pinocchio_message(exc: BaseException) -> str:
     """One line from a Pinocchio exception: the text after its ``message:`` line if any."""
     text = str(exc)
@@ -439,7 +448,15 @@ def _q_index(model: pin.Model, joint: str) -> int:
 
 
 def _require_frame(model: pin.Model, tip: str, path: Path) -> None:
-    """FrameError listing the model's frames if ``tip`` is not one of them."""
+    """FrameError listing the model's frames if ``tip`` is not one of them (or not a text)."""
+    if not isinstance(tip, str):  # Pinocchio would raise a raw Boost.Python ArgumentError
+        frames = [f.name for f in model.frames]
+        raise FrameError(
+            f"tip must be a frame name (a str), got {tip!r} ({type(tip).__name__}); frames of "
+            f"{path} are: {', '.join(frames)}",
+            key="tip",
+            value=tip,
+        )
     if not model.existFrame(tip):
         frames = [f.name for f in model.frames]
         raise FrameError(f"tip frame '{tip}' not found in {path}; frames are: {', '.join(frames)}")

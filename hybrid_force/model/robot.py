@@ -228,10 +228,12 @@ class Robot:
         }
         if tip is None:
             tip = _default_tip(model)
-        if not model.existFrame(tip):
+        if not isinstance(tip, str) or not model.existFrame(tip):  # not Boost.Python's error
             frames = [f.name for f in model.frames]
             raise FrameError(
-                f"tip frame '{tip}' not found in {self.urdf_path}; frames are: {', '.join(frames)}"
+                f"tip frame {tip!r} not found in {self.urdf_path}; frames are: {', '.join(frames)}",
+                key="tip",
+                value=tip,
             )
         self.tip = tip
         self.tip_id = model.getFrameId(tip)

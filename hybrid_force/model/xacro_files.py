@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from hybrid_force.errors import ModelWarning, RobotError, URDFError
+from hybrid_force.model.urdf_text import check_file_size, check_model_size
 
 __all__ = ["expand_xacro", "find_package"]
 
@@ -111,6 +112,8 @@ def expand_xacro(
             )
         return str(found)
 
+    with contextlib.suppress(OSError):  # a missing file: xacro says so below
+        check_file_size(path, "xacro file")
     said = io.StringIO()
     target = str(path.resolve())
     with _XACRO_LOCK, contextlib.redirect_stderr(said), contextlib.redirect_stdout(said):
@@ -150,6 +153,7 @@ def expand_xacro(
     messages = [" ".join(x.split()) for x in said.getvalue().splitlines() if x.strip()]
     if messages:
         warnings.warn(f"{path}: xacro reported: {'; '.join(messages)}", ModelWarning, stacklevel=3)
+    check_model_size(f"{path} (as expanded by xacro)", text, "urdf")
     if check:
         _check_urdf_text(path, text, expanded=True)
     return text
