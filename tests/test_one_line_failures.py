@@ -75,3 +75,24 @@ def test_a_path_evaluated_at_a_non_finite_time_names_t(scenario: str, t: object)
         with pytest.raises(PathParameterError, match="the time t at which it is evaluated") as info:
             method(t)  # type: ignore[arg-type]
         assert info.value.key == "t"
+
+
+# --- values a run cannot use: refused by the loader, naming the file and the key --------------
+@pytest.mark.parametrize(
+    ("scenario", "override", "named"),
+    [
+        ("paper_contact", "initial.v=[1e300, 0, 0]", ["initial.v", "1e+300", "max_velocity"]),
+        ("paper_contact", "surface.center=[1e300, 0, 0]", ["surface.center", "MAX_LENGTH"]),
+        ("paper_contact", "surface.radius=1e7", ["surface.radius", "MAX_LENGTH"]),
+        ("rtr_plane", "surface.point=[0, 0, 1e300]", ["surface.point", "MAX_LENGTH"]),
+        ("paper_contact", "trajectory.center=[1e300, 0, 10]", ["trajectory.center", "1e+300"]),
+        ("paper_contact", "trajectory.rise=1e300", ["trajectory.rise", "MAX_LENGTH"]),
+    ],
+)
+def test_an_absurd_value_is_refused_naming_file_and_key(
+    tmp_path: Path, scenario: str, override: str, named: list[str]
+) -> None:
+    out = tmp_path / "out"
+    proc = _cli("run", SCENARIOS / f"{scenario}.toml", "--set", override, "--out", out)
+    _one_line(proc, 2, f"{scenario}.toml", *named)
+    assert not out.exists()  # nothing half-written

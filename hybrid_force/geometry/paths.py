@@ -45,6 +45,7 @@ from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import PathParameterError, did_you_mean
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, OnSurfaceReport, check_on_surface
+from hybrid_force.geometry.surface_base import MAX_LENGTH
 
 _K = LazyKernels("hybrid_force.geometry._kernels")
 
@@ -217,6 +218,17 @@ class _CircularPath(Path):
         for name in scalars:
             value = _finite_float(owner, name, getattr(self, name), unit=_UNITS[name])
             object.__setattr__(self, name, value)
+        # the surfaces' bound on lengths: p(t) and its squares stay finite (1e300 gave NaN)
+        sizes = {"center": max(abs(x) for x in center), "radius": radius}
+        sizes["rise"] = abs(getattr(self, "rise", 0.0))
+        for name, size in sizes.items():
+            if size > MAX_LENGTH:
+                raise PathParameterError(
+                    f"{owner}.{name} = {checks.shown(getattr(self, name))} is beyond "
+                    f"MAX_LENGTH = {MAX_LENGTH:g} {'m/s' if name == 'rise' else 'm'}",
+                    key=name,
+                    value=getattr(self, name),
+                )
         object.__setattr__(self, "center", center)
         object.__setattr__(self, "radius", radius)
         object.__setattr__(self, direction, vector)

@@ -19,7 +19,12 @@ from numpy.typing import ArrayLike
 from hybrid_force import _checks as checks
 from hybrid_force.errors import DimensionError, SurfaceError, SurfaceParameterError
 
-__all__ = ["Surface"]
+__all__ = ["MAX_LENGTH", "Surface"]
+
+MAX_LENGTH = 1e6
+"""The largest |coordinate| of a surface's point or centre and the largest radius [m]
+(docs/scenarios.md): far beyond any arm's reach, and small enough that squares and products
+of distances stay finite (a centre of 1e300 m made Φ(p) NaN)."""
 
 #: An axis or normal shorter than this [m or unitless] counts as zero-length.
 _MIN_DIRECTION_NORM = 1e-12
@@ -42,6 +47,28 @@ def _positive_float(owner: str, name: str, value: object, unit: str = "m") -> fl
     """Check that ``value`` is a finite real number > 0 (not a bool) and return it as a float."""
     what = f"{owner}: parameter '{name}'"
     return checks.number(value, what, SurfaceParameterError, minimum=0.0, strict=True, unit=unit)
+
+
+def _length(owner: str, name: str, value: object) -> float:
+    """A positive length [m] of at most :data:`MAX_LENGTH` (a radius)."""
+    out = _positive_float(owner, name, value)
+    if out > MAX_LENGTH:
+        raise SurfaceParameterError(
+            f"{owner}: parameter '{name}' must be at most MAX_LENGTH = {MAX_LENGTH:g} m, got "
+            f"{_fmt(value)}"
+        )
+    return out
+
+
+def _point3(owner: str, name: str, value: object) -> Vec3:
+    """A point [m] (3 finite numbers), each coordinate within ±:data:`MAX_LENGTH`."""
+    point = _vector3(owner, name, value)
+    if max(abs(x) for x in point) > MAX_LENGTH:
+        raise SurfaceParameterError(
+            f"{owner}: parameter '{name}' must have coordinates within ±MAX_LENGTH = "
+            f"{MAX_LENGTH:g} m, got {_fmt(value)}"
+        )
+    return point
 
 
 def _vector3(owner: str, name: str, value: object) -> Vec3:

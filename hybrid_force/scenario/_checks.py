@@ -67,10 +67,16 @@ def _check_path_on_surfaces(
     from hybrid_force.geometry.paths import check_on_surface
 
     for surface, (name, table) in zip(surfaces, tables, strict=True):
-        report = check_on_surface(path, surface, 0.0, duration)
+        shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
+        where = ", ".join(f"{k} = {_fmt(v)}" for k, v in table.items())
+        try:
+            report = check_on_surface(path, surface, 0.0, duration)
+        except BadInputError as exc:  # e.g. Φ(p_d) not finite: name the file and the tables
+            raise ScenarioError(
+                f"{ctx.file}: {shown}: the trajectory cannot be checked against [{name}] "
+                f"({where}): {' '.join(str(exc).split())}"
+            ) from None
         if report.worst_distance > ON_SURFACE_TOL:
-            shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
-            where = ", ".join(f"{k} = {_fmt(v)}" for k, v in table.items())
             p = [round(float(x), 6) for x in report.point_of_worst]
             raise ScenarioError(
                 f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "

@@ -237,6 +237,15 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     _check_control_rate(control, sim, control_values, ctx)
     _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
+    fastest = max((abs(float(x)) for x in v0), default=0.0) if v0 is not None else 0.0
+    if fastest > sim.max_velocity:
+        # the first step would stop as a runaway: refused here, naming the key, not run
+        raise ctx.error(
+            "initial.v",
+            doc["initial"]["v"],
+            f"|v| = {fastest:.6g} is beyond sim.max_velocity = "
+            f"{sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
+        )
     if tool.controlled and start_key == "initial.tip":
         q0 = _tool_start(tool, robot, surfaces, path, q0, start_value, ctx)
     if start_key == "initial.tip":

@@ -153,7 +153,8 @@ class Scenario:
     Checked on construction, like a scenario file by its loader (ScenarioValueError, or the
     GainError of a K_d or f_d that does not fit the arm or the surfaces, naming the field):
 
-    * the types and shapes above, finite q0 and v0; K_d's size against the arm's joints and
+    * the types and shapes above, finite q0 and v0, every |v0_i| below ``sim.max_velocity``
+      (the run would stop as a runaway at once); K_d's size against the arm's joints and
       f_d's count against the surfaces;
     * a run that starts in contact (``control.supervisor`` False): the desired path within
       ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration] (sampled by
@@ -226,6 +227,13 @@ class Scenario:
             array = checks.array(value, f"Scenario.{key}", Bad, valid=valid)
             if array.shape != (size,):
                 raise Bad(f"Scenario.{key} must be {valid}, got shape {array.shape}")
+            if key == "v0" and isinstance(self.sim, SimSettings) and array.size:
+                fastest = float(np.abs(array).max())
+                if fastest > self.sim.max_velocity:  # the first step would be a runaway
+                    raise Bad(
+                        f"Scenario.v0: |v| = {fastest:.6g} is beyond sim.max_velocity = "
+                        f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway"
+                    )
             array.setflags(write=False)
             set_(self, key, array)
         for key, kind in (("control", ControlSettings), ("sim", SimSettings)):
