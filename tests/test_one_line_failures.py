@@ -96,3 +96,62 @@ def test_an_absurd_value_is_refused_naming_file_and_key(
     proc = _cli("run", SCENARIOS / f"{scenario}.toml", "--set", override, "--out", out)
     _one_line(proc, 2, f"{scenario}.toml", *named)
     assert not out.exists()  # nothing half-written
+
+
+# --- stacked surfaces whose rows are dependent at the start ------------------------------------
+TWO_PARALLEL_PLANES = """\
+name = "two_planes"
+[robot]
+model = "rtr"
+[[surfaces]]
+type = "plane"
+point = [0.0, 0.0, 5.0]
+normal = [0.0, 0.0, 1.0]
+[[surfaces]]
+type = "plane"
+point = [0.0, 0.0, 5.0]
+normal = [0.0, 0.0, -1.0]
+[trajectory]
+type = "circle"
+center = [0.0, 0.0, 5.0]
+radius = 0.6
+normal = [0.0, 0.0, 1.0]
+omega = 0.5
+[initial]
+tip = [0.6, 0.0, 5.0]
+seed = [0.0, 4.0, 1.8]
+[control]
+supervisor = false
+f_d = [10.0, 10.0]
+[sim]
+duration = 0.1
+"""
+
+
+def test_two_parallel_planes_are_refused_naming_both_surfaces(tmp_path: Path) -> None:
+    scenario = tmp_path / "two_planes.toml"
+    scenario.write_text(TWO_PARALLEL_PLANES)
+    out = tmp_path / "out"
+    proc = _cli("run", scenario, "--out", out)
+    _one_line(proc, 2, str(scenario), "surfaces.0, surfaces.1", "linearly dependent")
+    assert not out.exists()
+
+
+def test_scenario_built_in_python_refuses_dependent_rows_too(tmp_path: Path) -> None:
+    import dataclasses
+
+    from hybrid_force.errors import ScenarioValueError
+    from hybrid_force.geometry.surfaces import Plane
+
+    # the tip stands still on the planes x = 0.4 and z = 5: independent rows, accepted
+    text = TWO_PARALLEL_PLANES.replace("normal = [0.0, 0.0, -1.0]", "normal = [1.0, 0.0, 0.0]")
+    text = text.replace(
+        "point = [0.0, 0.0, 5.0]\nnormal = [1.0", "point = [0.6, 0.0, 5.0]\nnormal = [1.0"
+    )
+    text = text.replace("omega = 0.5", "omega = 0.0")
+    scenario = tmp_path / "two.toml"
+    scenario.write_text(text)
+    base = load_scenario(scenario)
+    flipped = Plane([0.6, 0.0, 5.0], [-1.0, 0.0, 0.0])  # the same plane, facing the other way
+    with pytest.raises(ScenarioValueError, match=r"surfaces\[0\], surfaces\[1\] are linearly"):
+        dataclasses.replace(base, surfaces=[base.surfaces[1], flipped])

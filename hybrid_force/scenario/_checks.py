@@ -117,6 +117,30 @@ def _check_start(
         )
 
 
+def _check_stacked_rows(
+    robot: Any, q0: Any, surfaces: list[Any], tables: list[tuple[str, dict]], ctx: _Context
+) -> None:
+    """Stacked surfaces whose constraint rows n̂ᵀJ are dependent at the start are refused:
+    A M⁻¹ Aᵀ is singular there and the contact force undefined (two parallel planes)."""
+    from hybrid_force.control.constraint import Constraint, dependent_rows
+
+    if len(surfaces) < 2:
+        return
+    rows, _ = Constraint(list(surfaces)).normal_rows(robot.tip_position(q0), robot.jacobian(q0))
+    found = dependent_rows(rows)
+    if found is None:
+        return
+    involved, sigma = found
+    names = [tables[i][0] for i in involved]
+    raise ctx.table_error(
+        ", ".join(names),
+        f"the constraint rows n̂ᵀJ of these stacked surfaces are linearly dependent at the "
+        f"start (singular values {', '.join(f'{x:.3g}' for x in sigma)}; {len(surfaces)} rows "
+        f"for {robot.nv} joints): their contact forces are not determined; stack surfaces "
+        "whose normals, seen through the arm's Jacobian, are independent",
+    )
+
+
 def _check_controller(
     robot: Any,
     surfaces: list[Any],

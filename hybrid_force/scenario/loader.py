@@ -68,6 +68,7 @@ from hybrid_force.scenario._checks import (
     _check_path_on_surfaces,
     _check_pose_followable,
     _check_sampled_force_loop,
+    _check_stacked_rows,
     _check_start,
 )
 from hybrid_force.scenario._tables import (
@@ -254,6 +255,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             doc["initial"].get("seed"), start_key,
         )  # fmt: skip
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
+    _check_stacked_rows(robot, q0, surfaces, surface_tables, ctx)
     _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx, tool)
     if tool.controlled:
         configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)

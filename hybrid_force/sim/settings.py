@@ -161,7 +161,8 @@ class Scenario:
       :func:`~hybrid_force.geometry.paths.check_on_surface`) and the start tip p(q0) within
       ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
-      so are stacked surfaces (k > 1), whose approach would touch a subset first;
+      so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
+      stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
     * the control rate (``control.rate``) a whole number of plant steps, not faster than them.
     """
 
@@ -363,6 +364,19 @@ class Scenario:
                     f"Scenario.q0: the run starts in contact (control.supervisor = False) but "
                     f"{tip} is {d:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be within "
                     f"control.contact_tol = {control.contact_tol:g} m of every surface"
+                )
+        if k > 1:  # dependent rows: A M⁻¹ Aᵀ singular, the first step would fail in numpy
+            from hybrid_force.control.constraint import Constraint, dependent_rows
+
+            rows, _ = Constraint(list(surfaces)).normal_rows(p, self.robot.jacobian(self.q0))
+            found = dependent_rows(rows)
+            if found is not None:
+                names = ", ".join(f"surfaces[{i}]" for i in found[0])
+                raise Bad(
+                    f"Scenario.surfaces: the constraint rows n̂ᵀJ of {names} are linearly "
+                    f"dependent at q0 (singular values "
+                    f"{', '.join(f'{x:.3g}' for x in found[1])}): their contact forces are not "
+                    "determined"
                 )
 
 
