@@ -155,3 +155,30 @@ def test_scenario_built_in_python_refuses_dependent_rows_too(tmp_path: Path) -> 
     flipped = Plane([0.6, 0.0, 5.0], [-1.0, 0.0, 0.0])  # the same plane, facing the other way
     with pytest.raises(ScenarioValueError, match=r"surfaces\[0\], surfaces\[1\] are linearly"):
         dataclasses.replace(base, surfaces=[base.surfaces[1], flipped])
+
+
+# --- TOML nested deeply under an unknown key ----------------------------------------------------
+@pytest.mark.parametrize("header", ["zz", "control.zz"])
+def test_a_deeply_nested_unknown_table_is_one_line_naming_its_key(
+    tmp_path: Path, header: str
+) -> None:
+    scenario = tmp_path / "deep.toml"
+    deep = ".".join([header, *["zz"] * 5000])
+    scenario.write_text(CONTACT.read_text() + f"\n[{deep}]\nx = 1\n")
+    out = tmp_path / "out"
+    proc = _cli("run", scenario, "--out", out)
+    _one_line(proc, 2, str(scenario), f"{header}.zz.zz", "MAX_NESTING")
+    assert not out.exists()
+
+
+def test_a_deeply_nested_document_built_in_python_is_refused_without_recursion() -> None:
+    from hybrid_force.scenario.loader import read_scenario_document, scenario_from_document
+
+    doc = read_scenario_document(CONTACT)
+    inner: dict[str, object] = {}
+    doc["robot"]["extra"] = inner
+    for _ in range(20000):  # deeper than Python's recursion limit
+        inner["a"] = inner = {}
+    with pytest.raises(ScenarioError, match=r"robot\.extra\.a\.a.*MAX_NESTING") as info:
+        scenario_from_document(doc, origin="deep.toml")
+    assert info.value.key == "robot.extra"

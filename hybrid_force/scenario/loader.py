@@ -80,6 +80,7 @@ from hybrid_force.scenario._tables import (
     _check_table,
     _Context,
     _suggest,
+    check_nesting,
     parse_override,
     xacro_argument_text,
 )
@@ -119,7 +120,9 @@ def _read(path: Path, ctx: _Context) -> dict[str, Any]:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"{ctx.file}: not UTF-8 text ({exc})") from None
-    return _parse_toml(text, ctx.file)
+    doc = _parse_toml(text, ctx.file)
+    check_nesting(doc, ctx)  # dotted table headers nest without any recursion in tomllib
+    return doc
 
 
 def _parse_toml(text: str, where: str) -> dict[str, Any]:
@@ -190,12 +193,14 @@ def scenario_from_document(
         ScenarioError: as :func:`load_scenario`, naming ``origin``.
     """
     ctx = _Context(origin)
+    check_nesting(doc, ctx)  # before deepcopy, which recurses per level
     return _build(copy.deepcopy(dict(doc)), Path(base_dir) / Path(origin).name, ctx)
 
 
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     # the path on the surfaces is checked here (to name the file) and again by Scenario (which
     # checks a run built by hand too): scanned once (~0.01-0.03 s, most of a load)
+    check_nesting(doc, ctx)  # overrides may nest too
     with reports_reused():
         return _build_checked(doc, file, ctx)
 
