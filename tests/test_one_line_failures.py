@@ -182,3 +182,108 @@ def test_a_deeply_nested_document_built_in_python_is_refused_without_recursion()
     with pytest.raises(ScenarioError, match=r"robot\.extra\.a\.a.*MAX_NESTING") as info:
         scenario_from_document(doc, origin="deep.toml")
     assert info.value.key == "robot.extra"
+
+
+# --- robots --check: a mesh is found only if it can be read -----------------------------------
+def test_a_corrupt_mesh_is_reported_unreadable_not_found(tmp_path: Path) -> None:
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "good.stl").write_text(
+        "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+        "endloop\nendfacet\nendsolid s\n"
+    )
+    (tmp_path / "meshes" / "bad.stl").write_bytes(b"\x00garbage, not a mesh\xff" * 8)
+    inertial = (
+        '<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" '
+        'izz="0.1"/></inertial>'
+    )
+
+    def visual(name: str) -> str:
+        return f'<visual><geometry><mesh filename="meshes/{name}"/></geometry></visual>'
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(
+        f'<robot name="arm"><link name="base">{inertial}{visual("good.stl")}</link>'
+        f'<link name="arm">{inertial}{visual("bad.stl")}</link>'
+        '<joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<origin xyz="0.3 0 0"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="5" velocity="1"/></joint></robot>'
+    )
+    proc = _cli("robots", "--check", urdf)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert "meshes: 2 referenced, 1 found, 1 unreadable" in lines
+    assert "  found    meshes/good.stl" in lines
+    bad = [line for line in lines if line.startswith("  unreadable meshes/bad.stl (link arm; ")]
+    assert len(bad) == 1 and str(tmp_path / "meshes" / "bad.stl") in bad[0]
+
+
+# --- hybrid-force plot on malformed sweep tables -----------------------------------------------
+HEADER = "control.beta,final_position_error\n"
+
+
+@pytest.mark.parametrize(
+    ("content", "named"),
+    [
+        (b"", "is empty"),
+        (HEADER.encode(), "no rows"),
+        (b"a,b\n1,2\n", "not in"),
+        ((HEADER + "x,y\n").encode(), "not numeric"),
+        ((HEADER + "1,2,3\n4\n").encode(), "line 2: 3 fields"),
+        ((HEADER + '"1,2\n').encode(), "cannot read"),
+        (bytes(range(256)) * 8, "cannot read"),
+        ((HEADER + "1," + "9" * 200_000 + "\n").encode(), "cannot read"),
+    ],
+    ids=["empty", "header-only", "wrong-columns", "text", "ragged", "quote", "binary", "huge"],
+)
+def test_a_malformed_sweep_table_is_one_line_and_writes_nothing(
+    tmp_path: Path, content: bytes, named: str
+) -> None:
+    table = tmp_path / "sweep.csv"
+    table.write_bytes(content)
+    out = tmp_path / "figures"
+    proc = _cli(
+        "plot", table, "--x", "control.beta", "--metric", "final_position_error", "--out", out
+    )
+    _one_line(proc, 2, "sweep.csv", named)
+    assert not out.exists()
+
+
+# --- the command line's last resort: one line, never a traceback -------------------------------
+@pytest.mark.parametrize(
+    ("raised", "status", "named"),
+    [
+        (MemoryError(), 1, "out of memory"),
+        (RecursionError("maximum recursion depth exceeded"), 1, "unexpected RecursionError"),
+        (OverflowError("math range error"), 1, "unexpected OverflowError"),
+        (ValueError("raw"), 1, "unexpected ValueError: raw"),
+    ],
+)
+def test_an_unexpected_exception_is_one_line(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    raised: BaseException,
+    status: int,
+    named: str,
+) -> None:
+    import numpy as np
+
+    from hybrid_force import cli
+
+    def fail(args: object) -> int:
+        raise raised
+
+    monkeypatch.delenv("HYBRID_FORCE_TRACEBACK", raising=False)
+    monkeypatch.setattr(cli, "_cmd_laws", fail)
+    assert cli.main(["laws"]) == status
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: laws: ") and named in err[0], err
+    # numpy's LinAlgError as well (two parallel planes raised one before this session)
+    monkeypatch.setattr(cli, "_cmd_laws", lambda args: np.linalg.inv(np.zeros((2, 2))))
+    assert cli.main(["laws"]) == 1
+    assert "unexpected LinAlgError: Singular matrix" in capsys.readouterr().err
+    # for a developer, the traceback on request
+    monkeypatch.setenv("HYBRID_FORCE_TRACEBACK", "1")
+    monkeypatch.setattr(cli, "_cmd_laws", fail)
+    if not isinstance(raised, MemoryError):
+        with pytest.raises(type(raised)):
+            cli.main(["laws"])

@@ -70,9 +70,19 @@ def _read_sweep(csv_path: str | os.PathLike[str]) -> _Sweep:
     path = Path(csv_path)
     try:
         with path.open(newline="", encoding="utf-8") as fh:
-            reader = csv.DictReader(fh)
-            rows = tuple(dict(r) for r in reader)
-            columns = tuple(reader.fieldnames or ())
+            reader = csv.reader(fh, strict=True)  # strict: an unclosed quote is an error
+            columns = tuple(next(reader, ()))
+            rows_list: list[dict[str, str]] = []
+            for cells in reader:
+                if not cells:
+                    continue  # a blank line, as DictReader skips it
+                if len(cells) != len(columns):  # a ragged row: not a table this plot can read
+                    raise PlotError(
+                        f"sweep file {str(path)!r}, line {reader.line_num}: {len(cells)} fields "
+                        f"where the header has {len(columns)}"
+                    )
+                rows_list.append(dict(zip(columns, cells, strict=True)))
+            rows = tuple(rows_list)
     except FileNotFoundError as exc:
         raise PlotError(f"sweep file {str(path)!r} does not exist") from exc
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
