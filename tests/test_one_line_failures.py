@@ -53,6 +53,16 @@ def test_the_rates_a_message_suggests_are_accepted_when_copied(rate: float) -> N
         assert scenario.control.rate == float(text)
 
 
+def test_the_stable_beta_a_message_gives_is_accepted_when_copied() -> None:
+    sensing = {"sensor.force_delay": 3, "sensor.force_cutoff": 50.0, "sim.duration": 0.1}
+    with pytest.raises(ScenarioError, match="any beta below is stable") as info:
+        load_scenario(CONTACT, {**sensing, "control.beta": 100.0})
+    example = re.search(r"e\.g\. ([0-9.e+-]+)\)", str(info.value))
+    assert example is not None
+    scenario = load_scenario(CONTACT, {**sensing, "control.beta": float(example.group(1))})
+    assert scenario.control.beta == float(example.group(1))
+
+
 # --- public API: a clear error of errors.py, not Boost.Python's or math's -------------------
 @pytest.mark.parametrize("tip", [5, b"tip", ["tip"]])
 def test_a_tip_that_is_not_a_text_is_a_frame_error_listing_the_frames(tip: object) -> None:
