@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hybrid_force.errors import ScenarioError
@@ -85,6 +86,30 @@ def test_a_path_evaluated_at_a_non_finite_time_names_t(scenario: str, t: object)
         with pytest.raises(PathParameterError, match="the time t at which it is evaluated") as info:
             method(t)  # type: ignore[arg-type]
         assert info.value.key == "t"
+
+
+def test_public_calls_with_wrong_types_raise_errors_of_the_package() -> None:
+    """Each of these raised a raw TypeError, ValueError or AttributeError, or returned NaN."""
+    from hybrid_force import load_robot, simulate
+    from hybrid_force.errors import HybridForceError
+    from hybrid_force.geometry.paths import Helix
+    from hybrid_force.geometry.surfaces import Cylinder
+    from hybrid_force.result import Result
+
+    robot = load_robot("rtr")
+    calls = {
+        "package_dirs": lambda: load_robot("rtr", package_dirs=5),  # type: ignore[arg-type]
+        "q for robot": lambda: robot.tip_position("abc"),
+        "point p must be finite": lambda: Cylinder(0.4).distance([1e300, 0.0, 0.0]),
+        "takes a hybrid_force Scenario": lambda: simulate(5),  # type: ignore[arg-type]
+        "named by a path": lambda: Result.load(5),  # type: ignore[arg-type]
+    }
+    for named, call in calls.items():
+        with pytest.raises(HybridForceError, match=named):
+            call()
+    # a direction of huge entries is a direction: its norm does not overflow to a zero axis
+    helix = Helix(center=[0, 0, 0], radius=1.0, axis=[1e300, 0, 1e300], omega=1.0, rise=0.0)
+    assert np.allclose(helix.frame[2], [math.sqrt(0.5), 0.0, math.sqrt(0.5)])
 
 
 # --- values a run cannot use: refused by the loader, naming the file and the key --------------

@@ -108,7 +108,11 @@ def _vector3(owner: str, name: str, value: object) -> tuple[float, float, float]
 def _unit3(owner: str, name: str, value: object) -> np.ndarray:
     """Return ``value`` normalised to unit length (3,) or raise if zero or non-finite."""
     vec = np.array(_vector3(owner, name, value))
-    norm = float(np.linalg.norm(vec))
+    with np.errstate(over="ignore"):
+        norm = float(np.linalg.norm(vec))
+    if norm == math.inf:  # the squares overflowed (1e300 entries): scale first, same direction
+        vec = vec / float(np.abs(vec).max())
+        norm = float(np.linalg.norm(vec))
     if not norm >= _AXIS_MIN_NORM:
         raise PathParameterError(
             f"{owner}.{name} must be a non-zero direction (length >= {_AXIS_MIN_NORM:g}), "

@@ -31,6 +31,8 @@ _MIN_DIRECTION_NORM = 1e-12
 #: A cylinder's normal is undefined within ``_SINGULAR_RTOL * radius`` of its axis, a sphere's
 #: within ``_SINGULAR_RTOL * radius`` of its centre (there ‖∇Φ‖ = 2ρ < 2e-9 · radius).
 _SINGULAR_RTOL = 1e-9
+#: The largest |coordinate| [m] of a point a surface evaluates: its square stays finite.
+_MAX_POINT = 1e150
 Vec3 = tuple[float, float, float]
 
 
@@ -126,8 +128,12 @@ def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
                 f"{_fmt(p)}"
             )
         x, y, z = array.tolist()
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise SurfaceError(f"{owner!r}.{method}: point p must be finite, got [{x}, {y}, {z}]")
+    if not (abs(x) <= _MAX_POINT and abs(y) <= _MAX_POINT and abs(z) <= _MAX_POINT):
+        # also refuses nan and inf; beyond 1e150 m the squares in Φ overflow (Φ would be nan)
+        raise SurfaceError(
+            f"{owner!r}.{method}: point p must be finite, each coordinate within ±"
+            f"{_MAX_POINT:g} m, got [{x}, {y}, {z}]"
+        )
     return (x, y, z)
 
 

@@ -456,7 +456,12 @@ class Robot:
 
 
 def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
-    arr = np.asarray(x, dtype=float)
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:  # "abc", [1, [2]], 10**400
+        raise DimensionError(
+            f"{what} for robot '{robot}' must be {size} real numbers, got {x!r:.80} ({exc})"
+        ) from None
     if arr.shape != (size,):
         raise DimensionError(
             f"{what} for robot '{robot}' must have shape ({size},), got shape {arr.shape}"

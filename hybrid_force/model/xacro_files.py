@@ -9,7 +9,7 @@ import io
 import os
 import threading
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from hybrid_force.errors import ModelWarning, RobotError, URDFError
@@ -24,6 +24,8 @@ def _absolute_dirs(dirs: Sequence[str | os.PathLike[str]]) -> tuple[str, ...]:
     """The package folders as absolute paths (a single text is refused: it is no list)."""
     if isinstance(dirs, (str, bytes, os.PathLike)):
         raise RobotError(f"package_dirs must be a list of folders, got the single value {dirs!r}")
+    if not isinstance(dirs, Iterable):  # a number: not Python's "object is not iterable"
+        raise RobotError(f"package_dirs must be a list of folders, got {dirs!r}")
     out = []
     for d in dirs:
         if not isinstance(d, (str, os.PathLike)) or not str(d):
