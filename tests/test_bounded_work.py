@@ -214,3 +214,17 @@ def test_a_model_file_beyond_the_byte_limit_is_refused_unread(tmp_path: Path) ->
     with pytest.raises(URDFError, match="MAX_MODEL_BYTES") as info:
         load_robot(big)
     assert str(big) in str(info.value)
+
+
+# --- waypoints ---------------------------------------------------------------------------------
+def test_more_than_max_waypoints_are_refused_before_the_spline_is_built() -> None:
+    from hybrid_force.geometry.builtin_surfaces import Cylinder
+    from hybrid_force.geometry.waypoints import MAX_WAYPOINTS, WaypointPath
+
+    pipe = Cylinder(0.15, [0.45, 0.0, 0.4], [1.0, 0.0, 0.0], inside=True)
+    points = np.c_[np.linspace(-2.17, -1.0, 40 * MAX_WAYPOINTS), np.full(40 * MAX_WAYPOINTS, -0.05)]
+    start = time.perf_counter()
+    with pytest.raises(PathParameterError, match=f"more than the {MAX_WAYPOINTS}") as info:
+        WaypointPath(pipe, points, 0.02, frame="surface")
+    assert time.perf_counter() - start < 1.0  # building them took about 70 s
+    assert info.value.key == "points"

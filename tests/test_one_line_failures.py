@@ -122,6 +122,8 @@ def test_public_calls_with_wrong_types_raise_errors_of_the_package() -> None:
         ("rtr_plane", "surface.point=[0, 0, 1e300]", ["surface.point", "MAX_LENGTH"]),
         ("paper_contact", "trajectory.center=[1e300, 0, 10]", ["trajectory.center", "1e+300"]),
         ("paper_contact", "trajectory.rise=1e300", ["trajectory.rise", "MAX_LENGTH"]),
+        ("ur5_sphere_normal", "trajectory.origin=[1e300, 0]", ["trajectory.origin", "MAX_LENGTH"]),
+        ("panda_pipe_tilt", "trajectory.points=[[1e300, 0], [0, 0]]", ["trajectory.points"]),
     ],
 )
 def test_an_absurd_value_is_refused_naming_file_and_key(

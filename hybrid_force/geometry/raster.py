@@ -41,6 +41,7 @@ from hybrid_force.errors import PathParameterError
 from hybrid_force.geometry.arc_length import piece_lengths, surface_speeds
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.piecewise import PiecewiseCurve, blend_piece, line_piece
+from hybrid_force.geometry.surface_base import MAX_LENGTH
 from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, one_of, positive
 
 __all__ = ["MAX_PASSES", "RasterPath"]
@@ -153,6 +154,12 @@ def _pair(owner: str, name: str, value: object, positive_values: bool) -> tuple[
     if array.shape != (2,) or (positive_values and not bool(np.all(array > 0.0))):
         raise PathParameterError(
             f"{owner}.{name} must be {valid}, got {checks.shown(value)}", key=name, value=value
+        )
+    if float(np.abs(array).max()) > MAX_LENGTH:  # coordinates in m or rad: far beyond any use
+        raise PathParameterError(
+            f"{owner}.{name} = {checks.shown(value)} is beyond MAX_LENGTH = {MAX_LENGTH:g}",
+            key=name,
+            value=value,
         )
     return float(array[0]), float(array[1])
 
