@@ -32,6 +32,7 @@ Exit status (the contract README.md documents):
 Anything else that escapes a command (out of memory, an unexpected exception from a library)
 is one line ``error: <command>: ...`` with exit status 1, never a traceback; the environment
 variable ``HYBRID_FORCE_TRACEBACK=1`` shows the traceback instead.
+
 Heavy modules (Pinocchio, numpy, matplotlib, meshcat) are imported inside the subcommand
 functions, so ``--help`` stays fast.
 """
