@@ -228,3 +228,13 @@ def test_more_than_max_waypoints_are_refused_before_the_spline_is_built() -> Non
         WaypointPath(pipe, points, 0.02, frame="surface")
     assert time.perf_counter() - start < 1.0  # building them took about 70 s
     assert info.value.key == "points"
+
+
+def test_a_force_delay_beyond_its_maximum_is_refused_naming_the_key() -> None:
+    from hybrid_force.errors import ScenarioError
+    from hybrid_force.scenario.loader import load_scenario
+    from hybrid_force.sim.sensors import MAX_FORCE_DELAY
+
+    with pytest.raises(ScenarioError, match=r"sensor\.force_delay = 1000000000") as info:
+        load_scenario(SCENARIOS / "paper_contact.toml", {"sensor.force_delay": 10**9})
+    assert str(MAX_FORCE_DELAY) in str(info.value)
