@@ -324,3 +324,17 @@ def test_an_unexpected_exception_is_one_line(
     if not isinstance(raised, MemoryError):
         with pytest.raises(type(raised)):
             cli.main(["laws"])
+
+
+def test_a_sweep_table_beyond_the_byte_limit_is_refused_unread(tmp_path: Path) -> None:
+    from hybrid_force.viz.sweep_plots import MAX_SWEEP_BYTES
+
+    table = tmp_path / "sweep.csv"
+    with table.open("wb") as fh:  # sparse: only the size is written
+        fh.truncate(MAX_SWEEP_BYTES + 1)
+    out = tmp_path / "figures"
+    proc = _cli(
+        "plot", table, "--x", "control.beta", "--metric", "final_position_error", "--out", out
+    )
+    _one_line(proc, 2, "sweep.csv", "MAX_SWEEP_BYTES")
+    assert not out.exists()

@@ -20,7 +20,11 @@ from hybrid_force.viz._style import _new_figure, _note, _out_dir, _save_atomic
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["PlotError", "plot_sweep"]
+__all__ = ["MAX_SWEEP_BYTES", "PlotError", "plot_sweep"]
+
+MAX_SWEEP_BYTES = 256 * 2**20
+"""The largest sweep CSV read (256 MiB): a sweep has at most 100 000 runs (MAX_RUNS), a few
+hundred bytes each; the table is held in memory to be plotted."""
 
 
 @dataclass(frozen=True)
@@ -69,6 +73,12 @@ def _to_float(s: str | None) -> float:
 def _read_sweep(csv_path: str | os.PathLike[str]) -> _Sweep:
     path = Path(csv_path)
     try:
+        size = path.stat().st_size
+        if size > MAX_SWEEP_BYTES:
+            raise PlotError(
+                f"sweep file {str(path)!r} is {size} bytes, more than the {MAX_SWEEP_BYTES} a "
+                "sweep table may have (MAX_SWEEP_BYTES)"
+            )
         with path.open(newline="", encoding="utf-8") as fh:
             reader = csv.reader(fh, strict=True)  # strict: an unclosed quote is an error
             columns = tuple(next(reader, ()))
