@@ -595,14 +595,14 @@ def _show_warning(
     file: TextIO | None = None,
     line: str | None = None,
 ) -> None:
-    """The toolkit's own warnings as one line ``warning: <message>``; others as Python does."""
+    """The toolkit's own warnings as one line ``warning: <message>``; others (numpy's
+    RuntimeWarning of an overflow, a library's DeprecationWarning) as one line too, with their
+    category and where they come from, not Python's two lines with the source."""
     if issubclass(category, HybridForceWarning):
         print(f"warning: {_one_line(message)}", file=sys.stderr)
     else:
-        _python_showwarning(message, category, filename, lineno, file, line)
-
-
-_python_showwarning = warnings.showwarning
+        where = f"{Path(filename).name}:{lineno}"
+        print(f"warning: {category.__name__}: {_one_line(message)} ({where})", file=sys.stderr)
 
 
 def _one_line(exc: object) -> str:

@@ -122,6 +122,8 @@ def test_public_calls_with_wrong_types_raise_errors_of_the_package() -> None:
         ("rtr_plane", "surface.point=[0, 0, 1e300]", ["surface.point", "MAX_LENGTH"]),
         ("paper_contact", "trajectory.center=[1e300, 0, 10]", ["trajectory.center", "1e+300"]),
         ("paper_contact", "trajectory.rise=1e300", ["trajectory.rise", "MAX_LENGTH"]),
+        ("paper_contact", "trajectory.omega=1e300", ["trajectory.omega", "MAX_LENGTH"]),
+        ("paper_contact", "trajectory.phase=1e300", ["trajectory.phase", "MAX_LENGTH"]),
         ("ur5_sphere_normal", "trajectory.origin=[1e300, 0]", ["trajectory.origin", "MAX_LENGTH"]),
         ("panda_pipe_tilt", "trajectory.points=[[1e300, 0], [0, 0]]", ["trajectory.points"]),
     ],
@@ -338,3 +340,23 @@ def test_a_sweep_table_beyond_the_byte_limit_is_refused_unread(tmp_path: Path) -
     )
     _one_line(proc, 2, "sweep.csv", "MAX_SWEEP_BYTES")
     assert not out.exists()
+
+
+def test_a_foreign_warning_is_one_line_too(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import warnings
+
+    from hybrid_force import cli
+
+    def warn(args: object) -> int:
+        warnings.warn("overflow encountered in matmul", RuntimeWarning, stacklevel=1)
+        return 0
+
+    monkeypatch.setattr(cli, "_cmd_laws", warn)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # the test run's own filter turns warnings into errors
+        assert cli.main(["laws"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("warning: RuntimeWarning: overflow encountered in matmul (")

@@ -222,14 +222,15 @@ class _CircularPath(Path):
         for name in scalars:
             value = _finite_float(owner, name, getattr(self, name), unit=_UNITS[name])
             object.__setattr__(self, name, value)
-        # the surfaces' bound on lengths: p(t) and its squares stay finite (1e300 gave NaN)
+        # the surfaces' bound on magnitudes: p(t), r ω² and r ω³ stay finite (ω = 1e300 gave
+        # NaN), and a phase keeps the resolution of ω t (1e300 rad swallowed it)
         sizes = {"center": max(abs(x) for x in center), "radius": radius}
-        sizes["rise"] = abs(getattr(self, "rise", 0.0))
+        sizes.update((name, abs(getattr(self, name))) for name in scalars)
         for name, size in sizes.items():
             if size > MAX_LENGTH:
                 raise PathParameterError(
                     f"{owner}.{name} = {checks.shown(getattr(self, name))} is beyond "
-                    f"MAX_LENGTH = {MAX_LENGTH:g} {'m/s' if name == 'rise' else 'm'}",
+                    f"MAX_LENGTH = {MAX_LENGTH:g} {_UNITS.get(name, 'm')}",
                     key=name,
                     value=getattr(self, name),
                 )
