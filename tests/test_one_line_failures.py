@@ -360,3 +360,11 @@ def test_a_foreign_warning_is_one_line_too(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
     assert err[0].startswith("warning: RuntimeWarning: overflow encountered in matmul (")
+
+
+def test_a_sweep_over_a_key_nested_thousands_deep_is_refused(tmp_path: Path) -> None:
+    out = tmp_path / "sweep"
+    key = ".".join(["x"] * 3000)
+    proc = _cli("sweep", CONTACT, "--grid", f"{key}=1", "--out", out)
+    _one_line(proc, 2, "--grid", "3000 parts", "MAX_NESTING")
+    assert not out.exists()
