@@ -368,3 +368,49 @@ def test_a_sweep_over_a_key_nested_thousands_deep_is_refused(tmp_path: Path) -> 
     proc = _cli("sweep", CONTACT, "--grid", f"{key}=1", "--out", out)
     _one_line(proc, 2, "--grid", "3000 parts", "MAX_NESTING")
     assert not out.exists()
+
+
+# --- MJCF numbers Pinocchio's parser would read as whatever memory held --------------------
+@pytest.mark.parametrize(
+    ("body", "named"),
+    [
+        ('<body name="b" pos="a b c">', "pos='a b c': must be finite numbers"),
+        ('<body name="b" pos="0 0 nan">', "must be finite numbers"),
+        ('<body name="b" pos="0 0 1e400">', "must be finite numbers"),
+    ],
+)
+def test_an_mjcf_number_that_is_no_number_is_refused(tmp_path: Path, body: str, named: str) -> None:
+    from hybrid_force import load_robot
+    from hybrid_force.errors import URDFError
+
+    mjcf = tmp_path / "arm.xml"
+    mjcf.write_text(
+        f'<mujoco><worldbody>{body}<joint name="j" type="hinge"/>'
+        '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(URDFError, match=named) as info:
+        load_robot(mjcf)
+    assert str(mjcf) in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("joint", "inertial", "named"),
+    [
+        ('range="1 0"', 'mass="1" diaginertia="1 1 1"', "lower above upper"),
+        ("", 'mass="-1" diaginertia="1 1 1"', "mass='-1': must not be negative"),
+        ("", 'mass="1" diaginertia="1 -1 1"', "must not be negative"),
+    ],
+)
+def test_an_impossible_mjcf_value_is_refused(
+    tmp_path: Path, joint: str, inertial: str, named: str
+) -> None:
+    from hybrid_force import load_robot
+    from hybrid_force.errors import URDFError
+
+    mjcf = tmp_path / "arm.xml"
+    mjcf.write_text(
+        f'<mujoco><worldbody><body name="b"><joint name="j" type="hinge" {joint}/>'
+        f'<inertial pos="0 0 0" {inertial}/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(URDFError, match=named):
+        load_robot(mjcf)

@@ -8,6 +8,7 @@ file and the cause; the checks themselves are in :mod:`hybrid_force.model.urdf_c
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 import tempfile
@@ -379,6 +380,7 @@ def _build_mjcf(path: Path) -> pin.Model:
             "MJCF parser ignores includes (the included bodies would be missing); write the "
             "included file's content in place of the <include>"
         )
+    _check_mjcf_numbers(root, path)
     mesh_bodies = []
     for body in root.iter("body"):
         where = f"body {body.get('name', '?')!r}"
@@ -420,6 +422,37 @@ def _build_mjcf(path: Path) -> pin.Model:
     for note in notes:
         warnings.warn(f"{path}: {note}", ModelWarning, stacklevel=3)
     return model
+
+
+_MJCF_NUMBERS = (
+    "pos", "quat", "axis", "euler", "axisangle", "xyaxes", "zaxis", "range", "mass",
+    "diaginertia", "fullinertia", "size", "fromto", "armature", "damping", "frictionloss",
+    "stiffness", "ref", "springref",
+)  # fmt: skip
+"""MJCF attributes that hold numbers: Pinocchio's parser turns text it cannot read into
+whatever memory held (a body at z = 2e243 for pos="a b c"), so they are read here first."""
+
+
+def _check_mjcf_numbers(root: ET.Element, path: Path) -> None:
+    """URDFError naming the element and attribute for a numeric MJCF attribute that is not
+    finite numbers, a negative mass or inertia, or a joint range with lower > upper."""
+    for element in root.iter():
+        for key in _MJCF_NUMBERS:
+            text = element.get(key)
+            if text is None:
+                continue
+            where = f"<{element.tag} name={element.get('name', '?')!r}> {key}={text[:60]!r}"
+            try:
+                values = [float(x) for x in text.split()]
+            except ValueError:
+                values = []
+            if not values or not all(math.isfinite(x) for x in values):
+                raise URDFError(f"malformed MJCF {path}: {where}: must be finite numbers")
+            if key in ("mass", "diaginertia") and min(values) < 0.0:
+                raise URDFError(f"malformed MJCF {path}: {where}: must not be negative")
+            lower_above = len(values) == 2 and values[0] > values[1]
+            if key == "range" and element.tag == "joint" and lower_above:
+                raise URDFError(f"malformed MJCF {path}: {where}: lower above upper")
 
 
 _MJCF_SCOPE = (
