@@ -56,10 +56,20 @@ def suggested(value: float, accepted: Callable[[float], bool]) -> str:
 
     A suggestion in a message is only useful if the value it prints is accepted: 1000/3 Hz
     shown as ``333.333`` would be refused again. Falls back to ``repr`` (the exact float)."""
+    if not math.isfinite(value) or value == 0.0:
+        return repr(value)
     for digits in range(4, 18):
-        text = f"{value:.{digits}g}"
-        if accepted(float(text)):
-            return text
+        # the nearest text first, then its neighbours at this many digits (a bound that
+        # rounds to the wrong side is shown one unit of the last digit further out)
+        scale = 10.0 ** (math.floor(math.log10(abs(value))) - digits + 1)
+        for candidate in (
+            value,
+            math.ceil(value / scale) * scale,
+            math.floor(value / scale) * scale,
+        ):
+            text = f"{candidate:.{digits}g}"
+            if accepted(float(text)):
+                return text
     return repr(value)
 
 

@@ -107,16 +107,23 @@ def test_a_raster_of_more_than_max_passes_is_refused_before_it_is_built() -> Non
         RasterPath(Sphere(0.3), [0.6, -0.3], [0.2, 0.6], 1e-5, 0.04, direction="v")
     assert time.perf_counter() - start < 1.0
     assert info.value.key == "spacing" and info.value.value == 1e-5
-    # the smallest spacing the message suggests is accepted
-    smallest = 0.2 / (MAX_PASSES - 1)
-    suggested = str(info.value).rsplit(" ", 1)[-1]
-    assert (
-        RasterPath(
-            Sphere(0.3), [0.6, -0.3], [0.2, 0.6], float(suggested), 0.04, direction="v"
-        ).passes
-        == MAX_PASSES
-    )
-    assert float(suggested) == pytest.approx(smallest, rel=1e-6)
+    smallest = float(str(info.value).rsplit("at least ", 1)[1])  # 4 digits, rounded up
+    assert 0.2 / (MAX_PASSES - 1) <= smallest < 1.001 * 0.2 / (MAX_PASSES - 1)
+
+
+@pytest.mark.parametrize("size", [0.2, 0.3, 1.0 / 7.0])
+def test_the_smallest_spacing_a_message_gives_is_accepted_when_copied(
+    monkeypatch: pytest.MonkeyPatch, size: float
+) -> None:
+    from hybrid_force.geometry import raster
+
+    monkeypatch.setattr(raster, "MAX_PASSES", 7)  # the rule at a size that builds in no time
+    with pytest.raises(PathParameterError, match="more than the 7 a raster may have") as info:
+        RasterPath(Sphere(0.3), [0.6, -0.3], [size, 0.6], 1e-3, 0.04, direction="v")
+    suggested = float(str(info.value).rsplit(" ", 1)[-1])
+    assert suggested == pytest.approx(size / 6, rel=1e-3)
+    path = RasterPath(Sphere(0.3), [0.6, -0.3], [size, 0.6], suggested, 0.04, direction="v")
+    assert path.passes == 7
 
 
 def test_a_tiny_raster_spacing_is_refused_by_the_cli_naming_the_key(tmp_path: Path) -> None:
