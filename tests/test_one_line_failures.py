@@ -414,3 +414,29 @@ def test_an_impossible_mjcf_value_is_refused(
     )
     with pytest.raises(URDFError, match=named):
         load_robot(mjcf)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS is Linux's")
+def test_memory_exhausted_in_a_real_run_is_one_line(tmp_path: Path) -> None:
+    """An address-space limit of 1.5 GiB and a log of 2e7 samples: the allocation fails with
+    MemoryError (or, on a machine with less memory, the loader refuses the log first)."""
+    import resource
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (1536 * 2**20, 1536 * 2**20))
+
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "hybrid_force.cli", "run", str(CONTACT)]
+    proc = subprocess.run(
+        [*command, "--set", "sim.duration=20000", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=REPO_ROOT,
+        timeout=120,
+        check=False,
+        preexec_fn=limit,
+    )
+    assert proc.returncode in (1, 2), proc.stderr
+    line = _one_line(proc, proc.returncode)
+    assert "out of memory" in line or "sim.duration" in line
+    assert not out.exists() or not any(out.iterdir())  # nothing half-written
