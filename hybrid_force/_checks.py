@@ -31,6 +31,7 @@ __all__ = [
     "number",
     "one_of",
     "shown",
+    "suggested",
 ]
 
 ErrorType = type[BadInputError]
@@ -48,6 +49,28 @@ def shown(value: object) -> str:
     if isinstance(value, bool) or not isinstance(value, float | int | list | tuple | np.ndarray):
         text += f" ({type(value).__name__})"
     return text
+
+
+def suggested(value: float, accepted: Callable[[float], bool]) -> str:
+    """``value`` printed with the fewest digits (≥ 4) whose text, copied back, is ``accepted``.
+
+    A suggestion in a message is only useful if the value it prints is accepted: 1000/3 Hz
+    shown as ``333.333`` would be refused again. Falls back to ``repr`` (the exact float)."""
+    if not math.isfinite(value) or value == 0.0:
+        return repr(value)
+    for digits in range(4, 18):
+        # the nearest text first, then its neighbours at this many digits (a bound that
+        # rounds to the wrong side is shown one unit of the last digit further out)
+        scale = 10.0 ** (math.floor(math.log10(abs(value))) - digits + 1)
+        for candidate in (
+            value,
+            math.ceil(value / scale) * scale,
+            math.floor(value / scale) * scale,
+        ):
+            text = f"{candidate:.{digits}g}"
+            if accepted(float(text)):
+                return text
+    return repr(value)
 
 
 def _fail(error: ErrorType, what: str, valid: str, value: object) -> NoReturn:

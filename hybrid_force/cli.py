@@ -28,6 +28,11 @@ Exit status (the contract README.md documents):
   lost contact, path singular on the way, an unexpected exception); its partial result and
   summary are saved with ``status = "failed"`` and ``reason``;
 * 130 / 143: interrupted by Ctrl-C (SIGINT) / SIGTERM; the partial result is saved as well.
+
+Anything else that escapes a command (out of memory, an unexpected exception from a library)
+is one line ``error: <command>: ...`` with exit status 1, never a traceback; the environment
+variable ``HYBRID_FORCE_TRACEBACK=1`` shows the traceback instead.
+
 Heavy modules (Pinocchio, numpy, matplotlib, meshcat) are imported inside the subcommand
 functions, so ``--help`` stays fast.
 """
@@ -337,7 +342,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
             )
         from hybrid_force.viz.plots import plot_sweep
 
-        out = _output_dir(args.out if args.out is not None else path.parent)
+        # not made here: plot_sweep makes it once the table has been read (nothing left behind)
+        out = Path(args.out) if args.out is not None else path.parent
         ys = f"_{args.y}" if args.y is not None else ""
         png = out / f"{path.stem}_{args.metric}_vs_{args.x}{ys}.png"
         written = plot_sweep(path, png, x=args.x, y=args.y, metric=args.metric)
@@ -573,6 +579,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt as exc:  # outside a run (Terminated: SIGTERM in a run's clean-up)
         print("error: interrupted", file=sys.stderr)
         return _SIGNAL_STATUS.get(getattr(exc, "signal", "SIGINT"), 130)
+    except MemoryError:
+        gc.collect()  # what the failed allocation left, so that printing has room
+        print(
+            f"error: {command or 'hybrid-force'}: out of memory (MemoryError); the input asks "
+            "for more than this machine has (see the documented maximums in docs/)",
+            file=sys.stderr,
+        )
+        return 1
+    except Exception as exc:  # the command line's last resort: one line, never a traceback
+        if os.environ.get(_TRACEBACK_ENV):
+            raise
+        print(
+            f"error: {command or 'hybrid-force'}: unexpected {type(exc).__name__}: "
+            f"{_one_line(exc) or '(no message)'} (set {_TRACEBACK_ENV}=1 for the traceback; "
+            "please report it)",
+            file=sys.stderr,
+        )
+        return 1
+
+
+#: Set (to anything) to see the traceback of an unexpected exception instead of one line.
+_TRACEBACK_ENV = "HYBRID_FORCE_TRACEBACK"
 
 
 def _show_warning(
@@ -583,14 +611,14 @@ def _show_warning(
     file: TextIO | None = None,
     line: str | None = None,
 ) -> None:
-    """The toolkit's own warnings as one line ``warning: <message>``; others as Python does."""
+    """The toolkit's own warnings as one line ``warning: <message>``; others (numpy's
+    RuntimeWarning of an overflow, a library's DeprecationWarning) as one line too, with their
+    category and where they come from, not Python's two lines with the source."""
     if issubclass(category, HybridForceWarning):
         print(f"warning: {_one_line(message)}", file=sys.stderr)
     else:
-        _python_showwarning(message, category, filename, lineno, file, line)
-
-
-_python_showwarning = warnings.showwarning
+        where = f"{Path(filename).name}:{lineno}"
+        print(f"warning: {category.__name__}: {_one_line(message)} ({where})", file=sys.stderr)
 
 
 def _one_line(exc: object) -> str:

@@ -366,6 +366,8 @@ class Result:
                 garbage), lacks arrays (listed), has no or bad ``meta`` JSON, or holds arrays of
                 inconsistent shapes or dtypes.
         """
+        if not isinstance(path, str | os.PathLike):
+            raise ResultFileError(f"a result file is named by a path, got {path!r:.80}")
         src = Path(path)
         data, meta = read_arrays(src)
         try:

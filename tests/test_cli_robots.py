@@ -12,6 +12,12 @@ from hybrid_force.cli import main
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
+# one triangle: an STL file coal (the replay's mesh loader) reads
+_TRIANGLE_STL = (
+    "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+    "endloop\nendfacet\nendsolid s\n"
+)
+
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
@@ -127,7 +133,7 @@ def test_check_a_urdf_with_a_missing_mesh(
     """meshes/base.stl exists next to the URDF, meshes/gripper.stl does not: reported, and
     the status stays 0 (meshes only matter to the viewer). Reach by hand: |(0.3, 0.4, 0)|."""
     (tmp_path / "meshes").mkdir()
-    (tmp_path / "meshes" / "base.stl").write_text("solid s\nendsolid s\n")
+    (tmp_path / "meshes" / "base.stl").write_text(_TRIANGLE_STL)
     path = tmp_path / "arm.urdf"
     path.write_text(_MESHY)
     assert main(["robots", "--check", str(path)]) == 0

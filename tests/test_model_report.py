@@ -20,6 +20,12 @@ from hybrid_force.errors import FrameError, URDFError
 from hybrid_force.model.report import format_report, model_report
 from hybrid_force.model.robot import load_robot
 
+# one triangle: an STL file coal (the replay's mesh loader) reads
+_TRIANGLE_STL = (
+    "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+    "endloop\nendfacet\nendsolid s\n"
+)
+
 
 def _body(mass: float, izz: float = 0.01, x: float = 0.0) -> str:
     return (
@@ -161,11 +167,11 @@ def test_meshes_found_and_missing(tmp_path: Path) -> None:
     """Relative to the URDF's folder, package:// against package_dirs (the URDF's folder for a
     plain file), an absolute path and file://; an http:// URI is never a file."""
     (tmp_path / "meshes").mkdir()
-    (tmp_path / "meshes" / "base.stl").write_text("solid s\nendsolid s\n")
+    (tmp_path / "meshes" / "base.stl").write_text(_TRIANGLE_STL)
     (tmp_path / "mypkg" / "meshes").mkdir(parents=True)
-    (tmp_path / "mypkg" / "meshes" / "arm.stl").write_text("solid s\nendsolid s\n")
+    (tmp_path / "mypkg" / "meshes" / "arm.stl").write_text(_TRIANGLE_STL)
     absolute = tmp_path / "elsewhere.stl"
-    absolute.write_text("solid s\nendsolid s\n")
+    absolute.write_text(_TRIANGLE_STL)
     text = (
         '<robot name="m">'
         f'<link name="world">{_mesh("meshes/base.stl")}</link>'

@@ -41,7 +41,11 @@ from hybrid_force.model.robot import Robot, RobotTerms
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
-__all__ = ["Constraint", "ConstraintTerms", "Normalization"]
+__all__ = ["DEPENDENT_RTOL", "Constraint", "ConstraintTerms", "Normalization", "dependent_rows"]
+
+DEPENDENT_RTOL = 1e-9
+"""Stacked constraint rows are dependent when σ_min(A) ≤ this · σ_max(A): A M⁻¹ Aᵀ is then
+singular and the contact force undefined (two parallel planes through one point)."""
 
 Normalization = Literal["tip", "joint"]
 _NORMALIZATIONS = ("tip", "joint")
@@ -337,6 +341,23 @@ class Constraint:
 
     def __repr__(self) -> str:
         return f"Constraint({list(self.surfaces)!r}, normalization={self.normalization!r})"
+
+
+def dependent_rows(rows: np.ndarray) -> tuple[list[int], np.ndarray] | None:
+    """The rows of a (k, n) constraint matrix A that are linearly dependent, or None.
+
+    Returns:
+        None when A has full row rank (σ_min > DEPENDENT_RTOL · σ_max), else the rows that
+        take part in the dependency (those with a large share of the left singular vector of
+        σ_min) and A's singular values (k,).
+    """
+    u, sigma, _ = np.linalg.svd(rows, full_matrices=True)
+    k = rows.shape[0]
+    smallest = sigma[k - 1] if sigma.size == k else 0.0  # k > n: rank at most n < k
+    if smallest > DEPENDENT_RTOL * max(float(sigma[0]) if sigma.size else 0.0, 1e-300):
+        return None
+    share = np.abs(u[:, k - 1])
+    return [int(i) for i in np.flatnonzero(share > 0.1 * share.max())], sigma
 
 
 def _gradient(

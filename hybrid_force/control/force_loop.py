@@ -30,6 +30,7 @@ to c − a f̃ and the recursion is per tick).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 
 import numpy as np
@@ -41,7 +42,10 @@ __all__ = ["beta_bound", "inverse_effective_mass", "max_stable_gain", "spectral_
 
 
 def spectral_radius(a: float, alpha: float, delay: int) -> float:
-    """Largest |z| among the roots of z^{d+1} − (1 − α) z^d + α a (see the module docstring)."""
+    """Largest |z| among the roots of z^{d+1} − (1 − α) z^d + α a (see the module docstring).
+
+    The eigenvalues of the (d+1)×(d+1) companion matrix: cost ∝ d³, for checks and studies;
+    :func:`max_stable_gain` does not call it."""
     coefficients = np.zeros(delay + 2)
     coefficients[0] = 1.0
     coefficients[1] = -(1.0 - alpha)
@@ -52,6 +56,13 @@ def spectral_radius(a: float, alpha: float, delay: int) -> float:
 def max_stable_gain(alpha: float, delay: int) -> float:
     """a*(α, d): the loop gain a = β m / W at which the recursion stops converging.
 
+    O(1) in the delay (the eigenvalues of the degree-(d+1) polynomial cost ∝ d³): a root
+    crosses the unit circle at z = e^{iθ} when e^{iθ} − b = −c e^{−idθ} (b = 1 − α, c = α a),
+    so c = |e^{iθ} − b| and ψ(θ) + dθ = π with ψ = arg(e^{iθ} − b). Both |e^{iθ} − b| and
+    ψ(θ) + dθ increase on [0, π], so the first crossing, the smallest c, is the one root θ*
+    of ψ(θ) + dθ = π; it lies in (0, π/(d+1)] since ψ(θ) ≥ θ. Below c* = |e^{iθ*} − b| no
+    root has reached the circle (at a → 0 the roots are 0 and b, inside it).
+
     Args:
         alpha: the filter's α in (0, 1] (1: no filter). delay: d ≥ 0 control periods.
     """
@@ -59,11 +70,19 @@ def max_stable_gain(alpha: float, delay: int) -> float:
         return 1.0  # z^{d+1} = −a: |z| = a^{1/(d+1)}
     if delay == 0:
         return 2.0 / alpha - 1.0  # z = 1 − α(1 + a)
-    low, high = 0.0, 2.0 / alpha  # stable at a → 0 (roots 0 and 1 − α), unstable beyond
-    for _ in range(60):
+    b = 1.0 - alpha
+    low, high = 0.0, math.pi / (delay + 1)
+    for _ in range(200):  # bisection on a monotone function: stops when the bracket is one ulp
         mid = 0.5 * (low + high)
-        low, high = (mid, high) if spectral_radius(mid, alpha, delay) < 1.0 else (low, mid)
-    return low
+        if mid in (low, high):
+            break
+        if math.atan2(math.sin(mid), math.cos(mid) - b) + delay * mid < math.pi:
+            low = mid
+        else:
+            high = mid
+    theta = 0.5 * (low + high)
+    # |e^{iθ} − b|² = (1 − b)² + 4 b sin²(θ/2), without the cancellation of 1 − 2b cos θ + b²
+    return math.sqrt(alpha * alpha + 4.0 * b * math.sin(0.5 * theta) ** 2) / alpha
 
 
 def inverse_effective_mass(

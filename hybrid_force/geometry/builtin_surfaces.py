@@ -22,9 +22,9 @@ from hybrid_force.geometry.surface_base import (
     Vec3,
     _boolean,
     _direction,
-    _positive_float,
+    _length,
+    _point3,
     _read_only,
-    _vector3,
     _xyz,
 )
 
@@ -163,8 +163,8 @@ class Cylinder(_RoundSurface):
         axis: ArrayLike = (0.0, 0.0, 1.0),
         inside: bool = False,
     ) -> None:
-        r = _positive_float("Cylinder", "radius", radius)
-        c = _vector3("Cylinder", "center", center)
+        r = _length("Cylinder", "radius", radius)
+        c = _point3("Cylinder", "center", center)
         a = _direction("Cylinder", "axis", axis)
         side = _boolean("Cylinder", "inside", inside)
         aa = np.asarray(a)
@@ -217,8 +217,8 @@ class Sphere(_RoundSurface):
         center: ArrayLike = (0.0, 0.0, 0.0),
         inside: bool = False,
     ) -> None:
-        r = _positive_float("Sphere", "radius", radius)
-        c = _vector3("Sphere", "center", center)
+        r = _length("Sphere", "radius", radius)
+        c = _point3("Sphere", "center", center)
         side = _boolean("Sphere", "inside", inside)
         self._freeze(r, c, side, np.eye(3))
 
@@ -253,7 +253,7 @@ class Plane(Surface):
     _hess: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __init__(self, point: ArrayLike, normal: ArrayLike) -> None:
-        o = _vector3("Plane", "point", point)
+        o = _point3("Plane", "point", point)
         n = _direction("Plane", "normal", normal)
         for name, value in (
             ("point", o),

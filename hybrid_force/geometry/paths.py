@@ -45,6 +45,7 @@ from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import PathParameterError, did_you_mean
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, OnSurfaceReport, check_on_surface
+from hybrid_force.geometry.surface_base import MAX_LENGTH
 
 _K = LazyKernels("hybrid_force.geometry._kernels")
 
@@ -60,6 +61,7 @@ __all__ = [
     "check_on_surface",
     "paper_helix",
     "path_from_dict",
+    "path_time",
 ]
 
 _AXIS_MIN_NORM = 1e-12
@@ -73,6 +75,18 @@ _UNITS = {"omega": "rad/s", "rise": "m/s", "phase": "rad"}
 
 
 # --- helpers -------------------------------------------------------------------------------------
+def path_time(path: object, t: object) -> float:
+    """The time ``t`` [s] at which a path is evaluated, as a float; PathParameterError
+    (key ``t``) for a non-finite or non-real one, instead of a raw math or numpy error."""
+    if isinstance(t, float) and math.isfinite(t):  # the common case, without the generic check
+        return float(t)
+    what = f"{type(path).__name__}: the time t at which it is evaluated"
+    try:
+        return checks.number(t, what, PathParameterError, unit="s")
+    except PathParameterError as exc:  # the same message, with its key
+        raise PathParameterError(str(exc), key="t", value=t) from None
+
+
 def _finite_float(owner: str, name: str, value: object, unit: str = "") -> float:
     """Return ``value`` (a real number, not a bool) as a finite float or raise
     :class:`PathParameterError` naming ``owner.name``."""
@@ -94,7 +108,11 @@ def _vector3(owner: str, name: str, value: object) -> tuple[float, float, float]
 def _unit3(owner: str, name: str, value: object) -> np.ndarray:
     """Return ``value`` normalised to unit length (3,) or raise if zero or non-finite."""
     vec = np.array(_vector3(owner, name, value))
-    norm = float(np.linalg.norm(vec))
+    with np.errstate(over="ignore"):
+        norm = float(np.linalg.norm(vec))
+    if norm == math.inf:  # the squares overflowed (1e300 entries): scale first, same direction
+        vec = vec / float(np.abs(vec).max())
+        norm = float(np.linalg.norm(vec))
     if not norm >= _AXIS_MIN_NORM:
         raise PathParameterError(
             f"{owner}.{name} must be a non-zero direction (length >= {_AXIS_MIN_NORM:g}), "
@@ -166,6 +184,7 @@ class Path(abc.ABC):
         1e-5 s, error ~1e-10 relative for a smooth path): undefined where the path stops.
         Paths on a surface override it with their unit tangent, defined at rest too.
         """
+        t = path_time(self, t)
         _, v, a = self.evaluate(t)
         h = _JERK_STEP
         return np.array([v, a, (self.evaluate(t + h)[2] - self.evaluate(t - h)[2]) / (2.0 * h)])
@@ -203,6 +222,18 @@ class _CircularPath(Path):
         for name in scalars:
             value = _finite_float(owner, name, getattr(self, name), unit=_UNITS[name])
             object.__setattr__(self, name, value)
+        # the surfaces' bound on magnitudes: p(t), r ω² and r ω³ stay finite (ω = 1e300 gave
+        # NaN), and a phase keeps the resolution of ω t (1e300 rad swallowed it)
+        sizes = {"center": max(abs(x) for x in center), "radius": radius}
+        sizes.update((name, abs(getattr(self, name))) for name in scalars)
+        for name, size in sizes.items():
+            if size > MAX_LENGTH:
+                raise PathParameterError(
+                    f"{owner}.{name} = {checks.shown(getattr(self, name))} is beyond "
+                    f"MAX_LENGTH = {MAX_LENGTH:g} {_UNITS.get(name, 'm')}",
+                    key=name,
+                    value=getattr(self, name),
+                )
         object.__setattr__(self, "center", center)
         object.__setattr__(self, "radius", radius)
         object.__setattr__(self, direction, vector)
@@ -229,7 +260,7 @@ class _CircularPath(Path):
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (p (3,) [m], ṗ (3,) [m/s], p̈ (3,) [m/s²]) at t [s], analytically."""
-        t = float(t)
+        t = path_time(self, t)
         w = self.omega
         th = self.phase + w * t
         co = math.cos(th)
@@ -246,15 +277,16 @@ class _CircularPath(Path):
 
     def position(self, t: float) -> np.ndarray:
         """Return p(t) (3,) [m]."""
-        t = float(t)
+        t = path_time(self, t)
         th = self.phase + self.omega * t
         return np.array((math.cos(th), math.sin(th), t, 1.0)) @ self._basis
 
     def direction_jet(self, t: float) -> np.ndarray:
         """ṗ, p̈ and p⃛ = r ω³ (sin θ e1 − cos θ e2) in closed form: (3, 3) [m/s, m/s², m/s³]."""
+        t = path_time(self, t)
         _, v, a = self.evaluate(t)
         e1, e2, _ = self._frame
-        th = self.phase + self.omega * float(t)
+        th = self.phase + self.omega * t
         jerk = self.radius * self.omega**3 * (math.sin(th) * e1 - math.cos(th) * e2)
         return np.array([v, a, jerk])
 
@@ -442,10 +474,11 @@ class FunctionPath(Path):
 
     def position(self, t: float) -> np.ndarray:
         """Return p_d(t) (3,) [m]."""
-        return self._call("position", self._position_fn, t)
+        return self._call("position", self._position_fn, path_time(self, t))
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (p (3,) [m], ṗ (3,) [m/s], p̈ (3,) [m/s²]); see the class doc for accuracy."""
+        t = path_time(self, t)
         p = self._call("position", self._position_fn, t)
         if self._velocity_fn is not None:
             v = self._call("velocity", self._velocity_fn, t)

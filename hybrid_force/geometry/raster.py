@@ -41,9 +41,14 @@ from hybrid_force.errors import PathParameterError
 from hybrid_force.geometry.arc_length import piece_lengths, surface_speeds
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.piecewise import PiecewiseCurve, blend_piece, line_piece
+from hybrid_force.geometry.surface_base import MAX_LENGTH
 from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, one_of, positive
 
-__all__ = ["RasterPath"]
+__all__ = ["MAX_PASSES", "RasterPath"]
+
+MAX_PASSES = 1000
+"""The most passes a raster may have (docs/scenarios.md): each pass and turn costs a few ms to
+build, and a spacing tiny against the size (1e-5 across 0.2) would run for minutes first."""
 
 _TURN_SAMPLES = 2001
 """Samples of ‖dS/dσ‖ along a turn at which its maximum is taken."""
@@ -111,7 +116,20 @@ class RasterPath(SurfacePath):
                 key="spacing",
                 value=spacing,
             )
-        passes = max(2, math.ceil(extent[across] / step - 1e-9) + 1)
+        passes_wanted = extent[across] / step - 1e-9  # a float: it may be huge
+        if passes_wanted + 1 > MAX_PASSES:
+            raise PathParameterError(
+                f"{owner}.spacing = {step:g} across size[{across}] = {extent[across]:g} "
+                f"{chart.units[across]} makes {math.ceil(passes_wanted) + 1:.6g} passes, more "
+                f"than the {MAX_PASSES} a raster may have: spacing must be at least "
+                + checks.suggested(
+                    extent[across] / (MAX_PASSES - 1),
+                    lambda x: extent[across] / x - 1e-9 + 1 <= MAX_PASSES,
+                ),
+                key="spacing",
+                value=spacing,
+            )
+        passes = max(2, math.ceil(passes_wanted) + 1)
         self.pass_spacing = extent[across] / (passes - 1)
         curve, self.turn_lengths = _raster_curve(
             chart, start, extent, along, passes, self.pass_spacing, given=size
@@ -136,6 +154,12 @@ def _pair(owner: str, name: str, value: object, positive_values: bool) -> tuple[
     if array.shape != (2,) or (positive_values and not bool(np.all(array > 0.0))):
         raise PathParameterError(
             f"{owner}.{name} must be {valid}, got {checks.shown(value)}", key=name, value=value
+        )
+    if float(np.abs(array).max()) > MAX_LENGTH:  # coordinates in m or rad: far beyond any use
+        raise PathParameterError(
+            f"{owner}.{name} = {checks.shown(value)} is beyond MAX_LENGTH = {MAX_LENGTH:g}",
+            key=name,
+            value=value,
         )
     return float(array[0]), float(array[1])
 

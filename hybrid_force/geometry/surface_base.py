@@ -19,13 +19,20 @@ from numpy.typing import ArrayLike
 from hybrid_force import _checks as checks
 from hybrid_force.errors import DimensionError, SurfaceError, SurfaceParameterError
 
-__all__ = ["Surface"]
+__all__ = ["MAX_LENGTH", "Surface"]
+
+MAX_LENGTH = 1e6
+"""The largest |coordinate| of a surface's point or centre and the largest radius [m]
+(docs/scenarios.md): far beyond any arm's reach, and small enough that squares and products
+of distances stay finite (a centre of 1e300 m made Φ(p) NaN)."""
 
 #: An axis or normal shorter than this [m or unitless] counts as zero-length.
 _MIN_DIRECTION_NORM = 1e-12
 #: A cylinder's normal is undefined within ``_SINGULAR_RTOL * radius`` of its axis, a sphere's
 #: within ``_SINGULAR_RTOL * radius`` of its centre (there ‖∇Φ‖ = 2ρ < 2e-9 · radius).
 _SINGULAR_RTOL = 1e-9
+#: The largest |coordinate| [m] of a point a surface evaluates: its square stays finite.
+_MAX_POINT = 1e150
 Vec3 = tuple[float, float, float]
 
 
@@ -42,6 +49,28 @@ def _positive_float(owner: str, name: str, value: object, unit: str = "m") -> fl
     """Check that ``value`` is a finite real number > 0 (not a bool) and return it as a float."""
     what = f"{owner}: parameter '{name}'"
     return checks.number(value, what, SurfaceParameterError, minimum=0.0, strict=True, unit=unit)
+
+
+def _length(owner: str, name: str, value: object) -> float:
+    """A positive length [m] of at most :data:`MAX_LENGTH` (a radius)."""
+    out = _positive_float(owner, name, value)
+    if out > MAX_LENGTH:
+        raise SurfaceParameterError(
+            f"{owner}: parameter '{name}' must be at most MAX_LENGTH = {MAX_LENGTH:g} m, got "
+            f"{_fmt(value)}"
+        )
+    return out
+
+
+def _point3(owner: str, name: str, value: object) -> Vec3:
+    """A point [m] (3 finite numbers), each coordinate within ±:data:`MAX_LENGTH`."""
+    point = _vector3(owner, name, value)
+    if max(abs(x) for x in point) > MAX_LENGTH:
+        raise SurfaceParameterError(
+            f"{owner}: parameter '{name}' must have coordinates within ±MAX_LENGTH = "
+            f"{MAX_LENGTH:g} m, got {_fmt(value)}"
+        )
+    return point
 
 
 def _vector3(owner: str, name: str, value: object) -> Vec3:
@@ -99,8 +128,12 @@ def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
                 f"{_fmt(p)}"
             )
         x, y, z = array.tolist()
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise SurfaceError(f"{owner!r}.{method}: point p must be finite, got [{x}, {y}, {z}]")
+    if not (abs(x) <= _MAX_POINT and abs(y) <= _MAX_POINT and abs(z) <= _MAX_POINT):
+        # also refuses nan and inf; beyond 1e150 m the squares in Φ overflow (Φ would be nan)
+        raise SurfaceError(
+            f"{owner!r}.{method}: point p must be finite, each coordinate within ±"
+            f"{_MAX_POINT:g} m, got [{x}, {y}, {z}]"
+        )
     return (x, y, z)
 
 

@@ -27,7 +27,7 @@ from hybrid_force import _checks as checks
 from hybrid_force.errors import BadInputError, PathParameterError, did_you_mean
 from hybrid_force.geometry.arc_length import SUBDIVISIONS, arc_length_map
 from hybrid_force.geometry.charts import SurfaceChart, Vec3
-from hybrid_force.geometry.paths import Path
+from hybrid_force.geometry.paths import Path, path_time
 from hybrid_force.geometry.piecewise import PiecewiseCurve
 
 __all__ = ["DEFAULT_RAMP", "SurfacePath", "TimeLaw", "one_of", "positive"]
@@ -229,7 +229,7 @@ class SurfacePath(Path):
         T' = d²p/dℓ² in closed form, T'' its central difference over ±10 µm of arc, one-sided
         at the ends, error ~1e-10 relative on a smooth piece).
         """
-        ell, rate, accel = self.law.sample(float(t))
+        ell, rate, accel = self.law.sample(path_time(self, t))
         _, tangent, curvature = self._shape(ell)
         h, length = _ARC_STEP, self.law.length
         lo, hi = max(ell - h, 0.0), min(ell + h, length)
@@ -239,7 +239,7 @@ class SurfacePath(Path):
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p_d (3,) [m], ṗ_d (3,) [m/s], p̈_d (3,) [m/s²]) at t [s], by the chain rule."""
-        p, v, a = self._sample(float(t))
+        p, v, a = self._sample(path_time(self, t))
         return np.array(p), np.array(v), np.array(a)
 
     def evaluate_into(self, t: float, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
@@ -248,7 +248,7 @@ class SurfacePath(Path):
 
     def position(self, t: float) -> np.ndarray:
         """p_d(t) (3,) [m]."""
-        (sigma,), _, _ = self.arc.evaluate(self.law.sample(float(t))[0])
+        (sigma,), _, _ = self.arc.evaluate(self.law.sample(path_time(self, t))[0])
         (u, v), _, _ = self.curve.evaluate(sigma)
         return np.array(self.chart.derivatives_at(u, v)[0])
 

@@ -38,9 +38,14 @@ from hybrid_force.errors import PathParameterError, PathWarning, SingularConfigu
 from hybrid_force.geometry.arc_length import piece_lengths
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.piecewise import PiecewiseCurve, line_piece, natural_cubic_spline
+from hybrid_force.geometry.surface_base import MAX_LENGTH
 from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, one_of, positive
 
-__all__ = ["DEFAULT_PROJECTION_TOL", "REPEATED_TOL", "WaypointPath"]
+__all__ = ["DEFAULT_PROJECTION_TOL", "MAX_WAYPOINTS", "REPEATED_TOL", "WaypointPath"]
+
+MAX_WAYPOINTS = 1000
+"""The most waypoints a path may have (docs/scenarios.md): each costs about 2 ms to build
+(its spline piece and arc-length map), so 1000 take 2 s; a 1 MiB scenario could list 40,000."""
 
 DEFAULT_PROJECTION_TOL = 1e-3
 """A world waypoint farther than this [m] from its surface is projected with a PathWarning."""
@@ -98,6 +103,13 @@ class WaypointPath(SurfacePath):
         tol = positive(owner, "projection_tol", projection_tol, "m")
         chart = chart_for(surface, u_axis)
         given = _point_array(points, 3 if frame == "world" else 2, frame)
+        if len(given) > MAX_WAYPOINTS:
+            raise PathParameterError(
+                f"{owner}.points: {len(given)} waypoints, more than the {MAX_WAYPOINTS} a path "
+                "may have (MAX_WAYPOINTS): fewer points, or a coarser spacing between them",
+                key="points",
+                value=f"<{len(given)} points>",
+            )
         if frame == "world":
             coordinates, distances = _project(chart, given, points)
         else:
@@ -139,6 +151,13 @@ def _point_array(points: ArrayLike, width: int, frame: str) -> np.ndarray:
     if array.ndim != 2 or array.shape[1] != width or array.shape[0] < 2:
         raise PathParameterError(
             f"WaypointPath.points must be {valid}, got shape {array.shape}",
+            key="points",
+            value=points,
+        )
+    if float(np.abs(array).max()) > MAX_LENGTH:  # m or rad: squares of distances stay finite
+        i = int(np.argmax(np.abs(array).max(axis=1)))
+        raise PathParameterError(
+            f"WaypointPath.points[{i}] = {array[i].tolist()} is beyond MAX_LENGTH = {MAX_LENGTH:g}",
             key="points",
             value=points,
         )

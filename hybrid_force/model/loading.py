@@ -8,6 +8,7 @@ file and the cause; the checks themselves are in :mod:`hybrid_force.model.urdf_c
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 import tempfile
@@ -21,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.errors import FrameError, ModelWarning, RobotError, URDFError
+from hybrid_force.model.urdf_text import check_file_size, check_model_size
 from hybrid_force.model.xacro_files import (
     _absolute_dirs,
     _check_urdf_text,
@@ -552,7 +554,10 @@ def _build_mjcf(
     from hybrid_force.model.mjcf import complete_model, prepare_mjcf
 
     try:
-        root = ET.parse(path).getroot() if text is None else ET.fromstring(text)
+        # its size first, in one streaming pass: Pinocchio's parser recurses per body
+        data = _read_model_bytes(path, "MJCF") if text is None else text.encode("utf-8")
+        check_model_size(f"MJCF {path}", data, "mjcf")
+        root = ET.fromstring(data)
     except ET.ParseError as exc:
         raise URDFError(f"malformed MJCF {path}: XML parse error: {exc}") from None
     except OSError as exc:
@@ -562,6 +567,7 @@ def _build_mjcf(
             f"not an MJCF file: {path}: root element is <{root.tag}>, expected <mujoco> "
             "(or <robot> for a URDF)"
         )
+    _check_mjcf_numbers(root, path)
     prepared = prepare_mjcf(path, root)
     mesh_bodies = []
     for body in root.iter("body"):
@@ -602,6 +608,49 @@ def _build_mjcf(
     return model, uneven
 
 
+_MJCF_NUMBERS = (
+    "pos", "quat", "axis", "euler", "axisangle", "xyaxes", "zaxis", "range", "mass",
+    "diaginertia", "fullinertia", "size", "fromto", "armature", "damping", "frictionloss",
+    "stiffness", "ref", "springref",
+)  # fmt: skip
+"""MJCF attributes that hold numbers: Pinocchio's parser turns text it cannot read into
+whatever memory held (a body at z = 2e243 for pos="a b c"), so they are read here first."""
+
+
+def _check_mjcf_numbers(root: ET.Element, path: Path) -> None:
+    """URDFError naming the element and attribute for a numeric MJCF attribute that is not
+    finite numbers, a negative mass or inertia, or a joint range with lower > upper."""
+    for element in root.iter():
+        for key in _MJCF_NUMBERS:
+            text = element.get(key)
+            if text is None:
+                continue
+            where = f"<{element.tag} name={element.get('name', '?')!r}> {key}={text[:60]!r}"
+            try:
+                values = [float(x) for x in text.split()]
+            except ValueError:
+                values = []
+            if not values or not all(math.isfinite(x) for x in values):
+                raise URDFError(f"malformed MJCF {path}: {where}: must be finite numbers")
+            if key in ("mass", "diaginertia") and min(values) < 0.0:
+                raise URDFError(f"malformed MJCF {path}: {where}: must not be negative")
+            lower_above = len(values) == 2 and values[0] > values[1]
+            if key == "range" and element.tag == "joint" and lower_above:
+                raise URDFError(f"malformed MJCF {path}: {where}: lower above upper")
+
+
+_MJCF_SCOPE = (
+    "hybrid_force simulates fixed-base arms with one-coordinate joints (hinge, slide) only: "
+    "remove the joint (the body is then welded to its parent) or replace it"
+)
+
+
+def _read_model_bytes(path: Path, label: str) -> bytes:
+    """The file's bytes, refused (URDFError) beyond MAX_MODEL_BYTES before it is read."""
+    check_file_size(path, label)
+    return path.read_bytes()
+
+
 def _pinocchio_message(exc: BaseException) -> str:
     """One line from a Pinocchio exception: the text after its ``message:`` line if any."""
     text = str(exc)
@@ -616,7 +665,15 @@ def _q_index(model: pin.Model, joint: str) -> int:
 
 
 def _require_frame(model: pin.Model, tip: str, path: Path) -> None:
-    """FrameError listing the model's frames if ``tip`` is not one of them."""
+    """FrameError listing the model's frames if ``tip`` is not one of them (or not a text)."""
+    if not isinstance(tip, str):  # Pinocchio would raise a raw Boost.Python ArgumentError
+        frames = [f.name for f in model.frames]
+        raise FrameError(
+            f"tip must be a frame name (a str), got {tip!r} ({type(tip).__name__}); frames of "
+            f"{path} are: {', '.join(frames)}",
+            key="tip",
+            value=tip,
+        )
     if not model.existFrame(tip):
         frames = [f.name for f in model.frames]
         raise FrameError(f"tip frame '{tip}' not found in {path}; frames are: {', '.join(frames)}")

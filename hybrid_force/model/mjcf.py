@@ -63,6 +63,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.errors import ModelWarning, URDFError
+from hybrid_force.model.urdf_text import MAX_ELEMENTS
 
 __all__ = ["MjcfJoint", "PreparedMjcf", "complete_model", "prepare_mjcf"]
 
@@ -410,6 +411,14 @@ def _expand_replicates(path: Path, element: ET.Element, compiler: _Compiler) -> 
             count = 0
         if count < 1:
             raise URDFError(f"malformed MJCF {path}: {where}: count must be a positive integer")
+        # bounded before copying: nested replicates multiply (1000 x 1000 bodies in two lines)
+        inside = sum(1 for e in child.iter() if e.tag in ("body", "joint"))
+        if count * inside > 2 * MAX_ELEMENTS:
+            raise URDFError(
+                f"unsupported MJCF {path}: {where} would make {count * inside} bodies and "
+                f"joints, more than a model may have (MAX_ELEMENTS = {MAX_ELEMENTS} of each, "
+                "docs/robots.md)"
+            )
         offset = _numbers(path, where, child, "offset", 3) if child.get("offset") else np.zeros(3)
         unit = math.pi / 180.0 if compiler.degrees else 1.0
         turn = (

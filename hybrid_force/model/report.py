@@ -14,7 +14,8 @@
 * the total mass of the model (every link, including those welded to the root) and the mass
   the moving joints carry [kg];
 * the :class:`~hybrid_force.errors.ModelWarning` messages the load issued;
-* the meshes the URDF's ``<visual>`` elements reference and whether each file exists;
+* the meshes the URDF's ``<visual>`` elements reference and whether each file exists and can
+  be read (by coal's mesh loader, the replay's);
 * the reach (:class:`Reach`): a bound on the distance from the first moving joint to the tip.
 
 The URDF's own content (joint types such as ``continuous``, which Pinocchio turns into
@@ -82,14 +83,17 @@ class MeshRef:
     Attributes:
         uri: the ``filename`` attribute as written.
         link: the first link whose visual references it.
-        found: the existing file it resolves to, or None.
+        found: the file it resolves to, if it exists and can be read as a mesh (by the
+            replay's loader, coal's), else None.
         candidates: every path that was looked at, in order.
+        unreadable: where the file exists but cannot be read: the file and why; else None.
     """
 
     uri: str
     link: str
     found: Path | None
     candidates: tuple[Path, ...]
+    unreadable: str | None = None
 
 
 @dataclass(frozen=True)
@@ -351,8 +355,29 @@ def _meshes(urdf: Any, urdf_path: Path, package_dirs: tuple[str, ...]) -> tuple[
                 continue
             candidates = tuple(dict.fromkeys(_mesh_candidates(mesh.filename, folder, package_dirs)))
             found = next((c.resolve() for c in candidates if c.is_file()), None)
-            seen[mesh.filename] = MeshRef(str(mesh.filename), link.name, found, candidates)
+            why = _mesh_unreadable(found) if found is not None else None
+            seen[mesh.filename] = MeshRef(
+                str(mesh.filename),
+                link.name,
+                None if why else found,
+                candidates,
+                f"{found}: {why}" if why else None,
+            )
     return tuple(seen.values())
+
+
+def _mesh_unreadable(path: Path) -> str | None:
+    """Why the replay's mesh loader (coal's) cannot read ``path``, or None if it can: a file
+    that exists is not yet a mesh (a corrupt or empty STL is drawn as a placeholder)."""
+    try:
+        import coal
+    except ImportError:  # pragma: no cover - coal comes with Pinocchio
+        return None
+    try:
+        coal.MeshLoader().load(str(path), np.ones(3))
+    except (RuntimeError, ValueError) as exc:  # coal's message ends with the loader's reason
+        return " ".join(str(exc).split("message:", 1)[-1].split()) or type(exc).__name__
+    return None
 
 
 def _mesh_candidates(uri: str, folder: Path, package_dirs: tuple[str, ...]) -> tuple[Path, ...]:
@@ -414,10 +439,16 @@ def format_report(report: ModelReport) -> str:
     else:
         lines.append("reach: 0 m (no moving joint between the root and the tip)")
     found = sum(m.found is not None for m in report.meshes)
-    lines.append(f"meshes: {len(report.meshes)} referenced, {found} found")
+    unreadable = sum(m.unreadable is not None for m in report.meshes)
+    lines.append(
+        f"meshes: {len(report.meshes)} referenced, {found} found"
+        + (f", {unreadable} unreadable" if unreadable else "")
+    )
     for m in report.meshes:
         if m.found is not None:
             lines.append(f"  found    {m.uri}")
+        elif m.unreadable is not None:
+            lines.append(f"  unreadable {m.uri} (link {m.link}; {m.unreadable})")
         else:
             if m.candidates:
                 where = "looked for " + ", ".join(map(str, m.candidates))

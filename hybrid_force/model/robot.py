@@ -260,10 +260,12 @@ class Robot:
         self._file_joints = moving if file_joints is None else tuple(file_joints)
         if tip is None:
             tip = _default_tip(model)
-        if not model.existFrame(tip):
+        if not isinstance(tip, str) or not model.existFrame(tip):  # not Boost.Python's error
             frames = [f.name for f in model.frames]
             raise FrameError(
-                f"tip frame '{tip}' not found in {self.urdf_path}; frames are: {', '.join(frames)}"
+                f"tip frame {tip!r} not found in {self.urdf_path}; frames are: {', '.join(frames)}",
+                key="tip",
+                value=tip,
             )
         self.tip = tip
         self.tip_id = model.getFrameId(tip)
@@ -518,7 +520,12 @@ class Robot:
 
 
 def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
-    arr = np.asarray(x, dtype=float)
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:  # "abc", [1, [2]], 10**400
+        raise DimensionError(
+            f"{what} for robot '{robot}' must be {size} real numbers, got {x!r:.80} ({exc})"
+        ) from None
     if arr.shape != (size,):
         raise DimensionError(
             f"{what} for robot '{robot}' must have shape ({size},), got shape {arr.shape}"

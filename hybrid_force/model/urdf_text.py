@@ -15,13 +15,41 @@ which changes no URDF element and no line number.
 from __future__ import annotations
 
 import codecs
+import contextlib
 import re
 import xml.parsers.expat
 from pathlib import Path
 
 from hybrid_force.errors import URDFError
 
-__all__ = ["urdf_text"]
+__all__ = [
+    "MAX_ELEMENTS",
+    "MAX_JOINTS",
+    "MAX_MODEL_BYTES",
+    "MAX_XML_DEPTH",
+    "check_file_size",
+    "check_model_size",
+    "urdf_text",
+]
+
+MAX_JOINTS = 100
+"""The most moving joints a model may have (a URDF ``<joint>`` of any type but ``fixed``;
+every ``<joint>`` of an MJCF file): Pinocchio's model data take memory ∝ nv³ (70 MB at 100
+joints, 500 MB at 200). The largest bundled model, g1, has 29 (docs/robots.md)."""
+
+MAX_ELEMENTS = 1000
+"""The most ``<joint>`` elements of any type, and the most links (URDF ``<link>``, MJCF
+``<body>``): Pinocchio's URDF parser recurses once per joint, fixed ones included (5,000
+crash it); fixed joints are otherwise cheap (frames). Both are counted before any model
+parser runs."""
+
+MAX_MODEL_BYTES = 16 * 2**20
+"""The largest model file (and xacro expansion) read, 16 MiB: the largest bundled URDF is
+36 kB."""
+
+MAX_XML_DEPTH = 256
+"""The deepest nesting of XML elements in a model file (an MJCF chain nests one ``<body>`` per
+link; a URDF nests a few levels)."""
 
 # The namespace an undeclared prefix is bound to (any URI does; this one says what happened).
 _UNDECLARED_NS = "urn:hybrid-force:undeclared-prefix:"
@@ -53,10 +81,11 @@ def urdf_text(path: Path | str) -> str:
     if not path.is_file():
         raise URDFError(f"URDF path is not a file: {path}")
     try:
+        check_file_size(path, "URDF")
         raw = path.read_bytes()
     except OSError as exc:
         raise URDFError(f"cannot read URDF {path}: {exc}") from exc
-    scan = _PrefixScan()
+    scan = _PrefixScan(f"URDF {path}", "urdf")
     try:
         scan.parse(raw)
     except xml.parsers.expat.ExpatError as exc:  # the same text ElementTree's ParseError has
@@ -84,11 +113,51 @@ def urdf_text(path: Path | str) -> str:
     return text
 
 
+def check_model_size(source: str, data: bytes | str, kind: str) -> None:
+    """Refuse a model text beyond :data:`MAX_MODEL_BYTES`, :data:`MAX_JOINTS` or
+    :data:`MAX_XML_DEPTH` in one streaming pass of expat (no tree is built, no recursion).
+
+    Args:
+        source: how messages name the model (its file).
+        data: the model's text or raw bytes.
+        kind: ``"urdf"`` (counts the ``<joint>``/``<link>`` children of the root) or
+            ``"mjcf"`` (every ``<joint>``/``<freejoint>`` and ``<body>``).
+
+    Raises:
+        URDFError: naming ``source``, the count and the maximum. Malformed XML is not refused
+            here: the parser that follows says where.
+    """
+    size = len(data.encode("utf-8")) if isinstance(data, str) else len(data)
+    if size > MAX_MODEL_BYTES:
+        raise URDFError(_too_large(source, size))
+    with contextlib.suppress(xml.parsers.expat.ExpatError):
+        _PrefixScan(source, kind).parse(data)
+
+
+def _too_large(source: str, size: int) -> str:
+    return (
+        f"{source} is {size} bytes, more than the {MAX_MODEL_BYTES} a model file may have "
+        "(MAX_MODEL_BYTES, docs/robots.md)"
+    )
+
+
+def check_file_size(path: Path, label: str) -> None:
+    """URDFError before a file beyond :data:`MAX_MODEL_BYTES` is read (an OSError of stat
+    propagates: the caller says why the file cannot be read)."""
+    size = path.stat().st_size
+    if size > MAX_MODEL_BYTES:
+        raise URDFError(_too_large(f"{label} {path}", size))
+
+
 class _PrefixScan:
     """One pass of expat without namespace processing over the raw bytes: the declared
-    encoding, the root element's name and byte offset, and the prefixes used out of scope."""
+    encoding, the root element's name and byte offset, and the prefixes used out of scope;
+    on the way, the model's size against :data:`MAX_JOINTS` and :data:`MAX_XML_DEPTH` (a
+    URDFError from a handler stops expat at once)."""
 
-    def __init__(self) -> None:
+    def __init__(self, source: str, kind: str) -> None:
+        self.source, self.kind = source, kind
+        self.joints = self.moving = self.links = 0
         self.encoding: str | None = None
         self.root_name = ""
         self.root_byte = 0
@@ -99,7 +168,7 @@ class _PrefixScan:
         self._parser.StartElementHandler = self._start
         self._parser.EndElementHandler = self._end
 
-    def parse(self, raw: bytes) -> None:
+    def parse(self, raw: bytes | str) -> None:
         self._parser.Parse(raw, True)
 
     def _declaration(self, version: str, encoding: str | None, standalone: int) -> None:
@@ -108,6 +177,7 @@ class _PrefixScan:
     def _start(self, name: str, attributes: dict[str, str]) -> None:
         if not self.root_name:
             self.root_name, self.root_byte = name, self._parser.CurrentByteIndex
+        self._count(name, len(self._scopes), attributes)
         declared = {key[6:] for key in attributes if key.startswith("xmlns:")}
         scope = self._scopes[-1] | declared
         self._scopes.append(scope)
@@ -118,3 +188,33 @@ class _PrefixScan:
 
     def _end(self, name: str) -> None:
         self._scopes.pop()
+
+    def _count(self, name: str, depth: int, attributes: dict[str, str]) -> None:
+        """Count ``name`` (at ``depth``, the root at 1); refuse beyond the maximums."""
+        if depth > MAX_XML_DEPTH:
+            raise URDFError(
+                f"{self.source}: elements nest more than {MAX_XML_DEPTH} deep (at <{name}>, "
+                f"line {self._parser.CurrentLineNumber}): MAX_XML_DEPTH, docs/robots.md"
+            )
+        if self.kind == "urdf":
+            joint, link = depth == 2 and name == "joint", depth == 2 and name == "link"
+            moving = joint and attributes.get("type") != "fixed"
+        else:
+            joint, link = name in ("joint", "freejoint"), name == "body"
+            moving = joint
+        self.joints += joint
+        self.moving += moving
+        self.links += link
+        line = self._parser.CurrentLineNumber
+        if self.moving > MAX_JOINTS:
+            raise URDFError(
+                f"{self.source} has more than {MAX_JOINTS} moving joints (line {line}): a model "
+                f"may have at most MAX_JOINTS = {MAX_JOINTS} (docs/robots.md)"
+            )
+        if self.joints > MAX_ELEMENTS or self.links > MAX_ELEMENTS:
+            what = "joints" if self.joints > MAX_ELEMENTS else "links or bodies"
+            raise URDFError(
+                f"{self.source} has more than {MAX_ELEMENTS} {what} (line {line}): a model may "
+                f"have at most MAX_ELEMENTS = {MAX_ELEMENTS} of each, fixed joints included "
+                "(docs/robots.md)"
+            )

@@ -10,10 +10,11 @@ import io
 import os
 import threading
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from hybrid_force.errors import ModelWarning, RobotError, URDFError
+from hybrid_force.model.urdf_text import check_file_size, check_model_size
 
 __all__ = ["expand_xacro", "find_package"]
 
@@ -24,6 +25,8 @@ def _absolute_dirs(dirs: Sequence[str | os.PathLike[str]]) -> tuple[str, ...]:
     """The package folders as absolute paths (a single text is refused: it is no list)."""
     if isinstance(dirs, (str, bytes, os.PathLike)):
         raise RobotError(f"package_dirs must be a list of folders, got the single value {dirs!r}")
+    if not isinstance(dirs, Iterable):  # a number: not Python's "object is not iterable"
+        raise RobotError(f"package_dirs must be a list of folders, got {dirs!r}")
     out = []
     for d in dirs:
         if not isinstance(d, (str, os.PathLike)) or not str(d):
@@ -132,6 +135,8 @@ def expand_xacro(
             )
         return str(found)
 
+    with contextlib.suppress(OSError):  # a missing file: xacro says so below
+        check_file_size(path, "xacro file")
     said = io.StringIO()
     target = str(path.resolve())
     with _XACRO_LOCK, contextlib.redirect_stderr(said), contextlib.redirect_stdout(said):
@@ -182,6 +187,7 @@ def expand_xacro(
     messages = [" ".join(x.split()) for x in said.getvalue().splitlines() if x.strip()]
     if messages:
         warnings.warn(f"{path}: xacro reported: {'; '.join(messages)}", ModelWarning, stacklevel=3)
+    check_model_size(f"{path} (as expanded by xacro)", text, "urdf")
     if check:
         _check_urdf_text(path, text, expanded=True)
     return text

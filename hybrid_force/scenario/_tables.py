@@ -176,13 +176,48 @@ _SENSOR: dict[str, _Key] = {
 }
 
 
+MAX_NESTING = 100
+"""The deepest a scenario's tables and arrays may nest (docs/scenarios.md): a scenario needs
+3 (``[[surfaces]]``, a table in it, an array in that). Shallower absurd data is refused by
+its key's own check; deeper data here, before anything copies, formats or serialises it
+(each of which recurses once per level, up to Python's limit of about 1,000)."""
+
+
+_SHOWN_KEYS = 8  # how much of a too deep dotted key a message shows
+
+
+def check_nesting(doc: Mapping[str, Any], ctx: _Context) -> None:
+    """Refuse data nested deeper than :data:`MAX_NESTING`, naming the dotted key where it
+    goes too deep (shortened). Walks with an explicit stack: no recursion."""
+    stack: list[tuple[object, tuple[str, ...], int]] = [(doc, (), 0)]
+    while stack:
+        value, path, depth = stack.pop()
+        if isinstance(value, dict):
+            items: Iterable[tuple[str, object]] = ((str(k), v) for k, v in value.items())
+        elif isinstance(value, list):
+            items = ((str(i), v) for i, v in enumerate(value))
+        else:
+            continue
+        if depth >= MAX_NESTING:
+            shown = ".".join(path[:_SHOWN_KEYS])
+            raise ScenarioError(
+                f"{ctx.file}: {shown}...: tables or arrays nested more than MAX_NESTING = "
+                f"{MAX_NESTING} levels deep; a scenario's own nest 3 (is "
+                f"{'.'.join(path[:2])!r} a key of the format? docs/scenarios.md)",
+                key=".".join(path[:2]),
+                file=ctx.file,
+            )
+        for key, item in items:
+            stack.append((item, (*path, key) if len(path) < _SHOWN_KEYS else path, depth + 1))
+
+
 # --- messages ------------------------------------------------------------------------------------
 def _fmt(value: object) -> str:
     """A value as it would be written in TOML (JSON is close enough), shortened."""
     try:
         text = json.dumps(value, ensure_ascii=False)
-    except (TypeError, ValueError):
-        text = repr(value)
+    except (TypeError, ValueError, RecursionError):
+        text = repr(value) if not isinstance(value, dict | list) else "[...]"
     return text if len(text) <= 100 else text[:97] + "..."
 
 

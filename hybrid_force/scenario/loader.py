@@ -69,6 +69,7 @@ from hybrid_force.scenario._checks import (
     _check_path_on_surfaces,
     _check_pose_followable,
     _check_sampled_force_loop,
+    _check_stacked_rows,
     _check_start,
 )
 from hybrid_force.scenario._tables import (
@@ -80,6 +81,7 @@ from hybrid_force.scenario._tables import (
     _check_table,
     _Context,
     _suggest,
+    check_nesting,
     parse_override,
     xacro_argument_text,
 )
@@ -120,7 +122,9 @@ def _read(path: Path, ctx: _Context) -> dict[str, Any]:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"{ctx.file}: not UTF-8 text ({exc})") from None
-    return _parse_toml(text, ctx.file)
+    doc = _parse_toml(text, ctx.file)
+    check_nesting(doc, ctx)  # dotted table headers nest without any recursion in tomllib
+    return doc
 
 
 def _parse_toml(text: str, where: str) -> dict[str, Any]:
@@ -191,12 +195,14 @@ def scenario_from_document(
         ScenarioError: as :func:`load_scenario`, naming ``origin``.
     """
     ctx = _Context(origin)
+    check_nesting(doc, ctx)  # before deepcopy, which recurses per level
     return _build(copy.deepcopy(dict(doc)), Path(base_dir) / Path(origin).name, ctx)
 
 
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     # the path on the surfaces is checked here (to name the file) and again by Scenario (which
     # checks a run built by hand too): scanned once (~0.01-0.03 s, most of a load)
+    check_nesting(doc, ctx)  # overrides may nest too
     with reports_reused():
         return _build_checked(doc, file, ctx)
 
@@ -240,6 +246,15 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     _check_control_rate(control, sim, control_values, ctx)
     _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
+    fastest = max((abs(float(x)) for x in v0), default=0.0) if v0 is not None else 0.0
+    if fastest > sim.max_velocity:
+        # the first step would stop as a runaway: refused here, naming the key, not run
+        raise ctx.error(
+            "initial.v",
+            doc["initial"]["v"],
+            f"|v| = {fastest:.6g} is beyond sim.max_velocity = "
+            f"{sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
+        )
     if tool.controlled and start_key == "initial.tip":
         q0 = _tool_start(tool, robot, surfaces, path, q0, start_value, ctx)
     if start_key == "initial.tip":
@@ -248,6 +263,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             doc["initial"].get("seed"), start_key,
         )  # fmt: skip
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
+    _check_stacked_rows(robot, q0, surfaces, surface_tables, ctx)
     _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx, tool)
     if tool.controlled:
         configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)

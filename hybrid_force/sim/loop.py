@@ -43,7 +43,7 @@ import numpy as np
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.controller import Controller
 from hybrid_force.control.laws.base import law_log_names
-from hybrid_force.errors import ControlError, LostContactError
+from hybrid_force.errors import ControlError, LostContactError, ScenarioValueError
 from hybrid_force.events import RunStopped
 from hybrid_force.law_log import NAMES_KEY as LAW_LOG_NAMES
 from hybrid_force.phases import CONTACT
@@ -96,6 +96,11 @@ def simulate(
         RunWarning: a joint left its URDF range, a command exceeded an effort limit, or the
             tool left the surface and was not back at the end (also in ``meta["warnings"]``).
     """
+    if not isinstance(scenario, Scenario):  # not an AttributeError from deep inside
+        raise ScenarioValueError(
+            f"simulate() takes a hybrid_force Scenario (load_scenario(...) or Scenario(...)), "
+            f"got {scenario!r:.80}"
+        )
     sc, sim = scenario, scenario.sim
     robot = sc.robot
     if controller is not None and not callable(getattr(controller, "command", None)):

@@ -30,7 +30,13 @@ import numpy as np
 from hybrid_force import _checks as checks
 from hybrid_force.errors import SensorError
 
-__all__ = ["SensorSettings", "Sensors"]
+__all__ = ["MAX_FORCE_DELAY", "SensorSettings", "Sensors"]
+
+
+MAX_FORCE_DELAY = 100_000
+"""The longest force delay [control periods] (docs/scenarios.md, [sensor]): 100 s at 1 kHz.
+The delay line holds one reading per period up to it (a 10**9-period delay would keep every
+reading of the run in memory); the stability check costs the same for any delay."""
 
 
 @dataclass(frozen=True)
@@ -66,7 +72,11 @@ class SensorSettings:
         set_number("joint_noise", 0.0, "rad or m")
         set_number("velocity_noise", 0.0, "rad/s or m/s")
         delay = checks.integer(
-            self.force_delay, "sensor.force_delay (control periods)", SensorError, minimum=0
+            self.force_delay,
+            "sensor.force_delay (control periods)",
+            SensorError,
+            minimum=0,
+            maximum=MAX_FORCE_DELAY,
         )
         object.__setattr__(self, "force_delay", delay)
 

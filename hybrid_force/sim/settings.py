@@ -3,12 +3,14 @@ controller and sensor settings), each checked when it is built."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+from hybrid_force import _checks as checks
 from hybrid_force.control.controller import check_same_joints
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
@@ -151,14 +153,16 @@ class Scenario:
     Checked on construction, like a scenario file by its loader (ScenarioValueError, or the
     GainError of a K_d or f_d that does not fit the arm or the surfaces, naming the field):
 
-    * the types and shapes above, finite q0 and v0; K_d's size against the arm's joints and
+    * the types and shapes above, finite q0 and v0, every |v0_i| below ``sim.max_velocity``
+      (the run would stop as a runaway at once); K_d's size against the arm's joints and
       f_d's count against the surfaces;
     * a run that starts in contact (``control.supervisor`` False): the desired path within
       ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration] (sampled by
       :func:`~hybrid_force.geometry.paths.check_on_surface`) and the start tip p(q0) within
       ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
-      so are stacked surfaces (k > 1), whose approach would touch a subset first;
+      so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
+      stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
     * the control rate (``control.rate``) a whole number of plant steps, not faster than them.
     """
 
@@ -224,6 +228,13 @@ class Scenario:
             array = checks.array(value, f"Scenario.{key}", Bad, valid=valid)
             if array.shape != (size,):
                 raise Bad(f"Scenario.{key} must be {valid}, got shape {array.shape}")
+            if key == "v0" and isinstance(self.sim, SimSettings) and array.size:
+                fastest = float(np.abs(array).max())
+                if fastest > self.sim.max_velocity:  # the first step would be a runaway
+                    raise Bad(
+                        f"Scenario.v0: |v| = {fastest:.6g} is beyond sim.max_velocity = "
+                        f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway"
+                    )
             array.setflags(write=False)
             set_(self, key, array)
         for key, kind in (("control", ControlSettings), ("sim", SimSettings)):
@@ -354,6 +365,19 @@ class Scenario:
                     f"{tip} is {d:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be within "
                     f"control.contact_tol = {control.contact_tol:g} m of every surface"
                 )
+        if k > 1:  # dependent rows: A M⁻¹ Aᵀ singular, the first step would fail in numpy
+            from hybrid_force.control.constraint import Constraint, dependent_rows
+
+            rows, _ = Constraint(list(surfaces)).normal_rows(p, self.robot.jacobian(self.q0))
+            found = dependent_rows(rows)
+            if found is not None:
+                names = ", ".join(f"surfaces[{i}]" for i in found[0])
+                raise Bad(
+                    f"Scenario.surfaces: the constraint rows n̂ᵀJ of {names} are linearly "
+                    f"dependent at q0 (singular values "
+                    f"{', '.join(f'{x:.3g}' for x in found[1])}): their contact forces are not "
+                    "determined"
+                )
 
 
 def control_steps(control: ControlSettings, sim: SimSettings) -> int:
@@ -364,14 +388,36 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
     """
     if control.rate is None:
         return 1
-    ratio = 1.0 / (control.rate * sim.dt)
-    steps = round(ratio)
-    if steps < 1 or abs(ratio - steps) > 1e-9 * ratio:
+    steps = _whole_steps(control.rate, sim.dt)
+    if steps is None:
+        ratio = _ratio(control.rate, sim.dt)
+        if ratio > 1e15:  # a rate so low that no nearby whole number is a different float
+            raise SensorError(
+                f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
+                f"sim.dt = {sim.dt:g} s: 1 / (rate · dt) = {ratio:.6g} is far beyond any run"
+            )
         fits = sorted({1.0 / (n * sim.dt) for n in (max(int(ratio), 1), int(ratio) + 1)})
+        # printed so that the text copied into control.rate is accepted (1000/3 Hz: 333.3333...)
+        shown = [checks.suggested(r, lambda x: _whole_steps(x, sim.dt) is not None) for r in fits]
         raise SensorError(
             f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
             f"sim.dt = {sim.dt:g} s (1 / (rate · dt) = {ratio:.6g}); the controller ticks every "
-            f"n plant steps: rates that fit nearby: {', '.join(f'{r:g} Hz' for r in fits)}"
+            f"n plant steps: rates that fit nearby: {', '.join(f'{r} Hz' for r in shown)}"
             + ("; it cannot be faster than the plant" if ratio < 1 else "")
         )
     return steps
+
+
+def _ratio(rate: float, dt: float) -> float:
+    """1/(rate·dt), inf where the product underflows or the quotient overflows."""
+    product = rate * dt
+    return 1.0 / product if product > 1e-300 else math.inf
+
+
+def _whole_steps(rate: float, dt: float) -> int | None:
+    """1/(rate·dt) as a whole number ≥ 1 of plant steps (to 1e-9 relative), or None."""
+    ratio = _ratio(rate, dt)
+    if not ratio <= 1e15:
+        return None
+    steps = round(ratio)
+    return None if steps < 1 or abs(ratio - steps) > 1e-9 * ratio else steps

@@ -56,10 +56,18 @@ def run_id(params: Mapping[str, Any]) -> str:
 
 
 def _check_key(key: str, option: str) -> None:
+    from hybrid_force.scenario._tables import MAX_NESTING
+
     table, dot, name = key.partition(".")
     if not (dot and table and name):
         raise SweepError(
-            f"{option} key {key!r} must be of the form table.key (e.g. control.Lambda)"
+            f"{option} key {key!r:.80} must be of the form table.key (e.g. control.Lambda)"
+        )
+    parts = key.count(".") + 1
+    if parts > MAX_NESTING:  # each part nests a table: copying the variant would recurse
+        raise SweepError(
+            f"{option} key {key[:60]!r}... has {parts} parts, more than a scenario's tables "
+            f"nest (MAX_NESTING = {MAX_NESTING}, docs/scenarios.md)"
         )
 
 

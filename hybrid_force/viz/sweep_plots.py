@@ -20,7 +20,11 @@ from hybrid_force.viz._style import _new_figure, _note, _out_dir, _save_atomic
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["PlotError", "plot_sweep"]
+__all__ = ["MAX_SWEEP_BYTES", "PlotError", "plot_sweep"]
+
+MAX_SWEEP_BYTES = 256 * 2**20
+"""The largest sweep CSV read (256 MiB): a sweep has at most 100 000 runs (MAX_RUNS), a few
+hundred bytes each; the table is held in memory to be plotted."""
 
 
 @dataclass(frozen=True)
@@ -69,10 +73,26 @@ def _to_float(s: str | None) -> float:
 def _read_sweep(csv_path: str | os.PathLike[str]) -> _Sweep:
     path = Path(csv_path)
     try:
+        size = path.stat().st_size
+        if size > MAX_SWEEP_BYTES:
+            raise PlotError(
+                f"sweep file {str(path)!r} is {size} bytes, more than the {MAX_SWEEP_BYTES} a "
+                "sweep table may have (MAX_SWEEP_BYTES)"
+            )
         with path.open(newline="", encoding="utf-8") as fh:
-            reader = csv.DictReader(fh)
-            rows = tuple(dict(r) for r in reader)
-            columns = tuple(reader.fieldnames or ())
+            reader = csv.reader(fh, strict=True)  # strict: an unclosed quote is an error
+            columns = tuple(next(reader, ()))
+            rows_list: list[dict[str, str]] = []
+            for cells in reader:
+                if not cells:
+                    continue  # a blank line, as DictReader skips it
+                if len(cells) != len(columns):  # a ragged row: not a table this plot can read
+                    raise PlotError(
+                        f"sweep file {str(path)!r}, line {reader.line_num}: {len(cells)} fields "
+                        f"where the header has {len(columns)}"
+                    )
+                rows_list.append(dict(zip(columns, cells, strict=True)))
+            rows = tuple(rows_list)
     except FileNotFoundError as exc:
         raise PlotError(f"sweep file {str(path)!r} does not exist") from exc
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
