@@ -64,10 +64,10 @@ from hybrid_force.scenario._checks import (
     _check_contact_step,
     _check_control_rate,
     _check_controller,
+    _check_law_loops,
     _check_path_followable,
     _check_path_on_surfaces,
     _check_pose_followable,
-    _check_sampled_force_loop,
     _check_start,
 )
 from hybrid_force.scenario._tables import (
@@ -245,14 +245,16 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             doc["initial"].get("seed"), start_key,
         )  # fmt: skip
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
-    _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx, tool)
+    own = controller_model if controller_model is not None else robot
+    _check_controller(own, surfaces, path, q0, control, sim, control_values, ctx, tool)
     if tool.controlled:
         configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)
     else:
         configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
-    _check_sampled_force_loop(
-        robot, surfaces, configurations, control, sim, sensor, control_values, ctx
-    )
+    _check_law_loops(
+        robot, surfaces, configurations, q0, control, sim, sensor, controller_model,
+        control_values.get("model"), ctx,
+    )  # fmt: skip
     _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
     try:
         return Scenario(

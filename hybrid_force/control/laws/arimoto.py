@@ -31,7 +31,7 @@ import numpy as np
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.base import LawContext
+from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext
 from hybrid_force.errors import GainError
 from hybrid_force.model.robot import RobotTerms
 
@@ -47,8 +47,10 @@ __all__ = [
     "arimoto_law",
     "build",
     "check_damping_gain",
+    "damping_matrix",
     "default_damping_gain",
     "free_space_law",
+    "loop_bounds",
     "make_gains",
 ]
 
@@ -444,3 +446,87 @@ def build(context: LawContext) -> LawWorkspace | ReferenceLaw:
     """The registry's factory of ``control.law = "arimoto"`` (the paper's gains, no options)."""
     law_type = ReferenceLaw if context.reference else LawWorkspace
     return law_type(context.robot.nv, context.constraint.k, context.gains)
+
+
+def damping_matrix(Kd: object, kd_rate: float, M0: np.ndarray) -> np.ndarray:
+    """(n, n) K_d as the supervisor builds it: ``control.Kd`` (a number, a diagonal or a
+    matrix), else ``kd_rate`` · M_c(q0) (the controller's M at the start)."""
+    n = M0.shape[0]
+    if Kd is None:
+        return default_damping_gain(M0, kd_rate)
+    K = np.asarray(Kd, dtype=float)
+    return K * np.eye(n) if K.ndim == 0 else (np.diag(K) if K.ndim == 1 else K)
+
+
+def loop_bounds(context: LoopContext) -> list[LoopBound]:
+    """The paper's laws' pre-run checks (``arimoto`` and ``arimoto_adaptive``): the velocity
+    loop, and in a sampled run the force loop through β.
+
+    **Velocity loop.** In free space (eq. 29–30) q̈_r = q̈_d − Λ(q̇ − q̇_d) and s = q̇ − q̇_r,
+    so the torque u = M_c q̈_r + C q̇_r + g − K_d s holds −(K_d + Λ M_c) q̇ (M_c the
+    CONTROLLER's mass matrix, K_d = κ M_c(q0) by default): with the plant's M the sampled loop
+    is q̇_{k+1} = (I − T M⁻¹(K_d + Λ M_c)) q̇_k + …, stable iff T λ_max(M⁻¹(K_d + Λ M_c)) < 2
+    (:func:`~hybrid_force.control.force_loop.velocity_loop_number`). With an exact model
+    and the default K_d that number is (κ + Λ) T; a model 25 times the plant's makes it
+    25 (κ + Λ) T = 2.75 at the paper's T = 1 ms, which the supervisor's own test
+    T λ_max(M_c⁻¹ K_d) = κ T cannot see.
+
+    **Force loop** (sampled runs only; :mod:`hybrid_force.control.force_loop`). B = β M_c A⁺
+    gives f_k = c − a f̃_k with a = β ρ(W⁻¹ A M⁻¹ M_c A⁺) (= β m / W for M_c = m M), stable
+    iff a < a*(α, d): β < a* / max_q ρ(W⁻¹ A M⁻¹ M_c A⁺) over the path. (The integral terms
+    γ e_F and K_d β A⁺ e_F are left out: they raise the bound by O(bT), so the check is on the
+    safe side.)
+    """
+    from hybrid_force.control.force_loop import (
+        force_feedthrough,
+        max_stable_gain,
+        velocity_loop_number,
+    )
+
+    s, T = context.settings, context.period
+    qs = [context.q0, *context.configurations]
+    Kd = damping_matrix(s.Kd, s.kd_rate, context.model_mass(context.q0))
+    number = max(
+        velocity_loop_number(context.plant_mass(q), Kd + s.Lambda * context.model_mass(q), T)
+        for q in qs
+    )
+    if s.Kd is None:
+        key, value = context.named("control.kd_rate", s.kd_rate)
+    else:
+        key, value = context.named("control.Kd", np.asarray(s.Kd).tolist())
+    bounds = [
+        LoopBound(
+            key,
+            value,
+            number,
+            2.0,
+            f"the sampled velocity loop q̇ ← (I − T M⁻¹(K_d + Λ M_c)) q̇ (M the plant's, M_c "
+            f"the controller's; {context.where}) diverges unless T·λ_max(M⁻¹(K_d + Λ M_c)) < 2; "
+            f"here it reaches {number:.4g} along the path",
+        )
+    ]
+    if context.sampled and s.beta > 0:
+        per_beta = 0.0
+        for q in qs:
+            A, A_c = context.rows(q), context.rows(q, context.model)
+            A_pinv = np.linalg.pinv(A_c)
+            per_beta = max(
+                per_beta,
+                force_feedthrough(context.plant_mass(q), A, context.model_mass(q) @ A_pinv),
+            )
+        a_star = max_stable_gain(context.alpha, context.delay)
+        bound = a_star / per_beta
+        bounds.append(
+            LoopBound(
+                "control.beta",
+                s.beta,
+                s.beta,
+                bound,
+                "the sampled force loop f_k = c − a f̃_k, a = β·ρ(W⁻¹ A M⁻¹ M_c A⁺) "
+                f"({context.where}) oscillates and grows for a >= {a_star:.4g}: "
+                f"beta must stay below {bound:.4g} "
+                f"(ρ(W⁻¹ A M⁻¹ M_c A⁺) up to {per_beta:.4g} along the path; docs/scenarios.md, "
+                "[sensor])",
+            )
+        )
+    return bounds
