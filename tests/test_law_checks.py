@@ -1,0 +1,157 @@
+"""Each law's own pre-run checks (issue 27, class 4), on the controller's model.
+
+The bounds are derived in each law's ``loop_bounds`` and in hybrid_force.control.force_loop;
+here the loader refuses what they refuse (exit 2 naming the key, the value and the bound),
+and short simulations, built past the loader, check each bound from both sides.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybrid_force import simulate
+from hybrid_force.cli import main
+from hybrid_force.control.force_loop import loop_radius, max_stable_loop_gain
+from hybrid_force.errors import RunFailedError, ScenarioError
+from hybrid_force.scenario.loader import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+CONTACT = ROOT / "scenarios" / "paper_contact.toml"
+
+
+def _run(scenario: object) -> object:
+    try:
+        return simulate(scenario)  # type: ignore[arg-type]
+    except RunFailedError as exc:
+        return exc.result
+
+
+def _cli(capsys: pytest.CaptureFixture[str], tmp_path: Path, *sets: str) -> tuple[int, str]:
+    args = ["run", str(CONTACT), "--quiet", "--out", str(tmp_path / "out")]
+    for s in ("sim.duration=0.05", *sets):
+        args += ["--set", s]
+    code = main(args)
+    return code, capsys.readouterr().err
+
+
+def test_the_integral_recursion_reduces_to_the_known_cases() -> None:
+    """bT = 0: the paper's a* (1 without a filter); α = 1, d = 0: Jury's a < 1 + bT/2."""
+    assert max_stable_loop_gain(0.0, 1.0, 1) == 1.0
+    assert max_stable_loop_gain(0.02, 1.0, 0) == pytest.approx(1.01, rel=1e-9)
+    a = max_stable_loop_gain(0.02, 1.0, 1)
+    assert (
+        loop_radius(a * (1 - 1e-6), 0.02, 1.0, 1) < 1.0 < loop_radius(a * (1 + 1e-6), 0.02, 1.0, 1)
+    )
+
+
+# --------------------------------------------------------------------------- (a) no inherited β
+def test_osc_hybrid_is_not_refused_for_the_paper_laws_beta_bound() -> None:
+    """A controller model 15× the plant's, force read one period late: the paper's β bound
+    W/(m) = 0.124/15 < β = 0.01 refuses arimoto (its default β), while osc_hybrid, which has
+    no β, loads (its own loops are stable: T·15·K_v = 0.6 < 2, force_p = 0)."""
+    sets = {"sensor.force_delay": 1, "sim.model_mass_factor": 15.0}
+    with pytest.raises(
+        ScenarioError, match=r"control\.beta = 0\.01: .*beta must stay below 0\.008"
+    ):
+        load_scenario(CONTACT, sets)
+    sc = load_scenario(CONTACT, {**sets, "control.law": "osc_hybrid"})
+    assert sc.control.law == "osc_hybrid"
+
+
+# --------------------------------------------------------------------------- (b) force gains
+@pytest.mark.parametrize(("law", "key"), [("osc_hybrid", "force_p"), ("raibert_craig", "kp")])
+def test_a_force_gain_of_1_5_is_refused_when_the_force_is_sampled(
+    law: str, key: str, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    code, err = _cli(
+        capsys, tmp_path, f"control.law={law}", f"control.{law}.{key}=1.5",
+        "sim.model_mass_factor=2.0", "sensor.force_delay=1",
+    )  # fmt: skip
+    assert code == 2
+    assert f"paper_contact.toml: control.{law}.{key} = 1.5:" in err
+    assert "unless " + key + " < 1.0" in err and "oscillates and grows" in err
+    assert not (tmp_path / "out" / "summary.json").exists()
+
+
+@pytest.mark.parametrize(("law", "key"), [("osc_hybrid", "force_p"), ("raibert_craig", "kp")])
+def test_with_the_exact_loop_a_force_gain_of_1_5_runs_without_bouncing(law: str, key: str) -> None:
+    """Ideal sensing at the plant's rate: u = u0 + B f is solved with the plant's f, so
+    (1 + k_P)(f − f_d) = … has no recursion at all: no bound on k_P, with any model mass
+    (B = k_P Aᵀ is a force, applied as one). The run stays on the surface."""
+    sc = load_scenario(
+        CONTACT,
+        {"control.law": law, f"control.{law}.{key}": 1.5, "sim.model_mass_factor": 2.0,
+         "sim.duration": 1.0},
+    )  # fmt: skip
+    r = simulate(sc)
+    kinds = [e["kind"] for e in r.meta["events"]]
+    assert "release" not in kinds and r.meta["status"] == "ok"
+    assert float(np.abs(r.f - r.f_d)[r.t >= 0.5].max()) < 0.1
+
+
+# --------------------------------------------------------------------------- (c) by simulation
+@pytest.mark.parametrize(("factor", "settles"), [(0.95, True), (1.05, False)])
+def test_the_force_p_bound_brackets_the_runs(factor: float, settles: bool) -> None:
+    """osc_hybrid on section 6.3, force read one period late: k_P just inside the derived
+    bound settles, just outside the force oscillates and grows until the tool leaves."""
+    bound = max_stable_loop_gain(20.0 * 1e-3, 1.0, 1)  # k_I = 20 1/s, T = 1 ms, ρ = 1
+    base = load_scenario(
+        CONTACT, {"control.law": "osc_hybrid", "sensor.force_delay": 1, "sim.duration": 0.6}
+    )
+    options = {"osc_hybrid": {"force_p": factor * bound}}
+    r = _run(dataclasses.replace(base, control=dataclasses.replace(base.control, options=options)))
+    error = np.abs(r.f - r.f_d)[r.t >= 0.4]  # type: ignore[attr-defined]
+    if settles:
+        assert r.t[-1] == pytest.approx(0.6) and float(error.max()) < 1e-2  # type: ignore[attr-defined]
+    else:
+        assert r.t[-1] < 0.6 or float(error.max()) > 1.0  # type: ignore[attr-defined]
+
+
+def test_the_raibert_craig_kp_bound_is_the_same_recursion() -> None:
+    """Raibert–Craig's kp enters as osc_hybrid's force_p does (B = k_p Aᵀ, integral k_i =
+    (1 + k_p) γ): 1.05 × its bound, computed with its own k_i, oscillates and leaves."""
+    kp = 1.0
+    for _ in range(5):  # k_i depends on k_p: the fixed point of the bound
+        kp = max_stable_loop_gain((1.0 + kp) * 20.0 * 1e-3, 1.0, 1)
+    base = load_scenario(
+        CONTACT, {"control.law": "raibert_craig", "sensor.force_delay": 1, "sim.duration": 0.6}
+    )
+    options = {"raibert_craig": {"kp": 1.05 * kp, "ki": (1.0 + kp) * 20.0}}
+    r = _run(dataclasses.replace(base, control=dataclasses.replace(base.control, options=options)))
+    error = np.abs(r.f - r.f_d)[r.t >= 0.4]  # type: ignore[attr-defined]
+    assert r.t[-1] < 0.6 or float(error.max()) > 1.0  # type: ignore[attr-defined]
+
+
+# --------------------------------------------------------------------------- the velocity loop
+def test_a_controller_25_times_the_plants_mass_is_refused(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """T (κ + Λ) m = 1e-3 · 110 · 25 = 2.75 ≥ 2, though T·λ_max(M_c⁻¹K_d) = κT = 0.1."""
+    code, err = _cli(capsys, tmp_path, "sim.model_mass_factor=25")
+    assert code == 2
+    assert "paper_contact.toml: sim.model_mass_factor = 25.0:" in err
+    assert "T·λ_max(M⁻¹(K_d + Λ M_c)) < 2; here it reaches 2.75" in err
+
+
+@pytest.mark.parametrize(("mass_factor", "stable"), [(17.0, True), (19.5, False)])
+def test_the_velocity_loop_bound_brackets_the_runs(mass_factor: float, stable: bool) -> None:
+    """The bound is m < 2 / (T (κ + Λ)) = 18.2: at 17 the run goes on (the loader accepts
+    it), at 19.5 (refused by the loader, run here past it) it diverges within 0.1 s."""
+    sets = {"sim.duration": 0.1}
+    if stable:
+        load_scenario(CONTACT, {**sets, "sim.model_mass_factor": mass_factor})
+    else:
+        with pytest.raises(ScenarioError, match=r"sim\.model_mass_factor = 19\.5"):
+            load_scenario(CONTACT, {**sets, "sim.model_mass_factor": mass_factor})
+    base = load_scenario(CONTACT, sets)
+    sc = dataclasses.replace(
+        base, control=dataclasses.replace(base.control, mass_factor=mass_factor)
+    )
+    r = _run(sc)
+    assert (r.meta["status"] == "ok") is stable  # type: ignore[attr-defined]
+    if not stable:
+        assert r.meta["reason"] == "diverged"  # type: ignore[attr-defined]
