@@ -76,8 +76,10 @@ from hybrid_force.scenario._tables import (
     _TABLES,
     _TOP,
     _apply_overrides,
+    _check_acting,
     _check_table,
     _Context,
+    _drop_never_acting,
     _suggest,
     parse_override,
     xacro_argument_text,
@@ -228,8 +230,11 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
     sim_values = _check_table(ctx, "sim", doc.get("sim", {}), _SIM)
+    _check_acting(doc, ctx)  # a key with no effect here: refused (or warned about and dropped)
+    control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
     sim = _sim_settings(sim_values, ctx)
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
+    _drop_never_acting(doc, ctx)
     sensor = _sensor_settings(doc.get("sensor", {}), ctx)
     contact = _contact_settings(doc.get("contact", {}), sim, ctx)
     controller_model = _controller_model(control_values, robot, file, ctx)

@@ -45,6 +45,7 @@ from hybrid_force.sim.run_checks import (
 from hybrid_force.sim.settings import Scenario
 
 if TYPE_CHECKING:  # annotations only
+    from hybrid_force.control.supervisor import HybridController
     from hybrid_force.sim.control_side import ControlSide
     from hybrid_force.sim.plant import Plant
 
@@ -85,22 +86,7 @@ def run_meta(sc: Scenario, ctrl: ControlSide, k: int, nq: int) -> dict:
             # the running law's own gains and settings (the paper's K_d, Λ, β, γ for arimoto)
             "settings": _jsonable(law.law.info()) if law is not None else None,
         },
-        "gains": None
-        if law is None
-        else {
-            "Kd": law.gains.Kd.tolist(),
-            "Lambda": law.gains.Lambda,
-            "beta": law.gains.beta,
-            "gamma": law.gains.gamma,
-            "f_d": law.f_d_contact.tolist(),
-            "clik_gain": sc.control.clik_gain,
-            "max_dist": sc.control.max_dist,
-            "contact_tol": sc.control.contact_tol,
-            "P": sc.control.P,
-            "approach_rate": law.approach_rate,
-            "mass_factor": sc.control.mass_factor,
-            "supervisor": sc.control.supervisor,
-        },
+        "gains": None if law is None else _gains_meta(sc, law),
         "settings": {
             "dt": sim.dt,
             "duration": sim.duration,
@@ -114,10 +100,38 @@ def run_meta(sc: Scenario, ctrl: ControlSide, k: int, nq: int) -> dict:
             "seed": sim.seed,
         },
         "sensor": sc.sensor.to_dict(),
-        "contact": sc.contact.to_dict(),
-        "tool": sc.tool.to_dict(),
+        "contact": _acting(sc.contact.to_dict(), _contact_inert(sc)),
+        "tool": sc.tool.to_dict() if sc.tool.controlled else {"orientation": "free"},
         "versions": _versions(),
     }
+
+
+def _contact_inert(sc: Scenario) -> tuple[str, ...]:
+    """The [contact] settings that have no effect in this run (the loader's rules)."""
+    inert = () if sc.contact.compliant else ("stiffness", "damping", "exponent")
+    return inert + (("friction_velocity",) if sc.contact.friction == 0.0 else ())
+
+
+def _acting(settings: dict, inert: tuple[str, ...]) -> dict:
+    return {k: v for k, v in settings.items() if k not in inert}
+
+
+def _gains_meta(sc: Scenario, law: HybridController) -> dict:
+    """The controller's gains and supervisor settings that this run reads: the paper's K_d,
+    Λ, β, γ only for a law that reads them (``LawSpec.gains``), the approach settings only
+    with the supervisor; ``control.P``, which no configuration reads, never (issue 27)."""
+    from hybrid_force.control.laws.base import law_spec
+
+    c, g = sc.control, law.gains
+    spec = law_spec(c.law)
+    options = c.options.get(c.law, {})
+    paper = {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
+    out: dict = {k: v for k, v in paper.items() if spec.reads(k, options)}
+    out.update(f_d=law.f_d_contact.tolist(), clik_gain=c.clik_gain, contact_tol=c.contact_tol)
+    if c.supervisor:
+        out.update(max_dist=c.max_dist, approach_rate=law.approach_rate)
+    out.update(mass_factor=c.mass_factor, supervisor=c.supervisor)
+    return out
 
 
 def _path_meta(path: Path) -> dict:
