@@ -26,6 +26,7 @@ from hybrid_force import (
     simulate,
 )
 from hybrid_force.control.supervisor import CONTACT
+from hybrid_force.errors import RunWarning
 
 
 def _contact_scenario(robot, duration: float, **sim) -> Scenario:
@@ -309,8 +310,10 @@ def test_wrong_branch_is_detected_recorded_and_warned(rtr, monkeypatch) -> None:
         control=ControlSettings(supervisor=False),
         sim=SimSettings(duration=2.5),
     )
-    with pytest.warns(RuntimeWarning, match="branch"):
+    with pytest.warns(RunWarning, match="branch"):  # the run's one channel of warnings
         r = simulate(sc)
+    note = next(w for w in r.meta["warnings"] if "branch" in w)
+    assert note.startswith("at t = ") and "had not halved since t = " in note
     branch = [e for e in r.meta["events"] if e["kind"] == "branch"]
     assert len(branch) == 1 and 1.0 <= branch[0]["t"] <= 2.5
     assert np.linalg.norm(r.p[-1] - r.p_d[-1]) > 1.0  # the error really persists

@@ -32,6 +32,7 @@ from hybrid_force.errors import (
 from hybrid_force.events import Event
 from hybrid_force.geometry.paths import Path, PathParameterError
 from hybrid_force.model.robot import Robot
+from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
 from hybrid_force.sim.record import Record
 from hybrid_force.sim.run_checks import (
@@ -40,6 +41,7 @@ from hybrid_force.sim.run_checks import (
     joint_names,
     limit_events,
     limit_violations,
+    run_behaviour,
     saturated_time,
 )
 from hybrid_force.sim.settings import Scenario
@@ -170,7 +172,15 @@ def run_failure(exc: BaseException, name: str, t: float) -> RunFailedError:
 
 
 def finish_result(
-    log: Record, n: int, meta: dict, k: int, robot: Robot, plant: Plant, warn: bool = True
+    log: Record,
+    n: int,
+    meta: dict,
+    k: int,
+    robot: Robot,
+    plant: Plant,
+    warn: bool = True,
+    task_f_d: np.ndarray | None = None,
+    extra: Sequence[str] = (),
 ) -> Result:
     """The Result of the first n samples, with what the run must say about itself in meta.
 
@@ -179,8 +189,13 @@ def finish_result(
     torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
     ``saturated_time`` ({joint: s} held at an effort limit, when the plant enforces them),
     ``friction_energy`` and ``damping_energy`` [J] (dissipated by the contact),
-    ``contact_at_end``, ``lost_contact``, ``left_at`` and ``warnings`` (one line each, also
-    issued as Python warnings with ``warn``: a failed run reports its failure, not them).
+    ``contact_at_end``, ``lost_contact``, ``left_at``, ``behaviour`` (the flags of
+    :func:`~hybrid_force.sim.run_checks.run_behaviour`: touched, chatter, force_settled; for a
+    run that finished, with ``task_f_d`` (k,) [N] the task's desired force) and ``warnings``:
+    the one channel of what the run must say about itself, one line each, in this order: the
+    limits and the contact outcome, ``extra`` (the Python warnings the run raised, from
+    :func:`~hybrid_force.sim.run_checks.warning_notes`), what it did at the surface; issued
+    as RunWarnings with ``warn`` (a failed run reports its failure, not them).
     """
     names = joint_names(robot)
     lower, upper = robot.position_limits
@@ -193,13 +208,21 @@ def finish_result(
     if plant.effort is not None:
         saturated = saturated_time(names, plant.effort, u_cmd, float(meta["settings"]["dt"]))
     outcome = contact_outcome(plant.ever_in_contact, plant.in_contact, meta.get("events", []))
-    notes = describe(limits, outcome, saturated)
+    notes = [*describe(limits, outcome, saturated), *extra]
+    behaviour: dict = {}
+    if warn and task_f_d is not None:
+        behaviour, surface_notes = run_behaviour(
+            log.t[:n], log.f[:n], np.asarray(task_f_d, dtype=float), log.phi[:n],
+            log.phase[:n] == CONTACT,
+        )  # fmt: skip
+        notes += surface_notes
     for note in notes if warn else ():
         warnings.warn(f"run '{meta.get('name')}': {note}", RunWarning, stacklevel=3)
     events = merge_events(meta.get("events", []), limit_events(limits))
     meta.update(
-        limits=limits, saturated_time=saturated or {}, warnings=notes, events=events, **outcome
-    )
+        limits=limits, saturated_time=saturated or {}, warnings=notes, events=events,
+        behaviour=behaviour, **outcome,
+    )  # fmt: skip
     # [J] dissipated by the plant's friction and compliant damping (docs/contact.md)
     meta.update(friction_energy=plant.friction_energy, damping_energy=plant.damping_energy)
     return log.result(n, meta, k)
