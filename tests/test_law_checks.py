@@ -19,6 +19,9 @@ from hybrid_force.control.force_loop import loop_radius, max_stable_loop_gain
 from hybrid_force.errors import RunFailedError, ScenarioError
 from hybrid_force.scenario.loader import load_scenario
 
+# the runs past a bound chatter and miss f_d: what they warn about is tests/test_run_warnings.py
+pytestmark = pytest.mark.filterwarnings("ignore::hybrid_force.errors.RunWarning")
+
 ROOT = Path(__file__).resolve().parents[1]
 CONTACT = ROOT / "scenarios" / "paper_contact.toml"
 
@@ -155,3 +158,20 @@ def test_the_velocity_loop_bound_brackets_the_runs(mass_factor: float, stable: b
     assert (r.meta["status"] == "ok") is stable  # type: ignore[attr-defined]
     if not stable:
         assert r.meta["reason"] == "diverged"  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize(("gamma", "stable"), [(2050.0, True), (2250.0, False)])
+def test_the_force_integral_bound_brackets_the_runs(gamma: float, stable: bool) -> None:
+    """The paper's law, exact loop: (1 + a) f = c − b E with E advanced explicitly, so
+    b T < 2 (1 + a), b ≈ γ, a = β/W = 0.08 on section 6.3: γ < 2153 1/s. Just inside the
+    force settles; just outside it oscillates until the tool leaves the surface."""
+    sets = {"sim.duration": 0.3, "control.gamma": gamma}
+    if stable:
+        load_scenario(CONTACT, sets)
+    else:
+        with pytest.raises(ScenarioError, match=r"control\.gamma = 2250\.0: .*b·T < 2\.161"):
+            load_scenario(CONTACT, sets)
+    base = load_scenario(CONTACT, {"sim.duration": 0.3})
+    r = _run(dataclasses.replace(base, control=dataclasses.replace(base.control, gamma=gamma)))
+    error = float(np.abs(r.f - r.f_d)[r.t >= 0.2].max())  # type: ignore[attr-defined]
+    assert (error < 1e-3) if stable else (r.meta["status"] == "failed" and error > 100.0)  # type: ignore[attr-defined]

@@ -368,21 +368,22 @@ def run_behaviour(
     """What the run did at the surface, from its recorded trajectory: the flags a sweep can
     filter on and one line per thing the run did not do as its summary would suggest.
 
+    The notes: the tool never touched (f_d > 0 and never on the surface), with its closest
+    approach; it chattered (at least :data:`CHATTER_PAIRS` releases each followed by a touch
+    after the force first settled within :func:`force_tolerance`, else after the first
+    touch), with their count and times; the force error never settled (its RMS over the
+    last :data:`FINAL_FRACTION` of the run above :func:`force_tolerance`).
+
     Args:
-        t: (N,) [s]. f: (N, k) the plant's contact force [N]. f_d: (k,) the task's desired
-            force [N] (``control.f_d``). distance: (N, k) the tip's distance to each surface
-            [m]. in_contact: (N,) the plant's contact state at each sample.
+        t: (N,) [s].
+        f: (N, k) the plant's contact force [N].
+        f_d: (k,) the task's desired force [N] (``control.f_d``).
+        distance: (N, k) the tip's distance to each surface [m].
+        in_contact: (N,) the plant's contact state at each sample.
 
     Returns:
-        ``{"touched": bool, "chatter": int, "force_settled": bool | None}`` and the notes:
-
-        * never touched (f_d > 0 and the tool never on the surface): the closest approach;
-        * chatter: ≥ :data:`CHATTER_PAIRS` releases each followed by a touch after the force
-          first settled (|f − f_d| within :func:`force_tolerance` in contact; the first
-          touch when it never did), with their count and times;
-        * the force error never settled: its RMS over the last :data:`FINAL_FRACTION` of the
-          run above :func:`force_tolerance` (``force_settled`` False; None without contact
-          or f_d).
+        ``{"touched": bool, "chatter": int, "force_settled": bool | None}`` (None without
+        contact or f_d) and the notes, one line each.
     """
     notes: list[str] = []
     n = t.shape[0]

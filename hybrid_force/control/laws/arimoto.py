@@ -24,6 +24,7 @@ one finds V̇ = −sᵀK_d s − βγ e_Fᵀe_F (eq. 16) for any row scaling, be
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -476,9 +477,18 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     iff a < a*(α, d): β < a* / max_q ρ(W⁻¹ A M⁻¹ M_c A⁺) over the path. (The integral terms
     γ e_F and K_d β A⁺ e_F are left out: they raise the bound by O(bT), so the check is on the
     safe side.)
+
+    **Force integral.** e_F = ∫(f − f_d) dt is advanced explicitly (the supervisor's, with the
+    force of the step, or the reading of the tick before when sampled), and f answers it
+    through −Aᵀ γ e_F and −K_d s ∋ K_d β A⁺ e_F: f ∋ −b e_F with b = γ ρ(W⁻¹ A M⁻¹ A_cᵀ) +
+    β ρ(W⁻¹ A M⁻¹ K_d A⁺). With the exact loop (1 + a) f = c − b E_k, so E_(k+1) =
+    (1 − bT/(1 + a)) E_k + …: stable iff bT < 2 (1 + a);
+    sampled, bT below :func:`~hybrid_force.control.force_loop.largest_integral_step` (the
+    proportional part left out: on the safe side).
     """
     from hybrid_force.control.force_loop import (
         force_feedthrough,
+        largest_integral_step,
         max_stable_gain,
         velocity_loop_number,
     )
@@ -486,11 +496,15 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     s, T = context.settings, context.period
     qs = [context.q0, *context.configurations]
     Kd = damping_matrix(s.Kd, s.kd_rate, context.model_mass(context.q0))
-    number = max(
-        velocity_loop_number(context.plant_mass(q), Kd + s.Lambda * context.model_mass(q), T)
-        for q in qs
-    )
-    if s.Kd is None:
+    kd_part = lambda_part = number = 0.0
+    for q in qs:
+        M, M_c = context.plant_mass(q), context.model_mass(q)
+        number = max(number, velocity_loop_number(M, Kd + s.Lambda * M_c, T))
+        kd_part = max(kd_part, velocity_loop_number(M, Kd, T))
+        lambda_part = max(lambda_part, velocity_loop_number(M, s.Lambda * M_c, T))
+    if lambda_part > kd_part:  # Λ M_c carries most of the loop
+        key, value = context.named("control.Lambda", s.Lambda)
+    elif s.Kd is None:
         key, value = context.named("control.kd_rate", s.kd_rate)
     else:
         key, value = context.named("control.Kd", np.asarray(s.Kd).tolist())
@@ -505,15 +519,36 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
             f"here it reaches {number:.4g} along the path",
         )
     ]
+    # the force integral: f ∋ −b e_F, b = γ ρ(W⁻¹ A M⁻¹ Aᵀ) + β ρ(W⁻¹ A M⁻¹ K_d A⁺), and the
+    # proportional a = β ρ(W⁻¹ A M⁻¹ M_c A⁺) per unit β
+    b, per_beta, least_per_beta = 0.0, 0.0, math.inf
+    for q in qs:
+        M, A, A_c = context.plant_mass(q), context.rows(q), context.rows(q, context.model)
+        A_pinv = np.linalg.pinv(A_c)
+        b = max(
+            b,
+            s.gamma * force_feedthrough(M, A, A_c.T)
+            + s.beta * force_feedthrough(M, A, Kd @ A_pinv),
+        )
+        a_q = force_feedthrough(M, A, context.model_mass(q) @ A_pinv)
+        per_beta, least_per_beta = max(per_beta, a_q), min(least_per_beta, a_q)
+    if context.sampled:
+        step = largest_integral_step(context.alpha, context.delay)
+    else:  # exact: (1 + a) f = c − b E, E_(k+1) = (1 − bT/(1 + a)) E_k
+        step = 2.0 * (1.0 + s.beta * least_per_beta)
+    bounds.append(
+        LoopBound(
+            "control.gamma",
+            s.gamma,
+            b * T,
+            step,
+            f"the force integral E_(k+1) = E_k + T (f − f_d) with f ∋ −b E, b = γ ρ(W⁻¹ A M⁻¹ Aᵀ) "
+            f"+ β ρ(W⁻¹ A M⁻¹ K_d A⁺) = {b:.4g} 1/s ({context.where}) oscillates and grows "
+            f"unless b·T < {step:.4g}; here b·T = {b * T:.4g}: gamma must stay below about "
+            f"{s.gamma * step / (b * T):.4g} 1/s",
+        )
+    )
     if context.sampled and s.beta > 0:
-        per_beta = 0.0
-        for q in qs:
-            A, A_c = context.rows(q), context.rows(q, context.model)
-            A_pinv = np.linalg.pinv(A_c)
-            per_beta = max(
-                per_beta,
-                force_feedthrough(context.plant_mass(q), A, context.model_mass(q) @ A_pinv),
-            )
         a_star = max_stable_gain(context.alpha, context.delay)
         bound = a_star / per_beta
         bounds.append(
