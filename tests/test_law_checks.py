@@ -175,3 +175,43 @@ def test_the_force_integral_bound_brackets_the_runs(gamma: float, stable: bool) 
     r = _run(dataclasses.replace(base, control=dataclasses.replace(base.control, gamma=gamma)))
     error = float(np.abs(r.f - r.f_d)[r.t >= 0.2].max())  # type: ignore[attr-defined]
     assert (error < 1e-3) if stable else (r.meta["status"] == "failed" and error > 100.0)  # type: ignore[attr-defined]
+
+
+# --------------------------------------------------------------------------- control.model
+def _scaled_rtr(tmp_path: Path, factor: float) -> Path:
+    """The RTR URDF with every link's mass and inertia × factor."""
+    import re
+
+    text = (ROOT / "robots" / "rtr.urdf").read_text()
+    pattern = re.compile(r'((?:value|ixx|iyy|izz|ixy|ixz|iyz)=)"([-0-9.eE+]+)"')
+    text = pattern.sub(lambda m: f'{m.group(1)}"{float(m.group(2)) * factor!r}"', text)
+    path = tmp_path / f"rtr_x{factor:g}.urdf"
+    path.write_text(text)
+    return path
+
+
+def test_the_checks_use_control_model_not_the_plant(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A controller model 25× the plant's (control.model) is refused by the velocity loop;
+    one 2× halves the paper's sampled β bound (0.124 → 0.062): β = 0.1 loads with the plant's
+    own model and is refused with the heavy one, naming the key and the bound."""
+    heavy = _scaled_rtr(tmp_path, 25.0)
+    code, err = _cli(capsys, tmp_path, f"control.model={heavy}")
+    assert code == 2 and f'control.model = "{heavy}": ' in err
+    assert "here it reaches 2.75" in err
+    sets = {"sensor.force_delay": 1, "control.beta": 0.1, "sim.duration": 0.1}
+    load_scenario(CONTACT, sets)
+    double = _scaled_rtr(tmp_path, 2.0)
+    with pytest.raises(
+        ScenarioError, match=r"control\.beta = 0\.1: .*beta must stay below 0\.06207"
+    ):
+        load_scenario(CONTACT, {**sets, "control.model": str(double)})
+    # osc_hybrid's force_p bound does not depend on the model's masses (B = k_P Aᵀ is a force)
+    code, err = _cli(
+        capsys, tmp_path, f"control.model={double}", "control.law=osc_hybrid",
+        "control.osc_hybrid.force_p=1.5", "sensor.force_delay=1",
+    )  # fmt: skip
+    assert (
+        code == 2 and "control.osc_hybrid.force_p = 1.5: " in err and "unless force_p < 1.0" in err
+    )
