@@ -107,6 +107,8 @@ def test_control_P_is_warned_about_and_left_out_of_the_run(
         line.startswith("warning: ")
         and "control.P = 0.4 has no effect in any configuration" in line
     )
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["warnings"][0] == line.removeprefix("warning: ") and summary["n_warnings"] == 1
     result = load_result(tmp_path / "out" / "result.npz")
     assert "P" not in result.meta["scenario"]["control"]
     assert "P" not in result.meta["gains"]
