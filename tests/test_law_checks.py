@@ -65,6 +65,16 @@ def test_osc_hybrid_is_not_refused_for_the_paper_laws_beta_bound() -> None:
     assert sc.control.law == "osc_hybrid"
 
 
+def test_a_law_without_K_d_is_not_held_to_the_K_d_step_check() -> None:
+    """At a 100 Hz controller the paper's default K_d = 100 M(q0) fails T·λ_max(M_c⁻¹K_d) =
+    1 > 0.5 (tests/test_scenario.py); osc_hybrid does not read K_d, and its own loops pass
+    (T·K_v = 0.4 < 2, k_I T = 0.2 below the integral's bound)."""
+    with pytest.raises(ScenarioError, match=r"control\.Kd = "):
+        load_scenario(CONTACT, {"control.rate": 100})
+    sc = load_scenario(CONTACT, {"control.rate": 100, "control.law": "osc_hybrid"})
+    assert sc.control.rate == 100
+
+
 # --------------------------------------------------------------------------- (b) force gains
 @pytest.mark.parametrize(("law", "key"), [("osc_hybrid", "force_p"), ("raibert_craig", "kp")])
 def test_a_force_gain_of_1_5_is_refused_when_the_force_is_sampled(
