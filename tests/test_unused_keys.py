@@ -47,6 +47,13 @@ def _run(
          "without the key that replaces it (Kd"),
         (["control.approach_rate=5"], "control.approach_rate", "5", "control.supervisor = true"),
         (["control.max_dist=0.1"], "control.max_dist", "0.1", "control.supervisor = true"),
+        (["contact.model=compliant", "sim.dt=1e-4", "sim.baumgarte_alpha=40"],
+         "sim.baumgarte_alpha", "40", 'contact.model = "rigid"'),
+        (["contact.model=compliant", "sim.dt=1e-4", "sim.unilateral=false"],
+         "sim.unilateral", "false", 'contact.model = "rigid"'),
+        (["control.law=impedance", "control.impedance.force_tracking=false",
+          "control.impedance.force_rate=5"], "control.impedance.force_rate", "5",
+         "control.impedance.force_tracking = true"),
     ],
 )  # fmt: skip
 def test_a_key_without_effect_is_refused(

@@ -491,11 +491,21 @@ def xacro_argument_text(value: object) -> str:
 
 
 # --- keys that act only in some configurations ----------------------------------------------------
+def _parent(doc: Mapping[str, Any], dotted: str) -> tuple[Mapping[str, Any] | None, str]:
+    """The table holding the last key of ``"table.key"`` or ``"table.sub.key"`` (None when a
+    table on the way is absent or not a table), and that key."""
+    *tables, key = dotted.split(".")
+    node: object = doc
+    for name in tables:
+        node = node.get(name) if isinstance(node, Mapping) else None
+    return (node if isinstance(node, Mapping) else None), key
+
+
 def _value(doc: Mapping[str, Any], dotted: str, default: object = None) -> object:
-    """``doc[table][key]`` of a ``"table.key"`` (the default when the table or key is absent)."""
-    table, _, key = dotted.partition(".")
-    node = doc.get(table)
-    return node.get(key, default) if isinstance(node, Mapping) else default
+    """``doc[table][key]`` of a ``"table.key"`` (the default when a table or the key is
+    absent)."""
+    node, key = _parent(doc, dotted)
+    return node.get(key, default) if node is not None else default
 
 
 def _law(doc: Mapping[str, Any]) -> str:
@@ -561,6 +571,14 @@ def _compliant(doc: Mapping[str, Any]) -> bool:
     return _value(doc, "contact.model", "rigid") == "compliant"
 
 
+def _rigid(doc: Mapping[str, Any]) -> bool:
+    return not _compliant(doc)
+
+
+def _force_tracking(doc: Mapping[str, Any]) -> bool:
+    return _value(doc, "control.impedance.force_tracking", True) is not False
+
+
 def _friction(doc: Mapping[str, Any]) -> bool:
     mu = _value(doc, "contact.friction", 0.0)
     return not isinstance(mu, (int, float)) or isinstance(mu, bool) or mu != 0
@@ -585,6 +603,13 @@ _ACTS_WHEN: tuple[_ActsWhen, ...] = (
         for key in ("axis", "tilt", "tilt_axis", "roll")
     ),
     _ActsWhen("trajectory.projection_tol", _world_waypoints, 'trajectory.frame = "world"'),
+    *(
+        _ActsWhen(f"sim.{key}", _rigid, 'contact.model = "rigid" (the default)')
+        for key in ("baumgarte_alpha", "baumgarte_beta", "unilateral")
+    ),
+    _ActsWhen(
+        "control.impedance.force_rate", _force_tracking, "control.impedance.force_tracking = true"
+    ),
     *(
         _ActsWhen(f"control.{key}", _supervised, "control.supervisor = true")
         for key in ("approach_rate", "max_dist")
@@ -614,9 +639,8 @@ def _check_acting(doc: Mapping[str, Any], ctx: _Context) -> None:
     """Refuse a key of :data:`_ACTS_WHEN` given where it has no effect (naming the file, the
     key, its value and what would make it act)."""
     for rule in _ACTS_WHEN:
-        table, _, key = rule.key.partition(".")
-        node = doc.get(table)
-        if isinstance(node, Mapping) and key in node and not rule.acts(doc):
+        node, key = _parent(doc, rule.key)
+        if node is not None and key in node and not rule.acts(doc):
             raise ctx.error(
                 rule.key,
                 node[key],
