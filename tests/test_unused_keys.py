@@ -133,6 +133,10 @@ def test_the_meta_records_only_what_the_run_used(
     assert meta["tool"] == {"orientation": "free"}
     summary = json.loads((tmp_path / "osc" / "summary.json").read_text())
     assert summary["status"] == "ok"
+    code, err = _run(capsys, tmp_path / "soft", "contact.model=compliant", "sim.dt=1e-4")
+    meta = load_result(tmp_path / "soft" / "result.npz").meta
+    assert {"stiffness", "damping", "exponent"} <= set(meta["contact"])
+    assert not {"baumgarte_alpha", "baumgarte_beta", "unilateral"} & set(meta["settings"])
     code, err = _run(capsys, tmp_path / "paper")
     paper = load_result(tmp_path / "paper" / "result.npz").meta["gains"]
     assert {"Kd", "Lambda", "beta", "gamma"} <= set(paper) and "P" not in paper
