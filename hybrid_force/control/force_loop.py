@@ -1,4 +1,9 @@
-"""Stability of the sampled force loop: the largest β a sampled controller may use.
+"""Stability of the sampled force loop: the largest β a sampled controller may use, and the
+recursions every law's own pre-run checks use (``loop_bounds`` in each law's module, through
+:func:`~hybrid_force.control.laws.base.law_loop_bounds`): the force loop with an integral
+(:func:`loop_radius`, :func:`max_stable_loop_gain`, :func:`largest_integral_step`), the
+feed-through of a force term against the plant (:func:`force_feedthrough`) and the sampled
+velocity loop (:func:`velocity_loop_number`).
 
 With ideal sensing at the plant's rate the hybrid law's command u = u0 + B f is resolved with
 the plant exactly (:mod:`hybrid_force.control.laws.arimoto`). A sampled controller uses
