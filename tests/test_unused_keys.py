@@ -155,3 +155,18 @@ def test_no_shipped_scenario_sets_an_inert_key(path: Path) -> None:
     for dotted in _NEVER_ACTS:
         table, _, key = dotted.partition(".")
         assert key not in doc.get(table, {})
+
+
+def test_compare_gives_each_law_the_overrides_that_act_with_it() -> None:
+    """``compare --set`` is for every law: a law's own table and the paper's gains go only to
+    the runs that read them, which the loader would otherwise refuse."""
+    from hybrid_force.studies.compare import _variants
+
+    overrides = {"control.osc_hybrid.omega": 30.0, "control.beta": 0.02, "sim.duration": 1.0}
+    arimoto, osc = _variants(["arimoto", "osc_hybrid"], overrides)
+    assert arimoto == {"control.law": "arimoto", "control.beta": 0.02, "sim.duration": 1.0}
+    assert osc == {
+        "control.law": "osc_hybrid",
+        "control.osc_hybrid.omega": 30.0,
+        "sim.duration": 1.0,
+    }
