@@ -242,7 +242,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides[key] = value
     if args.trust_xacro:
         overrides["robot.xacro_trust"] = True
-    scenario = load_scenario(args.scenario, overrides)
+    with warnings.catch_warnings(record=True) as loaded:  # shown now, kept in the summary
+        warnings.simplefilter("always", HybridForceWarning)
+        scenario = load_scenario(args.scenario, overrides)
+    _show_warnings(loaded)
+    load_notes = [
+        _one_line(w.message) for w in loaded if issubclass(w.category, HybridForceWarning)
+    ]
     output = RunOutput(
         args.out if args.out is not None else Path("runs") / scenario.name,
         inputs=[Path(args.scenario)],
@@ -264,8 +270,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 progress.close()
         _show_warnings(caught)
         if failure is not None:
+            if failure.result is not None and load_notes:
+                failure.result = _with_notes(failure.result, load_notes)
             return _run_failed(failure, output, args)
-        summary = output.save(result)
+        summary = output.save(_with_notes(result, load_notes))
         if not args.quiet:
             _print_summary(summary, output.folder, sys.stdout)
         if args.plot:
@@ -279,6 +287,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         replay = _import_feature("hybrid_force.viz.replay", "the 3D viewer (--view)")
         replay.serve(result)
     return 0
+
+
+def _with_notes(result: Any, notes: Sequence[str]) -> Any:
+    """The result with the scenario's load warnings first in its one list of warnings
+    (summary.json ``warnings``, ``n_warnings``)."""
+    if not notes:
+        return result
+    return result.with_meta(warnings=[*notes, *(result.meta.get("warnings") or [])])
 
 
 def _show_warnings(caught: Sequence[warnings.WarningMessage]) -> None:

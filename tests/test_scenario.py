@@ -141,9 +141,11 @@ def test_defaults_are_the_dataclass_defaults(tmp_path: Path) -> None:
 def test_every_key_maps_to_the_settings(tmp_path: Path) -> None:
     text = BASE.replace(
         "[control]\nsupervisor = false\nf_d = 10.0\n",
-        "[control]\nsupervisor = false\nf_d = 12.5\nKd = [100, 200, 300]\nkd_rate = 50\n"
+        # supervised: max_dist and approach_rate act only then; kd_rate only without Kd and P
+        # never (tests/test_unused_keys.py)
+        "[control]\nsupervisor = true\nf_d = 12.5\nKd = [100, 200, 300]\n"
         "Lambda = 8\nbeta = 0.02\ngamma = 15\nclik_gain = 6\nmax_dist = 0.04\n"
-        "contact_tol = 2e-5\nP = 0.4\napproach_rate = 5\n",
+        "contact_tol = 2e-5\napproach_rate = 5\n",
     ).replace(
         "[sim]\nduration = 2.0\n",
         '[sim]\nduration = 2.0\ndt = 5e-4\nintegrator = "rk4"\nbaumgarte_alpha = 40\n'
@@ -153,8 +155,8 @@ def test_every_key_maps_to_the_settings(tmp_path: Path) -> None:
     sc = load_scenario(_write(tmp_path, text, "all.toml"))
     c, s = sc.control, sc.sim
     np.testing.assert_array_equal(np.asarray(c.Kd), [100.0, 200.0, 300.0])
-    assert (c.kd_rate, c.Lambda, c.beta, c.gamma, c.f_d) == (50, 8, 0.02, 15, 12.5)
-    assert (c.clik_gain, c.max_dist, c.contact_tol, c.P, c.approach_rate) == (6, 0.04, 2e-5, 0.4, 5)
+    assert (c.Lambda, c.beta, c.gamma, c.f_d) == (8, 0.02, 15, 12.5)
+    assert (c.clik_gain, c.max_dist, c.contact_tol, c.approach_rate) == (6, 0.04, 2e-5, 5)
     assert c.mass_factor == 1.1
     assert (s.dt, s.integrator, s.baumgarte.alpha, s.baumgarte.beta) == (5e-4, "rk4", 40, 30)
     assert (s.settle_time, s.unilateral, s.normalization) == (1, False, "joint")

@@ -157,7 +157,10 @@ def test_run_one_never_raises(tmp_path: Path, scenario: Path) -> None:
     assert ok["final_position_error"] == pytest.approx(e, rel=1e-12)
     bad = run_one(str(scenario), {"control.Lambda": -1.0}, None)
     assert bad["status"] == "bad input" and "control.Lambda" in bad["error"]
-    wild = run_one(str(scenario), {"control.Lambda": 1e4}, None)
+    # Λ = 1e4 is refused before the run now (its sampled velocity loop, issue 27)
+    fast = run_one(str(scenario), {"control.Lambda": 1e4}, None)
+    assert fast["status"] == "bad input" and "control.Lambda = 10000.0" in fast["error"]
+    wild = run_one(str(scenario), {"sensor.velocity_noise": 1e3}, None)
     assert wild["status"] == "diverged" and "runaway" in wild["error"]
     assert wild["t_end"] is not None and wild["t_end"] < 0.15
     missing = run_one(str(tmp_path / "nope.toml"), {}, None)
@@ -177,7 +180,8 @@ def test_pool_and_dask_give_identical_rows(tmp_path: Path, scenario: Path) -> No
     assert cols_p[:2] == ["run_id", "control.Lambda"]
     assert _deterministic(rows_p) == _deterministic(rows_d)
     assert [r["run_id"] for r in rows_p] == [run_id(v) for v in variants]  # variant order
-    assert [r["status"] for r in rows_p] == ["ok", "diverged", "bad input", "ok"]
+    # Λ = 1e4: refused by the law's velocity-loop check (issue 27), no longer run to diverge
+    assert [r["status"] for r in rows_p] == ["ok", "bad input", "bad input", "ok"]
     assert float(rows_p[0]["final_position_error"]) > 0
     info = json.loads((tmp_path / "pool" / "sweep.json").read_text())
     assert info["n_variants"] == 4 and info["columns"] == cols_p

@@ -49,7 +49,8 @@ def test_rows_are_identical_whatever_the_workers_start_method_chunks_or_engine(
     todo = expand({"control.Lambda": lambdas}, {}, 0, 0)
     alone = [run_one(str(scenario), v, None) for v in todo]
     reference = [{k: _cell(v) for k, v in r.items() if k not in TIMING_COLUMNS} for r in alone]
-    assert [r["status"] for r in reference][-2:] == ["diverged", "bad input"]
+    # Λ = 1e4 is refused by the law's velocity-loop check (issue 27) before it could diverge
+    assert [r["status"] for r in reference][-2:] == ["bad input", "bad input"]
     sizes: list[int] = []
     next_size = _ChunkSize.next
 

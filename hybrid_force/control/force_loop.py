@@ -1,4 +1,9 @@
-"""Stability of the sampled force loop: the largest β a sampled controller may use.
+"""Stability of the sampled force loop: the largest β a sampled controller may use, and the
+recursions every law's own pre-run checks use (``loop_bounds`` in each law's module, through
+:func:`~hybrid_force.control.laws.base.law_loop_bounds`): the force loop with an integral
+(:func:`loop_radius`, :func:`max_stable_loop_gain`, :func:`largest_integral_step`), the
+feed-through of a force term against the plant (:func:`force_feedthrough`) and the sampled
+velocity loop (:func:`velocity_loop_number`).
 
 With ideal sensing at the plant's rate the hybrid law's command u = u0 + B f is resolved with
 the plant exactly (:mod:`hybrid_force.control.laws.arimoto`). A sampled controller uses
@@ -31,14 +36,24 @@ to c − a f̃ and the recursion is per tick).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot
 
-__all__ = ["beta_bound", "inverse_effective_mass", "max_stable_gain", "spectral_radius"]
+__all__ = [
+    "beta_bound",
+    "force_feedthrough",
+    "inverse_effective_mass",
+    "largest_integral_step",
+    "loop_radius",
+    "max_stable_gain",
+    "max_stable_loop_gain",
+    "spectral_radius",
+    "velocity_loop_number",
+]
 
 
 def spectral_radius(a: float, alpha: float, delay: int) -> float:
@@ -111,3 +126,126 @@ def inverse_effective_mass(
 def beta_bound(w_min: float, mass_factor: float, alpha: float, delay: int) -> float:
     """β_max = a*(α, d) · W_min / m (module docstring)."""
     return max_stable_gain(alpha, delay) * w_min / mass_factor
+
+
+# --- every law's own loops (hybrid_force.control.laws.*: loop_bounds) -----------------------------
+#
+# A law whose command holds a force term u ∋ B f̃ (its proportional force gain) and an integral
+# term u ∋ −Aᵀ b e_F (e_F = ∫(f̃ − f_d) dt, the supervisor's, advanced at each tick with the
+# reading of the tick before) gives on a rigid surface, from f = W⁻¹(A M⁻¹(h − u) − a_drift)
+# with the PLANT's W = A M⁻¹ Aᵀ:
+#
+#     f_k = c − a f̃_k − b E_k,    a = W⁻¹ A M⁻¹ B (per unit of the law's gain),
+#     E_k = E_{k−1} + T f̃_{k−1}
+#
+# and with the sensor of the module docstring (f̃ the reading one period late, filtered, d
+# periods more), the characteristic polynomial of the loop is
+#
+#     (z − (1 − α)) (z − 1) z^d + α (a (z − 1) + b T) = 0.
+#
+# With b = 0 it is (z − 1) times the polynomial of the module docstring (the root z = 1 is the
+# integral's, which then nothing drives); with α = 1, d = 0 it is z² + (a − 1) z + (bT − a),
+# stable (Jury) iff a < 1 + bT/2 and bT < 1 + a.
+
+
+def loop_radius(a: float, bT: float, alpha: float, delay: int) -> float:
+    """Largest |z| of (z − (1 − α))(z − 1) z^d + α (a (z − 1) + bT) (the comment above).
+
+    Args:
+        a: the proportional loop gain [-]. bT: the integral gain × the control period [-].
+        alpha: the sensor filter's α in (0, 1]. delay: d ≥ 0 control periods.
+    """
+    if bT == 0.0:
+        return spectral_radius(a, alpha, delay)
+    base = np.polymul([1.0, -(1.0 - alpha)], [1.0, -1.0])  # (z − (1 − α))(z − 1)
+    coefficients = np.concatenate([base, np.zeros(delay)])  # × z^d
+    coefficients[-2] += alpha * a
+    coefficients[-1] += alpha * (bT - a)
+    return float(np.abs(np.roots(coefficients)).max())
+
+
+def _first_crossing(value: Callable[[np.ndarray], np.ndarray], delay: int) -> float:
+    """The smallest gain g > 0 at which a root of the loop reaches the unit circle.
+
+    ``value(θ)`` gives, for z = e^{iθ}, the (complex) gain g that puts a root at z: the
+    crossings are the θ ∈ (0, π] where it is real (z = e^{−iθ} is the conjugate root, z = 1
+    is no crossing for these loops). Im value(θ) turns at most about d times on (0, π], so it
+    is sampled at 32 (d + 2) points and each sign change refined by bisection: O(d) work,
+    against O(d³) for the polynomial's roots (d = 100 000 periods: about 0.5 s).
+    """
+    theta = np.linspace(0.0, math.pi, 32 * (delay + 2) + 1)[1:]
+    v = value(theta)
+    found = [float(v.real[-1])]  # z = −1 (θ = π): the value is real there
+    im = v.imag
+    change = np.nonzero(np.signbit(im[:-1]) != np.signbit(im[1:]))[0]
+    if change.size:
+        low, high = theta[change], theta[change + 1]
+        sign_low = np.signbit(im[change])
+        for _ in range(60):
+            mid = 0.5 * (low + high)
+            same = np.signbit(value(mid).imag) == sign_low
+            low, high = np.where(same, mid, low), np.where(same, high, mid)
+        found.extend(value(0.5 * (low + high)).real.tolist())
+    positive = [g for g in found if g > 0.0]
+    return min(positive) if positive else math.inf
+
+
+def max_stable_loop_gain(bT: float, alpha: float, delay: int) -> float:
+    """The largest proportional loop gain a ≥ 0 for which :func:`loop_radius` < 1 with the
+    integral bT: :func:`max_stable_gain` for bT = 0, else the first a at which a root of
+    (z − (1 − α))(z − 1) z^d + α (a (z − 1) + bT) reaches the unit circle, where
+    a = −(z − (1 − α)) z^d / α − bT / (z − 1) is real (:func:`_first_crossing`, O(d)); 0 when
+    even a = 0 is unstable (the integral alone too fast: bT ≥ 1 without a filter)."""
+    if bT == 0.0:
+        return max_stable_gain(alpha, delay)
+    if not bT < largest_integral_step(alpha, delay):
+        return 0.0
+    b = 1.0 - alpha
+
+    def gain(theta: np.ndarray) -> np.ndarray:
+        z = np.exp(1j * theta)
+        return -(z - b) * np.exp(1j * delay * theta) / alpha - bT / (z - 1.0)
+
+    return _first_crossing(gain, delay)
+
+
+def largest_integral_step(alpha: float, delay: int) -> float:
+    """The largest bT (integral gain × period) for which a law with no proportional force
+    term (a = 0) is stable: the first bT = −(z − (1 − α))(z − 1) z^d / α that is real on the
+    unit circle (:func:`_first_crossing`; 1 without filter and delay). The root at z = 1 of
+    bT = 0 moves inside for bT > 0."""
+    b = 1.0 - alpha
+
+    def step(theta: np.ndarray) -> np.ndarray:
+        z = np.exp(1j * theta)
+        return -(z - b) * (z - 1.0) * np.exp(1j * delay * theta) / alpha
+
+    return _first_crossing(step, delay)
+
+
+def force_feedthrough(plant_mass: np.ndarray, A: np.ndarray, B: np.ndarray) -> float:
+    """a = ρ(W⁻¹ A M⁻¹ B): the recursion gain of a force term u ∋ B f̃ (comment above).
+
+    Args:
+        plant_mass: (n, n) the PLANT's M(q). A: (k, n) the plant's rows at q.
+        B: (n, k) the law's force term per unit of its gain, from the CONTROLLER's model.
+    """
+    Minv_AT = np.linalg.solve(plant_mass, A.T)
+    W = A @ Minv_AT
+    G = np.linalg.solve(W, Minv_AT.T @ B)
+    return float(np.abs(np.linalg.eigvals(G)).max())
+
+
+def velocity_loop_number(plant_mass: np.ndarray, damping: np.ndarray, period: float) -> float:
+    """T λ_max(M⁻¹ G): the sampled velocity loop's number (stable below 2).
+
+    A law whose torque holds a velocity feedback −G q̇ over the control period T (G (n, n) the
+    law's joint damping built from the CONTROLLER's model) gives, with the PLANT's M, the held
+    acceleration q̈ = −M⁻¹ G q̇_k + …, so over one period q̇_{k+1} = (I − T M⁻¹ G) q̇_k + …: the
+    eigenvalues 1 − T λ_i(M⁻¹ G) lie inside the unit circle iff T λ_max(M⁻¹ G) < 2 (the
+    position feedback adds T² K/2 to the determinant only, negligible at T K/G ≪ 1). M⁻¹ G has
+    real eigenvalues for a symmetric positive semi-definite G (it is similar to
+    M^{-1/2} G M^{-1/2}).
+    """
+    values = np.linalg.eigvals(np.linalg.solve(plant_mass, damping)).real
+    return float(values.max()) * period

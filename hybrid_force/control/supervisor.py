@@ -61,7 +61,7 @@ from hybrid_force.control.laws.arimoto import (
 from hybrid_force.control.laws.base import Law, LawContext, build_law, check_options, law_spec
 from hybrid_force.control.pose_clik import PoseJointPath, pose_inverse_kinematics
 from hybrid_force.control.tool import ToolSettings, ToolTarget
-from hybrid_force.errors import ControlError, GainError
+from hybrid_force.errors import ControlError, GainError, RunWarning
 from hybrid_force.events import Branch, Event, PhaseChange
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot, RobotTerms
@@ -293,7 +293,8 @@ class HybridController:
         Kd = default_damping_gain(M0, s.kd_rate) if s.Kd is None else s.Kd
         self.gains: Gains = make_gains(Kd, s.Lambda, s.beta, s.gamma, n)
         self.stiffness = float(np.linalg.eigvals(np.linalg.solve(M0, self.gains.Kd)).real.max())
-        if self.stiffness * dt > 0.5:
+        # only a law that reads K_d is held to it (each law checks its own gains: loop_bounds)
+        if "Kd" in law_spec(s.law).gains and self.stiffness * dt > 0.5:
             raise GainError(
                 f"dt·λ_max(M⁻¹K_d) = {self.stiffness * dt:.3g} at q0 is too large for explicit "
                 f"integration (must stay well below 2; limit here 0.5): lower Kd or dt = {dt}"
@@ -459,18 +460,20 @@ class HybridController:
             and t - st.best_error_time > s.branch_check_time
         ):
             normal_part = cons.A_pinv @ (cons.A @ e_q)
-            if float(normal_part @ normal_part) <= 0.81 * float(e_q @ e_q):
+            share = float(normal_part @ normal_part) / max(float(e_q @ e_q), 1e-300)
+            if share <= 0.81:
                 return
             st.branch_reported = True
             msg = (
-                f"task-space error {err:.3g} m has not decreased for "
-                f"{t - st.best_error_time:.3g} s "
-                "in contact: the projection Q removes every error along the surface normal, so "
-                "the arm is probably on another inverse-kinematics branch than q_d and the hybrid "
-                "law cannot bring it back (change the start configuration or the gains)"
+                f"at t = {t:.4g} s the task-space error |p − p_d| = {err:.3g} m had not halved "
+                f"since t = {st.best_error_time:.4g} s in the supervisor's contact phase (tip "
+                f"within control.contact_tol of the surface), and {100 * math.sqrt(share):.0f} % "
+                "of the joint error lies along the constraint normal, which the projection Q "
+                "removes: the arm is probably on another inverse-kinematics branch than q_d and "
+                "the hybrid law cannot bring it back (change the start configuration or the gains)"
             )
             st.events.append(Branch(float(t), err))
-            warnings.warn(msg, RuntimeWarning, stacklevel=2)
+            warnings.warn(RunWarning(msg), stacklevel=2)
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """Advance the controller's integrators over one step with the force f (k,) [N]."""

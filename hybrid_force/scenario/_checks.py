@@ -152,7 +152,9 @@ def _check_controller(
     ctx: _Context,
     tool: Any = None,
 ) -> None:
-    """Build the controller once: checks q_d(0) in reach and dt·λ_max(M⁻¹K_d)."""
+    """Build the controller once, on its own model (``robot``: ``control.model`` or the
+    plant): checks q_d(0) in reach and dt·λ_max(M_c⁻¹K_d) (the controller's own consistency;
+    the loops against the plant are :func:`_check_law_loops`)."""
     from hybrid_force.control.constraint import Constraint
     from hybrid_force.control.supervisor import ReferenceController
     from hybrid_force.sim.loop import control_steps
@@ -283,42 +285,60 @@ def _check_pose_followable(
     return [q for _, q, _ in samples]
 
 
-def _check_sampled_force_loop(
+def _check_law_loops(
     robot: Any,
     surfaces: list[Any],
     configurations: list[np.ndarray],
+    q0: np.ndarray,
     control: Any,
     sim: Any,
     sensor: Any,
-    control_values: Mapping[str, Any],
+    controller_model: Any,
+    model_value: object,
     ctx: _Context,
 ) -> None:
-    """A sampled controller's β below the stability bound of its force loop (force_loop.py).
+    """The running law's own pre-run stability checks, on the controller's model.
 
-    Only for sampled runs (non-ideal sensing or a control rate below 1/sim.dt): with ideal
-    sensing at the plant's rate the loop is resolved exactly and any β ≥ 0 is fine. W is taken
-    at its smallest over the desired path's configurations.
+    Each law says what it needs (``LawSpec.loop_bounds``: its sampled velocity loop, and in a
+    sampled run, non-ideal sensing or a control rate below 1/sim.dt, its force loop; derivations
+    in each law's ``loop_bounds`` and :mod:`hybrid_force.control.force_loop`); none inherits
+    another law's β bound. The controller's model is ``control.model`` (or the plant's file)
+    with its masses × ``sim.model_mass_factor``; the plant's masses are the simulator's. The
+    first check that fails is refused, naming its key, its value and the bound.
     """
-    from hybrid_force.control.force_loop import beta_bound, inverse_effective_mass
+    from hybrid_force.control.laws.base import LoopContext, law_loop_bounds
     from hybrid_force.sim.loop import control_steps
 
     steps = control_steps(control, sim)
-    if steps == 1 and sensor.ideal:
-        return
     period = steps * sim.dt
-    cutoff, delay = sensor.force_cutoff, sensor.force_delay
-    alpha = 1.0 - math.exp(-2.0 * math.pi * cutoff * period) if cutoff else 1.0
-    w_min = inverse_effective_mass(robot, surfaces, configurations, sim.normalization)
-    bound = beta_bound(w_min, control.mass_factor, alpha, delay)
-    if not control.beta < bound:
-        raise ctx.error(
-            "control.beta",
-            control_values.get("beta", control.beta),
-            f"the sampled force loop (control period {period:g} s, sensor.force_delay = "
-            f"{delay}, sensor.force_cutoff = {cutoff:g} Hz) oscillates and grows for "
-            # 1 % below the bound, shown to 4 digits (≤ 0.05 % off): the example is accepted
-            f"beta >= {bound:.6g} (any beta below is stable, e.g. {0.99 * bound:.4g}): "
-            "beta · mass_factor / (A M⁻¹ Aᵀ) must stay below "
-            f"{bound * control.mass_factor / w_min:.4g}, with A M⁻¹ Aᵀ >= {w_min:.4g} along "
-            "the path (docs/scenarios.md, [sensor])",
-        )
+    cutoff = sensor.force_cutoff
+    if control.mass_factor != 1.0:
+        model_key: str | None = "sim.model_mass_factor"
+        model_value = control.mass_factor
+    elif controller_model is not None:
+        model_key = "control.model"
+    else:
+        model_key, model_value = None, None
+    context = LoopContext(
+        plant=robot,
+        model=controller_model if controller_model is not None else robot,
+        mass_factor=control.mass_factor,
+        surfaces=surfaces,
+        normalization=sim.normalization,
+        configurations=configurations,
+        q0=np.asarray(q0, dtype=float),
+        settings=control,
+        period=period,
+        sampled=steps > 1 or not sensor.ideal,
+        alpha=1.0 - math.exp(-2.0 * math.pi * cutoff * period) if cutoff else 1.0,
+        delay=sensor.force_delay,
+        model_key=model_key,
+        model_value=model_value,
+    )
+    for bound in law_loop_bounds(context):
+        if not bound.stable:
+            raise ctx.error(
+                bound.key,
+                bound.value,
+                f"control.law = {_fmt(control.law)}: {bound.loop} (docs/laws.md, pre-run checks)",
+            )

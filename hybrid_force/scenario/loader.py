@@ -65,10 +65,10 @@ from hybrid_force.scenario._checks import (
     _check_contact_step,
     _check_control_rate,
     _check_controller,
+    _check_law_loops,
     _check_path_followable,
     _check_path_on_surfaces,
     _check_pose_followable,
-    _check_sampled_force_loop,
     _check_stacked_rows,
     _check_start,
 )
@@ -78,8 +78,10 @@ from hybrid_force.scenario._tables import (
     _TABLES,
     _TOP,
     _apply_overrides,
+    _check_acting,
     _check_table,
     _Context,
+    _drop_never_acting,
     _suggest,
     check_nesting,
     parse_override,
@@ -236,8 +238,11 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
     sim_values = _check_table(ctx, "sim", doc.get("sim", {}), _SIM)
+    _check_acting(doc, ctx)  # a key with no effect here: refused (or warned about and dropped)
+    control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
     sim = _sim_settings(sim_values, ctx)
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
+    _drop_never_acting(doc, ctx)
     sensor = _sensor_settings(doc.get("sensor", {}), ctx)
     contact = _contact_settings(doc.get("contact", {}), sim, ctx)
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
@@ -264,14 +269,16 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         )  # fmt: skip
     _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
     _check_stacked_rows(robot, q0, surfaces, surface_tables, ctx)
-    _check_controller(robot, surfaces, path, q0, control, sim, control_values, ctx, tool)
+    own = controller_model if controller_model is not None else robot
+    _check_controller(own, surfaces, path, q0, control, sim, control_values, ctx, tool)
     if tool.controlled:
         configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)
     else:
         configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
-    _check_sampled_force_loop(
-        robot, surfaces, configurations, control, sim, sensor, control_values, ctx
-    )
+    _check_law_loops(
+        robot, surfaces, configurations, q0, control, sim, sensor, controller_model,
+        control_values.get("model"), ctx,
+    )  # fmt: skip
     _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
     try:
         return Scenario(

@@ -36,6 +36,7 @@ ones; the tests compare the two.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -56,6 +57,7 @@ from hybrid_force.sim.run_checks import (
     check_contact_step,
     check_finite,
     check_log_memory,
+    warning_notes,
 )
 from hybrid_force.sim.run_report import finish_result, merge_events, run_failure, run_meta
 from hybrid_force.sim.settings import Scenario, SimSettings, control_steps
@@ -150,71 +152,81 @@ def simulate(
     wall0 = wall1 = time.perf_counter()
     t = 0.0
     i = n_logged = 0  # n_logged: rows filled so far (kept in a failed run's partial result)
-    try:
-        for i in range(N):
-            t = i * dt
-            # 1. the plant's state: its terms and constraint rows (the controller never sees them)
-            terms, cons = plant.evaluate(q, v)
-            # 2. sense and control: u = u0 + B f (exact loop) or a held torque (sampled)
-            cmd = ctrl.command(i, t, q, v, terms, cons, f)
-            # 3. the plant: q̈ and the contact force, together; release if it would pull
-            ddq, f = plant.accelerate(terms, cons, cmd, t)
-            # 4. record sample i (u = u0 + B f) and check the state
-            distance = cons.distance if cons is not None else plant.distance(q)
-            applied = plant.applied
-            ok = log.record(
-                i, t, q, v,
-                clik.q if clik is not None else no_q_d,
-                # the applied torque: the command u0 + B f, or what the effort limits let through
-                cmd.u0 if applied is None else applied,
-                no_B if cmd.B is None or applied is not None else cmd.B,
-                f, terms.p,
-                # sampled: the desired point now, not the one of the last tick (held 1/rate s)
-                clik.p_d if clik is not None and not ctrl.measured else sc.path.position(t),
-                law.f_d if law is not None else task_f_d,
-                distance,
-                law.V if law is not None else np.nan,
-                # the plant's contact state: a tool off the surface is never logged in contact
-                CONTACT if plant.in_contact else ctrl.phase(distance),
-            )  # fmt: skip
-            if ctrl.measured:
-                log.f_meas[i] = ctrl.f_meas  # type: ignore[index]
-            if saturates:  # the commanded torque, before the limits
-                log.u_cmd[i] = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f  # type: ignore[index]
-            if log_law_values is not None:
-                log_law_values(log.law_log[i])  # type: ignore[index]
-            if tool is not None:
-                log.tool_angle[i] = tool.angle(t, q)  # type: ignore[index]
-            n_logged = i + 1
-            if not ok:
-                check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
-            if stop_at is not None:
-                stop_at.check(t, q, v)  # raises JointLimitError
-            if i == N - 1:
-                break
-            if i == 1:
-                wall1 = time.perf_counter()  # steps 0 and 1 loaded (or compiled) the kernels
-            # 5. the controller's integrators, then the plant's: (q, v) at t + dt
-            ctrl.update(dt, f)
-            q, v = plant.advance(q, v, ddq, cmd, t, dt, distance)
-            if progress is not None and i % report_every == 0:
-                progress(i / N)
-    except BaseException as exc:  # whatever stopped the run, keep what it computed
-        wall = time.perf_counter() - wall0
-        failure = run_failure(exc, sc.name, t)
-        meta.update(
-            status="failed",
-            reason=failure.reason,
-            error=f"{type(exc).__name__}: {exc}",
-            events=merge_events(ctrl.events, [*plant.events, RunStopped(t, failure.reason)]),
-            steps_per_second=i / wall if wall > 0 else 0.0,
-            wall_time=wall,
-        )
+    # the Python warnings raised inside the loop (a wrong branch, numpy's): recorded with the
+    # time they were raised and reported once, through the run's warnings (finish_result)
+    caught_at: list[float] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         try:
-            failure.result = finish_result(log, n_logged, meta, k, robot, plant, warn=False)
-        except Exception:  # the log itself is unusable: report the failure without it
-            failure.result = None
-        raise failure from exc
+            for i in range(N):
+                t = i * dt
+                # 1. the plant's state: its terms and constraint rows (never seen by the controller)
+                terms, cons = plant.evaluate(q, v)
+                # 2. sense and control: u = u0 + B f (exact loop) or a held torque (sampled)
+                cmd = ctrl.command(i, t, q, v, terms, cons, f)
+                # 3. the plant: q̈ and the contact force, together; release if it would pull
+                ddq, f = plant.accelerate(terms, cons, cmd, t)
+                # 4. record sample i (u = u0 + B f) and check the state
+                distance = cons.distance if cons is not None else plant.distance(q)
+                applied = plant.applied
+                ok = log.record(
+                    i, t, q, v,
+                    clik.q if clik is not None else no_q_d,
+                    # the applied torque: the command u0 + B f, or what the effort limits pass
+                    cmd.u0 if applied is None else applied,
+                    no_B if cmd.B is None or applied is not None else cmd.B,
+                    f, terms.p,
+                    # sampled: the desired point now, not the one of the last tick (held 1/rate s)
+                    clik.p_d if clik is not None and not ctrl.measured else sc.path.position(t),
+                    law.f_d if law is not None else task_f_d,
+                    distance,
+                    law.V if law is not None else np.nan,
+                    # the plant's contact state: a tool off the surface is never logged in contact
+                    CONTACT if plant.in_contact else ctrl.phase(distance),
+                )  # fmt: skip
+                if ctrl.measured:
+                    log.f_meas[i] = ctrl.f_meas  # type: ignore[index]
+                if saturates:  # the commanded torque, before the limits
+                    log.u_cmd[i] = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f  # type: ignore[index]
+                if log_law_values is not None:
+                    log_law_values(log.law_log[i])  # type: ignore[index]
+                if tool is not None:
+                    log.tool_angle[i] = tool.angle(t, q)  # type: ignore[index]
+                n_logged = i + 1
+                if len(caught) > len(caught_at):  # a Python warning at this step: its time
+                    caught_at.extend([t] * (len(caught) - len(caught_at)))
+                if not ok:
+                    check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
+                if stop_at is not None:
+                    stop_at.check(t, q, v)  # raises JointLimitError
+                if i == N - 1:
+                    break
+                if i == 1:
+                    wall1 = time.perf_counter()  # steps 0 and 1 loaded (or compiled) the kernels
+                # 5. the controller's integrators, then the plant's: (q, v) at t + dt
+                ctrl.update(dt, f)
+                q, v = plant.advance(q, v, ddq, cmd, t, dt, distance)
+                if progress is not None and i % report_every == 0:
+                    progress(i / N)
+        except BaseException as exc:  # whatever stopped the run, keep what it computed
+            wall = time.perf_counter() - wall0
+            failure = run_failure(exc, sc.name, t)
+            meta.update(
+                status="failed",
+                reason=failure.reason,
+                error=f"{type(exc).__name__}: {exc}",
+                events=merge_events(ctrl.events, [*plant.events, RunStopped(t, failure.reason)]),
+                steps_per_second=i / wall if wall > 0 else 0.0,
+                wall_time=wall,
+            )
+            try:
+                failure.result = finish_result(
+                    log, n_logged, meta, k, robot, plant, warn=False,
+                    extra=warning_notes(caught, [*caught_at, *[t] * len(caught)]),
+                )  # fmt: skip
+            except Exception:  # the log itself is unusable: report the failure without it
+                failure.result = None
+            raise failure from exc
     end = time.perf_counter()
     wall = end - wall0
     # the rate of the steady loop: from step 1 on, once the compiled kernels are loaded
@@ -231,7 +243,8 @@ def simulate(
     )
     if progress is not None:
         progress(1.0)
-    result = finish_result(log, N, meta, k, robot, plant)
+    extra = warning_notes(caught, [*caught_at, *[t] * len(caught)])
+    result = finish_result(log, N, meta, k, robot, plant, task_f_d=task_f_d, extra=extra)
     if started_in_contact and not sc.control.supervisor and result.meta["lost_contact"]:
         left = result.meta["left_at"]
         message = (

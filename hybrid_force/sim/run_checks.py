@@ -341,3 +341,118 @@ def _contact_text(contact: dict) -> str:
         keys = ("stiffness", "damping", "exponent")
     keys += ("friction", "friction_velocity") if contact["friction"] > 0 else ()
     return ", ".join(f"contact.{k} = {contact[k]:g}" for k in keys)
+
+
+CHATTER_PAIRS = 3
+"""A run whose tool leaves the surface and touches it again this many times after the force
+first settled is reported as chattering (:func:`run_behaviour`)."""
+FINAL_FRACTION = 0.2
+"""The final part of a run [fraction of its time] over which the force error must have
+settled (:func:`run_behaviour`)."""
+
+
+def force_tolerance(f_d: float) -> float:
+    """The force error [N] a settled run stays within: 1 N or 10 % of f_d, the larger."""
+    from hybrid_force.metrics import FORCE_TOLERANCE
+
+    return max(FORCE_TOLERANCE, 0.1 * f_d)
+
+
+def run_behaviour(
+    t: np.ndarray,
+    f: np.ndarray,
+    f_d: np.ndarray,
+    distance: np.ndarray,
+    in_contact: np.ndarray,
+) -> tuple[dict[str, Any], list[str]]:
+    """What the run did at the surface, from its recorded trajectory: the flags a sweep can
+    filter on and one line per thing the run did not do as its summary would suggest.
+
+    The notes: the tool never touched (f_d > 0 and never on the surface), with its closest
+    approach; it chattered (at least :data:`CHATTER_PAIRS` releases each followed by a touch
+    after the force first settled within :func:`force_tolerance`, else after the first
+    touch), with their count and times; the force error never settled (its RMS over the
+    last :data:`FINAL_FRACTION` of the run above :func:`force_tolerance`).
+
+    Args:
+        t: (N,) [s].
+        f: (N, k) the plant's contact force [N].
+        f_d: (k,) the task's desired force [N] (``control.f_d``).
+        distance: (N, k) the tip's distance to each surface [m].
+        in_contact: (N,) the plant's contact state at each sample.
+
+    Returns:
+        ``{"touched": bool, "chatter": int, "force_settled": bool | None}`` (None without
+        contact or f_d) and the notes, one line each.
+    """
+    notes: list[str] = []
+    n = t.shape[0]
+    wanted = float(f_d.max()) if f_d.size else 0.0
+    tol = force_tolerance(wanted)
+    touched = bool(in_contact.any())
+    flags: dict[str, Any] = {"touched": touched, "chatter": 0, "force_settled": None}
+    if n == 0:
+        return flags, notes
+    if not touched:
+        if wanted > 0:
+            closest = distance.max(axis=1) if distance.ndim == 2 else distance
+            i = int(np.argmin(closest))
+            notes.append(
+                f"the tool never touched the surface: its closest approach was "
+                f"{float(closest[i]):.3g} m at t = {float(t[i]):.4g} s, so f_d = {wanted:g} N "
+                f"was never applied"
+            )
+        return flags, notes
+    error = np.abs(f - f_d[None, :]).max(axis=1) if f.ndim == 2 else np.abs(f - wanted)
+    settled_at = np.flatnonzero(in_contact & (error <= tol))
+    start = int(settled_at[0]) if settled_at.size else int(np.flatnonzero(in_contact)[0])
+    after = in_contact[start:]
+    releases = np.flatnonzero(after[:-1] & ~after[1:]) + start + 1
+    touches = np.flatnonzero(~after[:-1] & after[1:]) + start + 1
+    pairs = int(sum(1 for r in releases if (touches > r).any()))
+    flags["chatter"] = pairs
+    if pairs >= CHATTER_PAIRS:
+        what = "the force first settled" if settled_at.size else "the first touch"
+        notes.append(
+            f"the tool chattered on the surface: {pairs} releases and re-touches between "
+            f"t = {float(t[releases[0]]):.4g} s and t = {float(t[touches[-1]]):.4g} s, after "
+            f"{what} at t = {float(t[start]):.4g} s"
+        )
+    if wanted > 0:
+        t0 = float(t[-1]) * (1.0 - FINAL_FRACTION)
+        window = t >= t0
+        rms = float(np.sqrt(np.mean(error[window] ** 2)))
+        flags["force_settled"] = rms <= tol
+        if not rms <= tol:
+            notes.append(
+                f"the force error did not settle: RMS |f − f_d| = {rms:.3g} N (max "
+                f"{float(error[window].max()):.3g} N) over the last {float(t[-1]) - t0:.3g} s "
+                f"(t >= {t0:.4g} s), above the tolerance {tol:g} N"
+            )
+    return flags, notes
+
+
+def warning_notes(caught: Sequence[Any], times: Sequence[float]) -> list[str]:
+    """The Python warnings a run raised, one line each: ``at t = … s: <Category>: <message>``
+    (no source line), identical ones once with their count and first time.
+
+    Args:
+        caught: ``warnings.WarningMessage`` records, in order. times: the simulated time [s]
+            at which each was raised (as long as ``caught``).
+    """
+    from hybrid_force.errors import HybridForceWarning
+
+    seen: dict[str, list[float]] = {}
+    for w, when in zip(caught, times, strict=False):
+        text = " ".join(str(w.message).split())
+        if not issubclass(w.category, HybridForceWarning):
+            text = f"{w.category.__name__}: {text}"
+        seen.setdefault(text, []).append(float(when))
+    out = []
+    for text, stamps in seen.items():
+        count = f" ({len(stamps)} times)" if len(stamps) > 1 else ""
+        if text.startswith("at t = "):  # says its own time
+            out.append(f"{text}{count}")
+        else:
+            out.append(f"at t = {stamps[0]:.4g} s{count}: {text}")
+    return out

@@ -34,6 +34,7 @@ from hybrid_force.errors import (
 from hybrid_force.events import Event
 from hybrid_force.geometry.paths import Path, PathParameterError
 from hybrid_force.model.robot import Robot
+from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
 from hybrid_force.sim.record import Record
 from hybrid_force.sim.run_checks import (
@@ -42,11 +43,13 @@ from hybrid_force.sim.run_checks import (
     joint_names,
     limit_events,
     limit_violations,
+    run_behaviour,
     saturated_time,
 )
 from hybrid_force.sim.settings import Scenario
 
 if TYPE_CHECKING:  # annotations only
+    from hybrid_force.control.supervisor import HybridController
     from hybrid_force.sim.control_side import ControlSide
     from hybrid_force.sim.plant import Plant
 
@@ -101,39 +104,56 @@ def run_meta(sc: Scenario, ctrl: ControlSide, k: int, nq: int) -> dict:
             # the running law's own gains and settings (the paper's K_d, Λ, β, γ for arimoto)
             "settings": _jsonable(law.law.info()) if law is not None else None,
         },
-        "gains": None
-        if law is None
-        else {
-            "Kd": law.gains.Kd.tolist(),
-            "Lambda": law.gains.Lambda,
-            "beta": law.gains.beta,
-            "gamma": law.gains.gamma,
-            "f_d": law.f_d_contact.tolist(),
-            "clik_gain": sc.control.clik_gain,
-            "max_dist": sc.control.max_dist,
-            "contact_tol": sc.control.contact_tol,
-            "P": sc.control.P,
-            "approach_rate": law.approach_rate,
-            "mass_factor": sc.control.mass_factor,
-            "supervisor": sc.control.supervisor,
-        },
-        "settings": {
-            "dt": sim.dt,
-            "duration": sim.duration,
-            "integrator": sim.integrator,
-            "settle_time": sim.settle_time,
-            "baumgarte_alpha": sim.baumgarte.alpha,
-            "baumgarte_beta": sim.baumgarte.beta,
-            "unilateral": sim.unilateral,
-            "normalization": sim.normalization,
-            "control_rate": 1.0 / ctrl.period,
-            "seed": sim.seed,
-        },
+        "gains": None if law is None else _gains_meta(sc, law),
+        "settings": _acting(
+            {
+                "dt": sim.dt,
+                "duration": sim.duration,
+                "integrator": sim.integrator,
+                "settle_time": sim.settle_time,
+                "baumgarte_alpha": sim.baumgarte.alpha,
+                "baumgarte_beta": sim.baumgarte.beta,
+                "unilateral": sim.unilateral,
+                "normalization": sim.normalization,
+                "control_rate": 1.0 / ctrl.period,
+                "seed": sim.seed,
+            },
+            # the rigid contact's: a compliant force needs no stabilisation and never pulls
+            ("baumgarte_alpha", "baumgarte_beta", "unilateral") if sc.contact.compliant else (),
+        ),
         "sensor": sc.sensor.to_dict(),
-        "contact": sc.contact.to_dict(),
-        "tool": sc.tool.to_dict(),
+        "contact": _acting(sc.contact.to_dict(), _contact_inert(sc)),
+        "tool": sc.tool.to_dict() if sc.tool.controlled else {"orientation": "free"},
         "versions": _versions(),
     }
+
+
+def _contact_inert(sc: Scenario) -> tuple[str, ...]:
+    """The [contact] settings that have no effect in this run (the loader's rules)."""
+    inert = () if sc.contact.compliant else ("stiffness", "damping", "exponent")
+    return inert + (("friction_velocity",) if sc.contact.friction == 0.0 else ())
+
+
+def _acting(settings: dict, inert: tuple[str, ...]) -> dict:
+    return {k: v for k, v in settings.items() if k not in inert}
+
+
+def _gains_meta(sc: Scenario, law: HybridController) -> dict:
+    """The controller's gains and supervisor settings that this run reads: the paper's K_d,
+    Λ, β, γ only for a law that reads them (``LawSpec.gains``), the approach settings only
+    with the supervisor; ``control.P``, which no configuration reads, never (issue 27)."""
+    from hybrid_force.control.laws.base import law_spec
+
+    c, g = sc.control, law.gains
+    spec = law_spec(c.law)
+    options = c.options.get(c.law, {})
+    paper = {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
+    out: dict = {k: v for k, v in paper.items() if spec.reads(k, options)}
+    out.update(f_d=law.f_d_contact.tolist(), clik_gain=c.clik_gain, contact_tol=c.contact_tol)
+    if c.supervisor:
+        out.update(max_dist=c.max_dist, approach_rate=law.approach_rate)
+    out.update(mass_factor=c.mass_factor, supervisor=c.supervisor)
+    return out
 
 
 def _path_meta(path: Path) -> dict:
@@ -172,7 +192,15 @@ def run_failure(exc: BaseException, name: str, t: float) -> RunFailedError:
 
 
 def finish_result(
-    log: Record, n: int, meta: dict, k: int, robot: Robot, plant: Plant, warn: bool = True
+    log: Record,
+    n: int,
+    meta: dict,
+    k: int,
+    robot: Robot,
+    plant: Plant,
+    warn: bool = True,
+    task_f_d: np.ndarray | None = None,
+    extra: Sequence[str] = (),
 ) -> Result:
     """The Result of the first n samples, with what the run must say about itself in meta.
 
@@ -181,8 +209,13 @@ def finish_result(
     torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
     ``saturated_time`` ({joint: s} held at an effort limit, when the plant enforces them),
     ``friction_energy`` and ``damping_energy`` [J] (dissipated by the contact),
-    ``contact_at_end``, ``lost_contact``, ``left_at`` and ``warnings`` (one line each, also
-    issued as Python warnings with ``warn``: a failed run reports its failure, not them).
+    ``contact_at_end``, ``lost_contact``, ``left_at``, ``behaviour`` (the flags of
+    :func:`~hybrid_force.sim.run_checks.run_behaviour`: touched, chatter, force_settled; for a
+    run that finished, with ``task_f_d`` (k,) [N] the task's desired force) and ``warnings``:
+    the one channel of what the run must say about itself, one line each, in this order: the
+    limits and the contact outcome, ``extra`` (the Python warnings the run raised, from
+    :func:`~hybrid_force.sim.run_checks.warning_notes`), what it did at the surface; issued
+    as RunWarnings with ``warn`` (a failed run reports its failure, not them).
     """
     names = joint_names(robot)
     lower, upper = robot.position_limits
@@ -195,13 +228,21 @@ def finish_result(
     if plant.effort is not None:
         saturated = saturated_time(names, plant.effort, u_cmd, float(meta["settings"]["dt"]))
     outcome = contact_outcome(plant.ever_in_contact, plant.in_contact, meta.get("events", []))
-    notes = describe(limits, outcome, saturated)
+    notes = [*describe(limits, outcome, saturated), *extra]
+    behaviour: dict = {}
+    if warn and task_f_d is not None:
+        behaviour, surface_notes = run_behaviour(
+            log.t[:n], log.f[:n], np.asarray(task_f_d, dtype=float), log.phi[:n],
+            log.phase[:n] == CONTACT,
+        )  # fmt: skip
+        notes += surface_notes
     for note in notes if warn else ():
         warnings.warn(f"run '{meta.get('name')}': {note}", RunWarning, stacklevel=3)
     events = merge_events(meta.get("events", []), limit_events(limits))
     meta.update(
-        limits=limits, saturated_time=saturated or {}, warnings=notes, events=events, **outcome
-    )
+        limits=limits, saturated_time=saturated or {}, warnings=notes, events=events,
+        behaviour=behaviour, **outcome,
+    )  # fmt: skip
     # [J] dissipated by the plant's friction and compliant damping (docs/contact.md)
     meta.update(friction_energy=plant.friction_energy, damping_energy=plant.damping_energy)
     return log.result(n, meta, k)

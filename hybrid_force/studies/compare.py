@@ -124,14 +124,36 @@ def check_laws(laws: Sequence[str] | None) -> tuple[str, ...]:
 
 
 def _variants(laws: Sequence[str], overrides: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """One variant per law: the overrides, and ``control.law``."""
+    """One variant per law: ``control.law`` and the overrides that act with that law.
+
+    A law's own settings (``control.<law>.<key>``) go to that law's run only, and the
+    paper's gains (``control.Kd``, ``kd_rate``, ``Lambda``, ``beta``, ``gamma``) to the laws
+    that read them (``LawSpec.gains``; Λ also to every supervised run, as the approach rate's
+    default): the loader refuses a key without effect (issue 27), and ``--set`` is for
+    every law.
+    """
+    from hybrid_force.control.laws.base import law_names, law_spec
+
     if "control.law" in overrides:
         raise SweepError(
             "--set control.law is not allowed: the laws are chosen with --laws",
             key="control.law",
             value=overrides["control.law"],
         )
-    return [{"control.law": law, **overrides} for law in laws]
+    tables = set(law_names())
+    paper = ("Kd", "kd_rate", "Lambda", "beta", "gamma")
+
+    def acts(law: str, key: str) -> bool:
+        parts = key.split(".")
+        if len(parts) >= 2 and parts[0] == "control" and parts[1] in tables:
+            return parts[1] == law
+        if len(parts) == 2 and parts[0] == "control" and parts[1] in paper:
+            return parts[1] in law_spec(law).gains or parts[1] == "Lambda"
+        return True
+
+    return [
+        {"control.law": law, **{k: v for k, v in overrides.items() if acts(law, k)}} for law in laws
+    ]
 
 
 def compare_row(

@@ -44,13 +44,21 @@ METRIC_COLUMNS: tuple[str, ...] = (
     "n_impacts",
     "time_to_converge",
     "n_events",
+    "n_warnings",
+    "touched",
+    "chatter",
+    "force_settled",
 )
 """Deterministic metric columns: identical for the same variant on any engine.
 
 t_end [s] is the last simulated time (the failure time of a diverged run); position errors
 [m] (``*_settled``: over t ≥ sim.settle_time), force errors [N] over contact samples,
 worst_constraint_violation [m], contact_time [s], impact_speed [m/s], impact_impulse [N·s],
-time_to_converge [s] (first time after which ‖e‖ < 1 mm for good). Empty cell: not defined
+time_to_converge [s] (first time after which ‖e‖ < 1 mm for good), n_warnings (lines in
+the run's summary.json warnings: filter on ``n_warnings == 0`` for the runs that did what
+they were asked), touched, chatter (releases and re-touches after the force settled) and
+force_settled (the final force error within tolerance), as
+:func:`hybrid_force.sim.run_checks.run_behaviour` measures them. Empty cell: not defined
 (e.g. no contact, or the run did not start).
 """
 

@@ -390,6 +390,8 @@ def _execute(task: _Task) -> _Outcome:
             row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
     messages = list(dict.fromkeys(_one_line(str(w.message)) for w in caught))
     row["warnings"] = " | ".join(messages) if messages else None
+    if row.get("status") == "ok" or messages:  # the row's count is of the row's warnings
+        row["n_warnings"] = len(messages)
     for key in ("error", "warnings"):
         for local, original in renames:
             if row[key]:

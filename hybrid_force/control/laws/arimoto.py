@@ -24,6 +24,7 @@ one finds V̇ = −sᵀK_d s − βγ e_Fᵀe_F (eq. 16) for any row scaling, be
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +32,7 @@ import numpy as np
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.base import LawContext
+from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext, below
 from hybrid_force.errors import GainError
 from hybrid_force.model.robot import RobotTerms
 
@@ -47,8 +48,10 @@ __all__ = [
     "arimoto_law",
     "build",
     "check_damping_gain",
+    "damping_matrix",
     "default_damping_gain",
     "free_space_law",
+    "loop_bounds",
     "make_gains",
 ]
 
@@ -444,3 +447,123 @@ def build(context: LawContext) -> LawWorkspace | ReferenceLaw:
     """The registry's factory of ``control.law = "arimoto"`` (the paper's gains, no options)."""
     law_type = ReferenceLaw if context.reference else LawWorkspace
     return law_type(context.robot.nv, context.constraint.k, context.gains)
+
+
+def damping_matrix(Kd: object, kd_rate: float, M0: np.ndarray) -> np.ndarray:
+    """(n, n) K_d as the supervisor builds it: ``control.Kd`` (a number, a diagonal or a
+    matrix), else ``kd_rate`` · M_c(q0) (the controller's M at the start)."""
+    n = M0.shape[0]
+    if Kd is None:
+        return default_damping_gain(M0, kd_rate)
+    K = np.asarray(Kd, dtype=float)
+    return K * np.eye(n) if K.ndim == 0 else (np.diag(K) if K.ndim == 1 else K)
+
+
+def loop_bounds(context: LoopContext) -> list[LoopBound]:
+    """The paper's laws' pre-run checks (``arimoto`` and ``arimoto_adaptive``): the velocity
+    loop, and in a sampled run the force loop through β.
+
+    **Velocity loop.** In free space (eq. 29–30) q̈_r = q̈_d − Λ(q̇ − q̇_d) and s = q̇ − q̇_r,
+    so the torque u = M_c q̈_r + C q̇_r + g − K_d s holds −(K_d + Λ M_c) q̇ (M_c the
+    CONTROLLER's mass matrix, K_d = κ M_c(q0) by default): with the plant's M the sampled loop
+    is q̇_{k+1} = (I − T M⁻¹(K_d + Λ M_c)) q̇_k + …, stable iff T λ_max(M⁻¹(K_d + Λ M_c)) < 2
+    (:func:`~hybrid_force.control.force_loop.velocity_loop_number`). With an exact model
+    and the default K_d that number is (κ + Λ) T; a model 25 times the plant's makes it
+    25 (κ + Λ) T = 2.75 at the paper's T = 1 ms, which the supervisor's own test
+    T λ_max(M_c⁻¹ K_d) = κ T cannot see.
+
+    **Force loop** (sampled runs only; :mod:`hybrid_force.control.force_loop`). B = β M_c A⁺
+    gives f_k = c − a f̃_k with a = β ρ(W⁻¹ A M⁻¹ M_c A⁺) (= β m / W for M_c = m M), stable
+    iff a < a*(α, d): β < a* / max_q ρ(W⁻¹ A M⁻¹ M_c A⁺) over the path. (The integral terms
+    γ e_F and K_d β A⁺ e_F are left out: they raise the bound by O(bT), so the check is on the
+    safe side.)
+
+    **Force integral.** e_F = ∫(f − f_d) dt is advanced explicitly (the supervisor's, with the
+    force of the step, or the reading of the tick before when sampled), and f answers it
+    through −Aᵀ γ e_F and −K_d s ∋ K_d β A⁺ e_F: f ∋ −b e_F with b = γ ρ(W⁻¹ A M⁻¹ A_cᵀ) +
+    β ρ(W⁻¹ A M⁻¹ K_d A⁺). With the exact loop (1 + a) f = c − b E_k, so E_(k+1) =
+    (1 − bT/(1 + a)) E_k + …: stable iff bT < 2 (1 + a);
+    sampled, bT below :func:`~hybrid_force.control.force_loop.largest_integral_step` (the
+    proportional part left out: on the safe side).
+    """
+    from hybrid_force.control.force_loop import (
+        force_feedthrough,
+        largest_integral_step,
+        max_stable_gain,
+        velocity_loop_number,
+    )
+
+    s, T = context.settings, context.period
+    qs = [context.q0, *context.configurations]
+    Kd = damping_matrix(s.Kd, s.kd_rate, context.model_mass(context.q0))
+    kd_part = lambda_part = number = 0.0
+    for q in qs:
+        M, M_c = context.plant_mass(q), context.model_mass(q)
+        number = max(number, velocity_loop_number(M, Kd + s.Lambda * M_c, T))
+        kd_part = max(kd_part, velocity_loop_number(M, Kd, T))
+        lambda_part = max(lambda_part, velocity_loop_number(M, s.Lambda * M_c, T))
+    if lambda_part > kd_part:  # Λ M_c carries most of the loop
+        key, value = context.named("control.Lambda", s.Lambda)
+    elif s.Kd is None:
+        key, value = context.named("control.kd_rate", s.kd_rate)
+    else:
+        key, value = context.named("control.Kd", np.asarray(s.Kd).tolist())
+    bounds = [
+        LoopBound(
+            key,
+            value,
+            number,
+            2.0,
+            f"the sampled velocity loop q̇ ← (I − T M⁻¹(K_d + Λ M_c)) q̇ (M the plant's, M_c "
+            f"the controller's; {context.where}) diverges unless T·λ_max(M⁻¹(K_d + Λ M_c)) < 2; "
+            f"here it reaches {number:.4g} along the path",
+        )
+    ]
+    # the force integral: f ∋ −b e_F, b = γ ρ(W⁻¹ A M⁻¹ Aᵀ) + β ρ(W⁻¹ A M⁻¹ K_d A⁺), and the
+    # proportional a = β ρ(W⁻¹ A M⁻¹ M_c A⁺) per unit β
+    b, per_beta, least_per_beta = 0.0, 0.0, math.inf
+    for q in qs:
+        M, A, A_c = context.plant_mass(q), context.rows(q), context.rows(q, context.model)
+        A_pinv = np.linalg.pinv(A_c)
+        b = max(
+            b,
+            s.gamma * force_feedthrough(M, A, A_c.T)
+            + s.beta * force_feedthrough(M, A, Kd @ A_pinv),
+        )
+        a_q = force_feedthrough(M, A, context.model_mass(q) @ A_pinv)
+        per_beta, least_per_beta = max(per_beta, a_q), min(least_per_beta, a_q)
+    # the proportional loop is checked first: a β too large also inflates b (its K_d β A⁺
+    # part), and the integral's message would then blame γ for it
+    if context.sampled and s.beta > 0:
+        a_star = max_stable_gain(context.alpha, context.delay)
+        bound = a_star / per_beta
+        bounds.append(
+            LoopBound(
+                "control.beta",
+                s.beta,
+                s.beta,
+                bound,
+                "the sampled force loop f_k = c − a f̃_k, a = β·ρ(W⁻¹ A M⁻¹ M_c A⁺) "
+                f"({context.where}) oscillates and grows for a >= {a_star:.4g}: "
+                f"beta must stay below {below(bound)} (any beta below is stable, e.g. "
+                f"{below(0.99 * bound)}) (ρ(W⁻¹ A M⁻¹ M_c A⁺) up to {per_beta:.4g} along the "
+                "path; docs/scenarios.md, [sensor])",
+            )
+        )
+    if context.sampled:
+        step = largest_integral_step(context.alpha, context.delay)
+    else:  # exact: (1 + a) f = c − b E, E_(k+1) = (1 − bT/(1 + a)) E_k
+        step = 2.0 * (1.0 + s.beta * least_per_beta)
+    bounds.append(
+        LoopBound(
+            "control.gamma",
+            s.gamma,
+            b * T,
+            step,
+            f"the force integral E_(k+1) = E_k + T (f − f_d) with f ∋ −b E, b = γ ρ(W⁻¹ A M⁻¹ Aᵀ) "
+            f"+ β ρ(W⁻¹ A M⁻¹ K_d A⁺) = {b:.4g} 1/s ({context.where}) oscillates and grows "
+            f"unless b·T < {step:.4g}; here b·T = {b * T:.4g}: gamma must stay below about "
+            f"{below(s.gamma * step / (b * T))} 1/s",
+        )
+    )
+    return bounds

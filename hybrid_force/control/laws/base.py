@@ -34,9 +34,12 @@ import numpy as np
 from hybrid_force.errors import ControlError, GainError, did_you_mean
 
 if TYPE_CHECKING:  # annotations only: the registry is read without importing any law
+    from collections.abc import Sequence
+
     from hybrid_force.control.constraint import Constraint, ConstraintTerms
     from hybrid_force.control.laws.arimoto import Command, ControlTrace, Desired, Gains
     from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.geometry.surfaces import Surface
     from hybrid_force.model.robot import Robot, RobotTerms
 
 __all__ = [
@@ -44,10 +47,13 @@ __all__ = [
     "Law",
     "LawContext",
     "LawSpec",
+    "LoopBound",
+    "LoopContext",
     "Option",
     "build_law",
     "check_options",
     "law_log_names",
+    "law_loop_bounds",
     "law_names",
     "law_spec",
 ]
@@ -171,18 +177,167 @@ class LawSpec:
         summary: one line for ``hybrid-force laws`` (with its source).
         factory: ``"module:function"``, imported only when the law is built.
         options: the keys of its ``[control.<law>]`` table.
+        gains: the ``[control]`` gains the law reads (of Kd, kd_rate, Lambda, beta, gamma),
+            each with the key of its own table that replaces it when given (None: none does);
+            a gain not listed has no effect with this law (the loader refuses it, a run's meta
+            does not record it).
+        loop_bounds: ``"module:function"`` of the law's pre-run stability checks
+            (``function(LoopContext) -> list[LoopBound]``); None: the law has none.
     """
 
     name: str
     summary: str
     factory: str
     options: Mapping[str, Option] = field(default_factory=dict)
+    gains: Mapping[str, str | None] = field(default_factory=dict)
+    loop_bounds: str | None = None
 
     def load(self) -> Callable[[LawContext], Law]:
         """The factory function (imports its module)."""
         module, _, function = self.factory.partition(":")
         return getattr(importlib.import_module(module), function)
 
+    def reads(self, gain: str, options: Mapping[str, Any]) -> bool:
+        """True when the law reads ``control.<gain>`` with its table ``options`` (the gain is
+        listed in :attr:`gains` and the key of the table that replaces it is not given)."""
+        if gain not in self.gains:
+            return False
+        replaced_by = self.gains[gain]
+        return replaced_by is None or replaced_by not in options
+
+
+def below(limit: float) -> str:
+    """``limit`` > 0 shown to 4 significant digits rounded down: a value copied from a
+    message ("must stay below 0.1234") is then inside the bound it names."""
+    if not (math.isfinite(limit) and limit > 0):
+        return f"{limit:.4g}"
+    scale = 10.0 ** (math.floor(math.log10(limit)) - 3)
+    shown = math.floor(limit / scale) * scale
+    while shown >= limit:
+        shown -= scale
+    return f"{shown:.4g}"
+
+
+@dataclass(frozen=True)
+class LoopBound:
+    """One pre-run stability check of a law: a loop number that must stay below a limit.
+
+    Attributes:
+        key: the scenario key the check names (``control.beta``, ``sim.model_mass_factor``).
+        value: that key's value as set (or its default, said in words).
+        number: the loop's number in this run (a gain, or T·λ_max of a velocity loop).
+        limit: the loop is stable iff ``number < limit``.
+        loop: what the loop is and how the number and the limit follow (one line).
+    """
+
+    key: str
+    value: object
+    number: float
+    limit: float
+    loop: str
+
+    @property
+    def stable(self) -> bool:
+        """number < limit."""
+        return bool(self.number < self.limit)
+
+
+@dataclass(frozen=True)
+class LoopContext:
+    """What a law's pre-run checks (``LawSpec.loop_bounds``) may use: the plant, the
+    CONTROLLER's model of it, the configurations the run will pass and how it samples.
+
+    Attributes:
+        plant: the arm the simulator integrates.
+        model: the controller's model of the arm (``control.model``, else the plant's file).
+        mass_factor: ``sim.model_mass_factor`` (M, C, g of ``model`` × it).
+        surfaces: the surfaces. normalization: ``sim.normalization`` ("tip" or "joint").
+        configurations: q (nq,) samples of the desired path (and the start).
+        q0: the start configuration. settings: the control settings.
+        period: the control period T [s]. sampled: the controller reads a measured force
+            (a control rate below the plant's, or sensors that are not ideal); False: the
+            force loop is resolved exactly.
+        alpha: the force filter's α in (0, 1] (1: none). delay: ``sensor.force_delay``.
+        model_key, model_value: the key that makes the controller's model differ from the
+            plant (``sim.model_mass_factor``, ``control.model``) and its value; None when it
+            does not.
+    """
+
+    plant: Robot
+    model: Robot
+    mass_factor: float
+    surfaces: Sequence[Surface]
+    normalization: str
+    configurations: Sequence[np.ndarray]
+    q0: np.ndarray
+    settings: ControlSettings
+    period: float
+    sampled: bool
+    alpha: float = 1.0
+    delay: int = 0
+    model_key: str | None = None
+    model_value: object = None
+
+    def plant_mass(self, q: np.ndarray) -> np.ndarray:
+        """(n, n) the plant's M(q)."""
+        return self.plant.mass_matrix(q)
+
+    def model_mass(self, q: np.ndarray) -> np.ndarray:
+        """(n, n) the controller's M_c(q) = mass_factor × its model's M(q)."""
+        return self.mass_factor * self.model.mass_matrix(q)
+
+    def rows(self, q: np.ndarray, robot: Robot | None = None) -> np.ndarray:
+        """(k, n) the constraint rows A at q of ``robot`` (default the plant), scaled as
+        ``sim.normalization`` says."""
+        from hybrid_force.control.constraint import Constraint
+
+        arm = self.plant if robot is None else robot
+        A, _ = Constraint(list(self.surfaces)).normal_rows(arm.tip_position(q), arm.jacobian(q))
+        if self.normalization == "joint":
+            A = A / np.linalg.norm(A, axis=1, keepdims=True)
+        return A
+
+    def options_of(self, law: str) -> Mapping[str, Any]:
+        """The law's ``[control.<law>]`` table (empty when absent)."""
+        return self.settings.options.get(law, {})
+
+    def named(self, key: str, value: object) -> tuple[str, object]:
+        """(key, value) for a check on the controller's model: the model's key when the
+        controller's model differs from the plant, else the law's own ``key``."""
+        if self.model_key is not None:
+            return self.model_key, self.model_value
+        return key, value
+
+    @property
+    def where(self) -> str:
+        """The run's sampling, in words, for the messages."""
+        text = f"control period T = {self.period:g} s"
+        if self.sampled:
+            text += f", force read one period late, sensor.force_delay = {self.delay}"
+            if self.alpha < 1.0:
+                text += f", filter α = {self.alpha:.3g}"
+        if self.model_key is not None:
+            text += f", the controller's model {self.model_key} = {self.model_value!r}"
+        return text
+
+
+def law_loop_bounds(context: LoopContext) -> list[LoopBound]:
+    """The running law's pre-run checks (its ``LawSpec.loop_bounds``; none by default)."""
+    spec = law_spec(context.settings.law)
+    if spec.loop_bounds is None:
+        return []
+    module, _, function = spec.loop_bounds.partition(":")
+    checks: Callable[[LoopContext], list[LoopBound]] = getattr(
+        importlib.import_module(module), function
+    )
+    return checks(context)
+
+
+_PAPER_GAINS: Mapping[str, str | None] = {
+    "Kd": None, "kd_rate": "Kd", "Lambda": None, "beta": None, "gamma": None,
+}  # fmt: skip
+"""The paper's gains as its laws read them: K_d (or kd_rate · M(q0) when Kd is not given),
+Λ, β, γ."""
 
 # Each law adds its entry here; the modules are imported only when a law is built.
 LAWS: dict[str, LawSpec] = {
@@ -192,6 +347,8 @@ LAWS: dict[str, LawSpec] = {
             "arimoto",
             "the paper's modified Arimoto hybrid law with its phase supervisor (eq. 4, 11, 29-31)",
             "hybrid_force.control.laws.arimoto:build",
+            gains=_PAPER_GAINS,
+            loop_bounds="hybrid_force.control.laws.arimoto:loop_bounds",
         ),
         LawSpec(
             "arimoto_adaptive",
@@ -204,6 +361,8 @@ LAWS: dict[str, LawSpec] = {
                     "parameter's error alone decays, for any arm (default 5)"
                 ),
             },
+            gains=_PAPER_GAINS,
+            loop_bounds="hybrid_force.control.laws.arimoto:loop_bounds",
         ),
         LawSpec(
             "raibert_craig",
@@ -233,6 +392,8 @@ LAWS: dict[str, LawSpec] = {
                 "kp": Option("k_p [-], proportional force gain (0.5)", strict=False),
                 "ki": Option("k_i [1/s], integral force gain ((1 + k_p) γ)"),
             },
+            gains={"Lambda": "position_rate", "kd_rate": "damping_rate", "gamma": "ki"},
+            loop_bounds="hybrid_force.control.laws.raibert_craig:loop_bounds",
         ),
         LawSpec(
             "osc_hybrid",
@@ -259,6 +420,7 @@ LAWS: dict[str, LawSpec] = {
                     "null-space posture bandwidth ω_n [rad/s]: k_n = ω_n², d_n = 2ω_n (default 10)"
                 ),
             },
+            loop_bounds="hybrid_force.control.laws.osc_hybrid:loop_bounds",
         ),
         LawSpec(
             "impedance",
@@ -278,6 +440,7 @@ LAWS: dict[str, LawSpec] = {
                     "true: add M q̈_d + C q̇_d of the desired joint path (true)", kind="bool"
                 ),
             },
+            loop_bounds="hybrid_force.control.laws.impedance:loop_bounds",
         ),
     )
 }

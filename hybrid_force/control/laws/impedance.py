@@ -82,7 +82,13 @@ import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
-from hybrid_force.control.laws.base import LawContext, check_options
+from hybrid_force.control.laws.base import (
+    LawContext,
+    LoopBound,
+    LoopContext,
+    below,
+    check_options,
+)
 from hybrid_force.errors import GainError, SingularConfigurationError
 from hybrid_force.model.robot import RobotTerms
 
@@ -93,6 +99,7 @@ __all__ = [
     "build",
     "cartesian_inertia",
     "impedance_matrices",
+    "loop_bounds",
 ]
 
 _MAX_RATE_STEP = 0.5  # ω·dt and κ_f·dt must stay below this (explicit step, sampled control)
@@ -291,3 +298,69 @@ def build(context: LawContext) -> ImpedanceLaw:
                 value=rate,
             )
     return ImpedanceLaw(gains, context.constraint, context.constraint.k)
+
+
+def loop_bounds(context: LoopContext) -> list[LoopBound]:
+    """The law's pre-run checks: the velocity loop and, sampled, the admittance's force loop.
+
+    **Velocity loop.** Eq. 1 holds −Jᵀ D J q̇ − Nᵀ M_c 2ζω q̇ with D = 2ζω Λ_c (Λ_c, N of the
+    CONTROLLER's M_c): with the plant's M, sampled at T, q̇_{k+1} = (I − T M⁻¹ G) q̇_k + …,
+    G = 2ζω (Jᵀ Λ_c J + M_c N), stable iff T λ_max(M⁻¹ G) < 2 (2ζω m T for M_c = m M).
+
+    **Force loop** (``force_tracking``): the preload φ_k = φ_(k−1) + T κ_f (f_d − f̃_(k−1))
+    enters as −Aᵀ φ, a force (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = 1 with the plant's rows): the
+    recursion of :mod:`hybrid_force.control.force_loop` with a = 0 and b = κ_f ρ, stable iff
+    κ_f ρ T < :func:`~hybrid_force.control.force_loop.largest_integral_step` (1 without
+    filter and delay). The law reads none of the paper's K_d, β, γ.
+    """
+    from hybrid_force.control.force_loop import (
+        force_feedthrough,
+        largest_integral_step,
+        velocity_loop_number,
+    )
+    from hybrid_force.control.laws.osc_hybrid import task_space
+
+    gains = ImpedanceGains(**context.options_of("impedance"))
+    rate = 2.0 * gains.zeta * gains.omega
+    qs = [context.q0, *context.configurations]
+    number = 0.0
+    for q in qs:
+        M_c = context.model_mass(q)
+        task = task_space(M_c, context.model.jacobian(q))
+        G = rate * (task.J.T @ task.Lambda @ task.J + M_c @ task.N)
+        number = max(
+            number, velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period)
+        )
+    key, value = context.named("control.impedance.omega", gains.omega)
+    bounds = [
+        LoopBound(
+            key,
+            value,
+            number,
+            2.0,
+            "the sampled velocity loop q̇ ← (I − T M⁻¹ G) q̇, G = 2ζω (Jᵀ Λ_c J + M_c N) (M the "
+            f"plant's, M_c the controller's; {context.where}) diverges unless "
+            f"T·λ_max(M⁻¹ G) < 2; here it reaches {number:.4g} along the path",
+        )
+    ]
+    if context.sampled and gains.force_tracking:
+        rho = max(
+            force_feedthrough(
+                context.plant_mass(q), context.rows(q), context.rows(q, context.model).T
+            )
+            for q in qs
+        )
+        step = largest_integral_step(context.alpha, context.delay)
+        limit = step / (rho * context.period)
+        bounds.append(
+            LoopBound(
+                "control.impedance.force_rate",
+                gains.force_rate,
+                gains.force_rate,
+                limit,
+                f"the sampled admittance φ_k = φ_(k−1) + T κ_f (f_d − f̃_(k−1)) ({context.where}) "
+                f"oscillates and grows unless κ_f·ρ·T < {step:.4g}: force_rate must stay below "
+                f"{below(limit)} 1/s (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g})",
+            )
+        )
+    return bounds

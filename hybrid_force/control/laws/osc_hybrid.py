@@ -82,7 +82,7 @@ import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
-from hybrid_force.control.laws.base import LawContext
+from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext, below
 from hybrid_force.errors import ControlError, SingularConfigurationError
 from hybrid_force.model.robot import RobotTerms
 
@@ -92,6 +92,8 @@ __all__ = [
     "OscTrace",
     "TaskSpace",
     "build",
+    "force_gain_bounds",
+    "loop_bounds",
     "osc_gains",
     "osc_hybrid_law",
     "task_space",
@@ -356,3 +358,102 @@ def build(context: LawContext) -> OscHybridLaw:
     s = context.settings
     approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
     return OscHybridLaw(osc_gains(context.options, approach_rate), context.constraint)
+
+
+def force_gain_bounds(
+    context: LoopContext, law: str, p_key: str, p_gain: float, i_key: str, i_gain: float
+) -> list[LoopBound]:
+    """The sampled force loop of a law whose torque holds Aᵀ(k_P f̃ + k_I e_F) (this law's
+    eq. 5, Raibert–Craig's eq. 1): B = k_P A_cᵀ (A_c the controller's rows), so by
+    :mod:`hybrid_force.control.force_loop` f_k = c − a f̃_k − b E_k with a = k_P ρ and
+    b = k_I ρ, ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) (= 1 when the controller's rows are the plant's: a
+    force term is applied as a force, whatever the controller's masses). Stable iff
+    k_P ρ < a*(k_I ρ T, α, d) (:func:`~hybrid_force.control.force_loop.max_stable_loop_gain`;
+    1 + k_I T/2 without filter and delay); with k_P = 0 the integral alone needs
+    k_I ρ T below :func:`~hybrid_force.control.force_loop.largest_integral_step` (1).
+    Empty unless the run is sampled."""
+    from hybrid_force.control.force_loop import (
+        force_feedthrough,
+        largest_integral_step,
+        max_stable_loop_gain,
+    )
+
+    if not context.sampled:
+        return []
+    qs = [context.q0, *context.configurations]
+    rho = max(
+        force_feedthrough(context.plant_mass(q), context.rows(q), context.rows(q, context.model).T)
+        for q in qs
+    )
+    T = context.period
+    i_limit = largest_integral_step(context.alpha, context.delay) / (rho * T)
+    if not i_gain < i_limit:
+        return [
+            LoopBound(
+                f"control.{law}.{i_key}",
+                i_gain,
+                i_gain,
+                i_limit,
+                f"the sampled force integral E_k = E_(k−1) + T f̃_(k−1) ({context.where}) "
+                f"oscillates and grows for {i_key}·ρ·T >= "
+                f"{largest_integral_step(context.alpha, context.delay):.4g}: {i_key} must stay "
+                f"below {below(i_limit)} 1/s (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g})",
+            )
+        ]
+    p_limit = max_stable_loop_gain(i_gain * rho * T, context.alpha, context.delay) / rho
+    return [
+        LoopBound(
+            f"control.{law}.{p_key}",
+            p_gain,
+            p_gain,
+            p_limit,
+            f"the sampled force loop f_k = c − {p_key}·ρ f̃_k − {i_key}·ρ E_k ({context.where}) "
+            f"oscillates and grows, and the tool bounces off the surface, unless {p_key} < "
+            f"{below(p_limit)} (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g} along the path, {i_key} = "
+            f"{i_gain:g}; docs/laws.md)",
+        )
+    ]
+
+
+def loop_bounds(context: LoopContext) -> list[LoopBound]:
+    """The law's pre-run checks: the velocity loop and, sampled, the force loop.
+
+    **Velocity loop.** From eq. 1, 3, 4, 6 the torque holds −Jᵀ Λ_c (K_v Ω + K_n Ω̃) J q̇
+    − M_c N_c d_n q̇ (Λ_c, N_c of the CONTROLLER's M_c): with the plant's M, sampled at T,
+    q̇_{k+1} = (I − T M⁻¹ G) q̇_k + … with G ≼ max(K_v, K_n) Jᵀ Λ_c J + d_n M_c N_c, stable iff
+    T λ_max(M⁻¹ G) < 2 (:func:`~hybrid_force.control.force_loop.velocity_loop_number`); for
+    M_c = m M that is T m max(K_v, K_n, d_n) < 2.
+
+    **Force loop**: :func:`force_gain_bounds` with k_P = ``force_p``, k_I = ``force_i``.
+    The law reads none of the paper's K_d, β, γ: no check of theirs applies.
+    """
+    from hybrid_force.control.force_loop import velocity_loop_number
+
+    gains = osc_gains(context.options_of(_NAME), 0.0)
+    qs = [context.q0, *context.configurations]
+    rate = max(gains.kv, gains.kn)
+    number = 0.0
+    for q in qs:
+        M_c = context.model_mass(q)
+        task = task_space(M_c, context.model.jacobian(q))
+        G = rate * task.J.T @ task.Lambda @ task.J + gains.null_kd * (M_c @ task.N)
+        number = max(
+            number, velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period)
+        )
+    key, value = context.named(
+        f"control.{_NAME}.omega", context.options_of(_NAME).get("omega", 20.0)
+    )
+    bounds = [
+        LoopBound(
+            key,
+            value,
+            number,
+            2.0,
+            "the sampled velocity loop q̇ ← (I − T M⁻¹ G) q̇, G = max(K_v, K_n) Jᵀ Λ_c J + d_n M_c N "
+            f"(M the plant's, M_c the controller's; {context.where}) diverges unless "
+            f"T·λ_max(M⁻¹ G) < 2; here it reaches {number:.4g} along the path",
+        )
+    ]
+    return bounds + force_gain_bounds(
+        context, _NAME, "force_p", gains.force_p, "force_i", gains.force_i
+    )

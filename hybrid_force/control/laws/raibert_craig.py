@@ -106,7 +106,7 @@ import numpy as np
 
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
-from hybrid_force.control.laws.base import LawContext
+from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext
 from hybrid_force.errors import ControlError
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import RobotTerms
@@ -117,6 +117,7 @@ __all__ = [
     "RaibertCraigLaw",
     "build",
     "cartesian_inertia",
+    "loop_bounds",
     "make_gains",
     "pseudo_inverse",
     "selection_matrix",
@@ -124,6 +125,7 @@ __all__ = [
 
 FORMS = ("corrected", "original")
 FEEDFORWARDS = ("model", "gravity")
+_NAME = "raibert_craig"
 _SINGULAR = 1e12  # cond(J M⁻¹ Jᵀ) at q₀ above this: the Cartesian inertia is undefined
 
 
@@ -383,3 +385,47 @@ def build(context: LawContext) -> RaibertCraigLaw:
     s = context.settings
     approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
     return RaibertCraigLaw(make_gains(context), context.constraint.surfaces, approach_rate)
+
+
+def loop_bounds(context: LoopContext) -> list[LoopBound]:
+    """The law's pre-run checks: the velocity loop and, sampled, the force loop.
+
+    **Velocity loop.** In free space u = u_ff − K_P e_q − K_D (q̇ − q̇_d) with
+    K_D = (ω_p + ω_d) M_c(q₀) from the CONTROLLER's model: with the plant's M, sampled at T,
+    q̇_{k+1} = (I − T M⁻¹ K_D) q̇_k + …, stable iff T λ_max(M⁻¹ K_D) < 2
+    (:func:`~hybrid_force.control.force_loop.velocity_loop_number`), i.e.
+    T m (ω_p + ω_d) < 2 for M_c = m M. (Along the surface the corrected form's D_x = (ω_p +
+    ω_d) Λ₀ gives the same number.)
+
+    **Force loop** (eq. 1: u ∋ Aᵀ(k_p f̃ + k_i e_F), B = k_p Aᵀ):
+    :func:`~hybrid_force.control.laws.osc_hybrid.force_gain_bounds` with k_P = ``kp``,
+    k_I = ``ki``; the model's masses do not enter (ρ = 1 with the plant's rows), so the
+    bound is k_p < 1 + k_i T/2 without filter and delay: the docstring's tick-to-tick map
+    f ← −k_p f + … with the integral's half-step. The law reads none of β and K_d.
+    """
+    from hybrid_force.control.force_loop import velocity_loop_number
+    from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
+
+    s, opts = context.settings, context.options_of(_NAME)
+    wp = float(opts.get("position_rate", s.Lambda))
+    wd = float(opts.get("damping_rate", s.kd_rate))
+    kp = float(opts.get("kp", 0.5))
+    ki = float(opts.get("ki", (1.0 + kp) * s.gamma))
+    M0 = context.model_mass(context.q0)
+    Dq = (wp + wd) * 0.5 * (M0 + M0.T)
+    qs = [context.q0, *context.configurations]
+    number = max(velocity_loop_number(context.plant_mass(q), Dq, context.period) for q in qs)
+    given = "damping_rate" in opts
+    key, value = context.named(f"control.{_NAME}.damping_rate" if given else "control.kd_rate", wd)
+    bounds = [
+        LoopBound(
+            key,
+            value,
+            number,
+            2.0,
+            "the sampled velocity loop q̇ ← (I − T M⁻¹ K_D) q̇, K_D = (ω_p + ω_d) M_c(q₀) (M the "
+            f"plant's, M_c the controller's; {context.where}) diverges unless "
+            f"T·λ_max(M⁻¹ K_D) < 2; here it reaches {number:.4g} along the path",
+        )
+    ]
+    return bounds + force_gain_bounds(context, _NAME, "kp", kp, "ki", ki)
