@@ -48,6 +48,7 @@ from hybrid_force.sim.dynamics import (
     kkt_reference,
     plastic_impact,
 )
+from hybrid_force.sim.saturation import held_set
 from hybrid_force.sim.settings import SimSettings
 
 _K = LazyKernels("hybrid_force.sim._kernels")
@@ -81,10 +82,12 @@ class Plant:
     compliant damping are summed in :attr:`friction_energy` and :attr:`damping_energy` [J].
 
     Torque saturation: the applied torque is τ = sat(u0 + B f), each joint clipped to
-    ±effort. With B (the exact loop of the paper's law) the map is piecewise affine in f; it
-    is solved by active sets: resolve the loop, fix the joints beyond their limit at the limit
-    (their row of B removed), resolve, until no further joint exceeds its limit (at most n
-    passes; a joint once fixed stays fixed within the step).
+    ±effort. With B (the exact loop of the paper's law) τ and f depend on each other: the
+    plant finds the consistent set of held joints and their signs exactly
+    (:func:`~hybrid_force.sim.saturation.held_set`: every held joint's command beyond its
+    limit on the side it is held at, every free joint's within), then solves once with those
+    joints held (their row of B removed). A step whose unsaturated command is within every
+    limit takes none of this (the cheap path, unchanged).
 
     Attributes:
         in_contact: the tip is on the surface (the rows hold).
@@ -257,28 +260,39 @@ class Plant:
         ddq: np.ndarray,
         f: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The active-set resolution of τ = sat(u0 + B f) (class docstring)."""
+        """q̈ and f under τ = sat(u0 + B f): the consistent held set (class docstring,
+        :mod:`hybrid_force.sim.saturation`), then one solve with it held."""
         effort = self.effort
         assert effort is not None
         u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
         over = np.abs(u) > effort
-        if not over.any():
+        if not over.any():  # the cheap path: nothing to hold, q̈ and f as solved
             return ddq, f
-        fixed = np.zeros(u.shape[0], dtype=bool)
+        if cmd.B is None:  # u does not depend on f: the joints beyond are the held set
+            signs = np.sign(u) * over
+        else:
+            # f(τ) = f̄ − W τ about the unsaturated solution (f at the torque τ = u)
+            W = self._force_per_torque(terms, cons)
+            pull = -self.release_tol if self.unilateral else -np.inf
+            signs, _ = held_set(cmd.u0, cmd.B, f + W @ u, W, effort, pull)
+        held = signs != 0
         u0 = cmd.u0.copy()
-        B = None if cmd.B is None else cmd.B.copy()
-        for _ in range(u.shape[0]):
-            fixed |= over
-            u0[over] = np.clip(u[over], -effort[over], effort[over])
-            if B is not None:
-                B[over] = 0.0
-            ddq, f = self._constrained(terms, cons, Command(u0, B))
-            u = u0 if B is None else u0 + B @ f
-            over = ~fixed & (np.abs(u) > effort)
-            if not over.any():
-                break
-        self.applied = u
+        u0[held] = signs[held] * effort[held]
+        B = None
+        if cmd.B is not None:
+            B = cmd.B.copy()
+            B[held] = 0.0
+        ddq, f = self._constrained(terms, cons, Command(u0, B))
+        self.applied = u0 if B is None else u0 + B @ f
         return ddq.copy(), f.copy()
+
+    def _force_per_torque(self, terms: RobotTerms, cons: ConstraintTerms) -> np.ndarray:
+        """W (k, n) [N per N·m]: f(τ) = f̄ − W τ, W = (A M⁻¹ (Aᵀ + F))⁻¹ A M⁻¹ (eq. 2 with
+        the contact's friction torque F f; M at the step's q, as the solve uses)."""
+        A = cons.A
+        AMinv = np.linalg.solve(terms.M, A.T).T  # M symmetric: (M⁻¹ Aᵀ)ᵀ = A M⁻¹
+        rows = A.T if self._friction is None else A.T + self._friction
+        return np.linalg.solve(AMinv @ rows, AMinv)
 
     def _constrained(
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command

@@ -163,7 +163,7 @@ def finish_result(
     Adds ``limits`` (joints beyond their range, velocity or effort limit, see
     :func:`~hybrid_force.sim.run_checks.limit_violations`; the effort against the commanded
     torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
-    ``saturated_time`` ({joint: s} held at an effort limit, when the plant enforces them),
+    ``saturated_time`` ({joint: s} the plant held at an effort limit, when it enforces them),
     ``friction_energy`` and ``damping_energy`` [J] (dissipated by the contact),
     ``contact_at_end``, ``lost_contact``, ``left_at`` and ``warnings`` (one line each, also
     issued as Python warnings with ``warn``: a failed run reports its failure, not them).
@@ -177,7 +177,9 @@ def finish_result(
     )  # fmt: skip
     saturated = None
     if plant.effort is not None:
-        saturated = saturated_time(names, plant.effort, u_cmd, float(meta["settings"]["dt"]))
+        saturated = saturated_time(
+            names, plant.effort, log.u[:n], u_cmd, float(meta["settings"]["dt"])
+        )
     outcome = contact_outcome(plant.ever_in_contact, plant.in_contact, meta.get("events", []))
     notes = describe(limits, outcome, saturated)
     for note in notes if warn else ():
