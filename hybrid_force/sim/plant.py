@@ -12,10 +12,11 @@ its sensors' readings, and the plant only a command u = u0 + B f. One step of th
 3. :meth:`Plant.advance`: semi-implicit Euler (``pinocchio.integrate``, or q + v dt for arms
    whose joints are all bounded revolute or prismatic) or RK4 with the command held over the
    step; in contact, post-stabilisation: one Gauss–Newton step puts the tip back on the surface
-   and the velocity is projected onto the tangent space (removes the O(dt²) drift that the
-   Baumgarte terms alone would leave); out of contact, a crossing of the surface between two
-   steps is found, the tip is placed on the surface there and a plastic impact (A q̇⁺ = 0) is
-   applied: the tool never passes through the surface.
+   and a plastic constraint impulse, through M⁻¹Aᵀ, puts the velocity on the tangent space
+   (removes the O(dt²) drift that the Baumgarte terms alone would leave; unlike a plain
+   projection it does no tangential work: :meth:`Plant._impulse`); out of contact, a crossing
+   of the surface between two steps is found, the tip is placed on the surface there and a
+   plastic impact (A q̇⁺ = 0) is applied: the tool never passes through the surface.
 
 :class:`Plant` does the small algebra between the Pinocchio calls in compiled kernels
 (:mod:`hybrid_force.sim._kernels`); :class:`ReferencePlant` is the same plant in readable
@@ -145,6 +146,8 @@ class Plant:
         self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
         self._tmp = (np.zeros(n), np.zeros(n))
         self._grad = np.zeros(3)
+        self._row = np.zeros((1, n))  # the compiled step's constraint row
+        self._imp = robot.new_data()  # the velocity correction's own data (its crba)
         self._compiled_step = (
             self._compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
         )
@@ -379,10 +382,11 @@ class Plant:
     def project(
         self, q: np.ndarray, v: np.ndarray, iterations: int = 1
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Gauss–Newton steps putting the tip on the surfaces, then v onto the tangent space.
+        """Gauss–Newton steps putting the tip on the surfaces, then the constraint impulse
+        that puts v on the tangent space (:meth:`_impulse`).
 
-        The velocity is projected with the rows of the last iteration's start point (the
-        difference is of the order of the position correction, ~1e-9 m here).
+        The impulse uses the rows of the last iteration's start point (the difference is of
+        the order of the position correction, ~1e-9 m here) and M at the corrected q.
         """
         model = self.robot.model
         for _ in range(iterations):
@@ -390,14 +394,31 @@ class Plant:
             gram = A @ A.T
             A_pinv = A.T / gram[0, 0] if A.shape[0] == 1 else A.T @ np.linalg.inv(gram)
             q = pin.integrate(model, q, -(A_pinv @ d))
-        v = v - A_pinv @ (A @ v)
-        return q, v
+        return q, self._impulse(q, v, A)
+
+    def _impulse(self, q: np.ndarray, v: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """v (n,) after the plastic constraint impulse at q that makes A v = 0 (A: (k, n)):
+
+            v⁺ = v − M⁻¹Aᵀ (A M⁻¹ Aᵀ)⁻¹ A v,     M = M(q),
+
+        i.e. M (v⁺ − v) = Aᵀ P with P (k,) [N·s]: the correction is a force through the
+        constraint, and does no work on a tangent velocity (issue 28 item 5; a plain
+        projection v − A⁺ A v is not of this form and leaves a tangential residual in the
+        equation of motion). ``pin.impulseDynamics`` with restitution 0 and no damping
+        (:func:`~hybrid_force.sim.dynamics.plastic_impact` solves the same problem).
+
+        M at the corrected q, the configuration at which v⁺ holds and whose M the next step
+        uses: the impulse is the one that removes the least kinetic energy there (Gauss).
+        Returns a new array.
+        """
+        return pin.impulseDynamics(self.robot.model, self._imp, q, v, A, 0.0, 0.0).copy()
 
     def _contact_step(
         self, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Semi-implicit Euler then :meth:`project`, for one surface and a Euclidean arm, in
-        two compiled calls (:func:`~hybrid_force.sim._kernels.euler_step`, ``project_one``)."""
+        """Semi-implicit Euler then :meth:`project`, for one surface and a Euclidean arm:
+        two compiled calls (:func:`~hybrid_force.sim._kernels.euler_step`, ``project_one``)
+        and the impulse in ``pin.impulseDynamics``."""
         model, data, fid = self.robot.model, self._geo, self.robot.tip_id
         q_tmp, v_tmp = self._tmp
         _K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
@@ -409,9 +430,11 @@ class Plant:
             phi, grad, _ = surface.evaluate(self._tip)
         q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        gn = _K.project_one(desc, self._tip, grad, phi, J6, q_tmp, v_tmp, q_out, v_out)
+        row = self._row
+        gn = _K.project_one(desc, self._tip, grad, phi, J6, q_tmp, q_out, row[0])
         if not gn >= _GRAD_TOL:
             self._rows(q_tmp)  # raises the precise SingularConfigurationError
+        v_out[:] = pin.impulseDynamics(model, self._imp, q_out, v_tmp, row, 0.0, 0.0)
         return q_out, v_out
 
     def _rk4(
@@ -456,6 +479,13 @@ class ReferencePlant(Plant):
 
     def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
         return self.constraint.evaluate_reference(terms, v)
+
+    def _impulse(self, q: np.ndarray, v: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """:meth:`Plant._impulse` by its formula, with dense solves."""
+        M = pin.crba(self.robot.model, self._imp, q)
+        M = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
+        X = np.linalg.solve(M, A.T)
+        return v - X @ np.linalg.solve(A @ X, A @ v)
 
     def _constrained(
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
