@@ -26,7 +26,9 @@ def summarise(result: Result, settle_time: float | None = None) -> dict[str, Any
     velocity_exceeded and effort_exceeded (joint names; details in meta["limits"]),
     saturated_time ({joint: seconds} the applied torque was held at an effort limit),
     friction_energy and damping_energy [J] (dissipated by the contact's friction and
-    compliant damping, docs/contact.md), then the metrics
+    compliant damping, docs/contact.md), joint_damping_energy and joint_friction_energy [J]
+    (dissipated by the joints' own damping and friction, the model's ``<dynamics>``), then
+    the metrics
     (:class:`~hybrid_force.metrics.Metrics`, with ``settle_time`` [s] as in
     :meth:`~hybrid_force.result.Result.metrics`). Keys whose value the run did not record
     (older results) are None or empty.
@@ -53,6 +55,8 @@ def summarise(result: Result, settle_time: float | None = None) -> dict[str, Any
         "saturated_time": dict(meta.get("saturated_time") or {}),
         "friction_energy": meta.get("friction_energy"),
         "damping_energy": meta.get("damping_energy"),
+        "joint_damping_energy": meta.get("joint_damping_energy"),
+        "joint_friction_energy": meta.get("joint_friction_energy"),
     }
     out.update(result.metrics(settle_time).to_dict())
     return out

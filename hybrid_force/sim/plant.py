@@ -32,7 +32,7 @@ import pinocchio as pin
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.errors import RobotError, SingularConfigurationError
 from hybrid_force.events import Event, Impact, Release, Touch
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
@@ -41,6 +41,7 @@ from hybrid_force.sim.contact import (
     compliant_force,
     friction_matrix,
     friction_power,
+    joint_dissipation,
 )
 from hybrid_force.sim.dynamics import (
     ConstrainedDynamics,
@@ -97,6 +98,13 @@ class Plant:
             each {"t": s, "kind": ...}.
         friction_energy: [J] dissipated by friction so far.
         damping_energy: [J] dissipated by the compliant contact's damping so far.
+        joint_damping_energy, joint_friction_energy: [J] dissipated by the joints' own
+            damping and friction so far.
+
+    Joint damping and friction: the model's ``damping`` d and ``friction`` τ_c (URDF
+    ``<dynamics>``), which Pinocchio's algorithms ignore, act as τ_j = −d q̇ − τ_c q̇/√(q̇² +
+    ε²) at the step's start velocity (RK4: at each stage's), added to C q̇ + g in the plant's
+    solves only (the terms handed to the controller are untouched). All zero: no term at all.
     """
 
     #: [m] a compliant contact holds while the tip is within this of a surface (round-off)
@@ -116,6 +124,7 @@ class Plant:
         self.contact = contact = contact if contact is not None else ContactSettings()
         self.compliant = contact.compliant
         self.friction_energy = self.damping_energy = 0.0
+        self._init_joints(robot, sim)
         self._power = (0.0, 0.0)  # (friction, damping) [W] at the last accelerate()
         self._friction: np.ndarray | None = None  # (n, k) friction torque per N, this step
         self.baumgarte, self.integrator = sim.baumgarte, sim.integrator
@@ -161,6 +170,7 @@ class Plant:
             SingularConfigurationError: the rows are undefined while in contact.
         """
         terms = self.robot.terms(q, v, self.data, out=self._terms)
+        self._joints_at(v)
         return terms, self._rows_or_none(terms, v)
 
     def _rows_or_none(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms | None:
@@ -173,6 +183,52 @@ class Plant:
 
     def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
         return self.constraint.evaluate(terms, v, out=self._cons)
+
+    # ------------------------------------------------------------------ joint dissipation
+    def _init_joints(self, robot: Robot, sim: SimSettings) -> None:
+        """The joints' own damping d and Coulomb friction τ_c (the model's ``damping`` and
+        ``friction``, URDF ``<dynamics>``), which Pinocchio reads and its algorithms ignore."""
+        model = robot.model
+        d = np.array(model.damping, dtype=float)
+        c = np.array(model.friction, dtype=float)
+        for name, values in (("damping", d), ("friction", c)):
+            bad = np.flatnonzero(~(values >= 0.0) | ~np.isfinite(values))
+            if bad.size:
+                joint = _joint_of(model, int(bad[0]))
+                raise RobotError(
+                    f"robot '{robot.name}': joint {joint} has {name} {values[bad[0]]:g}; the "
+                    f"joints' {name} must be a finite number >= 0"
+                )
+        #: (n,) joint damping [N·m·s/rad or N·s/m] and Coulomb friction [N·m or N] the plant
+        #: applies, τ_j = −d q̇ − τ_c q̇/√(q̇² + ε²) (ε: ``sim.joint_friction_velocity``)
+        self.joint_damping, self.joint_friction = d, c
+        self.joint_friction_velocity = sim.joint_friction_velocity
+        # all zero: no term at all, so the run is bit-identical to an arm without them
+        self._dissipates = bool(d.any() or c.any())
+        self._joint_tau: np.ndarray | None = None  # (n,) τ_j at the last evaluate()
+        self._joint_power: tuple[float, float] | None = None  # its (damping, friction) [W]
+        #: [J] dissipated by the joints' damping and by their friction so far
+        self.joint_damping_energy = self.joint_friction_energy = 0.0
+
+    def _joint_torque(self, v: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """τ_j (n,) [N·m or N] at q̇ = v and its two powers [W]
+        (:func:`~hybrid_force.sim.contact.joint_dissipation`)."""
+        return joint_dissipation(
+            self.joint_damping, self.joint_friction, self.joint_friction_velocity, v
+        )
+
+    def _joints_at(self, v: np.ndarray) -> None:
+        """The joints' torque at the step's start velocity, explicit like the tip friction."""
+        if self._dissipates:
+            tau, p_damping, p_friction = self._joint_torque(v)
+            self._joint_tau, self._joint_power = tau, (p_damping, p_friction)
+
+    def _nle(self, terms: RobotTerms) -> np.ndarray:
+        """C q̇ + g, minus the joints' own torque where the model has any (the plant's alone:
+        the controller's terms are not changed)."""
+        if self._joint_tau is None:
+            return terms.nle
+        return terms.nle - self._joint_tau
 
     def accelerate(
         self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
@@ -244,10 +300,10 @@ class Plant:
             friction = friction_power(c.friction, c.friction_velocity, f, speed)
         spring = c.stiffness * np.maximum(penetration, 0.0) ** c.exponent
         self._power = (friction, float((f - spring) @ rate))  # damping: (f − kδⁿ) δ̇ ≥ 0
-        return free_acceleration(terms.M, terms.nle, tau), f
+        return free_acceleration(terms.M, self._nle(terms), tau), f
 
     def _free(self, terms: RobotTerms, cmd: Command) -> np.ndarray:
-        return free_acceleration(terms.M, terms.nle, self._clipped(cmd.u0))
+        return free_acceleration(terms.M, self._nle(terms), self._clipped(cmd.u0))
 
     def _clipped(self, u: np.ndarray) -> np.ndarray:
         """The motor torque u (n,) clipped at the effort limits; :attr:`applied` set if it was."""
@@ -302,7 +358,7 @@ class Plant:
     ) -> tuple[np.ndarray, np.ndarray]:
         b = self.baumgarte
         gamma = b.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, self._gamma)
-        return self._solver.solve(terms.nle, cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
+        return self._solver.solve(self._nle(terms), cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
 
     def advance(
         self,
@@ -325,6 +381,10 @@ class Plant:
             self.friction_energy += self._power[0] * dt
             self.damping_energy += self._power[1] * dt
             self._power = (0.0, 0.0)
+        if self._joint_power is not None:  # the joints' dissipation, at the step's start
+            self.joint_damping_energy += self._joint_power[0] * dt
+            self.joint_friction_energy += self._joint_power[1] * dt
+            self._joint_power = None
         if self.compliant:
             v = v + ddq * dt
             return pin.integrate(self.robot.model, q, v * dt), v
@@ -447,11 +507,14 @@ class Plant:
 
         def acc(qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
             terms = robot.terms(qs, vs, data)
+            nle = terms.nle
+            if self._dissipates:  # the joints' damping and friction at the stage's velocity
+                nle = nle - self._joint_torque(vs)[0]
             if not in_contact:
-                return free_acceleration(terms.M, terms.nle, cmd.u0)
+                return free_acceleration(terms.M, nle, cmd.u0)
             cons = self.constraint.evaluate(terms, vs)
             gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-            ddq, _ = constrained_acceleration(model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+            ddq, _ = constrained_acceleration(model, data, nle, cmd.u0, cmd.B, cons.A, gamma)
             return ddq
 
         k1v, k1a = v, a1
@@ -475,6 +538,7 @@ class ReferencePlant(Plant):
 
     def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
         terms = reference_terms(self.robot, q, v)
+        self._joints_at(v)
         return terms, self._rows_or_none(terms, v)
 
     def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
@@ -491,7 +555,16 @@ class ReferencePlant(Plant):
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
     ) -> tuple[np.ndarray, np.ndarray]:
         gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-        return kkt_reference(terms.M, terms.nle, cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
+        return kkt_reference(terms.M, self._nle(terms), cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
+
+
+def _joint_of(model: pin.Model, iv: int) -> str:
+    """The name of the joint that owns velocity index iv."""
+    for j in range(1, model.njoints):
+        start = model.joints[j].idx_v
+        if start <= iv < start + model.joints[j].nv:
+            return str(model.names[j])
+    return f"#{iv}"
 
 
 def _crossing(model: pin.Model, q0: np.ndarray, q1: np.ndarray, d0: float, d1: float) -> np.ndarray:

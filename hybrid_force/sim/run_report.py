@@ -165,6 +165,8 @@ def finish_result(
     torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
     ``saturated_time`` ({joint: s} the plant held at an effort limit, when it enforces them),
     ``friction_energy`` and ``damping_energy`` [J] (dissipated by the contact),
+    ``joint_damping_energy`` and ``joint_friction_energy`` [J] (by the joints' own damping
+    and friction),
     ``contact_at_end``, ``lost_contact``, ``left_at`` and ``warnings`` (one line each, also
     issued as Python warnings with ``warn``: a failed run reports its failure, not them).
     """
@@ -190,4 +192,8 @@ def finish_result(
     )
     # [J] dissipated by the plant's friction and compliant damping (docs/contact.md)
     meta.update(friction_energy=plant.friction_energy, damping_energy=plant.damping_energy)
+    meta.update(
+        joint_damping_energy=plant.joint_damping_energy,
+        joint_friction_energy=plant.joint_friction_energy,
+    )
     return log.result(n, meta, k)
