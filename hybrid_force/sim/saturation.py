@@ -29,9 +29,11 @@ Method (terminates by construction):
   a P-matrix along the path) h is strictly increasing and the solution is unique.
 * k > 1 (stacked surfaces): every sign pattern of the joints whose command can reach a limit
   (finite e_j, B_j ≠ 0) is tried, 3^m of them, vectorised; m ≤ 7 for the bundled arms
-  (2187 k × k solves). For a P-matrix I + B W the box problem has exactly one solution
-  (the standard uniqueness result for box-constrained linear complementarity, e.g. Cottle,
-  Pang & Stone, *The Linear Complementarity Problem*, 1992, ch. 3).
+  (2187 k × k solves; more than 10 such joints is refused). For a P-matrix I + B W the box
+  problem has exactly one solution (the P-matrix uniqueness theorem of linear
+  complementarity, Samelson, Thrall & Wesler 1958, in its box-constrained form; see Cottle,
+  Pang & Stone, *The Linear Complementarity Problem*, 1992, ch. 3). The code relies on no
+  such property: it lists every solution and refuses to choose among several.
 
 Where the solution is not unique (I + B W not a P-matrix and the state in the region where
 that matters) the plant cannot choose among physically different torques:
@@ -51,10 +53,14 @@ import itertools
 
 import numpy as np
 
+from hybrid_force.errors import SimulationError
+
 __all__ = ["held_set", "saturation_solutions"]
 
 #: relative tolerance of "the root lies in its segment" and of "two roots are one"
 _TOL = 1e-10
+#: k > 1: most joints whose held sets are enumerated (3^10 = 59049 k × k solves)
+_MAX_ENUMERATED = 10
 
 
 def saturation_solutions(
@@ -167,6 +173,13 @@ def _enumerate(
     can = np.isfinite(effort) & np.any(B != 0.0, axis=1)
     fixed = _pattern(u0, effort) * ~can  # a command that does not depend on f
     idx = np.flatnonzero(can)
+    if idx.size > _MAX_ENUMERATED:
+        raise SimulationError(
+            f"torque saturation on {B.shape[1]} stacked surfaces tries every held set of the "
+            f"joints that can reach a limit: 3^{idx.size} sets for {idx.size} joints is too "
+            f"many (at most {_MAX_ENUMERATED} joints); switch sim.torque_limits off or use "
+            "one surface"
+        )
     patterns = np.array(list(itertools.product((-1, 0, 1), repeat=idx.size)), dtype=np.int64)
     S = np.tile(fixed, (patterns.shape[0], 1))
     S[:, idx] = patterns
