@@ -80,7 +80,8 @@ def test_the_held_set_is_the_unique_consistent_one(
         assert cons is not None
         A = cons.A.copy()
         gamma = SimSettings().baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-        M, nle = terms.M.copy(), plant._nle(terms).copy()  # with the joints' own torque
+        # the plant's own M and C q̇ + g: with the joints' damping (the Panda's URDF has 0.003)
+        M, nle = plant._M(terms).copy(), plant._nle(terms).copy()
         u0 = rng.normal(scale=20.0, size=n)
         # the paper law's structure B = β M A⁺ (arimoto.py) for half the trials, random else
         A_pinv = A.T / float((A @ A.T)[0, 0])

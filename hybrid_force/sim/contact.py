@@ -189,24 +189,26 @@ def regularised_speed(speed: np.ndarray, eps: float) -> np.ndarray:
 
 def joint_dissipation(
     damping: np.ndarray, friction: np.ndarray, eps: float, v: np.ndarray
-) -> tuple[np.ndarray, float, float]:
-    """The joints' own viscous damping and regularised Coulomb friction at the velocity v.
+) -> tuple[np.ndarray, np.ndarray]:
+    """The joints' own viscous damping and regularised Coulomb friction at the velocity v, as
+    damping coefficients: the torque is τ_j = −(d + c(q̇)) q̇ with
 
-    τ_j = −d q̇ − τ_c q̇ / √(q̇² + ε²) per joint (the tip friction's regularisation,
-    :func:`regularised_speed`), with d and τ_c the model's ``damping`` and ``friction``
-    (URDF ``<dynamics damping friction>``, MJCF ``damping``/``frictionloss``).
+        c(q̇) = τ_c / √(q̇² + ε²)     (the tip friction's regularisation, :func:`regularised_speed`)
+
+    so τ_j = −d q̇ − τ_c q̇/√(q̇² + ε²), with d and τ_c the model's ``damping`` and
+    ``friction`` (URDF ``<dynamics damping friction>``, MJCF ``damping``/``frictionloss``).
+    The plant applies it with the coefficients at the step's start and the velocity at its
+    end (:class:`~hybrid_force.sim.plant.Plant`); either way each part dissipates
+    d q̇² ≥ 0 and c q̇² ≥ 0 [W].
 
     Args:
         damping: (n,) d ≥ 0 [N·m·s/rad or N·s/m]. friction: (n,) τ_c ≥ 0 [N·m or N].
         eps: ε [rad/s or m/s] > 0. v: (n,) q̇ [rad/s or m/s].
 
     Returns:
-        τ_j (n,) [N·m or N]; the power each dissipates, d q̇² and τ_c q̇²/√(q̇² + ε²) [W]
-        (both ≥ 0: the torque opposes the velocity).
+        (n,) d and (n,) c(q̇) [N·m·s/rad or N·s/m].
     """
-    viscous = damping * v
-    coulomb = friction * v / regularised_speed(np.abs(v), eps)
-    return -(viscous + coulomb), float(viscous @ v), float(coulomb @ v)
+    return damping, friction / regularised_speed(np.abs(v), eps)
 
 
 def creep_velocity(mu: float, eps: float, f: float, push: float) -> float:

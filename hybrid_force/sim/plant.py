@@ -102,9 +102,18 @@ class Plant:
             damping and friction so far.
 
     Joint damping and friction: the model's ``damping`` d and ``friction`` τ_c (URDF
-    ``<dynamics>``), which Pinocchio's algorithms ignore, act as τ_j = −d q̇ − τ_c q̇/√(q̇² +
-    ε²) at the step's start velocity (RK4: at each stage's), added to C q̇ + g in the plant's
-    solves only (the terms handed to the controller are untouched). All zero: no term at all.
+    ``<dynamics>``), which Pinocchio's algorithms ignore, act as τ_j = −(d + c) q̇ with
+    c = τ_c/√(q̇² + ε²) (:func:`~hybrid_force.sim.contact.joint_dissipation`, the tip
+    friction's regularised law). With the Euler integrator the coefficients are taken at the
+    step's start and the velocity at its end, τ_j = −(d + c)(q̇ + dt q̈): the plant solves
+    with M + dt·diag(d + c) and C q̇ + g + (d + c) q̇ (a linearly implicit step). Where the tip
+    friction is explicit, this departs from it on purpose: near rest c ≈ τ_c/ε is a stiff
+    damper (1e3 N·m·s/rad for τ_c = 1 N·m, ε = 1 mm/s), which an explicit step on a light
+    wrist (M⁻¹ ~ 1e3 1/(kg·m²)) would need dt < 2e-6 s to keep stable; the implicit one is
+    stable for any dt and still dissipates exactly (d + c) w² with w the step's end velocity.
+    RK4 evaluates τ_j at each stage's velocity (explicit: mind the step). Only the plant's
+    solves see them: the terms handed to the controller are untouched. All zero: no term at
+    all, bit-identical.
     """
 
     #: [m] a compliant contact holds while the tip is within this of a surface (round-off)
@@ -156,6 +165,7 @@ class Plant:
         self._tmp = (np.zeros(n), np.zeros(n))
         self._grad = np.zeros(3)
         self._row = np.zeros((1, n))  # the compiled step's constraint row
+        self._diag = np.diag_indices(n)
         self._imp = robot.new_data()  # the velocity correction's own data (its crba)
         self._compiled_step = (
             self._compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
@@ -170,7 +180,8 @@ class Plant:
             SingularConfigurationError: the rows are undefined while in contact.
         """
         terms = self.robot.terms(q, v, self.data, out=self._terms)
-        self._joints_at(v)
+        if self._dissipates:  # pin.forwardDynamics reads data.M, which crba just filled
+            self._joints_at(v, self.data.M)
         return terms, self._rows_or_none(terms, v)
 
     def _rows_or_none(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms | None:
@@ -200,35 +211,47 @@ class Plant:
                     f"joints' {name} must be a finite number >= 0"
                 )
         #: (n,) joint damping [N·m·s/rad or N·s/m] and Coulomb friction [N·m or N] the plant
-        #: applies, τ_j = −d q̇ − τ_c q̇/√(q̇² + ε²) (ε: ``sim.joint_friction_velocity``)
+        #: applies (class docstring; ε: ``sim.joint_friction_velocity``)
         self.joint_damping, self.joint_friction = d, c
         self.joint_friction_velocity = sim.joint_friction_velocity
         # all zero: no term at all, so the run is bit-identical to an arm without them
         self._dissipates = bool(d.any() or c.any())
-        self._joint_tau: np.ndarray | None = None  # (n,) τ_j at the last evaluate()
-        self._joint_power: tuple[float, float] | None = None  # its (damping, friction) [W]
+        # [s] h of the implicit treatment: the step with the Euler integrator, 0 (explicit)
+        # with RK4, whose stages evaluate the torque at their own velocities
+        self._implicit_dt = sim.dt if sim.integrator == "euler" else 0.0
+        # (d, c(q̇)) (n,) each at the last evaluate(): the coefficients of this step
+        self._joint_coef: tuple[np.ndarray, np.ndarray] | None = None
+        self._joint_Dv: np.ndarray | None = None  # (n,) (d + c) q̇ at the step's start
         #: [J] dissipated by the joints' damping and by their friction so far
         self.joint_damping_energy = self.joint_friction_energy = 0.0
 
-    def _joint_torque(self, v: np.ndarray) -> tuple[np.ndarray, float, float]:
-        """τ_j (n,) [N·m or N] at q̇ = v and its two powers [W]
-        (:func:`~hybrid_force.sim.contact.joint_dissipation`)."""
-        return joint_dissipation(
+    def _joints_at(self, v: np.ndarray, M: np.ndarray | None) -> None:
+        """The joints' coefficients at the step's start velocity v, and (d + c) h added to the
+        diagonal of M (n, n), the mass matrix the plant's solves read (not the terms handed
+        to the controller); M None: the solves read terms.M (:meth:`_M`)."""
+        if not self._dissipates:
+            return
+        d, c = joint_dissipation(
             self.joint_damping, self.joint_friction, self.joint_friction_velocity, v
         )
-
-    def _joints_at(self, v: np.ndarray) -> None:
-        """The joints' torque at the step's start velocity, explicit like the tip friction."""
-        if self._dissipates:
-            tau, p_damping, p_friction = self._joint_torque(v)
-            self._joint_tau, self._joint_power = tau, (p_damping, p_friction)
+        D = d + c
+        self._joint_coef, self._joint_Dv = (d, c), D * v
+        if M is not None and self._implicit_dt > 0.0:
+            M[self._diag] += self._implicit_dt * D
 
     def _nle(self, terms: RobotTerms) -> np.ndarray:
-        """C q̇ + g, minus the joints' own torque where the model has any (the plant's alone:
-        the controller's terms are not changed)."""
-        if self._joint_tau is None:
+        """C q̇ + g plus the joints' own (d + c) q̇ where the model has any."""
+        if self._joint_Dv is None:
             return terms.nle
-        return terms.nle - self._joint_tau
+        return terms.nle + self._joint_Dv
+
+    def _M(self, terms: RobotTerms) -> np.ndarray:
+        """The matrix of the plant's dense solves: M, plus h (d + c) on its diagonal with
+        joint damping (the implicit step, class docstring)."""
+        if self._joint_coef is None or self._implicit_dt == 0.0:
+            return terms.M
+        d, c = self._joint_coef
+        return terms.M + np.diag(self._implicit_dt * (d + c))
 
     def accelerate(
         self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
@@ -300,10 +323,10 @@ class Plant:
             friction = friction_power(c.friction, c.friction_velocity, f, speed)
         spring = c.stiffness * np.maximum(penetration, 0.0) ** c.exponent
         self._power = (friction, float((f - spring) @ rate))  # damping: (f − kδⁿ) δ̇ ≥ 0
-        return free_acceleration(terms.M, self._nle(terms), tau), f
+        return free_acceleration(self._M(terms), self._nle(terms), tau), f
 
     def _free(self, terms: RobotTerms, cmd: Command) -> np.ndarray:
-        return free_acceleration(terms.M, self._nle(terms), self._clipped(cmd.u0))
+        return free_acceleration(self._M(terms), self._nle(terms), self._clipped(cmd.u0))
 
     def _clipped(self, u: np.ndarray) -> np.ndarray:
         """The motor torque u (n,) clipped at the effort limits; :attr:`applied` set if it was."""
@@ -347,9 +370,10 @@ class Plant:
 
     def _force_per_torque(self, terms: RobotTerms, cons: ConstraintTerms) -> np.ndarray:
         """W (k, n) [N per N·m]: f(τ) = f̄ − W τ, W = (A M⁻¹ (Aᵀ + F))⁻¹ A M⁻¹ (eq. 2 with
-        the contact's friction torque F f; M at the step's q, as the solve uses)."""
+        the contact's friction torque F f; M at the step's q, with the joints' implicit
+        damping if any: the matrix the solve uses)."""
         A = cons.A
-        AMinv = np.linalg.solve(terms.M, A.T).T  # M symmetric: (M⁻¹ Aᵀ)ᵀ = A M⁻¹
+        AMinv = np.linalg.solve(self._M(terms), A.T).T  # M symmetric: (M⁻¹ Aᵀ)ᵀ = A M⁻¹
         rows = A.T if self._friction is None else A.T + self._friction
         return np.linalg.solve(AMinv @ rows, AMinv)
 
@@ -381,10 +405,15 @@ class Plant:
             self.friction_energy += self._power[0] * dt
             self.damping_energy += self._power[1] * dt
             self._power = (0.0, 0.0)
-        if self._joint_power is not None:  # the joints' dissipation, at the step's start
-            self.joint_damping_energy += self._joint_power[0] * dt
-            self.joint_friction_energy += self._joint_power[1] * dt
-            self._joint_power = None
+        if self._joint_coef is not None:  # the joints' dissipation over the step
+            # the torque −(d + c) w acts with w = v + h q̈ (h = dt: the step's end velocity,
+            # whose displacement w dt the step makes; h = 0, RK4: the start's)
+            d, c = self._joint_coef
+            w = v + self._implicit_dt * ddq
+            w2 = w * w
+            self.joint_damping_energy += float(d @ w2) * dt
+            self.joint_friction_energy += float(c @ w2) * dt
+            self._joint_coef = self._joint_Dv = None
         if self.compliant:
             v = v + ddq * dt
             return pin.integrate(self.robot.model, q, v * dt), v
@@ -509,7 +538,10 @@ class Plant:
             terms = robot.terms(qs, vs, data)
             nle = terms.nle
             if self._dissipates:  # the joints' damping and friction at the stage's velocity
-                nle = nle - self._joint_torque(vs)[0]
+                d, c = joint_dissipation(
+                    self.joint_damping, self.joint_friction, self.joint_friction_velocity, vs
+                )
+                nle = nle + (d + c) * vs
             if not in_contact:
                 return free_acceleration(terms.M, nle, cmd.u0)
             cons = self.constraint.evaluate(terms, vs)
@@ -538,7 +570,7 @@ class ReferencePlant(Plant):
 
     def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
         terms = reference_terms(self.robot, q, v)
-        self._joints_at(v)
+        self._joints_at(v, None)  # the dense solves read _M(terms)
         return terms, self._rows_or_none(terms, v)
 
     def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
@@ -555,7 +587,9 @@ class ReferencePlant(Plant):
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
     ) -> tuple[np.ndarray, np.ndarray]:
         gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-        return kkt_reference(terms.M, self._nle(terms), cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
+        return kkt_reference(
+            self._M(terms), self._nle(terms), cmd.u0, self._loop_B(cmd.B), cons.A, gamma
+        )
 
 
 def _joint_of(model: pin.Model, iv: int) -> str:
