@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import warnings
+from typing import Any
 
 import numpy as np
 import pytest
@@ -148,3 +149,65 @@ def test_ur5_plane_at_500_newtons_holds_wrist_1_on_the_side_of_its_command() -> 
     for name, seconds in expected.items():
         assert res.meta["saturated_time"][name] == pytest.approx(seconds)
     assert saturated_time(names, effort, res.u, res.u_cmd, sc.sim.dt) == res.meta["saturated_time"]
+
+
+def _old_active_set(
+    plant: Plant, terms: Any, cons: Any, cmd: Command, ddq: np.ndarray, f: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The iteration this replaced (kept here as the bug's reference): fix the joints beyond
+    their limit at the limit of the first, unsaturated pass, resolve, never release."""
+    effort = plant.effort
+    assert effort is not None and cmd.B is not None
+    u = cmd.u0 + cmd.B @ f
+    over = np.abs(u) > effort
+    if not over.any():
+        return ddq, f
+    fixed = np.zeros(u.shape[0], dtype=bool)
+    u0, B = cmd.u0.copy(), cmd.B.copy()
+    for _ in range(u.shape[0]):
+        fixed |= over
+        u0[over] = np.clip(u[over], -effort[over], effort[over])
+        B[over] = 0.0
+        ddq, f = plant._constrained(terms, cons, Command(u0, B))
+        u = u0 + B @ f
+        over = ~fixed & (np.abs(u) > effort)
+        if not over.any():
+            break
+    plant.applied = u
+    return ddq.copy(), f.copy()
+
+
+def test_on_the_old_iterations_states_the_held_set_is_unique_and_on_the_commands_side(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """ur5_plane, f_d = 500 N, run with the old iteration: wherever it held wrist 1 at −28 N·m
+    under a positive command (91 samples in 3 s), the consistent set at that very state is
+    unique and does not (wrist 1 is within its limit there, f ≈ 400 N, not the ≈ 495 N the
+    wrong hold gave)."""
+    seen: list[tuple[int, np.ndarray, float, float, float, float]] = []
+
+    def replay(self: Plant, terms: Any, cons: Any, cmd: Command, ddq: Any, f: Any) -> Any:
+        effort = self.effort
+        assert effort is not None and cmd.B is not None
+        if not np.any(np.abs(cmd.u0 + cmd.B @ f) > effort):
+            return ddq, f
+        W = self._force_per_torque(terms, cons)
+        found = saturation_solutions(cmd.u0, cmd.B, f + W @ (cmd.u0 + cmd.B @ f), W, effort)
+        ddq, f = _old_active_set(self, terms, cons, cmd, ddq, f)
+        assert self.applied is not None
+        commanded = float((cmd.u0 + cmd.B @ f)[3])
+        held = float(self.applied[3])
+        seen.append((len(found), found[0][0], float(found[0][1][0]), held, commanded, float(f[0])))
+        return ddq, f
+
+    monkeypatch.setattr(Plant, "_saturated", replay)
+    sc = load_scenario("scenarios/ur5_plane.toml", {"control.f_d": 500.0, "sim.duration": 3.0})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        simulate(sc)
+    assert all(count == 1 for count, *_ in seen)  # one consistent set at every state
+    wrong = [s for s in seen if s[3] == -28.0 and s[4] > 0.0]  # wrist 1 held against it
+    assert len(wrong) > 50  # 91 in these 3 s
+    for _, signs, f_new, _, _, f_old in wrong:
+        assert signs[3] != -1  # the consistent set never holds it there
+        assert f_old - f_new > 50.0  # the jump the wrong hold made (≈ 495 against ≈ 400 N)
