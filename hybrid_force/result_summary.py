@@ -26,11 +26,13 @@ def summarise(result: Result, settle_time: float | None = None) -> dict[str, Any
     velocity_exceeded and effort_exceeded (joint names; details in meta["limits"]),
     saturated_time ({joint: seconds} the applied torque was held at an effort limit),
     friction_energy and damping_energy [J] (dissipated by the contact's friction and
-    compliant damping, docs/contact.md), n_warnings (the number of lines in warnings: a
-    sweep filters on it), touched (the tool was on the surface at some time), chatter (its
-    releases each followed by a touch after the force first settled), force_settled (RMS
-    |f − f_d| over the final part of the run within tolerance; None without contact or f_d;
-    :func:`hybrid_force.sim.run_checks.run_behaviour`), then the metrics
+    compliant damping, docs/contact.md), joint_damping_energy and joint_friction_energy [J]
+    (dissipated by the joints' own damping and friction, the model's ``<dynamics>``),
+    n_warnings (the number of lines in warnings: a sweep filters on it), touched (the tool was
+    on the surface at some time), chatter (its releases each followed by a touch after the
+    force first settled), force_settled (RMS |f − f_d| over the final part of the run within
+    tolerance; None without contact or f_d; :func:`hybrid_force.sim.run_checks.run_behaviour`),
+    then the metrics
     (:class:`~hybrid_force.metrics.Metrics`, with ``settle_time`` [s] as in
     :meth:`~hybrid_force.result.Result.metrics`). Keys whose value the run did not record
     (older results) are None or empty.
@@ -59,6 +61,8 @@ def summarise(result: Result, settle_time: float | None = None) -> dict[str, Any
         "saturated_time": dict(meta.get("saturated_time") or {}),
         "friction_energy": meta.get("friction_energy"),
         "damping_energy": meta.get("damping_energy"),
+        "joint_damping_energy": meta.get("joint_damping_energy"),
+        "joint_friction_energy": meta.get("joint_friction_energy"),
         "touched": behaviour.get("touched"),
         "chatter": behaviour.get("chatter"),
         "force_settled": behaviour.get("force_settled"),

@@ -155,3 +155,11 @@ def test_start_off_the_pose_and_arm_too_small(ur5: Robot, rtr: Robot) -> None:
     with pytest.raises(ControlError, match=r"'rtr' has 3 joints") as info:
         PoseJointPath(rtr, SPHERE_PATH, target, np.zeros(3))
     assert info.value.key == "tool.orientation"
+
+
+def test_the_pose_path_time_is_i_dt(ur5: Robot) -> None:
+    """The pose CLIK's t is t0 + i·dt (issue 28 item 6), not a sum of its steps."""
+    des, _ = _start(ur5, "ur5", "free")
+    for _ in range(300):
+        des.advance(DT)
+    assert des.t == 300 * DT

@@ -1,5 +1,5 @@
-"""hybrid_force.sim.plant: effort saturation (sat(u0 + B f) by active sets), and the limits a
-run reports or stops at (sim.torque_limits, sim.joint_limits).
+"""hybrid_force.sim.plant: effort saturation (sat(u0 + B f), the consistent held set), and
+the limits a run reports or stops at (sim.torque_limits, sim.joint_limits).
 
 References: the defining equations of the constrained dynamics (M q̈ + h = τ + Aᵀ f, A q̈ = −γ)
 evaluated with the reference terms, and clipping by hand.
@@ -167,14 +167,18 @@ def test_release_applies_the_free_command_not_the_contact_solution(
     plant = Plant(robot, con, SimSettings(), 1e-5)
     q, v = _on_the_cylinder(robot), np.zeros(3)
     rng = np.random.default_rng(11)
-    released = 0
+    released = ambiguous = 0
     for _ in range(400):
         plant.in_contact = True
         terms, cons = plant.evaluate(q, v)
         assert cons is not None
         u0 = rng.uniform(-60.0, 60.0, 3)
         B = rng.uniform(-2.0, 2.0, (3, 1))
-        ddq, f = plant.accelerate(terms, cons, Command(u0, B), 0.0)
+        try:
+            ddq, f = plant.accelerate(terms, cons, Command(u0, B), 0.0)
+        except np.linalg.LinAlgError:  # a random B can make the held set ambiguous
+            ambiguous += 1  # (tests/test_saturation.py: the plant refuses to choose)
+            continue
         if plant.in_contact:
             continue
         released += 1
@@ -185,4 +189,4 @@ def test_release_applies_the_free_command_not_the_contact_solution(
         expected = np.linalg.solve(terms.M, tau - terms.nle)
         np.testing.assert_allclose(ddq, expected, rtol=1e-10, atol=1e-10)
         assert not f.any()
-    assert released >= 10
+    assert released >= 10 and ambiguous < 40

@@ -47,7 +47,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force.control.clik import _COND_MAX, ClikSettings
+from hybrid_force.control.clik import _COND_MAX, ClikSettings, StepClock
 from hybrid_force.control.tool import ToolTarget, axis_angle, cross3
 from hybrid_force.errors import ReachError
 from hybrid_force.geometry.paths import Path
@@ -278,6 +278,7 @@ class PoseJointPath:
         self.posture = robot.check_q(q0, "q_d(0)").copy()
         self.q = self.posture.copy()
         self.t = float(t0)
+        self._clock = StepClock(t0)
         self._R_fix: np.ndarray | None = None
         self._sample()
         p, R, _ = self._task.kinematics(self._data, self.q)
@@ -312,8 +313,9 @@ class PoseJointPath:
             self.R_d = None
 
     def advance(self, dt: float) -> None:
-        """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction)."""
-        self.t += dt
+        """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction); t = t0 + i·dt
+        (:class:`~hybrid_force.control.clik.StepClock`), not a sum of the steps."""
+        self.t = self._clock.tick(dt)
         model, task = self.robot.model, self._task
         self._sample()
         q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))

@@ -390,6 +390,7 @@ def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
             "seed",
             "torque_limits",
             "joint_limits",
+            "joint_friction_velocity",
         )
         if k in values
     }

@@ -157,6 +157,7 @@ _SIM: dict[str, _Key] = {
     "seed": _Key("integer"),
     "torque_limits": _Key("bool"),
     "joint_limits": _Key("choice", choices=("report", "stop")),
+    "joint_friction_velocity": _Key("number"),
 }
 
 _CONTACT: dict[str, _Key] = {

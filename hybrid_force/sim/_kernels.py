@@ -213,18 +213,17 @@ def project_one(
     phi: float,
     J6: np.ndarray,
     q: np.ndarray,
-    v: np.ndarray,
     q_out: np.ndarray,
-    v_out: np.ndarray,
+    row_out: np.ndarray,
 ) -> float:
-    """One Gauss–Newton step onto a surface and the velocity onto its tangent space, k = 1.
+    """One Gauss–Newton step onto a surface, k = 1, and the constraint row it used.
 
     desc: the surface's descriptor (:func:`surface_eval`), evaluated here at the tip p (3,);
     when empty, grad (3,) = ∇Φ and phi = Φ are given. J6: (6, n) tip Jacobian (rows 0..2).
     The row is A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
     ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out = q − A⁺ Φ/‖∇Φ‖
-    (Euclidean configuration spaces) and v_out = v − A⁺ (A v). Returns ‖∇Φ‖ (the caller
-    checks it is not zero).
+    (Euclidean configuration spaces) and row_out (n,) = A, for the velocity's constraint
+    impulse (``Plant._impulse``). Returns ‖∇Φ‖ (the caller checks it is not zero).
     """
     if desc.shape[0] > 0:
         phi, _ = surface_eval(desc, p, grad, np.zeros((0, 0)))
@@ -232,17 +231,11 @@ def project_one(
     gn = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
     n0, n1, n2 = grad[0] / gn, grad[1] / gn, grad[2] / gn
     dist = phi / gn
-    row = np.empty(n)
     rr = 0.0
-    rv = 0.0
     for j in range(n):
         r = n0 * J6[0, j] + n1 * J6[1, j] + n2 * J6[2, j]
-        row[j] = r
+        row_out[j] = r
         rr += r * r
-        rv += r * v[j]
     for j in range(n):
-        ap = row[j] / rr
-        step = -(ap * dist)
-        q_out[j] = q[j] + step
-        v_out[j] = v[j] - ap * rv
+        q_out[j] = q[j] - (row_out[j] / rr) * dist
     return gn

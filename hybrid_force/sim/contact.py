@@ -65,7 +65,9 @@ __all__ = [
     "creep_velocity",
     "friction_matrix",
     "friction_power",
+    "joint_dissipation",
     "largest_stable_dt",
+    "regularised_speed",
     "stable_dt_compliant",
     "stable_dt_friction",
     "step_text",
@@ -170,13 +172,43 @@ def friction_matrix(
     """
     tangential = pdot[None, :] - normals * (normals @ pdot)[:, None]  # (k, 3)
     speed = np.sqrt(np.einsum("ij,ij->i", tangential, tangential))
-    direction = tangential / np.sqrt(speed**2 + eps**2)[:, None]
+    direction = tangential / regularised_speed(speed, eps)[:, None]
     return -mu * (J.T @ direction.T), speed
 
 
 def friction_power(mu: float, eps: float, f: np.ndarray, speed: np.ndarray) -> float:
     """Power dissipated by the regularised friction, Σ μ fᵢ ‖v_t,i‖² / √(‖v_t,i‖² + ε²) [W]."""
-    return float(np.sum(mu * np.maximum(f, 0.0) * speed**2 / np.sqrt(speed**2 + eps**2)))
+    return float(np.sum(mu * np.maximum(f, 0.0) * speed**2 / regularised_speed(speed, eps)))
+
+
+def regularised_speed(speed: np.ndarray, eps: float) -> np.ndarray:
+    """√(s² + ε²) [m/s or rad/s]: the regularised Coulomb law's denominator, F = −μ f v/√(‖v‖²
+    + ε²) at the tip and τ = −τ_c q̇/√(q̇² + ε²) at a joint (one law for both)."""
+    return np.sqrt(speed**2 + eps**2)
+
+
+def joint_dissipation(
+    damping: np.ndarray, friction: np.ndarray, eps: float, v: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The joints' own viscous damping and regularised Coulomb friction at the velocity v, as
+    damping coefficients: the torque is τ_j = −(d + c(q̇)) q̇ with
+
+        c(q̇) = τ_c / √(q̇² + ε²)     (the tip friction's regularisation, :func:`regularised_speed`)
+
+    so τ_j = −d q̇ − τ_c q̇/√(q̇² + ε²), with d and τ_c the model's ``damping`` and
+    ``friction`` (URDF ``<dynamics damping friction>``, MJCF ``damping``/``frictionloss``).
+    The plant applies it with the coefficients at the step's start and the velocity at its
+    end (:class:`~hybrid_force.sim.plant.Plant`); either way each part dissipates
+    d q̇² ≥ 0 and c q̇² ≥ 0 [W].
+
+    Args:
+        damping: (n,) d ≥ 0 [N·m·s/rad or N·s/m]. friction: (n,) τ_c ≥ 0 [N·m or N].
+        eps: ε [rad/s or m/s] > 0. v: (n,) q̇ [rad/s or m/s].
+
+    Returns:
+        (n,) d and (n,) c(q̇) [N·m·s/rad or N·s/m].
+    """
+    return damping, friction / regularised_speed(np.abs(v), eps)
 
 
 def creep_velocity(mu: float, eps: float, f: float, push: float) -> float:

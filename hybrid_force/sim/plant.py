@@ -12,10 +12,11 @@ its sensors' readings, and the plant only a command u = u0 + B f. One step of th
 3. :meth:`Plant.advance`: semi-implicit Euler (``pinocchio.integrate``, or q + v dt for arms
    whose joints are all bounded revolute or prismatic) or RK4 with the command held over the
    step; in contact, post-stabilisation: one Gauss–Newton step puts the tip back on the surface
-   and the velocity is projected onto the tangent space (removes the O(dt²) drift that the
-   Baumgarte terms alone would leave); out of contact, a crossing of the surface between two
-   steps is found, the tip is placed on the surface there and a plastic impact (A q̇⁺ = 0) is
-   applied: the tool never passes through the surface.
+   and a plastic constraint impulse, through M⁻¹Aᵀ, puts the velocity on the tangent space
+   (removes the O(dt²) drift that the Baumgarte terms alone would leave; unlike a plain
+   projection it does no tangential work: :meth:`Plant._impulse`); out of contact, a crossing
+   of the surface between two steps is found, the tip is placed on the surface there and a
+   plastic impact (A q̇⁺ = 0) is applied: the tool never passes through the surface.
 
 :class:`Plant` does the small algebra between the Pinocchio calls in compiled kernels
 (:mod:`hybrid_force.sim._kernels`); :class:`ReferencePlant` is the same plant in readable
@@ -31,7 +32,7 @@ import pinocchio as pin
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.errors import RobotError, SingularConfigurationError
 from hybrid_force.events import Event, Impact, Release, Touch
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
@@ -40,6 +41,7 @@ from hybrid_force.sim.contact import (
     compliant_force,
     friction_matrix,
     friction_power,
+    joint_dissipation,
 )
 from hybrid_force.sim.dynamics import (
     ConstrainedDynamics,
@@ -48,6 +50,7 @@ from hybrid_force.sim.dynamics import (
     kkt_reference,
     plastic_impact,
 )
+from hybrid_force.sim.saturation import held_set
 from hybrid_force.sim.settings import SimSettings
 
 _K = LazyKernels("hybrid_force.sim._kernels")
@@ -81,10 +84,12 @@ class Plant:
     compliant damping are summed in :attr:`friction_energy` and :attr:`damping_energy` [J].
 
     Torque saturation: the applied torque is τ = sat(u0 + B f), each joint clipped to
-    ±effort. With B (the exact loop of the paper's law) the map is piecewise affine in f; it
-    is solved by active sets: resolve the loop, fix the joints beyond their limit at the limit
-    (their row of B removed), resolve, until no further joint exceeds its limit (at most n
-    passes; a joint once fixed stays fixed within the step).
+    ±effort. With B (the exact loop of the paper's law) τ and f depend on each other: the
+    plant finds the consistent set of held joints and their signs exactly
+    (:func:`~hybrid_force.sim.saturation.held_set`: every held joint's command beyond its
+    limit on the side it is held at, every free joint's within), then solves once with those
+    joints held (their row of B removed). A step whose unsaturated command is within every
+    limit takes none of this (the cheap path, unchanged).
 
     Attributes:
         in_contact: the tip is on the surface (the rows hold).
@@ -93,6 +98,22 @@ class Plant:
             each {"t": s, "kind": ...}.
         friction_energy: [J] dissipated by friction so far.
         damping_energy: [J] dissipated by the compliant contact's damping so far.
+        joint_damping_energy, joint_friction_energy: [J] dissipated by the joints' own
+            damping and friction so far.
+
+    Joint damping and friction: the model's ``damping`` d and ``friction`` τ_c (URDF
+    ``<dynamics>``), which Pinocchio's algorithms ignore, act as τ_j = −(d + c) q̇ with
+    c = τ_c/√(q̇² + ε²) (:func:`~hybrid_force.sim.contact.joint_dissipation`, the tip
+    friction's regularised law). With the Euler integrator the coefficients are taken at the
+    step's start and the velocity at its end, τ_j = −(d + c)(q̇ + dt q̈): the plant solves
+    with M + dt·diag(d + c) and C q̇ + g + (d + c) q̇ (a linearly implicit step). Where the tip
+    friction is explicit, this departs from it on purpose: near rest c ≈ τ_c/ε is a stiff
+    damper (1e3 N·m·s/rad for τ_c = 1 N·m, ε = 1 mm/s), which an explicit step on a light
+    wrist (M⁻¹ ~ 1e3 1/(kg·m²)) would need dt < 2e-6 s to keep stable; the implicit one is
+    stable for any dt and still dissipates exactly (d + c) w² with w the step's end velocity.
+    RK4 evaluates τ_j at each stage's velocity (explicit: mind the step). Only the plant's
+    solves see them: the terms handed to the controller are untouched. All zero: no term at
+    all, bit-identical.
     """
 
     #: [m] a compliant contact holds while the tip is within this of a surface (round-off)
@@ -112,6 +133,7 @@ class Plant:
         self.contact = contact = contact if contact is not None else ContactSettings()
         self.compliant = contact.compliant
         self.friction_energy = self.damping_energy = 0.0
+        self._init_joints(robot, sim)
         self._power = (0.0, 0.0)  # (friction, damping) [W] at the last accelerate()
         self._friction: np.ndarray | None = None  # (n, k) friction torque per N, this step
         self.baumgarte, self.integrator = sim.baumgarte, sim.integrator
@@ -142,6 +164,9 @@ class Plant:
         self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
         self._tmp = (np.zeros(n), np.zeros(n))
         self._grad = np.zeros(3)
+        self._row = np.zeros((1, n))  # the compiled step's constraint row
+        self._diag = np.diag_indices(n)
+        self._imp = robot.new_data()  # the velocity correction's own data (its crba)
         self._compiled_step = (
             self._compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
         )
@@ -155,6 +180,8 @@ class Plant:
             SingularConfigurationError: the rows are undefined while in contact.
         """
         terms = self.robot.terms(q, v, self.data, out=self._terms)
+        if self._dissipates:  # pin.forwardDynamics reads data.M, which crba just filled
+            self._joints_at(v, self.data.M)
         return terms, self._rows_or_none(terms, v)
 
     def _rows_or_none(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms | None:
@@ -167,6 +194,64 @@ class Plant:
 
     def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
         return self.constraint.evaluate(terms, v, out=self._cons)
+
+    # ------------------------------------------------------------------ joint dissipation
+    def _init_joints(self, robot: Robot, sim: SimSettings) -> None:
+        """The joints' own damping d and Coulomb friction τ_c (the model's ``damping`` and
+        ``friction``, URDF ``<dynamics>``), which Pinocchio reads and its algorithms ignore."""
+        model = robot.model
+        d = np.array(model.damping, dtype=float)
+        c = np.array(model.friction, dtype=float)
+        for name, values in (("damping", d), ("friction", c)):
+            bad = np.flatnonzero(~(values >= 0.0) | ~np.isfinite(values))
+            if bad.size:
+                joint = _joint_of(model, int(bad[0]))
+                raise RobotError(
+                    f"robot '{robot.name}': joint {joint} has {name} {values[bad[0]]:g}; the "
+                    f"joints' {name} must be a finite number >= 0"
+                )
+        #: (n,) joint damping [N·m·s/rad or N·s/m] and Coulomb friction [N·m or N] the plant
+        #: applies (class docstring; ε: ``sim.joint_friction_velocity``)
+        self.joint_damping, self.joint_friction = d, c
+        self.joint_friction_velocity = sim.joint_friction_velocity
+        # all zero: no term at all, so the run is bit-identical to an arm without them
+        self._dissipates = bool(d.any() or c.any())
+        # [s] h of the implicit treatment: the step with the Euler integrator, 0 (explicit)
+        # with RK4, whose stages evaluate the torque at their own velocities
+        self._implicit_dt = sim.dt if sim.integrator == "euler" else 0.0
+        # (d, c(q̇)) (n,) each at the last evaluate(): the coefficients of this step
+        self._joint_coef: tuple[np.ndarray, np.ndarray] | None = None
+        self._joint_Dv: np.ndarray | None = None  # (n,) (d + c) q̇ at the step's start
+        #: [J] dissipated by the joints' damping and by their friction so far
+        self.joint_damping_energy = self.joint_friction_energy = 0.0
+
+    def _joints_at(self, v: np.ndarray, M: np.ndarray | None) -> None:
+        """The joints' coefficients at the step's start velocity v, and (d + c) h added to the
+        diagonal of M (n, n), the mass matrix the plant's solves read (not the terms handed
+        to the controller); M None: the solves read terms.M (:meth:`_M`)."""
+        if not self._dissipates:
+            return
+        d, c = joint_dissipation(
+            self.joint_damping, self.joint_friction, self.joint_friction_velocity, v
+        )
+        D = d + c
+        self._joint_coef, self._joint_Dv = (d, c), D * v
+        if M is not None and self._implicit_dt > 0.0:
+            M[self._diag] += self._implicit_dt * D
+
+    def _nle(self, terms: RobotTerms) -> np.ndarray:
+        """C q̇ + g plus the joints' own (d + c) q̇ where the model has any."""
+        if self._joint_Dv is None:
+            return terms.nle
+        return terms.nle + self._joint_Dv
+
+    def _M(self, terms: RobotTerms) -> np.ndarray:
+        """The matrix of the plant's dense solves: M, plus h (d + c) on its diagonal with
+        joint damping (the implicit step, class docstring)."""
+        if self._joint_coef is None or self._implicit_dt == 0.0:
+            return terms.M
+        d, c = self._joint_coef
+        return terms.M + np.diag(self._implicit_dt * (d + c))
 
     def accelerate(
         self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
@@ -238,10 +323,10 @@ class Plant:
             friction = friction_power(c.friction, c.friction_velocity, f, speed)
         spring = c.stiffness * np.maximum(penetration, 0.0) ** c.exponent
         self._power = (friction, float((f - spring) @ rate))  # damping: (f − kδⁿ) δ̇ ≥ 0
-        return free_acceleration(terms.M, terms.nle, tau), f
+        return free_acceleration(self._M(terms), self._nle(terms), tau), f
 
     def _free(self, terms: RobotTerms, cmd: Command) -> np.ndarray:
-        return free_acceleration(terms.M, terms.nle, self._clipped(cmd.u0))
+        return free_acceleration(self._M(terms), self._nle(terms), self._clipped(cmd.u0))
 
     def _clipped(self, u: np.ndarray) -> np.ndarray:
         """The motor torque u (n,) clipped at the effort limits; :attr:`applied` set if it was."""
@@ -257,35 +342,47 @@ class Plant:
         ddq: np.ndarray,
         f: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The active-set resolution of τ = sat(u0 + B f) (class docstring)."""
+        """q̈ and f under τ = sat(u0 + B f): the consistent held set (class docstring,
+        :mod:`hybrid_force.sim.saturation`), then one solve with it held."""
         effort = self.effort
         assert effort is not None
         u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
         over = np.abs(u) > effort
-        if not over.any():
+        if not over.any():  # the cheap path: nothing to hold, q̈ and f as solved
             return ddq, f
-        fixed = np.zeros(u.shape[0], dtype=bool)
+        if cmd.B is None:  # u does not depend on f: the joints beyond are the held set
+            signs = np.sign(u) * over
+        else:
+            # f(τ) = f̄ − W τ about the unsaturated solution (f at the torque τ = u)
+            W = self._force_per_torque(terms, cons)
+            pull = -self.release_tol if self.unilateral else -np.inf
+            signs, _ = held_set(cmd.u0, cmd.B, f + W @ u, W, effort, pull)
+        held = signs != 0
         u0 = cmd.u0.copy()
-        B = None if cmd.B is None else cmd.B.copy()
-        for _ in range(u.shape[0]):
-            fixed |= over
-            u0[over] = np.clip(u[over], -effort[over], effort[over])
-            if B is not None:
-                B[over] = 0.0
-            ddq, f = self._constrained(terms, cons, Command(u0, B))
-            u = u0 if B is None else u0 + B @ f
-            over = ~fixed & (np.abs(u) > effort)
-            if not over.any():
-                break
-        self.applied = u
+        u0[held] = signs[held] * effort[held]
+        B = None
+        if cmd.B is not None:
+            B = cmd.B.copy()
+            B[held] = 0.0
+        ddq, f = self._constrained(terms, cons, Command(u0, B))
+        self.applied = u0 if B is None else u0 + B @ f
         return ddq.copy(), f.copy()
+
+    def _force_per_torque(self, terms: RobotTerms, cons: ConstraintTerms) -> np.ndarray:
+        """W (k, n) [N per N·m]: f(τ) = f̄ − W τ, W = (A M⁻¹ (Aᵀ + F))⁻¹ A M⁻¹ (eq. 2 with
+        the contact's friction torque F f; M at the step's q, with the joints' implicit
+        damping if any: the matrix the solve uses)."""
+        A = cons.A
+        AMinv = np.linalg.solve(self._M(terms), A.T).T  # M symmetric: (M⁻¹ Aᵀ)ᵀ = A M⁻¹
+        rows = A.T if self._friction is None else A.T + self._friction
+        return np.linalg.solve(AMinv @ rows, AMinv)
 
     def _constrained(
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
     ) -> tuple[np.ndarray, np.ndarray]:
         b = self.baumgarte
         gamma = b.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, self._gamma)
-        return self._solver.solve(terms.nle, cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
+        return self._solver.solve(self._nle(terms), cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
 
     def advance(
         self,
@@ -308,6 +405,15 @@ class Plant:
             self.friction_energy += self._power[0] * dt
             self.damping_energy += self._power[1] * dt
             self._power = (0.0, 0.0)
+        if self._joint_coef is not None:  # the joints' dissipation over the step
+            # the torque −(d + c) w acts with w = v + h q̈ (h = dt: the step's end velocity,
+            # whose displacement w dt the step makes; h = 0, RK4: the start's)
+            d, c = self._joint_coef
+            w = v + self._implicit_dt * ddq
+            w2 = w * w
+            self.joint_damping_energy += float(d @ w2) * dt
+            self.joint_friction_energy += float(c @ w2) * dt
+            self._joint_coef = self._joint_Dv = None
         if self.compliant:
             v = v + ddq * dt
             return pin.integrate(self.robot.model, q, v * dt), v
@@ -365,10 +471,11 @@ class Plant:
     def project(
         self, q: np.ndarray, v: np.ndarray, iterations: int = 1
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Gauss–Newton steps putting the tip on the surfaces, then v onto the tangent space.
+        """Gauss–Newton steps putting the tip on the surfaces, then the constraint impulse
+        that puts v on the tangent space (:meth:`_impulse`).
 
-        The velocity is projected with the rows of the last iteration's start point (the
-        difference is of the order of the position correction, ~1e-9 m here).
+        The impulse uses the rows of the last iteration's start point (the difference is of
+        the order of the position correction, ~1e-9 m here) and M at the corrected q.
         """
         model = self.robot.model
         for _ in range(iterations):
@@ -376,14 +483,31 @@ class Plant:
             gram = A @ A.T
             A_pinv = A.T / gram[0, 0] if A.shape[0] == 1 else A.T @ np.linalg.inv(gram)
             q = pin.integrate(model, q, -(A_pinv @ d))
-        v = v - A_pinv @ (A @ v)
-        return q, v
+        return q, self._impulse(q, v, A)
+
+    def _impulse(self, q: np.ndarray, v: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """v (n,) after the plastic constraint impulse at q that makes A v = 0 (A: (k, n)):
+
+            v⁺ = v − M⁻¹Aᵀ (A M⁻¹ Aᵀ)⁻¹ A v,     M = M(q),
+
+        i.e. M (v⁺ − v) = Aᵀ P with P (k,) [N·s]: the correction is a force through the
+        constraint, and does no work on a tangent velocity (issue 28 item 5; a plain
+        projection v − A⁺ A v is not of this form and leaves a tangential residual in the
+        equation of motion). ``pin.impulseDynamics`` with restitution 0 and no damping
+        (:func:`~hybrid_force.sim.dynamics.plastic_impact` solves the same problem).
+
+        M at the corrected q, the configuration at which v⁺ holds and whose M the next step
+        uses: the impulse is the one that removes the least kinetic energy there (Gauss).
+        Returns a new array.
+        """
+        return pin.impulseDynamics(self.robot.model, self._imp, q, v, A, 0.0, 0.0).copy()
 
     def _contact_step(
         self, q: np.ndarray, v: np.ndarray, ddq: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Semi-implicit Euler then :meth:`project`, for one surface and a Euclidean arm, in
-        two compiled calls (:func:`~hybrid_force.sim._kernels.euler_step`, ``project_one``)."""
+        """Semi-implicit Euler then :meth:`project`, for one surface and a Euclidean arm:
+        two compiled calls (:func:`~hybrid_force.sim._kernels.euler_step`, ``project_one``)
+        and the impulse in ``pin.impulseDynamics``."""
         model, data, fid = self.robot.model, self._geo, self.robot.tip_id
         q_tmp, v_tmp = self._tmp
         _K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
@@ -395,9 +519,11 @@ class Plant:
             phi, grad, _ = surface.evaluate(self._tip)
         q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        gn = _K.project_one(desc, self._tip, grad, phi, J6, q_tmp, v_tmp, q_out, v_out)
+        row = self._row
+        gn = _K.project_one(desc, self._tip, grad, phi, J6, q_tmp, q_out, row[0])
         if not gn >= _GRAD_TOL:
             self._rows(q_tmp)  # raises the precise SingularConfigurationError
+        v_out[:] = pin.impulseDynamics(model, self._imp, q_out, v_tmp, row, 0.0, 0.0)
         return q_out, v_out
 
     def _rk4(
@@ -410,11 +536,17 @@ class Plant:
 
         def acc(qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
             terms = robot.terms(qs, vs, data)
+            nle = terms.nle
+            if self._dissipates:  # the joints' damping and friction at the stage's velocity
+                d, c = joint_dissipation(
+                    self.joint_damping, self.joint_friction, self.joint_friction_velocity, vs
+                )
+                nle = nle + (d + c) * vs
             if not in_contact:
-                return free_acceleration(terms.M, terms.nle, cmd.u0)
+                return free_acceleration(terms.M, nle, cmd.u0)
             cons = self.constraint.evaluate(terms, vs)
             gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-            ddq, _ = constrained_acceleration(model, data, terms.nle, cmd.u0, cmd.B, cons.A, gamma)
+            ddq, _ = constrained_acceleration(model, data, nle, cmd.u0, cmd.B, cons.A, gamma)
             return ddq
 
         k1v, k1a = v, a1
@@ -438,16 +570,35 @@ class ReferencePlant(Plant):
 
     def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
         terms = reference_terms(self.robot, q, v)
+        self._joints_at(v, None)  # the dense solves read _M(terms)
         return terms, self._rows_or_none(terms, v)
 
     def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
         return self.constraint.evaluate_reference(terms, v)
 
+    def _impulse(self, q: np.ndarray, v: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """:meth:`Plant._impulse` by its formula, with dense solves."""
+        M = pin.crba(self.robot.model, self._imp, q)
+        M = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
+        X = np.linalg.solve(M, A.T)
+        return v - X @ np.linalg.solve(A @ X, A @ v)
+
     def _constrained(
         self, terms: RobotTerms, cons: ConstraintTerms, cmd: Command
     ) -> tuple[np.ndarray, np.ndarray]:
         gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-        return kkt_reference(terms.M, terms.nle, cmd.u0, self._loop_B(cmd.B), cons.A, gamma)
+        return kkt_reference(
+            self._M(terms), self._nle(terms), cmd.u0, self._loop_B(cmd.B), cons.A, gamma
+        )
+
+
+def _joint_of(model: pin.Model, iv: int) -> str:
+    """The name of the joint that owns velocity index iv."""
+    for j in range(1, model.njoints):
+        start = model.joints[j].idx_v
+        if start <= iv < start + model.joints[j].nv:
+            return str(model.names[j])
+    return f"#{iv}"
 
 
 def _crossing(model: pin.Model, q0: np.ndarray, q1: np.ndarray, d0: float, d1: float) -> np.ndarray:

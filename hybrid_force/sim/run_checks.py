@@ -180,16 +180,24 @@ def limit_events(limits: dict[str, list[dict[str, Any]]]) -> list[LimitCrossed]:
 
 
 def saturated_time(
-    joint_names: Sequence[str], effort: np.ndarray, u_cmd: np.ndarray, dt: float
+    joint_names: Sequence[str],
+    effort: np.ndarray,
+    u: np.ndarray,
+    u_cmd: np.ndarray,
+    dt: float,
 ) -> dict[str, float]:
-    """{joint: time [s]} during which the commanded torque u_cmd (N, n) was beyond the effort
-    limit (n,) and the applied torque was held at it: samples × dt; joints never saturated are
-    left out."""
+    """{joint: time [s]} during which a limit was applied: the applied torque u (N, n) held at
+    the effort limit (n,), ±effort exactly, while the command u_cmd (N, n) differed from it;
+    samples × dt; joints never held are left out.
+
+    A command beyond the limit that the plant did not hold there (the limits off,
+    ``sim.torque_limits = false``) is not counted: :func:`limit_violations` reports it.
+    """
     out: dict[str, float] = {}
     for j, name in enumerate(joint_names):
         if np.isfinite(effort[j]):
-            beyond = np.abs(u_cmd[:, j]) > effort[j] + limit_slack(effort[j], relative=True)
-            count = int(np.count_nonzero(beyond))
+            held = (np.abs(u[:, j]) == effort[j]) & (u_cmd[:, j] != u[:, j])
+            count = int(np.count_nonzero(held))
             if count:
                 out[name] = count * dt
     return out

@@ -207,8 +207,10 @@ def finish_result(
     Adds ``limits`` (joints beyond their range, velocity or effort limit, see
     :func:`~hybrid_force.sim.run_checks.limit_violations`; the effort against the commanded
     torque), a "joint_limit" or "velocity_limit" event at each joint's first crossing,
-    ``saturated_time`` ({joint: s} held at an effort limit, when the plant enforces them),
+    ``saturated_time`` ({joint: s} the plant held at an effort limit, when it enforces them),
     ``friction_energy`` and ``damping_energy`` [J] (dissipated by the contact),
+    ``joint_damping_energy`` and ``joint_friction_energy`` [J] (by the joints' own damping
+    and friction),
     ``contact_at_end``, ``lost_contact``, ``left_at``, ``behaviour`` (the flags of
     :func:`~hybrid_force.sim.run_checks.run_behaviour`: touched, chatter, force_settled; for a
     run that finished, with ``task_f_d`` (k,) [N] the task's desired force) and ``warnings``:
@@ -226,7 +228,9 @@ def finish_result(
     )  # fmt: skip
     saturated = None
     if plant.effort is not None:
-        saturated = saturated_time(names, plant.effort, u_cmd, float(meta["settings"]["dt"]))
+        saturated = saturated_time(
+            names, plant.effort, log.u[:n], u_cmd, float(meta["settings"]["dt"])
+        )
     outcome = contact_outcome(plant.ever_in_contact, plant.in_contact, meta.get("events", []))
     notes = [*describe(limits, outcome, saturated), *extra]
     behaviour: dict = {}
@@ -245,4 +249,8 @@ def finish_result(
     )  # fmt: skip
     # [J] dissipated by the plant's friction and compliant damping (docs/contact.md)
     meta.update(friction_energy=plant.friction_energy, damping_energy=plant.damping_energy)
+    meta.update(
+        joint_damping_energy=plant.joint_damping_energy,
+        joint_friction_energy=plant.joint_friction_energy,
+    )
     return log.result(n, meta, k)

@@ -55,6 +55,10 @@ class SimSettings:
             False: apply the command as is (a demand beyond a limit is still reported).
         joint_limits: "report" (a joint beyond its position or velocity limit is an event and
             a warning) or "stop" (the run stops there, failed with reason "joint limit").
+        joint_friction_velocity: regularisation velocity ε [rad/s or m/s] > 0 of the joints'
+            Coulomb friction (the model's ``friction``, URDF ``<dynamics friction>``):
+            τ = −τ_c q̇/√(q̇² + ε²), the tip friction's law
+            (:func:`~hybrid_force.sim.contact.joint_dissipation`).
     """
 
     duration: float = 20.0
@@ -71,6 +75,7 @@ class SimSettings:
     seed: int = 0
     torque_limits: bool = True
     joint_limits: Literal["report", "stop"] = "report"
+    joint_friction_velocity: float = 1e-3
 
     def __post_init__(self) -> None:
         """Check every field; numbers are stored as floats, flags as bools.
@@ -88,6 +93,7 @@ class SimSettings:
             ("max_velocity", True, "rad/s or m/s"),
             ("max_force", True, "N"),
             ("settle_time", False, "s"),
+            ("joint_friction_velocity", True, "rad/s or m/s"),
         ):
             what = f"sim.{name}"
             value = getattr(self, name)
