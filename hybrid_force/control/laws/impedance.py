@@ -80,6 +80,7 @@ from typing import Any
 
 import numpy as np
 
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import (
@@ -92,10 +93,13 @@ from hybrid_force.control.laws.base import (
 from hybrid_force.errors import GainError, SingularConfigurationError
 from hybrid_force.model.robot import RobotTerms
 
+_K = LazyKernels("hybrid_force.control.laws._impedance_kernels")
+
 __all__ = [
     "DEFAULTS",
     "ImpedanceGains",
     "ImpedanceLaw",
+    "ImpedanceWorkspace",
     "build",
     "cartesian_inertia",
     "impedance_matrices",
@@ -150,11 +154,16 @@ def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
     try:
         Lam = np.linalg.inv(robot.J @ np.linalg.solve(robot.M, robot.J.T))
     except np.linalg.LinAlgError as exc:
-        raise SingularConfigurationError(
-            f"the tip at {robot.p.tolist()} cannot move in every direction (J M⁻¹ Jᵀ is "
-            "singular): the Cartesian impedance is undefined there"
-        ) from exc
+        raise _singular(robot) from exc
     return 0.5 * (Lam + Lam.T)
+
+
+def _singular(robot: RobotTerms) -> SingularConfigurationError:
+    """The error of a configuration where J M⁻¹ Jᵀ (or M) is singular."""
+    return SingularConfigurationError(
+        f"the tip at {robot.p.tolist()} cannot move in every direction (J M⁻¹ Jᵀ is "
+        "singular): the Cartesian impedance is undefined there"
+    )
 
 
 def impedance_matrices(Lam: np.ndarray, omega: float, zeta: float) -> tuple[np.ndarray, np.ndarray]:
@@ -163,7 +172,8 @@ def impedance_matrices(Lam: np.ndarray, omega: float, zeta: float) -> tuple[np.n
 
 
 class ImpedanceLaw:
-    """The impedance law (module docstring) as the supervisor runs it, in numpy.
+    """The impedance law (module docstring) in readable numpy: the reference of
+    :class:`ImpedanceWorkspace` (what ``LawContext(reference=True)`` builds).
 
     Args:
         gains: the settings. constraint: the controller's surfaces (for their normals).
@@ -274,6 +284,109 @@ class ImpedanceLaw:
         return dataclasses.asdict(self.gains)
 
 
+class ImpedanceWorkspace(ImpedanceLaw):
+    """:class:`ImpedanceLaw` as one compiled call per step, into arrays preallocated here.
+
+    The same numbers (:func:`hybrid_force.control.laws._impedance_kernels.impedance`: the
+    Cholesky factorisation of M and the small solves written out) without numpy's per-call
+    overhead; the same errors (a SingularConfigurationError where J M⁻¹ Jᵀ or M is
+    singular). The command returned, ``stiffness``, ``damping`` and ``offset`` are
+    overwritten at every call: copy to keep.
+    """
+
+    def __init__(self, gains: ImpedanceGains, constraint: Constraint, k: int) -> None:
+        super().__init__(gains, constraint, k)
+        self._gains = np.zeros((3, 3, 3))  # [Λ, K, D]
+        self.stiffness, self.damping = self._gains[1], self._gains[2]
+        self._normals = np.zeros((3, k))
+        self._along = np.zeros((k, 3))
+        self._no_rows: np.ndarray | None = None  # (0, n), made at the first call
+        self._none = np.zeros(0)
+        self._u: np.ndarray | None = None
+        self._command: Command | None = None
+        self._work: np.ndarray | None = None
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """Eq. (1) with p_r = p_d, ṗ_r = ṗ_d (module docstring)."""
+        self._in_contact = False
+        return self._run(robot, v, e_q, desired, None, _FREE)
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Eq. (1) near the surface (approach given) and in contact (eq. 2); e_F is unused."""
+        if approach is not None:
+            self._in_contact = False
+            normals = self._normals
+            for i, surface in enumerate(self.constraint.surfaces):
+                normals[:, i] = surface.normal(robot.p)
+            given = normals.shape[1] > 1
+            if given:  # the kernel computes a single column's pseudo-inverse itself
+                self._along[...] = np.linalg.pinv(normals)
+            return self._run(robot, v, e_q, desired, cons, _NEAR, approach, given)
+        if not self._in_contact:  # a touch: start from the model's depth
+            self.preload[:] = f_d
+            self._in_contact = True
+        if not self.gains.force_tracking:
+            self.preload[:] = f_d
+        self._f_d = f_d
+        return self._run(robot, v, e_q, desired, cons, _CONTACT)
+
+    def _run(
+        self,
+        robot: RobotTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        cons: ConstraintTerms | None,
+        mode: int,
+        approach: np.ndarray | None = None,
+        along_given: bool = False,
+    ) -> Command:
+        packs = robot.packed()._packs
+        assert packs is not None  # packed() always returns terms with their packs
+        mats, vecs, jac, tip = packs
+        if self._u is None or self._u.shape[0] != mats.shape[1]:
+            n, k = mats.shape[1], self.preload.shape[0]
+            self._u = np.zeros(n)
+            self._command = Command(self._u, None)
+            self._work = np.zeros((n, n + 3 + k))
+            self._no_rows = np.zeros((0, n))
+        assert self._command is not None and self._work is not None
+        p_d, pd_d = _task(desired)
+        g = self.gains
+        A = self._no_rows if cons is None else cons.A
+        assert A is not None
+        none = self._none
+        status = _K.impedance(
+            mats, vecs, jac, tip, v, e_q, desired.qd, desired.qdd, p_d, pd_d, A,
+            self._normals, self._along, none if approach is None else approach,
+            none if cons is None else cons.distance, self.preload, mode, along_given,
+            g.omega, g.zeta, g.feedforward, self._u, self._gains, self.offset, self._work,
+        )  # fmt: skip
+        if status != 0:
+            raise _singular(robot)
+        return self._command
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Force tracking in contact: φ += dt κ_f (f_d − f) (see :meth:`ImpedanceLaw.update`)."""
+        if self._in_contact and self.gains.force_tracking:
+            _K.advance_preload(self.preload, self._f_d, f, dt * self.gains.force_rate)
+
+
+_FREE, _NEAR, _CONTACT = 0, 1, 2  # the kernel's modes (_impedance_kernels.FREE, NEAR, CONTACT)
+
+
 def _task(desired: Desired) -> tuple[np.ndarray, np.ndarray]:
     """p_d, ṗ_d (3,) of the desired sample (the supervisor always gives them)."""
     assert desired.p is not None and desired.pd is not None
@@ -281,7 +394,8 @@ def _task(desired: Desired) -> tuple[np.ndarray, np.ndarray]:
 
 
 def build(context: LawContext) -> ImpedanceLaw:
-    """The registry's factory of ``control.law = "impedance"``.
+    """The registry's factory of ``control.law = "impedance"``: :class:`ImpedanceWorkspace`
+    (compiled), or :class:`ImpedanceLaw` (numpy) when ``context.reference``.
 
     Raises:
         GainError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
@@ -297,7 +411,8 @@ def build(context: LawContext) -> ImpedanceLaw:
                 key=f"control.impedance.{key}",
                 value=rate,
             )
-    return ImpedanceLaw(gains, context.constraint, context.constraint.k)
+    law_type = ImpedanceLaw if context.reference else ImpedanceWorkspace
+    return law_type(gains, context.constraint, context.constraint.k)
 
 
 def loop_bounds(context: LoopContext) -> list[LoopBound]:
