@@ -5,12 +5,14 @@
    two stacked planes (k = 2), both row scalings, k_P = 0 and > 0: every output (u0, B and the
    trace: a, F0, φ, Nᵀτ₀, Λ, J̄) within 1e-12 of the reference's scale;
 2. singular configurations: the same SingularConfigurationError with the same message;
-3. whole 0.2 s runs, the compiled law against the reference law in the same (compiled) loop:
-   q, u, f within 1e-10.
+3. whole 0.2 s runs (0.4 s for free → near → contact), the compiled law against the reference
+   law in the same (compiled) loop, and against the all-numpy reference run: q, v, u, f within
+   1e-10 of their scale.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -260,4 +262,20 @@ def test_whole_runs_equal_the_reference_law(name: str, rtr: Robot, monkeypatch) 
         scale = 1.0 + float(np.abs(want).max())
         err = float(np.abs(got - want).max())
         WORST[f"run {name}: {field}"] = err / scale
+        assert err <= RUN_TOL * scale, f"{name}: {field} differs by {err:.3g} (scale {scale:.3g})"
+
+
+@pytest.mark.parametrize("name", ["paper_contact", "ur5_plane"])
+def test_whole_runs_equal_the_reference_run(name: str, rtr: Robot) -> None:
+    """Against the all-numpy loop (SimSettings(reference=True): ReferenceController, the numpy
+    law and CLIK, the reference plant): q, v, u, f within 1e-10 of their scale."""
+    sc = _scenario(name, rtr)
+    fast = simulate(sc)
+    ref = simulate(dataclasses.replace(sc, sim=dataclasses.replace(sc.sim, reference=True)))
+    np.testing.assert_array_equal(fast.phase, ref.phase)
+    for field in ("q", "v", "u", "f"):
+        got, want = getattr(fast, field), getattr(ref, field)
+        scale = 1.0 + float(np.abs(want).max())
+        err = float(np.abs(got - want).max())
+        WORST[f"reference run {name}: {field}"] = err / scale
         assert err <= RUN_TOL * scale, f"{name}: {field} differs by {err:.3g} (scale {scale:.3g})"

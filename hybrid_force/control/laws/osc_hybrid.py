@@ -69,6 +69,11 @@ k_P: the tick-to-tick map of (f − f_d, e_F) has determinant −k_P, so k_P < 1
 What it cannot do: it needs a tip Jacobian of full row rank (3 ≤ n and away from a singular
 configuration, else SingularConfigurationError); it has no Lyapunov function in joules
 (``V`` is NaN): the decoupling of (2) is exact only with the exact model.
+
+Runs compiled: :class:`OscHybridWorkspace`, one Numba call per step
+(:mod:`hybrid_force.control.laws._osc_hybrid_kernels`) into preallocated arrays. The numpy
+functions :func:`task_space`, :func:`normal_directions` and :func:`osc_hybrid_law` (and
+:class:`OscHybridLaw`, what a reference run builds) are its readable reference.
 """
 
 from __future__ import annotations
