@@ -196,6 +196,34 @@ def test_the_rtr_stretched_or_folded_raises_the_reference_error(rtr: Robot, q3: 
     assert messages[0] == messages[1]
 
 
+def test_a_mass_matrix_without_cholesky_factor_is_left_to_the_reference() -> None:
+    """M indefinite (no Cholesky factor) but J M⁻¹ Jᵀ well conditioned: the kernel hands the
+    step to the reference, whose numbers the workspace then returns (free space and contact)."""
+    terms = _terms(np.diag([2.0, -1.0, 3.0]), np.eye(3))
+    terms.p[:] = (0.1, 0.2, 0.3)
+    terms.Jdot_v[:] = (0.5, -0.2, 0.1)
+    constraint = Constraint(Plane((0.1, 0.2, 0.3), (0.0, 0.6, 0.8)))
+    v = np.array([0.3, -0.1, 0.2])
+    cons = constraint.evaluate_reference(terms, v)
+    gains = osc_gains({"force_p": 0.4}, 10.0)
+    d = Desired(np.zeros(3), np.ones(3), np.ones(3), np.zeros(3), np.ones(3), np.ones(3))
+    ref, fast = OscHybridLaw(gains, constraint), OscHybridWorkspace(gains, constraint, 3)
+    e_F, f_d = np.array([0.2]), np.array([10.0])
+    for contact in (False, True):
+        if contact:
+            c_ref = ref.hybrid(terms, cons, v, v, d, e_F, f_d, None)
+            c_fast = fast.hybrid(terms, cons, v, v, d, e_F, f_d, None)
+            assert c_ref.B is not None and c_fast.B is not None
+            np.testing.assert_array_equal(c_fast.B, c_ref.B)
+        else:
+            c_ref = ref.free_space(terms, v, v, d)
+            c_fast = fast.free_space(terms, v, v, d)
+        np.testing.assert_array_equal(c_fast.u0, c_ref.u0)
+        assert ref.last is not None and fast.last is not None
+        np.testing.assert_array_equal(fast.last.F0, ref.last.F0)
+        np.testing.assert_array_equal(fast.last.phi, ref.last.phi)
+
+
 # --------------------------------------------------------------------- whole runs
 def _groove(rtr: Robot, duration: float) -> Scenario:
     """k = 2: the groove between the plane z = 10 and the cylinder r = 0.4, model mass × 1.1."""
