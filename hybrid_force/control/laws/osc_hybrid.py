@@ -69,6 +69,11 @@ k_P: the tick-to-tick map of (f − f_d, e_F) has determinant −k_P, so k_P < 1
 What it cannot do: it needs a tip Jacobian of full row rank (3 ≤ n and away from a singular
 configuration, else SingularConfigurationError); it has no Lyapunov function in joules
 (``V`` is NaN): the decoupling of (2) is exact only with the exact model.
+
+Runs compiled: :class:`OscHybridWorkspace`, one Numba call per step
+(:mod:`hybrid_force.control.laws._osc_hybrid_kernels`) into preallocated arrays. The numpy
+functions :func:`task_space`, :func:`normal_directions` and :func:`osc_hybrid_law` (and
+:class:`OscHybridLaw`, what a reference run builds) are its readable reference.
 """
 
 from __future__ import annotations
@@ -80,15 +85,19 @@ from typing import Any
 
 import numpy as np
 
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext, below
 from hybrid_force.errors import ControlError, SingularConfigurationError
 from hybrid_force.model.robot import RobotTerms
 
+_K = LazyKernels("hybrid_force.control.laws._osc_hybrid_kernels")
+
 __all__ = [
     "OscGains",
     "OscHybridLaw",
+    "OscHybridWorkspace",
     "OscTrace",
     "TaskSpace",
     "build",
@@ -192,14 +201,19 @@ def task_space(M: np.ndarray, J: np.ndarray) -> TaskSpace:
     except np.linalg.LinAlgError:  # exactly singular
         cond = math.inf
     if not cond < _COND_MAX:
-        raise SingularConfigurationError(
-            f"law {_NAME!r}: the task-space inertia (J M⁻¹ Jᵀ)⁻¹ is undefined: cond(J M⁻¹ Jᵀ) "
-            f"≈ {cond:.3g} (the tip Jacobian is rank deficient: a singular configuration, or "
-            "fewer than 3 joints move the tip)",
-            key="control.law",
-            value=_NAME,
-        )
+        raise _singular(cond)
     return TaskSpace(Lambda=Lambda, Jbar=Minv_Jt @ Lambda, J=J)
+
+
+def _singular(cond: float) -> SingularConfigurationError:
+    """The error of a (nearly) singular J M⁻¹ Jᵀ, whose cond estimate is ``cond``."""
+    return SingularConfigurationError(
+        f"law {_NAME!r}: the task-space inertia (J M⁻¹ Jᵀ)⁻¹ is undefined: cond(J M⁻¹ Jᵀ) "
+        f"≈ {cond:.3g} (the tip Jacobian is rank deficient: a singular configuration, or "
+        "fewer than 3 joints move the tip)",
+        key="control.law",
+        value=_NAME,
+    )
 
 
 @dataclass(frozen=True)
@@ -229,6 +243,16 @@ def normal_directions(constraint: Constraint, p: np.ndarray, scale: np.ndarray) 
     return W
 
 
+def _check_desired(desired: Desired) -> None:
+    """Refuse a Desired without the task-space path (ControlError)."""
+    if desired.p is None or desired.pd is None or desired.pdd is None:
+        raise ControlError(
+            f"law {_NAME!r} needs the task-space path p_d, ṗ_d, p̈_d in Desired",
+            key="control.law",
+            value=_NAME,
+        )
+
+
 def osc_hybrid_law(
     gains: OscGains,
     robot: RobotTerms,
@@ -251,12 +275,7 @@ def osc_hybrid_law(
     Returns:
         The command u = u0 + B f and the trace.
     """
-    if desired.p is None or desired.pd is None or desired.pdd is None:
-        raise ControlError(
-            f"law {_NAME!r} needs the task-space path p_d, ṗ_d, p̈_d in Desired",
-            key="control.law",
-            value=_NAME,
-        )
+    _check_desired(desired)
     task = task_space(robot.M, robot.J)
     a = desired.pdd - gains.kv * (robot.pdot - desired.pd) - gains.kp * (robot.p - desired.p)
     B = None
@@ -341,8 +360,206 @@ class OscHybridLaw:
         return {"law": _NAME, **vars(self.gains)}
 
 
-def build(context: LawContext) -> OscHybridLaw:
-    """The registry's factory of ``control.law = "osc_hybrid"`` (one numpy form for both uses).
+# the modes of the kernel (hybrid_force.control.laws._osc_hybrid_kernels: the same values)
+_FREE_SPACE, _NEAR, _CONTACT = 0, 1, 2
+
+
+class OscHybridWorkspace:
+    """:class:`OscHybridLaw` as one compiled call per step, writing into arrays preallocated
+    here (hot path).
+
+    :func:`osc_hybrid_law` is the readable reference; this computes the same numbers
+    (:func:`hybrid_force.control.laws._osc_hybrid_kernels.osc_hybrid`: Λ, J̄ and Nᵀτ₀ by
+    small dense factorisations, the directions W from the surfaces' closed forms) without
+    allocating. A state the kernel does not finish (cond(J M⁻¹ Jᵀ) at or above its limit, an M
+    without Cholesky factor, a singular WᵀW) is handed to the reference, which raises its error
+    (the same SingularConfigurationError, the same message) or computes the step. The command
+    returned and the arrays below are overwritten at every call: copy to keep.
+
+    Args:
+        gains: see :class:`OscGains`.
+        constraint: the controller's surfaces (for the directions W of the rows).
+        n: the number of joints (≥ 3).
+
+    Attributes:
+        V: NaN (no Lyapunov function in joules: see the module docstring).
+        u0, null_torque: (n,) the command at f = 0 and Nᵀτ₀. a, F0: (3,) as in
+            :class:`OscTrace`. Lambda (3, 3), Jbar (n, 3): the last :class:`TaskSpace`.
+        W: (3, k) directions of the rows. phi: (k,). B: (n, k) k_P Aᵀ (contact, k_P > 0).
+    """
+
+    def __init__(self, gains: OscGains, constraint: Constraint, n: int) -> None:
+        self.gains = gains
+        self.constraint = constraint
+        self.V = math.nan
+        k = constraint.k
+        self._gains = np.array(
+            [
+                gains.kp,
+                gains.kv,
+                gains.kn,
+                gains.force_p,
+                gains.force_i,
+                gains.null_kp,
+                gains.null_kd,
+                gains.approach_rate,
+            ]
+        )
+        descs = [surface._descriptor for surface in constraint.surfaces]
+        self._descs = np.zeros((k, max([10, *(d.shape[0] for d in descs)])))
+        for i, d in enumerate(descs):
+            if d.shape[0] == 0:  # no closed form: ∇Φ from Python, in _grads
+                self._descs[i, 0] = -1.0
+            else:
+                self._descs[i, : d.shape[0]] = d
+        self._python_surfaces = tuple(
+            (i, s) for i, s in enumerate(constraint.surfaces) if s._descriptor.shape[0] == 0
+        )
+        self._grads = np.zeros((3, k))
+        self._work = np.zeros((n, n))
+        self._vectors = np.zeros((2, n))
+        self.u0, self.null_torque = self._vectors
+        self._task = np.zeros((2, 3))
+        self.a, self.F0 = self._task
+        self.Lambda = np.zeros((3, 3))
+        self.Jbar = np.zeros((n, 3))
+        self.W = np.zeros((3, k))
+        self.phi = np.zeros(k)
+        self.B = np.zeros((n, k))
+        self._zeros_k = np.zeros(k)
+        self._zero_rows = np.zeros((k, n))
+        self._free = Command(u0=self.u0, B=None)
+        self._near = Command(u0=self.u0, B=None)
+        self._contact = Command(u0=self.u0, B=self.B if gains.force_p > 0 else None)
+        self._mode: int | None = None  # of the last call (None before the first)
+        self._J: np.ndarray | None = None  # the J of the last call
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """:func:`osc_hybrid_law` in free space (eq. 3, 6); the gains are this workspace's."""
+        z = self._zeros_k
+        cond = self._run(robot, v, e_q, desired, z, z, z, self._zero_rows, z, z, z, _FREE_SPACE)
+        if not cond < _COND_MAX:
+            return self._reference(robot, v, e_q, desired, None)
+        return self._free
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """:func:`osc_hybrid_law` near (``approach`` given) and in contact (eq. 4–6)."""
+        if approach is None:
+            mode, command, approach_ = _CONTACT, self._contact, self._zeros_k
+        else:
+            mode, command, approach_ = _NEAR, self._near, approach
+        if self._python_surfaces:
+            for i, surface in self._python_surfaces:
+                self._grads[:, i] = surface.evaluate(robot.p)[1]
+        cond = self._run(
+            robot, v, e_q, desired, cons.scale, cons.rate, cons.drift, cons.A, e_F, f_d,
+            approach_, mode,
+        )  # fmt: skip
+        if not cond < _COND_MAX:
+            W = normal_directions(self.constraint, robot.p, cons.scale)
+            return self._reference(robot, v, e_q, desired, (cons, W, e_F, f_d, approach))
+        return command
+
+    def _run(
+        self,
+        robot: RobotTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        scale: np.ndarray,
+        rate: np.ndarray,
+        drift: np.ndarray,
+        A: np.ndarray,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray,
+        mode: int,
+    ) -> float:
+        p_d, pd_d, pdd_d = desired.p, desired.pd, desired.pdd
+        if p_d is None or pd_d is None or pdd_d is None:
+            _check_desired(desired)
+        packs = robot._packs
+        if packs is None:
+            packs = robot.packed()._packs
+        mats, vecs, jac, tip = packs  # type: ignore[misc]
+        self._mode = mode
+        self._J = robot.J
+        cond: float = _K.osc_hybrid(
+            mats, vecs, jac, tip, v, e_q, desired.qd, desired.qdd, p_d, pd_d, pdd_d,
+            self._descs, self._grads, scale, rate, drift, A, e_F, f_d, approach, mode,
+            self._gains, self._work, self._vectors, self._task, self.Lambda, self.Jbar, self.W,
+            self.phi, self.B,
+        )  # fmt: skip
+        return cond
+
+    def _reference(
+        self,
+        robot: RobotTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        hybrid: tuple[ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
+        | None,
+    ) -> Command:
+        """The step by :func:`osc_hybrid_law` (raises its errors), copied into the buffers."""
+        command, trace = osc_hybrid_law(self.gains, robot, v, e_q, desired, hybrid)
+        self.u0[:] = command.u0
+        self.null_torque[:] = trace.null_torque
+        self.a[:] = trace.a
+        self.F0[:] = trace.F0
+        self.Lambda[:] = trace.task.Lambda
+        self.Jbar[:] = trace.task.Jbar
+        if hybrid is None:
+            return self._free
+        self.W[:] = hybrid[1]
+        self.phi[:] = trace.phi
+        if command.B is not None:
+            self.B[:] = command.B
+        return self._contact if hybrid[4] is None else self._near
+
+    @property
+    def last(self) -> OscTrace | None:
+        """The :class:`OscTrace` of the last call (copies of the buffers; None before the
+        first call). Its ``task.J`` is a copy of the J the call read (robot terms are
+        overwritten by the next step: read this before)."""
+        if self._mode is None or self._J is None:
+            return None
+        free = self._mode == _FREE_SPACE
+        return OscTrace(
+            a=self.a.copy(),
+            F0=self.F0.copy(),
+            phi=np.zeros(0) if free else self.phi.copy(),
+            null_torque=self.null_torque.copy(),
+            task=TaskSpace(Lambda=self.Lambda.copy(), Jbar=self.Jbar.copy(), J=self._J.copy()),
+        )
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """Nothing to advance: the force integral e_F is the supervisor's."""
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
+        """None: the arimoto trace's sliding variables do not exist here (see :attr:`last`)."""
+        return None
+
+    def info(self) -> dict[str, Any]:
+        """The gains as JSON-able data."""
+        return {"law": _NAME, **vars(self.gains)}
+
+
+def build(context: LawContext) -> OscHybridLaw | OscHybridWorkspace:
+    """The registry's factory of ``control.law = "osc_hybrid"``: the compiled
+    :class:`OscHybridWorkspace`, or with ``context.reference`` the numpy :class:`OscHybridLaw`.
 
     Raises:
         ControlError: the arm has fewer than 3 joints (a 3-D tip task needs n ≥ 3).
@@ -357,7 +574,10 @@ def build(context: LawContext) -> OscHybridLaw:
         )
     s = context.settings
     approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
-    return OscHybridLaw(osc_gains(context.options, approach_rate), context.constraint)
+    gains = osc_gains(context.options, approach_rate)
+    if context.reference:
+        return OscHybridLaw(gains, context.constraint)
+    return OscHybridWorkspace(gains, context.constraint, n)
 
 
 def force_gain_bounds(
