@@ -122,7 +122,7 @@ def test_citation_file_and_changelog_name_the_version_of_the_metadata() -> None:
 
     version = _project()["version"]
     assert hybrid_force.__version__ == version
-    citation = yaml.safe_load((REPO / "docs" / "CITATION.cff").read_text())
+    citation = yaml.safe_load((REPO / "CITATION.cff").read_text())
     assert citation["cff-version"] == "1.2.0"
     assert citation["version"] == version
     assert citation["license"] == _project()["license"] == "BSD-3-Clause"
@@ -131,7 +131,7 @@ def test_citation_file_and_changelog_name_the_version_of_the_metadata() -> None:
         "modified position-force control for a manipulator geometrically constrained by round "
         "obstacles"
     ]
-    changelog = (REPO / "docs" / "changelog.md").read_text()
+    changelog = (REPO / "CHANGELOG.md").read_text()
     headings = re.findall(r"^## \[([^\]]+)\]", changelog, flags=re.MULTILINE)
     assert headings[0] == "Unreleased"
     assert version in headings
@@ -140,8 +140,8 @@ def test_citation_file_and_changelog_name_the_version_of_the_metadata() -> None:
 
 def test_licence_file_is_the_bsd_3_clause_text_named_by_the_metadata() -> None:
     project = _project()
-    assert project["license-files"] == ["hybrid_force/LICENSE"]
-    text = " ".join((REPO / "hybrid_force" / "LICENSE").read_text().split())
+    assert project["license-files"] == ["LICENSE"]
+    text = " ".join((REPO / "LICENSE").read_text().split())
     assert text.startswith("BSD 3-Clause License Copyright (c) 2026, the hybrid_force developers")
     clauses = [
         "1. Redistributions of source code must retain the above copyright notice, this list of "
