@@ -235,11 +235,24 @@ def test_a_singular_jacobian_hands_the_step_to_the_reference(rtr: Robot) -> None
 
 
 # --------------------------------------------------------------------------- 3. whole runs
-RUNS = {
-    "paper_contact": {},  # RTR in contact from t = 0
-    "ur5_plane": {},  # UR5 free, then near the plane
-    "ur5_plane_contact": {"initial.tip": [0.5, 0.1, 0.3], "control.supervisor": False},
-    "panda_pipe_tilt": {},  # Panda in contact inside the pipe, the pose CLIK
+RUNS: dict[str, tuple[str, dict[str, object]]] = {
+    "paper_contact": ("paper_contact", {}),  # RTR in contact from t = 0
+    "paper_contact_original": (
+        "paper_contact",
+        {
+            "control.raibert_craig.form": "original",
+            "control.raibert_craig.decouple": False,
+            "control.raibert_craig.feedforward": "gravity",
+        },
+    ),
+    "paper_contact_model_mass": ("paper_contact", {"sim.model_mass_factor": 0.9}),
+    "paper_contact_sampled": ("paper_contact", {"control.rate": 500.0}),  # B meets a reading
+    "ur5_plane": ("ur5_plane", {}),  # UR5 free, then near the plane
+    "ur5_plane_contact": (
+        "ur5_plane",
+        {"initial.tip": [0.5, 0.1, 0.3], "control.supervisor": False},
+    ),
+    "panda_pipe_tilt": ("panda_pipe_tilt", {}),  # Panda in contact in the pipe, the pose CLIK
 }
 
 
@@ -257,8 +270,8 @@ def _compare_runs(a: object, b: object, what: str) -> None:
 def test_whole_runs_compiled_equal_the_reference(
     name: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    file = "ur5_plane" if name == "ur5_plane_contact" else name
-    overrides = {"control.law": "raibert_craig", "sim.duration": 0.2, **RUNS[name]}
+    file, extra = RUNS[name]
+    overrides = {"control.law": "raibert_craig", "sim.duration": 0.2, **extra}
     sc = load_scenario(SCENARIOS / f"{file}.toml", overrides=overrides)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the UR5's first torque reaches its effort limit
@@ -266,8 +279,15 @@ def test_whole_runs_compiled_equal_the_reference(
         reference = simulate(
             dataclasses.replace(sc, sim=dataclasses.replace(sc.sim, reference=True))
         )
-        monkeypatch.setattr(rc, "RaibertCraigWorkspace", RaibertCraigLaw)
+        built: list[RaibertCraigLaw] = []
+
+        def numpy_law(*args: object) -> RaibertCraigLaw:  # the compiled loop, the numpy law
+            built.append(RaibertCraigLaw(*args))  # type: ignore[arg-type]
+            return built[-1]
+
+        monkeypatch.setattr(rc, "RaibertCraigWorkspace", numpy_law)
         law_reference = simulate(sc)
+    assert built and not isinstance(built[0], RaibertCraigWorkspace)
     assert fast.meta["status"] == reference.meta["status"] == "ok"
     if name != "ur5_plane":
         assert float(np.abs(fast.f).max()) > 1.0  # the run is in contact
