@@ -385,13 +385,13 @@ class RaibertCraigLaw:
 
 class RaibertCraigWorkspace(RaibertCraigLaw):
     """:class:`RaibertCraigLaw` as one compiled call per step, writing into arrays
-    preallocated here (hot path; :mod:`._raibert_craig_kernels`).
+    preallocated here (hot path; :mod:`hybrid_force.control.laws._raibert_craig_kernels`).
 
     The numpy methods of :class:`RaibertCraigLaw` are the readable references (what
-    ``reference=True`` builds); this computes the same numbers without allocating. The command
-    returned and :attr:`last_u_pos` are overwritten at every call: copy to keep. At a zero
-    pivot (J Jᵀ singular: the reference's pseudo-inverse takes the SVD) the step runs the
-    reference instead.
+    ``reference=True`` builds); this computes the same numbers, to round-off, with no numpy
+    call and no new array returned. The command returned and :attr:`last_u_pos` are
+    overwritten at every call: copy to keep. At a zero pivot (J Jᵀ singular: the reference's
+    pseudo-inverse takes the SVD) the step runs the reference instead.
     """
 
     def __init__(
