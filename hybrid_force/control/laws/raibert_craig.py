@@ -104,6 +104,7 @@ from typing import Any
 
 import numpy as np
 
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext
@@ -115,6 +116,7 @@ __all__ = [
     "FORMS",
     "RaibertCraigGains",
     "RaibertCraigLaw",
+    "RaibertCraigWorkspace",
     "build",
     "cartesian_inertia",
     "loop_bounds",
@@ -126,6 +128,7 @@ __all__ = [
 FORMS = ("corrected", "original")
 FEEDFORWARDS = ("model", "gravity")
 _NAME = "raibert_craig"
+_K = LazyKernels("hybrid_force.control.laws._raibert_craig_kernels")
 _SINGULAR = 1e12  # cond(J M⁻¹ Jᵀ) at q₀ above this: the Cartesian inertia is undefined
 
 
@@ -262,12 +265,12 @@ class RaibertCraigLaw:
         """S = I: both forms servo every axis, J⁺(p_d − p) ≈ q_d − q; the joint path q_d
         itself is servoed (module docstring), u = u_ff − K_P e_q − K_D (q̇ − q̇_d)."""
         g = self.gains
-        u = -(g.Kq @ e_q) - g.Dq @ (v - desired.qd)
-        self.last_u_pos = u
+        u_pos = -(g.Kq @ e_q) - g.Dq @ (v - desired.qd)
+        self.last_u_pos = u_pos
         if self.model_feedforward:
-            u += robot.M @ desired.qdd + robot.C @ v + robot.g
+            u = u_pos + (robot.M @ desired.qdd + robot.C @ v + robot.g)
         else:
-            u += robot.g
+            u = u_pos + robot.g
         return Command(u0=u, B=None)
 
     def hybrid(
@@ -380,11 +383,118 @@ class RaibertCraigLaw:
         }
 
 
+class RaibertCraigWorkspace(RaibertCraigLaw):
+    """:class:`RaibertCraigLaw` as one compiled call per step, writing into arrays
+    preallocated here (hot path; :mod:`hybrid_force.control.laws._raibert_craig_kernels`).
+
+    The numpy methods of :class:`RaibertCraigLaw` are the readable references (what
+    ``reference=True`` builds); this computes the same numbers, to round-off, with no numpy
+    call and no new array returned. The command returned and :attr:`last_u_pos` are
+    overwritten at every call: copy to keep. At a zero pivot (J Jᵀ singular: the reference's
+    pseudo-inverse takes the SVD) the step runs the reference instead.
+    """
+
+    def __init__(
+        self, gains: RaibertCraigGains, surfaces: tuple[Surface, ...], approach_rate: float
+    ) -> None:
+        super().__init__(gains, surfaces, approach_rate)
+        n, k = gains.Kq.shape[0], len(surfaces)
+        self._joint_gains = np.array([gains.Kq, gains.Dq], dtype=float)
+        self._task_gains = np.array([gains.Kx, gains.Dx], dtype=float)
+        self._params = np.array(
+            [gains.position_rate, gains.damping_rate, gains.kp, gains.ki, approach_rate]
+        )
+        descriptors = [np.asarray(s._descriptor, dtype=float) for s in surfaces]
+        # ∇Φ in Python when a surface has no closed form (FunctionSurface, meshes)
+        self._python_gradients = any(d.shape[0] == 0 for d in descriptors)
+        self._descs = np.zeros((k, max(10, *(d.shape[0] for d in descriptors))))
+        for i, d in enumerate(descriptors):
+            self._descs[i, : d.shape[0]] = d
+        self._grads = np.zeros((k, 3))
+        self._flags = np.array(
+            [self.original, self.model_feedforward, gains.decouple, self._python_gradients],
+            dtype=np.int64,
+        )
+        self._vectors = np.zeros((2, n))
+        self._u0, self._u_pos = self._vectors
+        self.last_u_pos = self._u_pos
+        self._B = np.zeros((n, k))
+        self._zeros_k = np.zeros(k)
+        self._plain = Command(u0=self._u0, B=None)
+        self._contact = Command(u0=self._u0, B=self._B if gains.kp > 0 else None)
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """:meth:`RaibertCraigLaw.free_space` in one compiled call."""
+        packs = robot._packs if robot._packs is not None else robot.packed()._packs
+        assert packs is not None
+        _K.free_space(
+            packs[0], packs[1], self._joint_gains, v, e_q, desired.qd, desired.qdd,
+            self.model_feedforward, self._vectors,
+        )  # fmt: skip
+        return self._plain
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """:meth:`RaibertCraigLaw.hybrid` in one compiled call."""
+        assert desired.p is not None and desired.pd is not None and desired.pdd is not None
+        packs = robot._packs if robot._packs is not None else robot.packed()._packs
+        assert packs is not None
+        mats, vecs, jac, tip = packs
+        if self._python_gradients:
+            for i, surface in enumerate(self.surfaces):
+                self._grads[i] = surface.evaluate(tip[0])[1]
+        near = approach is not None
+        status = _K.hybrid(
+            mats, vecs, jac, tip, cons.A, cons.Adot, cons.rate, v, e_q, desired.qd,
+            desired.qdd, desired.p, desired.pd, desired.pdd, e_F, f_d,
+            self._zeros_k if approach is None else approach, near, self._descs, self._grads,
+            self._joint_gains, self._task_gains, self._params, self._flags, self._vectors,
+            self._B,
+        )  # fmt: skip
+        if status != 0:
+            return self._reference_step(robot, cons, v, e_q, desired, e_F, f_d, approach)
+        return self._plain if near else self._contact
+
+    def _reference_step(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """The numpy reference for one step, its results copied into this workspace's arrays."""
+        command = RaibertCraigLaw.hybrid(self, robot, cons, v, e_q, desired, e_F, f_d, approach)
+        self._u_pos[:] = self.last_u_pos
+        self.last_u_pos = self._u_pos
+        self._u0[:] = command.u0
+        if command.B is None:
+            return self._plain
+        self._B[:] = command.B
+        return self._contact
+
+
 def build(context: LawContext) -> RaibertCraigLaw:
-    """The registry's factory of ``control.law = "raibert_craig"`` (numpy in both forms)."""
+    """The registry's factory of ``control.law = "raibert_craig"``: the compiled
+    :class:`RaibertCraigWorkspace`, or the numpy :class:`RaibertCraigLaw` for ``reference``."""
     s = context.settings
     approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
-    return RaibertCraigLaw(make_gains(context), context.constraint.surfaces, approach_rate)
+    law_type = RaibertCraigLaw if context.reference else RaibertCraigWorkspace
+    return law_type(make_gains(context), context.constraint.surfaces, approach_rate)
 
 
 def loop_bounds(context: LoopContext) -> list[LoopBound]:
