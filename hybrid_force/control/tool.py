@@ -256,9 +256,12 @@ class ToolTarget:
         k = settings.tilt_axis
         self._k = None if k is None else np.array([k, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
 
-    def normal(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(n jet (3, 3), path sample (3, 3) rows p_d, ṗ_d, p̈_d) at time t [s]."""
-        sample = np.array(self.path.evaluate(t))
+    def normal(self, t: float, sample: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(n jet (3, 3), path sample (3, 3) rows p_d, ṗ_d, p̈_d) at time t [s].
+
+        ``sample``: the path sample at t when the caller has it (else evaluated here)."""
+        if sample is None:
+            sample = np.array(self.path.evaluate(t))
         p, pd, pdd = sample
         _, g, H = self.surface.evaluate(p)
         third = np.zeros(3)
@@ -274,9 +277,9 @@ class ToolTarget:
             )
         return _unit(gj)[0], sample
 
-    def axis(self, t: float) -> np.ndarray:
-        """a_d(t) with ȧ_d, ä_d: (3, 3) rows [-, 1/s, 1/s²]."""
-        n, _ = self.normal(t)
+    def axis(self, t: float, sample: np.ndarray | None = None) -> np.ndarray:
+        """a_d(t) with ȧ_d, ä_d: (3, 3) rows [-, 1/s, 1/s²] (``sample``: as :meth:`normal`)."""
+        n, _ = self.normal(t, sample)
         if self._sin == 0.0:
             return -n
         if self._k is not None:
@@ -289,9 +292,12 @@ class ToolTarget:
             raise ReachError(f"the tool's lean direction is undefined at t = {t:.6g} s: {why}")
         return -self._cos * n + self._sin * d
 
-    def frame(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(F (3, 3) columns x, a_d × x, a_d; ω_F (3,) [rad/s]; ω̇_F (3,) [rad/s²]) at t [s]."""
-        a = self.axis(t)
+    def frame(
+        self, t: float, sample: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(F (3, 3) columns x, a_d × x, a_d; ω_F (3,) [rad/s]; ω̇_F (3,) [rad/s²]) at t [s]
+        (``sample``: as :meth:`normal`)."""
+        a = self.axis(t, sample)
         x, size = _unit(_across(a, self.path.direction_jet(t)))
         if not size > _MIN_NORM:
             raise ReachError(
