@@ -30,6 +30,9 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.geometry._kernels import surface_eval
+
+_MIN_NORM = 1e-6  # tool._MIN_NORM: a direction built from a shorter vector is undefined
 
 
 @_jit
@@ -404,3 +407,145 @@ def pose_newton(
         for k in range(m):
             acc += Ap[i, k] * r[k]
         out[i] = q[i] + acc
+
+
+# --- the desired direction (hybrid_force.control.tool.ToolTarget) ---------------------------------
+@_jit
+def _unit_jet(j: np.ndarray, out: np.ndarray) -> float:
+    """out = u = v/‖v‖ as a jet (``tool._unit``); returns ‖v‖ (0: out is zero)."""
+    v, dv, ddv = j[0], j[1], j[2]
+    s = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if s == 0.0:
+        out[:, :] = 0.0
+        return 0.0
+    u = np.empty(3)
+    for k in range(3):
+        u[k] = v[k] / s
+    sd = u[0] * dv[0] + u[1] * dv[1] + u[2] * dv[2]
+    du = np.empty(3)
+    for k in range(3):
+        du[k] = (dv[k] - sd * u[k]) / s
+    sdd = (du[0] * dv[0] + du[1] * dv[1] + du[2] * dv[2]) + (
+        u[0] * ddv[0] + u[1] * ddv[1] + u[2] * ddv[2]
+    )
+    for k in range(3):
+        out[0, k] = u[k]
+        out[1, k] = du[k]
+        out[2, k] = (ddv[k] - 2.0 * sd * du[k] - sdd * u[k]) / s
+    return s
+
+
+@_jit
+def _c3(a: np.ndarray, b: np.ndarray, k: int) -> float:
+    """Component k of a × b."""
+    if k == 0:
+        return a[1] * b[2] - a[2] * b[1]
+    if k == 1:
+        return a[2] * b[0] - a[0] * b[2]
+    return a[0] * b[1] - a[1] * b[0]
+
+
+@_jit
+def _cross_jet(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """out = a × b as a jet (Leibniz, ``tool._cross``)."""
+    for k in range(3):
+        out[0, k] = _c3(a[0], b[0], k)
+        out[1, k] = _c3(a[1], b[0], k) + _c3(a[0], b[1], k)
+        out[2, k] = _c3(a[2], b[0], k) + 2.0 * _c3(a[1], b[1], k) + _c3(a[0], b[2], k)
+
+
+@_jit
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@_jit
+def _across_jet(a: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
+    """out = v − (a·v) a as a jet (``tool._across``)."""
+    s0 = _dot(a[0], v[0])
+    s1 = _dot(a[1], v[0]) + _dot(a[0], v[1])
+    s2 = _dot(a[2], v[0]) + 2.0 * _dot(a[1], v[1]) + _dot(a[0], v[2])
+    for k in range(3):
+        out[0, k] = v[0, k] - s0 * a[0, k]
+        out[1, k] = v[1, k] - (s1 * a[0, k] + s0 * a[1, k])
+        out[2, k] = v[2, k] - (s2 * a[0, k] + 2.0 * s1 * a[1, k] + s0 * a[2, k])
+
+
+@_jit
+def pose_goal(
+    desc: np.ndarray,
+    sample: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    third: np.ndarray,
+    tilt_axis: np.ndarray,
+    travel: np.ndarray,
+    tool: np.ndarray,
+    R_fix: np.ndarray,
+    goal: np.ndarray,
+    R_d: np.ndarray,
+) -> int:
+    """The desired direction at one path sample: ``ToolTarget.axis`` (and ``frame``).
+
+    desc: the surface's descriptor (a built-in quadric: ∇Φ, ∇²Φ evaluated here into grad
+    (3,), hess (3, 3), third ignored), or empty: grad, hess and third = (d/dt ∇²Φ) ṗ_d given.
+    tilt_axis: (3, 3) the jet [k, 0, 0] of the tilt axis (lean 1); travel: (3, 3) the
+    path's direction jet (lean 2, roll held). tool: (4,) cos θ, sin θ, lean (0: none, 1: tilt axis,
+    2: travel), held (1: roll held). R_fix: (3, 3) F(0)ᵀ R(q_d(0)) (roll held; I at t0).
+    Writes goal (4, 3) rows a_d, ȧ_d, ω_d, ω̇_d and, roll held, R_d = F R_fix.
+    Returns 0, or where the direction is undefined 1 (∇Φ = 0), 2 (the lean), 3 (the roll);
+    the caller then raises the reference's error.
+    """
+    p, pd, pdd = sample[0], sample[1], sample[2]
+    if desc.shape[0] > 0:
+        surface_eval(desc, p, grad, hess)
+        third = np.zeros(3)
+    gj = np.empty((3, 3))
+    for r in range(3):
+        gj[0, r] = grad[r]
+        gj[1, r] = hess[r, 0] * pd[0] + hess[r, 1] * pd[1] + hess[r, 2] * pd[2]
+        gj[2, r] = (hess[r, 0] * pdd[0] + hess[r, 1] * pdd[1] + hess[r, 2] * pdd[2]) + third[r]
+    if not np.sqrt(_dot(grad, grad)) > 1e-12:
+        return 1
+    nj = np.empty((3, 3))
+    _unit_jet(gj, nj)
+    co, si, mode, held = tool[0], tool[1], tool[2], tool[3] != 0.0
+    a = np.empty((3, 3))
+    if si == 0.0:
+        for r in range(3):
+            for k in range(3):
+                a[r, k] = -nj[r, k]
+    else:
+        raw = np.empty((3, 3))
+        if mode == 1.0:
+            _cross_jet(nj, tilt_axis, raw)
+        else:
+            _across_jet(nj, travel, raw)
+        d = np.empty((3, 3))
+        if not _unit_jet(raw, d) > _MIN_NORM:
+            return 2
+        for r in range(3):
+            for k in range(3):
+                a[r, k] = -co * nj[r, k] + si * d[r, k]
+    for k in range(3):
+        goal[0, k] = a[0, k]
+    if not held:
+        for k in range(3):
+            goal[1, k] = a[1, k]
+            goal[2, k] = _c3(a[0], a[1], k)
+            goal[3, k] = _c3(a[0], a[2], k)
+        return 0
+    raw = np.empty((3, 3))
+    _across_jet(a, travel, raw)
+    x = np.empty((3, 3))
+    if not _unit_jet(raw, x) > _MIN_NORM:
+        return 3
+    y = np.empty((3, 3))
+    _cross_jet(a, x, y)
+    for k in range(3):
+        goal[2, k] = 0.5 * (_c3(x[0], x[1], k) + _c3(y[0], y[1], k) + _c3(a[0], a[1], k))
+        goal[3, k] = 0.5 * (_c3(x[0], x[2], k) + _c3(y[0], y[2], k) + _c3(a[0], a[2], k))
+    for i in range(3):
+        for j in range(3):
+            R_d[i, j] = x[0, i] * R_fix[0, j] + y[0, i] * R_fix[1, j] + a[0, i] * R_fix[2, j]
+    return 0

@@ -267,6 +267,12 @@ class PoseJointPath:
     sample. :class:`ReferencePoseJointPath` is the readable numpy version.
     """
 
+    a_d: np.ndarray  # (3,) the desired tool axis now
+    R_d: np.ndarray | None  # (3, 3) the desired rotation now (roll held), else None
+    _a: np.ndarray  # (3, 3) the a_d jet (roll free, reference)
+    _w_d: np.ndarray  # (3,) ω_d (reference)
+    _wdot_d: np.ndarray  # (3,) ω̇_d (reference)
+
     def __init__(
         self,
         robot: Robot,
@@ -303,6 +309,7 @@ class PoseJointPath:
             )
         if self._task.held:
             F0 = self.R_d  # the frame of travel at t0 (set by _sample while R_fix is None)
+            assert F0 is not None
             self._R_fix = F0.T @ R
             self._sample()
         self._update_derivatives()
@@ -314,6 +321,12 @@ class PoseJointPath:
         self.p_d, self.pdot_d, self.pddot_d = self._smp
         self._goal = np.zeros((4, 3))  # rows a_d, ȧ_d, ω_d, ω̇_d
         self._Rd = np.eye(3)
+        self._eye3 = np.eye(3)
+        self._desc, self._tool, self._tilt_axis, self._travel_needed = self.target.kernel_inputs()
+        self._travel = np.zeros((3, 3))
+        self._grad = np.zeros(3)
+        self._hess = np.zeros((3, 3))
+        self._third = np.zeros(3)
         self._frame = np.array([task.axis, task.C[0], task.C[1]])
         posture = self._redundant and cfg.posture_gain > 0
         self._cfg = np.array(
@@ -337,18 +350,29 @@ class PoseJointPath:
         self._tip, self._rot = tip.translation, tip.rotation
 
     def _sample(self) -> None:
-        """The path sample (in place) and the desired direction (and frame) at self.t."""
-        smp = self._smp
-        self.path.evaluate_into(self.t, smp[0], smp[1], smp[2])
-        self._sample_goal(smp)
-        goal = self._goal
-        goal[0] = self.a_d
-        goal[2] = self._w_d
-        goal[3] = self._wdot_d
-        if self.R_d is None:
-            goal[1] = self._a[1]
-        else:
-            self._Rd[:] = self.R_d
+        """The path sample and the desired direction (and frame) at self.t, in place
+        (``_pose_kernels.pose_goal``; :meth:`_sample_goal` is its reference)."""
+        smp, t = self._smp, self.t
+        self.path.evaluate_into(t, smp[0], smp[1], smp[2])
+        if self._travel_needed:
+            self._travel[:] = self.path.direction_jet(t)
+        if self._desc.shape[0] == 0:
+            self._grad[:], self._hess[:], self._third[:] = self.target.surface_terms(smp)
+        R_fix = self._R_fix if self._R_fix is not None else self._eye3
+        status = _PK.pose_goal(
+            self._desc, smp, self._grad, self._hess, self._third, self._tilt_axis,
+            self._travel, self._tool, R_fix, self._goal, self._Rd,
+        )  # fmt: skip
+        if status:  # an undefined direction: the reference names it (ReachError)
+            self._sample_goal(smp)  # (at the edge, if it does not raise, its values are kept)
+            goal = self._goal
+            goal[0], goal[2], goal[3] = self.a_d, self._w_d, self._wdot_d
+            if self.R_d is None:
+                goal[1] = self._a[1]
+            else:
+                self._Rd[:] = self.R_d
+        self.a_d = self._goal[0]
+        self.R_d = self._Rd if self._task.held else None
 
     def _sample_goal(self, sample: np.ndarray) -> None:
         """The desired direction (and frame) at self.t from the path sample (3, 3) there."""
