@@ -320,6 +320,7 @@ class PoseJointPath:
         self._smp = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
         self.p_d, self.pdot_d, self.pddot_d = self._smp
         self._goal = np.zeros((4, 3))  # rows a_d, ȧ_d, ω_d, ω̇_d
+        self._a_d = self._goal[0]  # one view: a_d is updated in place
         self._Rd = np.eye(3)
         self._eye3 = np.eye(3)
         self._desc, self._tool, self._tilt_axis, self._travel_needed = self.target.kernel_inputs()
@@ -371,7 +372,7 @@ class PoseJointPath:
                 goal[1] = self._a[1]
             else:
                 self._Rd[:] = self.R_d
-        self.a_d = self._goal[0]
+        self.a_d = self._a_d
         self.R_d = self._Rd if self._task.held else None
 
     def _sample_goal(self, sample: np.ndarray) -> None:

@@ -1,0 +1,227 @@
+"""The pose CLIK's kernels (hybrid_force.control._pose_kernels) against their numpy reference.
+
+:class:`PoseJointPath` (compiled) and :class:`ReferencePoseJointPath` (numpy, the readable
+form) are put in the same random state and must agree to round-off, max|fast − ref| ≤ 1e-12 ·
+max(max|ref|, 1), in every kernel's result (random states with cond(A) < 30):
+
+1. ``pose_goal``: a_d, ȧ_d, ω_d, ω̇_d (and R_d, roll held) at random times, against
+   ``ToolTarget.axis`` / ``frame``: the sphere (no tilt), the pipe (tilt towards the travel),
+   a tilt axis, on closed-form paths and on the shipped scenarios' raster and waypoints;
+2. ``pose_velocity`` + ``pose_acceleration``: q̇_d, q̈_d, A⁺ at random q (off the pose, so
+   the error terms act) and random times;
+3. ``pose_newton`` (with the predictor): one advance from a random (q, q̇, q̈);
+4. 500 steps of advance(1 ms) from the start pose;
+5. whole runs (0.3 s) of scenarios/ur5_sphere_normal.toml and panda_pipe_tilt.toml, roll free
+   and held: the compiled run against ``sim.reference = true`` in q, u, f to 1e-10.
+
+On the UR5 (6 joints: roll free m = 5 with a null-space posture term, held m = 6 without) and
+the Panda (7 joints, both with one). The RTR arm (3 joints) has no pose task (it is refused:
+tests/test_clik_pose.py).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_clik_pose import CASES
+
+from hybrid_force.control.clik import inverse_kinematics
+from hybrid_force.control.pose_clik import (
+    PoseJointPath,
+    ReferencePoseJointPath,
+    pose_inverse_kinematics,
+)
+from hybrid_force.control.tool import ToolSettings, ToolTarget
+from hybrid_force.model.robot import Robot
+from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.sim.loop import simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+RTOL = 1e-12
+DT = 1e-3
+SCENARIOS = {"ur5": "ur5_sphere_normal", "panda": "panda_pipe_tilt"}
+WORST: dict[str, float] = {}
+FLOOR = 1.0  # [rad/s, rad/s², ...] the scale of a result that cancels (q̇_d near rest:
+#             its γ e and null-space terms, O(0.1–1) off the pose, nearly cancel)
+COND_MAX = 30.0  # random states kept: cond(A) below (both agree to about cond² · 1e-16)
+
+
+def _close(what: str, got: object, ref: object) -> None:
+    """max|got − ref| ≤ RTOL · max(max|ref|, FLOOR): FLOOR for a result that cancels (q̇_d at
+    the raster's start, where the path is at rest)."""
+    g = np.asarray(got, dtype=float)
+    r = np.asarray(ref, dtype=float)
+    assert g.shape == r.shape, what
+    assert np.all(np.isfinite(g)), what
+    scale = max(float(np.abs(r).max(initial=0.0)), FLOOR)
+    err = float(np.abs(g - r).max(initial=0.0))
+    WORST[what] = max(WORST.get(what, 0.0), err / scale if scale > 0 else err)
+    assert err <= RTOL * scale, f"{what}: {err:.3g} > {RTOL:g} · {scale:.3g}"
+
+
+def _pair(
+    robot: Robot, which: str, roll: str, source: str, tilt_axis: bool = False
+) -> tuple[PoseJointPath, ReferencePoseJointPath]:
+    """The compiled and the reference pose CLIK from the same start pose.
+
+    source "closed": the closed-form path of tests/test_clik_pose.py; "scenario": the shipped
+    scenario's surface and path (raster on the sphere, waypoints in the pipe)."""
+    if source == "closed":
+        _, surface, path, seed, tilt, _ = CASES[which]
+    else:
+        sc = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml")
+        surface, path, seed, tilt = sc.surfaces[0], sc.path, sc.q0, sc.tool.tilt
+    k = (0.0, 1.0, 0.3) if tilt_axis else None
+    if tilt_axis and tilt == 0.0:
+        tilt = 0.2
+    tool = ToolSettings(orientation="normal", tilt=tilt, tilt_axis=k, roll=roll)
+    target = ToolTarget(tool, surface, path)
+    q0 = inverse_kinematics(robot, path.position(0.0), seed=seed)
+    q0 = pose_inverse_kinematics(robot, target, 0.0, q0)
+    return PoseJointPath(robot, path, target, q0), ReferencePoseJointPath(robot, path, target, q0)
+
+
+def _compare_goal(fast: PoseJointPath, ref: ReferencePoseJointPath) -> None:
+    _close("p_d", fast._smp, np.array([ref.p_d, ref.pdot_d, ref.pddot_d]))
+    _close("a_d", fast.a_d, ref.a_d)
+    _close("w_d", fast._goal[2], ref._w_d)
+    _close("wdot_d", fast._goal[3], ref._wdot_d)
+    if ref.R_d is None:
+        assert fast.R_d is None
+        _close("adot_d", fast._goal[1], ref._a[1])
+    else:
+        _close("R_d", fast.R_d, ref.R_d)
+
+
+def _compare(fast: PoseJointPath, ref: ReferencePoseJointPath) -> None:
+    _close("q", fast.q, ref.q)
+    _close("qd", fast.qd, ref.qd)
+    _close("qdd", fast.qdd, ref.qdd)
+    _close("Ap", fast._Ap, ref._Ap)
+
+
+def _set(path: PoseJointPath, t: float, q: np.ndarray) -> None:
+    """Put a pose CLIK at time t and configuration q (then its derivatives there)."""
+    path.t = t
+    path._sample()
+    path.q[:] = q
+    if isinstance(path, ReferencePoseJointPath):
+        path.q = q.copy()
+    path._update_derivatives()
+
+
+CASES_GOAL = [
+    ("ur5", "free", "closed", False),
+    ("ur5", "held", "closed", False),
+    ("ur5", "free", "closed", True),
+    ("panda", "free", "closed", False),
+    ("panda", "held", "closed", False),
+    ("panda", "held", "closed", True),
+    ("ur5", "free", "scenario", False),
+    ("ur5", "held", "scenario", False),
+    ("panda", "free", "scenario", False),
+    ("panda", "held", "scenario", False),
+]
+IDS = [f"{a}-{r}-{s}{'-tilt_axis' if k else ''}" for a, r, s, k in CASES_GOAL]
+
+
+@pytest.fixture(scope="module")
+def arms(ur5: Robot, panda: Robot) -> dict[str, Robot]:
+    return {"ur5": ur5, "panda": panda}
+
+
+@pytest.mark.parametrize(("which", "roll", "source", "tilt_axis"), CASES_GOAL, ids=IDS)
+def test_kernels_equal_the_reference_on_random_states(
+    arms: dict[str, Robot], which: str, roll: str, source: str, tilt_axis: bool
+) -> None:
+    robot = arms[which]
+    fast, ref = _pair(robot, which, roll, source, tilt_axis)
+    _compare_goal(fast, ref)
+    _compare(fast, ref)
+    rng = np.random.default_rng(32)
+    q0 = ref.q.copy()
+    horizon = 4.0 if source == "scenario" else 6.0
+    kept = 0
+    for _ in range(100):
+        t = float(rng.uniform(0.0, horizon))
+        q = q0 + rng.uniform(-0.2, 0.2, robot.nq)  # off the pose: the error terms act
+        _set(fast, t, q)
+        if not _cond(fast._A) < COND_MAX:
+            continue
+        kept += 1
+        if kept > 20:
+            break
+        _set(ref, t, q)
+        _compare_goal(fast, ref)
+        _compare(fast, ref)
+        # one step from a random (q, q̇, q̈) near the start pose, early on (a Newton step from
+        # far off may land near a singular configuration, where both agree only to about
+        # cond² · 1e-16): predictor, Newton with this state's A⁺, derivatives
+        t = float(rng.uniform(0.0, 0.1))
+        q = q0 + rng.uniform(-0.02, 0.02, robot.nq)
+        _set(fast, t, q)
+        _set(ref, t, q)
+        qd = rng.uniform(-0.5, 0.5, robot.nv)
+        qdd = rng.uniform(-2.0, 2.0, robot.nv)
+        fast.qd[:], fast.qdd[:] = qd, qdd
+        fast._dt_pred = 0.0  # the predictor made ahead was for the state just overwritten
+        ref.qd, ref.qdd = qd.copy(), qdd.copy()
+        fast.advance(DT)
+        ref.advance(DT)
+        _compare_goal(fast, ref)
+        _compare(fast, ref)
+    assert kept > 20
+
+
+def _cond(A: np.ndarray) -> float:
+    s = np.linalg.svd(A, compute_uv=False)
+    return float(s[0] / s[-1])
+
+
+@pytest.mark.parametrize(
+    ("which", "roll"), [("ur5", "free"), ("ur5", "held"), ("panda", "free"), ("panda", "held")]
+)
+def test_500_steps_equal_the_reference(arms: dict[str, Robot], which: str, roll: str) -> None:
+    fast, ref = _pair(arms[which], which, roll, "closed")
+    arrays = (fast.q, fast.qd, fast.qdd, fast.p_d, fast.a_d)
+    for _ in range(500):
+        fast.advance(DT)
+        ref.advance(DT)
+        _compare(fast, ref)
+    _compare_goal(fast, ref)
+    for now, before in zip((fast.q, fast.qd, fast.qdd, fast.p_d, fast.a_d), arrays, strict=True):
+        assert now is before  # updated in place
+
+
+@pytest.mark.parametrize("roll", ["free", "held"])
+@pytest.mark.parametrize("which", ["ur5", "panda"])
+def test_whole_runs_equal_the_reference_runs(which: str, roll: str) -> None:
+    """0.3 s of the shipped scenario (in contact, pressing): compiled against sim.reference."""
+    runs = []
+    for reference in (False, True):
+        sc = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml", {"sim.duration": 0.3})
+        sim = dataclasses.replace(sc.sim, reference=reference)
+        sc = dataclasses.replace(sc, sim=sim, tool=dataclasses.replace(sc.tool, roll=roll))
+        runs.append(simulate(sc))
+    fast, ref = runs
+    assert fast.n_samples == ref.n_samples > 100
+    for name in ("q", "u", "f", "q_d"):
+        got, want = np.asarray(getattr(fast, name)), np.asarray(getattr(ref, name))
+        scale = float(np.abs(want).max())
+        err = float(np.abs(got - want).max())
+        WORST[f"run.{name}"] = max(WORST.get(f"run.{name}", 0.0), err / scale)
+        assert err <= 1e-10 * scale, f"{name}: {err:.3g} > 1e-10 · {scale:.3g}"
+    assert math.isfinite(float(np.abs(np.asarray(fast.tool_angle)).max()))
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _report_worst() -> Iterator[None]:
+    """The largest relative differences seen (shown with ``pytest -s``)."""
+    yield
+    for what, rel in sorted(WORST.items()):
+        print(f"pose kernels, worst |fast - reference| / scale: {what:8} {rel:.2e}")
