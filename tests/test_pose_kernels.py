@@ -225,3 +225,18 @@ def _report_worst() -> Iterator[None]:
     yield
     for what, rel in sorted(WORST.items()):
         print(f"pose kernels, worst |fast - reference| / scale: {what:8} {rel:.2e}")
+
+
+@pytest.mark.parametrize("which", ["ur5", "panda", "helix"])
+def test_evaluate_with_direction_equals_the_two_calls(which: str) -> None:
+    """Path.evaluate_with_direction_into (the shape at ℓ(t) shared on a path on a surface)
+    gives exactly evaluate(t) and direction_jet(t): the raster, the waypoints, a helix."""
+    if which == "helix":
+        path = CASES["panda"][2]
+    else:
+        path = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml").path
+    sample, jet = np.zeros((3, 3)), np.zeros((3, 3))
+    for t in np.linspace(0.0, 15.0, 61):
+        path.evaluate_with_direction_into(float(t), sample, jet)
+        np.testing.assert_array_equal(sample, np.array(path.evaluate(float(t))))
+        np.testing.assert_array_equal(jet, path.direction_jet(float(t)))

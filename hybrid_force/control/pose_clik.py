@@ -354,9 +354,10 @@ class PoseJointPath:
         """The path sample and the desired direction (and frame) at self.t, in place
         (``_pose_kernels.pose_goal``; :meth:`_sample_goal` is its reference)."""
         smp, t = self._smp, self.t
-        self.path.evaluate_into(t, smp[0], smp[1], smp[2])
         if self._travel_needed:
-            self._travel[:] = self.path.direction_jet(t)
+            self.path.evaluate_with_direction_into(t, smp, self._travel)
+        else:
+            self.path.evaluate_into(t, smp[0], smp[1], smp[2])
         if self._desc.shape[0] == 0:
             self._grad[:], self._hess[:], self._third[:] = self.target.surface_terms(smp)
         R_fix = self._R_fix if self._R_fix is not None else self._eye3

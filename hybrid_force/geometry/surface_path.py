@@ -215,7 +215,14 @@ class SurfacePath(Path):
     def _sample(self, t: float) -> tuple[Vec3, list[float], list[float]]:
         """(p, ṗ, p̈) at t as floats: ṗ = dp/dℓ ℓ̇, p̈ = d²p/dℓ² ℓ̇² + dp/dℓ ℓ̈ (module doc)."""
         ell, rate, accel = self.law.sample(t)
-        s, tangent, curvature = self._shape(ell)
+        return self._sample_at(self._shape(ell), rate, accel)
+
+    @staticmethod
+    def _sample_at(
+        shape: tuple[Vec3, list[float], list[float]], rate: float, accel: float
+    ) -> tuple[Vec3, list[float], list[float]]:
+        """:meth:`_sample` from the shape at ℓ(t) and ℓ̇, ℓ̈."""
+        s, tangent, curvature = shape
         b = rate * rate
         velocity = [tangent[i] * rate for i in range(3)]
         acceleration = [curvature[i] * b + tangent[i] * accel for i in range(3)]
@@ -230,7 +237,13 @@ class SurfacePath(Path):
         at the ends, error ~1e-10 relative on a smooth piece).
         """
         ell, rate, accel = self.law.sample(path_time(self, t))
-        _, tangent, curvature = self._shape(ell)
+        return self._direction_at(ell, self._shape(ell), rate, accel)
+
+    def _direction_at(
+        self, ell: float, shape: tuple[Vec3, list[float], list[float]], rate: float, accel: float
+    ) -> np.ndarray:
+        """:meth:`direction_jet` from ℓ(t), the shape there and ℓ̇, ℓ̈."""
+        _, tangent, curvature = shape
         h, length = _ARC_STEP, self.law.length
         lo, hi = max(ell - h, 0.0), min(ell + h, length)
         bend_rate = (np.array(self._shape(hi)[2]) - np.array(self._shape(lo)[2])) / (hi - lo)
@@ -245,6 +258,14 @@ class SurfacePath(Path):
     def evaluate_into(self, t: float, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
         """:meth:`evaluate` written into the (3,) arrays p, v, a (hot path)."""
         p[:], v[:], a[:] = self._sample(float(t))
+
+    def evaluate_with_direction_into(self, t: float, sample: np.ndarray, jet: np.ndarray) -> None:
+        """:meth:`evaluate` into the rows of sample (3, 3) and :meth:`direction_jet` into jet
+        (3, 3), sharing the shape at ℓ(t) (the same numbers as the two calls)."""
+        ell, rate, accel = self.law.sample(path_time(self, t))
+        shape = self._shape(ell)
+        sample[0], sample[1], sample[2] = self._sample_at(shape, rate, accel)
+        jet[:] = self._direction_at(ell, shape, rate, accel)
 
     def position(self, t: float) -> np.ndarray:
         """p_d(t) (3,) [m]."""
