@@ -495,6 +495,7 @@ class HybridController:
 
 class ReferenceController(HybridController):
     """:class:`HybridController` on the numpy references (:class:`ReferenceJointPath`,
+    :class:`~hybrid_force.control.pose_clik.ReferencePoseJointPath`,
     :func:`~hybrid_force.control.laws.arimoto.arimoto_law`, ``free_space_law``): what
     ``SimSettings(reference=True)`` runs, the kernels' tests compare against, and the scenario
     loader checks a controller with (no Numba to load)."""
