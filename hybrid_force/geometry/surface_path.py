@@ -243,12 +243,13 @@ class SurfacePath(Path):
         self, ell: float, shape: tuple[Vec3, list[float], list[float]], rate: float, accel: float
     ) -> np.ndarray:
         """:meth:`direction_jet` from ℓ(t), the shape there and ℓ̇, ℓ̈."""
-        _, tangent, curvature = shape
+        _, tangent, k = shape
         h, length = _ARC_STEP, self.law.length
         lo, hi = max(ell - h, 0.0), min(ell + h, length)
-        bend_rate = (np.array(self._shape(hi)[2]) - np.array(self._shape(lo)[2])) / (hi - lo)
-        k = np.array(curvature)
-        return np.array([tangent, k * rate, bend_rate * (rate * rate) + k * accel])
+        k_hi, k_lo, span, b = self._shape(hi)[2], self._shape(lo)[2], hi - lo, rate * rate
+        bend_rate = [(k_hi[i] - k_lo[i]) / span for i in range(3)]  # T'' = (d³p/dℓ³)
+        rows = [k[i] * rate for i in range(3)], [bend_rate[i] * b + k[i] * accel for i in range(3)]
+        return np.array([tangent, *rows])
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p_d (3,) [m], ṗ_d (3,) [m/s], p̈_d (3,) [m/s²]) at t [s], by the chain rule."""
