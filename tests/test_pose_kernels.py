@@ -12,7 +12,10 @@ max(max|ref|, 1), in every kernel's result (random states with cond(A) < 30):
 3. ``pose_newton`` (with the predictor): one advance from a random (q, q̇, q̈);
 4. 500 steps of advance(1 ms) from the start pose;
 5. whole runs (0.3 s) of scenarios/ur5_sphere_normal.toml and panda_pipe_tilt.toml, roll free
-   and held: the compiled run against ``sim.reference = true`` in q, u, f to 1e-10.
+   and held: the compiled run against ``sim.reference = true`` in q, u, f to 1e-10;
+6. the non-Euclidean branches (pinocchio.integrate / difference): a UR5 whose first joint is
+   stored as (cos, sin), 200 steps;
+7. ``Path.evaluate_with_direction_into`` against ``evaluate`` + ``direction_jet``, exactly.
 
 On the UR5 (6 joints: roll free m = 5 with a null-space posture term, held m = 6 without) and
 the Panda (7 joints, both with one). The RTR arm (3 joints) has no pose task (it is refused:
@@ -27,6 +30,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from test_clik_pose import CASES
 
@@ -240,3 +244,28 @@ def test_evaluate_with_direction_equals_the_two_calls(which: str) -> None:
         path.evaluate_with_direction_into(float(t), sample, jet)
         np.testing.assert_array_equal(sample, np.array(path.evaluate(float(t))))
         np.testing.assert_array_equal(jet, path.direction_jet(float(t)))
+
+
+def test_non_euclidean_arm_equals_the_reference(ur5: Robot, tmp_path: Path) -> None:
+    """The pinocchio.integrate / difference branches: the UR5 with its first joint stored as
+    (cos q1, sin q1) (Pinocchio's JointModelRUBZ, from a continuous URDF joint), roll free."""
+    text = Path(ur5.urdf_path).read_text()
+    old = '<joint name="shoulder_pan_joint" type="revolute">'
+    assert old in text
+    urdf = tmp_path / "ur5_rubz.urdf"
+    urdf.write_text(text.replace(old, old.replace("revolute", "continuous"), 1))
+    model = pin.buildModelFromUrdf(str(urdf))
+    assert model.joints[1].shortname() == "JointModelRUBZ"
+    robot = Robot(model, name="ur5_rubz", urdf_path=urdf, tip="tool0")
+    assert not robot.euclidean and (robot.nq, robot.nv) == (7, 6)
+    _, surface, path, seed, tilt, _ = CASES["ur5"]
+    target = ToolTarget(ToolSettings(orientation="normal", tilt=tilt), surface, path)
+    seed_q = np.concatenate([[math.cos(seed[0]), math.sin(seed[0])], seed[1:]])
+    q0 = inverse_kinematics(robot, path.position(0.0), seed=seed_q)
+    q0 = pose_inverse_kinematics(robot, target, 0.0, q0)
+    fast = PoseJointPath(robot, path, target, q0)
+    ref = ReferencePoseJointPath(robot, path, target, q0)
+    for _ in range(200):
+        fast.advance(DT)
+        ref.advance(DT)
+        _compare(fast, ref)
