@@ -15,7 +15,9 @@ max(max|ref|, 1), in every kernel's result (random states with cond(A) < 30):
    and held: the compiled run against ``sim.reference = true`` in q, u, f to 1e-10;
 6. the non-Euclidean branches (pinocchio.integrate / difference): a UR5 whose first joint is
    stored as (cos, sin), 200 steps;
-7. ``Path.evaluate_with_direction_into`` against ``evaluate`` + ``direction_jet``, exactly.
+7. ``Path.evaluate_with_direction_into`` against ``evaluate`` + ``direction_jet``, exactly;
+8. a surface without a descriptor (a FunctionSurface: ∇Φ, ∇²Φ and the Hessian's rate given
+   to ``pose_goal`` from Python), 200 steps.
 
 On the UR5 (6 joints: roll free m = 5 with a null-space posture term, held m = 6 without) and
 the Panda (7 joints, both with one). The RTR arm (3 joints) has no pose task (it is refused:
@@ -268,4 +270,38 @@ def test_non_euclidean_arm_equals_the_reference(ur5: Robot, tmp_path: Path) -> N
     for _ in range(200):
         fast.advance(DT)
         ref.advance(DT)
+        _compare(fast, ref)
+
+
+def test_function_surface_equals_the_reference(ur5: Robot) -> None:
+    """A surface without a descriptor (its ∇Φ, ∇²Φ and the Hessian's rate from Python):
+    Φ = ‖p − c‖⁴ − r⁴, the sphere of the UR5 case with a varying Hessian."""
+    from hybrid_force.geometry.function_surface import FunctionSurface
+
+    _, sphere, path, seed, _, _ = CASES["ur5"]
+    c, r = np.array(sphere.center), sphere.radius
+
+    def phi(p: np.ndarray) -> float:
+        w = p - c
+        return float((w @ w) ** 2 - r**4)
+
+    def gradient(p: np.ndarray) -> np.ndarray:
+        w = p - c
+        return 4.0 * float(w @ w) * w
+
+    def hessian(p: np.ndarray) -> np.ndarray:
+        w = p - c
+        return 4.0 * (float(w @ w) * np.eye(3) + 2.0 * np.outer(w, w))
+
+    surface = FunctionSurface(phi, gradient, hessian)
+    target = ToolTarget(ToolSettings(orientation="normal"), surface, path)
+    assert target.kernel_inputs()[0].shape == (0,)
+    q0 = inverse_kinematics(ur5, path.position(0.0), seed=seed)
+    q0 = pose_inverse_kinematics(ur5, target, 0.0, q0)
+    fast = PoseJointPath(ur5, path, target, q0)
+    ref = ReferencePoseJointPath(ur5, path, target, q0)
+    for _ in range(200):
+        fast.advance(DT)
+        ref.advance(DT)
+        _compare_goal(fast, ref)
         _compare(fast, ref)

@@ -261,10 +261,12 @@ class PoseJointPath:
         ReachError: q0 is not on the start pose, or the task Jacobian is singular on the path.
 
     The algebra of each step is compiled (:mod:`hybrid_force.control._pose_kernels`:
+    ``pose_goal`` for a_d and its jet (and R_d) from the step's path sample, as
+    :meth:`ToolTarget.axis <hybrid_force.control.tool.ToolTarget.axis>` and ``frame``;
     ``pose_velocity``, ``pose_acceleration``, ``pose_newton``) and q, qd, qdd, p_d, pdot_d,
-    pddot_d are updated in place: keep a copy to remember a value. The desired direction a_d
-    (and frame) stays numpy (:mod:`hybrid_force.control.tool`), sampled from the same path
-    sample. :class:`ReferencePoseJointPath` is the readable numpy version.
+    pddot_d, a_d are updated in place: keep a copy to remember a value. The path itself (and
+    a surface other than the built-in ones) is sampled in Python.
+    :class:`ReferencePoseJointPath` is the readable numpy version.
     """
 
     a_d: np.ndarray  # (3,) the desired tool axis now
