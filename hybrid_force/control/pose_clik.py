@@ -36,8 +36,9 @@ with ω = J_ω q̇_d, Ṡ = −S[ω]× (Ṙ = [ω]× R), so Ȧ = [J̇_p; S J̇_�
 **Integration.** As :class:`~hybrid_force.control.clik.DesiredJointPath`: each step predicts
 q_d(t + dt) by a second-order Taylor step and corrects it with one Newton step on the task
 residual [p_d − k(q_d); S e] (the pseudo-inverse of the previous step), so position and axis
-stay on their targets to round-off and q̇_d is the CLIK's own velocity. This module is numpy
-(no compiled kernel); the position-only CLIK keeps its compiled path.
+stay on their targets to round-off and q̇_d is the CLIK's own velocity. The algebra of a step
+is compiled (:mod:`hybrid_force.control._pose_kernels`); :class:`ReferencePoseJointPath` is
+its numpy reference.
 """
 
 from __future__ import annotations
@@ -47,13 +48,17 @@ import math
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.clik import _COND_MAX, ClikSettings, StepClock
 from hybrid_force.control.tool import ToolTarget, axis_angle, cross3
 from hybrid_force.errors import ReachError
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import LWA, Robot
 
-__all__ = ["PoseJointPath", "follow_pose", "pose_inverse_kinematics"]
+__all__ = ["PoseJointPath", "ReferencePoseJointPath", "follow_pose", "pose_inverse_kinematics"]
+
+_K = LazyKernels("hybrid_force.control._kernels")
+_PK = LazyKernels("hybrid_force.control._pose_kernels")
 
 _START_TOL = 1e-9  # [m, rad] accepted start residual of position and axis
 
@@ -240,7 +245,7 @@ class PoseJointPath:
 
     The interface of :class:`~hybrid_force.control.clik.DesiredJointPath` (q, qd, qdd, p_d,
     pdot_d, pddot_d, t, :meth:`advance`, :meth:`task_error`) plus a_d (3,), the desired tool
-    axis now, and :meth:`axis_error`. New arrays every step.
+    axis now, and :meth:`axis_error`.
 
     Args:
         robot: the arm (n ≥ 5 joints, n ≥ 6 for a held roll).
@@ -254,7 +259,21 @@ class PoseJointPath:
     Raises:
         ControlError: the arm has fewer joints than the task has rows.
         ReachError: q0 is not on the start pose, or the task Jacobian is singular on the path.
+
+    The algebra of each step is compiled (:mod:`hybrid_force.control._pose_kernels`:
+    ``pose_goal`` for a_d and its jet (and R_d) from the step's path sample, as
+    :meth:`ToolTarget.axis <hybrid_force.control.tool.ToolTarget.axis>` and ``frame``;
+    ``pose_velocity``, ``pose_acceleration``, ``pose_newton``) and q, qd, qdd, p_d, pdot_d,
+    pddot_d, a_d are updated in place: keep a copy to remember a value. The path itself (and
+    a surface other than the built-in ones) is sampled in Python.
+    :class:`ReferencePoseJointPath` is the readable numpy version.
     """
+
+    a_d: np.ndarray  # (3,) the desired tool axis now
+    R_d: np.ndarray | None  # (3, 3) the desired rotation now (roll held), else None
+    _a: np.ndarray  # (3, 3) the a_d jet (roll free, reference)
+    _w_d: np.ndarray  # (3,) ω_d (reference)
+    _wdot_d: np.ndarray  # (3,) ω̇_d (reference)
 
     def __init__(
         self,
@@ -280,6 +299,7 @@ class PoseJointPath:
         self.t = float(t0)
         self._clock = StepClock(t0)
         self._R_fix: np.ndarray | None = None
+        self._start()
         self._sample()
         p, R, _ = self._task.kinematics(self._data, self.q)
         angle = axis_angle(R @ self._task.axis, self.a_d)
@@ -292,21 +312,81 @@ class PoseJointPath:
             )
         if self._task.held:
             F0 = self.R_d  # the frame of travel at t0 (set by _sample while R_fix is None)
+            assert F0 is not None
             self._R_fix = F0.T @ R
             self._sample()
-        self._S = self._task.selector(R)
-        self._Ap = np.zeros((n, self._task.m))
-        self.qd, self.qdd = self._derivatives()
+        self._update_derivatives()
+
+    def _start(self) -> None:
+        """Buffers written in place by the kernels (module ``_pose_kernels``' names)."""
+        n, m, task, cfg = self.robot.nv, self._task.m, self._task, self.settings
+        self._smp = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
+        self.p_d, self.pdot_d, self.pddot_d = self._smp
+        self._goal = np.zeros((4, 3))  # rows a_d, ȧ_d, ω_d, ω̇_d
+        self._a_d = self._goal[0]  # one view: a_d is updated in place
+        self._Rd = np.eye(3)
+        self._eye3 = np.eye(3)
+        self._desc, self._tool, self._tilt_axis, self._travel_needed = self.target.kernel_inputs()
+        self._travel = np.zeros((3, 3))
+        self._grad = np.zeros(3)
+        self._hess = np.zeros((3, 3))
+        self._third = np.zeros(3)
+        self._frame = np.array([task.axis, task.C[0], task.C[1]])
+        posture = self._redundant and cfg.posture_gain > 0
+        self._cfg = np.array(
+            [cfg.gamma, cfg.damping**2, float(posture), cfg.posture_gain, float(task.held)]
+        )
+        self._S = np.zeros((3, 3))
+        self._A = np.zeros((m, n))
+        self._Ap = np.zeros((n, m))
+        self._W = np.zeros((m, m))
+        self._N = np.zeros((n, n))
+        self._y = np.zeros(m)
+        self._w = np.zeros(3)
+        self._dq_post = np.zeros(n)
+        self._zeros = np.zeros(n)
+        self._q_pred = np.zeros(self.robot.nq)
+        self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
+        self.qd = np.zeros(n)
+        self.qdd = np.zeros(n)
+        # views of the tip in self._data (updated in place by updateFramePlacement)
+        tip = self._data.oMf[self.robot.tip_id]
+        self._tip, self._rot = tip.translation, tip.rotation
 
     def _sample(self) -> None:
-        """The path and the desired direction (and frame) at self.t."""
-        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
+        """The path sample and the desired direction (and frame) at self.t, in place
+        (``_pose_kernels.pose_goal``; :meth:`_sample_goal` is its reference)."""
+        smp, t = self._smp, self.t
+        if self._travel_needed:
+            self.path.evaluate_with_direction_into(t, smp, self._travel)
+        else:
+            self.path.evaluate_into(t, smp[0], smp[1], smp[2])
+        if self._desc.shape[0] == 0:
+            self._grad[:], self._hess[:], self._third[:] = self.target.surface_terms(smp)
+        R_fix = self._R_fix if self._R_fix is not None else self._eye3
+        status = _PK.pose_goal(
+            self._desc, smp, self._grad, self._hess, self._third, self._tilt_axis,
+            self._travel, self._tool, R_fix, self._goal, self._Rd,
+        )  # fmt: skip
+        if status:  # an undefined direction: the reference names it (ReachError)
+            self._sample_goal(smp)  # (at the edge, if it does not raise, its values are kept)
+            goal = self._goal
+            goal[0], goal[2], goal[3] = self.a_d, self._w_d, self._wdot_d
+            if self.R_d is None:
+                goal[1] = self._a[1]
+            else:
+                self._Rd[:] = self.R_d
+        self.a_d = self._a_d
+        self.R_d = self._Rd if self._task.held else None
+
+    def _sample_goal(self, sample: np.ndarray) -> None:
+        """The desired direction (and frame) at self.t from the path sample (3, 3) there."""
         if self._task.held:
-            F, self._w_d, self._wdot_d = self.target.frame(self.t)
+            F, self._w_d, self._wdot_d = self.target.frame(self.t, sample)
             self.a_d = F[:, 2].copy()
             self.R_d = F if self._R_fix is None else F @ self._R_fix
         else:
-            self._a = self.target.axis(self.t)
+            self._a = self.target.axis(self.t, sample)
             self.a_d = self._a[0]
             self._w_d = cross3(self._a[0], self._a[1])
             self._wdot_d = cross3(self._a[0], self._a[2])
@@ -316,6 +396,94 @@ class PoseJointPath:
         """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction); t = t0 + i·dt
         (:class:`~hybrid_force.control.clik.StepClock`), not a sum of the steps."""
         self.t = self._clock.tick(dt)
+        self._advance(dt)
+
+    def _advance(self, dt: float) -> None:
+        """:meth:`advance` once t is updated: sample, predictor, Newton, derivatives."""
+        robot, data = self.robot, self._data
+        model, q_pred = robot.model, self._q_pred
+        self._sample()
+        if robot.euclidean:
+            if dt != self._dt_pred:  # otherwise the last step's kernel made the predictor
+                _K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
+                self._dt_pred = dt
+        else:
+            q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
+        pin.forwardKinematics(model, data, q_pred)
+        pin.updateFramePlacement(model, data, robot.tip_id)
+        args = (self._tip, self._rot, self._smp, self._goal, self._Rd, self._frame, self._cfg)
+        if robot.euclidean:
+            _PK.pose_newton(*args, self._S, self._Ap, q_pred, self.q)
+        else:
+            step = np.zeros(robot.nv)
+            _PK.pose_newton(*args, self._S, self._Ap, self._zeros, step)
+            self.q[:] = pin.integrate(model, q_pred, step)
+        self._update_derivatives()
+
+    def _update_derivatives(self) -> None:
+        """q̇_d and q̈_d at (t, q_d), written in place (the algebra of
+        :meth:`ReferencePoseJointPath._derivatives`, compiled)."""
+        robot, data = self.robot, self._data
+        model, fid, q = robot.model, robot.tip_id, self.q
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacement(model, data, fid)
+        J6 = pin.getFrameJacobian(model, data, fid, LWA)
+        if self._cfg[2]:
+            if robot.euclidean:
+                np.subtract(q, self.posture, out=self._dq_post)
+            else:
+                self._dq_post[:] = pin.difference(model, self.posture, q)
+        head = (self._rot, self._smp, self._goal, self._Rd, self._frame, self._cfg, self._dq_post)
+        bufs = (self._S, self._A, self._Ap, self._W, self._N, self._y, self._w, self.qd)
+        cond = _PK.pose_velocity(J6, self._tip, *head, *bufs)
+        if not cond < _COND_MAX:  # the cheap bound; the SVD names the values
+            self._check_conditioning(self._A.copy(), q)
+        pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
+        Jd6 = pin.getFrameJacobianTimeVariation(model, data, fid, LWA)
+        _PK.pose_acceleration(
+            J6, Jd6, *head, *bufs, q, self._dt_pred, self.qdd, self._q_pred
+        )  # fmt: skip
+
+    def _check_conditioning(self, A: np.ndarray, q: np.ndarray) -> None:
+        """ReachError naming t, q_d and the singular values when cond(AAᵀ + λ²I) ≥ the limit."""
+        s = np.linalg.svd(A, compute_uv=False)
+        lam2 = self.settings.damping**2
+        if (s[0] ** 2 + lam2) < _COND_MAX * (s[-1] ** 2 + lam2):
+            return
+        raise ReachError(
+            f"the pose task Jacobian of '{self.robot.name}' (tip position and tool axis) is "
+            f"singular on the desired path at t = {self.t:.6g} s, q_d = "
+            f"{np.round(q, 6).tolist()} (singular values {s.tolist()})"
+        )
+
+    def task_error(self) -> float:
+        """‖k(q_d) − p_d‖ at the current time [m]."""
+        p, _, _ = self._task.kinematics(self._data, self.q)
+        return float(np.linalg.norm(p - self.p_d))
+
+    def axis_error(self) -> float:
+        """The angle [rad] between the tool axis at q_d and a_d at the current time."""
+        _, R, _ = self._task.kinematics(self._data, self.q)
+        return axis_angle(R @ self._task.axis, self.a_d)
+
+
+class ReferencePoseJointPath(PoseJointPath):
+    """:class:`PoseJointPath` in readable numpy: the reference its kernels are tested against
+    (``tests/test_pose_kernels.py``), what ``ReferenceController`` runs. New arrays every step
+    instead of updates in place.
+    """
+
+    def _start(self) -> None:
+        self._Ap = np.zeros((self.robot.nv, self._task.m))
+
+    def _sample(self) -> None:
+        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
+        self._sample_goal(np.array((self.p_d, self.pdot_d, self.pddot_d)))
+
+    def _update_derivatives(self) -> None:
+        self.qd, self.qdd = self._derivatives()
+
+    def _advance(self, dt: float) -> None:
         model, task = self.robot.model, self._task
         self._sample()
         q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
@@ -324,7 +492,7 @@ class PoseJointPath:
         e = task.error(M.rotation, self.a_d, self.R_d)
         r = np.concatenate([self.p_d - M.translation, self._S @ e])
         self.q = pin.integrate(model, q, self._Ap @ r)
-        self.qd, self.qdd = self._derivatives()
+        self._update_derivatives()
 
     def _derivatives(self) -> tuple[np.ndarray, np.ndarray]:
         """q̇_d and its exact time derivative q̈_d at (t, q_d) (module docstring)."""
@@ -372,25 +540,3 @@ class PoseJointPath:
         Rdot = _skew(omega) @ R
         Rd_dot = _skew(self._w_d) @ self.R_d
         return _orientation_error(Rdot, self.R_d) + _orientation_error(R, Rd_dot)
-
-    def _check_conditioning(self, A: np.ndarray, q: np.ndarray) -> None:
-        """ReachError naming t, q_d and the singular values when cond(AAᵀ + λ²I) ≥ the limit."""
-        s = np.linalg.svd(A, compute_uv=False)
-        lam2 = self.settings.damping**2
-        if (s[0] ** 2 + lam2) < _COND_MAX * (s[-1] ** 2 + lam2):
-            return
-        raise ReachError(
-            f"the pose task Jacobian of '{self.robot.name}' (tip position and tool axis) is "
-            f"singular on the desired path at t = {self.t:.6g} s, q_d = "
-            f"{np.round(q, 6).tolist()} (singular values {s.tolist()})"
-        )
-
-    def task_error(self) -> float:
-        """‖k(q_d) − p_d‖ at the current time [m]."""
-        p, _, _ = self._task.kinematics(self._data, self.q)
-        return float(np.linalg.norm(p - self.p_d))
-
-    def axis_error(self) -> float:
-        """The angle [rad] between the tool axis at q_d and a_d at the current time."""
-        _, R, _ = self._task.kinematics(self._data, self.q)
-        return axis_angle(R @ self._task.axis, self.a_d)

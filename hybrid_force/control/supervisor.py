@@ -59,7 +59,11 @@ from hybrid_force.control.laws.arimoto import (
     make_gains,
 )
 from hybrid_force.control.laws.base import Law, LawContext, build_law, check_options, law_spec
-from hybrid_force.control.pose_clik import PoseJointPath, pose_inverse_kinematics
+from hybrid_force.control.pose_clik import (
+    PoseJointPath,
+    ReferencePoseJointPath,
+    pose_inverse_kinematics,
+)
 from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import ControlError, GainError, RunWarning
 from hybrid_force.events import Branch, Event, PhaseChange
@@ -249,7 +253,7 @@ class HybridController:
         t0: start time [s].
         tool: the ``[tool]`` settings; with ``orientation = "normal"`` the desired joint path
             also points the tool into the first surface
-            (:class:`~hybrid_force.control.pose_clik.PoseJointPath`, numpy); the laws are
+            (:class:`~hybrid_force.control.pose_clik.PoseJointPath`, compiled); the laws are
             unchanged: the orientation enters through q_d only.
 
     The CLIK and the laws run compiled, writing into preallocated arrays
@@ -259,6 +263,7 @@ class HybridController:
     """
 
     _joint_path: type[DesiredJointPath] = DesiredJointPath
+    _pose_path: type[PoseJointPath] = PoseJointPath
     _reference = False  # build the law's readable numpy form
 
     def __init__(
@@ -285,7 +290,7 @@ class HybridController:
             target = ToolTarget(tool, constraint.surfaces[0], path)
             qd0 = pose_inverse_kinematics(robot, target, t0, q0)
             clik = ClikSettings(gamma=s.clik_gain)
-            self.clik = PoseJointPath(robot, path, target, qd0, clik, t0=t0)
+            self.clik = self._pose_path(robot, path, target, qd0, clik, t0=t0)
         else:
             qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
             self.clik = self._joint_path(robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0)
@@ -490,11 +495,13 @@ class HybridController:
 
 class ReferenceController(HybridController):
     """:class:`HybridController` on the numpy references (:class:`ReferenceJointPath`,
+    :class:`~hybrid_force.control.pose_clik.ReferencePoseJointPath`,
     :func:`~hybrid_force.control.laws.arimoto.arimoto_law`, ``free_space_law``): what
     ``SimSettings(reference=True)`` runs, the kernels' tests compare against, and the scenario
     loader checks a controller with (no Numba to load)."""
 
     _joint_path = ReferenceJointPath
+    _pose_path = ReferencePoseJointPath
     _reference = True
 
     def _accumulate(self, f: np.ndarray, dt: float) -> None:

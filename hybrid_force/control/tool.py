@@ -256,17 +256,14 @@ class ToolTarget:
         k = settings.tilt_axis
         self._k = None if k is None else np.array([k, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
 
-    def normal(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(n jet (3, 3), path sample (3, 3) rows p_d, ṗ_d, p̈_d) at time t [s]."""
-        sample = np.array(self.path.evaluate(t))
+    def normal(self, t: float, sample: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(n jet (3, 3), path sample (3, 3) rows p_d, ṗ_d, p̈_d) at time t [s].
+
+        ``sample``: the path sample at t when the caller has it (else evaluated here)."""
+        if sample is None:
+            sample = np.array(self.path.evaluate(t))
         p, pd, pdd = sample
-        _, g, H = self.surface.evaluate(p)
-        third = np.zeros(3)
-        if not self._quadric and pd @ pd > 0.0:
-            h = _HESSIAN_STEP / math.sqrt(float(pd @ pd))
-            Hp = self.surface.hessian(p + h * pd)
-            Hm = self.surface.hessian(p - h * pd)
-            third = ((Hp - Hm) / (2.0 * h)) @ pd
+        g, H, third = self.surface_terms(sample)
         gj = np.array([g, H @ pd, H @ pdd + third])
         if not math.sqrt(float(g @ g)) > 1e-12:
             raise ReachError(
@@ -274,9 +271,34 @@ class ToolTarget:
             )
         return _unit(gj)[0], sample
 
-    def axis(self, t: float) -> np.ndarray:
-        """a_d(t) with ȧ_d, ä_d: (3, 3) rows [-, 1/s, 1/s²]."""
-        n, _ = self.normal(t)
+    def surface_terms(self, sample: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(∇Φ (3,), ∇²Φ (3, 3), (d/dt ∇²Φ) ṗ_d (3,)) at the path sample (3, 3) rows p_d, ṗ_d,
+        p̈_d: the surface's part of :meth:`normal` (the last zero on a quadric)."""
+        p, pd, _ = sample
+        _, g, H = self.surface.evaluate(p)
+        third = np.zeros(3)
+        if not self._quadric and pd @ pd > 0.0:
+            h = _HESSIAN_STEP / math.sqrt(float(pd @ pd))
+            Hp = self.surface.hessian(p + h * pd)
+            Hm = self.surface.hessian(p - h * pd)
+            third = ((Hp - Hm) / (2.0 * h)) @ pd
+        return g, H, third
+
+    def kernel_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """What ``_pose_kernels.pose_goal`` needs beside the path sample: (the surface's
+        descriptor, or empty where :meth:`surface_terms` gives ∇Φ, ∇²Φ; tool (4,) cos θ, sin θ,
+        lean (0 none, 1 tilt axis, 2 travel), held; the tilt axis jet (3, 3); whether the
+        path's direction jet is needed)."""
+        held = self.settings.roll == "held"
+        lean = 0 if self._sin == 0.0 else (1 if self._k is not None else 2)
+        desc = self.surface._descriptor if self._quadric else np.zeros(0)
+        tool = np.array([self._cos, self._sin, float(lean), float(held)])
+        k = np.zeros((3, 3)) if self._k is None else self._k.copy()
+        return np.asarray(desc, dtype=float), tool, k, lean == 2 or held
+
+    def axis(self, t: float, sample: np.ndarray | None = None) -> np.ndarray:
+        """a_d(t) with ȧ_d, ä_d: (3, 3) rows [-, 1/s, 1/s²] (``sample``: as :meth:`normal`)."""
+        n, _ = self.normal(t, sample)
         if self._sin == 0.0:
             return -n
         if self._k is not None:
@@ -289,9 +311,12 @@ class ToolTarget:
             raise ReachError(f"the tool's lean direction is undefined at t = {t:.6g} s: {why}")
         return -self._cos * n + self._sin * d
 
-    def frame(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(F (3, 3) columns x, a_d × x, a_d; ω_F (3,) [rad/s]; ω̇_F (3,) [rad/s²]) at t [s]."""
-        a = self.axis(t)
+    def frame(
+        self, t: float, sample: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(F (3, 3) columns x, a_d × x, a_d; ω_F (3,) [rad/s]; ω̇_F (3,) [rad/s²]) at t [s]
+        (``sample``: as :meth:`normal`)."""
+        a = self.axis(t, sample)
         x, size = _unit(_across(a, self.path.direction_jet(t)))
         if not size > _MIN_NORM:
             raise ReachError(

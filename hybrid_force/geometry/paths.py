@@ -176,6 +176,12 @@ class Path(abc.ABC):
         """
         p[:], v[:], a[:] = self.evaluate(t)
 
+    def evaluate_with_direction_into(self, t: float, sample: np.ndarray, jet: np.ndarray) -> None:
+        """:meth:`evaluate_into` the rows of sample (3, 3) and :meth:`direction_jet` into jet
+        (3, 3) at t [s] (hot path; a path on a surface shares the work of the two)."""
+        self.evaluate_into(t, sample[0], sample[1], sample[2])
+        jet[:] = self.direction_jet(t)
+
     def direction_jet(self, t: float) -> np.ndarray:
         """(3, 3) rows w, ẇ, ẅ with w along the direction of travel at t [s]; only the
         direction of w and its rates are meaningful (callers normalise it).

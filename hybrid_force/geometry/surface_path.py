@@ -215,7 +215,14 @@ class SurfacePath(Path):
     def _sample(self, t: float) -> tuple[Vec3, list[float], list[float]]:
         """(p, ṗ, p̈) at t as floats: ṗ = dp/dℓ ℓ̇, p̈ = d²p/dℓ² ℓ̇² + dp/dℓ ℓ̈ (module doc)."""
         ell, rate, accel = self.law.sample(t)
-        s, tangent, curvature = self._shape(ell)
+        return self._sample_at(self._shape(ell), rate, accel)
+
+    @staticmethod
+    def _sample_at(
+        shape: tuple[Vec3, list[float], list[float]], rate: float, accel: float
+    ) -> tuple[Vec3, list[float], list[float]]:
+        """:meth:`_sample` from the shape at ℓ(t) and ℓ̇, ℓ̈."""
+        s, tangent, curvature = shape
         b = rate * rate
         velocity = [tangent[i] * rate for i in range(3)]
         acceleration = [curvature[i] * b + tangent[i] * accel for i in range(3)]
@@ -230,12 +237,19 @@ class SurfacePath(Path):
         at the ends, error ~1e-10 relative on a smooth piece).
         """
         ell, rate, accel = self.law.sample(path_time(self, t))
-        _, tangent, curvature = self._shape(ell)
+        return self._direction_at(ell, self._shape(ell), rate, accel)
+
+    def _direction_at(
+        self, ell: float, shape: tuple[Vec3, list[float], list[float]], rate: float, accel: float
+    ) -> np.ndarray:
+        """:meth:`direction_jet` from ℓ(t), the shape there and ℓ̇, ℓ̈."""
+        _, tangent, k = shape
         h, length = _ARC_STEP, self.law.length
         lo, hi = max(ell - h, 0.0), min(ell + h, length)
-        bend_rate = (np.array(self._shape(hi)[2]) - np.array(self._shape(lo)[2])) / (hi - lo)
-        k = np.array(curvature)
-        return np.array([tangent, k * rate, bend_rate * (rate * rate) + k * accel])
+        k_hi, k_lo, span, b = self._shape(hi)[2], self._shape(lo)[2], hi - lo, rate * rate
+        bend_rate = [(k_hi[i] - k_lo[i]) / span for i in range(3)]  # T'' = (d³p/dℓ³)
+        rows = [k[i] * rate for i in range(3)], [bend_rate[i] * b + k[i] * accel for i in range(3)]
+        return np.array([tangent, *rows])
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p_d (3,) [m], ṗ_d (3,) [m/s], p̈_d (3,) [m/s²]) at t [s], by the chain rule."""
@@ -245,6 +259,14 @@ class SurfacePath(Path):
     def evaluate_into(self, t: float, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
         """:meth:`evaluate` written into the (3,) arrays p, v, a (hot path)."""
         p[:], v[:], a[:] = self._sample(float(t))
+
+    def evaluate_with_direction_into(self, t: float, sample: np.ndarray, jet: np.ndarray) -> None:
+        """:meth:`evaluate` into the rows of sample (3, 3) and :meth:`direction_jet` into jet
+        (3, 3), sharing the shape at ℓ(t) (the same numbers as the two calls)."""
+        ell, rate, accel = self.law.sample(path_time(self, t))
+        shape = self._shape(ell)
+        sample[0], sample[1], sample[2] = self._sample_at(shape, rate, accel)
+        jet[:] = self._direction_at(ell, shape, rate, accel)
 
     def position(self, t: float) -> np.ndarray:
         """p_d(t) (3,) [m]."""
