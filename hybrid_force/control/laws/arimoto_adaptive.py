@@ -67,6 +67,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws.arimoto import (
     Command,
@@ -87,11 +88,14 @@ from hybrid_force.model.regressor import (
 )
 from hybrid_force.model.robot import Robot, RobotTerms
 
+_K = LazyKernels("hybrid_force.control.laws._arimoto_adaptive_kernels")
+
 __all__ = [
     "DEFAULT_ADAPTATION_RATE",
     "MASS_FLOOR",
     "Adaptation",
     "AdaptiveArimotoLaw",
+    "AdaptiveArimotoWorkspace",
     "build",
     "make_adaptation",
 ]
@@ -159,8 +163,41 @@ def make_adaptation(
     )
 
 
-class AdaptiveArimotoLaw:
-    """The adaptive law (module docstring) as the supervisor runs it, in numpy.
+class _Reports:
+    """What both forms of the law report: its settings and its logged estimates."""
+
+    gains: Gains
+    adaptation: Adaptation
+    theta: np.ndarray
+    _adapted: np.ndarray
+
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
+        g, a, i = self.gains, self.adaptation, self._adapted
+        return {
+            "Kd": g.Kd.tolist(),
+            "Lambda": g.Lambda,
+            "beta": g.beta,
+            "gamma": g.gamma,
+            "adaptation_rate": a.rate,
+            "schedule_energy": a.energy,
+            "adapted": [a.names[j] for j in i],
+            "theta0": a.theta0[i].tolist(),
+            "Gamma0": a.Gamma[i].tolist(),
+        }
+
+    def log_names(self) -> tuple[str, ...]:
+        """The estimates this law logs at every sample: the adapted parameters' names."""
+        return tuple(self.adaptation.names[j] for j in self._adapted)
+
+    def log_values(self, out: np.ndarray) -> None:
+        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
+        out[:] = self.theta[self._adapted]
+
+
+class AdaptiveArimotoLaw(_Reports):
+    """The adaptive law (module docstring) as the supervisor runs it, in numpy: the readable
+    reference of :class:`AdaptiveArimotoWorkspace` (what ``reference=True`` builds).
 
     Args:
         robot: the controller's model of the arm (its kinematics and parameter layout).
@@ -276,29 +313,6 @@ class AdaptiveArimotoLaw:
             return dataclasses.replace(ref, e_q=e_q.copy(), V=self.V)
         return dataclasses.replace(ref, e_q=e_q.copy(), e_F=e_F.copy(), f_d=f_d.copy(), V=self.V)
 
-    def info(self) -> dict[str, object]:
-        """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
-        g, a, i = self.gains, self.adaptation, self._adapted
-        return {
-            "Kd": g.Kd.tolist(),
-            "Lambda": g.Lambda,
-            "beta": g.beta,
-            "gamma": g.gamma,
-            "adaptation_rate": a.rate,
-            "schedule_energy": a.energy,
-            "adapted": [a.names[j] for j in i],
-            "theta0": a.theta0[i].tolist(),
-            "Gamma0": a.Gamma[i].tolist(),
-        }
-
-    def log_names(self) -> tuple[str, ...]:
-        """The estimates this law logs at every sample: the adapted parameters' names."""
-        return tuple(self.adaptation.names[j] for j in self._adapted)
-
-    def log_values(self, out: np.ndarray) -> None:
-        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
-        out[:] = self.theta[self._adapted]
-
     # ------------------------------------------------------------------ helpers
     def _configuration(self, q_d: np.ndarray, e_q: np.ndarray) -> np.ndarray:
         """q from q_d and e_q = q ⊖ q_d (the law's interface passes the error, not q)."""
@@ -318,10 +332,183 @@ class AdaptiveArimotoLaw:
             self.sigma = 1.0 if z <= z_ref else z_ref / z
 
 
-def build(context: LawContext) -> AdaptiveArimotoLaw:
-    """The registry's factory of ``control.law = "arimoto_adaptive"`` (numpy in both forms)."""
+class AdaptiveArimotoWorkspace(_Reports):
+    """The adaptive law as the supervisor runs it compiled: per step the four Pinocchio passes
+    the law needs (three in free space) between two compiled calls, and one compiled update,
+    all writing into arrays preallocated here.
+
+    Per call: :func:`~._arimoto_adaptive_kernels.reference_velocities` (the paper's kernel:
+    q̇_r, q̈_r0, s, s0, s1, and the passes' inputs); Pinocchio's joint-torque regressor twice for
+    Y (the two-pass polarisation of that module's docstring, not the reference's three), once
+    per constraint row for Y_M(q, A⁺_j), and its kinetic energy regressor at s for ½ sᵀ M̂ s;
+    then :func:`~._arimoto_adaptive_kernels.adaptive_command` (Y θ̂ − K_d s − force, β M̂ A⁺,
+    Yᵀ s, the schedule, V). :meth:`update` is
+    :func:`~._arimoto_adaptive_kernels.adaptive_update`. Same numbers as
+    :class:`AdaptiveArimotoLaw` to round-off. The command returned and the buffers are
+    overwritten at every call: copy to keep.
+
+    Args:
+        robot: the controller's model of the arm. k: the number of constraint rows.
+        gains, adaptation: as :class:`AdaptiveArimotoLaw`.
+
+    Attributes:
+        theta: (p,) θ̂ (updated in place by :meth:`update`).
+        sigma: σ of the gain schedule at the last call. V: [J] at the last call.
+    """
+
+    def __init__(self, robot: Robot, k: int, gains: Gains, adaptation: Adaptation) -> None:
+        self.gains = gains
+        self.adaptation = adaptation
+        self.regressor = regressor = SlotineLiRegressor(robot.model)
+        self.theta = adaptation.theta0.copy()
+        self.V = 0.0
+        self._model = robot.model
+        self._euclidean = robot.euclidean
+        self._adapted = np.flatnonzero(adaptation.adapted)
+        n, p = robot.nv, regressor.size
+        self._vectors = np.zeros((6, n))  # u0 of the model's M, C, g (unused), s, s0, s1, q̇_r, q̈_r0
+        self._matrices = np.zeros((2, n, k))  # B of the model (unused), q̈_r,f
+        self._free_matrices = np.zeros((2, n, 0))
+        self._halves = np.zeros((2, n))  # (q̇ + q̇_r)/2, s/2
+        self._q = np.zeros(robot.nq)
+        self.u0 = np.zeros(n)
+        self.B = np.zeros((n, k))
+        self._free_B = np.zeros((n, 0))
+        self._Y_A = np.zeros((k, n, p))
+        self._free_Y_A = np.zeros((0, n, p))
+        self._gradient = np.zeros(p)
+        self._gradient_f = np.zeros((k, p))
+        self._free_gradient_f = np.zeros((0, p))
+        self._state = np.array([0.0, np.inf])  # σ, min over the past of Z [J]
+        self._zeros_k = np.zeros(k)
+        self._no_force = np.zeros(0)
+        self._free_space = ConstraintTerms.zeros(0, n)
+        self._free_space.Q[:] = np.eye(n)
+        self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
+        self._free = Command(u0=self.u0, B=None)
+        self.in_contact_law = False
+        self._called = False
+        self._pin_args = (regressor.model, regressor.data, regressor.model0, regressor.data0)
+
+    @property
+    def sigma(self) -> float:
+        """σ of the gain schedule Γ = σ Γ₀ at the last call (non-decreasing, ≤ 1)."""
+        return float(self._state[0])
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """Eq. 29–30 adapted, as :meth:`AdaptiveArimotoLaw.free_space`."""
+        none = self._no_force
+        self.V = self._run(
+            robot, self._free_space, v, e_q, desired, none, none, none, self._free_matrices,
+            self._free_Y_A, self._free_B, self._free_gradient_f,
+        )  # fmt: skip
+        self.in_contact_law = False
+        return self._free
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Eq. 4, 8, 11 adapted, as :meth:`AdaptiveArimotoLaw.hybrid`."""
+        if approach is None:
+            approach = self._zeros_k
+        self.V = self._run(
+            robot, cons, v, e_q, desired, e_F, f_d, approach, self._matrices, self._Y_A,
+            self.B, self._gradient_f,
+        )  # fmt: skip
+        self.in_contact_law = True
+        return self._hybrid
+
+    def _run(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray,
+        matrices: np.ndarray,
+        Y_A: np.ndarray,
+        B: np.ndarray,
+        gradient_f: np.ndarray,
+    ) -> float:
+        g, vectors, halves, q = self.gains, self._vectors, self._halves, self._q
+        euclidean = self._euclidean
+        if not euclidean:
+            q[:] = pin.integrate(self._model, desired.q, e_q)
+        _K.reference_velocities(
+            robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
+            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda,
+            g.beta, g.gamma, euclidean, vectors, matrices, halves, q,
+        )  # fmt: skip
+        model, data, model0, data0 = self._pin_args
+        regress = pin.computeJointTorqueRegressor
+        zeros = self.regressor.zeros
+        Y_plus = regress(model, data, q, halves[0], vectors[5])
+        Y_minus = regress(model0, data0, q, halves[1], zeros)
+        if g.beta > 0:
+            Ap = cons.A_pinv
+            for j in range(Y_A.shape[0]):
+                Y_A[j] = regress(model0, data0, q, zeros, Ap[:, j])
+        kinetic = pin.computeKineticEnergyRegressor(model0, data0, q, vectors[1])
+        self._called = True
+        return _K.adaptive_command(
+            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, vectors,
+            desired.qd, e_F, f_d, g.beta, g.gamma, self.adaptation.energy, self._state,
+            self.u0, B, self._gradient, gradient_f,
+        )  # fmt: skip
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """θ̂ += dt · (−σ Γ₀ Yᵀ s) at the force f (k,) [N] met, then the masses' floor, as
+        :meth:`AdaptiveArimotoLaw.update` (f is not used after the free-space law)."""
+        if not self._called:
+            return
+        a = self.adaptation
+        if self.in_contact_law:
+            gradient_f = self._gradient_f
+        else:
+            gradient_f, f = self._free_gradient_f, self._no_force
+        _K.adaptive_update(
+            self._gradient, gradient_f, f, dt * self._state[0], a.Gamma, a.floor, self.theta
+        )
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
+        """The :class:`ControlTrace` of the last call (copies of the buffers), V as
+        :meth:`AdaptiveArimotoLaw.trace`."""
+        contact = self.in_contact_law
+        _, s, s0, s1, qdot_r, qddot_r0 = self._vectors
+        return ControlTrace(
+            e_q=e_q.copy(),
+            s=s.copy(),
+            s0=s0.copy(),
+            s1=s1.copy(),
+            e_F=e_F.copy() if contact else np.zeros(0),
+            qdot_r=qdot_r.copy(),
+            qddot_r0=qddot_r0.copy(),
+            qddot_r_f=self._matrices[1].copy() if contact else None,
+            V=self.V,
+            f_d=f_d.copy() if contact else np.zeros(0),
+        )
+
+
+def build(context: LawContext) -> AdaptiveArimotoLaw | AdaptiveArimotoWorkspace:
+    """The registry's factory of ``control.law = "arimoto_adaptive"``: compiled
+    (:class:`AdaptiveArimotoWorkspace`), or the numpy reference when ``context.reference``."""
     rate = float(context.options.get("adaptation_rate", DEFAULT_ADAPTATION_RATE))
     adaptation = make_adaptation(
         context.robot, context.q0, context.M0, context.gains, context.settings.mass_factor, rate
     )
-    return AdaptiveArimotoLaw(context.robot, context.gains, adaptation)
+    if context.reference:
+        return AdaptiveArimotoLaw(context.robot, context.gains, adaptation)
+    return AdaptiveArimotoWorkspace(context.robot, context.constraint.k, context.gains, adaptation)
