@@ -388,7 +388,9 @@ class AdaptiveArimotoWorkspace(_Reports):
         self._free = Command(u0=self.u0, B=None)
         self.in_contact_law = False
         self._called = False
-        self._pin_args = (regressor.model, regressor.data, regressor.model0, regressor.data0)
+        # one Data for all the passes (the model with gravity and its copy without have the
+        # same structure; each pass sets what it reads): less memory touched per step
+        self._pin_args = (regressor.model, regressor.data, regressor.model0, regressor.data)
 
     @property
     def sigma(self) -> float:
@@ -457,9 +459,12 @@ class AdaptiveArimotoWorkspace(_Reports):
         zeros = self.regressor.zeros
         Y_plus = regress(model, data, q, halves[0], vectors[5])
         Y_minus = regress(model0, data0, q, halves[1], zeros)
-        if g.beta > 0:
+        k = Y_A.shape[0]
+        if k == 1 and g.beta > 0:  # the pass's own array, seen as (1, n, p): no copy
+            Y_A = regress(model0, data0, q, zeros, cons.A_pinv[:, 0])[None]
+        elif g.beta > 0:
             Ap = cons.A_pinv
-            for j in range(Y_A.shape[0]):
+            for j in range(k):
                 Y_A[j] = regress(model0, data0, q, zeros, Ap[:, j])
         kinetic = pin.computeKineticEnergyRegressor(model0, data0, q, vectors[1])
         self._called = True
