@@ -390,7 +390,13 @@ class AdaptiveArimotoWorkspace(_Reports):
         self._called = False
         # one Data for all the passes (the model with gravity and its copy without have the
         # same structure; each pass sets what it reads): less memory touched per step
-        self._pin_args = (regressor.model, regressor.data, regressor.model0, regressor.data)
+        self._pin_args = (
+            regressor.model, regressor.data, regressor.model0, pin.computeJointTorqueRegressor,
+            regressor.zeros, self._halves[0], self._halves[1],
+        )  # fmt: skip
+        self._s, self._qddot_r0 = self._vectors[1], self._vectors[5]
+        a = adaptation
+        self._energy, self._Gamma, self._floor = a.energy, a.Gamma, a.floor
 
     @property
     def sigma(self) -> float:
@@ -445,33 +451,31 @@ class AdaptiveArimotoWorkspace(_Reports):
         B: np.ndarray,
         gradient_f: np.ndarray,
     ) -> float:
-        g, vectors, halves, q = self.gains, self._vectors, self._halves, self._q
-        euclidean = self._euclidean
+        g, q, vectors, euclidean = self.gains, self._q, self._vectors, self._euclidean
         if not euclidean:
             q[:] = pin.integrate(self._model, desired.q, e_q)
         _K.reference_velocities(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
             cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda,
-            g.beta, g.gamma, euclidean, vectors, matrices, halves, q,
+            g.beta, g.gamma, euclidean, vectors, matrices, self._halves, q,
         )  # fmt: skip
-        model, data, model0, data0 = self._pin_args
-        regress = pin.computeJointTorqueRegressor
-        zeros = self.regressor.zeros
-        Y_plus = regress(model, data, q, halves[0], vectors[5])
-        Y_minus = regress(model0, data0, q, halves[1], zeros)
+        model, data, model0, regress, zeros, w_plus, w_minus = self._pin_args
+        Y_plus = regress(model, data, q, w_plus, self._qddot_r0)
+        Y_minus = regress(model0, data, q, w_minus, zeros)
         k = Y_A.shape[0]
-        if k == 1 and g.beta > 0:  # the pass's own array, seen as (1, n, p): no copy
-            Y_A = regress(model0, data0, q, zeros, cons.A_pinv[:, 0])[None]
-        elif g.beta > 0:
-            Ap = cons.A_pinv
-            for j in range(k):
-                Y_A[j] = regress(model0, data0, q, zeros, Ap[:, j])
-        kinetic = pin.computeKineticEnergyRegressor(model0, data0, q, vectors[1])
+        if g.beta > 0:
+            if k == 1:  # the pass's own array, seen as (1, n, p): no copy
+                Y_A = regress(model0, data, q, zeros, cons.A_pinv[:, 0])[None]
+            else:
+                Ap = cons.A_pinv
+                for j in range(k):
+                    Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
+        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, self._s)
         self._called = True
         return _K.adaptive_command(
             Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, vectors,
-            desired.qd, e_F, f_d, g.beta, g.gamma, self.adaptation.energy, self._state,
-            self.u0, B, self._gradient, gradient_f,
+            desired.qd, e_F, f_d, g.beta, g.gamma, self._energy, self._state, self.u0, B,
+            self._gradient, gradient_f,
         )  # fmt: skip
 
     def update(self, dt: float, f: np.ndarray) -> None:
@@ -479,13 +483,12 @@ class AdaptiveArimotoWorkspace(_Reports):
         :meth:`AdaptiveArimotoLaw.update` (f is not used after the free-space law)."""
         if not self._called:
             return
-        a = self.adaptation
         if self.in_contact_law:
             gradient_f = self._gradient_f
         else:
             gradient_f, f = self._free_gradient_f, self._no_force
         _K.adaptive_update(
-            self._gradient, gradient_f, f, dt * self._state[0], a.Gamma, a.floor, self.theta
+            self._gradient, gradient_f, f, dt * self._state[0], self._Gamma, self._floor, self.theta
         )
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
