@@ -57,6 +57,12 @@ decreases, so Γ(t)⁻¹ never increases and V below (with Γ(t)) stays non-incr
 
 V reported (:attr:`AdaptiveArimotoLaw.V`): ½ sᵀ M̂ s + ½ β e_Fᵀ e_F, the part the controller can
 evaluate; the parameter term needs the plant's θ (the tests add it).
+
+Two forms: :class:`AdaptiveArimotoWorkspace` (what a run builds) calls Pinocchio between compiled
+kernels (:mod:`hybrid_force.control.laws._arimoto_adaptive_kernels`: Y from two regressor passes
+instead of three, ½ sᵀ M̂ s from the kinetic energy regressor, into preallocated buffers);
+:class:`AdaptiveArimotoLaw` is the readable numpy reference (``LawContext.reference``), which
+``tests/test_arimoto_adaptive_kernel.py`` holds it to.
 """
 
 from __future__ import annotations
