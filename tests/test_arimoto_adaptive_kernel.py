@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from hybrid_force.control.constraint import Constraint
@@ -216,3 +218,44 @@ def test_whole_runs_compiled_equal_the_reference(name: str, overrides: dict) -> 
     # the estimates moved, and the runs reached contact: the update and B were compared too
     assert np.abs(ref.law_log[-1] - ref.law_log[0]).max() > 0
     assert np.abs(ref.f).max() > 0
+
+
+def test_compiled_law_on_a_non_euclidean_arm(rtr_urdf: Path) -> None:
+    """rtr.urdf's continuous q1 as Pinocchio's unit complex number (nq = 4, nv = 3): q = q_d ⊕
+    e_q by ``pinocchio.integrate`` (not the kernel's addition), the rest as on Euclidean arms."""
+    model = pin.buildModelFromUrdf(str(rtr_urdf))
+    robot = Robot(model, name="rtr_rubz", urdf_path=rtr_urdf, tip="tip")
+    assert robot.euclidean is False and (robot.nq, robot.nv) == (4, 3)
+    rng = np.random.default_rng(7)
+    ref, fast = _laws(robot, 1, 0.01, rng)
+    constraint = Constraint([Sphere(0.3, center=(0.2, 0.1, 0.4))])
+    for step in range(4):
+        q = pin.integrate(model, robot.neutral(), rng.uniform(-1, 1, 3))
+        v = rng.uniform(-1, 1, 3)
+        terms = robot.terms(q, v, robot.new_data())
+        cons = constraint.evaluate_reference(terms, v)
+        q_d = pin.integrate(model, q, rng.uniform(-0.1, 0.1, 3))
+        desired = Desired(q=q_d, qd=rng.uniform(-1, 1, 3), qdd=rng.uniform(-2, 2, 3))
+        e_q = pin.difference(model, q_d, q)
+        e_F, f_d = rng.uniform(-1, 1, 1), rng.uniform(0, 20, 1)
+        if step % 2:
+            got, want = (
+                fast.hybrid(terms, cons, v, e_q, desired, e_F, f_d, None),
+                ref.hybrid(terms, cons, v, e_q, desired, e_F, f_d, None),
+            )
+            assert got.B is not None and want.B is not None
+            _close("rubz.B", got.B, want.B)
+            force = cons.A.T @ (f_d - fast.gains.gamma * e_F)
+        else:
+            got, want = (
+                fast.free_space(terms, v, e_q, desired),
+                ref.free_space(terms, v, e_q, desired),
+            )
+            force = None
+        ref_trace = ref.trace(e_q, e_F, f_d)
+        _close("rubz.u0", got.u0, want.u0, _u0_scale(ref, q, v, ref_trace, force))
+        _close("rubz.V", fast.V, ref.V)
+        f = rng.uniform(5, 15, 1)
+        fast.update(0.02, f)
+        ref.update(0.02, f)
+        _close("rubz.theta", fast.theta, ref.theta)
