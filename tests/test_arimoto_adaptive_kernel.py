@@ -259,3 +259,13 @@ def test_compiled_law_on_a_non_euclidean_arm(rtr_urdf: Path) -> None:
         fast.update(0.02, f)
         ref.update(0.02, f)
         _close("rubz.theta", fast.theta, ref.theta)
+
+
+def test_the_parameter_layout_is_the_kernels() -> None:
+    """The workspace fills the kernels' parameter vector by position (no Numba at build)."""
+    from hybrid_force.control.laws import _arimoto_adaptive_kernels as kernels
+    from hybrid_force.control.laws import arimoto_adaptive
+
+    layout = [kernels.LAMBDA, kernels.BETA, kernels.GAMMA, kernels.EUCLIDEAN, kernels.ENERGY]
+    assert [*layout, kernels.SIGMA, kernels.Z_MIN] == list(range(7))
+    assert arimoto_adaptive._SIGMA == kernels.SIGMA

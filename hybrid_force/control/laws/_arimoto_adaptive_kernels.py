@@ -27,6 +27,10 @@ import numpy as np
 from hybrid_force._jit import jit as _jit
 from hybrid_force.control._kernels import arimoto
 
+#: Layout of the law's parameter vector ``params`` (7,): the gains, whether q = q_d + e_q, Z_ref,
+#: and the gain schedule's state σ and min_{τ≤t} Z, which :func:`adaptive_command` updates.
+LAMBDA, BETA, GAMMA, EUCLIDEAN, ENERGY, SIGMA, Z_MIN = range(7)
+
 
 @_jit
 def reference_velocities(
@@ -47,33 +51,33 @@ def reference_velocities(
     e_F: np.ndarray,
     f_d: np.ndarray,
     approach: np.ndarray,
-    lam: float,
-    beta: float,
-    gamma: float,
-    euclidean: bool,
+    params: np.ndarray,
     vectors: np.ndarray,
     matrices: np.ndarray,
-    halves: np.ndarray,
     q: np.ndarray,
 ) -> None:
     """The paper's law's q̇_r, q̈_r0, s, s0, s1 (its kernel ``control._kernels.arimoto``, whose
-    u0 with the model's M, C, g is not used) and the regressor's inputs.
+    u0 with the model's M, C, g is overwritten by :func:`adaptive_command`) and the regressor's
+    inputs.
 
-    The arguments up to gamma and vectors (6, n), matrices (2, n, k) are ``arimoto``'s (the
-    free-space law: Q = I, Q̇ = 0, k = 0). q_d: (nq,). Writes halves (2, n) = (q̇ + q̇_r)/2,
-    s/2 = (q̇ − q̇_r)/2 and, when ``euclidean``, q = q_d + e_q (nq = n; else q is left as is).
+    M, C, Kd, Q, Qdot: (n, n). g, v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). A: (k, n). e_F, f_d,
+    approach: (k,) (the free-space law: Q = I, Q̇ = 0, k = 0). q_d: (nq,). params: (7,) (Λ, β, γ,
+    1.0 when q = q_d + e_q, …: the module's layout). Writes the rows of vectors (8, n): u0 (of
+    the model), s, s0, s1, q̇_r, q̈_r0 (``arimoto``'s six), (q̇ + q̇_r)/2, s/2 = (q̇ − q̇_r)/2; of
+    matrices (2, n, k): β M A⁺ (unused), q̈_r,f = β A⁺; and, when params[EUCLIDEAN] is 1,
+    q = q_d + e_q (nq = n; else q is left as is).
     """
     arimoto(
-        M, C, g, Kd, Q, Qdot, Ap, Apd, A, v, e_q, qd, qdd, e_F, f_d, approach, lam, beta,
-        gamma, vectors, matrices,
+        M, C, g, Kd, Q, Qdot, Ap, Apd, A, v, e_q, qd, qdd, e_F, f_d, approach, params[LAMBDA],
+        params[BETA], params[GAMMA], vectors[:6], matrices,
     )  # fmt: skip
     s, qdot_r = vectors[1], vectors[4]
-    w_plus, w_minus = halves[0], halves[1]
+    w_plus, w_minus = vectors[6], vectors[7]
     n = v.shape[0]
     for i in range(n):
         w_plus[i] = 0.5 * (v[i] + qdot_r[i])
         w_minus[i] = 0.5 * s[i]
-    if euclidean:
+    if params[EUCLIDEAN] != 0.0:
         for i in range(n):
             q[i] = q_d[i] + e_q[i]
 
@@ -88,34 +92,30 @@ def adaptive_command(
     Kd: np.ndarray,
     M: np.ndarray,
     A: np.ndarray,
-    vectors: np.ndarray,
     qd: np.ndarray,
     e_F: np.ndarray,
     f_d: np.ndarray,
-    beta: float,
-    gamma: float,
-    energy: float,
-    state: np.ndarray,
-    u0: np.ndarray,
+    params: np.ndarray,
+    vectors: np.ndarray,
     B: np.ndarray,
-    gradient: np.ndarray,
-    gradient_f: np.ndarray,
+    gradients: np.ndarray,
 ) -> float:
     """u0 = Y θ̂ − K_d s − Aᵀ(f_d − γ e_F), B = β M̂ A⁺, what the update needs, σ and V.
 
     Y_plus, Y_minus: (n, p) the two passes, Y = Y_plus − Y_minus (module docstring).
     Y_A: (k, n, p) Y_M(q, A⁺_j) = Y⁰_rnea(q, 0, A⁺_j). kinetic: (p,) the kinetic energy
     regressor at s. theta: (p,) θ̂. Kd, M: (n, n) K_d and the controller's model M(q).
-    A: (k, n). vectors: (6, n) of :func:`reference_velocities` (s = row 1, q̇_r = row 4).
-    qd: (n,) q̇_d. e_F, f_d: (k,) (k = 0 in free space). energy: Z_ref [J].
-    state: (2,) σ and min Z of the schedule, updated here (σ = min(1, Z_ref / min_{τ≤t} Z),
-    Z = ½ wᵀ M w, w = q̇_r − q̇_d). Writes u0 (n,), B (n, k) = β Y_A[j] θ̂ by columns,
-    gradient (p,) = Yᵀ s and gradient_f (k, p) = β Y_A[j]ᵀ s. Returns
-    V = ½ sᵀ M̂ s + ½ β e_Fᵀ e_F [J].
+    A: (k, n). qd: (n,) q̇_d. e_F, f_d: (k,) (k = 0 in free space). params: (7,) (the module's
+    layout); its σ and min Z are updated here: σ = min(1, Z_ref / min_{τ≤t} Z), Z = ½ wᵀ M w,
+    w = q̇_r − q̇_d. vectors: (8, n) of :func:`reference_velocities` (s = row 1, q̇_r = row 4);
+    u0 (n,) is written into its row 0. Writes B (n, k) = β Y_A[j] θ̂ by columns and gradients
+    (1 + k, p): Yᵀ s, then β Y_A[j]ᵀ s. Returns V = ½ sᵀ M̂ s + ½ β e_Fᵀ e_F [J].
     """
-    s, qdot_r = vectors[1], vectors[4]
+    u0, s, qdot_r = vectors[0], vectors[1], vectors[4]
+    beta, gamma, energy = params[BETA], params[GAMMA], params[ENERGY]
     n, p = Y_plus.shape
     k = e_F.shape[0]
+    gradient = gradients[0]
     for j in range(p):
         gradient[j] = 0.0
     for i in range(n):
@@ -134,18 +134,19 @@ def adaptive_command(
         u0[i] = acc - kd - force
     for m in range(k):
         Ym = Y_A[m]
+        gradient_f = gradients[1 + m]
         for j in range(p):
-            gradient_f[m, j] = 0.0
+            gradient_f[j] = 0.0
         for i in range(n):
             acc = 0.0
             si = s[i]
             for j in range(p):
                 y = Ym[i, j]
                 acc += y * theta[j]
-                gradient_f[m, j] += y * si
+                gradient_f[j] += y * si
             B[i, m] = beta * acc
         for j in range(p):
-            gradient_f[m, j] *= beta
+            gradient_f[j] *= beta
     z = 0.0
     for i in range(n):
         mw = 0.0
@@ -153,9 +154,9 @@ def adaptive_command(
             mw += M[i, j] * (qdot_r[j] - qd[j])
         z += (qdot_r[i] - qd[i]) * mw
     z *= 0.5
-    if z < state[1]:
-        state[1] = z
-        state[0] = 1.0 if z <= energy else energy / z
+    if z < params[Z_MIN]:
+        params[Z_MIN] = z
+        params[SIGMA] = 1.0 if z <= energy else energy / z
     V = 0.0
     for j in range(p):
         V += kinetic[j] * theta[j]
@@ -167,22 +168,24 @@ def adaptive_command(
 
 @_jit
 def adaptive_update(
-    gradient: np.ndarray,
-    gradient_f: np.ndarray,
+    gradients: np.ndarray,
     f: np.ndarray,
-    step: float,
+    dt: float,
+    params: np.ndarray,
     Gamma: np.ndarray,
     floor: np.ndarray,
     theta: np.ndarray,
 ) -> None:
-    """θ̂ ← max(θ̂ − step Γ₀ (Yᵀ s), floor) with Yᵀ s = gradient + fᵀ gradient_f (explicit Euler,
-    then the masses' projection). gradient, Gamma, floor, theta: (p,). gradient_f: (k, p),
-    f: (k,) [N] the force met (k = 0 after the free-space law). step = dt σ [s]."""
+    """θ̂ ← max(θ̂ − dt σ Γ₀ (Yᵀ s), floor) with Yᵀ s = gradients[0] + Σ_j f_j gradients[1 + j]
+    (explicit Euler, then the masses' projection). gradients: (1 + k, p) of
+    :func:`adaptive_command`; f: (k,) [N] the force met (k = 0 after the free-space law);
+    dt [s]; params: (7,), σ = params[SIGMA]. Gamma, floor, theta: (p,)."""
     p = theta.shape[0]
     k = f.shape[0]
+    step = dt * params[SIGMA]
     for j in range(p):
-        y = gradient[j]
+        y = gradients[0, j]
         for m in range(k):
-            y += f[m] * gradient_f[m, j]
+            y += f[m] * gradients[1 + m, j]
         t = theta[j] - step * Gamma[j] * y
         theta[j] = floor[j] if t < floor[j] else t  # a NaN stays NaN, as np.maximum

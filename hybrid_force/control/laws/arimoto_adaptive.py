@@ -111,6 +111,7 @@ DEFAULT_ADAPTATION_RATE = 5.0
 #: Smallest estimated mass, as a fraction of the model's.
 MASS_FLOOR = 0.01
 _MASS = PARAMETER_LABELS.index("m")
+_SIGMA = 5  # σ's place in the compiled law's parameters (_arimoto_adaptive_kernels.SIGMA)
 
 
 @dataclass(frozen=True)
@@ -372,20 +373,25 @@ class AdaptiveArimotoWorkspace(_Reports):
         self._euclidean = robot.euclidean
         self._adapted = np.flatnonzero(adaptation.adapted)
         n, p = robot.nv, regressor.size
-        self._vectors = np.zeros((6, n))  # u0 of the model's M, C, g (unused), s, s0, s1, q̇_r, q̈_r0
-        self._matrices = np.zeros((2, n, k))  # B of the model (unused), q̈_r,f
+        # rows: u0, s, s0, s1, q̇_r, q̈_r0, (q̇ + q̇_r)/2, s/2 (the kernels' layout)
+        self._vectors = np.zeros((8, n))
+        self.u0 = self._vectors[0]
+        self._s, self._qddot_r0 = self._vectors[1], self._vectors[5]
+        self._matrices = np.zeros((2, n, k))  # β M A⁺ of the model (unused), q̈_r,f
         self._free_matrices = np.zeros((2, n, 0))
-        self._halves = np.zeros((2, n))  # (q̇ + q̇_r)/2, s/2
         self._q = np.zeros(robot.nq)
-        self.u0 = np.zeros(n)
         self.B = np.zeros((n, k))
         self._free_B = np.zeros((n, 0))
         self._Y_A = np.zeros((k, n, p))
         self._free_Y_A = np.zeros((0, n, p))
-        self._gradient = np.zeros(p)
-        self._gradient_f = np.zeros((k, p))
-        self._free_gradient_f = np.zeros((0, p))
-        self._state = np.array([0.0, np.inf])  # σ, min over the past of Z [J]
+        self._gradients = np.zeros((1 + k, p))  # Yᵀ s, then β Y_M(q, A⁺_j)ᵀ s
+        self._free_gradients = np.zeros((1, p))
+        # the kernels' layout (_arimoto_adaptive_kernels.LAMBDA … Z_MIN): Λ, β, γ, 1.0 when
+        # q = q_d + e_q, Z_ref, then the schedule's σ and min Z (σ = 0 before the first call)
+        self._params = np.array(
+            [gains.Lambda, gains.beta, gains.gamma, float(robot.euclidean), adaptation.energy,
+             0.0, np.inf]
+        )  # fmt: skip
         self._zeros_k = np.zeros(k)
         self._no_force = np.zeros(0)
         self._free_space = ConstraintTerms.zeros(0, n)
@@ -398,16 +404,15 @@ class AdaptiveArimotoWorkspace(_Reports):
         # same structure; each pass sets what it reads): less memory touched per step
         self._pin_args = (
             regressor.model, regressor.data, regressor.model0, pin.computeJointTorqueRegressor,
-            regressor.zeros, self._halves[0], self._halves[1],
+            regressor.zeros, self._vectors[6], self._vectors[7],
         )  # fmt: skip
-        self._s, self._qddot_r0 = self._vectors[1], self._vectors[5]
-        a = adaptation
-        self._energy, self._Gamma, self._floor = a.energy, a.Gamma, a.floor
+        self._Gamma, self._floor = adaptation.Gamma, adaptation.floor
+        self._one_row = k == 1 and gains.beta > 0
 
     @property
     def sigma(self) -> float:
         """σ of the gain schedule Γ = σ Γ₀ at the last call (non-decreasing, ≤ 1)."""
-        return float(self._state[0])
+        return float(self._params[_SIGMA])
 
     def free_space(
         self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
@@ -416,7 +421,7 @@ class AdaptiveArimotoWorkspace(_Reports):
         none = self._no_force
         self.V = self._run(
             robot, self._free_space, v, e_q, desired, none, none, none, self._free_matrices,
-            self._free_Y_A, self._free_B, self._free_gradient_f,
+            self._free_Y_A, self._free_B, self._free_gradients,
         )  # fmt: skip
         self.in_contact_law = False
         return self._free
@@ -432,14 +437,34 @@ class AdaptiveArimotoWorkspace(_Reports):
         f_d: np.ndarray,
         approach: np.ndarray | None,
     ) -> Command:
-        """Eq. 4, 8, 11 adapted, as :meth:`AdaptiveArimotoLaw.hybrid`."""
+        """Eq. 4, 8, 11 adapted, as :meth:`AdaptiveArimotoLaw.hybrid`. The hot path: the steps
+        of :meth:`_run` (which :meth:`free_space` calls) written out, one Python call less."""
         if approach is None:
             approach = self._zeros_k
-        self.V = self._run(
-            robot, cons, v, e_q, desired, e_F, f_d, approach, self._matrices, self._Y_A,
-            self.B, self._gradient_f,
+        g, q, vectors, params = self.gains, self._q, self._vectors, self._params
+        if not self._euclidean:
+            q[:] = pin.integrate(self._model, desired.q, e_q)
+        _K.reference_velocities(
+            robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
+            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, params,
+            vectors, self._matrices, q,
         )  # fmt: skip
-        self.in_contact_law = True
+        model, data, model0, regress, zeros, w_plus, w_minus = self._pin_args
+        Y_plus = regress(model, data, q, w_plus, self._qddot_r0)
+        Y_minus = regress(model0, data, q, w_minus, zeros)
+        Y_A = self._Y_A
+        if self._one_row:  # the pass's own array, seen as (1, n, p): no copy
+            Y_A = regress(model0, data, q, zeros, cons.A_pinv[:, 0])[None]
+        elif g.beta > 0:
+            Ap = cons.A_pinv
+            for j in range(Y_A.shape[0]):
+                Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
+        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, self._s)
+        self._called = self.in_contact_law = True
+        self.V = _K.adaptive_command(
+            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, desired.qd, e_F,
+            f_d, params, vectors, self.B, self._gradients,
+        )  # fmt: skip
         return self._hybrid
 
     def _run(
@@ -455,15 +480,15 @@ class AdaptiveArimotoWorkspace(_Reports):
         matrices: np.ndarray,
         Y_A: np.ndarray,
         B: np.ndarray,
-        gradient_f: np.ndarray,
+        gradients: np.ndarray,
     ) -> float:
-        g, q, vectors, euclidean = self.gains, self._q, self._vectors, self._euclidean
-        if not euclidean:
+        g, q, vectors, params = self.gains, self._q, self._vectors, self._params
+        if not self._euclidean:
             q[:] = pin.integrate(self._model, desired.q, e_q)
         _K.reference_velocities(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
-            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda,
-            g.beta, g.gamma, euclidean, vectors, matrices, self._halves, q,
+            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, params,
+            vectors, matrices, q,
         )  # fmt: skip
         model, data, model0, regress, zeros, w_plus, w_minus = self._pin_args
         Y_plus = regress(model, data, q, w_plus, self._qddot_r0)
@@ -479,9 +504,8 @@ class AdaptiveArimotoWorkspace(_Reports):
         kinetic = pin.computeKineticEnergyRegressor(model0, data, q, self._s)
         self._called = True
         return _K.adaptive_command(
-            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, vectors,
-            desired.qd, e_F, f_d, g.beta, g.gamma, self._energy, self._state, self.u0, B,
-            self._gradient, gradient_f,
+            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, desired.qd, e_F,
+            f_d, params, vectors, B, gradients,
         )  # fmt: skip
 
     def update(self, dt: float, f: np.ndarray) -> None:
@@ -490,18 +514,16 @@ class AdaptiveArimotoWorkspace(_Reports):
         if not self._called:
             return
         if self.in_contact_law:
-            gradient_f = self._gradient_f
+            gradients = self._gradients
         else:
-            gradient_f, f = self._free_gradient_f, self._no_force
-        _K.adaptive_update(
-            self._gradient, gradient_f, f, dt * self._state[0], self._Gamma, self._floor, self.theta
-        )
+            gradients, f = self._free_gradients, self._no_force
+        _K.adaptive_update(gradients, f, dt, self._params, self._Gamma, self._floor, self.theta)
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
         """The :class:`ControlTrace` of the last call (copies of the buffers), V as
         :meth:`AdaptiveArimotoLaw.trace`."""
         contact = self.in_contact_law
-        _, s, s0, s1, qdot_r, qddot_r0 = self._vectors
+        _, s, s0, s1, qdot_r, qddot_r0 = self._vectors[:6]
         return ControlTrace(
             e_q=e_q.copy(),
             s=s.copy(),
