@@ -361,6 +361,7 @@ class AdaptiveArimotoWorkspace(_Reports):
     Attributes:
         theta: (p,) θ̂ (updated in place by :meth:`update`).
         sigma: σ of the gain schedule at the last call. V: [J] at the last call.
+        u0: (n,), B: (n, k) of the last command. in_contact_law: True after :meth:`hybrid`.
     """
 
     def __init__(self, robot: Robot, k: int, gains: Gains, adaptation: Adaptation) -> None:
@@ -482,6 +483,8 @@ class AdaptiveArimotoWorkspace(_Reports):
         B: np.ndarray,
         gradients: np.ndarray,
     ) -> float:
+        """One call of the law into the given buffers, returning V: what :meth:`free_space`
+        runs (k = 0); :meth:`hybrid` is the same steps written out."""
         g, q, vectors, params = self.gains, self._q, self._vectors, self._params
         if not self._euclidean:
             q[:] = pin.integrate(self._model, desired.q, e_q)
