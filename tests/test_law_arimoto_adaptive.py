@@ -16,6 +16,7 @@ from hybrid_force.control.laws.arimoto import Desired, arimoto_law, free_space_l
 from hybrid_force.control.laws.arimoto_adaptive import (
     MASS_FLOOR,
     AdaptiveArimotoLaw,
+    AdaptiveArimotoWorkspace,
     make_adaptation,
 )
 from hybrid_force.geometry.surfaces import Cylinder
@@ -235,13 +236,14 @@ def test_default_gain_scales_with_the_arm(rtr) -> None:
 # --------------------------------------------------------------------------- runs
 @pytest.fixture(scope="module")
 def adaptive_run() -> tuple[Result, list[dict], object]:
-    """Section 6.3 with a model 10 % light, recording what V needs at every law call."""
+    """Section 6.3 with a model 10 % light, recording what V needs at every law call (the
+    compiled law, :class:`AdaptiveArimotoWorkspace`, which the run builds)."""
     scenario = load_scenario(
         "scenarios/paper_contact.toml",
         overrides={"control.law": LAW, "sim.model_mass_factor": 0.9},
     )
     calls: list[dict] = []
-    hybrid = AdaptiveArimotoLaw.hybrid
+    hybrid = AdaptiveArimotoWorkspace.hybrid
 
     def recording(self, robot, cons, v, e_q, desired, e_F, f_d, approach):  # type: ignore[no-untyped-def]
         command = hybrid(self, robot, cons, v, e_q, desired, e_F, f_d, approach)
@@ -253,7 +255,7 @@ def adaptive_run() -> tuple[Result, list[dict], object]:
         return command
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(AdaptiveArimotoLaw, "hybrid", recording)
+        patch.setattr(AdaptiveArimotoWorkspace, "hybrid", recording)
         result = simulate(scenario)
     return result, calls, scenario
 

@@ -57,6 +57,12 @@ decreases, so Γ(t)⁻¹ never increases and V below (with Γ(t)) stays non-incr
 
 V reported (:attr:`AdaptiveArimotoLaw.V`): ½ sᵀ M̂ s + ½ β e_Fᵀ e_F, the part the controller can
 evaluate; the parameter term needs the plant's θ (the tests add it).
+
+Two forms: :class:`AdaptiveArimotoWorkspace` (what a run builds) calls Pinocchio between compiled
+kernels (:mod:`hybrid_force.control.laws._arimoto_adaptive_kernels`: Y from two regressor passes
+instead of three, ½ sᵀ M̂ s from the kinetic energy regressor, into preallocated buffers);
+:class:`AdaptiveArimotoLaw` is the readable numpy reference (``LawContext.reference``), which
+``tests/test_arimoto_adaptive_kernel.py`` holds it to.
 """
 
 from __future__ import annotations
@@ -67,6 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws.arimoto import (
     Command,
@@ -87,11 +94,14 @@ from hybrid_force.model.regressor import (
 )
 from hybrid_force.model.robot import Robot, RobotTerms
 
+_K = LazyKernels("hybrid_force.control.laws._arimoto_adaptive_kernels")
+
 __all__ = [
     "DEFAULT_ADAPTATION_RATE",
     "MASS_FLOOR",
     "Adaptation",
     "AdaptiveArimotoLaw",
+    "AdaptiveArimotoWorkspace",
     "build",
     "make_adaptation",
 ]
@@ -101,6 +111,7 @@ DEFAULT_ADAPTATION_RATE = 5.0
 #: Smallest estimated mass, as a fraction of the model's.
 MASS_FLOOR = 0.01
 _MASS = PARAMETER_LABELS.index("m")
+_SIGMA = 5  # σ's place in the compiled law's parameters (_arimoto_adaptive_kernels.SIGMA)
 
 
 @dataclass(frozen=True)
@@ -159,8 +170,41 @@ def make_adaptation(
     )
 
 
-class AdaptiveArimotoLaw:
-    """The adaptive law (module docstring) as the supervisor runs it, in numpy.
+class _Reports:
+    """What both forms of the law report: its settings and its logged estimates."""
+
+    gains: Gains
+    adaptation: Adaptation
+    theta: np.ndarray
+    _adapted: np.ndarray
+
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
+        g, a, i = self.gains, self.adaptation, self._adapted
+        return {
+            "Kd": g.Kd.tolist(),
+            "Lambda": g.Lambda,
+            "beta": g.beta,
+            "gamma": g.gamma,
+            "adaptation_rate": a.rate,
+            "schedule_energy": a.energy,
+            "adapted": [a.names[j] for j in i],
+            "theta0": a.theta0[i].tolist(),
+            "Gamma0": a.Gamma[i].tolist(),
+        }
+
+    def log_names(self) -> tuple[str, ...]:
+        """The estimates this law logs at every sample: the adapted parameters' names."""
+        return tuple(self.adaptation.names[j] for j in self._adapted)
+
+    def log_values(self, out: np.ndarray) -> None:
+        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
+        out[:] = self.theta[self._adapted]
+
+
+class AdaptiveArimotoLaw(_Reports):
+    """The adaptive law (module docstring) as the supervisor runs it, in numpy: the readable
+    reference of :class:`AdaptiveArimotoWorkspace` (what ``reference=True`` builds).
 
     Args:
         robot: the controller's model of the arm (its kinematics and parameter layout).
@@ -276,29 +320,6 @@ class AdaptiveArimotoLaw:
             return dataclasses.replace(ref, e_q=e_q.copy(), V=self.V)
         return dataclasses.replace(ref, e_q=e_q.copy(), e_F=e_F.copy(), f_d=f_d.copy(), V=self.V)
 
-    def info(self) -> dict[str, object]:
-        """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
-        g, a, i = self.gains, self.adaptation, self._adapted
-        return {
-            "Kd": g.Kd.tolist(),
-            "Lambda": g.Lambda,
-            "beta": g.beta,
-            "gamma": g.gamma,
-            "adaptation_rate": a.rate,
-            "schedule_energy": a.energy,
-            "adapted": [a.names[j] for j in i],
-            "theta0": a.theta0[i].tolist(),
-            "Gamma0": a.Gamma[i].tolist(),
-        }
-
-    def log_names(self) -> tuple[str, ...]:
-        """The estimates this law logs at every sample: the adapted parameters' names."""
-        return tuple(self.adaptation.names[j] for j in self._adapted)
-
-    def log_values(self, out: np.ndarray) -> None:
-        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
-        out[:] = self.theta[self._adapted]
-
     # ------------------------------------------------------------------ helpers
     def _configuration(self, q_d: np.ndarray, e_q: np.ndarray) -> np.ndarray:
         """q from q_d and e_q = q ⊖ q_d (the law's interface passes the error, not q)."""
@@ -318,10 +339,215 @@ class AdaptiveArimotoLaw:
             self.sigma = 1.0 if z <= z_ref else z_ref / z
 
 
-def build(context: LawContext) -> AdaptiveArimotoLaw:
-    """The registry's factory of ``control.law = "arimoto_adaptive"`` (numpy in both forms)."""
+class AdaptiveArimotoWorkspace(_Reports):
+    """The adaptive law as the supervisor runs it compiled: per step the four Pinocchio passes
+    the law needs (three in free space) between two compiled calls, and one compiled update,
+    all writing into arrays preallocated here.
+
+    Per call: :func:`~._arimoto_adaptive_kernels.reference_velocities` (the paper's kernel:
+    q̇_r, q̈_r0, s, s0, s1, and the passes' inputs); Pinocchio's joint-torque regressor twice for
+    Y (the two-pass polarisation of that module's docstring, not the reference's three), once
+    per constraint row for Y_M(q, A⁺_j), and its kinetic energy regressor at s for ½ sᵀ M̂ s;
+    then :func:`~._arimoto_adaptive_kernels.adaptive_command` (Y θ̂ − K_d s − force, β M̂ A⁺,
+    Yᵀ s, the schedule, V). :meth:`update` is
+    :func:`~._arimoto_adaptive_kernels.adaptive_update`. Same numbers as
+    :class:`AdaptiveArimotoLaw` to round-off. The command returned and the buffers are
+    overwritten at every call: copy to keep.
+
+    Args:
+        robot: the controller's model of the arm. k: the number of constraint rows.
+        gains, adaptation: as :class:`AdaptiveArimotoLaw`.
+
+    Attributes:
+        theta: (p,) θ̂ (updated in place by :meth:`update`).
+        sigma: σ of the gain schedule at the last call. V: [J] at the last call.
+        u0: (n,), B: (n, k) of the last command. in_contact_law: True after :meth:`hybrid`.
+    """
+
+    def __init__(self, robot: Robot, k: int, gains: Gains, adaptation: Adaptation) -> None:
+        self.gains = gains
+        self.adaptation = adaptation
+        self.regressor = regressor = SlotineLiRegressor(robot.model)
+        self.theta = adaptation.theta0.copy()
+        self.V = 0.0
+        self._model = robot.model
+        self._euclidean = robot.euclidean
+        self._adapted = np.flatnonzero(adaptation.adapted)
+        n, p = robot.nv, regressor.size
+        # rows: u0, s, s0, s1, q̇_r, q̈_r0, (q̇ + q̇_r)/2, s/2 (the kernels' layout)
+        self._vectors = np.zeros((8, n))
+        self.u0 = self._vectors[0]
+        self._s, self._qddot_r0 = self._vectors[1], self._vectors[5]
+        self._matrices = np.zeros((2, n, k))  # β M A⁺ of the model (unused), q̈_r,f
+        self._free_matrices = np.zeros((2, n, 0))
+        self._q = np.zeros(robot.nq)
+        self.B = np.zeros((n, k))
+        self._free_B = np.zeros((n, 0))
+        self._Y_A = np.zeros((k, n, p))
+        self._free_Y_A = np.zeros((0, n, p))
+        self._gradients = np.zeros((1 + k, p))  # Yᵀ s, then β Y_M(q, A⁺_j)ᵀ s
+        self._free_gradients = np.zeros((1, p))
+        # the kernels' layout (_arimoto_adaptive_kernels.LAMBDA … Z_MIN): Λ, β, γ, 1.0 when
+        # q = q_d + e_q, Z_ref, then the schedule's σ and min Z (σ = 0 before the first call)
+        self._params = np.array(
+            [gains.Lambda, gains.beta, gains.gamma, float(robot.euclidean), adaptation.energy,
+             0.0, np.inf]
+        )  # fmt: skip
+        self._zeros_k = np.zeros(k)
+        self._no_force = np.zeros(0)
+        self._free_space = ConstraintTerms.zeros(0, n)
+        self._free_space.Q[:] = np.eye(n)
+        self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
+        self._free = Command(u0=self.u0, B=None)
+        self.in_contact_law = False
+        self._called = False
+        # one Data for all the passes (the model with gravity and its copy without have the
+        # same structure; each pass sets what it reads): less memory touched per step
+        self._pin_args = (
+            regressor.model, regressor.data, regressor.model0, pin.computeJointTorqueRegressor,
+            regressor.zeros, self._vectors[6], self._vectors[7],
+        )  # fmt: skip
+        self._Gamma, self._floor = adaptation.Gamma, adaptation.floor
+        self._one_row = k == 1 and gains.beta > 0
+
+    @property
+    def sigma(self) -> float:
+        """σ of the gain schedule Γ = σ Γ₀ at the last call (non-decreasing, ≤ 1)."""
+        return float(self._params[_SIGMA])
+
+    def free_space(
+        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
+    ) -> Command:
+        """Eq. 29–30 adapted, as :meth:`AdaptiveArimotoLaw.free_space`."""
+        none = self._no_force
+        self.V = self._run(
+            robot, self._free_space, v, e_q, desired, none, none, none, self._free_matrices,
+            self._free_Y_A, self._free_B, self._free_gradients,
+        )  # fmt: skip
+        self.in_contact_law = False
+        return self._free
+
+    def hybrid(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray | None,
+    ) -> Command:
+        """Eq. 4, 8, 11 adapted, as :meth:`AdaptiveArimotoLaw.hybrid`. The hot path: the steps
+        of :meth:`_run` (which :meth:`free_space` calls) written out, one Python call less."""
+        if approach is None:
+            approach = self._zeros_k
+        g, q, vectors, params = self.gains, self._q, self._vectors, self._params
+        if not self._euclidean:
+            q[:] = pin.integrate(self._model, desired.q, e_q)
+        _K.reference_velocities(
+            robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
+            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, params,
+            vectors, self._matrices, q,
+        )  # fmt: skip
+        model, data, model0, regress, zeros, w_plus, w_minus = self._pin_args
+        Y_plus = regress(model, data, q, w_plus, self._qddot_r0)
+        Y_minus = regress(model0, data, q, w_minus, zeros)
+        Y_A = self._Y_A
+        if self._one_row:  # the pass's own array, seen as (1, n, p): no copy
+            Y_A = regress(model0, data, q, zeros, cons.A_pinv[:, 0])[None]
+        elif g.beta > 0:
+            Ap = cons.A_pinv
+            for j in range(Y_A.shape[0]):
+                Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
+        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, self._s)
+        self._called = self.in_contact_law = True
+        self.V = _K.adaptive_command(
+            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, desired.qd, e_F,
+            f_d, params, vectors, self.B, self._gradients,
+        )  # fmt: skip
+        return self._hybrid
+
+    def _run(
+        self,
+        robot: RobotTerms,
+        cons: ConstraintTerms,
+        v: np.ndarray,
+        e_q: np.ndarray,
+        desired: Desired,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray,
+        matrices: np.ndarray,
+        Y_A: np.ndarray,
+        B: np.ndarray,
+        gradients: np.ndarray,
+    ) -> float:
+        """One call of the law into the given buffers, returning V: what :meth:`free_space`
+        runs (k = 0); :meth:`hybrid` is the same steps written out."""
+        g, q, vectors, params = self.gains, self._q, self._vectors, self._params
+        if not self._euclidean:
+            q[:] = pin.integrate(self._model, desired.q, e_q)
+        _K.reference_velocities(
+            robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
+            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, params,
+            vectors, matrices, q,
+        )  # fmt: skip
+        model, data, model0, regress, zeros, w_plus, w_minus = self._pin_args
+        Y_plus = regress(model, data, q, w_plus, self._qddot_r0)
+        Y_minus = regress(model0, data, q, w_minus, zeros)
+        k = Y_A.shape[0]
+        if g.beta > 0:
+            if k == 1:  # the pass's own array, seen as (1, n, p): no copy
+                Y_A = regress(model0, data, q, zeros, cons.A_pinv[:, 0])[None]
+            else:
+                Ap = cons.A_pinv
+                for j in range(k):
+                    Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
+        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, self._s)
+        self._called = True
+        return _K.adaptive_command(
+            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, desired.qd, e_F,
+            f_d, params, vectors, B, gradients,
+        )  # fmt: skip
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """θ̂ += dt · (−σ Γ₀ Yᵀ s) at the force f (k,) [N] met, then the masses' floor, as
+        :meth:`AdaptiveArimotoLaw.update` (f is not used after the free-space law)."""
+        if not self._called:
+            return
+        if self.in_contact_law:
+            gradients = self._gradients
+        else:
+            gradients, f = self._free_gradients, self._no_force
+        _K.adaptive_update(gradients, f, dt, self._params, self._Gamma, self._floor, self.theta)
+
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
+        """The :class:`ControlTrace` of the last call (copies of the buffers), V as
+        :meth:`AdaptiveArimotoLaw.trace`."""
+        contact = self.in_contact_law
+        _, s, s0, s1, qdot_r, qddot_r0 = self._vectors[:6]
+        return ControlTrace(
+            e_q=e_q.copy(),
+            s=s.copy(),
+            s0=s0.copy(),
+            s1=s1.copy(),
+            e_F=e_F.copy() if contact else np.zeros(0),
+            qdot_r=qdot_r.copy(),
+            qddot_r0=qddot_r0.copy(),
+            qddot_r_f=self._matrices[1].copy() if contact else None,
+            V=self.V,
+            f_d=f_d.copy() if contact else np.zeros(0),
+        )
+
+
+def build(context: LawContext) -> AdaptiveArimotoLaw | AdaptiveArimotoWorkspace:
+    """The registry's factory of ``control.law = "arimoto_adaptive"``: compiled
+    (:class:`AdaptiveArimotoWorkspace`), or the numpy reference when ``context.reference``."""
     rate = float(context.options.get("adaptation_rate", DEFAULT_ADAPTATION_RATE))
     adaptation = make_adaptation(
         context.robot, context.q0, context.M0, context.gains, context.settings.mass_factor, rate
     )
-    return AdaptiveArimotoLaw(context.robot, context.gains, adaptation)
+    if context.reference:
+        return AdaptiveArimotoLaw(context.robot, context.gains, adaptation)
+    return AdaptiveArimotoWorkspace(context.robot, context.constraint.k, context.gains, adaptation)

@@ -1,0 +1,191 @@
+"""Compiled algebra of the adaptive Arimoto law's step (Numba): the paper's reference
+velocities with the inputs of the regressor's passes, the bookkeeping around Pinocchio's
+joint-torque regressor (Y θ̂, Yᵀ s, β M̂ A⁺, the gain schedule, V) and the parameter update
+θ̂̇ = −σ Γ₀ Yᵀ s with the masses' projection.
+
+Reference, the readable numpy version: :class:`hybrid_force.control.laws.arimoto_adaptive.
+AdaptiveArimotoLaw` (the regressor of :class:`hybrid_force.model.regressor.SlotineLiRegressor`,
+three passes). The compiled law
+(:class:`~hybrid_force.control.laws.arimoto_adaptive.AdaptiveArimotoWorkspace`) calls Pinocchio
+between :func:`reference_velocities` and :func:`adaptive_command`, with the Slotine–Li
+regressor in two passes instead of three: c(q, v) is quadratic in v, so ¼ [c(v + w) − c(v − w)]
+= c((v + w)/2) − c((v − w)/2), and with the model's gravity in the first pass
+
+    Y(q, q̇, q̇_r, q̈_r) = Y_rnea(q, (q̇ + q̇_r)/2, q̈_r) − Y⁰_rnea(q, (q̇ − q̇_r)/2, 0)
+
+((q̇ − q̇_r)/2 = s/2; halving is exact in floating point). V's ½ sᵀ M̂ s is Pinocchio's kinetic
+energy regressor at s times θ̂ (one forward pass, not a regressor pass).
+``tests/test_arimoto_adaptive_kernel.py`` checks the compiled law against the reference.
+
+Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hybrid_force._jit import jit as _jit
+from hybrid_force.control._kernels import arimoto
+
+#: Layout of the law's parameter vector ``params`` (7,): the gains, whether q = q_d + e_q, Z_ref,
+#: and the gain schedule's state σ and min_{τ≤t} Z, which :func:`adaptive_command` updates.
+LAMBDA, BETA, GAMMA, EUCLIDEAN, ENERGY, SIGMA, Z_MIN = range(7)
+
+
+@_jit
+def reference_velocities(
+    M: np.ndarray,
+    C: np.ndarray,
+    g: np.ndarray,
+    Kd: np.ndarray,
+    Q: np.ndarray,
+    Qdot: np.ndarray,
+    Ap: np.ndarray,
+    Apd: np.ndarray,
+    A: np.ndarray,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    q_d: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray,
+    params: np.ndarray,
+    vectors: np.ndarray,
+    matrices: np.ndarray,
+    q: np.ndarray,
+) -> None:
+    """The paper's law's q̇_r, q̈_r0, s, s0, s1 (its kernel ``control._kernels.arimoto``, whose
+    u0 with the model's M, C, g is overwritten by :func:`adaptive_command`) and the regressor's
+    inputs.
+
+    M, C, Kd, Q, Qdot: (n, n). g, v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). A: (k, n). e_F, f_d,
+    approach: (k,) (the free-space law: Q = I, Q̇ = 0, k = 0). q_d: (nq,). params: (7,) (Λ, β, γ,
+    1.0 when q = q_d + e_q, …: the module's layout). Writes the rows of vectors (8, n): u0 (of
+    the model), s, s0, s1, q̇_r, q̈_r0 (``arimoto``'s six), (q̇ + q̇_r)/2, s/2 = (q̇ − q̇_r)/2; of
+    matrices (2, n, k): β M A⁺ (unused), q̈_r,f = β A⁺; and, when params[EUCLIDEAN] is 1,
+    q = q_d + e_q (nq = n; else q is left as is).
+    """
+    arimoto(
+        M, C, g, Kd, Q, Qdot, Ap, Apd, A, v, e_q, qd, qdd, e_F, f_d, approach, params[LAMBDA],
+        params[BETA], params[GAMMA], vectors[:6], matrices,
+    )  # fmt: skip
+    s, qdot_r = vectors[1], vectors[4]
+    w_plus, w_minus = vectors[6], vectors[7]
+    n = v.shape[0]
+    for i in range(n):
+        w_plus[i] = 0.5 * (v[i] + qdot_r[i])
+        w_minus[i] = 0.5 * s[i]
+    if params[EUCLIDEAN] != 0.0:
+        for i in range(n):
+            q[i] = q_d[i] + e_q[i]
+
+
+@_jit
+def adaptive_command(
+    Y_plus: np.ndarray,
+    Y_minus: np.ndarray,
+    Y_A: np.ndarray,
+    kinetic: np.ndarray,
+    theta: np.ndarray,
+    Kd: np.ndarray,
+    M: np.ndarray,
+    A: np.ndarray,
+    qd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    params: np.ndarray,
+    vectors: np.ndarray,
+    B: np.ndarray,
+    gradients: np.ndarray,
+) -> float:
+    """u0 = Y θ̂ − K_d s − Aᵀ(f_d − γ e_F), B = β M̂ A⁺, what the update needs, σ and V.
+
+    Y_plus, Y_minus: (n, p) the two passes, Y = Y_plus − Y_minus (module docstring).
+    Y_A: (k, n, p) Y_M(q, A⁺_j) = Y⁰_rnea(q, 0, A⁺_j). kinetic: (p,) the kinetic energy
+    regressor at s. theta: (p,) θ̂. Kd, M: (n, n) K_d and the controller's model M(q).
+    A: (k, n). qd: (n,) q̇_d. e_F, f_d: (k,) (k = 0 in free space). params: (7,) (the module's
+    layout); its σ and min Z are updated here: σ = min(1, Z_ref / min_{τ≤t} Z), Z = ½ wᵀ M w,
+    w = q̇_r − q̇_d. vectors: (8, n) of :func:`reference_velocities` (s = row 1, q̇_r = row 4);
+    u0 (n,) is written into its row 0. Writes B (n, k) = β Y_A[j] θ̂ by columns and gradients
+    (1 + k, p): Yᵀ s, then β Y_A[j]ᵀ s. Returns V = ½ sᵀ M̂ s + ½ β e_Fᵀ e_F [J].
+    """
+    u0, s, qdot_r = vectors[0], vectors[1], vectors[4]
+    beta, gamma, energy = params[BETA], params[GAMMA], params[ENERGY]
+    n, p = Y_plus.shape
+    k = e_F.shape[0]
+    gradient = gradients[0]
+    for j in range(p):
+        gradient[j] = 0.0
+    for i in range(n):
+        acc = 0.0
+        si = s[i]
+        for j in range(p):
+            y = Y_plus[i, j] - Y_minus[i, j]
+            acc += y * theta[j]
+            gradient[j] += y * si
+        kd = 0.0
+        for j in range(n):
+            kd += Kd[i, j] * s[j]
+        force = 0.0
+        for m in range(k):
+            force += A[m, i] * (f_d[m] - gamma * e_F[m])
+        u0[i] = acc - kd - force
+    for m in range(k):
+        Ym = Y_A[m]
+        gradient_f = gradients[1 + m]
+        for j in range(p):
+            gradient_f[j] = 0.0
+        for i in range(n):
+            acc = 0.0
+            si = s[i]
+            for j in range(p):
+                y = Ym[i, j]
+                acc += y * theta[j]
+                gradient_f[j] += y * si
+            B[i, m] = beta * acc
+        for j in range(p):
+            gradient_f[j] *= beta
+    z = 0.0
+    for i in range(n):
+        mw = 0.0
+        for j in range(n):
+            mw += M[i, j] * (qdot_r[j] - qd[j])
+        z += (qdot_r[i] - qd[i]) * mw
+    z *= 0.5
+    if z < params[Z_MIN]:
+        params[Z_MIN] = z
+        params[SIGMA] = 1.0 if z <= energy else energy / z
+    V = 0.0
+    for j in range(p):
+        V += kinetic[j] * theta[j]
+    eF2 = 0.0
+    for m in range(k):
+        eF2 += e_F[m] * e_F[m]
+    return V + 0.5 * beta * eF2
+
+
+@_jit
+def adaptive_update(
+    gradients: np.ndarray,
+    f: np.ndarray,
+    dt: float,
+    params: np.ndarray,
+    Gamma: np.ndarray,
+    floor: np.ndarray,
+    theta: np.ndarray,
+) -> None:
+    """θ̂ ← max(θ̂ − dt σ Γ₀ (Yᵀ s), floor) with Yᵀ s = gradients[0] + Σ_j f_j gradients[1 + j]
+    (explicit Euler, then the masses' projection). gradients: (1 + k, p) of
+    :func:`adaptive_command`; f: (k,) [N] the force met (k = 0 after the free-space law);
+    dt [s]; params: (7,), σ = params[SIGMA]. Gamma, floor, theta: (p,)."""
+    p = theta.shape[0]
+    k = f.shape[0]
+    step = dt * params[SIGMA]
+    for j in range(p):
+        y = gradients[0, j]
+        for m in range(k):
+            y += f[m] * gradients[1 + m, j]
+        t = theta[j] - step * Gamma[j] * y
+        theta[j] = floor[j] if t < floor[j] else t  # a NaN stays NaN, as np.maximum
