@@ -16,13 +16,14 @@ found by the toolkit's inverse kinematics).
   registered law with its default gains; steps/s is ``meta["steps_per_second"]`` (the
   stepping loop, not the set-up).
 * **MuJoCo**: a plane geom and the ball geom (soft contact, MuJoCo's default solver
-  settings; ``condim = 1``, frictionless as the toolkit's surfaces are), ``mj_step1`` / control / ``mj_step2`` (one forward pass per step), and an
-  operational-space hybrid controller (Khatib 1987): J from ``mj_jacSite``, M from
-  ``mj_fullM``, J̇q̇ from ``mj_jacDot``, Λ = (J M⁻¹ Jᵀ)⁻¹, a task-space PD on the circle in
-  the plane's tangent directions, a damped normal direction, a PI loop on the measured normal
-  force (``mj_contactForce`` of the ball's contacts, one step old: what a sensor gives), the
-  bias forces ``qfrc_bias`` compensated and a joint posture held in the dynamically consistent
-  null space, applied as ``qfrc_applied``; steps/s is the steps over the wall time of the
+  settings; ``condim = 1``, frictionless as the toolkit's surfaces are), ``mj_step1`` /
+  control / ``mj_step2`` (one forward pass per step), and an operational-space hybrid
+  controller (Khatib 1987): J from ``mj_jacSite``, M from ``mj_fullM``, J̇q̇ from
+  ``mj_jacDot``, Λ = (J M⁻¹ Jᵀ)⁻¹, a task-space PD on the circle in the plane's tangent
+  directions, a damped normal direction, a PI loop on the measured normal force
+  (``mj_contactForce`` of the ball's contacts, one step old: what a sensor gives), the bias
+  forces ``qfrc_bias`` compensated and a joint posture held in the dynamically consistent null
+  space, applied as ``qfrc_applied``; steps/s is the steps over the wall time of the
   stepping loop (the model and data made before).
 
 Reported per arm: steps/s of MuJoCo and of each law (best of the repetitions, each repetition
