@@ -17,7 +17,12 @@ Reports, in one run on one machine:
 3. the overhead factor (loop time / floor time) and the real-time factor at dt = 1 ms;
 4. cost per step versus number of joints (rtr 3, ur5 6, panda 7, g1 29);
 5. linearity in simulated time (RTR, 1, 2, 4 s simulated);
-6. a cProfile of 1 s of the RTR loop (top 15 functions by tottime).
+6. a cProfile of 1 s of the RTR loop (top 15 functions by tottime);
+7. every registered law on rtr (paper_contact), ur5 and panda (a circle on a plane, starting
+   in contact) and on the two tool-orientation scenarios (ur5_sphere_normal, panda_pipe_tilt):
+   steps per second (best of the repetitions; each repetition runs every law in turn) and the
+   ratio to the paper's law (arimoto) of the same repetition, median over repetitions
+   (``--laws-only``: this table alone).
 
 Not part of the test suite. Timings depend on machine load: the JSON records ``uptime``.
 """
@@ -163,6 +168,113 @@ def _g1_setup() -> Setup:
     q0 = inverse_kinematics(robot, circle.position(0), seed=seed)
     make = _plane_scenarios(robot, plane, circle, q0, "g1_plane")
     return Setup("g1", robot, make, f"right hand on plane z = {p[2]:.3f} m, circle r = 3 cm")
+
+
+# ---------------------------------------------------------------------------- laws
+# case: (scenario file, overrides) — each starts in contact, supervisor off
+LAW_CASES: dict[str, tuple[str, dict[str, object]]] = {
+    "rtr": ("scenarios/paper_contact.toml", {}),
+    "ur5": (
+        "scenarios/ur5_plane.toml",
+        {"control.supervisor": False, "initial.tip": [0.5, 0.1, 0.3]},
+    ),
+    "panda": (
+        "benchmarks/scenarios/panda_plane.toml",
+        {"control.supervisor": False, "initial.tip": [0.5, 0.1, 0.3]},
+    ),
+    "ur5 tool normal": ("scenarios/ur5_sphere_normal.toml", {}),
+    "panda tool tilt": ("scenarios/panda_pipe_tilt.toml", {}),
+}
+PAPER_LAW = "arimoto"
+
+
+def _law_run(case: str, law: str, duration: float) -> dict:
+    """steps/s of one run of ``case`` with ``law`` (or the error it is refused with)."""
+    import warnings
+
+    from hybrid_force.control.laws.base import law_spec
+    from hybrid_force.scenario.loader import read_scenario_document, scenario_from_document
+
+    name, overrides = LAW_CASES[case]
+    path = _ROOT / name
+    try:
+        doc = read_scenario_document(
+            path, {**overrides, "control.law": law, "sim.duration": duration}
+        )
+        if "Lambda" not in law_spec(law).gains:  # the file's Λ: refused by the laws without it
+            doc["control"].pop("Lambda", None)
+        scenario = scenario_from_document(doc, origin=str(path), base_dir=path.parent)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = simulate(scenario)
+    except Exception as exc:  # a law refused on a case: reported, not fatal
+        return {"error": f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"}
+    return {"steps_per_second": float(result.meta["steps_per_second"]), "status": result.status}
+
+
+def _laws_table(reps: int, duration: float) -> dict:
+    """Every registered law on every LAW_CASES case, ``reps`` times in turn."""
+    from hybrid_force.control.laws.base import law_names
+
+    laws = list(law_names())
+    if PAPER_LAW in laws:  # the reference first in each repetition
+        laws.remove(PAPER_LAW)
+        laws.insert(0, PAPER_LAW)
+    runs: dict[str, dict[str, list[dict]]] = {c: {law: [] for law in laws} for c in LAW_CASES}
+    for case in LAW_CASES:
+        for law in laws:
+            _law_run(case, law, 0.01)  # the compiled kernels loaded before timing
+    for rep in range(reps):
+        for case in LAW_CASES:
+            for law in laws:
+                runs[case][law].append(_law_run(case, law, duration))
+        print(f"[laws] repetition {rep + 1}/{reps} (load {os.getloadavg()[0]:.2f})", flush=True)
+    table: dict[str, dict[str, dict]] = {}
+    for case, by_law in runs.items():
+        ref = by_law[PAPER_LAW]
+        table[case] = {}
+        for law, rs in by_law.items():
+            ok = [r for r in rs if "error" not in r]
+            if not ok:
+                table[case][law] = {"error": rs[0]["error"]}
+                continue
+            ratios = [
+                r["steps_per_second"] / p["steps_per_second"]
+                for r, p in zip(rs, ref, strict=True)
+                if "error" not in r and "error" not in p
+            ]
+            table[case][law] = {
+                "steps_per_second_best": max(r["steps_per_second"] for r in ok),
+                "steps_per_second_all": [r["steps_per_second"] for r in ok],
+                "ratio_to_paper_law_paired_median": statistics.median(ratios) if ratios else None,
+                "status": ok[-1]["status"],
+            }
+    return {"duration_s": duration, "reps": reps, "laws": laws, "cases": table}
+
+
+def _print_laws(out: dict) -> None:
+    laws = out["laws"]
+    print(
+        f"every law: steps/s, best of {out['reps']} runs of {out['duration_s']:g} s "
+        f"(x: the ratio to {PAPER_LAW} of the same repetition, median); load "
+        + " -> ".join(f"{a[0]:.2f} {a[1]:.2f} {a[2]:.2f}" for a in out["loadavg"])
+    )
+    width = max(len(c) for c in out["cases"]) + 2
+    print(f"{'case':<{width}}" + "".join(f"{law:>24}" for law in laws))
+    for case, by_law in out["cases"].items():
+        cells = []
+        for law in laws:
+            r = by_law[law]
+            if "error" in r:
+                cells.append(f"{'refused':>24}")
+            else:
+                ratio = r["ratio_to_paper_law_paired_median"]
+                cells.append(f"{r['steps_per_second_best']:>15.0f} ({ratio:4.2f}x)")
+        print(f"{case:<{width}}" + "".join(cells))
+    for case, by_law in out["cases"].items():
+        for law, r in by_law.items():
+            if "error" in r:
+                print(f"  {case} / {law}: {r['error']}")
 
 
 # ---------------------------------------------------------------------------- floor
@@ -567,6 +679,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="3 repetitions instead of 5")
     parser.add_argument(
+        "--laws-only", action="store_true", help="only the table of every law (item 7)"
+    )
+    parser.add_argument(
+        "--law-duration", type=float, default=2.0, help="simulated s per law run (2)"
+    )
+    parser.add_argument(
         "--json", default=str(_ROOT / "benchmarks" / "results" / "latest.json"), help="output"
     )
     args = parser.parse_args(argv)
@@ -574,6 +692,16 @@ def main(argv: list[str] | None = None) -> int:
     batches, iters = (3, 2000) if args.quick else (5, 5000)
     out: dict = {"command": " ".join(["python", *sys.argv]), "machine_start": _machine()}
     out["dt_s"] = _DT
+    if args.laws_only:
+        load0 = list(os.getloadavg())
+        out["laws"] = _laws_table(reps, args.law_duration)
+        out["laws"]["loadavg"] = [load0, list(os.getloadavg())]
+        _print_laws(out["laws"])
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(out, indent=2, default=float) + "\n")
+        print(f"wrote {path}")
+        return 0
 
     setups: dict[str, Setup] = {"rtr": _rtr_setup()}
     setups["ur5"] = _plane_setup("ur5", [0, -1.0, 1.5, -2.0, -1.57, 0])
@@ -670,9 +798,15 @@ def main(argv: list[str] | None = None) -> int:
         "tottime_by_origin_s": categories,
         "text": text,
     }
+    print("every law on every case ...", flush=True)
+    load0 = list(os.getloadavg())
+    out["laws"] = _laws_table(reps, args.law_duration)
+    out["laws"]["loadavg"] = [load0, list(os.getloadavg())]
     out["machine_end"] = {"uptime": _machine()["uptime"], "loadavg": list(os.getloadavg())}
 
     _print_table(out)
+    _print_laws(out["laws"])
+    print()
     print(text)
     path = Path(args.json)
     path.parent.mkdir(parents=True, exist_ok=True)

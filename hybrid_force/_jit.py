@@ -14,6 +14,7 @@ say beforehand (:func:`own_kernels_only`) that its process compiles no other cod
 from __future__ import annotations
 
 import contextlib
+import importlib
 import sys
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
@@ -38,6 +39,7 @@ def jit(func: F) -> F:
 
         if _kernels_only:
             _load_numpy_support_without_scipy()
+            _load_typing_without_cffi()
             _skip_extension_scan()
         _decorator = numba.njit(cache=True, error_model="numpy")
     compiled: F = _decorator(func)
@@ -56,6 +58,9 @@ def own_kernels_only() -> Iterator[None]:
       np.convolve and np.correlate are compiled (a loop instead of a BLAS call); no kernel
       uses them (they use loops, np.empty, np.zeros and np.abs), and np.dot or np.linalg
       still find SciPy when first compiled;
+    * on its first compilation or cache load it imports CFFI (and with it pycparser, about
+      0.04 s), to recognise CFFI functions and ``ffi`` objects among a kernel's arguments; no
+      kernel takes one (their arguments are arrays and numbers);
     * on its first compilation or cache load it reads the entry points of every installed
       package for Numba extensions (support for other libraries' types; about 0.02 s here,
       more where more packages are installed).
@@ -87,6 +92,28 @@ def _load_numpy_support_without_scipy() -> None:
     finally:
         if sys.modules.get(name, 0) is None:
             del sys.modules[name]
+
+
+def _block_import(blocked: str, module: str) -> None:
+    """Import ``module`` while ``blocked`` is marked absent (a None in ``sys.modules`` makes an
+    import of that name fail at once, Python's documented way to block one); the mark is
+    removed afterwards, so a later import of ``blocked`` works as usual. Nothing is done if
+    either is imported already."""
+    if module in sys.modules or blocked in sys.modules:
+        return
+    sys.modules[blocked] = None  # type: ignore[assignment]
+    try:
+        importlib.import_module(module)
+    finally:
+        if sys.modules.get(blocked, 0) is None:
+            del sys.modules[blocked]
+
+
+def _load_typing_without_cffi() -> None:
+    """Import Numba's CFFI support while ``cffi`` is marked absent: it then records "CFFI not
+    available" (``cffi_utils.SUPPORTED = False``), as on an installation without CFFI, instead
+    of importing CFFI and pycparser (see :func:`own_kernels_only`)."""
+    _block_import("cffi", "numba.core.typing.cffi_utils")
 
 
 def _skip_extension_scan() -> None:

@@ -9,7 +9,6 @@ A run that fails at run time raises :class:`SimulationError` (exit status 1).
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
@@ -273,5 +272,7 @@ class FeatureUnavailableError(HybridForceError):
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """Return ``" (did you mean 'x'?)"`` for the closest choice, or ``""``."""
+    import difflib  # here: only a refused name needs it (~5 ms of a command's start)
+
     close = difflib.get_close_matches(word, list(choices), n=1)
     return f" (did you mean '{close[0]}'?)" if close else ""

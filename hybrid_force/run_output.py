@@ -31,7 +31,7 @@ from typing import Any
 
 from hybrid_force._atomic import atomic_file, prepare_target
 from hybrid_force.errors import OutputError
-from hybrid_force.viz.plots import FIGURE_NAMES, OPTIONAL_FIGURE_NAMES
+from hybrid_force.viz.figure_names import FIGURE_NAMES, OPTIONAL_FIGURE_NAMES
 
 __all__ = ["RESULT_NAME", "SUMMARY_NAME", "RunOutput", "locked_folder"]
 

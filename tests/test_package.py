@@ -32,9 +32,9 @@ def test_import_does_not_load_plotting_viewer_or_cluster_libraries() -> None:
 
 def test_a_command_loads_numba_without_scipy_and_runs_the_same(tmp_path) -> None:
     # A command compiles only the kernels, so Numba's check for SciPy's BLAS (importing
-    # scipy.linalg) and its look for extensions in every package's entry points are skipped
-    # there (hybrid_force._jit.own_kernels_only); the run is the same as in a process that
-    # imports hybrid_force and keeps Numba's defaults.
+    # scipy.linalg), its import of CFFI (and pycparser) and its look for extensions in every
+    # package's entry points are skipped there (hybrid_force._jit.own_kernels_only); the run
+    # is the same as in a process that imports hybrid_force and keeps Numba's defaults.
     import numpy as np
 
     from hybrid_force.result import load_result
@@ -52,15 +52,22 @@ def test_a_command_loads_numba_without_scipy_and_runs_the_same(tmp_path) -> None
         "import numba.np.arraymath as am\n"
         "print(status, 'scipy.linalg' in sys.modules, am._HAVE_BLAS)\n"
         "print(len(scans))\n"
+        "import numba.core.typing.cffi_utils as cu\n"
+        "print('cffi' in sys.modules, 'pycparser' in sys.modules, cu.SUPPORTED)\n"
         "import scipy.linalg.cython_blas\n"  # still importable: the mark was taken off
+        "import cffi\n"  # likewise
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["0", "False", "False", "0"]
-    # a Python program keeps Numba's default (SciPy's BLAS found)
-    code = "import hybrid_force.sim._kernels, numba.np.arraymath as am; print(am._HAVE_BLAS)"
+    assert out.stdout.split() == ["0", "False", "False", "0", "False", "False", "False"]
+    # a Python program keeps Numba's defaults (SciPy's BLAS found, CFFI supported)
+    code = (
+        "import hybrid_force.sim._kernels, numba.np.arraymath as am\n"
+        "import numba.core.typing.cffi_utils as cu\n"
+        "print(am._HAVE_BLAS, cu.SUPPORTED)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert out.stdout.strip() == "True", out.stderr
+    assert out.stdout.split() == ["True", "True"], out.stderr
     there = load_result(tmp_path / "result.npz")
     here = simulate(load_scenario(scenario, {"sim.duration": 0.05}))
     for name in ("t", "q", "v", "u", "f"):

@@ -15,6 +15,7 @@ import numpy as np
 
 from hybrid_force.viz._run_data import _Run
 from hybrid_force.viz._style import _new_figure, _note
+from hybrid_force.viz.figure_names import LAW_LOG_FIGURE
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -22,8 +23,6 @@ if TYPE_CHECKING:
 
 __all__ = ["LAW_LOG_FIGURE", "law_log_figure"]
 
-#: Base name of the figure's file (``{prefix}law_log.png``).
-LAW_LOG_FIGURE = "law_log"
 _MAX_LEGEND = 16  # more lines than this: no legend (it would hide the plot), a note instead
 
 
