@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._linalg_kernels import cholesky
 from hybrid_force.geometry._kernels import surface_eval
 
 _MIN_NORM = 1e-6  # tool._MIN_NORM: a direction built from a shorter vector is undefined
@@ -42,19 +43,8 @@ def _spd_inverse(G: np.ndarray, out: np.ndarray) -> bool:
     Returns False (out unchanged) when a pivot is not > 0 (G not positive definite)."""
     m = G.shape[0]
     L = np.zeros((m, m))
-    for j in range(m):
-        acc = G[j, j]
-        for k in range(j):
-            acc -= L[j, k] * L[j, k]
-        if not acc > 0.0:
-            return False
-        d = np.sqrt(acc)
-        L[j, j] = d
-        for i in range(j + 1, m):
-            acc = G[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            L[i, j] = acc / d
+    if not cholesky(G, L):
+        return False
     # Linv = L⁻¹ (lower triangular), then G⁻¹ = Linvᵀ Linv
     Li = np.zeros((m, m))
     for j in range(m):

@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._linalg_kernels import cholesky, cholesky_solve_column
 
 #: the phases the kernel computes (``mode``)
 FREE, NEAR, CONTACT = 0, 1, 2
@@ -75,32 +76,12 @@ def impedance(
     L = work[:, :n]
     X = work[:, n:]  # (n, 3 + k): M⁻¹ Jᵀ, then M⁻¹ Aᵀ
     # --- Cholesky M = L Lᵀ ---------------------------------------------------------------
-    for j in range(n):
-        d = M[j, j]
-        for m in range(j):
-            d -= L[j, m] * L[j, m]
-        if not d > 0.0:
-            return SINGULAR
-        d = math.sqrt(d)
-        L[j, j] = d
-        for i in range(j + 1, n):
-            s = M[i, j]
-            for m in range(j):
-                s -= L[i, m] * L[j, m]
-            L[i, j] = s / d
+    if not cholesky(M, L):
+        return SINGULAR
     # --- X = M⁻¹ [Jᵀ, Aᵀ] ----------------------------------------------------------------
     ncol = 3 + k if mode == CONTACT else 3
     for c in range(ncol):
-        for i in range(n):
-            s = J[c, i] if c < 3 else A[c - 3, i]
-            for m in range(i):
-                s -= L[i, m] * X[m, c]
-            X[i, c] = s / L[i, i]
-        for i in range(n - 1, -1, -1):
-            s = X[i, c]
-            for m in range(i + 1, n):
-                s -= L[m, i] * X[m, c]
-            X[i, c] = s / L[i, i]
+        cholesky_solve_column(L, J[c] if c < 3 else A[c - 3], X, c)
     # --- Λ = (J M⁻¹ Jᵀ)⁻¹, symmetrised --------------------------------------------------
     S = np.empty((3, 6))  # [J M⁻¹ Jᵀ | I], reduced to [I | its inverse]
     for i in range(3):

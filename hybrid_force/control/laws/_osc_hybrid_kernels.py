@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._linalg_kernels import cholesky, cholesky_solve_column
 from hybrid_force.geometry._kernels import surface_eval
 
 # the modes of osc_hybrid (module docstring of osc_hybrid: eq. 3 and 4)
@@ -137,31 +138,11 @@ def osc_hybrid(
     null_kp, null_kd, approach_rate = gains[5], gains[6], gains[7]
     # --- M⁻¹Jᵀ (n, 3) by the Cholesky factor L (lower, in work) of M = L Lᵀ
     L = work
-    for j in range(n):
-        d = M[j, j]
-        for c in range(j):
-            d -= L[j, c] * L[j, c]
-        if not d > 0.0:
-            return math.nan
-        d = math.sqrt(d)
-        L[j, j] = d
-        for i in range(j + 1, n):
-            s = M[i, j]
-            for c in range(j):
-                s -= L[i, c] * L[j, c]
-            L[i, j] = s / d
+    if not cholesky(M, L):
+        return math.nan
     X = np.empty((n, 3))  # M⁻¹Jᵀ
     for r in range(3):
-        for i in range(n):  # L y = J[r]
-            s = J[r, i]
-            for c in range(i):
-                s -= L[i, c] * X[c, r]
-            X[i, r] = s / L[i, i]
-        for i in range(n - 1, -1, -1):  # Lᵀ x = y
-            s = X[i, r]
-            for c in range(i + 1, n):
-                s -= L[c, i] * X[c, r]
-            X[i, r] = s / L[i, i]
+        cholesky_solve_column(L, J[r], X, r)
     # --- Λ = S⁻¹, S = J M⁻¹ Jᵀ, and the estimate of cond(S)
     S = np.empty((3, 3))
     s_sq = 0.0
