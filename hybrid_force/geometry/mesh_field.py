@@ -349,6 +349,10 @@ def _signed_samples(
     bound = np.abs(coarse[np.ix_(*nearest)]) - gap
     near = bound <= _BAND * h
     samples = upsampled
+    # the nodes of the coarse grid already hold their exact distance
+    on_coarse = tuple(slice(0, n, stride) for n in counts)
+    samples[on_coarse] = coarse[tuple(slice(0, len(range(0, n, stride))) for n in counts)]
+    near[on_coarse] = False
     index = np.nonzero(near)
     if index[0].size:
         points = np.column_stack([origin[k] + h * index[k] for k in range(3)])

@@ -16,6 +16,24 @@ FLAT = 1
 
 
 @_jit
+def _sliding_speed(
+    vt0: float,
+    vt1: float,
+    vt2: float,
+    omega: float,
+    normal: np.ndarray,
+    r0: float,
+    r1: float,
+    r2: float,
+) -> float:
+    """|v_t + ω n × r| [m/s]: the slip of the pad's point at r (3,) [m] from the patch centre."""
+    s0 = vt0 + omega * (normal[1] * r2 - normal[2] * r1)
+    s1 = vt1 + omega * (normal[2] * r0 - normal[0] * r2)
+    s2 = vt2 + omega * (normal[0] * r1 - normal[1] * r0)
+    return math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+
+
+@_jit
 def deposit(
     points: np.ndarray,
     areas: np.ndarray,
@@ -90,11 +108,8 @@ def deposit(
                             total += w * areas[i]
                             inside += 1
                             continue
-                        # sliding velocity v_t + ω n × r at the cell
-                        s0 = vt0 + omega * (normal[1] * r2 - normal[2] * r1)
-                        s1 = vt1 + omega * (normal[2] * r0 - normal[0] * r2)
-                        s2 = vt2 + omega * (normal[0] * r1 - normal[1] * r0)
-                        depth[i] += factor * scale * w * math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+                        speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
+                        depth[i] += factor * scale * w * speed
     if total > 0.0:
         return inside
     if nearest >= 0:
@@ -102,9 +117,6 @@ def deposit(
         r0 = points[nearest, 0] - centre[0]
         r1 = points[nearest, 1] - centre[1]
         r2 = points[nearest, 2] - centre[2]
-        s0 = vt0 + omega * (normal[1] * r2 - normal[2] * r1)
-        s1 = vt1 + omega * (normal[2] * r0 - normal[0] * r2)
-        s2 = vt2 + omega * (normal[0] * r1 - normal[1] * r0)
-        speed = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
         depth[nearest] += factor * force / areas[nearest] * speed
     return 0
