@@ -19,9 +19,7 @@ from hybrid_force.control.laws.arimoto import (
     Desired,
     Gains,
     LawWorkspace,
-    arimoto_law,
     default_damping_gain,
-    free_space_law,
     make_gains,
 )
 from hybrid_force.control.supervisor import (
@@ -226,13 +224,11 @@ __all__ = [
     "ViewerError",
     "WaypointPath",
     "__version__",
-    "arimoto_law",
     "check_on_surface",
     "constrained_acceleration",
     "default_damping_gain",
     "expand",
     "free_acceleration",
-    "free_space_law",
     "inverse_kinematics",
     "kkt_reference",
     "load_result",

@@ -76,8 +76,8 @@ def _cmd_laws(args: argparse.Namespace) -> int:
     width = max(len(name) for name in LAWS)
     for name, spec in LAWS.items():
         print(f"{name:<{width}}  {spec.summary}")
-        for key, option in spec.options.items() if args.options else ():
-            print(f"{'':<{width}}    control.{name}.{key}: {option.doc}")
+        for key, doc in spec.describe() if args.options else ():
+            print(f"{'':<{width}}    control.{name}.{key}: {doc}")
     return 0
 
 

@@ -1,7 +1,7 @@
 """The compiled adaptive law (:class:`AdaptiveArimotoWorkspace`, the kernels of
 hybrid_force/control/laws/_arimoto_adaptive_kernels.py around Pinocchio's regressor) against
-its numpy reference (:class:`AdaptiveArimotoLaw`, the three-pass regressor of
-hybrid_force.model.regressor), step by step and over whole runs.
+its numpy oracle (``AdaptiveArimotoLaw`` of tests/oracles/laws.py, the three-pass regressor
+of hybrid_force.model.regressor), step by step and over whole runs.
 
 Both sides are the same formulas in a different order (and Y in two passes instead of three),
 so they agree to round-off: max|fast − reference| ≤ 1e-12 · scale per law call and update, the
@@ -19,15 +19,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.control import use_oracle_control
+from oracles.laws import AdaptiveArimotoLaw, oracle_of
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired, make_gains
-from hybrid_force.control.laws.arimoto_adaptive import (
-    AdaptiveArimotoLaw,
-    AdaptiveArimotoWorkspace,
-    make_adaptation,
-)
-from hybrid_force.control.laws.base import LawContext, build_law
+from hybrid_force.control.laws.arimoto_adaptive import AdaptiveArimotoWorkspace, make_adaptation
+from hybrid_force.control.laws.base import LawContext, LawInput, build_law
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.geometry.surfaces import Plane, Sphere
 from hybrid_force.model.robot import Robot
@@ -119,15 +117,15 @@ def test_compiled_law_equals_the_reference_over_steps(
         e_q = q - desired.q
         if step % 3 == 2:
             e_F = f_d = np.zeros(k)
-            got = fast.free_space(terms, v, e_q, desired)
-            want = ref.free_space(terms, v, e_q, desired)
+            got = fast.free_space(LawInput(terms, v, e_q, desired))
+            want = ref.free_space(LawInput(terms, v, e_q, desired))
             force = None
             assert got.B is None and want.B is None
         else:
             e_F, f_d = rng.uniform(-1, 1, k), rng.uniform(0, 20, k)
             approach = rng.uniform(-0.5, 0.5, k) if step % 3 == 1 else None
-            got = fast.hybrid(terms, cons, v, e_q, desired, e_F, f_d, approach)
-            want = ref.hybrid(terms, cons, v, e_q, desired, e_F, f_d, approach)
+            got = fast.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d, approach))
+            want = ref.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d, approach))
             force = cons.A.T @ (f_d - fast.gains.gamma * e_F)
             if beta == 0.0:
                 assert got.B is None and want.B is None
@@ -163,32 +161,30 @@ def test_update_before_any_call_does_nothing(rtr: Robot) -> None:
     np.testing.assert_array_equal(fast.theta, theta)
 
 
-def test_the_factory_builds_the_compiled_law_and_the_reference_on_request(rtr: Robot) -> None:
+def test_the_factory_builds_the_compiled_law_and_its_oracle_the_same_settings(rtr: Robot) -> None:
     q0 = np.array([0.3, 6.0, 0.5])
     settings = ControlSettings(law="arimoto_adaptive")
     M0 = rtr.mass_matrix(q0)
     gains = make_gains(20.0 * M0, 10.0, 0.01, 20.0, rtr.nv)
     constraint = Constraint([Sphere(0.3)])
-    for reference, kind in ((False, AdaptiveArimotoWorkspace), (True, AdaptiveArimotoLaw)):
-        context = LawContext(rtr, constraint, settings, gains, M0, q0, 1e-3, reference=reference)
-        law = build_law(context)
-        assert type(law) is kind
-        assert (
-            law.info()
-            == build_law(LawContext(rtr, constraint, settings, gains, M0, q0, 1e-3)).info()
-        )
+    law = build_law(LawContext(rtr, constraint, settings, gains, M0, q0, 1e-3))
+    assert type(law) is AdaptiveArimotoWorkspace
+    oracle = oracle_of(law, rtr)
+    assert type(oracle) is AdaptiveArimotoLaw
+    assert oracle.info() == law.info()
 
 
-def _run(name: str, reference: bool, **overrides: object):
+def _run(name: str, reference: bool, monkeypatch: pytest.MonkeyPatch, **overrides: object):
     scenario = load_scenario(
         f"scenarios/{name}.toml",
         overrides={"control.law": "arimoto_adaptive", "sim.duration": 0.2, **overrides},
     )
-    if reference:
-        scenario = dataclasses.replace(
-            scenario, sim=dataclasses.replace(scenario.sim, reference=True)
-        )
-    with warnings.catch_warnings():
+    with monkeypatch.context() as patch, warnings.catch_warnings():
+        if reference:  # the oracle controller on the reference plant
+            use_oracle_control(patch)
+            scenario = dataclasses.replace(
+                scenario, sim=dataclasses.replace(scenario.sim, reference=True)
+            )
         warnings.simplefilter("ignore")  # ur5_plane's start saturates two joints
         return simulate(scenario)
 
@@ -202,10 +198,14 @@ def _run(name: str, reference: bool, **overrides: object):
         ("panda_pipe_tilt", {"sim.model_mass_factor": 0.9}),
     ],
 )
-def test_whole_runs_compiled_equal_the_reference(name: str, overrides: dict) -> None:
-    """Compiled controller and plant against the reference ones (``sim.reference``): q, v, u,
-    f and the estimates θ̂ agree to 1e-10 of their largest value over the run."""
-    fast, ref = _run(name, False, **overrides), _run(name, True, **overrides)
+def test_whole_runs_compiled_equal_the_reference(
+    name: str, overrides: dict, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Compiled controller and plant against the oracle controller and the reference plant
+    (``sim.reference``): q, v, u, f and the estimates θ̂ agree to 1e-10 of their largest value
+    over the run."""
+    fast = _run(name, False, monkeypatch, **overrides)
+    ref = _run(name, True, monkeypatch, **overrides)
     assert fast.meta["status"] == ref.meta["status"] == "ok"
     np.testing.assert_array_equal(fast.phase, ref.phase)
     assert fast.law_log.shape == ref.law_log.shape and fast.law_log.shape[1] > 0
@@ -240,16 +240,16 @@ def test_compiled_law_on_a_non_euclidean_arm(rtr_urdf: Path) -> None:
         e_F, f_d = rng.uniform(-1, 1, 1), rng.uniform(0, 20, 1)
         if step % 2:
             got, want = (
-                fast.hybrid(terms, cons, v, e_q, desired, e_F, f_d, None),
-                ref.hybrid(terms, cons, v, e_q, desired, e_F, f_d, None),
+                fast.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d)),
+                ref.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d)),
             )
             assert got.B is not None and want.B is not None
             _close("rubz.B", got.B, want.B)
             force = cons.A.T @ (f_d - fast.gains.gamma * e_F)
         else:
             got, want = (
-                fast.free_space(terms, v, e_q, desired),
-                ref.free_space(terms, v, e_q, desired),
+                fast.free_space(LawInput(terms, v, e_q, desired)),
+                ref.free_space(LawInput(terms, v, e_q, desired)),
             )
             force = None
         ref_trace = ref.trace(e_q, e_F, f_d)

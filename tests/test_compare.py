@@ -239,7 +239,7 @@ class _Runaway:
     V = math.nan
 
     def __init__(self, context: base.LawContext) -> None:
-        self.inner = base.law_spec("arimoto").load()(context)
+        self.inner = base.law_spec("arimoto").factory(context)
         self.steps = 0
 
     def _push(self, command: Any) -> Any:
@@ -269,8 +269,8 @@ def two_laws(monkeypatch: pytest.MonkeyPatch) -> tuple[str, ...]:
     """Registers "arimoto_stiff" and "runaway" for this test (the forked workers inherit it)."""
     from hybrid_force.scenario import _tables
 
-    for name, factory in (("arimoto_stiff", "_stiff_arimoto"), ("runaway", "_Runaway")):
-        spec = base.LawSpec(name, "a law of the tests", f"{__name__}:{factory}")
+    for name, factory in (("arimoto_stiff", _stiff_arimoto), ("runaway", _Runaway)):
+        spec = base.LawSpec(name, "a law of the tests", factory)
         monkeypatch.setitem(base.LAWS, name, spec)
     # the scenario schema lists the laws registered when it was imported
     monkeypatch.setitem(_tables._CONTROL, "law", _tables._Key("choice", choices=base.law_names()))

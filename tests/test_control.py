@@ -19,15 +19,14 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.control import arimoto_law, free_space_law
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import (
     ControlTrace,
     Desired,
     Gains,
-    arimoto_law,
     default_damping_gain,
-    free_space_law,
     make_gains,
 )
 from hybrid_force.errors import GainError

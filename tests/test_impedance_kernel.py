@@ -1,6 +1,5 @@
 """The impedance law's compiled step (hybrid_force.control.laws._impedance_kernels, through
-ImpedanceWorkspace) against its numpy reference (ImpedanceLaw, what LawContext(reference=True)
-builds).
+ImpedanceWorkspace) against its numpy oracle (ImpedanceLaw of tests/oracles/laws.py).
 
 1. One step on random states of the RTR, UR5 and Panda (fixed seed), with one and with two
    surfaces, in free space, near the surface (the approach's reference) and in contact (force
@@ -10,29 +9,25 @@ builds).
 2. Singular J M⁻¹ Jᵀ (a tip that cannot move along one axis) and singular M raise the same
    SingularConfigurationError with the same message on both paths.
 3. Whole short runs of paper_contact (0.2 s, contact) and ur5_plane (0.2 s near the plane,
-   0.4 s to include the touch at 0.284 s), compiled law vs reference law (all else the
-   same), agree to 1e-10 in q, q̇, u and f.
+   0.4 s to include the touch at 0.284 s), compiled law vs its oracle (all else the same),
+   agree to 1e-10 in q, q̇, u and f.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from oracles.laws import ImpedanceLaw
 
 import hybrid_force.control.laws.impedance as impedance
 from hybrid_force import simulate
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command, Desired
-from hybrid_force.control.laws.base import LawContext
-from hybrid_force.control.laws.impedance import (
-    ImpedanceGains,
-    ImpedanceLaw,
-    ImpedanceWorkspace,
-)
+from hybrid_force.control.laws.base import LawContext, LawInput
+from hybrid_force.control.laws.impedance import ImpedanceGains, ImpedanceWorkspace
 from hybrid_force.errors import SingularConfigurationError
 from hybrid_force.geometry.surfaces import Plane, Sphere
 from hybrid_force.model.robot import Robot, RobotTerms
@@ -117,17 +112,21 @@ def test_kernel_equals_the_numpy_reference(
         cons = con.evaluate_reference(terms, v)
         phase = ("free", "near", "contact", "contact")[step % 4]
         if phase == "free":
-            cmd = fast.free_space(terms, v, e_q, desired)
-            ref_cmd = ref.free_space(terms, v, e_q, desired)
+            cmd = fast.free_space(LawInput(terms, v, e_q, desired))
+            ref_cmd = ref.free_space(LawInput(terms, v, e_q, desired))
         elif phase == "near":
             approach = -rng.uniform(0.5, 2.0) * cons.distance
-            cmd = fast.hybrid(terms, cons, v, e_q, desired, np.zeros(k), np.zeros(k), approach)
-            ref_cmd = ref.hybrid(terms, cons, v, e_q, desired, np.zeros(k), np.zeros(k), approach)
+            cmd = fast.hybrid(
+                LawInput(terms, v, e_q, desired, cons, np.zeros(k), np.zeros(k), approach)
+            )
+            ref_cmd = ref.hybrid(
+                LawInput(terms, v, e_q, desired, cons, np.zeros(k), np.zeros(k), approach)
+            )
         else:
             f_d = rng.uniform(0.0, 20.0, k)
             e_F = rng.uniform(-1, 1, k)
-            cmd = fast.hybrid(terms, cons, v, e_q, desired, e_F, f_d, None)
-            ref_cmd = ref.hybrid(terms, cons, v, e_q, desired, e_F, f_d, None)
+            cmd = fast.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d))
+            ref_cmd = ref.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d))
             _close("contact.offset", fast.offset, ref.offset)
         _compare(phase, fast, cmd, ref, ref_cmd)
         f = rng.uniform(0.0, 20.0, k)
@@ -154,10 +153,10 @@ def test_singular_configurations_raise_the_same_error(rtr: Robot) -> None:
         messages = []
         for law in (ImpedanceWorkspace(gains, con, 1), ImpedanceLaw(gains, con, 1)):
             with pytest.raises(SingularConfigurationError) as info:
-                law.free_space(bad, v, e_q, desired)
+                law.free_space(LawInput(bad, v, e_q, desired))
             messages.append(str(info.value))
             with pytest.raises(SingularConfigurationError) as info:
-                law.hybrid(bad, cons, v, e_q, desired, np.zeros(1), np.ones(1), None)
+                law.hybrid(LawInput(bad, v, e_q, desired, cons, np.zeros(1), np.ones(1)))
             messages.append(str(info.value))
         assert len(set(messages)) == 1, messages
         assert "cannot move in every direction" in messages[0]
@@ -172,18 +171,16 @@ def _runs(
         {"control.law": "impedance", "sim.duration": duration, **overrides},
     )
     fast = simulate(sc)
-    build = impedance.build
     laws: list[object] = []
 
-    def reference_build(context):  # type: ignore[no-untyped-def]
-        law = build(dataclasses.replace(context, reference=True))
-        laws.append(law)
+    def oracle(*args):  # type: ignore[no-untyped-def]
+        laws.append(law := ImpedanceLaw(*args))
         return law
 
     with monkeypatch.context() as m:
-        m.setattr(impedance, "build", reference_build)
+        m.setattr(impedance, "ImpedanceWorkspace", oracle)  # what the factory builds
         ref = simulate(sc)
-    assert len(laws) == 1 and type(laws[0]) is ImpedanceLaw  # the reference did run
+    assert len(laws) == 1 and type(laws[0]) is ImpedanceLaw  # the oracle did run
     return fast, ref
 
 
@@ -220,4 +217,3 @@ def test_the_compiled_form_is_what_the_registry_builds(rtr: Robot) -> None:
         rtr, Constraint(sc.surfaces), sc.control, None, np.eye(3), sc.q0, DT
     )
     assert type(impedance.build(context)) is ImpedanceWorkspace
-    assert type(impedance.build(dataclasses.replace(context, reference=True))) is ImpedanceLaw

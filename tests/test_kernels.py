@@ -1,7 +1,7 @@
 """The compiled kernels (each concept's ``_kernels.py``) against their numpy references.
 
 Every kernel is reached through the public or module API that uses it, never through its raw
-signature, and compared with the readable numpy definition kept next to it:
+signature, and compared with its readable numpy definition (the controller's in tests/oracles):
 
 1. ``Robot.terms`` (crba + gravity + computeCoriolisMatrix + frame calls + kernel) against
    ``robot.reference_terms`` (one public method per term), with and without ``out``;
@@ -10,7 +10,7 @@ signature, and compared with the readable numpy definition kept next to it:
    algebra) for every surface type and both normalizations, and the same singular points;
 4. ``Surface.evaluate_with_distance`` against ``evaluate`` and ``distance``;
 5. ``Path.evaluate_into`` against ``Path.evaluate``;
-6. ``LawWorkspace.arimoto`` / ``free_space`` against ``arimoto_law`` / ``free_space_law``
+6. ``LawWorkspace.hybrid`` / ``free_space`` against ``arimoto_law`` / ``free_space_law``
    (k = 1 and 2, β = 0 and > 0, with and without the approach term);
 7. ``DesiredJointPath`` against ``ReferenceJointPath`` over 500 steps of 1 ms;
 8. ``Plant.advance`` in contact against Euler + ``pinocchio.integrate`` + ``Plant.project``;
@@ -36,8 +36,14 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.control import (
+    ReferenceController,
+    ReferenceJointPath,
+    arimoto_law,
+    free_space_law,
+)
 
-from hybrid_force.control.clik import DesiredJointPath, ReferenceJointPath, inverse_kinematics
+from hybrid_force.control.clik import DesiredJointPath, inverse_kinematics
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import (
     Command,
@@ -45,17 +51,15 @@ from hybrid_force.control.laws.arimoto import (
     Desired,
     Gains,
     LawWorkspace,
-    arimoto_law,
-    free_space_law,
     make_gains,
 )
+from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.supervisor import (
     CONTACT,
     FREE,
     NEAR,
     ControlSettings,
     HybridController,
-    ReferenceController,
 )
 from hybrid_force.errors import SingularConfigurationError
 from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
@@ -502,7 +506,7 @@ def test_law_workspace_equals_the_reference_laws(
         v, terms, desired, e_q = _law_inputs(robot, rng)
         cons = con.evaluate_reference(terms, v)
         if step % 3 == 2:
-            cmd = ws.free_space(terms, v, e_q, desired)
+            cmd = ws.free_space(LawInput(terms, v, e_q, desired))
             u0, B, trace = cmd.u0.copy(), cmd.B, ws.trace(e_q, np.zeros(k), np.zeros(k))
             ref_cmd, ref_trace = free_space_law(gains, terms, v, e_q, desired)
             assert B is None and ref_cmd.B is None
@@ -511,7 +515,7 @@ def test_law_workspace_equals_the_reference_laws(
             e_F = rng.uniform(-1, 1, k)
             f_d = rng.uniform(0, 20, k)
             approach = rng.uniform(-0.5, 0.5, k) if with_approach else None
-            cmd = ws.arimoto(terms, cons, v, e_q, desired, e_F, f_d, approach)
+            cmd = ws.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d, approach))
             u0, B = cmd.u0.copy(), None if cmd.B is None else cmd.B.copy()
             trace = ws.trace(e_q, e_F, f_d)
             ref_cmd, ref_trace = arimoto_law(

@@ -10,15 +10,17 @@ import warnings
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.control import arimoto_law, free_space_law
+from oracles.laws import AdaptiveArimotoLaw
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Desired, arimoto_law, free_space_law, make_gains
+from hybrid_force.control.laws.arimoto import Desired, make_gains
 from hybrid_force.control.laws.arimoto_adaptive import (
     MASS_FLOOR,
-    AdaptiveArimotoLaw,
     AdaptiveArimotoWorkspace,
     make_adaptation,
 )
+from hybrid_force.control.laws.base import LawInput
 from hybrid_force.geometry.surfaces import Cylinder
 from hybrid_force.model.regressor import (
     SlotineLiRegressor,
@@ -167,14 +169,14 @@ def test_law_at_the_true_parameters_is_the_papers_law(rtr) -> None:
         q, v, desired = _desired(rtr, rng)
         terms, cons = reference_terms(rtr, q, v), constraint.at(rtr, q, v)
         e_q, e_F, f_d = q - desired.q, np.array([0.3]), np.array([10.0])
-        mine = law.hybrid(terms, cons, v, e_q, desired, e_F, f_d, approach)
+        mine = law.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d, approach))
         paper, trace = arimoto_law(gains, terms, cons, v, e_q, desired, e_F, f_d, approach)
         scale = np.abs(paper.u0).max()
         np.testing.assert_allclose(mine.u0, paper.u0, rtol=0, atol=1e-9 * scale)
         assert mine.B is not None and paper.B is not None
         np.testing.assert_allclose(mine.B, paper.B, rtol=0, atol=1e-12 * np.abs(paper.B).max())
         assert pytest.approx(trace.V, rel=1e-12) == law.V
-    mine = law.free_space(terms, v, e_q, desired)
+    mine = law.free_space(LawInput(terms, v, e_q, desired))
     paper, _ = free_space_law(gains, terms, v, e_q, desired)
     np.testing.assert_allclose(mine.u0, paper.u0, rtol=0, atol=1e-9 * np.abs(paper.u0).max())
 
@@ -188,7 +190,7 @@ def test_update_is_minus_gamma_Y_transposed_s_at_the_force_met(rtr) -> None:
     q, v, desired = _desired(rtr, rng)
     terms, cons = reference_terms(rtr, q, v), constraint.at(rtr, q, v)
     e_q, e_F, f_d, f = q - desired.q, np.array([0.3]), np.array([10.0]), np.array([12.5])
-    law.hybrid(terms, cons, v, e_q, desired, e_F, f_d, None)
+    law.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d))
     trace = law.trace(e_q, e_F, f_d)
     sigma, before = law.sigma, law.theta.copy()
     qddot_r = trace.qddot_r0 + trace.qddot_r_f @ f
@@ -208,7 +210,7 @@ def test_masses_are_kept_above_their_floor(rtr) -> None:
     at_floor = []
     for dt in (1e6, -1e6):
         law, _ = _law(rtr, np.array([0.3, 6.0, 0.5]))
-        law.free_space(reference_terms(rtr, q, v), v, q - desired.q, desired)
+        law.free_space(LawInput(reference_terms(rtr, q, v), v, q - desired.q, desired))
         a = law.adaptation
         masses = [i for i, name in enumerate(a.names) if name.endswith(".m") and a.adapted[i]]
         law.update(dt, np.zeros(0))
@@ -245,12 +247,12 @@ def adaptive_run() -> tuple[Result, list[dict], object]:
     calls: list[dict] = []
     hybrid = AdaptiveArimotoWorkspace.hybrid
 
-    def recording(self, robot, cons, v, e_q, desired, e_F, f_d, approach):  # type: ignore[no-untyped-def]
-        command = hybrid(self, robot, cons, v, e_q, desired, e_F, f_d, approach)
-        s = self.trace(e_q, e_F, f_d).s
+    def recording(self, inp):  # type: ignore[no-untyped-def]
+        command = hybrid(self, inp)
+        s = self.trace(inp.e_q, inp.e_F, inp.f_d).s
         calls.append(
-            {"q": desired.q + e_q, "s": s, "e_F": e_F.copy(), "theta": self.theta.copy(),
-             "sigma": self.sigma}
+            {"q": inp.desired.q + inp.e_q, "s": s, "e_F": inp.e_F.copy(),
+             "theta": self.theta.copy(), "sigma": self.sigma}
         )  # fmt: skip
         return command
 

@@ -21,16 +21,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.laws import cartesian_inertia, impedance_matrices
 
 from hybrid_force import simulate
 from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.impedance import (
-    DEFAULTS,
-    ImpedanceGains,
-    cartesian_inertia,
-    impedance_matrices,
-)
+from hybrid_force.control.laws.impedance import DEFAULTS, ImpedanceGains
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import ControlError, GainError, ScenarioError
 from hybrid_force.geometry.paths import Circle

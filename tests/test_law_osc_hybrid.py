@@ -22,24 +22,21 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.laws import OscHybridLaw, normal_directions, osc_hybrid_law
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired
-from hybrid_force.control.laws.osc_hybrid import (
-    OscHybridLaw,
-    build,
-    normal_directions,
-    osc_gains,
-    osc_hybrid_law,
-    task_space,
-)
+from hybrid_force.control.laws.base import LawInput
+from hybrid_force.control.laws.osc_hybrid import OscOptions, check, osc_gains, task_space
 from hybrid_force.errors import ControlError, ScenarioError, SingularConfigurationError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.model.robot import LWA, Robot, reference_terms
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
 
-GAINS = osc_gains({}, approach_rate=10.0)  # the defaults: ω = 20, ζ = 1, ω_n = 10, k_I = 20
+GAINS = osc_gains(
+    OscOptions(), approach_rate=10.0
+)  # the defaults: ω = 20, ζ = 1, ω_n = 10, k_I = 20
 SCENARIOS = ("paper_contact", "paper_approach", "rtr_plane", "rtr_sphere", "ur5_plane")
 
 
@@ -170,8 +167,8 @@ def test_rigid_contact_force_and_decoupling(case: str, normalization: str, rtr, 
     surfaces this holds only with the curvature term c: without it f is off by Σ⁻¹ c)."""
     robot, q, surfaces = _on_surfaces(case, rtr, ur5)
     constraint = Constraint(surfaces, normalization=normalization)
-    gains = osc_gains({"force_p": 0.5, "force_i": 7.0}, approach_rate=10.0)
-    law = OscHybridLaw(gains, constraint)
+    gains = osc_gains(OscOptions(force_p=0.5, force_i=7.0), approach_rate=10.0)
+    law = OscHybridLaw(gains, constraint, robot.nv)
     k = constraint.k
     at_rest = np.zeros(robot.nv)
     cons0 = constraint.evaluate_reference(reference_terms(robot, q, at_rest), at_rest)
@@ -180,7 +177,7 @@ def test_rigid_contact_force_and_decoupling(case: str, normalization: str, rtr, 
     cons = constraint.evaluate_reference(terms, v)
     d = _desired(rng, robot.nv, terms.p)
     e_F, f_d = rng.normal(size=k), np.array([10.0, 4.0][:k])
-    command = law.hybrid(terms, cons, v, q - d.q, d, e_F, f_d, None)
+    command = law.hybrid(LawInput(terms, v, q - d.q, d, cons, e_F, f_d))
     assert command.B is not None and np.allclose(command.B, 0.5 * cons.A.T)
     qdd, f = _kkt(terms.M, cons.A, command.B, command.u0, terms.nle, cons.drift)
     assert np.allclose(f, f_d - gains.force_i * e_F / 1.5, rtol=1e-8, atol=1e-8)
@@ -235,11 +232,13 @@ def test_null_space_posture_converges_on_the_ur5(ur5: Robot) -> None:
     remaining = {}
     for null_omega in (10.0, 0.5):
         law = OscHybridLaw(
-            osc_gains({"null_omega": null_omega}, 10.0), Constraint(Plane(p_star, (0, 0, 1)))
+            osc_gains(OscOptions(null_omega=null_omega), 10.0),
+            Constraint(Plane(p_star, (0, 0, 1))),
+            6,
         )
         q, v, data, dt = q_star + 0.1 * null_dir, np.zeros(6), ur5.new_data(), 1e-3
         for _ in range(2000):  # 2 s, semi-implicit Euler
-            command = law.free_space(reference_terms(ur5, q, v), v, q - q_star, desired)
+            command = law.free_space(LawInput(reference_terms(ur5, q, v), v, q - q_star, desired))
             v = v + dt * pin.aba(ur5.model, data, q, v, command.u0)
             q = q + dt * v
         assert np.linalg.norm(ur5.tip_position(q) - p_star) < 1e-6
@@ -275,7 +274,7 @@ def test_options_set_the_gains() -> None:
 def test_fewer_than_three_joints_is_refused() -> None:
     context: Any = SimpleNamespace(robot=SimpleNamespace(nv=2))
     with pytest.raises(ControlError) as info:
-        build(context)
+        check(context)
     assert info.value.key == "control.law" and info.value.value == "osc_hybrid"
 
 

@@ -14,7 +14,8 @@ import pytest
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired
-from hybrid_force.control.laws.raibert_craig import RaibertCraigLaw, selection_matrix
+from hybrid_force.control.laws.base import LawInput
+from hybrid_force.control.laws.raibert_craig import RaibertCraigWorkspace, selection_matrix
 from hybrid_force.control.supervisor import ControlSettings, HybridController
 from hybrid_force.errors import ControlError, GainError, LostContactError, RunFailedError
 from hybrid_force.geometry.builtin_surfaces import Plane
@@ -36,9 +37,9 @@ SCENARIOS = Path(__file__).parents[1] / "scenarios"
 LAW = {"control.law": "raibert_craig"}
 
 
-def _law(controller: HybridController) -> RaibertCraigLaw:
+def _law(controller: HybridController) -> RaibertCraigWorkspace:
     law = controller.law
-    assert isinstance(law, RaibertCraigLaw)
+    assert isinstance(law, RaibertCraigWorkspace)
     return law
 
 
@@ -214,7 +215,7 @@ def _feedback_power(ctrl: HybridController, robot: Robot, v: np.ndarray) -> floa
     at_rest = Desired(q=WORK, qd=zero, qdd=zero, p=robot.tip_position(WORK), pd=zero, pdd=zero)
     terms = robot.terms(WORK, v)
     cons = ctrl.constraint.evaluate(terms, v)
-    law.hybrid(terms, cons, v, zero, at_rest, np.zeros(1), np.array([10.0]), None)
+    law.hybrid(LawInput(terms, v, zero, at_rest, cons, np.zeros(1), np.array([10.0])))
     return float(v @ law.last_u_pos)
 
 

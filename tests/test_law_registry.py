@@ -3,14 +3,17 @@ the command line lists them (hybrid_force.control.laws.base)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from hybrid_force.cli import main
-from hybrid_force.control.laws.base import LAWS, Option, check_options, law_names
+from hybrid_force.control.laws.base import LAWS, LawOptions, check_options, check_value, law_names
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import ControlError, GainError, ScenarioError
 from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.schema import param, specs
 
 SCENARIO = "scenarios/paper_contact.toml"
 
@@ -20,10 +23,21 @@ def test_every_law_has_a_one_line_summary_and_a_loadable_factory() -> None:
     for name, spec in LAWS.items():
         assert spec.name == name
         assert spec.summary and "\n" not in spec.summary
-        assert callable(spec.load())
-        for key, option in spec.options.items():
-            assert option.kind in ("number", "choice", "bool"), (name, key)
-            assert option.doc, (name, key)
+        assert callable(spec.factory)
+        for key, doc in spec.describe():
+            assert doc and "\n" not in doc, (name, key)
+        if spec.options is not None:
+            assert issubclass(spec.options, LawOptions)
+            assert spec.options.law == name
+            spec.options()  # the defaults pass the law's own checks
+            for f, p in specs(spec.options):
+                assert p.doc, (name, f.name)
+
+
+def test_a_law_registers_itself_in_its_own_module() -> None:
+    """Each entry is created where its law is defined (the factory's module)."""
+    for name, spec in LAWS.items():
+        assert spec.factory.__module__ == f"hybrid_force.control.laws.{name}"
 
 
 def test_unknown_law_is_refused_with_the_valid_names() -> None:
@@ -43,20 +57,33 @@ def test_options_are_checked_by_key_and_value() -> None:
         check_options({"arimoto": 3})
 
 
-def test_an_option_value_is_checked_against_its_kind() -> None:
-    from hybrid_force.control.laws.base import _check_option
+@dataclasses.dataclass(frozen=True)
+class _Table:
+    k: float = param(1.0, unit="1/s", minimum=0.0, strict=True, doc="a gain")
+    form: str = param("a", choices=("a", "b"), doc="form")
+    flag: bool = param(True, doc="flag")
 
-    number = Option("a gain [1/s]")
-    assert _check_option("control.x.k", 2, number) == 2.0
+
+def test_an_option_value_is_checked_against_its_kind() -> None:
+    fields = {f.name: (f, p) for f, p in specs(_Table)}
+    assert check_value("control.x.k", 2, *fields["k"]) == 2.0
     for bad in (0.0, -1.0, float("nan"), True, "2"):
         with pytest.raises(GainError):
-            _check_option("control.x.k", bad, number)
-    choice = Option("form", kind="choice", choices=("a", "b"))
-    assert _check_option("control.x.form", "b", choice) == "b"
+            check_value("control.x.k", bad, *fields["k"])
+    assert check_value("control.x.form", "b", *fields["form"]) == "b"
     with pytest.raises(ControlError, match="valid: a, b"):
-        _check_option("control.x.form", "c", choice)
+        check_value("control.x.form", "c", *fields["form"])
     with pytest.raises(ControlError):
-        _check_option("control.x.flag", 1, Option("flag", kind="bool"))
+        check_value("control.x.flag", 1, *fields["flag"])
+
+
+def test_a_law_settings_dataclass_checks_its_fields_and_names_the_key() -> None:
+    options = LAWS["osc_hybrid"].options
+    assert options is not None
+    with pytest.raises(GainError) as info:
+        options(omega=-1.0)
+    assert info.value.key == "control.osc_hybrid.omega"
+    assert options(omega=3).omega == 3.0 and isinstance(options(omega=3).omega, float)
 
 
 def test_a_law_table_in_a_scenario_names_the_file_and_key(tmp_path) -> None:
@@ -85,3 +112,14 @@ def test_laws_command_lists_every_law(capsys) -> None:
     assert main(["laws"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [line.split()[0] for line in lines] == list(law_names())
+
+
+def test_laws_options_show_each_key_with_its_unit_and_default(capsys) -> None:
+    assert main(["laws", "--options"]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "control.osc_hybrid.omega: task-space bandwidth ω: K_p = ω², K_v = 2ζω [rad/s]; default 20"
+        in out
+    )
+    assert "control.raibert_craig.form: " in out and 'default "corrected"' in out
+    assert "control.impedance.force_tracking: " in out and "default true" in out

@@ -1,12 +1,15 @@
-"""The compiled osc_hybrid law (OscHybridWorkspace, its kernel) against the numpy reference.
+"""The compiled osc_hybrid law (OscHybridWorkspace, its kernel) against its numpy oracle
+(OscHybridLaw of tests/oracles/laws.py).
 
 1. one step on random states of rtr, ur5 and panda, in free space, near and in contact, on one
    surface (cylinder, sphere, plane, a FunctionSurface whose gradient stays in Python) and on
    two stacked planes (k = 2), both row scalings, k_P = 0 and > 0: every output (u0, B and the
    trace: a, F0, φ, Nᵀτ₀, Λ, J̄) within 1e-12 of the reference's scale;
-2. singular configurations: the same SingularConfigurationError with the same message;
+2. singular configurations: the same SingularConfigurationError with the same message, and an
+   M without Cholesky factor solved by LU as the oracle's numpy solve;
 3. whole 0.2 s runs (0.4 s for free → near → contact), the compiled law against the reference
-   law in the same (compiled) loop, and against the all-numpy reference run: q, v, u, f within
+   law in the same (compiled) loop, and against the oracle controller on the reference plant:
+   q, v, u, f within
    1e-10 of their scale.
 """
 
@@ -17,13 +20,16 @@ import math
 
 import numpy as np
 import pytest
+from oracles.control import use_oracle_control
+from oracles.laws import OscHybridLaw
 
 import hybrid_force.control.laws.osc_hybrid as osc
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired
+from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.laws.osc_hybrid import (
-    OscHybridLaw,
     OscHybridWorkspace,
+    OscOptions,
     osc_gains,
 )
 from hybrid_force.control.supervisor import ControlSettings
@@ -85,8 +91,11 @@ def _compare_step(robot: Robot, case: str, normalization: str, force_p: float, r
     q, v = _random_state(robot, rng)
     terms = reference_terms(robot, q, v)
     constraint = Constraint(_surfaces(case, terms.p), normalization=normalization)
-    gains = osc_gains({"force_p": force_p, "force_i": 7.0, "null_omega": 3.0}, approach_rate=8.0)
-    ref, fast = OscHybridLaw(gains, constraint), OscHybridWorkspace(gains, constraint, robot.nv)
+    gains = osc_gains(OscOptions(force_p=force_p, force_i=7.0, null_omega=3.0), approach_rate=8.0)
+    ref, fast = (
+        OscHybridLaw(gains, constraint, robot.nv),
+        OscHybridWorkspace(gains, constraint, robot.nv),
+    )
     n, k = robot.nv, constraint.k
     desired = Desired(
         q=rng.normal(size=n),
@@ -100,12 +109,12 @@ def _compare_step(robot: Robot, case: str, normalization: str, force_p: float, r
     e_q, e_F, f_d = q - desired.q, rng.normal(size=k), 10.0 * rng.random(k)
     for phase in ("free", "near", "contact"):
         if phase == "free":
-            c_ref = ref.free_space(terms, v, e_q, desired)
-            c_fast = fast.free_space(terms, v, e_q, desired)
+            c_ref = ref.free_space(LawInput(terms, v, e_q, desired))
+            c_fast = fast.free_space(LawInput(terms, v, e_q, desired))
         else:
             approach = rng.normal(size=k) if phase == "near" else None
-            c_ref = ref.hybrid(terms, cons, v, e_q, desired, e_F, f_d, approach)
-            c_fast = fast.hybrid(terms, cons, v, e_q, desired, e_F, f_d, approach)
+            c_ref = ref.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d, approach))
+            c_fast = fast.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d, approach))
         what = f"{robot.name}/{case}/{phase}"
         _close(f"{what}: u0", c_fast.u0, c_ref.u0)
         assert (c_fast.B is None) == (c_ref.B is None), what
@@ -132,16 +141,16 @@ def test_model_terms_without_packs_and_the_buffers_reused(ur5: Robot, rng) -> No
     """Terms made by reference_terms (no packs) and by Robot.terms (packs) give the same
     command; the workspace returns its own arrays, overwritten by the next call."""
     constraint = Constraint(Plane((0.0, 0.0, 0.3), (0.0, 0.0, 1.0)))
-    fast = OscHybridWorkspace(osc_gains({}, 10.0), constraint, ur5.nv)
+    fast = OscHybridWorkspace(osc_gains(OscOptions(), 10.0), constraint, ur5.nv)
     q, v = _random_state(ur5, rng)
     packed = ur5.terms(q, v, out=RobotTerms.zeros(ur5.nv))
     d = Desired(q, np.zeros(6), np.zeros(6), packed.p.copy(), np.zeros(3), np.zeros(3))
-    u_packed = fast.free_space(packed, v, np.zeros(6), d).u0.copy()
-    command = fast.free_space(reference_terms(ur5, q, v), v, np.zeros(6), d)
+    u_packed = fast.free_space(LawInput(packed, v, np.zeros(6), d)).u0.copy()
+    command = fast.free_space(LawInput(reference_terms(ur5, q, v), v, np.zeros(6), d))
     _close("packed vs plain terms", command.u0, u_packed)
     assert command.u0 is fast.u0
     with pytest.raises(ControlError, match="needs the task-space path"):
-        fast.free_space(packed, v, np.zeros(6), Desired(q, np.zeros(6), np.zeros(6)))
+        fast.free_space(LawInput(packed, v, np.zeros(6), Desired(q, np.zeros(6), np.zeros(6))))
 
 
 # --------------------------------------------------------------------- singular configurations
@@ -159,20 +168,20 @@ def test_a_rank_deficient_jacobian_raises_the_reference_error(smallest: float) -
     (cond ∞ or 1e16), accepted at cond 1e10 with the reference's Λ."""
     terms = _terms(np.eye(3), np.diag([1.0, 1.0, smallest]))
     constraint = Constraint(Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
-    gains = osc_gains({}, 10.0)
+    gains = osc_gains(OscOptions(), 10.0)
     d = Desired(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
-    ref, fast = OscHybridLaw(gains, constraint), OscHybridWorkspace(gains, constraint, 3)
+    ref, fast = OscHybridLaw(gains, constraint, 3), OscHybridWorkspace(gains, constraint, 3)
     v = np.zeros(3)
     if smallest == 1e-5:
-        fast.free_space(terms, v, v, d)
-        ref.free_space(terms, v, v, d)
+        fast.free_space(LawInput(terms, v, v, d))
+        ref.free_space(LawInput(terms, v, v, d))
         assert ref.last is not None
         _close("Λ at cond 1e10", fast.Lambda, ref.last.task.Lambda)
         return
     with pytest.raises(SingularConfigurationError) as expected:
-        ref.free_space(terms, v, v, d)
+        ref.free_space(LawInput(terms, v, v, d))
     with pytest.raises(SingularConfigurationError) as got:
-        fast.free_space(terms, v, v, d)
+        fast.free_space(LawInput(terms, v, v, d))
     assert str(got.value) == str(expected.value)
     assert got.value.key == "control.law" and got.value.value == "osc_hybrid"
 
@@ -185,43 +194,43 @@ def test_the_rtr_stretched_or_folded_raises_the_reference_error(rtr: Robot, q3: 
     terms = rtr.terms(q, v, out=RobotTerms.zeros(3))
     constraint = Constraint(Plane(terms.p - 0.1, (0.0, 0.0, 1.0)))
     cons = constraint.evaluate_reference(terms, v)
-    gains = osc_gains({}, 10.0)
+    gains = osc_gains(OscOptions(), 10.0)
     d = Desired(q, v, v, terms.p.copy(), np.zeros(3), np.zeros(3))
-    ref, fast = OscHybridLaw(gains, constraint), OscHybridWorkspace(gains, constraint, 3)
+    ref, fast = OscHybridLaw(gains, constraint, 3), OscHybridWorkspace(gains, constraint, 3)
     messages = []
     for law in (ref, fast):
         with pytest.raises(SingularConfigurationError) as info:
-            law.hybrid(terms, cons, v, v, d, np.zeros(1), np.ones(1), None)
+            law.hybrid(LawInput(terms, v, v, d, cons, np.zeros(1), np.ones(1)))
         messages.append(str(info.value))
     assert messages[0] == messages[1]
 
 
-def test_a_mass_matrix_without_cholesky_factor_is_left_to_the_reference() -> None:
-    """M indefinite (no Cholesky factor) but J M⁻¹ Jᵀ well conditioned: the kernel hands the
-    step to the reference, whose numbers the workspace then returns (free space and contact)."""
+def test_a_mass_matrix_without_cholesky_factor_is_solved_by_lu() -> None:
+    """M indefinite (no Cholesky factor) but J M⁻¹ Jᵀ well conditioned: the kernel solves
+    M⁻¹Jᵀ by LU with partial pivoting, as the oracle's numpy solve (free space and contact)."""
     terms = _terms(np.diag([2.0, -1.0, 3.0]), np.eye(3))
     terms.p[:] = (0.1, 0.2, 0.3)
     terms.Jdot_v[:] = (0.5, -0.2, 0.1)
     constraint = Constraint(Plane((0.1, 0.2, 0.3), (0.0, 0.6, 0.8)))
     v = np.array([0.3, -0.1, 0.2])
     cons = constraint.evaluate_reference(terms, v)
-    gains = osc_gains({"force_p": 0.4}, 10.0)
+    gains = osc_gains(OscOptions(force_p=0.4), 10.0)
     d = Desired(np.zeros(3), np.ones(3), np.ones(3), np.zeros(3), np.ones(3), np.ones(3))
-    ref, fast = OscHybridLaw(gains, constraint), OscHybridWorkspace(gains, constraint, 3)
+    ref, fast = OscHybridLaw(gains, constraint, 3), OscHybridWorkspace(gains, constraint, 3)
     e_F, f_d = np.array([0.2]), np.array([10.0])
     for contact in (False, True):
         if contact:
-            c_ref = ref.hybrid(terms, cons, v, v, d, e_F, f_d, None)
-            c_fast = fast.hybrid(terms, cons, v, v, d, e_F, f_d, None)
+            c_ref = ref.hybrid(LawInput(terms, v, v, d, cons, e_F, f_d))
+            c_fast = fast.hybrid(LawInput(terms, v, v, d, cons, e_F, f_d))
             assert c_ref.B is not None and c_fast.B is not None
-            np.testing.assert_array_equal(c_fast.B, c_ref.B)
+            _close("indefinite M: B", c_fast.B, c_ref.B)
         else:
-            c_ref = ref.free_space(terms, v, v, d)
-            c_fast = fast.free_space(terms, v, v, d)
-        np.testing.assert_array_equal(c_fast.u0, c_ref.u0)
+            c_ref = ref.free_space(LawInput(terms, v, v, d))
+            c_fast = fast.free_space(LawInput(terms, v, v, d))
+        _close("indefinite M: u0", c_fast.u0, c_ref.u0)
         assert ref.last is not None and fast.last is not None
-        np.testing.assert_array_equal(fast.last.F0, ref.last.F0)
-        np.testing.assert_array_equal(fast.last.phi, ref.last.phi)
+        _close("indefinite M: F0", fast.last.F0, ref.last.F0)
+        _close("indefinite M: phi", fast.last.phi, ref.last.phi)
 
 
 # --------------------------------------------------------------------- whole runs
@@ -272,7 +281,7 @@ def test_whole_runs_equal_the_reference_law(name: str, rtr: Robot, monkeypatch) 
         return law
 
     def reference(gains, constraint, n):  # type: ignore[no-untyped-def]
-        built.append(law := OscHybridLaw(gains, constraint))
+        built.append(law := OscHybridLaw(gains, constraint, n))
         return law
 
     with monkeypatch.context() as patch:
@@ -294,11 +303,13 @@ def test_whole_runs_equal_the_reference_law(name: str, rtr: Robot, monkeypatch) 
 
 
 @pytest.mark.parametrize("name", ["paper_contact", "ur5_plane"])
-def test_whole_runs_equal_the_reference_run(name: str, rtr: Robot) -> None:
-    """Against the all-numpy loop (SimSettings(reference=True): ReferenceController, the numpy
-    law and CLIK, the reference plant): q, v, u, f within 1e-10 of their scale."""
+def test_whole_runs_equal_the_reference_run(name: str, rtr: Robot, monkeypatch) -> None:
+    """Against the all-numpy loop (the oracle controller: ReferenceController, the numpy law
+    and CLIK; the reference plant, SimSettings(reference=True)): q, v, u, f within 1e-10 of
+    their scale."""
     sc = _scenario(name, rtr)
     fast = simulate(sc)
+    use_oracle_control(monkeypatch)
     ref = simulate(dataclasses.replace(sc, sim=dataclasses.replace(sc.sim, reference=True)))
     np.testing.assert_array_equal(fast.phase, ref.phase)
     for field in ("q", "v", "u", "f"):

@@ -86,7 +86,7 @@ def test_module_paths_of_before_the_layers_still_import_the_same_modules() -> No
         "for old, new in MOVED.items():\n"
         "    assert importlib.import_module(old) is importlib.import_module(new), old\n"
         "from hybrid_force.simulate import Scenario, SimSettings\n"
-        "from hybrid_force.control import Gains, arimoto_law\n"
+        "from hybrid_force.control import Gains, make_gains\n"
         "from hybrid_force.scenario import load_scenario\n"
         "assert callable(hybrid_force.simulate) and hybrid_force.simulate.__name__ == 'simulate'\n"
         "print('ok')\n"

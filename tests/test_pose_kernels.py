@@ -1,8 +1,9 @@
-"""The pose CLIK's kernels (hybrid_force.control._pose_kernels) against their numpy reference.
+"""The pose CLIK's kernels (hybrid_force.control._pose_kernels) against their numpy oracle.
 
-:class:`PoseJointPath` (compiled) and :class:`ReferencePoseJointPath` (numpy, the readable
-form) are put in the same random state and must agree to round-off, max|fast − ref| ≤ 1e-12 ·
-max(max|ref|, 1), in every kernel's result (random states with cond(A) < 30):
+:class:`PoseJointPath` (compiled) and ``ReferencePoseJointPath`` (numpy, the readable form, in
+tests/oracles/control.py) are put in the same random state and must agree to round-off,
+max|fast − ref| ≤ 1e-12 · max(max|ref|, 1), in every kernel's result (random states with
+cond(A) < 30):
 
 1. ``pose_goal``: a_d, ȧ_d, ω_d, ω̇_d (and R_d, roll held) at random times, against
    ``ToolTarget.axis`` / ``frame``: the sphere (no tilt), the pipe (tilt towards the travel),
@@ -12,7 +13,8 @@ max(max|ref|, 1), in every kernel's result (random states with cond(A) < 30):
 3. ``pose_newton`` (with the predictor): one advance from a random (q, q̇, q̈);
 4. 500 steps of advance(1 ms) from the start pose;
 5. whole runs (0.3 s) of scenarios/ur5_sphere_normal.toml and panda_pipe_tilt.toml, roll free
-   and held: the compiled run against ``sim.reference = true`` in q, u, f to 1e-10;
+   and held: the compiled run against the oracle controller on the reference plant
+   (``sim.reference = true``) in q, u, f to 1e-10;
 6. the non-Euclidean branches (pinocchio.integrate / difference): a UR5 whose first joint is
    stored as (cos, sin), 200 steps;
 7. ``Path.evaluate_with_direction_into`` against ``evaluate`` + ``direction_jet``, exactly;
@@ -34,14 +36,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.control import ReferencePoseJointPath, use_oracle_control
 from test_clik_pose import CASES
 
 from hybrid_force.control.clik import inverse_kinematics
-from hybrid_force.control.pose_clik import (
-    PoseJointPath,
-    ReferencePoseJointPath,
-    pose_inverse_kinematics,
-)
+from hybrid_force.control.pose_clik import PoseJointPath, pose_inverse_kinematics
 from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
@@ -206,13 +205,18 @@ def test_500_steps_equal_the_reference(arms: dict[str, Robot], which: str, roll:
 
 @pytest.mark.parametrize("roll", ["free", "held"])
 @pytest.mark.parametrize("which", ["ur5", "panda"])
-def test_whole_runs_equal_the_reference_runs(which: str, roll: str) -> None:
-    """0.3 s of the shipped scenario (in contact, pressing): compiled against sim.reference."""
+def test_whole_runs_equal_the_reference_runs(
+    which: str, roll: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """0.3 s of the shipped scenario (in contact, pressing): compiled against the oracle
+    controller on the reference plant."""
     runs = []
     for reference in (False, True):
         sc = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml", {"sim.duration": 0.3})
         sim = dataclasses.replace(sc.sim, reference=reference)
         sc = dataclasses.replace(sc, sim=sim, tool=dataclasses.replace(sc.tool, roll=roll))
+        if reference:
+            use_oracle_control(monkeypatch)
         runs.append(simulate(sc))
     fast, ref = runs
     assert fast.n_samples == ref.n_samples > 100

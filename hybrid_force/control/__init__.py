@@ -11,10 +11,8 @@ from hybrid_force.control.laws.arimoto import (
     Desired,
     Gains,
     LawWorkspace,
-    arimoto_law,
     check_damping_gain,
     default_damping_gain,
-    free_space_law,
     make_gains,
 )
 
@@ -24,9 +22,7 @@ __all__ = [
     "Desired",
     "Gains",
     "LawWorkspace",
-    "arimoto_law",
     "check_damping_gain",
     "default_damping_gain",
-    "free_space_law",
     "make_gains",
 ]

@@ -11,7 +11,8 @@ pulls q_d towards a posture (the seed):
 q̇_d = J⁺ x + (I − J⁺J)(−k_n (q_d − q_posture)),   x = ṗ_d − γ (k(q_d) − p_d).
 
 The joint acceleration q̈_d is the exact time derivative of q̇_d, null-space part included
-(see :meth:`ReferenceJointPath._derivatives`).
+(see :meth:`DesiredJointPath._update_derivatives`; its numpy oracle is in
+``tests/oracles/control.py``).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from hybrid_force.model.robot import Robot
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
-__all__ = ["ClikSettings", "DesiredJointPath", "ReferenceJointPath", "inverse_kinematics"]
+__all__ = ["ClikSettings", "DesiredJointPath", "inverse_kinematics"]
 
 _START_TOL = 1e-9  # [m] accepted ‖k(q_d(0)) − p_d(0)‖
 _COND_MAX = 1e8  # condition number of J J^T beyond which J is treated as singular
@@ -76,26 +77,6 @@ def _check_conditioning(J: np.ndarray, t: float, q: np.ndarray, robot: Robot) ->
             f"the tip Jacobian of '{robot.name}' is singular on the desired path at t = {t:.6g} s, "
             f"q_d = {np.round(q, 6).tolist()} (singular values {s.tolist()})"
         )
-
-
-def _inv3(J: np.ndarray) -> np.ndarray:
-    """Inverse of a 3×3 matrix by its adjugate (3× faster than np.linalg.inv at this size).
-
-    Raises np.linalg.LinAlgError when the determinant is exactly zero.
-    """
-    (a, b, c), (d, e, f), (g, h, i) = J.tolist()
-    c0, c1, c2 = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * c0 + b * c1 + c * c2
-    if det == 0.0:
-        raise np.linalg.LinAlgError("singular 3x3 matrix")
-    r = 1.0 / det
-    return np.array(
-        [
-            [c0 * r, (c * h - b * i) * r, (b * f - c * e) * r],
-            [c1 * r, (a * i - c * g) * r, (c * d - a * f) * r],
-            [c2 * r, (b * g - a * h) * r, (a * e - b * d) * r],
-        ]
-    )
 
 
 def inverse_kinematics(
@@ -217,7 +198,7 @@ class DesiredJointPath:
     The algebra of each step is compiled (:mod:`hybrid_force.control._kernels`:
     ``newton_step``, ``clik_velocity``, ``clik_acceleration``; a helix or circle is sampled
     inside the first), and q, qd, qdd, p_d, pdot_d, pddot_d are updated in place: keep a copy
-    to remember a value. :class:`ReferenceJointPath` is the readable numpy version.
+    to remember a value. Its readable numpy version is the oracle of ``tests/oracles/control.py``.
     """
 
     def __init__(
@@ -280,7 +261,7 @@ class DesiredJointPath:
 
     def _update_derivatives(self) -> None:
         """q̇_d (eq. 27) and q̈_d, its exact time derivative, at (t, q_d), written in place
-        (the algebra of :meth:`ReferenceJointPath._derivatives`, compiled)."""
+        (the algebra of the module docstring, compiled)."""
         robot, data, cfg = self.robot, self._data, self.settings
         model, fid, q = robot.model, robot.tip_id, self.q
         K = _K
@@ -341,80 +322,3 @@ class DesiredJointPath:
         """‖k(q_d) − p_d‖ at the current time [m]."""
         p, _ = self._tip_and_jacobian(self.q)
         return float(np.linalg.norm(p - self.p_d))
-
-
-class ReferenceJointPath(DesiredJointPath):
-    """:class:`DesiredJointPath` in readable numpy: the reference its kernels are tested
-    against (``tests/test_kernels.py``) and the one the scenario loader checks a path with
-    (no Numba). New arrays every step instead of updates in place.
-    """
-
-    def _start(self) -> None:
-        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
-
-    def _update_derivatives(self) -> None:
-        self.qd, self.qdd = self._derivatives()
-
-    def _advance(self, dt: float) -> None:
-        model = self.robot.model
-        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
-        q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
-        # Newton correction with the pseudo-inverse of the previous step: J changes by O(dt)
-        # between the two, so the residual after it is O(dt) × the predictor's O(dt³) error.
-        pin.forwardKinematics(model, self._data, q)
-        p = pin.updateFramePlacement(model, self._data, self.robot.tip_id).translation
-        self.q = pin.integrate(model, q, self._Jp @ (self.p_d - p))
-        self._update_derivatives()
-
-    def _pinv(self, J: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """J⁻¹ (n = 3) or the damped pseudo-inverse Jᵀ W (n > 3), and W = (JJᵀ + λ²I)⁻¹
-        (None for n = 3); ReachError when J is singular."""
-        W = None
-        try:
-            if self._redundant:
-                JJt = J @ J.T
-                JJt[np.diag_indices(3)] += self.settings.damping**2
-                W = np.linalg.inv(JJt)
-                cond = float(np.abs(JJt).max() * np.abs(W).max())
-                Jp = J.T @ W
-            else:
-                Jp = _inv3(J)
-                cond = float(np.abs(J).max() * np.abs(Jp).max()) ** 2
-        except np.linalg.LinAlgError:
-            cond = np.inf
-        if not cond < _COND_MAX:  # a cheap upper bound of cond(J Jᵀ); the SVD names the values
-            _check_conditioning(J, self.t, q, self.robot)
-        return Jp, W
-
-    def _derivatives(self) -> tuple[np.ndarray, np.ndarray]:
-        """q̇_d (eq. 27) and q̈_d, its exact time derivative, at the current (t, q_d).
-
-        With x = ṗ_d − γ(k(q_d) − p_d): n = 3, q̇_d = J⁻¹x and q̈_d = J⁻¹(ẋ − J̇q̇_d).
-        n > 3, q̇_d = J⁺x + N z with N = I − J⁺J and z = −k_n (q_d − q_posture), so
-        q̈_d = J̇⁺x + J⁺ẋ + Ṅz + Nż, where J̇⁺ = J̇ᵀW + JᵀẆ, Ẇ = −W(J̇Jᵀ + JJ̇ᵀ)W,
-        Ṅ = −(J̇⁺J + J⁺J̇), ż = −k_n q̇_d and ẋ = p̈_d − γ(J q̇_d − ṗ_d).
-        """
-        model, data, fid = self.robot.model, self._data, self.robot.tip_id
-        q, gamma = self.q, self.settings.gamma
-        p, J = self._tip_and_jacobian(q)
-        Jp, W = self._pinv(J, q)
-        self._Jp = Jp
-        x = self.pdot_d - gamma * (p - self.p_d)
-        qd = Jp @ x
-        z = None
-        if self._redundant and self.settings.posture_gain > 0:
-            N = self._eye - Jp @ J
-            z = -self.settings.posture_gain * pin.difference(model, self.posture, q)
-            qd += N @ z
-        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
-        Jdot = pin.getFrameJacobianTimeVariation(model, data, fid, _LWA)[:3]
-        xdot = self.pddot_d - gamma * (J @ qd - self.pdot_d)
-        if W is None:
-            return qd, Jp @ (xdot - Jdot @ qd)
-        Wdot = -W @ (Jdot @ J.T + J @ Jdot.T) @ W
-        Jp_dot = Jdot.T @ W + J.T @ Wdot
-        qdd = Jp_dot @ x + Jp @ xdot
-        if z is not None:
-            N_dot = -(Jp_dot @ J + Jp @ Jdot)
-            qdd += N_dot @ z + N @ (-self.settings.posture_gain * qd)
-        return qd, qdd

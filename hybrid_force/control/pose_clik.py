@@ -37,8 +37,8 @@ with ω = J_ω q̇_d, Ṡ = −S[ω]× (Ṙ = [ω]× R), so Ȧ = [J̇_p; S J̇_�
 q_d(t + dt) by a second-order Taylor step and corrects it with one Newton step on the task
 residual [p_d − k(q_d); S e] (the pseudo-inverse of the previous step), so position and axis
 stay on their targets to round-off and q̇_d is the CLIK's own velocity. The algebra of a step
-is compiled (:mod:`hybrid_force.control._pose_kernels`); :class:`ReferencePoseJointPath` is
-its numpy reference.
+is compiled (:mod:`hybrid_force.control._pose_kernels`); ``tests/oracles/control.py`` holds
+its numpy oracle.
 """
 
 from __future__ import annotations
@@ -55,17 +55,12 @@ from hybrid_force.errors import ReachError
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import LWA, Robot
 
-__all__ = ["PoseJointPath", "ReferencePoseJointPath", "follow_pose", "pose_inverse_kinematics"]
+__all__ = ["PoseJointPath", "follow_pose", "pose_inverse_kinematics"]
 
 _K = LazyKernels("hybrid_force.control._kernels")
 _PK = LazyKernels("hybrid_force.control._pose_kernels")
 
 _START_TOL = 1e-9  # [m, rad] accepted start residual of position and axis
-
-
-def _skew(w: np.ndarray) -> np.ndarray:
-    x, y, z = w
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def _complement(axis: np.ndarray) -> np.ndarray:
@@ -117,18 +112,6 @@ class _PoseTask:
     def rows(self, J: np.ndarray, S: np.ndarray) -> np.ndarray:
         """A (m, n) = [J_p; S J_ω]."""
         return np.vstack([J[:3], S @ J[3:]])
-
-
-def _damped_inverse(A: np.ndarray, damping: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """(A⁺ = AᵀW (n, m), W = (AAᵀ + λ²I)⁻¹ (m, m), a cheap upper bound of cond(AAᵀ + λ²I))."""
-    G = A @ A.T
-    G[np.diag_indices(G.shape[0])] += damping**2
-    try:
-        W = np.linalg.inv(G)
-    except np.linalg.LinAlgError:
-        return np.zeros(A.T.shape), np.zeros(G.shape), math.inf
-    m = G.shape[0]  # ‖G‖₂ ≤ m max|G_ij|: an upper bound of the condition number
-    return A.T @ W, W, float(m * m * np.abs(G).max() * np.abs(W).max())
 
 
 def pose_inverse_kinematics(
@@ -266,14 +249,11 @@ class PoseJointPath:
     ``pose_velocity``, ``pose_acceleration``, ``pose_newton``) and q, qd, qdd, p_d, pdot_d,
     pddot_d, a_d are updated in place: keep a copy to remember a value. The path itself (and
     a surface other than the built-in ones) is sampled in Python.
-    :class:`ReferencePoseJointPath` is the readable numpy version.
+    Its readable numpy version is the oracle of ``tests/oracles/control.py``.
     """
 
     a_d: np.ndarray  # (3,) the desired tool axis now
     R_d: np.ndarray | None  # (3, 3) the desired rotation now (roll held), else None
-    _a: np.ndarray  # (3, 3) the a_d jet (roll free, reference)
-    _w_d: np.ndarray  # (3,) ω_d (reference)
-    _wdot_d: np.ndarray  # (3,) ω̇_d (reference)
 
     def __init__(
         self,
@@ -355,7 +335,7 @@ class PoseJointPath:
 
     def _sample(self) -> None:
         """The path sample and the desired direction (and frame) at self.t, in place
-        (``_pose_kernels.pose_goal``; :meth:`_sample_goal` is its reference)."""
+        (``_pose_kernels.pose_goal``, the compiled :meth:`ToolTarget.axis` and ``frame``)."""
         smp, t = self._smp, self.t
         if self._travel_needed:
             self.path.evaluate_with_direction_into(t, smp, self._travel)
@@ -368,29 +348,10 @@ class PoseJointPath:
             self._desc, smp, self._grad, self._hess, self._third, self._tilt_axis,
             self._travel, self._tool, R_fix, self._goal, self._Rd,
         )  # fmt: skip
-        if status:  # an undefined direction: the reference names it (ReachError)
-            self._sample_goal(smp)  # (at the edge, if it does not raise, its values are kept)
-            goal = self._goal
-            goal[0], goal[2], goal[3] = self.a_d, self._w_d, self._wdot_d
-            if self.R_d is None:
-                goal[1] = self._a[1]
-            else:
-                self._Rd[:] = self.R_d
+        if status:  # an undefined direction (∇Φ = 0, the lean or the held roll)
+            raise self.target.undefined(status, t, smp[0])
         self.a_d = self._a_d
         self.R_d = self._Rd if self._task.held else None
-
-    def _sample_goal(self, sample: np.ndarray) -> None:
-        """The desired direction (and frame) at self.t from the path sample (3, 3) there."""
-        if self._task.held:
-            F, self._w_d, self._wdot_d = self.target.frame(self.t, sample)
-            self.a_d = F[:, 2].copy()
-            self.R_d = F if self._R_fix is None else F @ self._R_fix
-        else:
-            self._a = self.target.axis(self.t, sample)
-            self.a_d = self._a[0]
-            self._w_d = cross3(self._a[0], self._a[1])
-            self._wdot_d = cross3(self._a[0], self._a[2])
-            self.R_d = None
 
     def advance(self, dt: float) -> None:
         """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction); t = t0 + i·dt
@@ -422,7 +383,7 @@ class PoseJointPath:
 
     def _update_derivatives(self) -> None:
         """q̇_d and q̈_d at (t, q_d), written in place (the algebra of
-        :meth:`ReferencePoseJointPath._derivatives`, compiled)."""
+        the module docstring's acceleration, compiled)."""
         robot, data = self.robot, self._data
         model, fid, q = robot.model, robot.tip_id, self.q
         pin.computeJointJacobians(model, data, q)
@@ -465,78 +426,3 @@ class PoseJointPath:
         """The angle [rad] between the tool axis at q_d and a_d at the current time."""
         _, R, _ = self._task.kinematics(self._data, self.q)
         return axis_angle(R @ self._task.axis, self.a_d)
-
-
-class ReferencePoseJointPath(PoseJointPath):
-    """:class:`PoseJointPath` in readable numpy: the reference its kernels are tested against
-    (``tests/test_pose_kernels.py``), what ``ReferenceController`` runs. New arrays every step
-    instead of updates in place.
-    """
-
-    def _start(self) -> None:
-        self._Ap = np.zeros((self.robot.nv, self._task.m))
-
-    def _sample(self) -> None:
-        self.p_d, self.pdot_d, self.pddot_d = self.path.evaluate(self.t)
-        self._sample_goal(np.array((self.p_d, self.pdot_d, self.pddot_d)))
-
-    def _update_derivatives(self) -> None:
-        self.qd, self.qdd = self._derivatives()
-
-    def _advance(self, dt: float) -> None:
-        model, task = self.robot.model, self._task
-        self._sample()
-        q = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
-        pin.forwardKinematics(model, self._data, q)
-        M = pin.updateFramePlacement(model, self._data, self.robot.tip_id)
-        e = task.error(M.rotation, self.a_d, self.R_d)
-        r = np.concatenate([self.p_d - M.translation, self._S @ e])
-        self.q = pin.integrate(model, q, self._Ap @ r)
-        self._update_derivatives()
-
-    def _derivatives(self) -> tuple[np.ndarray, np.ndarray]:
-        """q̇_d and its exact time derivative q̈_d at (t, q_d) (module docstring)."""
-        robot, task, cfg = self.robot, self._task, self.settings
-        model, data, fid, q, gamma = robot.model, self._data, robot.tip_id, self.q, cfg.gamma
-        p, R, J = task.kinematics(data, q)
-        S = task.selector(R)
-        A = task.rows(J, S)
-        Ap, W, cond = _damped_inverse(A, cfg.damping)
-        if not cond < _COND_MAX:
-            self._check_conditioning(A, q)
-        self._Ap, self._S = Ap, S
-        e = task.error(R, self.a_d, self.R_d)
-        w = self._w_d + gamma * e
-        y = np.concatenate([self.pdot_d - gamma * (p - self.p_d), S @ w])
-        qd = Ap @ y
-        z = None
-        if self._redundant and cfg.posture_gain > 0:
-            N = self._eye - Ap @ A
-            z = -cfg.posture_gain * pin.difference(model, self.posture, q)
-            qd = qd + N @ z
-        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
-        Jdot = pin.getFrameJacobianTimeVariation(model, data, fid, LWA)
-        omega = J[3:] @ qd
-        Sw = S @ _skew(omega) if not task.held else np.zeros((3, 3))
-        e_dot = self._error_rate(R, omega)
-        w_dot = self._wdot_d + gamma * e_dot
-        A_dot = np.vstack([Jdot[:3], S @ Jdot[3:] - Sw @ J[3:]])
-        y_dot = np.concatenate(
-            [self.pddot_d - gamma * (J[:3] @ qd - self.pdot_d), S @ w_dot - Sw @ w]
-        )
-        W_dot = -W @ (A_dot @ A.T + A @ A_dot.T) @ W
-        Ap_dot = A_dot.T @ W + A.T @ W_dot
-        qdd = Ap_dot @ y + Ap @ y_dot
-        if z is not None:
-            N_dot = -(Ap_dot @ A + Ap @ A_dot)
-            qdd = qdd + N_dot @ z + N @ (-cfg.posture_gain * qd)
-        return qd, qdd
-
-    def _error_rate(self, R: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        """ė (3,) along q̇_d: the derivative of a × a_d, or of ½ Σ r_i × r_di."""
-        if self.R_d is None:
-            a = R @ self._task.axis
-            return cross3(cross3(omega, a), self.a_d) + cross3(a, self._a[1])
-        Rdot = _skew(omega) @ R
-        Rd_dot = _skew(self._w_d) @ self.R_d
-        return _orientation_error(Rdot, self.R_d) + _orientation_error(R, Rd_dot)

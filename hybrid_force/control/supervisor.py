@@ -45,7 +45,6 @@ from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.clik import (
     ClikSettings,
     DesiredJointPath,
-    ReferenceJointPath,
     inverse_kinematics,
 )
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
@@ -58,10 +57,16 @@ from hybrid_force.control.laws.arimoto import (
     default_damping_gain,
     make_gains,
 )
-from hybrid_force.control.laws.base import Law, LawContext, build_law, check_options, law_spec
+from hybrid_force.control.laws.base import (
+    Law,
+    LawContext,
+    LawInput,
+    check_law,
+    check_options,
+    law_spec,
+)
 from hybrid_force.control.pose_clik import (
     PoseJointPath,
-    ReferencePoseJointPath,
     pose_inverse_kinematics,
 )
 from hybrid_force.control.tool import ToolSettings, ToolTarget
@@ -79,8 +84,9 @@ __all__ = [
     "NEAR",
     "PHASE_NAMES",
     "ControlSettings",
+    "ControllerStart",
     "HybridController",
-    "ReferenceController",
+    "check_controller",
 ]
 
 _BRANCH_PERIOD = 0.01  # [s] the wrong-branch check runs at most this often (seconds-long test)
@@ -228,6 +234,80 @@ def _desired_force(f_d: object) -> float | tuple[float, ...]:
     return tuple(float(x) for x in values)
 
 
+@dataclass(frozen=True)
+class ControllerStart:
+    """What :func:`check_controller` found at the start of a run.
+
+    Attributes:
+        q0: (nq,) the checked start configuration.
+        qd0: (nq,) q_d(0) by inverse kinematics from q0 (the same branch).
+        target: the tool's desired direction (``[tool] orientation = "normal"``), else None.
+        M0: (n, n) the controller's M(q0) × mass_factor. gains: K_d, Λ, β, γ.
+        stiffness: λ_max(M0⁻¹ K_d) [1/s²·s = 1/s per unit dt]. f_d: (k,) desired force [N].
+        context: what the law is built from.
+    """
+
+    q0: np.ndarray
+    qd0: np.ndarray
+    target: ToolTarget | None
+    M0: np.ndarray
+    gains: Gains
+    stiffness: float
+    f_d: np.ndarray
+    context: LawContext
+
+
+def check_controller(
+    robot: Robot,
+    constraint: Constraint,
+    path: Path,
+    q0: np.ndarray,
+    settings: ControlSettings,
+    dt: float,
+    tool: ToolSettings,
+    t0: float = 0.0,
+) -> ControllerStart:
+    """The checks of a controller's start, without building it (what
+    :class:`HybridController` runs first, and the scenario loader runs alone).
+
+    q_d(0) in reach from q0 (the tool pose too with ``[tool]``), the gains (eq. 4, 11, 29),
+    dt·λ_max(M⁻¹K_d) at q0 for a law that reads K_d, f_d against the surfaces, and the law's
+    own checks (:attr:`~hybrid_force.control.laws.base.LawSpec.check`).
+
+    Args:
+        robot: the controller's model of the arm. constraint: the surfaces. path: p_d(t).
+        q0: (nq,) the start configuration. settings: the control settings.
+        dt: the control period [s]. tool: the ``[tool]`` settings. t0: start time [s].
+
+    Raises:
+        ReachError: q_d(0) out of reach. GainError, ControlError: a gain or a law's setting.
+    """
+    s, n = settings, robot.nv
+    q0 = robot.check_q(q0, "q0")
+    target = None
+    if tool.controlled:
+        tool.check_arm(robot)
+        target = ToolTarget(tool, constraint.surfaces[0], path)
+        qd0 = pose_inverse_kinematics(robot, target, t0, q0)
+    else:
+        qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
+    M0 = robot.mass_matrix(q0) * s.mass_factor
+    Kd = default_damping_gain(M0, s.kd_rate) if s.Kd is None else s.Kd
+    gains = make_gains(Kd, s.Lambda, s.beta, s.gamma, n)
+    stiffness = float(np.linalg.eigvals(np.linalg.solve(M0, gains.Kd)).real.max())
+    spec = law_spec(s.law)
+    # only a law that reads K_d is held to it (each law checks its own gains: loop_bounds)
+    if "Kd" in spec.gains and stiffness * dt > 0.5:
+        raise GainError(
+            f"dt·λ_max(M⁻¹K_d) = {stiffness * dt:.3g} at q0 is too large for explicit "
+            f"integration (must stay well below 2; limit here 0.5): lower Kd or dt = {dt}"
+        )
+    f_d = s.f_d_for(constraint.k)
+    context = LawContext(robot, constraint, s, gains, M0, q0, dt)
+    check_law(context)
+    return ControllerStart(q0, qd0, target, M0, gains, stiffness, f_d, context)
+
+
 @dataclass
 class _Integrators:
     F: np.ndarray
@@ -258,13 +338,11 @@ class HybridController:
 
     The CLIK and the laws run compiled, writing into preallocated arrays
     (:class:`~hybrid_force.control.clik.DesiredJointPath`,
-    :class:`~hybrid_force.control.laws.arimoto.LawWorkspace`);
-    :class:`ReferenceController` is the same controller on the numpy references.
+    :class:`~hybrid_force.control.laws.arimoto.LawWorkspace`).
     """
 
     _joint_path: type[DesiredJointPath] = DesiredJointPath
     _pose_path: type[PoseJointPath] = PoseJointPath
-    _reference = False  # build the law's readable numpy form
 
     def __init__(
         self,
@@ -283,28 +361,17 @@ class HybridController:
         self.settings = s = settings or ControlSettings()
         self.tool = tool = tool or ToolSettings()
         k, n = constraint.k, robot.nv
-        q0 = robot.check_q(q0, "q0")
+        start = check_controller(robot, constraint, path, q0, s, dt, tool, t0)
+        q0 = start.q0
         self.clik: DesiredJointPath | PoseJointPath
-        if tool.controlled:
-            tool.check_arm(robot)
-            target = ToolTarget(tool, constraint.surfaces[0], path)
-            qd0 = pose_inverse_kinematics(robot, target, t0, q0)
-            clik = ClikSettings(gamma=s.clik_gain)
-            self.clik = self._pose_path(robot, path, target, qd0, clik, t0=t0)
+        clik = ClikSettings(gamma=s.clik_gain)
+        if start.target is not None:
+            self.clik = self._pose_path(robot, path, start.target, start.qd0, clik, t0=t0)
         else:
-            qd0 = inverse_kinematics(robot, path.position(t0), seed=q0)
-            self.clik = self._joint_path(robot, path, qd0, ClikSettings(gamma=s.clik_gain), t0=t0)
-        M0 = robot.mass_matrix(q0) * s.mass_factor
-        Kd = default_damping_gain(M0, s.kd_rate) if s.Kd is None else s.Kd
-        self.gains: Gains = make_gains(Kd, s.Lambda, s.beta, s.gamma, n)
-        self.stiffness = float(np.linalg.eigvals(np.linalg.solve(M0, self.gains.Kd)).real.max())
-        # only a law that reads K_d is held to it (each law checks its own gains: loop_bounds)
-        if "Kd" in law_spec(s.law).gains and self.stiffness * dt > 0.5:
-            raise GainError(
-                f"dt·λ_max(M⁻¹K_d) = {self.stiffness * dt:.3g} at q0 is too large for explicit "
-                f"integration (must stay well below 2; limit here 0.5): lower Kd or dt = {dt}"
-            )
-        self.f_d_contact = s.f_d_for(k)
+            self.clik = self._joint_path(robot, path, start.qd0, clik, t0=t0)
+        self.gains: Gains = start.gains
+        self.stiffness = start.stiffness
+        self.f_d_contact = start.f_d
         self.approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
         self._int = _Integrators(F=np.zeros(k), F_d=np.zeros(k), f_d=np.zeros(k))
         self.phase = FREE
@@ -313,9 +380,7 @@ class HybridController:
         self._zeros_k = np.zeros(k)
         self._e_q = np.zeros(n)
         self._e_F = np.zeros(k)
-        self._law: Law = build_law(
-            LawContext(robot, constraint, s, self.gains, M0, q0, dt, reference=self._reference)
-        )
+        self._law: Law = law_spec(s.law).factory(start.context)  # checked by check_controller
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._scaled = RobotTerms.zeros(n)
         # per-step tests, decided once
@@ -324,6 +389,8 @@ class HybridController:
         self._subtract = robot.euclidean  # e_q = q − q_d (else pin.difference)
         self._next_branch_check = -np.inf
         self._desired = self._sample_desired()
+        # the law's input, its fields set at every step
+        self._input = LawInput(self._scaled, self._e_q, self._e_q, self._desired)
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -336,7 +403,7 @@ class HybridController:
         """q_d, q̇_d, q̈_d now (arrays that the next step may overwrite)."""
         c, d = self.clik, self._desired
         if d.q is not c.q or d.qd is not c.qd or d.qdd is not c.qdd or d.p is not c.p_d:
-            self._desired = d = self._sample_desired()  # new arrays (reference, a new sample)
+            self._desired = d = self._sample_desired()  # new arrays (a new sample)
         return d
 
     def _sample_desired(self) -> Desired:
@@ -420,11 +487,13 @@ class HybridController:
             e_q = np.subtract(q, desired.q, out=self._e_q)
         else:
             e_q = pin.difference(self.robot.model, desired.q, q)
-        law = self._law
+        law, inp = self._law, self._input
+        inp.robot, inp.v, inp.e_q, inp.desired = model, v, e_q, desired
         if phase == FREE:
             st.f_d = self._zeros_k
             self._last = (e_q, self._zeros_k, st.f_d)
-            command = law.free_space(model, v, e_q, desired)
+            inp.cons, inp.e_F, inp.f_d, inp.approach = None, self._zeros_k, st.f_d, None
+            command = law.free_space(inp)
             self.V = law.V
             return command
         assert cons is not None  # only the free phase runs without constraint terms
@@ -440,7 +509,8 @@ class HybridController:
                 self._check_branch(t, terms, cons, e_q)
         e_F = self._e_F  # F − F_d, kept up to date by update()
         self._last = (e_q, e_F, st.f_d)
-        command = law.hybrid(model, cons, v, e_q, desired, e_F, st.f_d, approach)
+        inp.cons, inp.e_F, inp.f_d, inp.approach = cons, e_F, st.f_d, approach
+        command = law.hybrid(inp)
         self.V = law.V
         return command
 
@@ -491,21 +561,3 @@ class HybridController:
         """F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3), in one compiled call."""
         st = self._int
         _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
-
-
-class ReferenceController(HybridController):
-    """:class:`HybridController` on the numpy references (:class:`ReferenceJointPath`,
-    :class:`~hybrid_force.control.pose_clik.ReferencePoseJointPath`,
-    :func:`~hybrid_force.control.laws.arimoto.arimoto_law`, ``free_space_law``): what
-    ``SimSettings(reference=True)`` runs, the kernels' tests compare against, and the scenario
-    loader checks a controller with (no Numba to load)."""
-
-    _joint_path = ReferenceJointPath
-    _pose_path = ReferencePoseJointPath
-    _reference = True
-
-    def _accumulate(self, f: np.ndarray, dt: float) -> None:
-        st = self._int
-        st.F += f * dt
-        st.F_d += st.f_d * dt
-        np.subtract(st.F, st.F_d, out=self._e_F)

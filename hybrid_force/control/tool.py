@@ -231,6 +231,10 @@ def _across(a: np.ndarray, v: np.ndarray) -> np.ndarray:
     )
 
 
+# where the desired direction is undefined (ToolTarget.undefined; _pose_kernels.pose_goal's codes)
+NORMAL_UNDEFINED, LEAN_UNDEFINED, ROLL_UNDEFINED = 1, 2, 3
+
+
 class ToolTarget:
     """The desired tool direction a_d(t) (and frame, roll held) along ``path`` on ``surface``.
 
@@ -266,9 +270,7 @@ class ToolTarget:
         g, H, third = self.surface_terms(sample)
         gj = np.array([g, H @ pd, H @ pdd + third])
         if not math.sqrt(float(g @ g)) > 1e-12:
-            raise ReachError(
-                f"the surface normal is undefined at p_d(t = {t:.6g} s) = {p.tolist()}"
-            )
+            raise self.undefined(NORMAL_UNDEFINED, t, p)
         return _unit(gj)[0], sample
 
     def surface_terms(self, sample: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -303,12 +305,10 @@ class ToolTarget:
             return -n
         if self._k is not None:
             d, size = _unit(_cross(n, self._k))
-            why = "tool.tilt_axis is along the surface normal"
         else:
             d, size = _unit(_across(n, self.path.direction_jet(t)))
-            why = "the path does not move across the normal (tool.tilt leans towards the travel)"
         if not size > _MIN_NORM:
-            raise ReachError(f"the tool's lean direction is undefined at t = {t:.6g} s: {why}")
+            raise self.undefined(LEAN_UNDEFINED, t)
         return -self._cos * n + self._sin * d
 
     def frame(
@@ -319,14 +319,30 @@ class ToolTarget:
         a = self.axis(t, sample)
         x, size = _unit(_across(a, self.path.direction_jet(t)))
         if not size > _MIN_NORM:
-            raise ReachError(
-                f'the tool\'s roll is undefined at t = {t:.6g} s: tool.roll = "held" keeps it '
-                "relative to the direction of travel, and the path does not move across the axis"
-            )
+            raise self.undefined(ROLL_UNDEFINED, t)
         y = _cross(a, x)
         omega = 0.5 * (cross3(x[0], x[1]) + cross3(y[0], y[1]) + cross3(a[0], a[1]))
         omega_dot = 0.5 * (cross3(x[0], x[2]) + cross3(y[0], y[2]) + cross3(a[0], a[2]))
         return np.column_stack([x[0], y[0], a[0]]), omega, omega_dot
+
+    def undefined(self, what: int, t: float, p: np.ndarray | None = None) -> ReachError:
+        """The ReachError of a direction undefined at time t [s]: ``what`` is
+        NORMAL_UNDEFINED (∇Φ = 0 at p_d = p (3,) [m]), LEAN_UNDEFINED or ROLL_UNDEFINED (the
+        codes of ``_pose_kernels.pose_goal``)."""
+        if what == NORMAL_UNDEFINED:
+            where = "?" if p is None else p.tolist()
+            return ReachError(f"the surface normal is undefined at p_d(t = {t:.6g} s) = {where}")
+        if what == LEAN_UNDEFINED:
+            why = (
+                "tool.tilt_axis is along the surface normal"
+                if self._k is not None
+                else "the path does not move across the normal (tool.tilt leans towards the travel)"
+            )
+            return ReachError(f"the tool's lean direction is undefined at t = {t:.6g} s: {why}")
+        return ReachError(
+            f'the tool\'s roll is undefined at t = {t:.6g} s: tool.roll = "held" keeps it '
+            "relative to the direction of travel, and the path does not move across the axis"
+        )
 
 
 class ToolAngleProbe:

@@ -152,19 +152,19 @@ def _check_controller(
     ctx: _Context,
     tool: Any = None,
 ) -> None:
-    """Build the controller once, on its own model (``robot``: ``control.model`` or the
-    plant): checks q_d(0) in reach and dt·λ_max(M_c⁻¹K_d) (the controller's own consistency;
-    the loops against the plant are :func:`_check_law_loops`)."""
+    """The checks of the controller's start on its own model (``robot``: ``control.model`` or
+    the plant), without building it (:func:`~hybrid_force.control.supervisor.check_controller`):
+    q_d(0) in reach, the gains, dt·λ_max(M_c⁻¹K_d) and the law's own checks (the controller's
+    own consistency; the loops against the plant are :func:`_check_law_loops`)."""
     from hybrid_force.control.constraint import Constraint
-    from hybrid_force.control.supervisor import ReferenceController
+    from hybrid_force.control.supervisor import check_controller
+    from hybrid_force.control.tool import ToolSettings
     from hybrid_force.sim.loop import control_steps
 
     try:
         constraint = Constraint(surfaces, normalization=sim.normalization)
-        # the numpy reference: the same checks without loading the compiled kernels (about
-        # 1 s), which a sweep's parent, that never simulates, does not need
         period = control_steps(control, sim) * sim.dt  # the law runs at the control rate
-        ReferenceController(robot, constraint, path, q0, control, dt=period, tool=tool)
+        check_controller(robot, constraint, path, q0, control, period, tool or ToolSettings())
     except ReachError as exc:
         given = path.to_dict()
         start = next((k for k in ("points", "origin") if k in given), "center")

@@ -1,12 +1,12 @@
 """The controller as the loop sees it: its command at each plant step, its integrators, its log.
 
 :func:`build_control_side` builds the run's controller from a
-:class:`~hybrid_force.sim.settings.Scenario`: the scenario's law (compiled, or the numpy
-reference) on its own model of the arm, or a user's
-:class:`~hybrid_force.control.controller.Controller`. :class:`ControlSide` hands
-:func:`~hybrid_force.sim.loop.simulate` the command of each step, exact (u = u0 + B f, the
-plant resolves the loop) or sampled and held; :class:`ToolLog` measures the tool axis' angle
-from its desired direction for runs with a ``[tool]`` table.
+:class:`~hybrid_force.sim.settings.Scenario`: the scenario's law on its own model of the arm,
+or a user's :class:`~hybrid_force.control.controller.Controller`. A :class:`ControlSide` hands
+:func:`~hybrid_force.sim.loop.simulate` the command of each step: :class:`ExactControl`
+(u = u0 + B f, the plant resolves the loop) or :class:`SampledControl` (sensors, the control
+rate, the torque held); :class:`ToolLog` measures the tool axis' angle from its desired
+direction for runs with a ``[tool]`` table.
 """
 
 from __future__ import annotations
@@ -14,14 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.controller import (
-    Controller,
-    ControllerModel,
-    ReferenceControllerModel,
-)
+from hybrid_force.control.controller import Controller, ControllerModel
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.control.pose_clik import PoseJointPath
-from hybrid_force.control.supervisor import HybridController, ReferenceController
+from hybrid_force.control.supervisor import HybridController
 from hybrid_force.control.tool import ToolAngleProbe, ToolTarget
 from hybrid_force.errors import ControlError
 from hybrid_force.events import Event
@@ -30,23 +26,23 @@ from hybrid_force.phases import FREE, NEAR
 from hybrid_force.sim.sensors import Sensors
 from hybrid_force.sim.settings import Scenario, control_steps
 
-__all__ = ["ControlSide", "ToolLog", "build_control_side"]
+__all__ = ["ControlSide", "ExactControl", "SampledControl", "ToolLog", "build_control_side"]
 
 
 class ControlSide:
-    """The controller as the loop sees it: a command per step, its integrators, its logs.
+    """The controller as the loop sees it: a command per step, its integrators, its logs
+    (:class:`ExactControl` or :class:`SampledControl`, chosen once by
+    :func:`build_control_side`).
 
-    Ideal sensing at the plant's rate (``measured`` False): the law's command is affine in the
-    force the plant will produce (u = u0 + B f) and the plant resolves that loop exactly (the
-    paper's runs). The law then evaluates its model at the plant's state; when that model is
-    the plant's own model file, the plant's terms at that state are the same numbers and are
-    passed instead of being computed twice.
-
-    Sampled (``measured`` True: a control rate below the plant's, sensors that are not ideal,
-    or a user's controller): every ``per_tick`` plant steps the controller reads its sensors,
-    computes its terms from its own model at the measured state, and its torque is held
-    (zero-order hold).
+    Attributes:
+        law: the scenario's law in its supervisor, or None (a user's controller).
+        user: the user's controller, or None.
+        model_robot: the controller's model of the arm.
+        period: the control period [s]. measured: the controller reads sensors (sampled).
+        f_meas: (k,) the force the controller read last [N] (0 when exact).
     """
+
+    measured = False
 
     def __init__(
         self,
@@ -55,21 +51,17 @@ class ControlSide:
         user: Controller | None,
         own: ControllerModel | None,
         model_robot: Robot,
-        per_tick: int,
-        measured: bool,
+        period: float,
     ) -> None:
         self.law, self.user, self.own = law, user, own
-        self.model_robot = model_robot  # the controller's model of the arm
-        self.per_tick, self.measured = per_tick, measured
-        self.period = per_tick * sc.sim.dt
-        self.sensors = Sensors(sc.sensor, self.period, sc.sim.seed) if measured else None
+        self.model_robot = model_robot
+        self.period = period
         self.f_meas = np.zeros(len(sc.surfaces))
         self.max_dist = sc.control.max_dist
-        self.nv = sc.robot.nv
-        self._held: Command | None = None
 
     @property
     def events(self) -> list[Event]:
+        """The supervisor's events (none for a user's controller)."""
         return self.law.events if self.law is not None else []
 
     def command(
@@ -82,34 +74,13 @@ class ControlSide:
         cons: ConstraintTerms | None,
         f: np.ndarray,
     ) -> Command:
-        """The command at plant step i (time t [s]); f (k,) [N] is the plant's last force."""
-        law = self.law
-        if not self.measured:
-            assert law is not None
-            if self.own is None:
-                return law.command(t, q, v, terms, cons)
-            return law.command(t, q, v, *self.own.evaluate(q, v))
-        if i % self.per_tick == 0:  # a tick: sense, then control; the torque is held
-            assert self.sensors is not None
-            if law is not None and i:  # the law's integrators and CLIK over the period
-                law.update(self.period, self.f_meas)
-            q_m, v_m, self.f_meas = self.sensors.measure(q, v, f)
-            if law is None:
-                assert self.user is not None
-                u = _user_torque(self.user, t, q_m, v_m, self.f_meas, self.nv)
-            else:
-                assert self.own is not None
-                c = law.command(t, q_m, v_m, *self.own.evaluate(q_m, v_m))
-                u = c.u0 + c.B @ self.f_meas if c.B is not None else c.u0.copy()
-            self._held = Command(u, None)
-        assert self._held is not None
-        return self._held
+        """The command at plant step i (time t [s]) at the plant's state (q, v) with its terms
+        and rows there; f (k,) [N] is the plant's last force."""
+        raise NotImplementedError
 
     def update(self, dt: float, f: np.ndarray) -> None:
-        """The exact loop's integrators over one plant step with the force f (k,) [N]."""
-        if not self.measured:
-            assert self.law is not None
-            self.law.update(dt, f)
+        """The integrators over one plant step of dt [s] with the force f (k,) [N] (none by
+        default: a sampled controller advances its own at its ticks)."""
 
     def phase(self, distance: np.ndarray) -> int:
         """The phase logged off the surface: the supervisor's (free or near), or for a user's
@@ -117,6 +88,83 @@ class ControlSide:
         if self.law is not None:
             return min(self.law.phase, NEAR)
         return NEAR if float(distance.max()) <= self.max_dist else FREE
+
+
+class ExactControl(ControlSide):
+    """Ideal sensing at the plant's rate: the law's command is affine in the force the plant
+    will produce (u = u0 + B f) and the plant resolves that loop exactly (the paper's runs).
+    The law evaluates its model at the plant's state; when that model is the plant's own
+    model file (``own`` None), the plant's terms at that state are the same numbers and are
+    passed instead of being computed twice."""
+
+    law: HybridController
+
+    def command(
+        self,
+        i: int,
+        t: float,
+        q: np.ndarray,
+        v: np.ndarray,
+        terms: RobotTerms,
+        cons: ConstraintTerms | None,
+        f: np.ndarray,
+    ) -> Command:
+        if self.own is None:
+            return self.law.command(t, q, v, terms, cons)
+        return self.law.command(t, q, v, *self.own.evaluate(q, v))
+
+    def update(self, dt: float, f: np.ndarray) -> None:
+        """The supervisor's integrators over one plant step with the plant's force f (k,)."""
+        self.law.update(dt, f)
+
+
+class SampledControl(ControlSide):
+    """A control rate below the plant's, sensors that are not ideal, or a user's controller:
+    every ``per_tick`` plant steps the controller reads its sensors, computes its terms from
+    its own model at the measured state, and its torque is held (zero-order hold)."""
+
+    measured = True
+    own: ControllerModel
+
+    def __init__(
+        self,
+        sc: Scenario,
+        law: HybridController | None,
+        user: Controller | None,
+        own: ControllerModel,
+        model_robot: Robot,
+        per_tick: int,
+    ) -> None:
+        super().__init__(sc, law, user, own, model_robot, per_tick * sc.sim.dt)
+        self.per_tick = per_tick
+        self.sensors = Sensors(sc.sensor, self.period, sc.sim.seed)
+        self.nv = sc.robot.nv
+        self._held: Command | None = None
+
+    def command(
+        self,
+        i: int,
+        t: float,
+        q: np.ndarray,
+        v: np.ndarray,
+        terms: RobotTerms,
+        cons: ConstraintTerms | None,
+        f: np.ndarray,
+    ) -> Command:
+        if i % self.per_tick == 0:  # a tick: sense, then control; the torque is held
+            law = self.law
+            if law is not None and i:  # the law's integrators and CLIK over the period
+                law.update(self.period, self.f_meas)
+            q_m, v_m, self.f_meas = self.sensors.measure(q, v, f)
+            if law is None:
+                assert self.user is not None
+                u = _user_torque(self.user, t, q_m, v_m, self.f_meas, self.nv)
+            else:
+                c = law.command(t, q_m, v_m, *self.own.evaluate(q_m, v_m))
+                u = c.u0 + c.B @ self.f_meas if c.B is not None else c.u0.copy()
+            self._held = Command(u, None)
+        assert self._held is not None
+        return self._held
 
 
 class ToolLog:
@@ -138,10 +186,9 @@ class ToolLog:
         return self.probe.angle(q, a_d)
 
 
-def build_control_side(
-    sc: Scenario, user: Controller | None, q: np.ndarray, reference: bool
-) -> ControlSide:
-    """The controller of the run: the scenario's law on its own model, or the user's."""
+def build_control_side(sc: Scenario, user: Controller | None, q: np.ndarray) -> ControlSide:
+    """The controller of the run: the scenario's law on its own model, or the user's; exact
+    (:class:`ExactControl`) with ideal sensing at the plant's rate, else sampled."""
     sim = sc.sim
     per_tick = control_steps(sc.control, sim)
     measured = user is not None or per_tick > 1 or not sc.sensor.ideal
@@ -149,18 +196,20 @@ def build_control_side(
     model_robot = sc.controller_model if sc.controller_model is not None else sc.robot
     own = None
     if measured or model_robot is not sc.robot:
-        own_type = ReferenceControllerModel if reference else ControllerModel
-        own = own_type(model_robot, sc.surfaces, sim.normalization)
+        own = ControllerModel(model_robot, sc.surfaces, sim.normalization)
     law = None
     if user is None:
         constraint = (
             own.constraint if own is not None else Constraint(sc.surfaces, sim.normalization)
         )
-        law_type = ReferenceController if reference else HybridController
-        law = law_type(
+        law = HybridController(
             model_robot, constraint, sc.path, q, sc.control, dt=per_tick * sim.dt, tool=sc.tool
         )
-    return ControlSide(sc, law, user, own, model_robot, per_tick, measured)
+    if not measured:
+        assert law is not None
+        return ExactControl(sc, law, None, own, model_robot, sim.dt)
+    assert own is not None
+    return SampledControl(sc, law, user, own, model_robot, per_tick)
 
 
 def _user_torque(

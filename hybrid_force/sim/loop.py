@@ -121,7 +121,7 @@ def simulate(
     plant = (ReferencePlant if reference else Plant)(
         robot, constraint, sim, sc.control.contact_tol, sc.contact
     )
-    ctrl = build_control_side(sc, controller, q, reference)
+    ctrl = build_control_side(sc, controller, q)
     law = ctrl.law
     # the law's own signals (its optional log hook), recorded at every sample
     law_signals = law_log_names(law.law if law is not None else None)

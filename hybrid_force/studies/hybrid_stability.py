@@ -38,6 +38,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint
+from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.laws.raibert_craig import (
     RaibertCraigGains,
     pseudo_inverse,
@@ -196,7 +197,7 @@ def closed_loop_matrix(
         cons = controller.constraint.evaluate(terms, v)
         f = stiffness * np.maximum(-cons.distance, 0.0)
         cmd = controller.law.hybrid(
-            terms, cons, v, q - desired.q, desired, e_F, controller.f_d_contact, None
+            LawInput(terms, v, q - desired.q, desired, cons, e_F, controller.f_d_contact)
         )
         u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
         real = terms if plant is None else arm.terms(q, v)

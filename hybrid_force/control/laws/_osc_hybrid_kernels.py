@@ -1,9 +1,8 @@
 """Compiled step of the operational-space hybrid law (Numba): Λ, J̄, N and the command.
 
-Reference, the readable numpy version:
-:func:`hybrid_force.control.laws.osc_hybrid.osc_hybrid_law` (with its ``task_space`` and
-``normal_directions``); ``tests/test_osc_hybrid_kernel.py`` checks the kernel against it.
-The small dense solves are written here: a Cholesky factor of M for M⁻¹Jᵀ, an LU
+Its oracle, the readable numpy version, is ``osc_hybrid_law`` of ``tests/oracles/laws.py``;
+``tests/test_osc_hybrid_kernel.py`` checks the kernel against it. The small dense solves are
+written here: a Cholesky factor of M for M⁻¹Jᵀ (an LU factorisation when M has none), an LU
 factorisation with partial pivoting (as numpy's ``solve`` and ``inv``) for
 Λ = (J M⁻¹ Jᵀ)⁻¹ (3 × 3) and for (WᵀW)⁻¹Wᵀ (k × k).
 
@@ -24,6 +23,10 @@ from hybrid_force.geometry._kernels import surface_eval
 FREE_SPACE = 0
 NEAR = 1
 CONTACT = 2
+# what osc_hybrid returns instead of a condition number when it cannot finish: M or WᵀW
+# singular (numpy's "Singular matrix")
+SINGULAR_MASS = -1.0
+SINGULAR_NORMALS = -2.0
 
 
 @_jit
@@ -123,8 +126,9 @@ def osc_hybrid(
     W (3, k) = ∇Φ_i / s_i, phi (k,) and, in CONTACT with k_P > 0, B (n, k) = k_P Aᵀ.
 
     Returns ‖S‖_F ‖S⁻¹‖_F of S = J M⁻¹ Jᵀ (``task_space``'s estimate of cond(S)); +inf when
-    S is exactly singular, NaN when M has no Cholesky factor or WᵀW is exactly singular. The
-    outputs are complete only when the value returned is finite and below the caller's limit.
+    S is exactly singular, SINGULAR_MASS or SINGULAR_NORMALS (< 0) when M or WᵀW is exactly
+    singular. The outputs are complete only when the value returned is >= 0 and below the
+    caller's limit.
     """
     M = mats[0]
     nle = vecs[1]
@@ -136,13 +140,14 @@ def osc_hybrid(
     kp, kv, kn = gains[0], gains[1], gains[2]
     force_p, force_i = gains[3], gains[4]
     null_kp, null_kd, approach_rate = gains[5], gains[6], gains[7]
-    # --- M⁻¹Jᵀ (n, 3) by the Cholesky factor L (lower, in work) of M = L Lᵀ
+    # --- M⁻¹Jᵀ (n, 3) by the Cholesky factor L (lower, in work) of M = L Lᵀ, else by LU
     L = work
-    if not cholesky(M, L):
-        return math.nan
     X = np.empty((n, 3))  # M⁻¹Jᵀ
-    for r in range(3):
-        cholesky_solve_column(L, J[r], X, r)
+    if cholesky(M, L):
+        for r in range(3):
+            cholesky_solve_column(L, J[r], X, r)
+    elif not _lu_solve(M, J.T.copy(), X):  # M not positive definite: LU, as numpy's solve
+        return SINGULAR_MASS
     # --- Λ = S⁻¹, S = J M⁻¹ Jᵀ, and the estimate of cond(S)
     S = np.empty((3, 3))
     s_sq = 0.0
@@ -195,7 +200,7 @@ def osc_hybrid(
                 for c in range(k):
                     WtW[m, c] = W[0, m] * W[0, c] + W[1, m] * W[1, c] + W[2, m] * W[2, c]
             if not _lu_solve(WtW, Wt, P):
-                return math.nan
+                return SINGULAR_NORMALS
         Pa = np.empty(k)
         cx = np.empty(k)
         for m in range(k):

@@ -1,20 +1,18 @@
 """Compiled algebra of the raibert_craig law's step (Numba), beside its concept.
 
-References, the readable numpy versions: :meth:`RaibertCraigLaw.free_space` and
-:meth:`RaibertCraigLaw.hybrid` of :mod:`hybrid_force.control.laws.raibert_craig` (the law's
-``reference=True`` form); :class:`~hybrid_force.control.laws.raibert_craig.RaibertCraigWorkspace`
-calls these kernels, one call per step, and ``tests/test_raibert_craig_kernel.py`` checks them
-against the references.
+Their oracle, the readable numpy version, is ``RaibertCraigLaw`` of ``tests/oracles/laws.py``;
+:class:`~hybrid_force.control.laws.raibert_craig.RaibertCraigWorkspace` calls these kernels,
+one call per step, and ``tests/test_raibert_craig_kernel.py`` checks them against it.
 
 The same formulas as the references, written as loops: the selection S = I − N (NᵀN)⁻¹ Nᵀ
 from the surfaces' unit normals at the tip, J⁺ = Jᵀ (J Jᵀ)⁻¹, the position part (eq. 2 or 3),
 the feed-forward, the redundant directions' hold (I − J⁺J)(…) (applied as x − J⁺(J x), the
 matrix is not formed), the near phase's normal torque and in contact the projection P, the
 normal damper D_n and the force terms. Every solve is an LU factorisation with partial
-pivoting (as ``np.linalg.solve``); the products by inverses of the reference
-((J Jᵀ)⁻¹, D_n = (ω_p + ω_d) H⁻¹) are solves here, equal to round-off. A zero pivot makes
-the kernel return a nonzero status without finishing, and the caller runs the reference for
-that step (the pseudo-inverse's SVD fallback at a singularity, or numpy's own error).
+pivoting (as ``np.linalg.solve``); the products by inverses of the oracle
+((J Jᵀ)⁻¹, D_n = (ω_p + ω_d) H⁻¹) are solves here, equal to round-off. At a singularity
+(J Jᵀ with a zero pivot) J⁺ is the SVD's pseudo-inverse; any other zero pivot makes the
+kernel return SINGULAR_OTHER without finishing, and the caller raises numpy's error.
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions
 (outputs preallocated and passed last, no fastmath).
@@ -30,8 +28,7 @@ from hybrid_force._jit import jit as _jit
 from hybrid_force.geometry._kernels import surface_eval
 
 OK = 0
-SINGULAR_JACOBIAN = 1  # J Jᵀ has a zero pivot: the reference's pseudo-inverse uses the SVD
-SINGULAR_OTHER = 2  # M, A M⁻¹ Aᵀ, NᵀN or Nᵀ J M⁻¹ Jᵀ N has a zero pivot
+SINGULAR_OTHER = 2  # M, A M⁻¹ Aᵀ, NᵀN or Nᵀ J M⁻¹ Jᵀ N has a zero pivot (numpy's LinAlgError)
 
 
 @_jit
@@ -188,7 +185,8 @@ def hybrid(
     joint_gains (2, n, n) = [K_P, K_D]; task_gains (2, 3, 3) = [K_x, D_x]; params =
     [ω_p, ω_d, k_p, k_i, λ_a]; flags = [original, model feed-forward, decouple, grads given].
     Writes the rows of vectors (2, n): u0 and u_pos (eq. 2 or 3, before the redundant hold and
-    P), and in contact B (n, k) = k_p Aᵀ. Returns OK, or SINGULAR_* (outputs then unfinished).
+    P), and in contact B (n, k) = k_p Aᵀ. Returns OK, or SINGULAR_OTHER (outputs then
+    unfinished).
     """
     M, C, g = mats[0], mats[1], vecs[0]
     J = jac[0]
@@ -265,13 +263,14 @@ def hybrid(
         for j in range(n):
             X[r, j] = J[r, j]
     piv3 = np.empty(3, dtype=np.int64)
-    if not lu_factor(JJt, piv3):
-        return SINGULAR_JACOBIAN
-    lu_solve(JJt, piv3, X)
     Jp = np.empty((n, 3))
-    for j in range(n):
-        for r in range(3):
-            Jp[j, r] = X[r, j]
+    if lu_factor(JJt, piv3):
+        lu_solve(JJt, piv3, X)
+        for j in range(n):
+            for r in range(3):
+                Jp[j, r] = X[r, j]
+    else:  # J Jᵀ singular (a singularity): the SVD's pseudo-inverse, as np.linalg.pinv
+        Jp[:, :] = np.linalg.pinv(J)
 
     # the position part u_pos (eq. 2 or 3)
     u_fb = np.empty(n)

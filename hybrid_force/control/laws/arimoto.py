@@ -32,9 +32,18 @@ import numpy as np
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext, below
+from hybrid_force.control.laws.base import (
+    PAPER_GAINS,
+    Law,
+    LawContext,
+    LawInput,
+    LawSpec,
+    LoopBound,
+    LoopContext,
+    below,
+    register,
+)
 from hybrid_force.errors import GainError
-from hybrid_force.model.robot import RobotTerms
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
@@ -44,13 +53,10 @@ __all__ = [
     "Desired",
     "Gains",
     "LawWorkspace",
-    "ReferenceLaw",
-    "arimoto_law",
     "build",
     "check_damping_gain",
     "damping_matrix",
     "default_damping_gain",
-    "free_space_law",
     "loop_bounds",
     "make_gains",
 ]
@@ -199,118 +205,14 @@ class ControlTrace:
     f_d: np.ndarray
 
 
-def free_space_law(
-    gains: Gains, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-) -> tuple[Command, ControlTrace]:
-    """Free-space law, eq. 29–30.
+class LawWorkspace(Law):
+    """The paper's laws (module docstring: eq. 4, 8, 11 near and on the surface, eq. 29–30
+    away from it) as one compiled call each, writing into arrays preallocated here (hot path).
 
-    q̇_r = q̇_d − Λ e_q,  s = q̇ − q̇_r,  u = M q̈_r + C q̇_r + g − K_d s.
-
-    Args:
-        robot: the controller's model terms (M, C, g) at (q, v).
-        v: (n,) joint velocity. e_q: (n,) position error q − q_d.
-    """
-    lam = gains.Lambda
-    qdot_r = desired.qd - lam * e_q
-    qddot_r = desired.qdd - lam * (v - desired.qd)
-    s = v - qdot_r
-    u = robot.M @ qddot_r + robot.C @ qdot_r + robot.g - gains.Kd @ s
-    trace = ControlTrace(
-        e_q=e_q,
-        s=s,
-        s0=s,
-        s1=np.zeros_like(s),
-        e_F=np.zeros(0),
-        qdot_r=qdot_r,
-        qddot_r0=qddot_r,
-        qddot_r_f=None,
-        V=0.5 * float(s @ robot.M @ s),
-        f_d=np.zeros(0),
-    )
-    return Command(u0=u, B=None), trace
-
-
-def arimoto_law(
-    gains: Gains,
-    robot: RobotTerms,
-    cons: ConstraintTerms,
-    v: np.ndarray,
-    e_q: np.ndarray,
-    desired: Desired,
-    e_F: np.ndarray,
-    f_d: np.ndarray,
-    approach: np.ndarray | None = None,
-) -> tuple[Command, ControlTrace]:
-    """Modified Arimoto hybrid law, eq. 4, 8, 11, with the loop in f kept explicit.
-
-    Args:
-        robot: the controller's model terms (M, C, g) at (q, v).
-        cons: the constraint terms (A, A⁺, Ȧ⁺, Q, Q̇) at (q, v).
-        v: (n,) joint velocity. e_q: (n,) q − q_d.
-        e_F: (k,) momentum error F − F_d [N·s] (eq. 3).
-        f_d: (k,) desired force [N].
-        approach: optional (k,) normal reference velocity [m/s] added as A⁺·approach to q̇_r
-            (near phase only, see :mod:`hybrid_force.control.supervisor`); None in contact.
-
-    Returns:
-        The command u = u0 + B f and the trace (s₀ = Q(ė_q + Λe_q), s₁ = −βA⁺e_F, eq. 9).
-    """
-    lam, beta = gains.Lambda, gains.beta
-    Q, Qdot, Ap, Apd = cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot
-    x = desired.qd - lam * e_q
-    xdot = desired.qdd - lam * (v - desired.qd)
-    qdot_r = Q @ x + beta * (Ap @ e_F)
-    qddot_r0 = Qdot @ x + Q @ xdot + beta * (Apd @ e_F) - beta * (Ap @ f_d)
-    if approach is not None:
-        qdot_r = qdot_r + Ap @ approach
-        qddot_r0 = qddot_r0 + Apd @ approach
-    s = v - qdot_r
-    M = robot.M
-    u0 = (
-        M @ qddot_r0
-        + robot.C @ qdot_r
-        + robot.g
-        - gains.Kd @ s
-        - cons.A.T @ (f_d - gains.gamma * e_F)
-    )
-    B = beta * (M @ Ap) if beta > 0 else None
-    trace = ControlTrace(
-        e_q=e_q,
-        s=s,
-        s0=Q @ (v - x),
-        s1=-beta * (Ap @ e_F),
-        e_F=e_F,
-        qdot_r=qdot_r,
-        qddot_r0=qddot_r0,
-        qddot_r_f=beta * Ap,
-        V=0.5 * float(s @ M @ s) + 0.5 * beta * float(e_F @ e_F),
-        f_d=f_d,
-    )
-    return Command(u0=u0, B=B), trace
-
-
-class _PaperGains:
-    """What both forms of the paper's law share as a :class:`~.base.Law`: their gains, no
-    states of their own (the only integrals are the supervisor's F and F_d)."""
-
-    gains: Gains
-
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """Nothing to advance."""
-
-    def info(self) -> dict[str, object]:
-        """K_d, Λ, β, γ as JSON-able data."""
-        g = self.gains
-        return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
-
-
-class LawWorkspace(_PaperGains):
-    """Both laws as one compiled call each, writing into arrays preallocated here (hot path).
-
-    :func:`arimoto_law` and :func:`free_space_law` above are the readable references; this
-    computes the same numbers (:func:`hybrid_force._kernels.arimoto`; the free-space law is
-    the same kernel with Q = I, Q̇ = 0 and no constraint rows) without allocating. The
-    command returned and the arrays below are overwritten at every call: copy to keep.
+    :func:`hybrid_force.control._kernels.arimoto` computes both (the free-space law is the
+    same kernel with Q = I, Q̇ = 0 and no constraint rows) without allocating; the law has no
+    states of its own (the only integrals are the supervisor's F and F_d). The command
+    returned and the arrays below are overwritten at every call: copy to keep.
 
     Attributes:
         u0, s, s0, s1, qdot_r, qddot_r0: (n,) as in :class:`ControlTrace`.
@@ -336,52 +238,40 @@ class LawWorkspace(_PaperGains):
         self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
         self._free = Command(u0=self.u0, B=None)
 
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None = None,
-    ) -> Command:
-        """:func:`arimoto_law` (eq. 4, 8, 11); same arguments, the gains are this workspace's."""
-        if approach is None:
-            approach = self._zeros_k
-        self._run(robot, cons, v, e_q, desired, e_F, f_d, approach, self._matrices)
+    def hybrid(self, inp: LawInput) -> Command:
+        """Eq. 4, 8, 11 with the loop in f kept explicit (module docstring), plus A⁺·approach
+        in q̇_r (and Ȧ⁺·approach in q̈_r) in the near phase."""
+        approach = self._zeros_k if inp.approach is None else inp.approach
+        self._run(inp, inp.rows, inp.e_F, inp.f_d, approach, self._matrices)
         self.in_contact_law = True
         return self._hybrid
 
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """:func:`free_space_law` (eq. 29–30); same arguments, the gains are this workspace's."""
+    def free_space(self, inp: LawInput) -> Command:
+        """Eq. 29–30: q̇_r = q̇_d − Λ e_q, s = q̇ − q̇_r, u = M q̈_r + C q̇_r + g − K_d s."""
         none = self._no_force
-        self._run(robot, self._free_space, v, e_q, desired, none, none, none, self._free_matrices)
+        self._run(inp, self._free_space, none, none, none, self._free_matrices)
         self.in_contact_law = False
         return self._free
 
-    arimoto = hybrid  # the name before laws became plug-ins
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ as JSON-able data."""
+        g = self.gains
+        return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
 
     def _run(
         self,
-        robot: RobotTerms,
+        inp: LawInput,
         cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
         e_F: np.ndarray,
         f_d: np.ndarray,
         approach: np.ndarray,
         matrices: np.ndarray,
     ) -> None:
-        g = self.gains
+        g, robot, desired = self.gains, inp.robot, inp.desired
         self.V = _K.arimoto(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
-            cons.A, v, e_q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda, g.beta,
-            g.gamma, self._vectors, matrices,
+            cons.A, inp.v, inp.e_q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda,
+            g.beta, g.gamma, self._vectors, matrices,
         )  # fmt: skip
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
@@ -400,53 +290,9 @@ class LawWorkspace(_PaperGains):
         )
 
 
-class ReferenceLaw(_PaperGains):
-    """:class:`LawWorkspace`'s interface over the numpy references :func:`arimoto_law` and
-    :func:`free_space_law` (new arrays every call): what the reference controller runs."""
-
-    def __init__(self, n: int, k: int, gains: Gains) -> None:
-        self.gains = gains
-        self.V = 0.0
-        self._trace: ControlTrace | None = None
-
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None = None,
-    ) -> Command:
-        """:func:`arimoto_law` with this law's gains."""
-        command, self._trace = arimoto_law(
-            self.gains, robot, cons, v, e_q, desired, e_F.copy(), f_d, approach
-        )
-        self.V = self._trace.V
-        return command
-
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """:func:`free_space_law` with this law's gains."""
-        command, self._trace = free_space_law(self.gains, robot, v, e_q, desired)
-        self.V = self._trace.V
-        return command
-
-    arimoto = hybrid  # the name before laws became plug-ins
-
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
-        """The :class:`ControlTrace` of the last call."""
-        assert self._trace is not None
-        return self._trace
-
-
-def build(context: LawContext) -> LawWorkspace | ReferenceLaw:
+def build(context: LawContext) -> LawWorkspace:
     """The registry's factory of ``control.law = "arimoto"`` (the paper's gains, no options)."""
-    law_type = ReferenceLaw if context.reference else LawWorkspace
-    return law_type(context.robot.nv, context.constraint.k, context.gains)
+    return LawWorkspace(context.robot.nv, context.constraint.k, context.gains)
 
 
 def damping_matrix(Kd: object, kd_rate: float, M0: np.ndarray) -> np.ndarray:
@@ -567,3 +413,14 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
         )
     )
     return bounds
+
+
+register(
+    LawSpec(
+        "arimoto",
+        "the paper's modified Arimoto hybrid law with its phase supervisor (eq. 4, 11, 29-31)",
+        build,
+        gains=PAPER_GAINS,
+        loop_bounds=loop_bounds,
+    )
+)

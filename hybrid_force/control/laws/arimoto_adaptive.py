@@ -58,32 +58,33 @@ decreases, so Γ(t)⁻¹ never increases and V below (with Γ(t)) stays non-incr
 V reported (:attr:`AdaptiveArimotoLaw.V`): ½ sᵀ M̂ s + ½ β e_Fᵀ e_F, the part the controller can
 evaluate; the parameter term needs the plant's θ (the tests add it).
 
-Two forms: :class:`AdaptiveArimotoWorkspace` (what a run builds) calls Pinocchio between compiled
-kernels (:mod:`hybrid_force.control.laws._arimoto_adaptive_kernels`: Y from two regressor passes
+:class:`AdaptiveArimotoWorkspace` calls Pinocchio between compiled kernels
+(:mod:`hybrid_force.control.laws._arimoto_adaptive_kernels`: Y from two regressor passes
 instead of three, ½ sᵀ M̂ s from the kinetic energy regressor, into preallocated buffers);
-:class:`AdaptiveArimotoLaw` is the readable numpy reference (``LawContext.reference``), which
-``tests/test_arimoto_adaptive_kernel.py`` holds it to.
+``tests/test_arimoto_adaptive_kernel.py`` holds it to the readable numpy law of
+``tests/oracles/laws.py``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.arimoto import (
-    Command,
-    ControlTrace,
-    Desired,
-    Gains,
-    arimoto_law,
-    free_space_law,
+from hybrid_force.control.laws.arimoto import Command, ControlTrace, Gains, loop_bounds
+from hybrid_force.control.laws.base import (
+    PAPER_GAINS,
+    Law,
+    LawContext,
+    LawInput,
+    LawOptions,
+    LawSpec,
+    register,
 )
-from hybrid_force.control.laws.base import LawContext
 from hybrid_force.model.regressor import (
     PARAMETER_LABELS,
     SlotineLiRegressor,
@@ -92,7 +93,8 @@ from hybrid_force.model.regressor import (
     sample_regressors,
     visible_columns,
 )
-from hybrid_force.model.robot import Robot, RobotTerms
+from hybrid_force.model.robot import Robot
+from hybrid_force.schema import param
 
 _K = LazyKernels("hybrid_force.control.laws._arimoto_adaptive_kernels")
 
@@ -100,7 +102,7 @@ __all__ = [
     "DEFAULT_ADAPTATION_RATE",
     "MASS_FLOOR",
     "Adaptation",
-    "AdaptiveArimotoLaw",
+    "AdaptiveArimotoOptions",
     "AdaptiveArimotoWorkspace",
     "build",
     "make_adaptation",
@@ -170,176 +172,20 @@ def make_adaptation(
     )
 
 
-class _Reports:
-    """What both forms of the law report: its settings and its logged estimates."""
+@dataclass(frozen=True)
+class AdaptiveArimotoOptions(LawOptions):
+    """The ``[control.arimoto_adaptive]`` table."""
 
-    gains: Gains
-    adaptation: Adaptation
-    theta: np.ndarray
-    _adapted: np.ndarray
+    law: ClassVar[str] = "arimoto_adaptive"
 
-    def info(self) -> dict[str, object]:
-        """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
-        g, a, i = self.gains, self.adaptation, self._adapted
-        return {
-            "Kd": g.Kd.tolist(),
-            "Lambda": g.Lambda,
-            "beta": g.beta,
-            "gamma": g.gamma,
-            "adaptation_rate": a.rate,
-            "schedule_energy": a.energy,
-            "adapted": [a.names[j] for j in i],
-            "theta0": a.theta0[i].tolist(),
-            "Gamma0": a.Gamma[i].tolist(),
-        }
-
-    def log_names(self) -> tuple[str, ...]:
-        """The estimates this law logs at every sample: the adapted parameters' names."""
-        return tuple(self.adaptation.names[j] for j in self._adapted)
-
-    def log_values(self, out: np.ndarray) -> None:
-        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
-        out[:] = self.theta[self._adapted]
+    adaptation_rate: float = param(
+        DEFAULT_ADAPTATION_RATE, unit="1/s", minimum=0.0, strict=True,
+        doc="ρ of the default Γ_ii = ρ / E[Y_iᵀ K_d⁻¹ Y_i]: the rate at which one parameter's "
+        "error alone decays, for any arm",
+    )  # fmt: skip
 
 
-class AdaptiveArimotoLaw(_Reports):
-    """The adaptive law (module docstring) as the supervisor runs it, in numpy: the readable
-    reference of :class:`AdaptiveArimotoWorkspace` (what ``reference=True`` builds).
-
-    Args:
-        robot: the controller's model of the arm (its kinematics and parameter layout).
-        gains: K_d, Λ, β, γ of the paper's law.
-        adaptation: θ̂(0), Γ and which parameters adapt (:func:`make_adaptation`).
-
-    Attributes:
-        theta: (p,) the current estimates θ̂ (updated by :meth:`update`).
-        sigma: σ of the gain schedule Γ = σ Γ₀ at the last call (non-decreasing, ≤ 1).
-        V: ½ sᵀ M̂ s + ½ β e_Fᵀ e_F [J] at the last call.
-    """
-
-    def __init__(self, robot: Robot, gains: Gains, adaptation: Adaptation) -> None:
-        self.gains = gains
-        self.adaptation = adaptation
-        self.regressor = SlotineLiRegressor(robot.model)
-        self.theta = adaptation.theta0.copy()
-        self.V = 0.0
-        self._model = robot.model
-        self._euclidean = robot.euclidean
-        self._adapted = np.flatnonzero(adaptation.adapted)
-        # the last call's Y₀ᵀ s (p,) and (β Y_M(q, A⁺_j))ᵀ s (k, p): update() needs only these,
-        # since Y(q̈_r0 + β A⁺ f)ᵀ s = Y₀ᵀ s + Σ_j f_j (β Y_M(q, A⁺_j))ᵀ s
-        self._gradient: np.ndarray | None = None
-        self._gradient_f: np.ndarray | None = None
-        self._ref: ControlTrace | None = None  # the paper's law's trace of the last call
-        self.sigma = 0.0
-        self._z_min = np.inf  # min over the past of Z = ½ wᵀ M w [J]
-
-    # ------------------------------------------------------------------ the law
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
-        _, ref = free_space_law(self.gains, robot, v, e_q, desired)  # q̇_r, q̈_r, s of eq. 29
-        q = self._configuration(desired.q, e_q)
-        Y = self.regressor(q, v, ref.qdot_r, ref.qddot_r0)
-        return self._command(robot, q, Y, ref, desired, None, None)
-
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """Eq. 4, 8, 11 adapted (module docstring); the same arguments as the paper's law.
-
-        q̇_r, q̈_r (at f = 0) and s are the paper's law's own (:func:`~.arimoto.arimoto_law`,
-        whose torque with the model's M, C, g is not used)."""
-        g = self.gains
-        _, ref = arimoto_law(g, robot, cons, v, e_q, desired, e_F, f_d, approach)
-        q = self._configuration(desired.q, e_q)
-        Y = self.regressor(q, v, ref.qdot_r, ref.qddot_r0)
-        force = cons.A.T @ (f_d - g.gamma * e_F)
-        command = self._command(
-            robot, q, Y, ref, desired, cons.A_pinv if g.beta > 0 else None, force
-        )
-        self.V += 0.5 * g.beta * float(e_F @ e_F)
-        return command
-
-    def _command(
-        self,
-        robot: RobotTerms,
-        q: np.ndarray,
-        Y: np.ndarray,
-        ref: ControlTrace,
-        desired: Desired,
-        Ap: np.ndarray | None,
-        force: np.ndarray | None,
-    ) -> Command:
-        """u0 = Y θ̂ − K_d s − force (n,) and B = β M̂ A⁺ (None without Ap (n, k)); keeps what
-        update() and trace() need, advances the schedule, sets V = ½ sᵀ M̂ s."""
-        theta, s = self.theta, ref.s
-        self._gradient, self._gradient_f, B = Y.T @ s, None, None
-        if Ap is not None:
-            # β M̂ A⁺ column by column: the f-dependent part of Y θ̂ (q̈_r ∋ β A⁺ f)
-            beta, k = self.gains.beta, Ap.shape[1]
-            B, self._gradient_f = np.empty((Ap.shape[0], k)), np.empty((k, theta.size))
-            for j in range(k):
-                Yj = self.regressor.inertial(q, Ap[:, j])
-                B[:, j] = beta * (Yj @ theta)
-                self._gradient_f[j] = beta * (Yj.T @ s)
-        self._schedule(robot.M, ref.qdot_r - desired.qd)
-        self.V = self._kinetic(q, s)
-        self._ref = ref
-        u0 = Y @ theta - self.gains.Kd @ s
-        return Command(u0=u0 if force is None else u0 - force, B=B)
-
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """θ̂ += dt · (−σ Γ₀ Yᵀ s) with the last call's Y at q̈_r(f), f (k,) [N] the force it
-        met; then the masses are clipped to their floor (explicit Euler, then projection)."""
-        if self._gradient is None:
-            return
-        gradient = (
-            self._gradient if self._gradient_f is None else self._gradient + f @ self._gradient_f
-        )
-        theta, a = self.theta, self.adaptation
-        theta -= (dt * self.sigma) * a.Gamma * gradient
-        np.maximum(theta, a.floor, out=theta)
-
-    # ------------------------------------------------------------------ reports
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
-        """The :class:`ControlTrace` of the last call (V without the parameter term), with its
-        e_q (n,), e_F (k,) and f_d (k,) copied (those of the free-space law are empty)."""
-        assert self._ref is not None
-        ref = self._ref
-        if ref.qddot_r_f is None:  # free space
-            return dataclasses.replace(ref, e_q=e_q.copy(), V=self.V)
-        return dataclasses.replace(ref, e_q=e_q.copy(), e_F=e_F.copy(), f_d=f_d.copy(), V=self.V)
-
-    # ------------------------------------------------------------------ helpers
-    def _configuration(self, q_d: np.ndarray, e_q: np.ndarray) -> np.ndarray:
-        """q from q_d and e_q = q ⊖ q_d (the law's interface passes the error, not q)."""
-        return q_d + e_q if self._euclidean else pin.integrate(self._model, q_d, e_q)
-
-    def _kinetic(self, q: np.ndarray, s: np.ndarray) -> float:
-        """½ sᵀ M̂(q) s [J] with the estimated mass matrix."""
-        return 0.5 * float(s @ (self.regressor.inertial(q, s) @ self.theta))
-
-    def _schedule(self, M: np.ndarray, w: np.ndarray) -> None:
-        """σ = min(1, Z_ref / min_{τ≤t} Z) with Z = ½ wᵀ M w, w = q̇_r − q̇_d (n,) and M (n, n)
-        the controller's model (module docstring): it only ever grows."""
-        z = 0.5 * float(w @ M @ w)
-        if z < self._z_min:
-            self._z_min = z
-            z_ref = self.adaptation.energy
-            self.sigma = 1.0 if z <= z_ref else z_ref / z
-
-
-class AdaptiveArimotoWorkspace(_Reports):
+class AdaptiveArimotoWorkspace(Law):
     """The adaptive law as the supervisor runs it compiled: per step the four Pinocchio passes
     the law needs (three in free space) between two compiled calls, and one compiled update,
     all writing into arrays preallocated here.
@@ -350,13 +196,14 @@ class AdaptiveArimotoWorkspace(_Reports):
     per constraint row for Y_M(q, A⁺_j), and its kinetic energy regressor at s for ½ sᵀ M̂ s;
     then :func:`~._arimoto_adaptive_kernels.adaptive_command` (Y θ̂ − K_d s − force, β M̂ A⁺,
     Yᵀ s, the schedule, V). :meth:`update` is
-    :func:`~._arimoto_adaptive_kernels.adaptive_update`. Same numbers as
-    :class:`AdaptiveArimotoLaw` to round-off. The command returned and the buffers are
-    overwritten at every call: copy to keep.
+    :func:`~._arimoto_adaptive_kernels.adaptive_update`. The command returned and
+    the buffers are overwritten at every call: copy to keep.
 
     Args:
-        robot: the controller's model of the arm. k: the number of constraint rows.
-        gains, adaptation: as :class:`AdaptiveArimotoLaw`.
+        robot: the controller's model of the arm (its kinematics and parameter layout).
+        k: the number of constraint rows.
+        gains: K_d, Λ, β, γ of the paper's law.
+        adaptation: θ̂(0), Γ and which parameters adapt (:func:`make_adaptation`).
 
     Attributes:
         theta: (p,) θ̂ (updated in place by :meth:`update`).
@@ -415,33 +262,23 @@ class AdaptiveArimotoWorkspace(_Reports):
         """σ of the gain schedule Γ = σ Γ₀ at the last call (non-decreasing, ≤ 1)."""
         return float(self._params[_SIGMA])
 
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """Eq. 29–30 adapted, as :meth:`AdaptiveArimotoLaw.free_space`."""
+    def free_space(self, inp: LawInput) -> Command:
+        """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
         none = self._no_force
         self.V = self._run(
-            robot, self._free_space, v, e_q, desired, none, none, none, self._free_matrices,
-            self._free_Y_A, self._free_B, self._free_gradients,
+            inp, self._free_space, none, none, none, self._free_matrices, self._free_Y_A,
+            self._free_B, self._free_gradients,
         )  # fmt: skip
         self.in_contact_law = False
         return self._free
 
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """Eq. 4, 8, 11 adapted, as :meth:`AdaptiveArimotoLaw.hybrid`. The hot path: the steps
-        of :meth:`_run` (which :meth:`free_space` calls) written out, one Python call less."""
-        if approach is None:
-            approach = self._zeros_k
+    def hybrid(self, inp: LawInput) -> Command:
+        """Eq. 4, 8, 11 adapted (module docstring): q̇_r, q̈_r (at f = 0) and s are the paper's
+        law's own. The hot path: the steps of :meth:`_run` (which :meth:`free_space` calls)
+        written out, one Python call less."""
+        robot, cons, desired, v, e_q = inp.robot, inp.rows, inp.desired, inp.v, inp.e_q
+        e_F, f_d = inp.e_F, inp.f_d
+        approach = self._zeros_k if inp.approach is None else inp.approach
         g, q, vectors, params = self.gains, self._q, self._vectors, self._params
         if not self._euclidean:
             q[:] = pin.integrate(self._model, desired.q, e_q)
@@ -470,11 +307,8 @@ class AdaptiveArimotoWorkspace(_Reports):
 
     def _run(
         self,
-        robot: RobotTerms,
+        inp: LawInput,
         cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
         e_F: np.ndarray,
         f_d: np.ndarray,
         approach: np.ndarray,
@@ -485,6 +319,7 @@ class AdaptiveArimotoWorkspace(_Reports):
     ) -> float:
         """One call of the law into the given buffers, returning V: what :meth:`free_space`
         runs (k = 0); :meth:`hybrid` is the same steps written out."""
+        robot, desired, v, e_q = inp.robot, inp.desired, inp.v, inp.e_q
         g, q, vectors, params = self.gains, self._q, self._vectors, self._params
         if not self._euclidean:
             q[:] = pin.integrate(self._model, desired.q, e_q)
@@ -513,7 +348,8 @@ class AdaptiveArimotoWorkspace(_Reports):
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """θ̂ += dt · (−σ Γ₀ Yᵀ s) at the force f (k,) [N] met, then the masses' floor, as
-        :meth:`AdaptiveArimotoLaw.update` (f is not used after the free-space law)."""
+        after the projection of the module docstring (f is not used after the free-space
+        law)."""
         if not self._called:
             return
         if self.in_contact_law:
@@ -523,8 +359,8 @@ class AdaptiveArimotoWorkspace(_Reports):
         _K.adaptive_update(gradients, f, dt, self._params, self._Gamma, self._floor, self.theta)
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
-        """The :class:`ControlTrace` of the last call (copies of the buffers), V as
-        :meth:`AdaptiveArimotoLaw.trace`."""
+        """The :class:`ControlTrace` of the last call (copies of the buffers), V = ½ sᵀ M̂ s
+        + ½ β e_Fᵀ e_F without the parameter term."""
         contact = self.in_contact_law
         _, s, s0, s1, qdot_r, qddot_r0 = self._vectors[:6]
         return ControlTrace(
@@ -540,14 +376,47 @@ class AdaptiveArimotoWorkspace(_Reports):
             f_d=f_d.copy() if contact else np.zeros(0),
         )
 
+    def info(self) -> dict[str, object]:
+        """K_d, Λ, β, γ, ρ, Z_ref and the adapted parameters with their θ̂(0) and Γ₀,ii."""
+        g, a, i = self.gains, self.adaptation, self._adapted
+        return {
+            "Kd": g.Kd.tolist(),
+            "Lambda": g.Lambda,
+            "beta": g.beta,
+            "gamma": g.gamma,
+            "adaptation_rate": a.rate,
+            "schedule_energy": a.energy,
+            "adapted": [a.names[j] for j in i],
+            "theta0": a.theta0[i].tolist(),
+            "Gamma0": a.Gamma[i].tolist(),
+        }
 
-def build(context: LawContext) -> AdaptiveArimotoLaw | AdaptiveArimotoWorkspace:
-    """The registry's factory of ``control.law = "arimoto_adaptive"``: compiled
-    (:class:`AdaptiveArimotoWorkspace`), or the numpy reference when ``context.reference``."""
-    rate = float(context.options.get("adaptation_rate", DEFAULT_ADAPTATION_RATE))
+    def log_names(self) -> tuple[str, ...]:
+        """The estimates this law logs at every sample: the adapted parameters' names."""
+        return tuple(self.adaptation.names[j] for j in self._adapted)
+
+    def log_values(self, out: np.ndarray) -> None:
+        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
+        out[:] = self.theta[self._adapted]
+
+
+def build(context: LawContext) -> AdaptiveArimotoWorkspace:
+    """The registry's factory of ``control.law = "arimoto_adaptive"``."""
+    rate = AdaptiveArimotoOptions(**context.options).adaptation_rate
     adaptation = make_adaptation(
         context.robot, context.q0, context.M0, context.gains, context.settings.mass_factor, rate
     )
-    if context.reference:
-        return AdaptiveArimotoLaw(context.robot, context.gains, adaptation)
     return AdaptiveArimotoWorkspace(context.robot, context.constraint.k, context.gains, adaptation)
+
+
+register(
+    LawSpec(
+        "arimoto_adaptive",
+        "the paper's law with Slotine-Li adaptation of its model terms (Slotine & Li, IJRR "
+        "6(3) 1987; paper section 7)",
+        build,
+        AdaptiveArimotoOptions,
+        gains=PAPER_GAINS,
+        loop_bounds=loop_bounds,
+    )
+)

@@ -14,26 +14,33 @@ in the contact force the plant will produce, u = u0 + B f (:class:`Command`): a 
 the measured force straight through says so in B, and with ideal sensing at the plant's rate
 the simulator resolves u and f together, exactly; sampled, the law's B meets the last reading.
 
-A law is built by its registry entry's factory from a :class:`LawContext`: the controller's own
+Each call receives one :class:`LawInput`; :class:`Law` declares the optional parts (update,
+trace, info, the logged signals) once, with their defaults.
+
+A law registers itself in its own module (:func:`register`, a :class:`LawSpec` into
+:data:`LAWS`). Its entry's factory builds it from a :class:`LawContext`: the controller's own
 model, the surfaces' constraint, the control settings (with this law's ``[control.<law>]``
 table as ``options``) and the paper's gains with K_d = κ M(q0), which scale with the arm; a law
-derives its default gains the same way so that one scenario file serves every law.
+derives its default gains the same way so that one scenario file serves every law. Its table
+is a frozen dataclass of :func:`hybrid_force.schema.param` fields (:class:`LawOptions`), from
+which :func:`check_options`, ``hybrid-force laws --options`` and the law's defaults all derive.
 """
 
 from __future__ import annotations
 
-import importlib
+import dataclasses
 import math
 import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from hybrid_force.errors import ControlError, GainError, did_you_mean
+from hybrid_force.schema import Param, specs
 
-if TYPE_CHECKING:  # annotations only: the registry is read without importing any law
+if TYPE_CHECKING:  # annotations only (the laws' modules import this one)
     from collections.abc import Sequence
 
     from hybrid_force.control.constraint import Constraint, ConstraintTerms
@@ -44,81 +51,99 @@ if TYPE_CHECKING:  # annotations only: the registry is read without importing an
 
 __all__ = [
     "LAWS",
+    "PAPER_GAINS",
     "Law",
     "LawContext",
+    "LawInput",
+    "LawOptions",
     "LawSpec",
     "LoopBound",
     "LoopContext",
-    "Option",
+    "below",
     "build_law",
+    "check_law",
     "check_options",
+    "check_value",
     "law_log_names",
     "law_loop_bounds",
     "law_names",
     "law_spec",
+    "register",
 ]
 
 
-class Law(Protocol):
-    """A control law as the supervisor runs it (see the module docstring).
+@dataclass
+class LawInput:
+    """One step's input to a law, filled by the supervisor (the same object every step: its
+    arrays are the supervisor's and the next step may overwrite them).
 
-    Optional hook, for signals of the law's own that a run should record at every sample (its
-    parameter estimates, say): ``log_names() -> tuple[str, ...]`` (m names, fixed when the law
-    is built) and ``log_values(out)``, which writes the m current values into ``out`` (m,).
-    The simulator stores them as ``Result.law_log`` (N, m) (:mod:`hybrid_force.law_log`); a
-    law without the hook logs nothing (:func:`law_log_names`).
+    Attributes:
+        robot: the controller's model terms at the measured (q, v) (M, C, g scaled by
+            ``control.mass_factor``).
+        v: (n,) joint velocity [rad/s or m/s]. e_q: (n,) q − q_d [rad or m].
+        desired: q_d, q̇_d, q̈_d (n,) and p_d, ṗ_d, p̈_d (3,) [m, m/s, m/s²] now.
+        cons: the constraint rows at (q, v) (A (k, n), its normal, distance, Q, …): set near
+            and on the surface (:meth:`Law.hybrid`); None in free space.
+        e_F: (k,) momentum error F − F_d [N·s] (eq. 3); 0 outside contact.
+        f_d: (k,) desired force [N]; 0 in the near phase.
+        approach: (k,) normal reference velocity [m/s per row scaling] of the near phase,
+            which brings the tool onto the surface slowly; None in contact.
+    """
+
+    robot: RobotTerms
+    v: np.ndarray
+    e_q: np.ndarray
+    desired: Desired
+    cons: ConstraintTerms | None = None
+    e_F: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    f_d: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    approach: np.ndarray | None = None
+
+    @property
+    def rows(self) -> ConstraintTerms:
+        """:attr:`cons`, which :meth:`Law.hybrid` is always given."""
+        assert self.cons is not None, "the hybrid law runs with the constraint rows"
+        return self.cons
+
+
+class Law:
+    """A control law as the supervisor runs it (see the module docstring): a law defines
+    :meth:`free_space` and :meth:`hybrid`; the other parts have their defaults here.
 
     Attributes:
         V: the law's Lyapunov function (or NaN when it has none) at the last call [J].
     """
 
-    V: float
+    V: float = math.nan
 
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """Torques away from the surface: track q_d (or p_d).
+    def free_space(self, inp: LawInput) -> Command:
+        """Torques away from the surface: track q_d (or p_d); ``inp.cons`` is None."""
+        raise NotImplementedError
 
-        Args:
-            robot: the controller's model terms at the measured (q, v).
-            v: (n,) joint velocity [rad/s or m/s]. e_q: (n,) q − q_d.
-            desired: q_d, q̇_d, q̈_d (n,) and p_d, ṗ_d, p̈_d (3,) [m, m/s, m/s²] now.
-        """
-        ...
-
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """Torques near and on the surface: track the path along it and f_d across it.
-
-        Args:
-            cons: the constraint rows at (q, v) (A (k, n), its normal, distance, Q, …).
-            e_F: (k,) momentum error F − F_d [N·s] (eq. 3); 0 outside contact.
-            f_d: (k,) desired force [N]; 0 in the near phase.
-            approach: (k,) normal reference velocity [m/s per row scaling] of the near phase,
-                which brings the tool onto the surface slowly; None in contact.
-        """
-        ...
+    def hybrid(self, inp: LawInput) -> Command:
+        """Torques near and on the surface: track the path along it and f_d across it."""
+        raise NotImplementedError
 
     def update(self, dt: float, f: np.ndarray) -> None:
-        """Advance the law's own states over dt [s] with the measured force f (k,) [N]."""
-        ...
+        """Advance the law's own states over dt [s] with the measured force f (k,) [N]
+        (nothing to advance by default: the force integral e_F is the supervisor's)."""
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace | None:
-        """What the last call computed, for logs and tests (None if the law keeps none)."""
-        ...
+        """What the last call computed, for logs and tests (None: the law keeps none)."""
+        return None
 
     def info(self) -> dict[str, Any]:
         """The law's gains and settings as JSON-able data (stored in the result's meta)."""
-        ...
+        return {}
+
+    def log_names(self) -> tuple[str, ...]:
+        """The m signals of the law's own that a run records at every sample (its parameter
+        estimates, say), fixed when the law is built; stored as ``Result.law_log`` (N, m)
+        (:mod:`hybrid_force.law_log`). None by default."""
+        return ()
+
+    def log_values(self, out: np.ndarray) -> None:
+        """Write the m current values of :meth:`log_names` into ``out`` (m,)."""
 
 
 @dataclass(frozen=True)
@@ -134,7 +159,6 @@ class LawContext:
         M0: (n, n) the controller's mass matrix at the start [kg·m² …].
         q0: (nq,) the start configuration.
         dt: the control period [s].
-        reference: True: build the readable numpy form (no compiled kernels).
     """
 
     robot: Robot
@@ -144,7 +168,6 @@ class LawContext:
     M0: np.ndarray
     q0: np.ndarray
     dt: float
-    reference: bool = False
 
     @property
     def options(self) -> Mapping[str, Any]:
@@ -153,49 +176,33 @@ class LawContext:
 
 
 @dataclass(frozen=True)
-class Option:
-    """One key of a law's ``[control.<law>]`` table.
-
-    Attributes:
-        doc: what it is, with its unit and default (shown by ``hybrid-force laws --options``).
-        kind: "number" (a finite real number), "choice" (one of ``choices``) or "bool".
-        minimum: the smallest number allowed (numbers only); ``strict``: excluded.
-    """
-
-    doc: str
-    kind: str = "number"
-    choices: tuple[str, ...] = ()
-    minimum: float | None = 0.0
-    strict: bool = True
-
-
-@dataclass(frozen=True)
 class LawSpec:
-    """A registry entry: the law's name, one line about it and where its factory lives.
+    """A registry entry: the law's name, one line about it, its factory and its settings.
 
     Attributes:
         summary: one line for ``hybrid-force laws`` (with its source).
-        factory: ``"module:function"``, imported only when the law is built.
-        options: the keys of its ``[control.<law>]`` table.
+        factory: builds the law from a :class:`LawContext`.
+        options: the frozen dataclass of its ``[control.<law>]`` table, one
+            :func:`hybrid_force.schema.param` field per key (unit, range, choices, doc and
+            default written there once); None: the law has no settings of its own.
         gains: the ``[control]`` gains the law reads (of Kd, kd_rate, Lambda, beta, gamma),
             each with the key of its own table that replaces it when given (None: none does);
             a gain not listed has no effect with this law (the loader refuses it, a run's meta
             does not record it).
-        loop_bounds: ``"module:function"`` of the law's pre-run stability checks
-            (``function(LoopContext) -> list[LoopBound]``); None: the law has none.
+        loop_bounds: the law's pre-run stability checks (``LoopContext -> list[LoopBound]``);
+            None: the law has none.
+        check: the checks the factory needs passed (ControlError, GainError naming the key),
+            run by :func:`check_law` before the factory and by the scenario loader alone;
+            None: the law has none.
     """
 
     name: str
     summary: str
-    factory: str
-    options: Mapping[str, Option] = field(default_factory=dict)
+    factory: Callable[[LawContext], Law]
+    options: type | None = None
     gains: Mapping[str, str | None] = field(default_factory=dict)
-    loop_bounds: str | None = None
-
-    def load(self) -> Callable[[LawContext], Law]:
-        """The factory function (imports its module)."""
-        module, _, function = self.factory.partition(":")
-        return getattr(importlib.import_module(module), function)
+    loop_bounds: Callable[[LoopContext], list[LoopBound]] | None = None
+    check: Callable[[LawContext], object] | None = None
 
     def reads(self, gain: str, options: Mapping[str, Any]) -> bool:
         """True when the law reads ``control.<gain>`` with its table ``options`` (the gain is
@@ -204,6 +211,32 @@ class LawSpec:
             return False
         replaced_by = self.gains[gain]
         return replaced_by is None or replaced_by not in options
+
+    def keys(self) -> tuple[str, ...]:
+        """The keys of the law's ``[control.<law>]`` table, in declaration order."""
+        return () if self.options is None else tuple(f.name for f, _ in specs(self.options))
+
+    def describe(self) -> list[tuple[str, str]]:
+        """(key, its doc with unit and default) for ``hybrid-force laws --options``."""
+        if self.options is None:
+            return []
+        out = []
+        for f, spec in specs(self.options):
+            unit = f" [{spec.unit}]" if spec.unit else ""
+            if spec.choices:
+                unit = f" ({' or '.join(repr(c) for c in spec.choices)})"
+            default = "" if f.default is None else f"; default {_shown(f.default)}"
+            out.append((f.name, f"{spec.doc}{unit}{default}"))
+        return out
+
+
+def _shown(value: object) -> str:
+    """A default as a scenario file writes it (true/false, "text", 20)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def below(limit: float) -> str:
@@ -323,127 +356,27 @@ class LoopContext:
 
 def law_loop_bounds(context: LoopContext) -> list[LoopBound]:
     """The running law's pre-run checks (its ``LawSpec.loop_bounds``; none by default)."""
-    spec = law_spec(context.settings.law)
-    if spec.loop_bounds is None:
-        return []
-    module, _, function = spec.loop_bounds.partition(":")
-    checks: Callable[[LoopContext], list[LoopBound]] = getattr(
-        importlib.import_module(module), function
-    )
-    return checks(context)
+    checks = law_spec(context.settings.law).loop_bounds
+    return [] if checks is None else checks(context)
 
 
-_PAPER_GAINS: Mapping[str, str | None] = {
+PAPER_GAINS: Mapping[str, str | None] = {
     "Kd": None, "kd_rate": "Kd", "Lambda": None, "beta": None, "gamma": None,
 }  # fmt: skip
 """The paper's gains as its laws read them: K_d (or kd_rate · M(q0) when Kd is not given),
 Λ, β, γ."""
 
-# Each law adds its entry here; the modules are imported only when a law is built.
-LAWS: dict[str, LawSpec] = {
-    spec.name: spec
-    for spec in (
-        LawSpec(
-            "arimoto",
-            "the paper's modified Arimoto hybrid law with its phase supervisor (eq. 4, 11, 29-31)",
-            "hybrid_force.control.laws.arimoto:build",
-            gains=_PAPER_GAINS,
-            loop_bounds="hybrid_force.control.laws.arimoto:loop_bounds",
-        ),
-        LawSpec(
-            "arimoto_adaptive",
-            "the paper's law with Slotine-Li adaptation of its model terms (Slotine & Li, IJRR "
-            "6(3) 1987; paper section 7)",
-            "hybrid_force.control.laws.arimoto_adaptive:build",
-            {
-                "adaptation_rate": Option(
-                    "ρ [1/s] of the default Γ_ii = ρ / E[Y_iᵀ K_d⁻¹ Y_i]: the rate at which one "
-                    "parameter's error alone decays, for any arm (default 5)"
-                ),
-            },
-            gains=_PAPER_GAINS,
-            loop_bounds="hybrid_force.control.laws.arimoto:loop_bounds",
-        ),
-        LawSpec(
-            "raibert_craig",
-            "task-space selection-matrix hybrid control with a PI force loop (Raibert & Craig "
-            "1981; corrected form: Fisher & Mujtaba 1992)",
-            "hybrid_force.control.laws.raibert_craig:build",
-            {
-                "form": Option(
-                    '"corrected" (default: the position servo exerts no force along the '
-                    'normals, Fisher & Mujtaba 1992) or "original" (J⁻¹ S, Raibert & Craig 1981)',
-                    kind="choice",
-                    choices=("corrected", "original"),
-                ),
-                "feedforward": Option(
-                    '"model" (default: M q̈_ff + C q̇ + g of the controller\'s model) or '
-                    '"gravity" (g only, as in 1981)',
-                    kind="choice",
-                    choices=("model", "gravity"),
-                ),
-                "decouple": Option(
-                    "true (default): project the position feedback so that, by the model, it "
-                    "cannot change the contact force; false: the published forms",
-                    kind="bool",
-                ),
-                "position_rate": Option("ω_p [1/s], slow pole of the position error (Λ)"),
-                "damping_rate": Option("ω_d [1/s], fast pole of the position error (kd_rate)"),
-                "kp": Option("k_p [-], proportional force gain (0.5)", strict=False),
-                "ki": Option("k_i [1/s], integral force gain ((1 + k_p) γ)"),
-            },
-            gains={"Lambda": "position_rate", "kd_rate": "damping_rate", "gamma": "ki"},
-            loop_bounds="hybrid_force.control.laws.raibert_craig:loop_bounds",
-        ),
-        LawSpec(
-            "osc_hybrid",
-            "operational-space hybrid motion/force control, dynamically consistent, with a "
-            "null-space posture (Khatib 1987, IEEE J. Robot. Autom. 3(1))",
-            "hybrid_force.control.laws.osc_hybrid:build",
-            {
-                "omega": Option("task-space bandwidth ω [rad/s]: K_p = ω², K_v = 2ζω (default 20)"),
-                "zeta": Option("damping ratio ζ of the task-space error (default 1: critical)"),
-                "normal_damping": Option(
-                    "K_n [1/s]: damping of the normal speed in contact, rate of the approach "
-                    "speed in the near phase (default K_v = 2ζω)"
-                ),
-                "force_p": Option(
-                    "k_P [-]: proportional force gain on f − f_d (default 0; keep it < 1 at a "
-                    "control rate)",
-                    minimum=0.0,
-                    strict=False,
-                ),
-                "force_i": Option(
-                    "k_I [1/s]: integral force gain on e_F = ∫(f − f_d) dt (default 20)"
-                ),
-                "null_omega": Option(
-                    "null-space posture bandwidth ω_n [rad/s]: k_n = ω_n², d_n = 2ω_n (default 10)"
-                ),
-            },
-            loop_bounds="hybrid_force.control.laws.osc_hybrid:loop_bounds",
-        ),
-        LawSpec(
-            "impedance",
-            "Cartesian impedance, K = ω²Λ(q) (Hogan 1985), with force tracking along the "
-            "normal (Seraji & Colbaugh 1997)",
-            "hybrid_force.control.laws.impedance:build",
-            {
-                "omega": Option("natural frequency ω of K = ω²Λ(q), D = 2ζωΛ(q) [1/s] (30)"),
-                "zeta": Option("damping ratio ζ of D = 2ζωΛ(q) (1: critical)"),
-                "force_tracking": Option(
-                    "true: the reference's depth adapts until f = f_d (φ̇ = κ_f (f_d − f)); "
-                    "false: plain impedance at the model's depth f_d/k_n (true)",
-                    kind="bool",
-                ),
-                "force_rate": Option("κ_f, rate of the force-tracking admittance [1/s] (10)"),
-                "feedforward": Option(
-                    "true: add M q̈_d + C q̇_d of the desired joint path (true)", kind="bool"
-                ),
-            },
-            loop_bounds="hybrid_force.control.laws.impedance:loop_bounds",
-        ),
-    )
-}
+LAWS: dict[str, LawSpec] = {}
+"""The registry, filled by :func:`register` in each law's module (the package
+:mod:`hybrid_force.control.laws` imports every one of its law modules)."""
+
+
+def register(spec: LawSpec) -> LawSpec:
+    """Add a law to :data:`LAWS` (a law's module calls it once, where the law is defined)."""
+    if spec.name in LAWS:
+        raise ValueError(f"law {spec.name!r} is registered twice")
+    LAWS[spec.name] = spec
+    return spec
 
 
 def law_log_names(law: object) -> tuple[str, ...]:
@@ -474,7 +407,8 @@ def law_spec(name: object) -> LawSpec:
 
 
 def check_options(options: object) -> dict[str, dict[str, Any]]:
-    """Check ``{law: {key: value}}`` against each law's :class:`Option` keys.
+    """Check ``{law: {key: value}}`` against each law's settings dataclass
+    (:attr:`LawSpec.options`), key by key in the table's order.
 
     Returns:
         A new dict of new dicts, numbers as floats.
@@ -498,34 +432,38 @@ def check_options(options: object) -> dict[str, dict[str, Any]]:
                 key=f"control.{law}",
                 value=table,
             )
+        fields = {} if spec.options is None else {f.name: (f, p) for f, p in specs(spec.options)}
         checked: dict[str, Any] = {}
         for key, value in table.items():
             where = f"control.{law}.{key}"
-            if key not in spec.options:
-                valid = ", ".join(spec.options) or "(none: this law has no settings of its own)"
+            if key not in fields:
+                valid = ", ".join(fields) or "(none: this law has no settings of its own)"
                 raise ControlError(
-                    f"{where} is not a setting of law {law!r}{did_you_mean(str(key), spec.options)}"
+                    f"{where} is not a setting of law {law!r}{did_you_mean(str(key), fields)}"
                     f"; valid: {valid}",
                     key=where,
                     value=value,
                 )
-            checked[key] = _check_option(where, value, spec.options[key])
+            checked[key] = check_value(where, value, *fields[key])
         out[law] = checked
     return out
 
 
-def _check_option(where: str, value: object, option: Option) -> object:
-    if option.kind == "bool":
+def check_value(where: str, value: object, f: dataclasses.Field[Any], spec: Param) -> object:
+    """One value of a law's table for its field ``f`` (a bool, one of ``spec.choices``, or a
+    finite real number within ``spec``'s range, returned as a float); ``where`` names it in
+    the error (ControlError, or GainError for a number)."""
+    if str(f.type).startswith("bool"):
         if not isinstance(value, bool):
             raise ControlError(
                 f"{where} must be true or false, got {value!r}", key=where, value=value
             )
         return value
-    if option.kind == "choice":
-        if not isinstance(value, str) or value not in option.choices:
-            hint = did_you_mean(value, option.choices) if isinstance(value, str) else ""
+    if spec.choices:
+        if not isinstance(value, str) or value not in spec.choices:
+            hint = did_you_mean(value, spec.choices) if isinstance(value, str) else ""
             raise ControlError(
-                f"{where} = {value!r} is not valid{hint}; valid: {', '.join(option.choices)}",
+                f"{where} = {value!r} is not valid{hint}; valid: {', '.join(spec.choices)}",
                 key=where,
                 value=value,
             )
@@ -535,13 +473,45 @@ def _check_option(where: str, value: object, option: Option) -> object:
             f"{where} must be a finite real number, got {value!r}", key=where, value=value
         )
     number = float(value)
-    low = option.minimum
-    if low is not None and (number < low or (option.strict and number == low)):
-        relation = ">" if option.strict else ">="
+    low = spec.minimum
+    if low is not None and (number < low or (spec.strict and number == low)):
+        relation = ">" if spec.strict else ">="
         raise GainError(f"{where} = {number!r} must be {relation} {low:g}", key=where, value=value)
     return number
 
 
+@dataclass(frozen=True)
+class LawOptions:
+    """Base of a law's settings dataclass (:attr:`LawSpec.options`): every field is checked
+    as the scenario's ``[control.<law>]`` table is (:func:`check_value`), numbers stored as
+    floats; a field whose default is None (derived from another setting) may stay None.
+
+    Attributes:
+        law: (class) the law's name, for the messages (``control.<law>.<key>``).
+    """
+
+    law: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        """Check each field (ControlError or GainError naming ``control.<law>.<key>``)."""
+        for f, spec in specs(type(self)):
+            value = getattr(self, f.name)
+            if value is None and f.default is None:
+                continue
+            where = f"control.{self.law}.{f.name}"
+            object.__setattr__(self, f.name, check_value(where, value, f, spec))
+
+
+def check_law(context: LawContext) -> None:
+    """The checks of the law named by ``context.settings.law`` (its :attr:`LawSpec.check`),
+    without building it (ControlError if the law is unknown)."""
+    check = law_spec(context.settings.law).check
+    if check is not None:
+        check(context)
+
+
 def build_law(context: LawContext) -> Law:
-    """Build the law named by ``context.settings.law`` (ControlError if it is unknown)."""
-    return law_spec(context.settings.law).load()(context)
+    """Build the law named by ``context.settings.law``, its checks passed first (ControlError
+    if it is unknown)."""
+    check_law(context)
+    return law_spec(context.settings.law).factory(context)

@@ -76,7 +76,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -84,25 +84,28 @@ from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import (
+    Law,
     LawContext,
+    LawInput,
+    LawOptions,
+    LawSpec,
     LoopBound,
     LoopContext,
     below,
-    check_options,
+    register,
 )
 from hybrid_force.errors import GainError, SingularConfigurationError
 from hybrid_force.model.robot import RobotTerms
+from hybrid_force.schema import param
 
 _K = LazyKernels("hybrid_force.control.laws._impedance_kernels")
 
 __all__ = [
     "DEFAULTS",
     "ImpedanceGains",
-    "ImpedanceLaw",
     "ImpedanceWorkspace",
     "build",
-    "cartesian_inertia",
-    "impedance_matrices",
+    "check",
     "loop_bounds",
 ]
 
@@ -110,16 +113,8 @@ _MAX_RATE_STEP = 0.5  # ω·dt and κ_f·dt must stay below this (explicit step,
 
 
 @dataclass(frozen=True)
-class ImpedanceGains:
+class ImpedanceGains(LawOptions):
     """Settings of the impedance law (the ``[control.impedance]`` table).
-
-    Attributes:
-        omega: ω [1/s], natural frequency of K = ω² Λ(q) (and of the null-space posture).
-        zeta: ζ, damping ratio of D = 2ζω Λ(q) (1: critical).
-        force_tracking: True: the contact depth adapts so that f → f_d (φ̇ = κ_f (f_d − f));
-            False: plain impedance with the model's depth f_d/k_n.
-        force_rate: κ_f [1/s], rate of the force-tracking admittance.
-        feedforward: True: add M q̈_d + C q̇_d of the desired joint path (g is always added).
 
     Raises:
         ControlError: a value the ``[control.impedance]`` table would refuse (a GainError
@@ -127,35 +122,30 @@ class ImpedanceGains:
             ``control.impedance.<key>``.
     """
 
-    omega: float = 30.0
-    zeta: float = 1.0
-    force_tracking: bool = True
-    force_rate: float = 10.0
-    feedforward: bool = True
+    law: ClassVar[str] = "impedance"
 
-    def __post_init__(self) -> None:
-        """Check each field as the registry checks the scenario's table; numbers as floats."""
-        checked = check_options({"impedance": dataclasses.asdict(self)})["impedance"]
-        for name, value in checked.items():
-            object.__setattr__(self, name, value)
+    omega: float = param(
+        30.0, unit="1/s", minimum=0.0, strict=True,
+        doc="natural frequency ω of K = ω²Λ(q), D = 2ζωΛ(q) (and of the null-space posture)",
+    )  # fmt: skip
+    zeta: float = param(
+        1.0, minimum=0.0, strict=True, doc="damping ratio ζ of D = 2ζωΛ(q) (1: critical)"
+    )
+    force_tracking: bool = param(
+        True,
+        doc="true: the reference's depth adapts until f = f_d (φ̇ = κ_f (f_d − f)); false: "
+        "plain impedance at the model's depth f_d/k_n",
+    )
+    force_rate: float = param(
+        10.0, unit="1/s", minimum=0.0, strict=True, doc="κ_f, rate of the force-tracking admittance"
+    )
+    feedforward: bool = param(
+        True, doc="true: add M q̈_d + C q̇_d of the desired joint path (g is always added)"
+    )
 
 
-#: The default ``[control.impedance]`` settings, as :meth:`ImpedanceLaw.info` gives them.
+#: The default ``[control.impedance]`` settings, as :meth:`ImpedanceWorkspace.info` gives them.
 DEFAULTS: dict[str, Any] = dataclasses.asdict(ImpedanceGains())
-
-
-def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
-    """Λ = (J M⁻¹ Jᵀ)⁻¹ (3, 3) [kg] of the model terms, symmetric.
-
-    Raises:
-        SingularConfigurationError: J M⁻¹ Jᵀ is singular (the tip cannot move along some
-            direction, so no Cartesian stiffness acts there).
-    """
-    try:
-        Lam = np.linalg.inv(robot.J @ np.linalg.solve(robot.M, robot.J.T))
-    except np.linalg.LinAlgError as exc:
-        raise _singular(robot) from exc
-    return 0.5 * (Lam + Lam.T)
 
 
 def _singular(robot: RobotTerms) -> SingularConfigurationError:
@@ -166,14 +156,12 @@ def _singular(robot: RobotTerms) -> SingularConfigurationError:
     )
 
 
-def impedance_matrices(Lam: np.ndarray, omega: float, zeta: float) -> tuple[np.ndarray, np.ndarray]:
-    """K = ω² Λ [N/m] and D = 2ζω Λ [N·s/m], each (3, 3), of a Cartesian inertia Λ (3, 3)."""
-    return (omega * omega) * Lam, (2.0 * zeta * omega) * Lam
-
-
-class ImpedanceLaw:
-    """The impedance law (module docstring) in readable numpy: the reference of
-    :class:`ImpedanceWorkspace` (what ``LawContext(reference=True)`` builds).
+class ImpedanceWorkspace(Law):
+    """The impedance law (module docstring) as one compiled call per step, into arrays
+    preallocated here (:func:`hybrid_force.control.laws._impedance_kernels.impedance`: the
+    Cholesky factorisation of M and the small solves written out); a
+    SingularConfigurationError where J M⁻¹ Jᵀ or M is singular. The command returned,
+    ``stiffness``, ``damping`` and ``offset`` are overwritten at every call: copy to keep.
 
     Args:
         gains: the settings. constraint: the controller's surfaces (for their normals).
@@ -186,116 +174,13 @@ class ImpedanceLaw:
         stiffness, damping: (3, 3) K and D at the last call [N/m, N·s/m].
     """
 
-    V = math.nan
-
     def __init__(self, gains: ImpedanceGains, constraint: Constraint, k: int) -> None:
         self.gains = gains
         self.constraint = constraint
         self.preload = np.zeros(k)
         self.offset = np.zeros(k)
-        self.stiffness = np.zeros((3, 3))
-        self.damping = np.zeros((3, 3))
         self._f_d = np.zeros(k)
         self._in_contact = False  # the last call was the contact law
-
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """Eq. (1) with p_r = p_d, ṗ_r = ṗ_d (module docstring)."""
-        self._in_contact = False
-        p_d, pd_d = _task(desired)
-        return Command(self._torque(robot, v, e_q, desired, p_d - robot.p, pd_d), None)
-
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """Eq. (1) near the surface (approach given) and in contact (eq. 2); e_F is unused."""
-        p_d, pd_d = _task(desired)
-        e = p_d - robot.p
-        if approach is not None:  # near: the reference at the tool's height, descending
-            self._in_contact = False
-            normals = np.array([s.normal(robot.p) for s in self.constraint.surfaces]).T  # (3, k)
-            along = np.linalg.pinv(normals)  # (k, 3): the projector onto the normals is N·along
-            e = e - normals @ (along @ e)
-            pd_r = pd_d - normals @ (along @ pd_d) + along.T @ approach
-            # a = −λ_a d, so ȧ = −λ_a ḋ = (a / d) ḋ: its feed-forward makes −λ_a a root
-            pdd_r = along.T @ (approach / cons.distance * (normals.T @ robot.pdot))
-            return Command(self._torque(robot, v, e_q, desired, e, pd_r, pdd_r), None)
-        if not self._in_contact:  # a touch: start from the model's depth
-            self.preload[:] = f_d
-            self._in_contact = True
-        if not self.gains.force_tracking:
-            self.preload[:] = f_d
-        self._f_d = f_d
-        u = self._torque(robot, v, e_q, desired, e, pd_d) - cons.A.T @ self.preload
-        W = cons.A @ np.linalg.solve(robot.M, cons.A.T)
-        self.offset = W @ self.preload / self.gains.omega**2
-        return Command(u, None)
-
-    def _torque(
-        self,
-        robot: RobotTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e: np.ndarray,
-        pd_r: np.ndarray,
-        pdd_r: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """Eq. (1) for the error e = p_r − p (3,) [m], the reference velocity ṗ_r (3,) [m/s]
-        and a reference acceleration p̈_r (3,) [m/s²] beyond the path's, fed forward as Λ p̈_r."""
-        g = self.gains
-        Lam = cartesian_inertia(robot)
-        K, D = impedance_matrices(Lam, g.omega, g.zeta)
-        self.stiffness, self.damping = K, D
-        force = K @ e + D @ (pd_r - robot.pdot)
-        if pdd_r is not None:
-            force += Lam @ pdd_r
-        # null space: (I − Jᵀ J̄ᵀ)(−M y) = −M y + Jᵀ Λ J y, y = ω² e_q + 2ζω ė_q
-        y = g.omega**2 * e_q + (2.0 * g.zeta * g.omega) * (v - desired.qd)
-        u = robot.J.T @ (force + Lam @ (robot.J @ y)) - robot.M @ y + robot.g
-        if g.feedforward:
-            u += robot.M @ desired.qdd + robot.C @ desired.qd
-        return u
-
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """Force tracking in contact: φ += dt κ_f (f_d − f).
-
-        φ may turn negative (the reference then sits off the surface, on the free side): that
-        is how the law takes back a push the model does not know of (a gravity over-estimate).
-        """
-        if self._in_contact and self.gains.force_tracking:
-            self.preload += dt * self.gains.force_rate * (self._f_d - f)
-
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
-        """None: the law keeps no :class:`ControlTrace` (see its attributes instead)."""
-        return None
-
-    def info(self) -> dict[str, Any]:
-        """The settings as JSON-able data."""
-        return dataclasses.asdict(self.gains)
-
-
-class ImpedanceWorkspace(ImpedanceLaw):
-    """:class:`ImpedanceLaw` as one compiled call per step, into arrays preallocated here.
-
-    The same numbers (:func:`hybrid_force.control.laws._impedance_kernels.impedance`: the
-    Cholesky factorisation of M and the small solves written out) without numpy's per-call
-    overhead; the same errors (a SingularConfigurationError where J M⁻¹ Jᵀ or M is
-    singular). The command returned, ``stiffness``, ``damping`` and ``offset`` are
-    overwritten at every call: copy to keep.
-    """
-
-    def __init__(self, gains: ImpedanceGains, constraint: Constraint, k: int) -> None:
-        super().__init__(gains, constraint, k)
         self._gains = np.zeros((3, 3, 3))  # [Λ, K, D]
         self.stiffness, self.damping = self._gains[1], self._gains[2]
         self._normals = np.zeros((3, k))
@@ -306,53 +191,42 @@ class ImpedanceWorkspace(ImpedanceLaw):
         self._command: Command | None = None
         self._work: np.ndarray | None = None
 
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
+    V = math.nan
+
+    def free_space(self, inp: LawInput) -> Command:
         """Eq. (1) with p_r = p_d, ṗ_r = ṗ_d (module docstring)."""
         self._in_contact = False
-        return self._run(robot, v, e_q, desired, None, _FREE)
+        return self._run(inp, None, _FREE)
 
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
+    def hybrid(self, inp: LawInput) -> Command:
         """Eq. (1) near the surface (approach given) and in contact (eq. 2); e_F is unused."""
-        if approach is not None:
+        cons, f_d = inp.rows, inp.f_d
+        if inp.approach is not None:
             self._in_contact = False
             normals = self._normals
             for i, surface in enumerate(self.constraint.surfaces):
-                normals[:, i] = surface.normal(robot.p)
+                normals[:, i] = surface.normal(inp.robot.p)
             given = normals.shape[1] > 1
             if given:  # the kernel computes a single column's pseudo-inverse itself
                 self._along[...] = np.linalg.pinv(normals)
-            return self._run(robot, v, e_q, desired, cons, _NEAR, approach, given)
+            return self._run(inp, cons, _NEAR, inp.approach, given)
         if not self._in_contact:  # a touch: start from the model's depth
             self.preload[:] = f_d
             self._in_contact = True
         if not self.gains.force_tracking:
             self.preload[:] = f_d
         self._f_d = f_d
-        return self._run(robot, v, e_q, desired, cons, _CONTACT)
+        return self._run(inp, cons, _CONTACT)
 
     def _run(
         self,
-        robot: RobotTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
+        inp: LawInput,
         cons: ConstraintTerms | None,
         mode: int,
         approach: np.ndarray | None = None,
         along_given: bool = False,
     ) -> Command:
+        robot, desired = inp.robot, inp.desired
         packs = robot.packed()._packs
         assert packs is not None  # packed() always returns terms with their packs
         mats, vecs, jac, tip = packs
@@ -369,7 +243,7 @@ class ImpedanceWorkspace(ImpedanceLaw):
         assert A is not None
         none = self._none
         status = _K.impedance(
-            mats, vecs, jac, tip, v, e_q, desired.qd, desired.qdd, p_d, pd_d, A,
+            mats, vecs, jac, tip, inp.v, inp.e_q, desired.qd, desired.qdd, p_d, pd_d, A,
             self._normals, self._along, none if approach is None else approach,
             none if cons is None else cons.distance, self.preload, mode, along_given,
             g.omega, g.zeta, g.feedforward, self._u, self._gains, self.offset, self._work,
@@ -379,9 +253,17 @@ class ImpedanceWorkspace(ImpedanceLaw):
         return self._command
 
     def update(self, dt: float, f: np.ndarray) -> None:
-        """Force tracking in contact: φ += dt κ_f (f_d − f) (see :meth:`ImpedanceLaw.update`)."""
+        """Force tracking in contact: φ += dt κ_f (f_d − f).
+
+        φ may turn negative (the reference then sits off the surface, on the free side): that
+        is how the law takes back a push the model does not know of (a gravity over-estimate).
+        """
         if self._in_contact and self.gains.force_tracking:
             _K.advance_preload(self.preload, self._f_d, f, dt * self.gains.force_rate)
+
+    def info(self) -> dict[str, Any]:
+        """The settings as JSON-able data."""
+        return dataclasses.asdict(self.gains)
 
 
 _FREE, _NEAR, _CONTACT = 0, 1, 2  # the kernel's modes (_impedance_kernels.FREE, NEAR, CONTACT)
@@ -393,9 +275,8 @@ def _task(desired: Desired) -> tuple[np.ndarray, np.ndarray]:
     return desired.p, desired.pd
 
 
-def build(context: LawContext) -> ImpedanceLaw:
-    """The registry's factory of ``control.law = "impedance"``: :class:`ImpedanceWorkspace`
-    (compiled), or :class:`ImpedanceLaw` (numpy) when ``context.reference``.
+def check(context: LawContext) -> None:
+    """The registry's check of ``control.law = "impedance"``.
 
     Raises:
         GainError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
@@ -411,8 +292,12 @@ def build(context: LawContext) -> ImpedanceLaw:
                 key=f"control.impedance.{key}",
                 value=rate,
             )
-    law_type = ImpedanceLaw if context.reference else ImpedanceWorkspace
-    return law_type(gains, context.constraint, context.constraint.k)
+
+
+def build(context: LawContext) -> ImpedanceWorkspace:
+    """The registry's factory of ``control.law = "impedance"`` (:func:`check` passed)."""
+    gains = ImpedanceGains(**context.options)
+    return ImpedanceWorkspace(gains, context.constraint, context.constraint.k)
 
 
 def loop_bounds(context: LoopContext) -> list[LoopBound]:
@@ -479,3 +364,16 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
             )
         )
     return bounds
+
+
+register(
+    LawSpec(
+        "impedance",
+        "Cartesian impedance, K = ω²Λ(q) (Hogan 1985), with force tracking along the "
+        "normal (Seraji & Colbaugh 1997)",
+        build,
+        ImpedanceGains,
+        loop_bounds=loop_bounds,
+        check=check,
+    )
+)

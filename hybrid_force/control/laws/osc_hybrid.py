@@ -72,39 +72,48 @@ configuration, else SingularConfigurationError); it has no Lyapunov function in 
 
 Runs compiled: :class:`OscHybridWorkspace`, one Numba call per step
 (:mod:`hybrid_force.control.laws._osc_hybrid_kernels`) into preallocated arrays. The numpy
-functions :func:`task_space`, :func:`normal_directions` and :func:`osc_hybrid_law` (and
-:class:`OscHybridLaw`, what a reference run builds) are its readable reference.
+function :func:`task_space` (Λ and J̄, for the pre-run checks) and the numpy law of
+``tests/oracles/laws.py`` are its readable forms, which the tests hold the kernel to.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command, Desired
-from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext, below
+from hybrid_force.control.laws.base import (
+    Law,
+    LawContext,
+    LawInput,
+    LawOptions,
+    LawSpec,
+    LoopBound,
+    LoopContext,
+    below,
+    register,
+)
 from hybrid_force.errors import ControlError, SingularConfigurationError
-from hybrid_force.model.robot import RobotTerms
+from hybrid_force.schema import param
 
 _K = LazyKernels("hybrid_force.control.laws._osc_hybrid_kernels")
 
 __all__ = [
     "OscGains",
-    "OscHybridLaw",
     "OscHybridWorkspace",
+    "OscOptions",
     "OscTrace",
     "TaskSpace",
     "build",
+    "check",
     "force_gain_bounds",
     "loop_bounds",
     "osc_gains",
-    "osc_hybrid_law",
     "task_space",
 ]
 
@@ -133,25 +142,53 @@ class OscGains:
     approach_rate: float
 
 
-def osc_gains(options: Mapping[str, Any], approach_rate: float) -> OscGains:
-    """The gains from a checked ``[control.osc_hybrid]`` table (its keys: the registry's).
+@dataclass(frozen=True)
+class OscOptions(LawOptions):
+    """The ``[control.osc_hybrid]`` table. Its defaults are rates, which the law multiplies by
+    Λ (or M), so they serve every arm."""
 
-    The defaults are rates, and the law multiplies them by Λ (or M), so they serve every arm.
+    law: ClassVar[str] = "osc_hybrid"
+
+    omega: float = param(
+        20.0, unit="rad/s", minimum=0.0, strict=True,
+        doc="task-space bandwidth ω: K_p = ω², K_v = 2ζω",
+    )  # fmt: skip
+    zeta: float = param(
+        1.0, minimum=0.0, strict=True, doc="damping ratio ζ of the task-space error (1: critical)"
+    )
+    normal_damping: float | None = param(
+        None, unit="1/s", minimum=0.0, strict=True,
+        doc="K_n: damping of the normal speed in contact, rate of the approach speed in the "
+        "near phase (K_v = 2ζω when not given)",
+    )  # fmt: skip
+    force_p: float = param(
+        0.0, minimum=0.0,
+        doc="k_P: proportional force gain on f − f_d (keep it < 1 at a control rate)",
+    )  # fmt: skip
+    force_i: float = param(
+        20.0, unit="1/s", minimum=0.0, strict=True,
+        doc="k_I: integral force gain on e_F = ∫(f − f_d) dt",
+    )  # fmt: skip
+    null_omega: float = param(
+        10.0, unit="rad/s", minimum=0.0, strict=True,
+        doc="null-space posture bandwidth ω_n: k_n = ω_n², d_n = 2ω_n",
+    )  # fmt: skip
+
+
+def osc_gains(options: OscOptions, approach_rate: float) -> OscGains:
+    """The gains of the law's settings (module docstring, eq. 3–6).
 
     Args:
-        options: the law's table (values already checked by the registry).
+        options: the ``[control.osc_hybrid]`` table.
         approach_rate: λ_a [1/s], the supervisor's.
     """
-    omega = float(options.get("omega", 20.0))
-    zeta = float(options.get("zeta", 1.0))
-    kv = 2.0 * zeta * omega
-    null_omega = float(options.get("null_omega", 10.0))
+    omega, kv, null_omega = options.omega, 2.0 * options.zeta * options.omega, options.null_omega
     return OscGains(
         kp=omega * omega,
         kv=kv,
-        kn=float(options.get("normal_damping", kv)),
-        force_p=float(options.get("force_p", 0.0)),
-        force_i=float(options.get("force_i", 20.0)),
+        kn=kv if options.normal_damping is None else options.normal_damping,
+        force_p=options.force_p,
+        force_i=options.force_i,
         null_kp=null_omega * null_omega,
         null_kd=2.0 * null_omega,
         approach_rate=float(approach_rate),
@@ -218,7 +255,7 @@ def _singular(cond: float) -> SingularConfigurationError:
 
 @dataclass(frozen=True)
 class OscTrace:
-    """What :func:`osc_hybrid_law` computed at one step (for tests and logs).
+    """What the law computed at one step (for tests and logs).
 
     Attributes:
         a: (3,) commanded task acceleration a of eq. 3–4 [m/s²].
@@ -235,14 +272,6 @@ class OscTrace:
     task: TaskSpace
 
 
-def normal_directions(constraint: Constraint, p: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """W (3, k): the task-space direction w_i = ∇Φ_i(p) / s_i of each row (A = Wᵀ J)."""
-    W = np.empty((3, constraint.k))
-    for i, surface in enumerate(constraint.surfaces):
-        W[:, i] = surface.evaluate(p)[1] / scale[i]
-    return W
-
-
 def _check_desired(desired: Desired) -> None:
     """Refuse a Desired without the task-space path (ControlError)."""
     if desired.p is None or desired.pd is None or desired.pdd is None:
@@ -253,128 +282,19 @@ def _check_desired(desired: Desired) -> None:
         )
 
 
-def osc_hybrid_law(
-    gains: OscGains,
-    robot: RobotTerms,
-    v: np.ndarray,
-    e_q: np.ndarray,
-    desired: Desired,
-    hybrid: tuple[ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
-    | None = None,
-) -> tuple[Command, OscTrace]:
-    """One step of the law (module docstring, eq. 1, 3–6), in readable numpy.
-
-    Args:
-        robot: the controller's model terms at (q, v).
-        v: (n,) joint velocity. e_q: (n,) q − q_d.
-        desired: q_d, q̇_d, q̈_d (n,) and p_d, ṗ_d, p̈_d (3,) [m, m/s, m/s²].
-        hybrid: None in free space (eq. 3); near and in contact (cons, W (3, k) of
-            :func:`normal_directions`, e_F (k,) [N·s], f_d (k,) [N], approach (k,) [m/s] in
-            the near phase or None in contact) (eq. 4–5).
-
-    Returns:
-        The command u = u0 + B f and the trace.
-    """
-    _check_desired(desired)
-    task = task_space(robot.M, robot.J)
-    a = desired.pdd - gains.kv * (robot.pdot - desired.pd) - gains.kp * (robot.p - desired.p)
-    B = None
-    phi = np.zeros(0)
-    F = task.Lambda @ (a - robot.Jdot_v)
-    if hybrid is not None:
-        cons, W, e_F, f_d, approach = hybrid
-        # (k, 3) (WᵀW)⁻¹Wᵀ, so that Ω̃ = W (WᵀW)⁻¹Wᵀ
-        WtW_inv_Wt = (
-            W.T / float(W[:, 0] @ W[:, 0]) if W.shape[1] == 1 else np.linalg.solve(W.T @ W, W.T)
-        )
-        nu = cons.rate
-        c = W.T @ robot.Jdot_v - cons.drift
-        if approach is None:  # contact: damp the normal speed
-            x = -gains.kn * nu
-        else:  # near: follow ν_a = −λ_a d, whose derivative is −λ_a ν
-            x = gains.kn * (approach - nu) - gains.approach_rate * nu
-        a = a - W @ (WtW_inv_Wt @ a) + WtW_inv_Wt.T @ (c + x)
-        phi = -f_d + gains.force_i * e_F - gains.force_p * f_d
-        F = task.Lambda @ (a - robot.Jdot_v) + W @ phi
-        if gains.force_p > 0 and approach is None:
-            B = gains.force_p * cons.A.T
-    y = desired.qdd - gains.null_kp * e_q - gains.null_kd * (v - desired.qd)
-    null_torque = robot.M @ task.null(y)  # Nᵀ M y = M N y
-    u0 = robot.J.T @ F + robot.nle + null_torque
-    trace = OscTrace(a=a, F0=F, phi=phi, null_torque=null_torque, task=task)
-    return Command(u0=u0, B=B), trace
-
-
-class OscHybridLaw:
-    """The :class:`~hybrid_force.control.laws.base.Law` of :func:`osc_hybrid_law`.
-
-    Args:
-        gains: see :class:`OscGains`.
-        constraint: the controller's surfaces (for the directions W of the rows).
-
-    Attributes:
-        V: NaN (no Lyapunov function in joules: see the module docstring).
-        last: the :class:`OscTrace` of the last call (None before the first).
-    """
-
-    def __init__(self, gains: OscGains, constraint: Constraint) -> None:
-        self.gains = gains
-        self.constraint = constraint
-        self.V = math.nan
-        self.last: OscTrace | None = None
-
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """Full-task motion control (eq. 3) with the null-space posture (eq. 6)."""
-        command, self.last = osc_hybrid_law(self.gains, robot, v, e_q, desired)
-        return command
-
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """Motion along the surface, force (contact) or approach speed (near) across it."""
-        W = normal_directions(self.constraint, robot.p, cons.scale)
-        command, self.last = osc_hybrid_law(
-            self.gains, robot, v, e_q, desired, (cons, W, e_F, f_d, approach)
-        )
-        return command
-
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """Nothing to advance: the force integral e_F is the supervisor's."""
-
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
-        """None: the arimoto trace's sliding variables do not exist here (see :attr:`last`)."""
-        return None
-
-    def info(self) -> dict[str, Any]:
-        """The gains as JSON-able data."""
-        return {"law": _NAME, **vars(self.gains)}
-
-
 # the modes of the kernel (hybrid_force.control.laws._osc_hybrid_kernels: the same values)
 _FREE_SPACE, _NEAR, _CONTACT = 0, 1, 2
 
 
-class OscHybridWorkspace:
-    """:class:`OscHybridLaw` as one compiled call per step, writing into arrays preallocated
-    here (hot path).
+class OscHybridWorkspace(Law):
+    """The law (module docstring, eq. 1, 3–6) as one compiled call per step, writing into
+    arrays preallocated here (hot path).
 
-    :func:`osc_hybrid_law` is the readable reference; this computes the same numbers
-    (:func:`hybrid_force.control.laws._osc_hybrid_kernels.osc_hybrid`: Λ, J̄ and Nᵀτ₀ by
-    small dense factorisations, the directions W from the surfaces' closed forms) without
-    allocating. A state the kernel does not finish (cond(J M⁻¹ Jᵀ) at or above its limit, an M
-    without Cholesky factor, a singular WᵀW) is handed to the reference, which raises its error
-    (the same SingularConfigurationError, the same message) or computes the step. The command
-    returned and the arrays below are overwritten at every call: copy to keep.
+    :func:`hybrid_force.control.laws._osc_hybrid_kernels.osc_hybrid` computes Λ, J̄ and Nᵀτ₀
+    by small dense factorisations and the directions W from the surfaces' closed forms,
+    without allocating. Where J M⁻¹ Jᵀ is (nearly) singular, cond(J M⁻¹ Jᵀ) ≥ 1e12, it raises
+    SingularConfigurationError; where M or WᵀW is exactly singular, numpy's LinAlgError. The
+    command returned and the arrays below are overwritten at every call: copy to keep.
 
     Args:
         gains: see :class:`OscGains`.
@@ -434,50 +354,29 @@ class OscHybridWorkspace:
         self._mode: int | None = None  # of the last call (None before the first)
         self._J: np.ndarray | None = None  # the J of the last call
 
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """:func:`osc_hybrid_law` in free space (eq. 3, 6); the gains are this workspace's."""
+    def free_space(self, inp: LawInput) -> Command:
+        """Full-task motion control (eq. 3) with the null-space posture (eq. 6)."""
         z = self._zeros_k
-        cond = self._run(robot, v, e_q, desired, z, z, z, self._zero_rows, z, z, z, _FREE_SPACE)
-        if not cond < _COND_MAX:
-            return self._reference(robot, v, e_q, desired, None)
+        self._run(inp, z, z, z, self._zero_rows, z, z, z, _FREE_SPACE)
         return self._free
 
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """:func:`osc_hybrid_law` near (``approach`` given) and in contact (eq. 4–6)."""
-        if approach is None:
-            mode, command, approach_ = _CONTACT, self._contact, self._zeros_k
+    def hybrid(self, inp: LawInput) -> Command:
+        """Motion along the surface, force (contact) or approach speed (near) across it
+        (eq. 4–6)."""
+        cons, robot = inp.rows, inp.robot
+        if inp.approach is None:
+            mode, command, approach = _CONTACT, self._contact, self._zeros_k
         else:
-            mode, command, approach_ = _NEAR, self._near, approach
+            mode, command, approach = _NEAR, self._near, inp.approach
         if self._python_surfaces:
             for i, surface in self._python_surfaces:
                 self._grads[:, i] = surface.evaluate(robot.p)[1]
-        cond = self._run(
-            robot, v, e_q, desired, cons.scale, cons.rate, cons.drift, cons.A, e_F, f_d,
-            approach_, mode,
-        )  # fmt: skip
-        if not cond < _COND_MAX:
-            W = normal_directions(self.constraint, robot.p, cons.scale)
-            return self._reference(robot, v, e_q, desired, (cons, W, e_F, f_d, approach))
+        self._run(inp, cons.scale, cons.rate, cons.drift, cons.A, inp.e_F, inp.f_d, approach, mode)
         return command
 
     def _run(
         self,
-        robot: RobotTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
+        inp: LawInput,
         scale: np.ndarray,
         rate: np.ndarray,
         drift: np.ndarray,
@@ -486,7 +385,9 @@ class OscHybridWorkspace:
         f_d: np.ndarray,
         approach: np.ndarray,
         mode: int,
-    ) -> float:
+    ) -> None:
+        """One kernel call; raises where it cannot finish (see the class docstring)."""
+        robot, desired, v, e_q = inp.robot, inp.desired, inp.v, inp.e_q
         p_d, pd_d, pdd_d = desired.p, desired.pd, desired.pdd
         if p_d is None or pd_d is None or pdd_d is None:
             _check_desired(desired)
@@ -496,38 +397,17 @@ class OscHybridWorkspace:
         mats, vecs, jac, tip = packs  # type: ignore[misc]
         self._mode = mode
         self._J = robot.J
-        cond: float = _K.osc_hybrid(
+        cond = _K.osc_hybrid(
             mats, vecs, jac, tip, v, e_q, desired.qd, desired.qdd, p_d, pd_d, pdd_d,
             self._descs, self._grads, scale, rate, drift, A, e_F, f_d, approach, mode,
             self._gains, self._work, self._vectors, self._task, self.Lambda, self.Jbar, self.W,
             self.phi, self.B,
         )  # fmt: skip
-        return cond
-
-    def _reference(
-        self,
-        robot: RobotTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        hybrid: tuple[ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
-        | None,
-    ) -> Command:
-        """The step by :func:`osc_hybrid_law` (raises its errors), copied into the buffers."""
-        command, trace = osc_hybrid_law(self.gains, robot, v, e_q, desired, hybrid)
-        self.u0[:] = command.u0
-        self.null_torque[:] = trace.null_torque
-        self.a[:] = trace.a
-        self.F0[:] = trace.F0
-        self.Lambda[:] = trace.task.Lambda
-        self.Jbar[:] = trace.task.Jbar
-        if hybrid is None:
-            return self._free
-        self.W[:] = hybrid[1]
-        self.phi[:] = trace.phi
-        if command.B is not None:
-            self.B[:] = command.B
-        return self._contact if hybrid[4] is None else self._near
+        if cond < 0.0:  # M or WᵀW exactly singular: numpy's solve would refuse it
+            raise np.linalg.LinAlgError("Singular matrix")
+        if not cond < _COND_MAX:  # the error names cond as task_space estimates it (numpy)
+            task_space(robot.M, robot.J)
+            raise _singular(cond)
 
     @property
     def last(self) -> OscTrace | None:
@@ -545,21 +425,13 @@ class OscHybridWorkspace:
             task=TaskSpace(Lambda=self.Lambda.copy(), Jbar=self.Jbar.copy(), J=self._J.copy()),
         )
 
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """Nothing to advance: the force integral e_F is the supervisor's."""
-
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
-        """None: the arimoto trace's sliding variables do not exist here (see :attr:`last`)."""
-        return None
-
     def info(self) -> dict[str, Any]:
         """The gains as JSON-able data."""
         return {"law": _NAME, **vars(self.gains)}
 
 
-def build(context: LawContext) -> OscHybridLaw | OscHybridWorkspace:
-    """The registry's factory of ``control.law = "osc_hybrid"``: the compiled
-    :class:`OscHybridWorkspace`, or with ``context.reference`` the numpy :class:`OscHybridLaw`.
+def check(context: LawContext) -> None:
+    """The registry's check of ``control.law = "osc_hybrid"``.
 
     Raises:
         ControlError: the arm has fewer than 3 joints (a 3-D tip task needs n ≥ 3).
@@ -572,11 +444,14 @@ def build(context: LawContext) -> OscHybridLaw | OscHybridWorkspace:
             key="control.law",
             value=_NAME,
         )
+
+
+def build(context: LawContext) -> OscHybridWorkspace:
+    """The registry's factory of ``control.law = "osc_hybrid"`` (:func:`check` passed)."""
+    n = context.robot.nv
     s = context.settings
     approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
-    gains = osc_gains(context.options, approach_rate)
-    if context.reference:
-        return OscHybridLaw(gains, context.constraint)
+    gains = osc_gains(OscOptions(**context.options), approach_rate)
     return OscHybridWorkspace(gains, context.constraint, n)
 
 
@@ -649,7 +524,8 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     """
     from hybrid_force.control.force_loop import velocity_loop_number
 
-    gains = osc_gains(context.options_of(_NAME), 0.0)
+    options = OscOptions(**context.options_of(_NAME))
+    gains = osc_gains(options, 0.0)
     qs = [context.q0, *context.configurations]
     rate = max(gains.kv, gains.kn)
     number = 0.0
@@ -660,9 +536,7 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
         number = max(
             number, velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period)
         )
-    key, value = context.named(
-        f"control.{_NAME}.omega", context.options_of(_NAME).get("omega", 20.0)
-    )
+    key, value = context.named(f"control.{_NAME}.omega", options.omega)
     bounds = [
         LoopBound(
             key,
@@ -677,3 +551,16 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     return bounds + force_gain_bounds(
         context, _NAME, "force_p", gains.force_p, "force_i", gains.force_i
     )
+
+
+register(
+    LawSpec(
+        _NAME,
+        "operational-space hybrid motion/force control, dynamically consistent, with a "
+        "null-space posture (Khatib 1987, IEEE J. Robot. Autom. 3(1))",
+        build,
+        OscOptions,
+        loop_bounds=loop_bounds,
+        check=check,
+    )
+)

@@ -100,22 +100,33 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command, Desired
-from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext
+from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import (
+    Law,
+    LawContext,
+    LawInput,
+    LawOptions,
+    LawSpec,
+    LoopBound,
+    LoopContext,
+    register,
+)
 from hybrid_force.errors import ControlError
 from hybrid_force.geometry.surfaces import Surface
-from hybrid_force.model.robot import RobotTerms
+from hybrid_force.schema import param
+
+if TYPE_CHECKING:
+    from hybrid_force.control.supervisor import ControlSettings
 
 __all__ = [
     "FORMS",
     "RaibertCraigGains",
-    "RaibertCraigLaw",
+    "RaibertCraigOptions",
     "RaibertCraigWorkspace",
     "build",
     "cartesian_inertia",
@@ -206,20 +217,60 @@ class RaibertCraigGains:
         return self.ki / (1.0 + self.kp)
 
 
+@dataclass(frozen=True)
+class RaibertCraigOptions(LawOptions):
+    """The ``[control.raibert_craig]`` table (defaults in the module docstring)."""
+
+    law: ClassVar[str] = _NAME
+
+    form: str = param(
+        "corrected", choices=FORMS,
+        doc="the position servo: corrected, no force along the normals (Fisher & Mujtaba "
+        "1992), or original, J⁻¹ S (Raibert & Craig 1981)",
+    )  # fmt: skip
+    feedforward: str = param(
+        "model", choices=FEEDFORWARDS,
+        doc="model: M q̈_ff + C q̇ + g of the controller's model, or gravity: g only, as in 1981",
+    )  # fmt: skip
+    decouple: bool = param(
+        True,
+        doc="true: project the position feedback so that, by the model, it cannot change the "
+        "contact force; false: the published forms",
+    )
+    position_rate: float | None = param(
+        None, unit="1/s", minimum=0.0, strict=True,
+        doc="ω_p, slow pole of the position error (control.Lambda when not given)",
+    )  # fmt: skip
+    damping_rate: float | None = param(
+        None, unit="1/s", minimum=0.0, strict=True,
+        doc="ω_d, fast pole of the position error (control.kd_rate when not given)",
+    )  # fmt: skip
+    kp: float = param(0.5, minimum=0.0, doc="k_p, proportional force gain")
+    ki: float | None = param(
+        None, unit="1/s", minimum=0.0, strict=True,
+        doc="k_i, integral force gain ((1 + k_p) γ when not given)",
+    )  # fmt: skip
+
+    def rates(self, settings: ControlSettings) -> tuple[float, float, float, float]:
+        """(ω_p, ω_d, k_p, k_i): the values given, else ω_p = Λ, ω_d = κ (``kd_rate``) and
+        k_i = (1 + k_p) γ of the ``[control]`` settings."""
+        wp = settings.Lambda if self.position_rate is None else self.position_rate
+        wd = settings.kd_rate if self.damping_rate is None else self.damping_rate
+        ki = (1.0 + self.kp) * settings.gamma if self.ki is None else self.ki
+        return wp, wd, self.kp, ki
+
+
 def make_gains(context: LawContext) -> RaibertCraigGains:
-    """The gains from the ``[control.raibert_craig]`` table and the arm at q₀ (defaults in the
-    module docstring: ω_p = Λ, ω_d = κ, k_p = 0.5, k_i = (1 + k_p) γ)."""
-    opts, s = context.options, context.settings
-    wp = float(opts.get("position_rate", s.Lambda))
-    wd = float(opts.get("damping_rate", s.kd_rate))
-    kp = float(opts.get("kp", 0.5))
-    ki = float(opts.get("ki", (1.0 + kp) * s.gamma))
+    """The gains from the ``[control.raibert_craig]`` table and the arm at q₀
+    (:meth:`RaibertCraigOptions.rates`)."""
+    opts = RaibertCraigOptions(**context.options)
+    wp, wd, kp, ki = opts.rates(context.settings)
     M0 = 0.5 * (context.M0 + context.M0.T)
     J0 = context.robot.jacobian(context.q0)
     Lambda0 = cartesian_inertia(M0, J0)
     return RaibertCraigGains(
-        form=str(opts.get("form", "corrected")),
-        feedforward=str(opts.get("feedforward", "model")),
+        form=opts.form,
+        feedforward=opts.feedforward,
         position_rate=wp,
         damping_rate=wd,
         Kq=wp * wd * M0,
@@ -228,12 +279,16 @@ def make_gains(context: LawContext) -> RaibertCraigGains:
         Dx=(wp + wd) * Lambda0,
         kp=kp,
         ki=ki,
-        decouple=bool(opts.get("decouple", True)),
+        decouple=opts.decouple,
     )
 
 
-class RaibertCraigLaw:
-    """The law of the module docstring in numpy (one object serves both forms).
+class RaibertCraigWorkspace(Law):
+    """The law of the module docstring (both forms) as one compiled call per step
+    (:mod:`hybrid_force.control.laws._raibert_craig_kernels`), writing into arrays preallocated
+    here (hot path), with no numpy call and no new array returned. The command returned and
+    :attr:`last_u_pos` are overwritten at every call: copy to keep. Where M, A M⁻¹ Aᵀ, NᵀN
+    or Nᵀ J M⁻¹ Jᵀ N is exactly singular it raises numpy's LinAlgError.
 
     Args:
         gains: see :class:`RaibertCraigGains`.
@@ -245,8 +300,6 @@ class RaibertCraigLaw:
         last_u_pos: (n,) the position part u_pos of the last call [N·m …], for tests.
     """
 
-    V = math.nan
-
     def __init__(
         self, gains: RaibertCraigGains, surfaces: tuple[Surface, ...], approach_rate: float
     ) -> None:
@@ -255,149 +308,6 @@ class RaibertCraigLaw:
         self.approach_rate = approach_rate
         self.original = gains.form == "original"
         self.model_feedforward = gains.feedforward == "model"
-        self.last_u_pos = np.zeros(gains.Kq.shape[0])
-        self.redundant = gains.Kq.shape[0] > 3
-
-    # ---------------------------------------------------------------- the phases
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """S = I: both forms servo every axis, J⁺(p_d − p) ≈ q_d − q; the joint path q_d
-        itself is servoed (module docstring), u = u_ff − K_P e_q − K_D (q̇ − q̇_d)."""
-        g = self.gains
-        u_pos = -(g.Kq @ e_q) - g.Dq @ (v - desired.qd)
-        self.last_u_pos = u_pos
-        if self.model_feedforward:
-            u = u_pos + (robot.M @ desired.qdd + robot.C @ v + robot.g)
-        else:
-            u = u_pos + robot.g
-        return Command(u0=u, B=None)
-
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """Near (approach given): position along the surface, v_a across it. Contact: eq. 1–3."""
-        assert desired.p is not None and desired.pd is not None and desired.pdd is not None
-        N = self.normals(robot.p)
-        S = selection_matrix(N)
-        u_ff, u_fb = self._motion(robot, v, e_q, desired, S)
-        if approach is not None:
-            u = u_ff + u_fb
-            u += self._approach(robot, cons, v, u, approach)
-            return Command(u0=u, B=None)
-        g = self.gains
-        if g.decouple:  # the feedback may not change the contact force (module docstring)
-            MinvAT = np.linalg.solve(robot.M, cons.A.T)
-            u_fb = u_fb - cons.A.T @ np.linalg.solve(cons.A @ MinvAT, MinvAT.T @ u_fb)
-        # D_n = (ω_p + ω_d) × the tip's inertia along the normals, (Nᵀ J M⁻¹ Jᵀ N)⁻¹
-        JN = robot.J.T @ N
-        Dn = (g.position_rate + g.damping_rate) * np.linalg.inv(JN.T @ np.linalg.solve(robot.M, JN))
-        u = u_ff + u_fb
-        u -= cons.A.T @ ((1.0 + g.kp) * f_d - g.ki * e_F)
-        u -= JN @ (Dn @ (N.T @ robot.pdot))
-        B = g.kp * cons.A.T if g.kp > 0 else None
-        return Command(u0=u, B=B)
-
-    def _motion(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired, S: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(u_ff, u_pos + the redundant directions' hold) (n,) each, for the selection S (3, 3)
-        (eq. 2 or 3)."""
-        assert desired.p is not None and desired.pd is not None and desired.pdd is not None
-        g = self.gains
-        J = robot.J
-        e = S @ (desired.p - robot.p)
-        e_dot = S @ (desired.pd - robot.pdot)
-        J_pinv = pseudo_inverse(J)
-        if self.original:
-            u_fb = g.Kq @ (J_pinv @ e) + g.Dq @ (J_pinv @ e_dot)
-        else:
-            u_fb = J.T @ (S @ (g.Kx @ e + g.Dx @ e_dot))
-        self.last_u_pos = u_fb
-        if self.model_feedforward:
-            u_ff = robot.M @ (J_pinv @ (desired.pdd - robot.Jdot_v)) + robot.C @ v + robot.g
-        else:
-            u_ff = robot.g
-        if self.redundant:  # the self-motion follows q_d (module docstring)
-            null = np.eye(J.shape[1]) - J_pinv @ J
-            u_fb = u_fb + null @ (-(g.Kq @ e_q) - g.Dq @ (v - desired.qd))
-            if self.model_feedforward:
-                u_ff = u_ff + robot.M @ (null @ desired.qdd)
-        return u_ff, u_fb
-
-    def _approach(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        u: np.ndarray,
-        approach: np.ndarray,
-    ) -> np.ndarray:
-        """The near phase's normal torque Aᵀ w (n,). The rows' rate r = A q̇ (= ḋ [m/s] for the
-        "tip" scaling) accelerates, under the model, as ṙ = A M⁻¹(u − C q̇ − g) + Ȧ q̇ with the
-        torque u (n,); w sets ṙ = −λ_a r + ω_d (v_a − r) instead, so that d̈ + (λ_a + ω_d) ḋ
-        + λ_a ω_d d = 0: the tip lands at ḋ ≈ −λ_a d (module docstring)."""
-        M, A, rate = robot.M, cons.A, cons.rate
-        MinvAT = np.linalg.solve(M, A.T)
-        now = A @ np.linalg.solve(M, u - robot.C @ v - robot.g) + cons.Adot @ v
-        wanted = -self.approach_rate * rate + self.gains.damping_rate * (approach - rate)
-        return A.T @ np.linalg.solve(A @ MinvAT, wanted - now)
-
-    def normals(self, p: np.ndarray) -> np.ndarray:
-        """(3, k) the surfaces' unit normals ∇Φ/‖∇Φ‖ at the tip p (3,) [m], as columns."""
-        N = np.empty((3, len(self.surfaces)))
-        for i, surface in enumerate(self.surfaces):
-            gradient = surface.evaluate(p)[1]
-            N[:, i] = gradient / math.sqrt(float(gradient @ gradient))
-        return N
-
-    # ---------------------------------------------------------------- the Law protocol
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """Nothing to advance: the force integral is the supervisor's e_F."""
-
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> None:
-        """None: the law keeps no :class:`ControlTrace` (it has no sliding variable)."""
-        return None
-
-    def info(self) -> dict[str, Any]:
-        """The form, the feed-forward and the gains as JSON-able data."""
-        g = self.gains
-        return {
-            "form": g.form,
-            "feedforward": g.feedforward,
-            "position_rate": g.position_rate,
-            "damping_rate": g.damping_rate,
-            "kp": g.kp,
-            "ki": g.ki,
-            "force_rate": g.force_rate,
-            "Kx": g.Kx.tolist(),
-            "Kq": g.Kq.tolist(),
-        }
-
-
-class RaibertCraigWorkspace(RaibertCraigLaw):
-    """:class:`RaibertCraigLaw` as one compiled call per step, writing into arrays
-    preallocated here (hot path; :mod:`hybrid_force.control.laws._raibert_craig_kernels`).
-
-    The numpy methods of :class:`RaibertCraigLaw` are the readable references (what
-    ``reference=True`` builds); this computes the same numbers, to round-off, with no numpy
-    call and no new array returned. The command returned and :attr:`last_u_pos` are
-    overwritten at every call: copy to keep. At a zero pivot (J Jᵀ singular: the reference's
-    pseudo-inverse takes the SVD) the step runs the reference instead.
-    """
-
-    def __init__(
-        self, gains: RaibertCraigGains, surfaces: tuple[Surface, ...], approach_rate: float
-    ) -> None:
-        super().__init__(gains, surfaces, approach_rate)
         n, k = gains.Kq.shape[0], len(surfaces)
         self._joint_gains = np.array([gains.Kq, gains.Dq], dtype=float)
         self._task_gains = np.array([gains.Kx, gains.Dx], dtype=float)
@@ -423,30 +333,23 @@ class RaibertCraigWorkspace(RaibertCraigLaw):
         self._plain = Command(u0=self._u0, B=None)
         self._contact = Command(u0=self._u0, B=self._B if gains.kp > 0 else None)
 
-    def free_space(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
-        """:meth:`RaibertCraigLaw.free_space` in one compiled call."""
+    V = math.nan
+
+    def free_space(self, inp: LawInput) -> Command:
+        """S = I: both forms servo every axis, J⁺(p_d − p) ≈ q_d − q; the joint path q_d
+        itself is servoed (module docstring), u = u_ff − K_P e_q − K_D (q̇ − q̇_d)."""
+        robot, desired = inp.robot, inp.desired
         packs = robot._packs if robot._packs is not None else robot.packed()._packs
         assert packs is not None
         _K.free_space(
-            packs[0], packs[1], self._joint_gains, v, e_q, desired.qd, desired.qdd,
+            packs[0], packs[1], self._joint_gains, inp.v, inp.e_q, desired.qd, desired.qdd,
             self.model_feedforward, self._vectors,
         )  # fmt: skip
         return self._plain
 
-    def hybrid(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """:meth:`RaibertCraigLaw.hybrid` in one compiled call."""
+    def hybrid(self, inp: LawInput) -> Command:
+        """Near (approach given): position along the surface, v_a across it. Contact: eq. 1–3."""
+        robot, cons, desired, approach = inp.robot, inp.rows, inp.desired, inp.approach
         assert desired.p is not None and desired.pd is not None and desired.pdd is not None
         packs = robot._packs if robot._packs is not None else robot.packed()._packs
         assert packs is not None
@@ -456,45 +359,37 @@ class RaibertCraigWorkspace(RaibertCraigLaw):
                 self._grads[i] = surface.evaluate(tip[0])[1]
         near = approach is not None
         status = _K.hybrid(
-            mats, vecs, jac, tip, cons.A, cons.Adot, cons.rate, v, e_q, desired.qd,
-            desired.qdd, desired.p, desired.pd, desired.pdd, e_F, f_d,
+            mats, vecs, jac, tip, cons.A, cons.Adot, cons.rate, inp.v, inp.e_q, desired.qd,
+            desired.qdd, desired.p, desired.pd, desired.pdd, inp.e_F, inp.f_d,
             self._zeros_k if approach is None else approach, near, self._descs, self._grads,
             self._joint_gains, self._task_gains, self._params, self._flags, self._vectors,
             self._B,
         )  # fmt: skip
-        if status != 0:
-            return self._reference_step(robot, cons, v, e_q, desired, e_F, f_d, approach)
+        if status != 0:  # an exactly singular solve: numpy's error
+            raise np.linalg.LinAlgError("Singular matrix")
         return self._plain if near else self._contact
 
-    def _reference_step(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
-        """The numpy reference for one step, its results copied into this workspace's arrays."""
-        command = RaibertCraigLaw.hybrid(self, robot, cons, v, e_q, desired, e_F, f_d, approach)
-        self._u_pos[:] = self.last_u_pos
-        self.last_u_pos = self._u_pos
-        self._u0[:] = command.u0
-        if command.B is None:
-            return self._plain
-        self._B[:] = command.B
-        return self._contact
+    def info(self) -> dict[str, Any]:
+        """The form, the feed-forward and the gains as JSON-able data."""
+        g = self.gains
+        return {
+            "form": g.form,
+            "feedforward": g.feedforward,
+            "position_rate": g.position_rate,
+            "damping_rate": g.damping_rate,
+            "kp": g.kp,
+            "ki": g.ki,
+            "force_rate": g.force_rate,
+            "Kx": g.Kx.tolist(),
+            "Kq": g.Kq.tolist(),
+        }
 
 
-def build(context: LawContext) -> RaibertCraigLaw:
-    """The registry's factory of ``control.law = "raibert_craig"``: the compiled
-    :class:`RaibertCraigWorkspace`, or the numpy :class:`RaibertCraigLaw` for ``reference``."""
+def build(context: LawContext) -> RaibertCraigWorkspace:
+    """The registry's factory of ``control.law = "raibert_craig"``."""
     s = context.settings
     approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
-    law_type = RaibertCraigLaw if context.reference else RaibertCraigWorkspace
-    return law_type(make_gains(context), context.constraint.surfaces, approach_rate)
+    return RaibertCraigWorkspace(make_gains(context), context.constraint.surfaces, approach_rate)
 
 
 def loop_bounds(context: LoopContext) -> list[LoopBound]:
@@ -516,16 +411,13 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     from hybrid_force.control.force_loop import velocity_loop_number
     from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
 
-    s, opts = context.settings, context.options_of(_NAME)
-    wp = float(opts.get("position_rate", s.Lambda))
-    wd = float(opts.get("damping_rate", s.kd_rate))
-    kp = float(opts.get("kp", 0.5))
-    ki = float(opts.get("ki", (1.0 + kp) * s.gamma))
+    opts = RaibertCraigOptions(**context.options_of(_NAME))
+    wp, wd, kp, ki = opts.rates(context.settings)
     M0 = context.model_mass(context.q0)
     Dq = (wp + wd) * 0.5 * (M0 + M0.T)
     qs = [context.q0, *context.configurations]
     number = max(velocity_loop_number(context.plant_mass(q), Dq, context.period) for q in qs)
-    given = "damping_rate" in opts
+    given = opts.damping_rate is not None
     key, value = context.named(f"control.{_NAME}.damping_rate" if given else "control.kd_rate", wd)
     bounds = [
         LoopBound(
@@ -539,3 +431,17 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
         )
     ]
     return bounds + force_gain_bounds(context, _NAME, "kp", kp, "ki", ki)
+
+
+register(
+    LawSpec(
+        _NAME,
+        "task-space selection-matrix hybrid control with a PI force loop (Raibert & Craig "
+        "1981; corrected form: Fisher & Mujtaba 1992)",
+        build,
+        RaibertCraigOptions,
+        gains={"Lambda": "position_rate", "kd_rate": "damping_rate", "gamma": "ki"},
+        loop_bounds=loop_bounds,
+        check=make_gains,  # the Cartesian inertia at q0 (ControlError at a singularity)
+    )
+)
