@@ -1,11 +1,10 @@
 """Compiled algebra of the controller's step (Numba): constraint rows (k = 1), the modified
 Arimoto law (eq. 4, 11, 29–30), the CLIK of eq. 27 and the force momenta.
 
-References, the readable numpy versions: :class:`hybrid_force.control.constraint.Constraint`
-(k rows), :func:`hybrid_force.control.laws.arimoto.arimoto_law` and ``free_space_law``,
-:class:`hybrid_force.control.clik.DesiredJointPath` (its reference methods).
-``tests/test_kernels.py`` checks each kernel against its reference. The plant never calls
-these kernels.
+Their readable numpy versions: :class:`hybrid_force.control.constraint.Constraint` (k rows)
+and, in tests/oracles/control.py, ``arimoto_law``, ``free_space_law`` and the CLIK's
+``ReferenceJointPath``; ``tests/test_kernels.py`` checks each kernel against them. The plant
+never calls these kernels.
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """

@@ -2,9 +2,9 @@
 
 The task rows, damped pseudo-inverse, q̇_d, q̈_d and the Newton correction of
 :class:`hybrid_force.control.pose_clik.PoseJointPath`, roll free (m = 5) and held (m = 6).
-Reference, the readable numpy version:
-:class:`hybrid_force.control.pose_clik.ReferencePoseJointPath` (``_derivatives`` and
-``_advance``); ``tests/test_pose_kernels.py`` checks each kernel against it. Pinocchio's
+The readable numpy version is the oracle ``ReferencePoseJointPath`` of
+tests/oracles/control.py (``_derivatives`` and ``_advance``); ``tests/test_pose_kernels.py``
+checks each kernel against it. Pinocchio's
 passes stay in the caller.
 
 Shared arguments:
@@ -127,11 +127,11 @@ def pose_velocity(
     w: np.ndarray,
     qd: np.ndarray,
 ) -> float:
-    """q̇_d = A⁺y + N z at (t, q_d), as ``ReferencePoseJointPath._derivatives`` (first half).
+    """q̇_d = A⁺y + N z at (t, q_d), as the oracle's ``_derivatives`` (first half).
 
     Writes S, A, Ap = AᵀW, W = (AAᵀ + λ²I)⁻¹, N = I − ApA (posture on), y, w, q̇_d.
     Returns the cheap bound m² max|G| max|W| of cond(G), G = AAᵀ + λ²I (inf when G is not
-    positive definite: then W, Ap and q̇_d are zero, as the reference's).
+    positive definite: then W, Ap and q̇_d are zero, as the oracle's).
     """
     gamma, damping2, posture, gain, held = cfg[0], cfg[1], cfg[2] != 0.0, cfg[3], cfg[4] != 0.0
     n = J6.shape[1]
@@ -382,7 +382,7 @@ def pose_newton(
     out: np.ndarray,
 ) -> None:
     """out = q + Ap r, r = [p_d − p; S e] at the predictor q (tip p, R), Euclidean spaces
-    only; S and Ap are the previous step's (``ReferencePoseJointPath._advance``)."""
+    only; S and Ap are the previous step's (the oracle's ``_advance``)."""
     held = cfg[4] != 0.0
     m = Ap.shape[1]
     r = np.empty(m)
@@ -484,7 +484,7 @@ def pose_goal(
     2: travel), held (1: roll held). R_fix: (3, 3) F(0)ᵀ R(q_d(0)) (roll held; I at t0).
     Writes goal (4, 3) rows a_d, ȧ_d, ω_d, ω̇_d and, roll held, R_d = F R_fix.
     Returns 0, or where the direction is undefined 1 (∇Φ = 0), 2 (the lean), 3 (the roll);
-    the caller then raises the reference's error.
+    the caller raises ``ToolTarget.undefined`` of that code.
     """
     p, pd, pdd = sample[0], sample[1], sample[2]
     if desc.shape[0] > 0:

@@ -1,15 +1,14 @@
 """Numpy oracles of the laws other than the paper's (tests/oracles/control.py has those):
-each the readable form of its package law, with the same constructor, on which it builds for
-what both share (settings, reports, the law's interface). Written with the step's quantities
-as arguments (``free_space_args``, ``hybrid_args``); :class:`_Unpacked` gives them the
-package's interface (one :class:`~hybrid_force.control.laws.base.LawInput`).
-:func:`oracle_of` turns a built package law into its oracle.
+each the readable form of its package law, a subclass of it with the same constructor (what
+both share: settings, reports, the law's interface), its steps in numpy. :func:`oracle_of`
+turns a built package law into its oracle.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -55,17 +54,9 @@ __all__ = [
 ]
 
 
-class _Unpacked:
-    """The law's interface over ``free_space_args(robot, v, e_q, desired)`` and
-    ``hybrid_args(robot, cons, v, e_q, desired, e_F, f_d, approach)``."""
-
-    def free_space(self, inp: LawInput) -> Command:
-        return self.free_space_args(inp.robot, inp.v, inp.e_q, inp.desired)  # type: ignore[attr-defined, no-any-return]
-
-    def hybrid(self, inp: LawInput) -> Command:
-        return self.hybrid_args(  # type: ignore[attr-defined, no-any-return]
-            inp.robot, inp.rows, inp.v, inp.e_q, inp.desired, inp.e_F, inp.f_d, inp.approach
-        )
+def _hybrid_input(inp: LawInput) -> tuple[Any, ...]:
+    """(robot, cons, v, e_q, desired, e_F, f_d, approach) of a hybrid step's input."""
+    return inp.robot, inp.rows, inp.v, inp.e_q, inp.desired, inp.e_F, inp.f_d, inp.approach
 
 
 def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
@@ -147,7 +138,7 @@ def osc_hybrid_law(
     return Command(u0=u0, B=B), trace
 
 
-class OscHybridLaw(_Unpacked, OscHybridWorkspace):
+class OscHybridLaw(OscHybridWorkspace):
     """The :class:`~hybrid_force.control.laws.base.Law` of :func:`osc_hybrid_law`.
 
     Args: as :class:`~hybrid_force.control.laws.osc_hybrid.OscHybridWorkspace`.
@@ -159,25 +150,15 @@ class OscHybridLaw(_Unpacked, OscHybridWorkspace):
 
     last: OscTrace | None = None  # (the workspace's property, here a plain attribute)
 
-    def free_space_args(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
+    def free_space(self, inp: LawInput) -> Command:
         """Full-task motion control (eq. 3) with the null-space posture (eq. 6)."""
+        robot, v, e_q, desired = inp.robot, inp.v, inp.e_q, inp.desired
         command, self.last = osc_hybrid_law(self.gains, robot, v, e_q, desired)
         return command
 
-    def hybrid_args(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
+    def hybrid(self, inp: LawInput) -> Command:
         """Motion along the surface, force (contact) or approach speed (near) across it."""
+        robot, cons, v, e_q, desired, e_F, f_d, approach = _hybrid_input(inp)
         W = normal_directions(self.constraint, robot.p, cons.scale)
         command, self.last = osc_hybrid_law(
             self.gains, robot, v, e_q, desired, (cons, W, e_F, f_d, approach)
@@ -185,20 +166,9 @@ class OscHybridLaw(_Unpacked, OscHybridWorkspace):
         return command
 
 
-class ImpedanceLaw(_Unpacked, ImpedanceWorkspace):
-    """The impedance law (module docstring) in readable numpy: the reference of
-    :class:`ImpedanceWorkspace` (what ``LawContext(reference=True)`` builds).
-
-    Args:
-        gains: the settings. constraint: the controller's surfaces (for their normals).
-        k: the number of surfaces.
-
-    Attributes:
-        V: NaN (no Lyapunov function is claimed, see the module docstring).
-        preload: (k,) φ = k_n δ [N], the force the reference's depth asks for (contact).
-        offset: (k,) δ [m for "tip" rows], the reference's depth below p_d at the last call.
-        stiffness, damping: (3, 3) K and D at the last call [N/m, N·s/m].
-    """
+class ImpedanceLaw(ImpedanceWorkspace):
+    """The impedance law (hybrid_force.control.laws.impedance) in readable numpy: the oracle
+    of :class:`ImpedanceWorkspace` (the same arguments and attributes)."""
 
     V = math.nan
 
@@ -207,26 +177,16 @@ class ImpedanceLaw(_Unpacked, ImpedanceWorkspace):
         self.stiffness = np.zeros((3, 3))
         self.damping = np.zeros((3, 3))
 
-    def free_space_args(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
+    def free_space(self, inp: LawInput) -> Command:
         """Eq. (1) with p_r = p_d, ṗ_r = ṗ_d (module docstring)."""
+        robot, v, e_q, desired = inp.robot, inp.v, inp.e_q, inp.desired
         self._in_contact = False
         p_d, pd_d = _task(desired)
         return Command(self._torque(robot, v, e_q, desired, p_d - robot.p, pd_d), None)
 
-    def hybrid_args(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
+    def hybrid(self, inp: LawInput) -> Command:
         """Eq. (1) near the surface (approach given) and in contact (eq. 2); e_F is unused."""
+        robot, cons, v, e_q, desired, _, f_d, approach = _hybrid_input(inp)
         p_d, pd_d = _task(desired)
         e = p_d - robot.p
         if approach is not None:  # near: the reference at the tool's height, descending
@@ -238,12 +198,7 @@ class ImpedanceLaw(_Unpacked, ImpedanceWorkspace):
             # a = −λ_a d, so ȧ = −λ_a ḋ = (a / d) ḋ: its feed-forward makes −λ_a a root
             pdd_r = along.T @ (approach / cons.distance * (normals.T @ robot.pdot))
             return Command(self._torque(robot, v, e_q, desired, e, pd_r, pdd_r), None)
-        if not self._in_contact:  # a touch: start from the model's depth
-            self.preload[:] = f_d
-            self._in_contact = True
-        if not self.gains.force_tracking:
-            self.preload[:] = f_d
-        self._f_d = f_d
+        self._touch(f_d)
         u = self._torque(robot, v, e_q, desired, e, pd_d) - cons.A.T @ self.preload
         W = cons.A @ np.linalg.solve(robot.M, cons.A.T)
         self.offset = W @ self.preload / self.gains.omega**2
@@ -285,18 +240,9 @@ class ImpedanceLaw(_Unpacked, ImpedanceWorkspace):
             self.preload += dt * self.gains.force_rate * (self._f_d - f)
 
 
-class RaibertCraigLaw(_Unpacked, RaibertCraigWorkspace):
-    """The law of the module docstring in numpy (one object serves both forms).
-
-    Args:
-        gains: see :class:`RaibertCraigGains`.
-        surfaces: the controller's surfaces (their normals at the tip give S).
-        approach_rate: λ_a [1/s] of the supervisor's approach velocity v_a = −λ_a d.
-
-    Attributes:
-        V: NaN (the law has no Lyapunov function).
-        last_u_pos: (n,) the position part u_pos of the last call [N·m …], for tests.
-    """
+class RaibertCraigLaw(RaibertCraigWorkspace):
+    """The law of hybrid_force.control.laws.raibert_craig in numpy (both forms): the oracle
+    of :class:`RaibertCraigWorkspace` (the same arguments and attributes)."""
 
     V = math.nan
 
@@ -308,11 +254,10 @@ class RaibertCraigLaw(_Unpacked, RaibertCraigWorkspace):
         self.redundant = gains.Kq.shape[0] > 3
 
     # ---------------------------------------------------------------- the phases
-    def free_space_args(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
+    def free_space(self, inp: LawInput) -> Command:
         """S = I: both forms servo every axis, J⁺(p_d − p) ≈ q_d − q; the joint path q_d
         itself is servoed (module docstring), u = u_ff − K_P e_q − K_D (q̇ − q̇_d)."""
+        robot, v, e_q, desired = inp.robot, inp.v, inp.e_q, inp.desired
         g = self.gains
         u_pos = -(g.Kq @ e_q) - g.Dq @ (v - desired.qd)
         self.last_u_pos = u_pos
@@ -322,18 +267,9 @@ class RaibertCraigLaw(_Unpacked, RaibertCraigWorkspace):
             u = u_pos + robot.g
         return Command(u0=u, B=None)
 
-    def hybrid_args(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
+    def hybrid(self, inp: LawInput) -> Command:
         """Near (approach given): position along the surface, v_a across it. Contact: eq. 1–3."""
+        robot, cons, v, e_q, desired, e_F, f_d, approach = _hybrid_input(inp)
         assert desired.p is not None and desired.pd is not None and desired.pdd is not None
         N = self.normals(robot.p)
         S = selection_matrix(N)
@@ -411,7 +347,7 @@ class RaibertCraigLaw(_Unpacked, RaibertCraigWorkspace):
     # ---------------------------------------------------------------- the Law protocol
 
 
-class AdaptiveArimotoLaw(_Unpacked, AdaptiveArimotoWorkspace):
+class AdaptiveArimotoLaw(AdaptiveArimotoWorkspace):
     """The adaptive law (module docstring) as the supervisor runs it, in numpy: the readable
     reference of :class:`AdaptiveArimotoWorkspace` (what ``reference=True`` builds).
 
@@ -446,30 +382,20 @@ class AdaptiveArimotoLaw(_Unpacked, AdaptiveArimotoWorkspace):
         self._z_min = np.inf  # min over the past of Z = ½ wᵀ M w [J]
 
     # ------------------------------------------------------------------ the law
-    def free_space_args(
-        self, robot: RobotTerms, v: np.ndarray, e_q: np.ndarray, desired: Desired
-    ) -> Command:
+    def free_space(self, inp: LawInput) -> Command:
         """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
+        robot, v, e_q, desired = inp.robot, inp.v, inp.e_q, inp.desired
         _, ref = free_space_law(self.gains, robot, v, e_q, desired)  # q̇_r, q̈_r, s of eq. 29
         q = self._configuration(desired.q, e_q)
         Y = self.regressor(q, v, ref.qdot_r, ref.qddot_r0)
         return self._command(robot, q, Y, ref, desired, None, None)
 
-    def hybrid_args(
-        self,
-        robot: RobotTerms,
-        cons: ConstraintTerms,
-        v: np.ndarray,
-        e_q: np.ndarray,
-        desired: Desired,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray | None,
-    ) -> Command:
+    def hybrid(self, inp: LawInput) -> Command:
         """Eq. 4, 8, 11 adapted (module docstring); the same arguments as the paper's law.
 
         q̇_r, q̈_r (at f = 0) and s are the paper's law's own (:func:`~.arimoto.arimoto_law`,
         whose torque with the model's M, C, g is not used)."""
+        robot, cons, v, e_q, desired, e_F, f_d, approach = _hybrid_input(inp)
         g = self.gains
         _, ref = arimoto_law(g, robot, cons, v, e_q, desired, e_F, f_d, approach)
         q = self._configuration(desired.q, e_q)

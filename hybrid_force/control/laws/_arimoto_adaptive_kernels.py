@@ -3,19 +3,18 @@ velocities with the inputs of the regressor's passes, the bookkeeping around Pin
 joint-torque regressor (Y θ̂, Yᵀ s, β M̂ A⁺, the gain schedule, V) and the parameter update
 θ̂̇ = −σ Γ₀ Yᵀ s with the masses' projection.
 
-Reference, the readable numpy version: :class:`hybrid_force.control.laws.arimoto_adaptive.
-AdaptiveArimotoLaw` (the regressor of :class:`hybrid_force.model.regressor.SlotineLiRegressor`,
-three passes). The compiled law
-(:class:`~hybrid_force.control.laws.arimoto_adaptive.AdaptiveArimotoWorkspace`) calls Pinocchio
-between :func:`reference_velocities` and :func:`adaptive_command`, with the Slotine–Li
-regressor in two passes instead of three: c(q, v) is quadratic in v, so ¼ [c(v + w) − c(v − w)]
-= c((v + w)/2) − c((v − w)/2), and with the model's gravity in the first pass
+Its oracle, the readable numpy version, is ``AdaptiveArimotoLaw`` of tests/oracles/laws.py (the
+regressor of :class:`hybrid_force.model.regressor.SlotineLiRegressor`, three passes). The compiled
+law (:class:`~hybrid_force.control.laws.arimoto_adaptive.AdaptiveArimotoWorkspace`) calls Pinocchio
+between :func:`reference_velocities` and :func:`adaptive_command`, with the Slotine–Li regressor in
+two passes instead of three: c(q, v) is quadratic in v, so ¼ [c(v + w) − c(v − w)] = c((v + w)/2) −
+c((v − w)/2), and with the model's gravity in the first pass
 
     Y(q, q̇, q̇_r, q̈_r) = Y_rnea(q, (q̇ + q̇_r)/2, q̈_r) − Y⁰_rnea(q, (q̇ − q̇_r)/2, 0)
 
 ((q̇ − q̇_r)/2 = s/2; halving is exact in floating point). V's ½ sᵀ M̂ s is Pinocchio's kinetic
 energy regressor at s times θ̂ (one forward pass, not a regressor pass).
-``tests/test_arimoto_adaptive_kernel.py`` checks the compiled law against the reference.
+``tests/test_arimoto_adaptive_kernel.py`` checks the compiled law against the oracle.
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """

@@ -1,11 +1,11 @@
 """Compiled algebra of the impedance law's step (Numba): eq. (1) and (2) of
 :mod:`hybrid_force.control.laws.impedance` in one call.
 
-Reference, the readable numpy version: :class:`hybrid_force.control.laws.impedance.ImpedanceLaw`
-(what ``LawContext(reference=True)`` builds); ``tests/test_impedance_kernel.py`` checks this
-kernel against it. The dense solves are written out: a Cholesky factorisation of M (n, n), the
-solves M X = [Jᵀ, Aᵀ], and the inverse of the 3×3 J M⁻¹ Jᵀ by Gaussian elimination with
-partial pivoting (as LAPACK's getrf/getri, which numpy's ``inv`` calls).
+Its oracle, the readable numpy version, is ``ImpedanceLaw`` of tests/oracles/laws.py;
+``tests/test_impedance_kernel.py`` checks this kernel against it. The dense solves are written out:
+a Cholesky factorisation of M (n, n), the solves M X = [Jᵀ, Aᵀ], and the inverse of the 3×3 J M⁻¹ Jᵀ
+by Gaussian elimination with partial pivoting (as LAPACK's getrf/getri, which numpy's ``inv``
+calls).
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """

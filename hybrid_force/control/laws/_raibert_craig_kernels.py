@@ -4,7 +4,7 @@ Their oracle, the readable numpy version, is ``RaibertCraigLaw`` of ``tests/orac
 :class:`~hybrid_force.control.laws.raibert_craig.RaibertCraigWorkspace` calls these kernels,
 one call per step, and ``tests/test_raibert_craig_kernel.py`` checks them against it.
 
-The same formulas as the references, written as loops: the selection S = I − N (NᵀN)⁻¹ Nᵀ
+The same formulas as the oracle, written as loops: the selection S = I − N (NᵀN)⁻¹ Nᵀ
 from the surfaces' unit normals at the tip, J⁺ = Jᵀ (J Jᵀ)⁻¹, the position part (eq. 2 or 3),
 the feed-forward, the redundant directions' hold (I − J⁺J)(…) (applied as x − J⁺(J x), the
 matrix is not formed), the near phase's normal torque and in contact the projection P, the

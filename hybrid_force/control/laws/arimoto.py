@@ -32,6 +32,12 @@ import numpy as np
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
+from hybrid_force.control.force_loop import (
+    force_feedthrough,
+    largest_integral_step,
+    max_stable_gain,
+    velocity_loop_number,
+)
 from hybrid_force.control.laws.base import (
     PAPER_GAINS,
     Law,
@@ -332,13 +338,6 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     sampled, bT below :func:`~hybrid_force.control.force_loop.largest_integral_step` (the
     proportional part left out: on the safe side).
     """
-    from hybrid_force.control.force_loop import (
-        force_feedthrough,
-        largest_integral_step,
-        max_stable_gain,
-        velocity_loop_number,
-    )
-
     s, T = context.settings, context.period
     qs = [context.q0, *context.configurations]
     Kd = damping_matrix(s.Kd, s.kd_rate, context.model_mass(context.q0))

@@ -192,7 +192,7 @@ class AdaptiveArimotoWorkspace(Law):
 
     Per call: :func:`~._arimoto_adaptive_kernels.reference_velocities` (the paper's kernel:
     q̇_r, q̈_r0, s, s0, s1, and the passes' inputs); Pinocchio's joint-torque regressor twice for
-    Y (the two-pass polarisation of that module's docstring, not the reference's three), once
+    Y (the two-pass polarisation of that module's docstring, not the oracle's three), once
     per constraint row for Y_M(q, A⁺_j), and its kinetic energy regressor at s for ½ sᵀ M̂ s;
     then :func:`~._arimoto_adaptive_kernels.adaptive_command` (Y θ̂ − K_d s − force, β M̂ A⁺,
     Yᵀ s, the schedule, V). :meth:`update` is

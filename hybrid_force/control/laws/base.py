@@ -37,13 +37,14 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from hybrid_force.control.constraint import Constraint
 from hybrid_force.errors import ControlError, GainError, did_you_mean
 from hybrid_force.schema import Param, specs
 
 if TYPE_CHECKING:  # annotations only (the laws' modules import this one)
     from collections.abc import Sequence
 
-    from hybrid_force.control.constraint import Constraint, ConstraintTerms
+    from hybrid_force.control.constraint import ConstraintTerms
     from hybrid_force.control.laws.arimoto import Command, ControlTrace, Desired, Gains
     from hybrid_force.control.supervisor import ControlSettings
     from hybrid_force.geometry.surfaces import Surface
@@ -322,8 +323,6 @@ class LoopContext:
     def rows(self, q: np.ndarray, robot: Robot | None = None) -> np.ndarray:
         """(k, n) the constraint rows A at q of ``robot`` (default the plant), scaled as
         ``sim.normalization`` says."""
-        from hybrid_force.control.constraint import Constraint
-
         arm = self.plant if robot is None else robot
         A, _ = Constraint(list(self.surfaces)).normal_rows(arm.tip_position(q), arm.jacobian(q))
         if self.normalization == "joint":

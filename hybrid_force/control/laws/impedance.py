@@ -82,6 +82,11 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.force_loop import (
+    force_feedthrough,
+    largest_integral_step,
+    velocity_loop_number,
+)
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import (
     Law,
@@ -94,6 +99,7 @@ from hybrid_force.control.laws.base import (
     below,
     register,
 )
+from hybrid_force.control.laws.osc_hybrid import task_space
 from hybrid_force.errors import GainError, SingularConfigurationError
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.schema import param
@@ -210,13 +216,18 @@ class ImpedanceWorkspace(Law):
             if given:  # the kernel computes a single column's pseudo-inverse itself
                 self._along[...] = np.linalg.pinv(normals)
             return self._run(inp, cons, _NEAR, inp.approach, given)
-        if not self._in_contact:  # a touch: start from the model's depth
+        self._touch(f_d)
+        return self._run(inp, cons, _CONTACT)
+
+    def _touch(self, f_d: np.ndarray) -> None:
+        """In contact with f_d (k,) [N]: φ starts from the model's depth, φ = f_d, at a touch
+        (and stays there without force tracking)."""
+        if not self._in_contact:
             self.preload[:] = f_d
             self._in_contact = True
         if not self.gains.force_tracking:
             self.preload[:] = f_d
         self._f_d = f_d
-        return self._run(inp, cons, _CONTACT)
 
     def _run(
         self,
@@ -313,13 +324,6 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     κ_f ρ T < :func:`~hybrid_force.control.force_loop.largest_integral_step` (1 without
     filter and delay). The law reads none of the paper's K_d, β, γ.
     """
-    from hybrid_force.control.force_loop import (
-        force_feedthrough,
-        largest_integral_step,
-        velocity_loop_number,
-    )
-    from hybrid_force.control.laws.osc_hybrid import task_space
-
     gains = ImpedanceGains(**context.options_of("impedance"))
     rate = 2.0 * gains.zeta * gains.omega
     qs = [context.q0, *context.configurations]

@@ -86,6 +86,12 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import Constraint
+from hybrid_force.control.force_loop import (
+    force_feedthrough,
+    largest_integral_step,
+    max_stable_loop_gain,
+    velocity_loop_number,
+)
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import (
     Law,
@@ -467,12 +473,6 @@ def force_gain_bounds(
     1 + k_I T/2 without filter and delay); with k_P = 0 the integral alone needs
     k_I ρ T below :func:`~hybrid_force.control.force_loop.largest_integral_step` (1).
     Empty unless the run is sampled."""
-    from hybrid_force.control.force_loop import (
-        force_feedthrough,
-        largest_integral_step,
-        max_stable_loop_gain,
-    )
-
     if not context.sampled:
         return []
     qs = [context.q0, *context.configurations]
@@ -522,8 +522,6 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     **Force loop**: :func:`force_gain_bounds` with k_P = ``force_p``, k_I = ``force_i``.
     The law reads none of the paper's K_d, β, γ: no check of theirs applies.
     """
-    from hybrid_force.control.force_loop import velocity_loop_number
-
     options = OscOptions(**context.options_of(_NAME))
     gains = osc_gains(options, 0.0)
     qs = [context.q0, *context.configurations]

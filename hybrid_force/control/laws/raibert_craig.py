@@ -100,11 +100,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
+from hybrid_force.control.force_loop import velocity_loop_number
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.control.laws.base import (
     Law,
@@ -116,12 +117,10 @@ from hybrid_force.control.laws.base import (
     LoopContext,
     register,
 )
+from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
 from hybrid_force.errors import ControlError
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.schema import param
-
-if TYPE_CHECKING:
-    from hybrid_force.control.supervisor import ControlSettings
 
 __all__ = [
     "FORMS",
@@ -251,12 +250,14 @@ class RaibertCraigOptions(LawOptions):
         doc="k_i, integral force gain ((1 + k_p) γ when not given)",
     )  # fmt: skip
 
-    def rates(self, settings: ControlSettings) -> tuple[float, float, float, float]:
+    def rates(
+        self, Lambda: float, kd_rate: float, gamma: float
+    ) -> tuple[float, float, float, float]:
         """(ω_p, ω_d, k_p, k_i): the values given, else ω_p = Λ, ω_d = κ (``kd_rate``) and
-        k_i = (1 + k_p) γ of the ``[control]`` settings."""
-        wp = settings.Lambda if self.position_rate is None else self.position_rate
-        wd = settings.kd_rate if self.damping_rate is None else self.damping_rate
-        ki = (1.0 + self.kp) * settings.gamma if self.ki is None else self.ki
+        k_i = (1 + k_p) γ, of the ``[control]`` settings."""
+        wp = Lambda if self.position_rate is None else self.position_rate
+        wd = kd_rate if self.damping_rate is None else self.damping_rate
+        ki = (1.0 + self.kp) * gamma if self.ki is None else self.ki
         return wp, wd, self.kp, ki
 
 
@@ -264,7 +265,9 @@ def make_gains(context: LawContext) -> RaibertCraigGains:
     """The gains from the ``[control.raibert_craig]`` table and the arm at q₀
     (:meth:`RaibertCraigOptions.rates`)."""
     opts = RaibertCraigOptions(**context.options)
-    wp, wd, kp, ki = opts.rates(context.settings)
+    wp, wd, kp, ki = opts.rates(
+        context.settings.Lambda, context.settings.kd_rate, context.settings.gamma
+    )
     M0 = 0.5 * (context.M0 + context.M0.T)
     J0 = context.robot.jacobian(context.q0)
     Lambda0 = cartesian_inertia(M0, J0)
@@ -408,11 +411,10 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     bound is k_p < 1 + k_i T/2 without filter and delay: the docstring's tick-to-tick map
     f ← −k_p f + … with the integral's half-step. The law reads none of β and K_d.
     """
-    from hybrid_force.control.force_loop import velocity_loop_number
-    from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
-
     opts = RaibertCraigOptions(**context.options_of(_NAME))
-    wp, wd, kp, ki = opts.rates(context.settings)
+    wp, wd, kp, ki = opts.rates(
+        context.settings.Lambda, context.settings.kd_rate, context.settings.gamma
+    )
     M0 = context.model_mass(context.q0)
     Dq = (wp + wd) * 0.5 * (M0 + M0.T)
     qs = [context.q0, *context.configurations]
