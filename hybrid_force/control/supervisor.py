@@ -362,7 +362,6 @@ class HybridController:
         self.tool = tool = tool or ToolSettings()
         k, n = constraint.k, robot.nv
         start = check_controller(robot, constraint, path, q0, s, dt, tool, t0)
-        q0 = start.q0
         self.clik: DesiredJointPath | PoseJointPath
         clik = ClikSettings(gamma=s.clik_gain)
         if start.target is not None:

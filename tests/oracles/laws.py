@@ -1,7 +1,8 @@
 """Numpy oracles of the laws other than the paper's (tests/oracles/control.py has those):
 each the readable form of its package law, a subclass of it with the same constructor (what
-both share: settings, reports, the law's interface), its steps in numpy. :func:`oracle_of`
-turns a built package law into its oracle.
+both share: settings, reports, the law's interface), its steps in numpy ("module docstring"
+and the equation numbers below: the package law's module). :func:`oracle_of` turns a built
+package law into its oracle.
 """
 
 from __future__ import annotations
@@ -344,12 +345,10 @@ class RaibertCraigLaw(RaibertCraigWorkspace):
             N[:, i] = gradient / math.sqrt(float(gradient @ gradient))
         return N
 
-    # ---------------------------------------------------------------- the Law protocol
-
 
 class AdaptiveArimotoLaw(AdaptiveArimotoWorkspace):
-    """The adaptive law (module docstring) as the supervisor runs it, in numpy: the readable
-    reference of :class:`AdaptiveArimotoWorkspace` (what ``reference=True`` builds).
+    """The adaptive law (hybrid_force.control.laws.arimoto_adaptive) in numpy: the oracle of
+    :class:`AdaptiveArimotoWorkspace` (its settings and reports; its own arguments).
 
     Args:
         robot: the controller's model of the arm (its kinematics and parameter layout).

@@ -213,10 +213,6 @@ class LawSpec:
         replaced_by = self.gains[gain]
         return replaced_by is None or replaced_by not in options
 
-    def keys(self) -> tuple[str, ...]:
-        """The keys of the law's ``[control.<law>]`` table, in declaration order."""
-        return () if self.options is None else tuple(f.name for f, _ in specs(self.options))
-
     def describe(self) -> list[tuple[str, str]]:
         """(key, its doc with unit and default) for ``hybrid-force laws --options``."""
         if self.options is None:
@@ -225,7 +221,7 @@ class LawSpec:
         for f, spec in specs(self.options):
             unit = f" [{spec.unit}]" if spec.unit else ""
             if spec.choices:
-                unit = f" ({' or '.join(repr(c) for c in spec.choices)})"
+                unit = f" ({' or '.join(_shown(c) for c in spec.choices)})"
             default = "" if f.default is None else f"; default {_shown(f.default)}"
             out.append((f.name, f"{spec.doc}{unit}{default}"))
         return out
