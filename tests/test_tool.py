@@ -212,6 +212,29 @@ def test_undefined_lean_direction_names_the_time() -> None:
         target.axis(1.5)
 
 
+def test_the_compiled_goal_reports_an_undefined_lean_with_the_targets_error() -> None:
+    """pose_goal's status code names the same ReachError as ToolTarget (what PoseJointPath
+    raises from the compiled path: ToolTarget.undefined)."""
+    from hybrid_force.control import _pose_kernels
+    from hybrid_force.control.tool import LEAN_UNDEFINED
+    from hybrid_force.errors import ReachError
+
+    plane = Plane([0.0, 0.0, 0.3], [0.0, 0.0, 1.0])
+    tool = ToolSettings(orientation="normal", tilt=0.2, tilt_axis=[0.0, 0.0, 1.0])  # along n
+    path = Circle([0.4, 0.1, 0.3], 0.1, [0, 0, 1], 0.7)
+    target = ToolTarget(tool, plane, path)
+    sample = np.array(path.evaluate(1.5))
+    desc, code, tilt_axis, _ = target.kernel_inputs()
+    status = _pose_kernels.pose_goal(
+        desc, sample, np.zeros(3), np.zeros((3, 3)), np.zeros(3), tilt_axis, np.zeros((3, 3)),
+        code, np.eye(3), np.zeros((4, 3)), np.eye(3),
+    )  # fmt: skip
+    assert status == LEAN_UNDEFINED
+    with pytest.raises(ReachError) as expected:
+        target.axis(1.5)
+    assert str(target.undefined(status, 1.5, sample[0])) == str(expected.value)
+
+
 # --- refusals ---------------------------------------------------------------------------------
 def _reduced(robot: Robot, keep: int) -> Robot:
     """The UR5 with its last joints locked at 0: an arm of ``keep`` joints, tip tool0."""
