@@ -110,7 +110,7 @@ def osc_hybrid(
     phi: np.ndarray,
     B: np.ndarray,
 ) -> float:
-    """One step of ``osc_hybrid_law`` (module docstring of osc_hybrid, eq. 1, 3–6).
+    """One step of the law (module docstring of osc_hybrid, eq. 1, 3–6).
 
     mats (2, n, n) = [M, C], vecs (2, n) = [g, nle], jac (2, 3, n) = [J, J̇], tip (3, 3) =
     [p, J̇ v, J v]: the packs of the controller's robot terms (``RobotTerms.zeros``).

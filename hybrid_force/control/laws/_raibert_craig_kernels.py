@@ -116,7 +116,7 @@ def free_space(
     model_feedforward: bool,
     vectors: np.ndarray,
 ) -> None:
-    """``RaibertCraigLaw.free_space``: u = u_ff − K_P e_q − K_D (q̇ − q̇_d).
+    """The free-space law: u = u_ff − K_P e_q − K_D (q̇ − q̇_d).
 
     mats (2, n, n) = [M, C], vecs (2, n) = [g, nle] (``RobotTerms.zeros``' packs), gains
     (2, n, n) = [K_P, K_D], v, e_q, qd, qdd (n,). u_ff = M q̈_d + C q̇ + g (model) or g.
@@ -174,7 +174,7 @@ def hybrid(
     vectors: np.ndarray,
     B: np.ndarray,
 ) -> int:
-    """``RaibertCraigLaw.hybrid``: the near phase (``near``) or contact (eq. 1–3).
+    """The hybrid law: the near phase (``near``) or contact (eq. 1–3).
 
     mats (2, n, n) = [M, C], vecs (2, n) = [g, nle], jac (2, 3, n) = [J, J̇], tip (3, 3) =
     [p, J̇ v, J v] (``RobotTerms.zeros``' packs). A, Adot (k, n), rate (k,): the constraint

@@ -13,7 +13,7 @@ J.-J. E. Slotine and W. Li, "On the adaptive control of robot manipulators", IJR
     θ̂̇   = −Γ Yᵀ s                                                          (Slotine–Li)
 
 with Y₀ = Y(q, q̇, q̇_r, q̈_r at f = 0) and M̂ = M(q; θ̂) the mass matrix of the estimates, so the
-algebraic loop in f is kept exactly as in :func:`~.arimoto.arimoto_law`. Away from the surface
+algebraic loop in f is kept exactly as in the paper's law (:mod:`~.arimoto`). Away from the surface
 the free-space law (eq. 29–30) is adapted the same way (Q = I, no force terms).
 
 Closed loop (rigid contact, A q̇ = 0): with θ̃ = θ̂ − θ and Y θ = M q̈_r + C q̇_r + g,
@@ -55,8 +55,8 @@ Z_ref = ½ tr M(q0) / Λ²
 decreases, so Γ(t)⁻¹ never increases and V below (with Γ(t)) stays non-increasing:
 ½ θ̃ᵀ (dΓ⁻¹/dt) θ̃ ≤ 0 only adds to V̇. A task that starts on its path has σ = 1 throughout.
 
-V reported (:attr:`AdaptiveArimotoLaw.V`): ½ sᵀ M̂ s + ½ β e_Fᵀ e_F, the part the controller can
-evaluate; the parameter term needs the plant's θ (the tests add it).
+V reported (:attr:`AdaptiveArimotoWorkspace.V`): ½ sᵀ M̂ s + ½ β e_Fᵀ e_F, the part the controller
+can evaluate; the parameter term needs the plant's θ (the tests add it).
 
 :class:`AdaptiveArimotoWorkspace` calls Pinocchio between compiled kernels
 (:mod:`hybrid_force.control.laws._arimoto_adaptive_kernels`: Y from two regressor passes
