@@ -93,7 +93,6 @@ from hybrid_force.sim.dynamics import (
     ConstrainedDynamics,
     constrained_acceleration,
     free_acceleration,
-    kkt_reference,
     plastic_impact,
 )
 from hybrid_force.sim.loop import Scenario, SimSettings, simulate
@@ -234,7 +233,6 @@ __all__ = [
     "free_acceleration",
     "free_space_law",
     "inverse_kinematics",
-    "kkt_reference",
     "load_result",
     "load_robot",
     "load_scenario",

@@ -12,7 +12,8 @@ max(max|ref|, 1), in every kernel's result (random states with cond(A) < 30):
 3. ``pose_newton`` (with the predictor): one advance from a random (q, q̇, q̈);
 4. 500 steps of advance(1 ms) from the start pose;
 5. whole runs (0.3 s) of scenarios/ur5_sphere_normal.toml and panda_pipe_tilt.toml, roll free
-   and held: the compiled run against ``sim.reference = true`` in q, u, f to 1e-10;
+   and held: the compiled run against the oracle plant and the reference controller in q, u,
+   f to 1e-10;
 6. the non-Euclidean branches (pinocchio.integrate / difference): a UR5 whose first joint is
    stored as (cos, sin), 200 steps;
 7. ``Path.evaluate_with_direction_into`` against ``evaluate`` + ``direction_jet``, exactly;
@@ -35,6 +36,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from test_clik_pose import CASES
+from test_simulate import oracle_run
 
 from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.pose_clik import (
@@ -206,15 +208,14 @@ def test_500_steps_equal_the_reference(arms: dict[str, Robot], which: str, roll:
 
 @pytest.mark.parametrize("roll", ["free", "held"])
 @pytest.mark.parametrize("which", ["ur5", "panda"])
-def test_whole_runs_equal_the_reference_runs(which: str, roll: str) -> None:
-    """0.3 s of the shipped scenario (in contact, pressing): compiled against sim.reference."""
-    runs = []
-    for reference in (False, True):
-        sc = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml", {"sim.duration": 0.3})
-        sim = dataclasses.replace(sc.sim, reference=reference)
-        sc = dataclasses.replace(sc, sim=sim, tool=dataclasses.replace(sc.tool, roll=roll))
-        runs.append(simulate(sc))
-    fast, ref = runs
+def test_whole_runs_equal_the_reference_runs(
+    which: str, roll: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """0.3 s of the shipped scenario (in contact, pressing): compiled against the oracle
+    plant and the reference controller."""
+    sc = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml", {"sim.duration": 0.3})
+    sc = dataclasses.replace(sc, tool=dataclasses.replace(sc.tool, roll=roll))
+    fast, ref = simulate(sc), oracle_run(monkeypatch, sc)
     assert fast.n_samples == ref.n_samples > 100
     for name in ("q", "u", "f", "q_d"):
         got, want = np.asarray(getattr(fast, name)), np.asarray(getattr(ref, name))

@@ -24,12 +24,11 @@ import numpy as np
 from hybrid_force.control.constraint import Constraint, ConstraintTerms, Normalization
 from hybrid_force.errors import ControlError, SingularConfigurationError
 from hybrid_force.geometry.surfaces import Surface
-from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
+from hybrid_force.model.robot import Robot, RobotTerms
 
 __all__ = [
     "Controller",
     "ControllerModel",
-    "ReferenceControllerModel",
     "check_same_joints",
 ]
 
@@ -84,16 +83,5 @@ class ControllerModel:
         terms = self.robot.terms(q, v, self.data, out=self._terms)
         try:
             return terms, self.constraint.evaluate(terms, v, out=self._cons)
-        except SingularConfigurationError:
-            return terms, None
-
-
-class ReferenceControllerModel(ControllerModel):
-    """:class:`ControllerModel` in readable numpy (one public method per robot term)."""
-
-    def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
-        terms = reference_terms(self.robot, q, v)
-        try:
-            return terms, self.constraint.evaluate_reference(terms, v)
         except SingularConfigurationError:
             return terms, None

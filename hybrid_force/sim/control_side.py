@@ -14,11 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.controller import (
-    Controller,
-    ControllerModel,
-    ReferenceControllerModel,
-)
+from hybrid_force.control.controller import Controller, ControllerModel
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.control.pose_clik import PoseJointPath
 from hybrid_force.control.supervisor import HybridController, ReferenceController
@@ -149,8 +145,7 @@ def build_control_side(
     model_robot = sc.controller_model if sc.controller_model is not None else sc.robot
     own = None
     if measured or model_robot is not sc.robot:
-        own_type = ReferenceControllerModel if reference else ControllerModel
-        own = own_type(model_robot, sc.surfaces, sim.normalization)
+        own = ControllerModel(model_robot, sc.surfaces, sim.normalization)
     law = None
     if user is None:
         constraint = (
