@@ -192,3 +192,22 @@ def test_release_applies_the_free_command_not_the_contact_solution(
         np.testing.assert_allclose(ddq, expected, rtol=1e-10, atol=1e-10)
         assert not f.any()
     assert released >= 10 and ambiguous < 40
+
+
+def test_the_contact_is_chosen_once_when_the_plant_is_built(rtr: Robot) -> None:
+    """Rigid (the default) or compliant: the strategy the plant holds for the whole run; the
+    oracle plant holds the readable rigid contact."""
+    from oracles.plant import OracleRigidContact
+
+    from hybrid_force.sim.compliant_contact import CompliantContact
+    from hybrid_force.sim.contact import ContactSettings
+    from hybrid_force.sim.rigid_contact import RigidContact
+
+    con = Constraint(Cylinder(0.4))
+    rigid = Plant(rtr, con, SimSettings(), 1e-5)
+    soft = Plant(rtr, con, SimSettings(), 1e-5, ContactSettings(model="compliant"))
+    oracle = OraclePlant(rtr, con, SimSettings(), 1e-5)
+    assert type(rigid.surface_contact) is RigidContact and rigid.surface_contact.arm is rigid
+    assert type(soft.surface_contact) is CompliantContact and soft.surface_contact.arm is soft
+    assert type(oracle.surface_contact) is OracleRigidContact
+    assert rigid.surface_contact._compiled_step and not oracle.surface_contact._compiled_step

@@ -16,6 +16,8 @@ its sensors' readings, and the plant only a command u = u0 + B f. One step of th
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
@@ -27,7 +29,37 @@ from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.rigid_contact import RigidContact
 from hybrid_force.sim.settings import SimSettings
 
-__all__ = ["Plant"]
+__all__ = ["Plant", "SurfaceContact"]
+
+
+class SurfaceContact(Protocol):
+    """How the surfaces act on the arm: the contact strategy a plant holds, chosen once
+    (:class:`~hybrid_force.sim.rigid_contact.RigidContact`,
+    :class:`~hybrid_force.sim.compliant_contact.CompliantContact`); it sets the arm's contact
+    state, events, applied torque and dissipated power."""
+
+    def accelerate(
+        self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """q̈ (n,) and the contact force f (k,) [N] of the step at t [s] under the command
+        u = u0 + B f, from the arm's terms and the constraint rows (None off the surface
+        where they are undefined)."""
+
+    def advance(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        ddq: np.ndarray,
+        cmd: Command,
+        t: float,
+        dt: float,
+        distance: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) at t + dt [s] from q̈ (n,) at t; ``distance`` (k,) [m]: the tip's distances
+        at t."""
+
+    def touch(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) with the tip placed on the surface at t [s]."""
 
 
 class Plant(Arm):
@@ -46,9 +78,9 @@ class Plant(Arm):
             frictionless contact.
 
     Attributes:
-        surface_contact: the contact strategy of the run, chosen here once; the contact state,
-            its events, the applied torque and the energies dissipated are the
-            :class:`~hybrid_force.sim.arm.Arm`'s attributes.
+        surface_contact: the contact strategy of the run (:class:`SurfaceContact`), chosen
+            here once; the contact state, its events, the applied torque and the energies
+            dissipated are the :class:`~hybrid_force.sim.arm.Arm`'s attributes.
     """
 
     #: the rigid contact's class (a test oracle swaps it for its readable form)
@@ -64,7 +96,7 @@ class Plant(Arm):
     ) -> None:
         contact = contact if contact is not None else ContactSettings()
         super().__init__(robot, constraint, sim, contact)
-        self.surface_contact: RigidContact | CompliantContact = (
+        self.surface_contact: SurfaceContact = (
             CompliantContact(self)
             if contact.compliant
             else self.rigid_contact(self, sim, touch_tol)

@@ -53,7 +53,8 @@ def constraint_terms(constraint: Constraint, terms: RobotTerms, v: np.ndarray) -
     For surface i with value Φ, gradient ∇Φ and Hessian ∇²Φ at the tip p:
     J_Φ = ∇ΦᵀJ, J̇_Φ = (∇²Φ ṗ)ᵀJ + ∇ΦᵀJ̇, the raw drift ṗᵀ∇²Φ ṗ + ∇ΦᵀJ̇ q̇ and the scale s
     (‖∇Φ‖ for the "tip" rows, ‖J_Φ‖ for the "joint" rows) with its rate ṡ; then A = J_Φ / s,
-    Ȧ = J̇_Φ / s − J_Φ ṡ / s², A⁺ = Aᵀ(AAᵀ)⁻¹ and its rate, Q = I − A⁺A, Q̇ = −(Ȧ⁺A + A⁺Ȧ).
+    Ȧ = J̇_Φ / s − J_Φ ṡ / s², A⁺ by SVD and its rate, Q = I − A⁺A, Q̇ = −(Ȧ⁺A + A⁺Ȧ)
+    (the package's stacked algebra takes A⁺ = Aᵀ(AAᵀ)⁻¹ and the rate of (AAᵀ)⁻¹ instead).
 
     Raises:
         SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
@@ -89,34 +90,34 @@ def constraint_terms(constraint: Constraint, terms: RobotTerms, v: np.ndarray) -
         values.append(float(value))
         drifts.append(float(pdot @ h_pdot + grad @ terms.Jdot_v))
     J_phi, J_phi_dot = np.array(rows), np.array(rows_dot)
-    scale, scale_dot, raw_drift = np.array(scales), np.array(scales_dot), np.array(drifts)
-    inv_s = 1.0 / scale
-    A = J_phi * inv_s[:, None]
-    Adot = J_phi_dot * inv_s[:, None] - J_phi * (scale_dot * inv_s * inv_s)[:, None]
-    gram = A @ A.T
-    cond = np.linalg.cond(gram)
+    s, s_dot, raw_drift = np.array(scales)[:, None], np.array(scales_dot)[:, None], np.array(drifts)
+    A = J_phi / s  # row by row, and Ȧ by the quotient rule
+    Adot = (J_phi_dot * s - J_phi * s_dot) / (s * s)
+    sigma = np.linalg.svd(A, compute_uv=False)  # cond(AAᵀ) = (σ_max / σ_min)²
+    cond = (sigma[0] / sigma[-1]) ** 2 if sigma[-1] > 0.0 else np.inf
     if not np.isfinite(cond) or cond > _COND_TOL:
         raise SingularConfigurationError(
             f"the {len(rows)} stacked constraint rows are (nearly) dependent at tip "
             f"{p.tolist()} (cond(A Aᵀ) = {cond:.3g})"
         )
-    W = np.linalg.inv(gram)
-    A_pinv = A.T @ W
-    W_dot = -W @ (Adot @ A.T + A @ Adot.T) @ W
-    A_pinv_dot = Adot.T @ W + A.T @ W_dot
+    # the pseudo-inverse by SVD and its rate for full row rank (Golub & Pereyra, SIAM J. Numer.
+    # Anal. 10, 1973): d(A⁺)/dt = (I − A⁺A) Ȧᵀ (AAᵀ)⁻¹ − A⁺ Ȧ A⁺, with (AAᵀ)⁻¹ = A⁺ᵀA⁺
+    A_pinv = np.linalg.pinv(A)
+    Q = np.eye(n) - A_pinv @ A
+    A_pinv_dot = Q @ Adot.T @ (A_pinv.T @ A_pinv) - A_pinv @ Adot @ A_pinv
     return ConstraintTerms(
         phi=np.array(values),
-        distance=np.array([s.distance(p) for s in constraint.surfaces]),
+        distance=np.array([surface.distance(p) for surface in constraint.surfaces]),
         J_phi=J_phi,
         J_phi_n=J_phi / np.array(norms)[:, None],
-        scale=scale,
+        scale=s[:, 0],
         A=A,
         Adot=Adot,
         A_pinv=A_pinv,
         A_pinv_dot=A_pinv_dot,
-        Q=np.eye(n) - A_pinv @ A,
+        Q=Q,
         Qdot=-(A_pinv_dot @ A + A_pinv @ Adot),
         rate=A @ v,
         raw_drift=raw_drift,
-        drift=raw_drift * inv_s,
+        drift=raw_drift / s[:, 0],
     )
