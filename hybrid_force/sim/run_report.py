@@ -16,11 +16,11 @@ import platform
 import uuid
 import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force.control.supervisor import HybridController
 from hybrid_force.errors import (
     DivergenceError,
     HybridForceError,
@@ -36,6 +36,8 @@ from hybrid_force.geometry.paths import Path, PathParameterError
 from hybrid_force.model.robot import Robot
 from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
+from hybrid_force.sim.control_side import ControlSide
+from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.record import Record
 from hybrid_force.sim.run_checks import (
     SampleChecks,
@@ -48,11 +50,6 @@ from hybrid_force.sim.run_checks import (
     saturated_time,
 )
 from hybrid_force.sim.settings import Scenario
-
-if TYPE_CHECKING:  # annotations only
-    from hybrid_force.control.supervisor import HybridController
-    from hybrid_force.sim.control_side import ControlSide
-    from hybrid_force.sim.plant import Plant
 
 __all__ = ["failed_run", "finish_result", "merge_events", "run_failure", "run_meta"]
 
