@@ -6,7 +6,7 @@ Run from the repository root:
 
 For scenarios/paper_contact.toml and scenarios/ur5_plane.toml (``control.law`` set, 2 s runs):
 ``meta["steps_per_second"]`` (the stepping loop only) of arimoto, of impedance with its numpy
-reference law (``LawContext(reference=True)``: the law as it was before its kernel) and of the
+oracle (ImpedanceLaw of tests/oracles/laws.py: the law as it was before its kernel) and of the
 compiled impedance law, run alternately in this one process, after a short warm-up run of
 each. Prints each one's best of N rounds (default 3) and its ratio to arimoto's best, and, in
 brackets, the median over the rounds of its ratio to arimoto in the same round (the three runs
@@ -17,7 +17,6 @@ the test suite.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import statistics
 import sys
 import warnings
@@ -31,11 +30,19 @@ import hybrid_force.control.laws.impedance as impedance  # noqa: E402
 from hybrid_force import simulate  # noqa: E402
 from hybrid_force.scenario.loader import load_scenario  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "tests"))
+from oracles.laws import ImpedanceLaw  # noqa: E402  (the numpy oracle of the tests)
+
 _BUILD = impedance.build
+_COMPILED = impedance.ImpedanceWorkspace
 
 
 def _reference_build(context: Any) -> Any:
-    return _BUILD(dataclasses.replace(context, reference=True))
+    impedance.ImpedanceWorkspace = ImpedanceLaw  # type: ignore[misc]
+    try:
+        return _BUILD(context)
+    finally:
+        impedance.ImpedanceWorkspace = _COMPILED  # type: ignore[misc]
 
 
 VARIANTS = {

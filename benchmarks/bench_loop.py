@@ -527,6 +527,7 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
     from hybrid_force.control.constraint import Constraint, ConstraintTerms
     from hybrid_force.control.supervisor import HybridController
     from hybrid_force.model.robot import RobotTerms
+    from hybrid_force.sim.control_side import build_control_side
     from hybrid_force.sim.dynamics import ConstrainedDynamics
     from hybrid_force.sim.plant import Plant
     from hybrid_force.sim.record import Record
@@ -548,10 +549,9 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
     sim.baumgarte.gamma_into(cons.drift, cons.rate, cons.phi, cons.scale, gamma)
     solver = ConstrainedDynamics(robot.model, data, k)
     ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
-    log = Record(2, robot.nq, n, k, sim.max_velocity, sim.max_force)
     plant = Plant(robot, constraint, sim, sc.control.contact_tol)
     plant.in_contact = True
-    no_B = np.zeros((n, k))
+    log = Record(sc, plant, build_control_side(sc, None, sc.q0, False), 2)
     parts: dict[str, Callable[[], object]] = {
         "robot terms (6 Pinocchio calls + 1 kernel)": lambda: robot.terms(q, v, data, out=terms),
         "constraint rows, Q, drift (1 kernel)": lambda: constraint.evaluate(terms, v, out=cbuf),
@@ -564,22 +564,7 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
         "constrained dynamics (forwardDynamics + loop kernel)": lambda: solver.solve(
             terms.nle, cmd.u0, cmd.B, cons.A, gamma
         ),
-        "sample row (1 kernel)": lambda: log.record(
-            0,
-            0.0,
-            q,
-            v,
-            q,
-            cmd.u0,
-            no_B if cmd.B is None else cmd.B,
-            f,
-            terms.p,
-            terms.p,
-            f,
-            cons.distance,
-            0.0,
-            2,
-        ),
+        "sample row (1 kernel)": lambda: log.record(0, 0.0, q, v, terms, cmd, f, cons.distance),
         # dt = 1 ns: the state stays put, and the CLIK's predictor is made ahead as in the loop
         "controller update (momenta + CLIK: 7 Pinocchio calls + 4 kernels)": lambda: ctrl.update(
             1e-9, f

@@ -6,7 +6,7 @@ Run from the repository root:
 
 For paper_contact and ur5_plane, in one process: a run of each case first (compilation, caches),
 then ``reps`` rounds that run ``arimoto``, ``raibert_craig`` (compiled:
-``RaibertCraigWorkspace``) and ``raibert_craig`` with its numpy reference law
+``RaibertCraigWorkspace``) and ``raibert_craig`` with its numpy oracle (tests/oracles/laws.py)
 (``RaibertCraigLaw`` in the compiled loop) one after the other; the best ``steps_per_second``
 of each case and its ratio to arimoto's are printed. The machine's load moves the numbers;
 the ratios, measured alternating, move less.
@@ -25,6 +25,9 @@ import hybrid_force.control.laws.raibert_craig as rc
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from oracles.laws import RaibertCraigLaw
+
 _SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 _CASES = (("arimoto", "arimoto", False), ("raibert_craig", "raibert_craig", False))
 _NUMPY = ("raibert_craig numpy", "raibert_craig", True)
@@ -36,7 +39,7 @@ def _run(name: str, law: str, numpy: bool, duration: float) -> float:
     )
     compiled = rc.RaibertCraigWorkspace
     if numpy:
-        setattr(rc, "RaibertCraigWorkspace", rc.RaibertCraigLaw)  # noqa: B010
+        setattr(rc, "RaibertCraigWorkspace", RaibertCraigLaw)  # noqa: B010
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the UR5's first torque reaches its effort limit

@@ -91,7 +91,6 @@ from hybrid_force.sim.dynamics import (
     ConstrainedDynamics,
     constrained_acceleration,
     free_acceleration,
-    kkt_reference,
     plastic_impact,
 )
 from hybrid_force.sim.loop import Scenario, SimSettings, simulate
@@ -230,7 +229,6 @@ __all__ = [
     "expand",
     "free_acceleration",
     "inverse_kinematics",
-    "kkt_reference",
     "load_result",
     "load_robot",
     "load_scenario",

@@ -416,7 +416,7 @@ CASES: list[Case] = [
             SimSettingsError,
             BAD_FLAGS,
         )
-        for name in ("unilateral", "reference")
+        for name in ("unilateral", "torque_limits")
     ],
     (
         "SimSettings",
@@ -486,9 +486,9 @@ def test_valid_values_are_kept_and_normalised() -> None:
     kd = ControlSettings(Kd=[1, 2, 3]).Kd
     assert isinstance(kd, np.ndarray) and kd.dtype == float and not kd.flags.writeable
     assert ControlSettings(Kd=np.float64(5)).Kd == 5.0
-    sim = SimSettings(duration=2, dt=np.float32(0.5), settle_time=0, reference=np.bool_(True))
-    assert (sim.duration, sim.dt, sim.settle_time, sim.reference) == (2.0, 0.5, 0.0, True)
-    assert type(sim.duration) is float and type(sim.reference) is bool
+    sim = SimSettings(duration=2, dt=np.float32(0.5), settle_time=0, unilateral=np.bool_(False))
+    assert (sim.duration, sim.dt, sim.settle_time, sim.unilateral) == (2.0, 0.5, 0.0, False)
+    assert type(sim.duration) is float and type(sim.unilateral) is bool
     assert Baumgarte(0, 0) == Baumgarte(0.0, 0.0)
     assert ClikSettings(damping=0).damping == 0.0
     assert Helix((0, 0, 0), 1, omega=-1, rise=0).omega == -1.0  # turning clockwise is fine

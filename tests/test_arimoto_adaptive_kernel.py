@@ -12,15 +12,15 @@ constraint, plant step) to ≤ 1e-10 · scale in q, v, u, f and the logged estim
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from oracles.control import use_oracle_control
 from oracles.laws import AdaptiveArimotoLaw, oracle_of
+from oracles.run import oracle_run
+from oracles.terms import constraint_terms
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired, make_gains
@@ -110,7 +110,7 @@ def test_compiled_law_equals_the_reference_over_steps(
         q = rng.uniform(np.maximum(lower, -3.0), np.minimum(upper, 3.0))
         v = rng.uniform(-1, 1, n)
         terms = robot.terms(q, v, robot.new_data())
-        cons = constraint.evaluate_reference(terms, v)
+        cons = constraint_terms(constraint, terms, v)
         desired = Desired(
             q=q + rng.uniform(-0.1, 0.1, n), qd=rng.uniform(-1, 1, n), qdd=rng.uniform(-2, 2, n)
         )
@@ -174,19 +174,15 @@ def test_the_factory_builds_the_compiled_law_and_its_oracle_the_same_settings(rt
     assert oracle.info() == law.info()
 
 
-def _run(name: str, reference: bool, monkeypatch: pytest.MonkeyPatch, **overrides: object):
+def _run(name: str, reference: pytest.MonkeyPatch | None, **overrides: object):
+    """The run, with the oracle plant and the reference controller when given a monkeypatch."""
     scenario = load_scenario(
         f"scenarios/{name}.toml",
         overrides={"control.law": "arimoto_adaptive", "sim.duration": 0.2, **overrides},
     )
-    with monkeypatch.context() as patch, warnings.catch_warnings():
-        if reference:  # the oracle controller on the reference plant
-            use_oracle_control(patch)
-            scenario = dataclasses.replace(
-                scenario, sim=dataclasses.replace(scenario.sim, reference=True)
-            )
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # ur5_plane's start saturates two joints
-        return simulate(scenario)
+        return simulate(scenario) if reference is None else oracle_run(reference, scenario)
 
 
 @pytest.mark.parametrize(
@@ -201,11 +197,9 @@ def _run(name: str, reference: bool, monkeypatch: pytest.MonkeyPatch, **override
 def test_whole_runs_compiled_equal_the_reference(
     name: str, overrides: dict, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Compiled controller and plant against the oracle controller and the reference plant
-    (``sim.reference``): q, v, u, f and the estimates θ̂ agree to 1e-10 of their largest value
-    over the run."""
-    fast = _run(name, False, monkeypatch, **overrides)
-    ref = _run(name, True, monkeypatch, **overrides)
+    """Compiled controller and plant against the reference ones (oracle_run): q, v, u,
+    f and the estimates θ̂ agree to 1e-10 of their largest value over the run."""
+    fast, ref = _run(name, None, **overrides), _run(name, monkeypatch, **overrides)
     assert fast.meta["status"] == ref.meta["status"] == "ok"
     np.testing.assert_array_equal(fast.phase, ref.phase)
     assert fast.law_log.shape == ref.law_log.shape and fast.law_log.shape[1] > 0
@@ -233,7 +227,7 @@ def test_compiled_law_on_a_non_euclidean_arm(rtr_urdf: Path) -> None:
         q = pin.integrate(model, robot.neutral(), rng.uniform(-1, 1, 3))
         v = rng.uniform(-1, 1, 3)
         terms = robot.terms(q, v, robot.new_data())
-        cons = constraint.evaluate_reference(terms, v)
+        cons = constraint_terms(constraint, terms, v)
         q_d = pin.integrate(model, q, rng.uniform(-0.1, 0.1, 3))
         desired = Desired(q=q_d, qd=rng.uniform(-1, 1, 3), qdd=rng.uniform(-2, 2, 3))
         e_q = pin.difference(model, q_d, q)

@@ -6,9 +6,10 @@ Independent references:
   of the RTR arm ON a cylinder (paper's and a tilted one; q(t) by closed-form RTR inverse
   kinematics, q̇ = J⁻¹ṗ exactly), with ė_F = f − f_d known; and along an arbitrary UR5 motion
   with two stacked surfaces;
-- the loop-resolved (q̈, f) with B from the law: equal to kkt_reference and to a hand-built
-  Schur-complement solve; the closed loop eq. 13 holds to round-off; V̇ from the identity
-  V̇ = sᵀMṡ + ½sᵀṀs + βe_Fᵀė_F (Ṁ by finite differences) equals −sᵀK_d s − βγ e_Fᵀe_F (eq. 16);
+- the loop-resolved (q̈, f) with B from the law: equal to the dense KKT solve
+  (oracles.plant.kkt) and to a hand-built Schur-complement solve; the closed loop eq. 13
+  holds to round-off; V̇ from the identity V̇ = sᵀMṡ + ½sᵀṀs + βe_Fᵀė_F (Ṁ by finite
+  differences) equals −sᵀK_d s − βγ e_Fᵀe_F (eq. 16);
 - free_space_law reproduces M q̈_r + C q̇_r + g − K_d s by hand; gains validation.
 """
 
@@ -20,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from oracles.control import arimoto_law, free_space_law
+from oracles.plant import kkt
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import (
@@ -32,7 +34,7 @@ from hybrid_force.control.laws.arimoto import (
 from hybrid_force.errors import GainError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
 from hybrid_force.model.robot import Robot
-from hybrid_force.sim.dynamics import Baumgarte, constrained_acceleration, kkt_reference
+from hybrid_force.sim.dynamics import Baumgarte, constrained_acceleration
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 NORMALIZATIONS = ("tip", "joint")
@@ -321,7 +323,7 @@ def test_loop_resolved_force_and_closed_loop(rtr: Robot, normalization: str, bet
             ddq, f = constrained_acceleration(
                 rtr.model, data, terms.nle, cmd.u0, cmd.B, ct.A, gamma
             )
-            ddq_k, f_k = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
+            ddq_k, f_k = kkt(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
             ddq_s, f_s = _schur_solve(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
             for ref_ddq, ref_f in ((ddq_k, f_k), (ddq_s, f_s)):
                 err = max(
@@ -373,7 +375,7 @@ def test_loop_resolved_force_two_surfaces(ur5: Robot) -> None:
         pin.crba(ur5.model, data, q)
         ddq, f = constrained_acceleration(ur5.model, data, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
         ddq_s, f_s = _schur_solve(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
-        ddq_k, f_k = kkt_reference(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
+        ddq_k, f_k = kkt(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
         np.testing.assert_allclose(f, f_s, rtol=1e-8, atol=1e-8)
         np.testing.assert_allclose(f_k, f_s, rtol=1e-8, atol=1e-8)
         np.testing.assert_allclose(ddq, ddq_s, rtol=1e-8, atol=1e-8 * (1 + np.abs(ddq_s).max()))

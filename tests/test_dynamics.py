@@ -2,7 +2,7 @@
 
 Independent references:
 - pin.forwardDynamics called directly with (q, v) (it runs its own crba/nle), the dense
-  kkt_reference, and the defining equations A q̈ + γ = 0, M q̈ + nle = u + Aᵀ f;
+  KKT solve (oracles.plant.kkt), and the defining equations A q̈ + γ = 0, M q̈ + nle = u + Aᵀ f;
 - with γ = drift only, Φ̈ = 0 along q + v t + ½ q̈ t² (second difference of Φ(p(q(t))));
 - plastic impacts: A v⁺ = 0, M (v⁺ − v⁻) = Aᵀ P, and the hand formula
   v⁺ = v⁻ − M⁻¹Aᵀ (A M⁻¹ Aᵀ)⁻¹ A v⁻;
@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.plant import kkt
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.errors import SimSettingsError, SimulationError
@@ -25,7 +26,6 @@ from hybrid_force.sim.dynamics import (
     Baumgarte,
     constrained_acceleration,
     free_acceleration,
-    kkt_reference,
     plastic_impact,
 )
 
@@ -78,7 +78,7 @@ def test_constrained_acceleration_matches_pinocchio_and_kkt(
         data_ref = robot.new_data()
         ddq_pin = pin.forwardDynamics(robot.model, data_ref, q, v, u, ct.A, gamma).copy()
         f_pin = data_ref.lambda_c.copy()
-        ddq_kkt, f_kkt = kkt_reference(terms.M, terms.nle, u, None, ct.A, gamma)
+        ddq_kkt, f_kkt = kkt(terms.M, terms.nle, u, None, ct.A, gamma)
         scale = 1 + np.abs(ddq_kkt).max()
         np.testing.assert_allclose(ddq, ddq_pin, atol=1e-9 * scale)
         np.testing.assert_allclose(ddq, ddq_kkt, atol=1e-9 * scale)

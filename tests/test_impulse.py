@@ -15,13 +15,14 @@ import warnings
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.plant import OraclePlant
 
 from hybrid_force import simulate
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.geometry.surfaces import Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
-from hybrid_force.sim.plant import Plant, ReferencePlant
+from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.settings import SimSettings
 
 
@@ -50,7 +51,7 @@ def test_the_impulse_is_in_the_range_of_the_rows_and_the_projection_is_not(
         normal = rng.normal(size=3)
         plane = Plane(tip, normal / np.linalg.norm(normal))
         plant = Plant(robot, Constraint([plane]), SimSettings(), 1e-5)
-        reference = ReferencePlant(robot, Constraint([plane]), SimSettings(), 1e-5)
+        reference = OraclePlant(robot, Constraint([plane]), SimSettings(), 1e-5)
         A, _ = plant._rows(q)
         M = _mass(robot, q)
         impulse = plant._impulse(q, v, A) - v

@@ -4,9 +4,9 @@ Every kernel is reached through the public or module API that uses it, never thr
 signature, and compared with its readable numpy definition (the controller's in tests/oracles):
 
 1. ``Robot.terms`` (crba + gravity + computeCoriolisMatrix + frame calls + kernel) against
-   ``robot.reference_terms`` (one public method per term), with and without ``out``;
+   ``oracles.terms.robot_terms`` (one public method per term), with and without ``out``;
 2. ``Robot.euclidean`` against the behaviour of ``pinocchio.integrate`` (plain addition or not);
-3. ``Constraint.evaluate`` (k = 1 kernel) against ``evaluate_reference`` (general k-row
+3. ``Constraint.evaluate`` (k = 1 kernel) against ``oracles.terms.constraint_terms`` (general k-row
    algebra) for every surface type and both normalizations, and the same singular points;
 4. ``Surface.evaluate_with_distance`` against ``evaluate`` and ``distance``;
 5. ``Path.evaluate_into`` against ``Path.evaluate``;
@@ -19,7 +19,7 @@ signature, and compared with its readable numpy definition (the controller's in 
     factorisation) against a dense KKT solve and the defining equations, k = 1, 2, 3;
     ``Baumgarte.gamma_into`` against the formula; the run table's row layout and limits.
 
-(constrained_acceleration with k = 1 and B given is already checked against kkt_reference in
+(constrained_acceleration with k = 1 and B given is already checked against the dense KKT solve in
 tests/test_control.py::test_loop_resolved_force_and_closed_loop.)
 
 Both sides are the same formulas in a different order, so they must agree to round-off: the
@@ -42,6 +42,8 @@ from oracles.control import (
     arimoto_law,
     free_space_law,
 )
+from oracles.plant import kkt
+from oracles.terms import constraint_terms, robot_terms
 
 from hybrid_force.control.clik import DesiredJointPath, inverse_kinematics
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
@@ -66,7 +68,6 @@ from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
 from hybrid_force.geometry.paths import Path as TaskPath
 from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere, Surface
 from hybrid_force.model.robot import Robot, RobotTerms, load_robot
-from hybrid_force.model.robot import reference_terms as _reference_terms
 from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.settings import SimSettings
 
@@ -136,7 +137,7 @@ def _fill_nan(obj: RobotTerms | ConstraintTerms) -> None:
 
 # --- 1. robot terms ------------------------------------------------------------------------------
 def _check_robot_terms(robot: Robot, got: RobotTerms, q: np.ndarray, v: np.ndarray) -> None:
-    ref = _reference_terms(robot, q, v)
+    ref = robot_terms(robot, q, v)
     for name in ROBOT_FIELDS:
         a, b = getattr(got, name), getattr(ref, name)
         if name == "nle":  # C v + g: scaled by its terms, not by the (possibly cancelling) sum
@@ -151,7 +152,7 @@ def _check_robot_terms(robot: Robot, got: RobotTerms, q: np.ndarray, v: np.ndarr
 
 
 @pytest.mark.parametrize("arm", ARMS)
-def test_robot_terms_equal_the_reference_terms(arms: dict[str, Robot], arm: str) -> None:
+def test_robot_terms_equal_the_oracle_terms(arms: dict[str, Robot], arm: str) -> None:
     robot = arms[arm]
     rng = np.random.default_rng(101)
     data = robot.new_data()
@@ -333,7 +334,7 @@ def test_constraint_fast_equals_general_algebra(
     for _ in range(4):
         q, v = _random_state(robot, rng)
         terms = robot.terms(q, v, data)
-        ref = con.evaluate_reference(terms, v)
+        ref = constraint_terms(con, terms, v)
         _check_constraint_terms(con.evaluate(terms, v), ref, terms, v, con.surfaces[0])
         _fill_nan(buf)
         out = con.evaluate(terms, v, out=buf)
@@ -357,7 +358,7 @@ def test_constraint_buffer_is_overwritten_by_the_next_state(
         assert out is buf
         for name in CONSTRAINT_FIELDS:
             assert getattr(out, name) is arrays[name]
-        ref = con.evaluate_reference(terms, v)
+        ref = constraint_terms(con, terms, v)
         _check_constraint_terms(out, ref, terms, v, con.surfaces[0])
 
 
@@ -504,7 +505,7 @@ def test_law_workspace_equals_the_reference_laws(
     ws = LawWorkspace(robot.nv, k, gains)
     for step in range(6):  # one workspace, hybrid and free calls interleaved
         v, terms, desired, e_q = _law_inputs(robot, rng)
-        cons = con.evaluate_reference(terms, v)
+        cons = constraint_terms(con, terms, v)
         if step % 3 == 2:
             cmd = ws.free_space(LawInput(terms, v, e_q, desired))
             u0, B, trace = cmd.u0.copy(), cmd.B, ws.trace(e_q, np.zeros(k), np.zeros(k))
@@ -609,7 +610,7 @@ _ON_SURFACE = np.zeros(1)
 def _evaluate(
     con: Constraint, terms: RobotTerms, v: np.ndarray, reference: bool
 ) -> ConstraintTerms:
-    return con.evaluate_reference(terms, v) if reference else con.evaluate(terms, v)
+    return constraint_terms(con, terms, v) if reference else con.evaluate(terms, v)
 
 
 # --- 8. plant: semi-implicit Euler and post-stabilisation ----------------------------------------
@@ -717,7 +718,7 @@ def test_hybrid_controller_fast_equals_reference(
         t = i * DT
         v = rng.uniform(-0.3, 0.3, robot.nv)
         terms = robot.terms(q, v, robot.new_data())
-        cons = None if i == 0 else con.evaluate_reference(terms, v)
+        cons = None if i == 0 else constraint_terms(con, terms, v)
         cmd = fast.command(t, q, v, terms, cons)
         u0, B = cmd.u0.copy(), None if cmd.B is None else cmd.B.copy()
         V, trace = fast.V, fast.trace
@@ -753,7 +754,7 @@ def test_constrained_dynamics_solver_equals_dense_kkt(
     """ConstrainedDynamics.solve (one forwardDynamics + loop_resolve with U D Uᵀ) against a
     dense solve of the coupled KKT system, for arbitrary B (not a law's β M A⁺), B = None,
     and two calls in a row (the second overwrites the first's outputs)."""
-    from hybrid_force.sim.dynamics import ConstrainedDynamics, kkt_reference
+    from hybrid_force.sim.dynamics import ConstrainedDynamics
 
     robot = arms[arm]
     rng = np.random.default_rng(31 + k)
@@ -768,7 +769,7 @@ def test_constrained_dynamics_solver_equals_dense_kkt(
         u0 = 10.0 * rng.standard_normal(n)
         B = None if trial == 0 else 0.1 * rng.standard_normal((n, k))
         ddq, f = solver.solve(terms.nle, u0, B, A, gamma)
-        ddq_ref, f_ref = kkt_reference(terms.M, terms.nle, u0, B, A, gamma)
+        ddq_ref, f_ref = kkt(terms.M, terms.nle, u0, B, A, gamma)
         scale = float(np.abs(ddq_ref).max() + np.abs(terms.nle).max())
         assert np.abs(ddq - ddq_ref).max() <= 1e-9 * scale
         assert np.abs(f - f_ref).max() <= 1e-9 * float(np.abs(f_ref).max() + 1.0)
@@ -796,28 +797,38 @@ def test_baumgarte_gamma_into_equals_gamma() -> None:
 
 
 def test_log_row_holds_the_fields_and_the_applied_command() -> None:
-    """Record.record writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] and reports
-    NaN in q, |v_i| above max_velocity and |f| above max_force."""
+    """record_row writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] in the columns
+    of Record.widths and reports NaN in q, |v_i| above max_velocity and |f| above max_force."""
+    from hybrid_force.sim._kernels import record_row
     from hybrid_force.sim.record import Record
 
     rng = np.random.default_rng(9)
     nq = nv = 4
     k = 2
-    log = Record(3, nq, nv, k, max_velocity=5.0, max_force=100.0)
+    widths = Record.widths(nq, nv, k)
+    table = np.zeros((3, Record.width(nq, nv, k)))
+    starts = np.concatenate([[0], np.cumsum(widths)])
+
+    def field(row: int, index: int) -> np.ndarray:  # the column view of field ``index``
+        return table[row, starts[index] : starts[index + 1]]
+
+    def record(i: int, t: float, *args: object) -> bool:
+        return bool(record_row(table, i, t, *args, 5.0, 100.0))
+
     q, v, q_d, u0 = rng.standard_normal((4, nq))
     B = rng.standard_normal((nv, k))
     f, f_d, phi = rng.standard_normal((3, k))
     p, p_d = rng.standard_normal((2, 3))
-    assert log.record(1, 0.25, q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2)
+    assert record(1, 0.25, q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2)
     expected = np.concatenate([[0.25], q, v, q_d, u0 + B @ f, p, p_d, f, f_d, phi, [3.5, 2.0]])
-    assert np.abs(log.table[1] - expected).max() <= 1e-15 * float(np.abs(expected).max())
-    assert np.array_equal(log.q[1], q) and np.array_equal(log.phi[1], phi)
-    assert log.V[1] == 3.5 and log.phase[1] == 2 and log.t[1] == 0.25
-    assert not np.any(log.table[0]) and not np.any(log.table[2])  # other rows untouched
+    assert np.abs(table[1] - expected).max() <= 1e-15 * float(np.abs(expected).max())
+    assert np.array_equal(field(1, 1), q) and np.array_equal(field(1, 9), phi)
+    assert field(1, 10)[0] == 3.5 and field(1, 11)[0] == 2 and field(1, 0)[0] == 0.25
+    assert not np.any(table[0]) and not np.any(table[2])  # other rows untouched
     bad_q = q.copy()
     bad_q[2] = np.nan
-    assert not log.record(0, 0.0, bad_q, v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
+    assert not record(0, 0.0, bad_q, v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
     fast_v = v.copy()
     fast_v[1] = -5.5
-    assert not log.record(0, 0.0, q, fast_v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
-    assert not log.record(0, 0.0, q, v, q_d, u0, B, np.array([0.0, 101.0]), p, p_d, f_d, phi, 0, 0)
+    assert not record(0, 0.0, q, fast_v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
+    assert not record(0, 0.0, q, v, q_d, u0, B, np.array([0.0, 101.0]), p, p_d, f_d, phi, 0, 0)

@@ -12,6 +12,7 @@ import pinocchio as pin
 import pytest
 from oracles.control import arimoto_law, free_space_law
 from oracles.laws import AdaptiveArimotoLaw
+from oracles.terms import robot_terms
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired, make_gains
@@ -29,7 +30,7 @@ from hybrid_force.model.regressor import (
     sample_regressors,
     visible_columns,
 )
-from hybrid_force.model.robot import Robot, load_robot, reference_terms
+from hybrid_force.model.robot import Robot, load_robot
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
@@ -167,7 +168,7 @@ def test_law_at_the_true_parameters_is_the_papers_law(rtr) -> None:
     law, gains = _law(rtr, np.array([0.3, 6.0, 0.5]))
     for approach in (None, np.array([-0.02])):
         q, v, desired = _desired(rtr, rng)
-        terms, cons = reference_terms(rtr, q, v), constraint.at(rtr, q, v)
+        terms, cons = robot_terms(rtr, q, v), constraint.at(rtr, q, v)
         e_q, e_F, f_d = q - desired.q, np.array([0.3]), np.array([10.0])
         mine = law.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d, approach))
         paper, trace = arimoto_law(gains, terms, cons, v, e_q, desired, e_F, f_d, approach)
@@ -188,7 +189,7 @@ def test_update_is_minus_gamma_Y_transposed_s_at_the_force_met(rtr) -> None:
     constraint = Constraint([Cylinder(0.4)])
     law, _ = _law(rtr, np.array([0.3, 6.0, 0.5]), mass_factor=0.9)
     q, v, desired = _desired(rtr, rng)
-    terms, cons = reference_terms(rtr, q, v), constraint.at(rtr, q, v)
+    terms, cons = robot_terms(rtr, q, v), constraint.at(rtr, q, v)
     e_q, e_F, f_d, f = q - desired.q, np.array([0.3]), np.array([10.0]), np.array([12.5])
     law.hybrid(LawInput(terms, v, e_q, desired, cons, e_F, f_d))
     trace = law.trace(e_q, e_F, f_d)
@@ -210,7 +211,7 @@ def test_masses_are_kept_above_their_floor(rtr) -> None:
     at_floor = []
     for dt in (1e6, -1e6):
         law, _ = _law(rtr, np.array([0.3, 6.0, 0.5]))
-        law.free_space(LawInput(reference_terms(rtr, q, v), v, q - desired.q, desired))
+        law.free_space(LawInput(robot_terms(rtr, q, v), v, q - desired.q, desired))
         a = law.adaptation
         masses = [i for i, name in enumerate(a.names) if name.endswith(".m") and a.adapted[i]]
         law.update(dt, np.zeros(0))

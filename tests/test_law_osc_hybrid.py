@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from oracles.laws import OscHybridLaw, normal_directions, osc_hybrid_law
+from oracles.terms import constraint_terms, robot_terms
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired
@@ -30,7 +31,7 @@ from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.laws.osc_hybrid import OscOptions, check, osc_gains, task_space
 from hybrid_force.errors import ControlError, ScenarioError, SingularConfigurationError
 from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
-from hybrid_force.model.robot import LWA, Robot, reference_terms
+from hybrid_force.model.robot import LWA, Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
 
@@ -107,7 +108,7 @@ def test_free_space_task_acceleration_is_the_linear_servo(arm: str, request, rng
     robot = request.getfixturevalue(arm)
     for _ in range(3):
         q, v = _state(robot, rng)
-        terms = reference_terms(robot, q, v)
+        terms = robot_terms(robot, q, v)
         d = _desired(rng, robot.nv, terms.p)
         command, _ = osc_hybrid_law(GAINS, terms, v, q - d.q, d)
         assert command.B is None
@@ -171,10 +172,10 @@ def test_rigid_contact_force_and_decoupling(case: str, normalization: str, rtr, 
     law = OscHybridLaw(gains, constraint, robot.nv)
     k = constraint.k
     at_rest = np.zeros(robot.nv)
-    cons0 = constraint.evaluate_reference(reference_terms(robot, q, at_rest), at_rest)
+    cons0 = constraint_terms(constraint, robot_terms(robot, q, at_rest), at_rest)
     v = cons0.Q @ rng.normal(size=robot.nv)  # tangent: A v = 0
-    terms = reference_terms(robot, q, v)
-    cons = constraint.evaluate_reference(terms, v)
+    terms = robot_terms(robot, q, v)
+    cons = constraint_terms(constraint, terms, v)
     d = _desired(rng, robot.nv, terms.p)
     e_F, f_d = rng.normal(size=k), np.array([10.0, 4.0][:k])
     command = law.hybrid(LawInput(terms, v, q - d.q, d, cons, e_F, f_d))
@@ -238,7 +239,7 @@ def test_null_space_posture_converges_on_the_ur5(ur5: Robot) -> None:
         )
         q, v, data, dt = q_star + 0.1 * null_dir, np.zeros(6), ur5.new_data(), 1e-3
         for _ in range(2000):  # 2 s, semi-implicit Euler
-            command = law.free_space(LawInput(reference_terms(ur5, q, v), v, q - q_star, desired))
+            command = law.free_space(LawInput(robot_terms(ur5, q, v), v, q - q_star, desired))
             v = v + dt * pin.aba(ur5.model, data, q, v, command.u0)
             q = q + dt * v
         assert np.linalg.norm(ur5.tip_position(q) - p_star) < 1e-6

@@ -15,13 +15,13 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 import pytest
-from oracles.control import use_oracle_control
 from oracles.laws import OscHybridLaw
+from oracles.run import oracle_run
+from oracles.terms import constraint_terms, robot_terms
 
 import hybrid_force.control.laws.osc_hybrid as osc
 from hybrid_force.control.constraint import Constraint
@@ -36,7 +36,7 @@ from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import ControlError, SingularConfigurationError
 from hybrid_force.geometry.paths import Circle
 from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere
-from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
+from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import Scenario, simulate
 from hybrid_force.sim.settings import SimSettings
@@ -89,7 +89,7 @@ def _surfaces(case: str, p: np.ndarray) -> list:
 
 def _compare_step(robot: Robot, case: str, normalization: str, force_p: float, rng) -> None:
     q, v = _random_state(robot, rng)
-    terms = reference_terms(robot, q, v)
+    terms = robot_terms(robot, q, v)
     constraint = Constraint(_surfaces(case, terms.p), normalization=normalization)
     gains = osc_gains(OscOptions(force_p=force_p, force_i=7.0, null_omega=3.0), approach_rate=8.0)
     ref, fast = (
@@ -105,7 +105,7 @@ def _compare_step(robot: Robot, case: str, normalization: str, force_p: float, r
         pd=rng.normal(size=3),
         pdd=rng.normal(size=3),
     )
-    cons = constraint.evaluate_reference(terms, v)
+    cons = constraint_terms(constraint, terms, v)
     e_q, e_F, f_d = q - desired.q, rng.normal(size=k), 10.0 * rng.random(k)
     for phase in ("free", "near", "contact"):
         if phase == "free":
@@ -138,7 +138,7 @@ def test_one_step_equals_the_reference(arm: str, case: str, request, rng) -> Non
 
 
 def test_model_terms_without_packs_and_the_buffers_reused(ur5: Robot, rng) -> None:
-    """Terms made by reference_terms (no packs) and by Robot.terms (packs) give the same
+    """Terms made by oracles.terms.robot_terms (no packs) and by Robot.terms (packs) give the same
     command; the workspace returns its own arrays, overwritten by the next call."""
     constraint = Constraint(Plane((0.0, 0.0, 0.3), (0.0, 0.0, 1.0)))
     fast = OscHybridWorkspace(osc_gains(OscOptions(), 10.0), constraint, ur5.nv)
@@ -146,7 +146,7 @@ def test_model_terms_without_packs_and_the_buffers_reused(ur5: Robot, rng) -> No
     packed = ur5.terms(q, v, out=RobotTerms.zeros(ur5.nv))
     d = Desired(q, np.zeros(6), np.zeros(6), packed.p.copy(), np.zeros(3), np.zeros(3))
     u_packed = fast.free_space(LawInput(packed, v, np.zeros(6), d)).u0.copy()
-    command = fast.free_space(LawInput(reference_terms(ur5, q, v), v, np.zeros(6), d))
+    command = fast.free_space(LawInput(robot_terms(ur5, q, v), v, np.zeros(6), d))
     _close("packed vs plain terms", command.u0, u_packed)
     assert command.u0 is fast.u0
     with pytest.raises(ControlError, match="needs the task-space path"):
@@ -193,7 +193,7 @@ def test_the_rtr_stretched_or_folded_raises_the_reference_error(rtr: Robot, q3: 
     v = np.zeros(3)
     terms = rtr.terms(q, v, out=RobotTerms.zeros(3))
     constraint = Constraint(Plane(terms.p - 0.1, (0.0, 0.0, 1.0)))
-    cons = constraint.evaluate_reference(terms, v)
+    cons = constraint_terms(constraint, terms, v)
     gains = osc_gains(OscOptions(), 10.0)
     d = Desired(q, v, v, terms.p.copy(), np.zeros(3), np.zeros(3))
     ref, fast = OscHybridLaw(gains, constraint, 3), OscHybridWorkspace(gains, constraint, 3)
@@ -213,7 +213,7 @@ def test_a_mass_matrix_without_cholesky_factor_is_solved_by_lu() -> None:
     terms.Jdot_v[:] = (0.5, -0.2, 0.1)
     constraint = Constraint(Plane((0.1, 0.2, 0.3), (0.0, 0.6, 0.8)))
     v = np.array([0.3, -0.1, 0.2])
-    cons = constraint.evaluate_reference(terms, v)
+    cons = constraint_terms(constraint, terms, v)
     gains = osc_gains(OscOptions(force_p=0.4), 10.0)
     d = Desired(np.zeros(3), np.ones(3), np.ones(3), np.zeros(3), np.ones(3), np.ones(3))
     ref, fast = OscHybridLaw(gains, constraint, 3), OscHybridWorkspace(gains, constraint, 3)
@@ -303,14 +303,14 @@ def test_whole_runs_equal_the_reference_law(name: str, rtr: Robot, monkeypatch) 
 
 
 @pytest.mark.parametrize("name", ["paper_contact", "ur5_plane"])
-def test_whole_runs_equal_the_reference_run(name: str, rtr: Robot, monkeypatch) -> None:
-    """Against the all-numpy loop (the oracle controller: ReferenceController, the numpy law
-    and CLIK; the reference plant, SimSettings(reference=True)): q, v, u, f within 1e-10 of
-    their scale."""
+def test_whole_runs_equal_the_reference_run(
+    name: str, rtr: Robot, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Against the all-numpy loop (ReferenceController, the numpy law and CLIK, the oracle
+    plant): q, v, u, f within 1e-10 of their scale."""
     sc = _scenario(name, rtr)
     fast = simulate(sc)
-    use_oracle_control(monkeypatch)
-    ref = simulate(dataclasses.replace(sc, sim=dataclasses.replace(sc.sim, reference=True)))
+    ref = oracle_run(monkeypatch, sc)
     np.testing.assert_array_equal(fast.phase, ref.phase)
     for field in ("q", "v", "u", "f"):
         got, want = getattr(fast, field), getattr(ref, field)

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from oracles.plant import OraclePlant
+from oracles.terms import constraint_terms, robot_terms
 
 from hybrid_force import RunWarning, load_robot, simulate
 from hybrid_force.control.constraint import Constraint
@@ -19,9 +21,9 @@ from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import JointLimitError
 from hybrid_force.geometry.paths import paper_helix
 from hybrid_force.geometry.surfaces import Cylinder
-from hybrid_force.model.robot import Robot, reference_terms
+from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
-from hybrid_force.sim.plant import Plant, ReferencePlant
+from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.settings import Scenario, SimSettings
 
 
@@ -42,7 +44,7 @@ def _on_the_cylinder(robot: Robot) -> np.ndarray:
     return inverse_kinematics(robot, paper_helix().position(0.3), seed=np.array([0.0, 6.0, 2.0]))
 
 
-@pytest.mark.parametrize("plant_type", [Plant, ReferencePlant])
+@pytest.mark.parametrize("plant_type", [Plant, OraclePlant])
 def test_saturated_loop_satisfies_the_dynamics_with_clipped_torque(
     tmp_path: Path, rtr_urdf: Path, plant_type: type[Plant]
 ) -> None:
@@ -75,8 +77,8 @@ def test_saturated_loop_satisfies_the_dynamics_with_clipped_torque(
         np.testing.assert_array_equal(np.abs(tau[held]), effort[held])
         saturated_cases += int(held.any())
         # the constrained dynamics hold with that torque (independent reference terms)
-        ref = reference_terms(robot, q, v)
-        refc = con.evaluate_reference(ref, v)
+        ref = robot_terms(robot, q, v)
+        refc = constraint_terms(con, ref, v)
         gamma = SimSettings().baumgarte.gamma(refc.drift, refc.rate, refc.phi / refc.scale)
         residual = ref.M @ ddq + ref.nle - tau - refc.A.T @ f
         assert np.abs(residual).max() <= 1e-9 * (1 + np.abs(tau).max())
@@ -190,3 +192,22 @@ def test_release_applies_the_free_command_not_the_contact_solution(
         np.testing.assert_allclose(ddq, expected, rtol=1e-10, atol=1e-10)
         assert not f.any()
     assert released >= 10 and ambiguous < 40
+
+
+def test_the_contact_is_chosen_once_when_the_plant_is_built(rtr: Robot) -> None:
+    """Rigid (the default) or compliant: the strategy the plant holds for the whole run; the
+    oracle plant holds the readable rigid contact."""
+    from oracles.plant import OracleRigidContact
+
+    from hybrid_force.sim.compliant_contact import CompliantContact
+    from hybrid_force.sim.contact import ContactSettings
+    from hybrid_force.sim.rigid_contact import RigidContact
+
+    con = Constraint(Cylinder(0.4))
+    rigid = Plant(rtr, con, SimSettings(), 1e-5)
+    soft = Plant(rtr, con, SimSettings(), 1e-5, ContactSettings(model="compliant"))
+    oracle = OraclePlant(rtr, con, SimSettings(), 1e-5)
+    assert type(rigid.surface_contact) is RigidContact and rigid.surface_contact.arm is rigid
+    assert type(soft.surface_contact) is CompliantContact and soft.surface_contact.arm is soft
+    assert type(oracle.surface_contact) is OracleRigidContact
+    assert rigid.surface_contact._compiled_step and not oracle.surface_contact._compiled_step

@@ -13,8 +13,8 @@ cond(A) < 30):
 3. ``pose_newton`` (with the predictor): one advance from a random (q, q̇, q̈);
 4. 500 steps of advance(1 ms) from the start pose;
 5. whole runs (0.3 s) of scenarios/ur5_sphere_normal.toml and panda_pipe_tilt.toml, roll free
-   and held: the compiled run against the oracle controller on the reference plant
-   (``sim.reference = true``) in q, u, f to 1e-10;
+   and held: the compiled run against the oracle plant and the reference controller in q, u,
+   f to 1e-10;
 6. the non-Euclidean branches (pinocchio.integrate / difference): a UR5 whose first joint is
    stored as (cos, sin), 200 steps;
 7. ``Path.evaluate_with_direction_into`` against ``evaluate`` + ``direction_jet``, exactly;
@@ -36,7 +36,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from oracles.control import ReferencePoseJointPath, use_oracle_control
+from oracles.control import ReferencePoseJointPath
+from oracles.run import oracle_run
 from test_clik_pose import CASES
 
 from hybrid_force.control.clik import inverse_kinematics
@@ -209,16 +210,10 @@ def test_whole_runs_equal_the_reference_runs(
     which: str, roll: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """0.3 s of the shipped scenario (in contact, pressing): compiled against the oracle
-    controller on the reference plant."""
-    runs = []
-    for reference in (False, True):
-        sc = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml", {"sim.duration": 0.3})
-        sim = dataclasses.replace(sc.sim, reference=reference)
-        sc = dataclasses.replace(sc, sim=sim, tool=dataclasses.replace(sc.tool, roll=roll))
-        if reference:
-            use_oracle_control(monkeypatch)
-        runs.append(simulate(sc))
-    fast, ref = runs
+    plant and the reference controller."""
+    sc = load_scenario(ROOT / "scenarios" / f"{SCENARIOS[which]}.toml", {"sim.duration": 0.3})
+    sc = dataclasses.replace(sc, tool=dataclasses.replace(sc.tool, roll=roll))
+    fast, ref = simulate(sc), oracle_run(monkeypatch, sc)
     assert fast.n_samples == ref.n_samples > 100
     for name in ("q", "u", "f", "q_d"):
         got, want = np.asarray(getattr(fast, name)), np.asarray(getattr(ref, name))

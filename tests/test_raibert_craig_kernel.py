@@ -14,15 +14,15 @@ Relative: max|fast − reference| ≤ tolerance · max|reference| of the compare
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
-from oracles.control import use_oracle_control
 from oracles.laws import RaibertCraigLaw
+from oracles.run import oracle_run
+from oracles.terms import constraint_terms, robot_terms
 
 import hybrid_force.control.laws.raibert_craig as rc
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
@@ -31,7 +31,7 @@ from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.laws.raibert_craig import RaibertCraigGains, RaibertCraigWorkspace
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.surfaces import Plane, Sphere, Surface
-from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
+from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
 
@@ -161,7 +161,7 @@ def test_kernel_equals_the_reference_on_random_states(
         con = Constraint(list(surfaces))
         for step in range(12):  # one workspace: free, near and contact calls interleaved
             _, v, terms, desired = _state(robot, rng)
-            cons = con.evaluate_reference(terms, v)
+            cons = constraint_terms(con, terms, v)
             e_q = rng.uniform(-0.1, 0.1, robot.nv)
             e_F = rng.uniform(-1, 1, k)
             f_d = rng.uniform(0, 20, k)
@@ -190,8 +190,8 @@ def test_kernel_with_gradients_from_python_and_terms_without_packs(
     con = Constraint(list(surfaces))
     for step in range(6):
         q, v, _, desired = _state(robot, rng)
-        terms = reference_terms(robot, q, v)
-        cons = con.evaluate_reference(terms, v)
+        terms = robot_terms(robot, q, v)
+        cons = constraint_terms(con, terms, v)
         e_q = rng.uniform(-0.1, 0.1, robot.nv)
         approach = rng.uniform(-0.5, 0.5, 1) if step % 2 else None
         e_F, f_d = rng.uniform(-1, 1, 1), rng.uniform(0, 20, 1)
@@ -209,7 +209,7 @@ def test_a_singular_jacobian_takes_the_pseudo_inverse_of_the_svd(rtr: Robot) -> 
     ref = RaibertCraigLaw(gains, surfaces, 12.0)
     con = Constraint(list(surfaces))
     _, v, terms, desired = _state(rtr, rng)
-    cons = con.evaluate_reference(terms, v)
+    cons = constraint_terms(con, terms, v)
     e_q, e_F, f_d = rng.uniform(-0.1, 0.1, 3), np.array([0.3]), np.array([10.0])
     singular = RobotTerms.zeros(3)
     for name in ("M", "C", "g", "nle", "p", "J", "Jdot", "Jdot_v", "pdot"):
@@ -264,11 +264,7 @@ def test_whole_runs_compiled_equal_the_reference(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the UR5's first torque reaches its effort limit
         fast = simulate(sc)
-        with monkeypatch.context() as patch:
-            use_oracle_control(patch)
-            reference = simulate(
-                dataclasses.replace(sc, sim=dataclasses.replace(sc.sim, reference=True))
-            )
+        reference = oracle_run(monkeypatch, sc)
         built: list[RaibertCraigLaw] = []
 
         def numpy_law(*args: object) -> RaibertCraigLaw:  # the compiled loop, the numpy law

@@ -1,7 +1,7 @@
 """Torque saturation in contact (issue 28 item 4): the consistent set of held joints.
 
 Reference: brute force over all 3^n held sets (each joint held at +e, free, or held at −e),
-each solved with the dense KKT system of :func:`~hybrid_force.sim.dynamics.kkt_reference`
+each solved with the dense KKT system of :func:`oracles.plant.kkt`
 and checked for consistency (held joints' command beyond the limit on their side, free
 joints' within); the plant's held set must be the unique consistent one.
 """
@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from oracles.plant import kkt
 
 from hybrid_force import simulate
 from hybrid_force.control.constraint import Constraint
@@ -21,8 +22,8 @@ from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.geometry.surfaces import Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
-from hybrid_force.sim.dynamics import kkt_reference
 from hybrid_force.sim.plant import Plant
+from hybrid_force.sim.rigid_contact import RigidContact
 from hybrid_force.sim.run_checks import joint_names, saturated_time
 from hybrid_force.sim.saturation import _enumerate, saturation_solutions
 from hybrid_force.sim.settings import SimSettings
@@ -44,7 +45,7 @@ def _brute_force(
         held = s != 0
         u0h, Bh = u0.copy(), B.copy()
         u0h[held], Bh[held] = s[held] * effort[held], 0.0
-        _, f = kkt_reference(M, nle, u0h, Bh, A, gamma)
+        _, f = kkt(M, nle, u0h, Bh, A, gamma)
         x = u0 + B @ f
         tol = 1e-9 * (1.0 + np.abs(x))
         ok = np.where(held, s * x >= effort - tol, np.abs(x) <= effort + tol)
@@ -87,11 +88,13 @@ def test_the_held_set_is_the_unique_consistent_one(
         # the paper law's structure B = β M A⁺ (arimoto.py) for half the trials, random else
         A_pinv = A.T / float((A @ A.T)[0, 0])
         B = 2.0 * (M @ A_pinv) if trial % 2 else rng.normal(scale=0.3, size=(n, 1))
-        _, f_free = kkt_reference(M, nle, u0, B, A, gamma)
+        _, f_free = kkt(M, nle, u0, B, A, gamma)
         # tight limits: every joint's unsaturated torque within 0.3 to 1.5 of its limit
         effort = np.abs(u0 + B @ f_free) * rng.uniform(0.3, 1.5, n)
         plant.effort = effort
-        plant.unilateral = False  # the comparison holds whatever the sign of f
+        contact = plant.surface_contact
+        assert isinstance(contact, RigidContact)
+        contact.unilateral = False  # the comparison holds whatever the sign of f
         expected = _brute_force(M, nle, A, gamma, u0, B, effort)
         assert expected, "a solution always exists for one surface (module docstring)"
         if len(expected) > 1:
@@ -105,7 +108,7 @@ def test_the_held_set_is_the_unique_consistent_one(
         np.testing.assert_array_equal(_held(applied, u0 + B @ f, effort), signs)
         np.testing.assert_allclose(f, f_ref, rtol=1e-9, atol=1e-9)
         # the solver's own (k = 1 sweep) and enumeration (k > 1 path) agree on it
-        W = plant._force_per_torque(terms, cons)
+        W = contact._force_per_torque(terms, cons)
         tau = u0 + B @ f_free
         f_bar = f_free + W @ tau
         sweep = saturation_solutions(u0, B, f_bar, W, effort)
@@ -152,11 +155,11 @@ def test_ur5_plane_at_500_newtons_holds_wrist_1_on_the_side_of_its_command() -> 
 
 
 def _old_active_set(
-    plant: Plant, terms: Any, cons: Any, cmd: Command, ddq: np.ndarray, f: np.ndarray
+    contact: RigidContact, terms: Any, cons: Any, cmd: Command, ddq: np.ndarray, f: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """The iteration this replaced (kept here as the bug's reference): fix the joints beyond
     their limit at the limit of the first, unsaturated pass, resolve, never release."""
-    effort = plant.effort
+    effort = contact.arm.effort
     assert effort is not None and cmd.B is not None
     u = cmd.u0 + cmd.B @ f
     over = np.abs(u) > effort
@@ -168,12 +171,12 @@ def _old_active_set(
         fixed |= over
         u0[over] = np.clip(u[over], -effort[over], effort[over])
         B[over] = 0.0
-        ddq, f = plant._constrained(terms, cons, Command(u0, B))
+        ddq, f = contact._constrained(terms, cons, Command(u0, B))
         u = u0 + B @ f
         over = ~fixed & (np.abs(u) > effort)
         if not over.any():
             break
-    plant.applied = u
+    contact.arm.applied = u
     return ddq.copy(), f.copy()
 
 
@@ -186,21 +189,22 @@ def test_on_the_old_iterations_states_the_held_set_is_unique_and_on_the_commands
     wrong hold gave)."""
     seen: list[tuple[int, np.ndarray, float, float, float, float]] = []
 
-    def replay(self: Plant, terms: Any, cons: Any, cmd: Command, ddq: Any, f: Any) -> Any:
-        effort = self.effort
+    def replay(self: RigidContact, terms: Any, cons: Any, cmd: Command, ddq: Any, f: Any) -> Any:
+        effort = self.arm.effort
         assert effort is not None and cmd.B is not None
         if not np.any(np.abs(cmd.u0 + cmd.B @ f) > effort):
             return ddq, f
         W = self._force_per_torque(terms, cons)
         found = saturation_solutions(cmd.u0, cmd.B, f + W @ (cmd.u0 + cmd.B @ f), W, effort)
         ddq, f = _old_active_set(self, terms, cons, cmd, ddq, f)
-        assert self.applied is not None
+        applied = self.arm.applied
+        assert applied is not None
         commanded = float((cmd.u0 + cmd.B @ f)[3])
-        held = float(self.applied[3])
+        held = float(applied[3])
         seen.append((len(found), found[0][0], float(found[0][1][0]), held, commanded, float(f[0])))
         return ddq, f
 
-    monkeypatch.setattr(Plant, "_saturated", replay)
+    monkeypatch.setattr(RigidContact, "_saturated", replay)
     sc = load_scenario("scenarios/ur5_plane.toml", {"control.f_d": 500.0, "sim.duration": 3.0})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from oracles.run import oracle_run
 
 from hybrid_force import (
     BadInputError,
@@ -118,13 +119,13 @@ def test_phases_switch_at_the_documented_distances(approach_run: Result) -> None
 
 
 @pytest.mark.parametrize("which", ["contact", "approach"])
-def test_fast_loop_equals_the_reference_step(rtr, which: str) -> None:
+def test_fast_loop_equals_the_reference_step(rtr, which: str, monkeypatch) -> None:
     """The fast step (one Pinocchio pass, scalar constraint algebra, forwardDynamics) and the
     straightforward one (separate calls, general algebra, dense KKT) give the same run."""
     make = _contact_scenario if which == "contact" else _approach_scenario
     duration = 0.3 if which == "contact" else 1.2  # the approach run reaches contact at 0.9 s
     fast = simulate(make(rtr, duration))
-    ref = simulate(make(rtr, duration, reference=True))
+    ref = oracle_run(monkeypatch, make(rtr, duration))
     assert [e["kind"] for e in fast.meta["events"]] == [e["kind"] for e in ref.meta["events"]]
     np.testing.assert_allclose(fast.q, ref.q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.v, ref.v, rtol=0, atol=1e-7)
@@ -161,13 +162,11 @@ def _groove_scenario(robot, duration: float, **sim) -> Scenario:
 
 
 @pytest.mark.parametrize("which", ["panda_plane", "groove_mass_error"])
-def test_fast_loop_equals_the_reference_step_beyond_the_paper(rtr, which: str) -> None:
+def test_fast_loop_equals_the_reference_step_beyond_the_paper(rtr, which: str, monkeypatch) -> None:
     """The same equality for a redundant 7-joint arm on a plane, and for two stacked surfaces
     (k = 2: general constraint algebra, the k × k loop solve) with a controller model error."""
-    if which == "panda_plane":
-        fast, ref = (simulate(_panda_plane_scenario(0.3, reference=r)) for r in (False, True))
-    else:
-        fast, ref = (simulate(_groove_scenario(rtr, 0.3, reference=r)) for r in (False, True))
+    sc = _panda_plane_scenario(0.3) if which == "panda_plane" else _groove_scenario(rtr, 0.3)
+    fast, ref = simulate(sc), oracle_run(monkeypatch, sc)
     np.testing.assert_allclose(fast.q, ref.q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.v, ref.v, rtol=0, atol=1e-7)
     np.testing.assert_allclose(fast.u, ref.u, rtol=0, atol=1e-7 * (1 + np.abs(ref.u).max()))
@@ -175,7 +174,7 @@ def test_fast_loop_equals_the_reference_step_beyond_the_paper(rtr, which: str) -
     assert np.abs(fast.f).min() > 1.0  # in contact, pressing, the whole run
 
 
-def test_user_defined_surface_and_path_run_and_save(rtr, tmp_path) -> None:
+def test_user_defined_surface_and_path_run_and_save(rtr, tmp_path, monkeypatch) -> None:
     """A FunctionSurface (the paper's cylinder by hand) and a FunctionPath (the helix of eq. 25
     by hand, derivatives by finite differences): the fast loop (surface and path in Python,
     the rest compiled) equals the reference step, and the result can be saved and loaded."""
@@ -189,17 +188,15 @@ def test_user_defined_surface_and_path_run_and_save(rtr, tmp_path) -> None:
     path = FunctionPath(lambda t: np.array([0.4 * np.cos(t), 0.4 * np.sin(t), 10 + t / 10]))
     q0 = inverse_kinematics(rtr, np.array([0.4, 0.0, 7.0]), seed=np.array([0.0, 6.0, 2.0]))
 
-    def scenario(reference: bool) -> Scenario:
-        return Scenario(
-            robot=rtr,
-            surfaces=[surface],
-            path=path,
-            q0=q0,
-            control=ControlSettings(supervisor=False),
-            sim=SimSettings(duration=0.3, reference=reference),
-        )
-
-    fast, ref = simulate(scenario(False)), simulate(scenario(True))
+    sc = Scenario(
+        robot=rtr,
+        surfaces=[surface],
+        path=path,
+        q0=q0,
+        control=ControlSettings(supervisor=False),
+        sim=SimSettings(duration=0.3),
+    )
+    fast, ref = simulate(sc), oracle_run(monkeypatch, sc)
     np.testing.assert_allclose(fast.q, ref.q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.f, ref.f, rtol=0, atol=1e-6 * (1 + np.abs(ref.f).max()))
     assert np.abs(fast.phi).max() <= 1e-12  # stays on the surface

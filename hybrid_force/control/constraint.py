@@ -193,7 +193,7 @@ class Constraint:
 
         One surface (k = 1): one compiled call
         (:func:`hybrid_force.control._kernels.constraint_one`); k > 1: the general k-row
-        algebra of :meth:`evaluate_reference`, which is also the reference of the kernel.
+        algebra in numpy (:meth:`_evaluate_stacked`).
 
         Args:
             terms: the robot's terms at (q, v) (:meth:`Robot.terms`).
@@ -207,10 +207,11 @@ class Constraint:
         """
         if self.k == 1:
             return self._evaluate_one(terms, v, out)
-        return self.evaluate_reference(terms, v)
+        return self._evaluate_stacked(terms, v)
 
-    def evaluate_reference(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
-        """:meth:`evaluate` in readable numpy, for any k (new arrays; same errors)."""
+    def _evaluate_stacked(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
+        """The k > 1 case of :meth:`evaluate`: each surface's row (:meth:`_row`), then the
+        stacked algebra A⁺ = Aᵀ(AAᵀ)⁻¹, Q = I − A⁺A and their derivatives (new arrays)."""
         rows = [self._row(i, s, terms) for i, s in enumerate(self.surfaces)]
         k, n = self.k, terms.J.shape[1]
         J_phi = np.array([r.row for r in rows])

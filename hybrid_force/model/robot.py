@@ -63,7 +63,6 @@ __all__ = [
     "find_package",
     "load_robot",
     "model_kind",
-    "reference_terms",
     "robot_from_text",
 ]
 _K = LazyKernels("hybrid_force.model._kernels")
@@ -456,8 +455,8 @@ class Robot:
         also fills the joint Jacobians, their time variation and the placements),
         updateFramePlacement, getFrameJacobian, getFrameJacobianTimeVariation; the rest
         (symmetric M, nle = C v + g, J v, J̇ v) is one compiled call
-        (:func:`hybrid_force._kernels.robot_terms`). The reference, one public method per
-        term, is :func:`reference_terms`; the tests compare the two.
+        (:func:`hybrid_force._kernels.robot_terms`). The tests compare them with one public
+        method per term (tests/oracles/terms.py).
 
         Args:
             q: (nq,) configuration. v: (nv,) velocity.
@@ -533,24 +532,3 @@ def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise DimensionError(f"{what} for robot '{robot}' has non-finite values: {arr}")
     return arr
-
-
-def reference_terms(robot: Robot, q: np.ndarray, v: np.ndarray) -> RobotTerms:
-    """The robot terms from one public method each: the reference :meth:`Robot.terms` is
-    tested against, and the terms of the simulator's reference step."""
-    M, C, g = robot.mass_matrix(q), robot.coriolis(q, v), robot.gravity(q)
-    J = robot.jacobian(q)
-    data = robot.new_data()
-    pin.computeJointJacobiansTimeVariation(robot.model, data, q, v)
-    Jdot = pin.getFrameJacobianTimeVariation(robot.model, data, robot.tip_id, _LWA)[:3].copy()
-    return RobotTerms(
-        M=M,
-        C=C,
-        g=g,
-        nle=C @ v + g,
-        p=robot.tip_position(q),
-        J=J,
-        Jdot=Jdot,
-        Jdot_v=robot.drift(q, v),
-        pdot=J @ v,
-    )

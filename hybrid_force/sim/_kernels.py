@@ -2,8 +2,9 @@
 resolution of the algebraic loop u = u0 + B f, semi-implicit Euler with projection onto the
 surface (k = 1), and the row of the record.
 
-References: :mod:`hybrid_force.sim.dynamics` (:func:`~hybrid_force.sim.dynamics.kkt_reference`)
-and the reference plant of :mod:`hybrid_force.sim.loop`. The controller never calls these kernels.
+References: :mod:`hybrid_force.sim.dynamics` and the numpy oracles of the tests
+(tests/oracles/plant.py: the dense KKT solve and the oracle plant). The controller never calls
+these kernels.
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """

@@ -19,8 +19,8 @@ constraint A q̈ = −γ (which q̈0 already satisfies) resolves the loop exactl
 
     (G + H) f = G f0,      q̈ = q̈0 + X (f − f0) + Y f
 
-(:func:`hybrid_force._kernels.loop_resolve`; :func:`kkt_reference` solves the same system
-densely and the tests compare the two).
+(:func:`hybrid_force.sim._kernels.loop_resolve`; the tests compare it with a dense solve of
+the same system, tests/oracles/plant.py).
 
 Impacts: a plastic impact (restitution 0) at contact with the tool moving into the surface
 sets A q̇⁺ = 0 with ``pin.impulseDynamics``; the impulse [N·s] is in the same convention as f.
@@ -44,7 +44,6 @@ __all__ = [
     "ConstrainedDynamics",
     "constrained_acceleration",
     "free_acceleration",
-    "kkt_reference",
     "plastic_impact",
 ]
 
@@ -158,31 +157,6 @@ class ConstrainedDynamics:
                 "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
             )
         return self.ddq, self.f
-
-
-def kkt_reference(
-    M: np.ndarray,
-    nle: np.ndarray,
-    u0: np.ndarray,
-    B: np.ndarray | None,
-    A: np.ndarray,
-    gamma: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Independent dense solution of the coupled system (for tests and the reference loop).
-
-    ```text
-    [ M   −(Aᵀ + B) ] [q̈]   [u0 − nle]
-    [ A        0    ] [f ] = [  −γ    ]
-    ```
-    """
-    n, k = M.shape[0], A.shape[0]
-    K = np.zeros((n + k, n + k))
-    K[:n, :n] = M
-    K[:n, n:] = -(A.T + (0.0 if B is None else B))
-    K[n:, :n] = A
-    rhs = np.concatenate([u0 - nle, -gamma])
-    sol = np.linalg.solve(K, rhs)
-    return sol[:n], sol[n:]
 
 
 def plastic_impact(

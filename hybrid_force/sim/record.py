@@ -1,6 +1,10 @@
-"""The run's record: every sample of a run in one preallocated table, one compiled call per row.
+"""The run's record: every sample of a run in one preallocated table, one call per sample.
 
-The column layout is defined here (:meth:`Record.widths`) and written in the same order by
+:class:`Record` is built from the run's objects (the scenario, the plant, the control side)
+and pulls from them what a sample holds: the desired joint path and point, the desired force,
+the law's Lyapunov function and its own signals, the applied and the commanded torque, the
+measured force, the tool's angle and the phase. The column layout is defined here
+(:meth:`Record.widths`) and written in the same order by
 :func:`hybrid_force.sim._kernels.record_row`.
 """
 
@@ -9,7 +13,15 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
+from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import law_log_names
+from hybrid_force.model.robot import RobotTerms
+from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
+from hybrid_force.sim.control_side import ControlSide, ToolLog
+from hybrid_force.sim.plant import Plant
+from hybrid_force.sim.run_checks import check_log_memory
+from hybrid_force.sim.settings import Scenario
 
 _K = LazyKernels("hybrid_force.sim._kernels")
 
@@ -17,10 +29,23 @@ __all__ = ["Record"]
 
 
 class Record:
-    """The run's samples, preallocated as one (N, width) table; one compiled call per row.
+    """The samples of one run, preallocated as one (N, width) table, one call per sample.
+
+    Args:
+        sc: the run. plant: its plant. ctrl: its control side. N: samples of the run.
+
+    Raises:
+        BadInputError (from :func:`~hybrid_force.sim.run_checks.check_log_memory`): the
+            record would not fit in memory.
 
     The fields (t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase) are column views of the table,
-    in that order (:func:`hybrid_force._kernels.record_row` writes a row in the same order).
+    in that order (:func:`hybrid_force.sim._kernels.record_row` writes a row in the same
+    order); ``f_meas`` (N, k) [N], ``u_cmd`` (N, n), ``law_log`` (N, m) and ``tool_angle``
+    (N,) [rad] are kept beside it when the run has them.
+
+    Attributes:
+        law_signals: the names of the law's own signals (``law_log``'s columns).
+        filled: the samples written so far (a failed run's partial result keeps them).
     """
 
     @staticmethod
@@ -33,29 +58,30 @@ class Record:
         """Float64 numbers per sample."""
         return sum(cls.widths(nq, nv, k))
 
-    def __init__(
-        self,
-        N: int,
-        nq: int,
-        nv: int,
-        k: int,
-        max_velocity: float,
-        max_force: float,
-        *,
-        measured: bool = False,
-        commanded: bool = False,
-        law_signals: int = 0,
-        tool: bool = False,
-    ) -> None:
-        self.max_velocity, self.max_force = max_velocity, max_force
+    def __init__(self, sc: Scenario, plant: Plant, ctrl: ControlSide, N: int) -> None:
+        sim, nq, nv, k = sc.sim, sc.robot.nq, sc.robot.nv, plant.constraint.k
+        law = ctrl.law
+        self.law_signals = law_log_names(law.law if law is not None else None)
+        check_log_memory(N, self.width(nq, nv, k) + len(self.law_signals), sim.duration, sim.dt)
+        self.max_velocity, self.max_force = sim.max_velocity, sim.max_force
+        self._plant, self._ctrl, self._law, self._path = plant, ctrl, law, sc.path
+        self._clik = law.clik if law is not None else None
+        self._task_f_d = sc.control.f_d_for(k)
+        self._no_q_d, self._no_B = np.full(nq, np.nan), np.zeros((nv, k))
+        # the law's own signals (its optional log hook), recorded at every sample
+        self._log_law = (
+            getattr(law.law, "log_values", None) if law is not None and self.law_signals else None
+        )
+        self._tool = ToolLog(sc, law, ctrl.measured) if sc.tool.controlled else None
         # the measured force (N, k), when it is not the plant's force (sampled sensing)
-        self.f_meas: np.ndarray | None = np.zeros((N, k)) if measured else None
+        self.f_meas: np.ndarray | None = np.zeros((N, k)) if ctrl.measured else None
         # the commanded torque (N, n), when effort limits may make it differ from the applied
-        self.u_cmd: np.ndarray | None = np.zeros((N, nv)) if commanded else None
+        self.u_cmd: np.ndarray | None = np.zeros((N, nv)) if plant.effort is not None else None
         # the law's own signals (N, m), when it logs some (Law.log_names)
-        self.law_log: np.ndarray | None = np.zeros((N, law_signals)) if law_signals else None
+        m = len(self.law_signals)
+        self.law_log: np.ndarray | None = np.zeros((N, m)) if m else None
         # the tool axis' angle from its desired direction (N,) [rad], when the run controls it
-        self.tool_angle: np.ndarray | None = np.zeros(N) if tool else None
+        self.tool_angle: np.ndarray | None = np.zeros(N) if self._tool is not None else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -66,6 +92,7 @@ class Record:
         (t, self.q, self.v, self.q_d, self.u, self.p, self.p_d, self.f, self.f_d, self.phi, V,
          phase) = views  # fmt: skip
         self.t, self.V, self.phase = t[:, 0], V[:, 0], phase[:, 0]
+        self.filled = 0
 
     def record(
         self,
@@ -73,28 +100,52 @@ class Record:
         t: float,
         q: np.ndarray,
         v: np.ndarray,
-        q_d: np.ndarray,
-        u0: np.ndarray,
-        B: np.ndarray,
+        terms: RobotTerms,
+        cmd: Command,
         f: np.ndarray,
-        p: np.ndarray,
-        p_d: np.ndarray,
-        f_d: np.ndarray,
-        phi: np.ndarray,
-        V: float,
-        phase: int,
+        distance: np.ndarray,
     ) -> bool:
-        """Write sample i, with the command u = u0 + B f (B: (n, k), zeros when u ignores f).
+        """Write sample i at time t [s]: the state (q, v), the plant's terms there, the command
+        u = u0 + B f (or the torque the effort limits let through), the contact force f (k,)
+        [N] and the tip's distances (k,) [m]; the rest from the run's objects.
 
         Returns True when q, v, f are finite, |v_i| ≤ max_velocity and |f_m| ≤ max_force
-        (otherwise :func:`hybrid_force.sim.loop` says which and raises).
+        (otherwise :func:`~hybrid_force.sim.run_checks.check_finite` says which).
         """
-        return _K.record_row(
-            self.table, i, t, q, v, q_d, u0, B, f, p, p_d, f_d, phi, V, phase,
+        plant, ctrl, law, clik = self._plant, self._ctrl, self._law, self._clik
+        applied = plant.applied
+        ok = _K.record_row(
+            self.table, i, t, q, v,
+            clik.q if clik is not None else self._no_q_d,
+            # the applied torque: the command u0 + B f, or what the effort limits pass
+            cmd.u0 if applied is None else applied,
+            self._no_B if cmd.B is None or applied is not None else cmd.B,
+            f, terms.p,
+            # sampled: the desired point now, not the one of the last tick (held 1/rate s)
+            clik.p_d if clik is not None and not ctrl.measured else self._path.position(t),
+            law.f_d if law is not None else self._task_f_d,
+            distance,
+            law.V if law is not None else np.nan,
+            # the plant's contact state: a tool off the surface is never logged in contact
+            CONTACT if plant.in_contact else ctrl.phase(distance),
             self.max_velocity, self.max_force,
         )  # fmt: skip
+        if self.f_meas is not None:
+            self.f_meas[i] = ctrl.f_meas
+        if self.u_cmd is not None:  # the commanded torque, before the limits
+            self.u_cmd[i] = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
+        if self._log_law is not None:
+            assert self.law_log is not None
+            self._log_law(self.law_log[i])
+        if self._tool is not None:
+            assert self.tool_angle is not None
+            self.tool_angle[i] = self._tool.angle(t, q)
+        self.filled = i + 1
+        return bool(ok)
 
     def result(self, n: int, meta: dict, k: int) -> Result:
+        """The first n samples as a Result with ``meta``; k: the constraint's rows."""
+
         def own(a: np.ndarray) -> np.ndarray:
             return np.ascontiguousarray(a[:n])
 

@@ -12,7 +12,8 @@ Checks made around :func:`hybrid_force.sim.loop.simulate`, none of which changes
 Each returns plain JSON-able data stored in the result's ``meta`` and shown in the summary.
 Three more stop a run: :func:`check_contact_step` refuses a time step too long for the
 contact model before it starts, :func:`check_finite` (a non-finite or runaway state) and
-:class:`JointLimits` (``sim.joint_limits = "stop"``) raise at the sample that breaks them.
+:class:`JointLimits` (``sim.joint_limits = "stop"``) raise at the sample that breaks them;
+:class:`SampleChecks` makes both at every sample and times the Python warnings raised.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ if TYPE_CHECKING:  # annotations only: the loop's settings import this module's 
 __all__ = [
     "LOG_COPIES",
     "JointLimits",
+    "SampleChecks",
     "available_memory",
     "check_contact_step",
     "check_finite",
@@ -290,6 +292,39 @@ class JointLimits:
                     f"joint {name} exceeded its velocity limit {self.velocity[j]:.6g} at "
                     f't = {t:.6g} s (v = {v[j]:.6g}; sim.joint_limits = "stop")'
                 )
+
+
+class SampleChecks:
+    """The checks of every sample of a run, and the times of the Python warnings it raises.
+
+    Args:
+        sc: the run (its ``sim`` bounds and ``sim.joint_limits``, its arm's limits).
+        caught: the list ``warnings.catch_warnings(record=True)`` fills during the run.
+    """
+
+    def __init__(self, sc: Scenario, caught: list[Any]) -> None:
+        self.sim, self.caught = sc.sim, caught
+        #: [s] the simulated time at which each caught warning was raised
+        self.caught_at: list[float] = []
+        # sim.joint_limits = "stop": position and velocity limits checked at every sample
+        stop_at = JointLimits(sc.robot) if sc.sim.joint_limits == "stop" else None
+        self.stop_at = stop_at if stop_at is not None and stop_at.any else None
+
+    def check(self, t: float, ok: bool, q: np.ndarray, v: np.ndarray, f: np.ndarray) -> None:
+        """After the sample at t [s] (``ok``: what the record found, q, v, f its state): time
+        the warnings raised since the last one; raise DivergenceError (:func:`check_finite`)
+        when not ok, JointLimitError (:class:`JointLimits`) beyond a limit it stops at."""
+        if len(self.caught) > len(self.caught_at):  # a Python warning at this step: its time
+            self.caught_at.extend([t] * (len(self.caught) - len(self.caught_at)))
+        if not ok:
+            check_finite(t, q, v, f, self.sim)  # raises DivergenceError with the details
+        if self.stop_at is not None:
+            self.stop_at.check(t, q, v)
+
+    def notes(self, t: float) -> list[str]:
+        """The caught warnings, one line each (:func:`warning_notes`); those not timed yet were
+        raised at t [s], the run's last time."""
+        return warning_notes(self.caught, [*self.caught_at, *[t] * len(self.caught)])
 
 
 def joint_names(robot: Robot) -> list[str]:

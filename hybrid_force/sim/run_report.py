@@ -16,11 +16,11 @@ import platform
 import uuid
 import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force.control.supervisor import HybridController
 from hybrid_force.errors import (
     DivergenceError,
     HybridForceError,
@@ -31,13 +31,16 @@ from hybrid_force.errors import (
     RunWarning,
     SingularConfigurationError,
 )
-from hybrid_force.events import Event
+from hybrid_force.events import Event, RunStopped
 from hybrid_force.geometry.paths import Path, PathParameterError
 from hybrid_force.model.robot import Robot
 from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
+from hybrid_force.sim.control_side import ControlSide
+from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.record import Record
 from hybrid_force.sim.run_checks import (
+    SampleChecks,
     contact_outcome,
     describe,
     joint_names,
@@ -48,12 +51,7 @@ from hybrid_force.sim.run_checks import (
 )
 from hybrid_force.sim.settings import Scenario
 
-if TYPE_CHECKING:  # annotations only
-    from hybrid_force.control.supervisor import HybridController
-    from hybrid_force.sim.control_side import ControlSide
-    from hybrid_force.sim.plant import Plant
-
-__all__ = ["finish_result", "merge_events", "run_failure", "run_meta"]
+__all__ = ["failed_run", "finish_result", "merge_events", "run_failure", "run_meta"]
 
 
 def _versions() -> dict:
@@ -189,6 +187,41 @@ def run_failure(exc: BaseException, name: str, t: float) -> RunFailedError:
     if isinstance(exc, SingularConfigurationError | np.linalg.LinAlgError):
         return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
     return RunFailedError(f"{where} by an unexpected error: {type(exc).__name__}: {exc}")
+
+
+def failed_run(
+    exc: BaseException,
+    sc: Scenario,
+    meta: dict,
+    log: Record,
+    plant: Plant,
+    ctrl: ControlSide,
+    checks: SampleChecks,
+    t: float,
+    steps: int,
+    wall: float,
+) -> RunFailedError:
+    """The RunFailedError of run ``sc`` that ``exc`` stopped at time t [s], after ``steps``
+    steps and ``wall`` s of wall time, with its partial result: the samples ``log`` holds,
+    ``meta`` with ``status = "failed"``, ``reason`` and ``error`` (None when the log itself
+    is unusable)."""
+    failure = run_failure(exc, sc.name, t)
+    meta.update(
+        status="failed",
+        reason=failure.reason,
+        error=f"{type(exc).__name__}: {exc}",
+        events=merge_events(ctrl.events, [*plant.events, RunStopped(t, failure.reason)]),
+        steps_per_second=steps / wall if wall > 0 else 0.0,
+        wall_time=wall,
+    )
+    try:
+        failure.result = finish_result(
+            log, log.filled, meta, plant.constraint.k, sc.robot, plant, warn=False,
+            extra=checks.notes(t),
+        )  # fmt: skip
+    except Exception:  # the log itself is unusable: report the failure without it
+        failure.result = None
+    return failure
 
 
 def finish_result(

@@ -43,11 +43,6 @@ class SimSettings:
         max_force: |f| beyond this [N] is a runaway.
         settle_time: metrics "after settling" start here [s].
         normalization: constraint row scaling, "tip" (f in N) or "joint" (the paper's J_Φn).
-        reference: use the straightforward step instead of the fast one: every robot term
-            from its own Pinocchio call, the general k-row constraint algebra, the numpy laws
-            and CLIK, and a dense numpy solve of the KKT system instead of
-            pin.forwardDynamics; no compiled kernel but the recorder's (the sample row is
-            written the same way in both). About 10× slower; for tests.
         seed: seed of the sensors' noise (an integer ≥ 0): a run with noisy sensors is
             reproducible from it.
         torque_limits: saturate the applied torque at the model's effort limits, where it
@@ -71,7 +66,6 @@ class SimSettings:
     max_force: float = 1e7
     settle_time: float = DEFAULT_SETTLE_TIME
     normalization: Literal["tip", "joint"] = "tip"
-    reference: bool = False
     seed: int = 0
     torque_limits: bool = True
     joint_limits: Literal["report", "stop"] = "report"
@@ -115,7 +109,7 @@ class SimSettings:
             ("joint_limits", ("report", "stop")),
         ):
             checks.one_of(getattr(self, name), f"sim.{name}", SimSettingsError, choices)
-        for name in ("unilateral", "reference", "torque_limits"):
+        for name in ("unilateral", "torque_limits"):
             value = checks.flag(getattr(self, name), f"sim.{name}", SimSettingsError)
             object.__setattr__(self, name, value)
         seed = checks.integer(self.seed, "sim.seed", SimSettingsError, minimum=0)

@@ -28,7 +28,8 @@ from hybrid_force.control.pose_clik import PoseJointPath, _orientation_error
 from hybrid_force.control.supervisor import HybridController
 from hybrid_force.control.tool import cross3
 from hybrid_force.errors import SingularConfigurationError
-from hybrid_force.model.robot import LWA, RobotTerms, reference_terms
+from hybrid_force.model.robot import LWA, RobotTerms
+from oracles.terms import constraint_terms, robot_terms
 
 __all__ = [
     "ReferenceController",
@@ -370,9 +371,9 @@ class ReferenceControllerModel(ControllerModel):
     """:class:`ControllerModel` on the readable robot terms and constraint rows."""
 
     def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
-        terms = reference_terms(self.robot, q, v)
+        terms = robot_terms(self.robot, q, v)
         try:
-            return terms, self.constraint.evaluate_reference(terms, v)
+            return terms, constraint_terms(self.constraint, terms, v)
         except SingularConfigurationError:
             return terms, None
 
