@@ -14,11 +14,25 @@ of docs/scenarios.md and the JSON Schema (``hybrid-force schema``) all read this
 from __future__ import annotations
 
 import dataclasses
+import types
+import typing
 from collections.abc import Callable, Iterator
 from dataclasses import MISSING, dataclass
-from typing import Any
+from typing import Any, Literal
 
-__all__ = ["Param", "param", "spec_of", "specs"]
+__all__ = [
+    "MISSING_VALUE",
+    "Param",
+    "declared",
+    "default_of",
+    "param",
+    "spec_of",
+    "specs",
+    "value_kind",
+]
+
+MISSING_VALUE: Any = MISSING
+"""What :func:`default_of` returns for a required field (no default)."""
 
 _KEY = "hybrid_force"
 
@@ -73,7 +87,43 @@ def spec_of(f: dataclasses.Field[Any]) -> Param:
     return found if isinstance(found, Param) else Param()
 
 
+def declared(f: dataclasses.Field[Any]) -> bool:
+    """The field was declared with :func:`param`."""
+    return isinstance(f.metadata.get(_KEY), Param)
+
+
+def default_of(f: dataclasses.Field[Any]) -> Any:
+    """A field's default (its factory called), or :data:`MISSING_VALUE` when it has none."""
+    if f.default is not MISSING:
+        return f.default
+    if f.default_factory is not MISSING:
+        return f.default_factory()
+    return MISSING_VALUE
+
+
 def specs(cls: type) -> Iterator[tuple[dataclasses.Field[Any], Param]]:
     """The fields of a dataclass with their :class:`Param`, in declaration order."""
     for f in dataclasses.fields(cls):
         yield f, spec_of(f)
+
+
+def value_kind(cls: type, f: dataclasses.Field[Any]) -> tuple[str, tuple[Any, ...]]:
+    """(kind, choices) of a field's TOML value, from its type: "bool", "integer", "number",
+    "str", "choice" (a ``Literal``: its values), "vec3" (3 floats), "vector" (floats), or
+    "any" (a type the reader does not know: the table's own code reads it). ``X | None``
+    is read as X (None is no TOML value)."""
+    hint = typing.get_type_hints(cls)[f.name]
+    args = typing.get_args(hint)
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        rest = [a for a in args if a is not type(None)]
+        hint = rest[0] if len(rest) == 1 else hint
+        args = typing.get_args(hint)
+    if typing.get_origin(hint) is Literal:
+        return "choice", args
+    if typing.get_origin(hint) is tuple:
+        if args == (float, float, float):
+            return "vec3", ()
+        if args == (float, ...):
+            return "vector", ()
+    simple = {bool: "bool", int: "integer", float: "number", str: "str"}
+    return simple.get(hint, "any"), ()

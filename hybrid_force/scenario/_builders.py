@@ -23,7 +23,6 @@ from hybrid_force.scenario._tables import (
     _INITIAL,
     _ROBOT,
     _SENSOR,
-    _SURFACE,
     _TOOL,
     _TRAJECTORY,
     _check_table,
@@ -31,11 +30,11 @@ from hybrid_force.scenario._tables import (
     _fmt,
     _typed_table,
     _wrap,
+    declared_keys,
 )
 
 if TYPE_CHECKING:  # annotations only: the builders import these where they build them
     from hybrid_force.geometry.paths import Path as DesiredPath
-    from hybrid_force.geometry.surfaces import Surface
 
 
 @dataclass(frozen=True)
@@ -199,7 +198,9 @@ def _full_start(robot: Any, initial: object) -> tuple[str, dict[str, float]] | N
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
-    from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+    """The surfaces of [surface] or [[surfaces]], each built from its registered type's
+    declared parameters (:func:`~hybrid_force.geometry.surface_base.surface_types`)."""
+    from hybrid_force.geometry.surface_base import surface_types
 
     if "surface" in doc and "surfaces" in doc:
         raise ctx.table_error(
@@ -217,24 +218,11 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
     surfaces: list[Any] = []
     checked: list[tuple[str, dict]] = []
     for name, table in tables:
-        kind, values = _typed_table(ctx, name, table, _SURFACE)
-        s: Surface
+        types = surface_types()
+        schema = {kind: declared_keys(cls) for kind, cls in types.items()}
+        kind, values = _typed_table(ctx, name, table, schema)
         try:
-            if kind == "cylinder":
-                s = Cylinder(
-                    values["radius"],
-                    values.get("center", [0.0, 0.0, 0.0]),
-                    values.get("axis", [0.0, 0.0, 1.0]),
-                    inside=values.get("inside", False),
-                )
-            elif kind == "sphere":
-                s = Sphere(
-                    values["radius"],
-                    values.get("center", [0.0, 0.0, 0.0]),
-                    inside=values.get("inside", False),
-                )
-            else:
-                s = Plane(values["point"], values["normal"])
+            s = types[kind](**values)
         except BadInputError as exc:
             raise _wrap(ctx, name, values, exc) from None
         surfaces.append(s)

@@ -21,6 +21,7 @@ from typing import Any
 from hybrid_force.control.laws.base import check_options, law_names
 from hybrid_force.control.tool import ORIENTATIONS, ROLLS
 from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
+from hybrid_force.schema import MISSING_VALUE, declared, default_of, specs, value_kind
 
 
 # --- schema --------------------------------------------------------------------------------------
@@ -55,18 +56,6 @@ _ROBOT: dict[str, _Key] = {
     "xacro_args": _Key("str_table"),
     "lock_off_chain": _Key("bool"),
     "xacro_trust": _Key("bool"),
-}
-
-_SURFACE_TYPES = ("cylinder", "sphere", "plane")
-_SURFACE: dict[str, dict[str, _Key]] = {
-    "cylinder": {
-        "radius": _Key("number", True),
-        "center": _Key("vec3"),
-        "axis": _Key("vec3"),
-        "inside": _Key("bool"),
-    },
-    "sphere": {"radius": _Key("number", True), "center": _Key("vec3"), "inside": _Key("bool")},
-    "plane": {"point": _Key("vec3", True), "normal": _Key("vec3", True)},
 }
 
 _PATH_TYPES = ("helix", "circle", "waypoints", "raster")
@@ -469,6 +458,19 @@ def _check_table(
                 f"missing required key; {label} has {_fmt(sorted(table))}, required: "
                 f"{', '.join(k for k, s in schema.items() if s.required)}",
             )
+    return out
+
+
+def declared_keys(cls: type) -> dict[str, _Key]:
+    """The keys of a table read into dataclass ``cls``: one per field declared with
+    :func:`~hybrid_force.schema.param` (its ``key`` or name), its kind from the field's type,
+    required when the field has no default."""
+    out: dict[str, _Key] = {}
+    for f, spec in specs(cls):
+        if declared(f) and spec.toml:
+            kind, choices = value_kind(cls, f)
+            required = default_of(f) is MISSING_VALUE
+            out[spec.key or f.name] = _Key(kind, required, tuple(spec.choices or choices))
     return out
 
 
