@@ -14,15 +14,20 @@ of docs/scenarios.md and the JSON Schema (``hybrid-force schema``) all read this
 from __future__ import annotations
 
 import dataclasses
+import functools
 import types
 import typing
 from collections.abc import Callable, Iterator
 from dataclasses import MISSING, dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
+
+if TYPE_CHECKING:
+    from hybrid_force.errors import BadInputError
 
 __all__ = [
     "MISSING_VALUE",
     "Param",
+    "check_fields",
     "declared",
     "default_of",
     "param",
@@ -107,17 +112,31 @@ def specs(cls: type) -> Iterator[tuple[dataclasses.Field[Any], Param]]:
         yield f, spec_of(f)
 
 
+@functools.cache
+def _kinds(cls: type) -> dict[str, tuple[str, tuple[Any, ...]]]:
+    return {f.name: _kind(typing.get_type_hints(cls)[f.name]) for f in dataclasses.fields(cls)}
+
+
 def value_kind(cls: type, f: dataclasses.Field[Any]) -> tuple[str, tuple[Any, ...]]:
     """(kind, choices) of a field's TOML value, from its type: "bool", "integer", "number",
-    "str", "choice" (a ``Literal``: its values), "vec3" (3 floats), "vector" (floats), or
-    "any" (a type the reader does not know: the table's own code reads it). ``X | None``
-    is read as X (None is no TOML value)."""
-    hint = typing.get_type_hints(cls)[f.name]
+    "str", "choice" (a ``Literal``: its values), "vec3" (3 floats), "vector" (floats),
+    "number_or_vector" (``float | tuple[float, ...]``), "matrix" (``float | np.ndarray``: a
+    number, a vector or a matrix), "table" (a nested settings dataclass, whose fields are keys
+    of the same table) or "any" (the table's own code reads it). ``X | None`` is read as X."""
+    return _kinds(cls)[f.name]
+
+
+def _kind(hint: Any) -> tuple[str, tuple[Any, ...]]:
     args = typing.get_args(hint)
     if typing.get_origin(hint) in (typing.Union, types.UnionType):
-        rest = [a for a in args if a is not type(None)]
-        hint = rest[0] if len(rest) == 1 else hint
-        args = typing.get_args(hint)
+        rest = tuple(a for a in args if a is not type(None))
+        if len(rest) == 1:
+            return _kind(rest[0])
+        if float in rest and tuple[float, ...] in rest:
+            return "number_or_vector", ()
+        if float in rest and any(getattr(a, "__name__", "") == "ndarray" for a in rest):
+            return "matrix", ()
+        return "any", ()
     if typing.get_origin(hint) is Literal:
         return "choice", args
     if typing.get_origin(hint) is tuple:
@@ -125,5 +144,59 @@ def value_kind(cls: type, f: dataclasses.Field[Any]) -> tuple[str, tuple[Any, ..
             return "vec3", ()
         if args == (float, ...):
             return "vector", ()
+    if dataclasses.is_dataclass(hint):
+        return "table", ()
     simple = {bool: "bool", int: "integer", float: "number", str: "str"}
     return simple.get(hint, "any"), ()
+
+
+def check_fields(obj: Any, error: type[BadInputError], prefix: str) -> None:
+    """The generic check of a settings dataclass, from its fields' :class:`Param`: each
+    number finite and within its range (stored as a float), each integer whole and within
+    its range, each flag a bool, each text one of its choices. A field whose default is None
+    may be None. Other kinds are left to the class. Raises ``error`` naming the field as
+    ``prefix`` + its key (``"sim.dt"``), with its value and what is valid."""
+    from hybrid_force import _checks as checks
+
+    cls = type(obj)
+    for f, spec in specs(cls):
+        value = getattr(obj, f.name)
+        if not declared(f) or (value is None and default_of(f) is None):
+            continue
+        kind, choices = value_kind(cls, f)
+        what = f"{prefix}{spec.key or f.name}"
+        try:
+            value = _check_one(checks, kind, choices, spec, value, what, error)
+        except error as exc:
+            raise error(str(exc), key=what, value=value) from None
+        object.__setattr__(obj, f.name, value)
+
+
+def _check_one(
+    checks: Any,
+    kind: str,
+    choices: tuple[Any, ...],
+    spec: Param,
+    value: Any,
+    what: str,
+    error: type[BadInputError],
+) -> Any:
+    """One field's value checked by its kind and :class:`Param` (:func:`check_fields`)."""
+    low, high = spec.minimum, spec.maximum
+    if kind == "number":
+        return checks.number(
+            value, what, error, minimum=low, strict=spec.strict, maximum=high, unit=spec.unit
+        )
+    if kind == "integer":
+        return checks.integer(
+            value,
+            what,
+            error,
+            minimum=int(low if low is not None else -(2**63)),
+            maximum=None if high is None else int(high),
+        )
+    if kind == "bool":
+        return checks.flag(value, what, error)
+    if kind == "choice" or spec.choices:
+        return checks.one_of(value, what, error, [str(c) for c in spec.choices or choices])
+    return value

@@ -19,6 +19,7 @@ from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.result import DEFAULT_SETTLE_TIME
+from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
@@ -61,21 +62,41 @@ class SimSettings:
             (:func:`~hybrid_force.sim.contact.joint_dissipation`).
     """
 
-    duration: float = 20.0
-    dt: float = 1e-3
-    integrator: Integrator = "euler"
-    baumgarte: Baumgarte = field(default_factory=Baumgarte)
-    unilateral: bool = True
-    release_tol: float = 1e-9
-    max_velocity: float = 1e3
-    max_force: float = 1e7
-    settle_time: float = DEFAULT_SETTLE_TIME
-    normalization: Literal["tip", "joint"] = "tip"
+    duration: float = param(20.0, unit="s", minimum=0.0, strict=True, doc="simulated time")
+    dt: float = param(1e-3, unit="s", minimum=0.0, strict=True, doc="time step")
+    integrator: Integrator = param(
+        "euler", doc="euler (semi-implicit) or rk4 (command held over the step)"
+    )
+    baumgarte: Baumgarte = param(default_factory=Baumgarte, doc="stabilisation gains")
+    unilateral: bool = param(True, doc="release the contact where the surface would pull")
+    release_tol: float = param(
+        1e-9, unit="N", minimum=0.0, strict=True, toml=False, doc="f below −release_tol releases"
+    )
+    max_velocity: float = param(
+        1e3, unit="rad/s or m/s", minimum=0.0, strict=True, toml=False, doc="runaway speed"
+    )
+    max_force: float = param(
+        1e7, unit="N", minimum=0.0, strict=True, toml=False, doc="runaway force"
+    )
+    settle_time: float = param(
+        DEFAULT_SETTLE_TIME, unit="s", minimum=0.0, doc="metrics after settling start here"
+    )
+    normalization: Literal["tip", "joint"] = param(
+        "tip", doc="constraint row scaling: tip (f in N) or joint (the paper's J_Φn)"
+    )
     reference: bool = False
-    seed: int = 0
-    torque_limits: bool = True
-    joint_limits: Literal["report", "stop"] = "report"
-    joint_friction_velocity: float = 1e-3
+    seed: int = param(0, minimum=0, doc="seed of the sensors' noise")
+    torque_limits: bool = param(True, doc="saturate the torque at the model's effort limits")
+    joint_limits: Literal["report", "stop"] = param(
+        "report", doc="a joint beyond its limits: report (an event) or stop the run"
+    )
+    joint_friction_velocity: float = param(
+        1e-3,
+        unit="rad/s or m/s",
+        minimum=0.0,
+        strict=True,
+        doc="regularisation velocity of the joints' Coulomb friction",
+    )
 
     def __post_init__(self) -> None:
         """Check every field; numbers are stored as floats, flags as bools.
@@ -83,24 +104,12 @@ class SimSettings:
         Raises SimSettingsError (a BadInputError) naming the field as the scenario file's
         ``[sim]`` key spells it (``sim.dt``) with the value and what is valid.
         """
-        from hybrid_force import _checks as checks
         from hybrid_force.errors import SimSettingsError
 
-        for name, strict, unit in (
-            ("duration", True, "s"),
-            ("dt", True, "s"),
-            ("release_tol", True, "N"),
-            ("max_velocity", True, "rad/s or m/s"),
-            ("max_force", True, "N"),
-            ("settle_time", False, "s"),
-            ("joint_friction_velocity", True, "rad/s or m/s"),
-        ):
-            what = f"sim.{name}"
-            value = getattr(self, name)
-            value = checks.number(
-                value, what, SimSettingsError, minimum=0, strict=strict, unit=unit
-            )
-            object.__setattr__(self, name, value)
+        check_fields(self, SimSettingsError, "sim.")
+        object.__setattr__(
+            self, "reference", checks.flag(self.reference, "sim.reference", SimSettingsError)
+        )
         if self.dt > self.duration:
             raise SimSettingsError(
                 f"sim.dt = {self.dt} s is larger than sim.duration = {self.duration} s"
@@ -109,17 +118,6 @@ class SimSettings:
             raise SimSettingsError(
                 f"sim.duration / sim.dt = {self.duration / self.dt:.3g} steps is absurd (max 5e7)"
             )
-        for name, choices in (
-            ("integrator", ("euler", "rk4")),
-            ("normalization", ("tip", "joint")),
-            ("joint_limits", ("report", "stop")),
-        ):
-            checks.one_of(getattr(self, name), f"sim.{name}", SimSettingsError, choices)
-        for name in ("unilateral", "reference", "torque_limits"):
-            value = checks.flag(getattr(self, name), f"sim.{name}", SimSettingsError)
-            object.__setattr__(self, name, value)
-        seed = checks.integer(self.seed, "sim.seed", SimSettingsError, minimum=0)
-        object.__setattr__(self, "seed", seed)
         if not isinstance(self.baumgarte, Baumgarte):
             raise SimSettingsError(
                 "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.Baumgarte, "
