@@ -13,15 +13,15 @@ import json
 import math
 import re
 import tomllib
+import typing
 import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from hybrid_force.control.laws.base import check_options, law_names
-from hybrid_force.control.tool import ORIENTATIONS, ROLLS
 from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
-from hybrid_force.schema import MISSING_VALUE, declared, default_of, specs, value_kind
+from hybrid_force.schema import MISSING_VALUE, Param, declared, default_of, specs, value_kind
 
 
 # --- schema --------------------------------------------------------------------------------------
@@ -36,11 +36,13 @@ class _Key:
     "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
     table of texts: strings, or numbers and booleans turned into their TOML text),
     "law_table" (a control law's own settings, checked against the law's keys).
+    ``param``: the field's declaration, whose range a number is checked against.
     """
 
     kind: str
     required: bool = False
     choices: tuple[str, ...] = ()
+    param: Param | None = None
 
 
 _TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
@@ -105,67 +107,26 @@ _INITIAL: dict[str, _Key] = {
     "v": _Key("vector"),
 }
 
-_CONTROL: dict[str, _Key] = {
-    "Kd": _Key("matrix"),
-    "kd_rate": _Key("number"),
-    "Lambda": _Key("number"),
-    "beta": _Key("number"),
-    "gamma": _Key("number"),
-    "f_d": _Key("number_or_vector"),
-    "clik_gain": _Key("number"),
-    "max_dist": _Key("number"),
-    "contact_tol": _Key("number"),
-    "P": _Key("number"),
-    "approach_rate": _Key("number"),
-    "supervisor": _Key("bool"),
-    "rate": _Key("number"),
-    "law": _Key("choice", choices=law_names()),
-    "model": _Key("str"),
-    # [control.<law>]: each law's own settings (hybrid_force.control.laws.base.LAWS)
-    **{name: _Key("law_table") for name in law_names()},
-}
 
-_TOOL: dict[str, _Key] = {
-    "axis": _Key("vec3"),
-    "orientation": _Key("choice", choices=ORIENTATIONS),
-    "tilt": _Key("number"),
-    "tilt_axis": _Key("vec3"),
-    "roll": _Key("choice", choices=ROLLS),
-}
+def control_keys() -> dict[str, _Key]:
+    """The keys of [control]: ControlSettings' declared fields, ``law`` one of the registered
+    laws, ``model`` (the controller's own model) and each law's table ``[control.<law>]``."""
+    from hybrid_force.control.supervisor import ControlSettings
 
-_SIM: dict[str, _Key] = {
-    "duration": _Key("number"),
-    "dt": _Key("number"),
-    "integrator": _Key("choice", choices=("euler", "rk4")),
-    "baumgarte_alpha": _Key("number"),
-    "baumgarte_beta": _Key("number"),
-    "model_mass_factor": _Key("number"),
-    "settle_time": _Key("number"),
-    "unilateral": _Key("bool"),
-    "normalization": _Key("choice", choices=("tip", "joint")),
-    "seed": _Key("integer"),
-    "torque_limits": _Key("bool"),
-    "joint_limits": _Key("choice", choices=("report", "stop")),
-    "joint_friction_velocity": _Key("number"),
-}
+    keys = declared_keys(ControlSettings)
+    keys["law"] = _Key("choice", choices=law_names())
+    keys["model"] = _Key("str")
+    return {**keys, **{name: _Key("law_table") for name in law_names()}}
 
-_CONTACT: dict[str, _Key] = {
-    "model": _Key("choice", choices=("rigid", "compliant")),
-    "stiffness": _Key("number"),
-    "damping": _Key("number"),
-    "exponent": _Key("number"),
-    "friction": _Key("number"),
-    "friction_velocity": _Key("number"),
-}
 
-_SENSOR: dict[str, _Key] = {
-    "force_noise": _Key("number"),
-    "force_bias": _Key("number"),
-    "force_cutoff": _Key("number"),
-    "force_delay": _Key("integer"),
-    "joint_noise": _Key("number"),
-    "velocity_noise": _Key("number"),
-}
+def sim_keys() -> dict[str, _Key]:
+    """The keys of [sim]: SimSettings' declared fields (Baumgarte's flattened in) and the
+    controller's ``model_mass_factor`` (ControlSettings.mass_factor), which [sim] holds."""
+    from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.sim.settings import SimSettings
+
+    mass = {f.name: (f, spec) for f, spec in specs(ControlSettings)}["mass_factor"][1]
+    return {**declared_keys(SimSettings), "model_mass_factor": _Key("number", param=mass)}
 
 
 MAX_NESTING = 100
@@ -370,7 +331,7 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
             raise ctx.error(key, value, f"must be one of {list(spec.choices)}{hint}")
         return value
     if kind == "number":
-        return _number(ctx, key, value)
+        return _in_range(ctx, key, _number(ctx, key, value), spec.param)
     if kind == "integer":
         if isinstance(value, bool) or not isinstance(value, int):
             raise ctx.error(key, value, f"must be a whole number, got {_type_name(value)}")
@@ -415,6 +376,29 @@ def _number(ctx: _Context, key: str, value: object) -> float:
     if not math.isfinite(out):
         raise ctx.error(key, value, "must be a finite number")
     return out
+
+
+def _in_range(ctx: _Context, key: str, value: float, spec: Param | None) -> float:
+    """``value`` within its declared range (``"must be > 0 [s]"`` otherwise)."""
+    if spec is None:
+        return value
+    low, high, strict = spec.minimum, spec.maximum, spec.strict
+    unit = f" [{spec.unit}]" if spec.unit else ""
+    if (
+        low is not None
+        and high is not None
+        and not (low < value < high or (not strict and low <= value <= high))
+    ):
+        ends = "()" if strict else "[]"
+        raise ctx.error(key, value, f"must be in {ends[0]}{low:g}, {high:g}{ends[1]}{unit}")
+    if low is not None and (value <= low if strict else value < low):
+        rule = (
+            "a positive number (> 0)"
+            if strict and low == 0
+            else f"{'>' if strict else '>='} {low:g}"
+        )
+        raise ctx.error(key, value, f"must be {rule}{unit}")
+    return value
 
 
 def _vector(ctx: _Context, key: str, value: object, what: str) -> list[float]:
@@ -464,14 +448,50 @@ def _check_table(
 def declared_keys(cls: type) -> dict[str, _Key]:
     """The keys of a table read into dataclass ``cls``: one per field declared with
     :func:`~hybrid_force.schema.param` (its ``key`` or name), its kind from the field's type,
-    required when the field has no default."""
+    required when the field has no default; a nested settings dataclass's keys are the
+    table's own (``sim.baumgarte_alpha``)."""
     out: dict[str, _Key] = {}
     for f, spec in specs(cls):
         if declared(f) and spec.toml:
             kind, choices = value_kind(cls, f)
+            if kind == "table":
+                out.update(declared_keys(typing.get_type_hints(cls)[f.name]))
+                continue
             required = default_of(f) is MISSING_VALUE
-            out[spec.key or f.name] = _Key(kind, required, tuple(spec.choices or choices))
+            out[spec.key or f.name] = _Key(kind, required, tuple(spec.choices or choices), spec)
     return out
+
+
+def dataclass_arguments(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
+    """The keyword arguments of ``cls`` from a table's checked ``values`` (by TOML key):
+    each given key under its field's name, a nested settings dataclass built from its own."""
+    out: dict[str, Any] = {}
+    for f, spec in specs(cls):
+        if not (declared(f) and spec.toml):
+            continue
+        if value_kind(cls, f)[0] == "table":
+            nested = typing.get_type_hints(cls)[f.name]
+            given = dataclass_arguments(nested, values)
+            if given:
+                out[f.name] = nested(**given)
+        elif (spec.key or f.name) in values:
+            out[f.name] = values[spec.key or f.name]
+    return out
+
+
+def read_settings(
+    ctx: _Context, name: str, cls: type, table: object, values: Mapping[str, Any] | None = None
+) -> Any:
+    """The one reader of a settings table: [name] → an instance of dataclass ``cls`` (its
+    keys, kinds, ranges and defaults from the fields' :func:`~hybrid_force.schema.param`),
+    every refusal naming the file, ``name.key`` and the value. ``values``: the table already
+    checked (by :func:`_check_table` against :func:`declared_keys` and extra keys)."""
+    if values is None:
+        values = _check_table(ctx, name, table, declared_keys(cls))
+    try:
+        return cls(**dataclass_arguments(cls, values))
+    except BadInputError as exc:
+        raise _wrap(ctx, name, values, exc) from None
 
 
 def _typed_table(

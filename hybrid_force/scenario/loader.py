@@ -48,8 +48,6 @@ from hybrid_force.scenario._builders import (
     _controller_model,
     _initial,
     _robot,
-    _sensor_settings,
-    _sim_settings,
     _start_in_limits,
     _start_solver,
     _surfaces,
@@ -73,8 +71,6 @@ from hybrid_force.scenario._checks import (
     _check_start,
 )
 from hybrid_force.scenario._tables import (
-    _CONTROL,
-    _SIM,
     _TABLES,
     _TOP,
     _apply_overrides,
@@ -84,7 +80,10 @@ from hybrid_force.scenario._tables import (
     _drop_never_acting,
     _suggest,
     check_nesting,
+    control_keys,
     parse_override,
+    read_settings,
+    sim_keys,
     xacro_argument_text,
 )
 
@@ -210,7 +209,8 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 
 
 def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-    from hybrid_force.sim.loop import Scenario
+    from hybrid_force.sim.loop import Scenario, SimSettings
+    from hybrid_force.sim.sensors import SensorSettings
 
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:
@@ -236,14 +236,13 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     robot = _robot(doc["robot"], file, ctx, doc["initial"])
     surfaces, surface_tables = _surfaces(doc, ctx)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
-    control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
-    sim_values = _check_table(ctx, "sim", doc.get("sim", {}), _SIM)
+    control_values = _check_table(ctx, "control", doc.get("control", {}), control_keys())
+    sim_values = _check_table(ctx, "sim", doc.get("sim", {}), sim_keys())
     _check_acting(doc, ctx)  # a key with no effect here: refused (or warned about and dropped)
-    control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
-    sim = _sim_settings(sim_values, ctx)
+    sim = read_settings(ctx, "sim", SimSettings, None, sim_values)
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
     _drop_never_acting(doc, ctx)
-    sensor = _sensor_settings(doc.get("sensor", {}), ctx)
+    sensor = read_settings(ctx, "sensor", SensorSettings, doc.get("sensor", {}))
     contact = _contact_settings(doc.get("contact", {}), sim, ctx)
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
     controller_model = _controller_model(control_values, robot, file, ctx, trust)
