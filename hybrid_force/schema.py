@@ -120,6 +120,7 @@ def _kinds(cls: type) -> dict[str, tuple[str, tuple[Any, ...]]]:
 def value_kind(cls: type, f: dataclasses.Field[Any]) -> tuple[str, tuple[Any, ...]]:
     """(kind, choices) of a field's TOML value, from its type: "bool", "integer", "number",
     "str", "choice" (a ``Literal``: its values), "vec3" (3 floats), "vector" (floats),
+    "points" (a list of vectors),
     "number_or_vector" (``float | tuple[float, ...]``), "matrix" (``float | np.ndarray``: a
     number, a vector or a matrix), "table" (a nested settings dataclass, whose fields are keys
     of the same table) or "any" (the table's own code reads it). ``X | None`` is read as X."""
@@ -144,6 +145,8 @@ def _kind(hint: Any) -> tuple[str, tuple[Any, ...]]:
             return "vec3", ()
         if args == (float, ...):
             return "vector", ()
+        if args == (tuple[float, ...], ...):
+            return "points", ()
     if dataclasses.is_dataclass(hint):
         return "table", ()
     simple = {bool: "bool", int: "integer", float: "number", str: "str"}

@@ -249,10 +249,9 @@ def register_surface(cls: S) -> S:
     return cls
 
 
-def surface_types() -> dict[str, type[Surface]]:
-    """Every registered surface type by its ``kind``, in registration order. The modules of
-    :mod:`hybrid_force.geometry` are imported once first, so a type defined in any of them
-    (and registered there) is found without being listed anywhere else."""
+def import_geometry() -> None:
+    """Import every public module of :mod:`hybrid_force.geometry` once, so that each surface
+    and path type defined (and registered) in any of them is known without being listed."""
     global _found
     if not _found:
         _found = True
@@ -261,6 +260,12 @@ def surface_types() -> dict[str, type[Surface]]:
         for info in pkgutil.iter_modules(package.__path__):
             if not info.name.startswith("_"):
                 importlib.import_module(f"{package.__name__}.{info.name}")
+
+
+def surface_types() -> dict[str, type[Surface]]:
+    """Every registered surface type by its ``kind``, in registration order (every geometry
+    module imported first: :func:`import_geometry`)."""
+    import_geometry()
     return _SURFACE_TYPES
 
 

@@ -21,7 +21,6 @@ from hybrid_force.errors import BadInputError, FrameError, ReachError, RobotErro
 from hybrid_force.scenario._tables import (
     _INITIAL,
     _ROBOT,
-    _TRAJECTORY,
     _check_table,
     _Context,
     _fmt,
@@ -32,7 +31,7 @@ from hybrid_force.scenario._tables import (
 )
 
 if TYPE_CHECKING:  # annotations only: the builders import these where they build them
-    from hybrid_force.geometry.paths import Path as DesiredPath
+    pass
 
 
 @dataclass(frozen=True)
@@ -229,44 +228,31 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
 
 
 def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any, dict[str, Any]]:
-    from hybrid_force.geometry.paths import Circle, Helix
+    """[trajectory]: its registered path type built from its declared parameters
+    (:func:`~hybrid_force.geometry.paths.path_types`); a path on a surface by
+    :func:`_surface_path`."""
+    from hybrid_force.geometry.paths import path_parameters, path_types
+    from hybrid_force.geometry.surface_path import SurfacePath
 
-    kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
-    if kind in ("waypoints", "raster"):
+    types = path_types()
+    schema = {kind: declared_keys(path_parameters(cls)) for kind, cls in types.items()}
+    kind, values = _typed_table(ctx, "trajectory", table, schema)
+    cls = types[kind]
+    if issubclass(cls, SurfacePath):
         raw = table if isinstance(table, dict) else {}
-        return _surface_path(kind, values, raw, surfaces, ctx), {"type": kind, **values}
-    path: DesiredPath
+        return _surface_path(cls, values, raw, surfaces, ctx), {"type": kind, **values}
     try:
-        if kind == "helix":
-            path = Helix(
-                values["center"],
-                values["radius"],
-                axis=values.get("axis", [0.0, 0.0, 1.0]),
-                omega=values["omega"],
-                rise=values["rise"],
-                phase=values.get("phase", 0.0),
-            )
-        else:
-            path = Circle(
-                values["center"],
-                values["radius"],
-                values["normal"],
-                values["omega"],
-                phase=values.get("phase", 0.0),
-            )
+        return cls(**values), {"type": kind, **values}
     except BadInputError as exc:
         raise _wrap(ctx, "trajectory", values, exc) from None
-    return path, {"type": kind, **values}
 
 
 def _surface_path(
-    kind: str, values: dict[str, Any], raw: Mapping[str, Any], surfaces: list[Any], ctx: _Context
+    cls: Any, values: dict[str, Any], raw: Mapping[str, Any], surfaces: list[Any], ctx: _Context
 ) -> Any:
     """A waypoints or raster path on surface ``trajectory.surface`` (default 0); its refusals
     name the key and the value as written (``raw``), its PathWarnings the file and the key."""
     from hybrid_force.errors import PathWarning
-    from hybrid_force.geometry.raster import RasterPath
-    from hybrid_force.geometry.waypoints import WaypointPath
 
     index = values.get("surface", 0)
     params = {k: v for k, v in values.items() if k != "surface"}
@@ -277,7 +263,6 @@ def _surface_path(
             f"must be the index of a surface, 0 to {len(surfaces) - 1} (the scenario has "
             f"{len(surfaces)})",
         )
-    cls = WaypointPath if kind == "waypoints" else RasterPath
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", PathWarning)

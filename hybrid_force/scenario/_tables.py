@@ -60,46 +60,6 @@ _ROBOT: dict[str, _Key] = {
     "xacro_trust": _Key("bool"),
 }
 
-_PATH_TYPES = ("helix", "circle", "waypoints", "raster")
-_TRAJECTORY: dict[str, dict[str, _Key]] = {
-    "helix": {
-        "center": _Key("vec3", True),
-        "radius": _Key("number", True),
-        "axis": _Key("vec3"),
-        "omega": _Key("number", True),
-        "rise": _Key("number", True),
-        "phase": _Key("number"),
-    },
-    "circle": {
-        "center": _Key("vec3", True),
-        "radius": _Key("number", True),
-        "normal": _Key("vec3", True),
-        "omega": _Key("number", True),
-        "phase": _Key("number"),
-    },
-    # paths on a surface (hybrid_force.geometry.waypoints, .raster): `surface` is the index of
-    # the [[surfaces]] table they lie on
-    "waypoints": {
-        "points": _Key("points", True),
-        "speed": _Key("number", True),
-        "frame": _Key("choice", choices=("world", "surface")),
-        "surface": _Key("integer"),
-        "ramp": _Key("number"),
-        "u_axis": _Key("vec3"),
-        "projection_tol": _Key("number"),
-    },
-    "raster": {
-        "origin": _Key("vector", True),
-        "size": _Key("vector", True),
-        "spacing": _Key("number", True),
-        "speed": _Key("number", True),
-        "direction": _Key("choice", choices=("u", "v")),
-        "surface": _Key("integer"),
-        "ramp": _Key("number"),
-        "u_axis": _Key("vec3"),
-    },
-}
-
 _INITIAL: dict[str, _Key] = {
     "tip": _Key("vec3"),
     "seed": _Key("vector"),
@@ -331,7 +291,7 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
             raise ctx.error(key, value, f"must be one of {list(spec.choices)}{hint}")
         return value
     if kind == "number":
-        return _in_range(ctx, key, _number(ctx, key, value), spec.param)
+        return _in_range(ctx, key, value, _number(ctx, key, value), spec.param)
     if kind == "integer":
         if isinstance(value, bool) or not isinstance(value, int):
             raise ctx.error(key, value, f"must be a whole number, got {_type_name(value)}")
@@ -378,8 +338,8 @@ def _number(ctx: _Context, key: str, value: object) -> float:
     return out
 
 
-def _in_range(ctx: _Context, key: str, value: float, spec: Param | None) -> float:
-    """``value`` within its declared range (``"must be > 0 [s]"`` otherwise)."""
+def _in_range(ctx: _Context, key: str, raw: object, value: float, spec: Param | None) -> float:
+    """``value`` (``raw`` as written) within its declared range (``"must be > 0 [s]"``)."""
     if spec is None:
         return value
     low, high, strict = spec.minimum, spec.maximum, spec.strict
@@ -390,14 +350,14 @@ def _in_range(ctx: _Context, key: str, value: float, spec: Param | None) -> floa
         and not (low < value < high or (not strict and low <= value <= high))
     ):
         ends = "()" if strict else "[]"
-        raise ctx.error(key, value, f"must be in {ends[0]}{low:g}, {high:g}{ends[1]}{unit}")
+        raise ctx.error(key, raw, f"must be in {ends[0]}{low:g}, {high:g}{ends[1]}{unit}")
     if low is not None and (value <= low if strict else value < low):
         rule = (
             "a positive number (> 0)"
             if strict and low == 0
             else f"{'>' if strict else '>='} {low:g}"
         )
-        raise ctx.error(key, value, f"must be {rule}{unit}")
+        raise ctx.error(key, raw, f"must be {rule}{unit}")
     return value
 
 
