@@ -36,7 +36,15 @@ __all__ = [
     "value_kind",
 ]
 
-MISSING_VALUE: Any = MISSING
+
+class _Required:
+    """The default of a field that has none (it is required)."""
+
+    def __repr__(self) -> str:
+        return "<required>"
+
+
+MISSING_VALUE: Any = _Required()
 """What :func:`default_of` returns for a required field (no default)."""
 
 _KEY = "hybrid_force"

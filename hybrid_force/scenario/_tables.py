@@ -8,6 +8,7 @@ A message names the file, the ``table.key`` and the offending value, the format
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
@@ -43,6 +44,7 @@ class _Key:
     required: bool = False
     choices: tuple[str, ...] = ()
     param: Param | None = None
+    default: Any = MISSING_VALUE
 
 
 _TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
@@ -74,9 +76,10 @@ def control_keys() -> dict[str, _Key]:
     from hybrid_force.control.supervisor import ControlSettings
 
     keys = declared_keys(ControlSettings)
-    keys["law"] = _Key("choice", choices=law_names())
-    keys["model"] = _Key("str")
-    return {**keys, **{name: _Key("law_table") for name in law_names()}}
+    keys["law"] = dataclasses.replace(keys["law"], kind="choice", choices=law_names())
+    keys["model"] = _Key("str", param=Param("the controller's own model of the arm (the plant's)"))
+    table = Param("the law's own settings ([control.<law>], `hybrid-force laws --options`)")
+    return {**keys, **{name: _Key("law_table", param=table) for name in law_names()}}
 
 
 def sim_keys() -> dict[str, _Key]:
@@ -85,8 +88,9 @@ def sim_keys() -> dict[str, _Key]:
     from hybrid_force.control.supervisor import ControlSettings
     from hybrid_force.sim.settings import SimSettings
 
-    mass = {f.name: (f, spec) for f, spec in specs(ControlSettings)}["mass_factor"][1]
-    return {**declared_keys(SimSettings), "model_mass_factor": _Key("number", param=mass)}
+    mass = {f.name: (f, spec) for f, spec in specs(ControlSettings)}["mass_factor"]
+    factor = _Key("number", param=mass[1], default=default_of(mass[0]))
+    return {**declared_keys(SimSettings), "model_mass_factor": factor}
 
 
 MAX_NESTING = 100
@@ -417,8 +421,11 @@ def declared_keys(cls: type) -> dict[str, _Key]:
             if kind == "table":
                 out.update(declared_keys(typing.get_type_hints(cls)[f.name]))
                 continue
-            required = default_of(f) is MISSING_VALUE
-            out[spec.key or f.name] = _Key(kind, required, tuple(spec.choices or choices), spec)
+            default = default_of(f)
+            keyed = _Key(
+                kind, default is MISSING_VALUE, tuple(spec.choices or choices), spec, default
+            )
+            out[spec.key or f.name] = keyed
     return out
 
 
@@ -685,3 +692,180 @@ def _drop_never_acting(doc: dict[str, Any], ctx: _Context) -> None:
                 ),
                 stacklevel=3,
             )
+
+
+# --- the reference: JSON Schema and docs tables, from the same keys ----------------------------
+def settings_tables() -> dict[str, dict[str, _Key]]:
+    """The keys of every table with a fixed set of keys, by table name."""
+    from hybrid_force.control.tool import ToolSettings
+    from hybrid_force.sim.contact import ContactSettings
+    from hybrid_force.sim.sensors import SensorSettings
+
+    return {
+        "robot": _ROBOT,
+        "initial": _INITIAL,
+        "control": control_keys(),
+        "tool": declared_keys(ToolSettings),
+        "sim": sim_keys(),
+        "sensor": declared_keys(SensorSettings),
+        "contact": declared_keys(ContactSettings),
+    }
+
+
+def typed_tables() -> dict[str, dict[str, dict[str, _Key]]]:
+    """The keys of each registered surface and path type: {"surface": {type: keys}, ...}."""
+    from hybrid_force.geometry.paths import path_parameters, path_types
+    from hybrid_force.geometry.surface_base import surface_types
+
+    return {
+        "surface": {kind: declared_keys(cls) for kind, cls in surface_types().items()},
+        "trajectory": {
+            kind: declared_keys(path_parameters(cls)) for kind, cls in path_types().items()
+        },
+    }
+
+
+_NUMBERS = {"type": "array", "items": {"type": "number"}}
+_JSON: dict[str, dict[str, Any]] = {
+    "str": {"type": "string"},
+    "bool": {"type": "boolean"},
+    "number": {"type": "number"},
+    "integer": {"type": "integer"},
+    "vec3": {**_NUMBERS, "minItems": 3, "maxItems": 3},
+    "vector": _NUMBERS,
+    "points": {"type": "array", "items": _NUMBERS},
+    "number_or_vector": {"oneOf": [{"type": "number"}, _NUMBERS]},
+    "matrix": {"oneOf": [{"type": "number"}, _NUMBERS, {"type": "array", "items": _NUMBERS}]},
+    "str_list": {"type": "array", "items": {"type": "string", "minLength": 1}},
+    "str_table": {
+        "type": "object",
+        "additionalProperties": {"type": ["string", "number", "boolean"]},
+    },
+    "law_table": {"type": "object"},
+}
+
+
+def _json_key(key: _Key) -> dict[str, Any]:
+    out: dict[str, Any] = {"enum": list(key.choices)} if key.choices else dict(_JSON[key.kind])
+    spec = key.param
+    if spec is not None:
+        out["description"] = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
+        if spec.minimum is not None and key.kind == "number":
+            out["exclusiveMinimum" if spec.strict else "minimum"] = spec.minimum
+        if spec.maximum is not None and key.kind == "number":
+            out["exclusiveMaximum"] = spec.maximum
+    if key.default is not MISSING_VALUE and key.default is not None:
+        out["default"] = json.loads(json.dumps(key.default, default=list))
+    return out
+
+
+def _json_table(keys: Mapping[str, _Key], kind: str | None = None) -> dict[str, Any]:
+    properties = {name: _json_key(key) for name, key in keys.items()}
+    required = [name for name, key in keys.items() if key.required]
+    if kind is not None:
+        properties = {"type": {"const": kind}, **properties}
+        required = ["type", *required]
+    return {
+        "type": "object",
+        "properties": properties,
+        "required": required,
+        "additionalProperties": False,
+    }
+
+
+def json_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a scenario file (``hybrid-force schema``), from the
+    same declarations the reader uses."""
+    typed = {
+        name: {"oneOf": [_json_table(keys, kind) for kind, keys in types.items()]}
+        for name, types in typed_tables().items()
+    }
+    tables = {name: _json_table(keys) for name, keys in settings_tables().items()}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "hybrid_force scenario file (docs/scenarios.md)",
+        **_json_table(_TOP),
+        "properties": {
+            **{name: _json_key(key) for name, key in _TOP.items()},
+            "surface": typed["surface"],
+            "surfaces": {"type": "array", "minItems": 1, "items": typed["surface"]},
+            "trajectory": typed["trajectory"],
+            **tables,
+        },
+        "required": [*(k for k, v in _TOP.items() if v.required), "robot", "trajectory", "initial"],
+    }
+
+
+_TYPE_TEXT = {
+    "str": "string",
+    "bool": "bool",
+    "number": "number",
+    "integer": "integer",
+    "vec3": "3 numbers",
+    "vector": "numbers",
+    "points": "array of points",
+    "number_or_vector": "number or numbers",
+    "matrix": "number, numbers or matrix",
+    "law_table": "table",
+}
+
+
+def _toml_text(value: object) -> str:
+    """A default as TOML writes it: ``20``, ``1e-05``, ``true``, ``"euler"``, ``[0, 0, 1]``."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_toml_text(x) for x in value) + "]"
+    if dataclasses.is_dataclass(value):
+        return ""
+    return json.dumps(value, ensure_ascii=False)
+
+
+def _markdown_row(name: str, key: _Key) -> str:
+    spec = key.param or Param()
+    if key.choices:
+        kind = " or ".join(f'`"{c}"`' for c in key.choices)
+    else:
+        kind = _TYPE_TEXT.get(key.kind, key.kind)
+    low, high = spec.minimum, spec.maximum
+    if low is not None and high is not None:
+        kind += f" in {'(' if spec.strict else '['}{low:g}, {high:g}{')' if spec.strict else ']'}"
+    elif low is not None:
+        kind += f" {'>' if spec.strict else '>='} {low:g}"
+    if key.required:
+        default = "required"
+    elif key.default is MISSING_VALUE:
+        default = ""
+    elif key.default is None:
+        default = "none"
+    else:
+        default = f"`{_toml_text(key.default)}`"
+    meaning = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
+    return f"| `{name}` | {kind} | {default} | {meaning} |"
+
+
+def markdown_tables() -> dict[str, str]:
+    """The key tables of docs/scenarios.md, by the name of their marker
+    (``<!-- generated: NAME -->`` ... ``<!-- end generated -->``)."""
+    head = "| key | type | default | meaning |\n|---|---|---|---|"
+    out = {
+        name: "\n".join([head, *(_markdown_row(k, key) for k, key in keys.items())])
+        for name, keys in settings_tables().items()
+        if name not in ("robot", "initial")
+    }
+    for table, types in typed_tables().items():
+        for kind, keys in types.items():
+            rows = [_markdown_row(k, key) for k, key in keys.items()]
+            out[f"{table}.{kind}"] = "\n".join([head, *rows])
+    return out
+
+
+_MARKER = re.compile(r"(<!-- generated: (\S+) -->\n)(.*?)(\n<!-- end generated -->)", re.S)
+
+
+def with_generated_tables(text: str) -> str:
+    """``text`` (docs/scenarios.md) with every generated block replaced by its table."""
+    tables = markdown_tables()
+    return _MARKER.sub(lambda m: m[1] + tables.get(m[2], f"(no table {m[2]})") + m[4], text)
