@@ -160,10 +160,10 @@ class Scenario:
     * the types and shapes above, finite q0 and v0, every |v0_i| below ``sim.max_velocity``
       (the run would stop as a runaway at once); K_d's size against the arm's joints and
       f_d's count against the surfaces;
-    * a run that starts in contact (``control.supervisor`` False): the desired path within
-      ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration] (sampled by
-      :func:`~hybrid_force.geometry.paths.check_on_surface`) and the start tip p(q0) within
-      ``control.contact_tol`` of every surface;
+    * the desired path within ``ON_SURFACE_TOL`` (1e-6 m) of every surface over
+      [0, sim.duration] (sampled by :func:`~hybrid_force.geometry.paths.check_on_surface`);
+    * a run that starts in contact (``control.supervisor`` False): the start tip p(q0)
+      within ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
       stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
@@ -326,11 +326,37 @@ class Scenario:
             )
 
     def _check_start_and_path(self) -> None:
-        """The contact conditions of the start (class docstring), as the scenario loader's."""
+        """The path on every surface and the contact conditions of the start (class
+        docstring): the one check of a run, a file's or one built by hand. Each refusal is a
+        ScenarioValueError whose ``key`` names the field ("Scenario.path", "Scenario.q0",
+        "Scenario.surfaces") and whose ``value`` holds what the loader names: (surface
+        index, OnSurfaceReport or None), (surface index, distance [m]), the row indices."""
+        from hybrid_force.errors import BadInputError
         from hybrid_force.errors import ScenarioValueError as Bad
         from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
+        duration = self.sim.duration
+        for i, surface in enumerate(surfaces):
+            try:
+                report = check_on_surface(self.path, surface, 0.0, duration)
+            except BadInputError as exc:  # e.g. Φ(p_d) not finite
+                raise Bad(
+                    f"Scenario.path cannot be checked against surfaces[{i}] ({surface!r}): "
+                    f"{' '.join(str(exc).split())}",
+                    key="Scenario.path",
+                    value=(i, None),
+                ) from None
+            if report.worst_distance > ON_SURFACE_TOL:
+                raise Bad(
+                    f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
+                    f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
+                    f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
+                    f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
+                    f"[0, sim.duration = {duration:g} s]",
+                    key="Scenario.path",
+                    value=(i, report),
+                )
         if k > 1 and control.supervisor:
             raise Bad(
                 f"Scenario.surfaces: {k} stacked surfaces are supported only for a run that starts "
@@ -347,28 +373,20 @@ class Scenario:
                 raise Bad(
                     f"Scenario.q0: {tip} is {-distances[i]:.3g} m behind surfaces[{i}] "
                     f"({surfaces[i]!r}), inside the solid; start on the free side (distance "
-                    f">= -control.contact_tol = {-control.contact_tol:g} m)"
+                    f">= -control.contact_tol = {-control.contact_tol:g} m)",
+                    key="Scenario.q0",
+                    value=(i, distances[i]),
                 )
             return
-        duration = self.sim.duration
-        for i, surface in enumerate(surfaces):
-            report = check_on_surface(self.path, surface, 0.0, duration)
-            if report.worst_distance > ON_SURFACE_TOL:
-                raise Bad(
-                    f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
-                    f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
-                    f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); a run that starts in "
-                    "contact (control.supervisor = False) needs the desired path within "
-                    f"ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
-                    f"[0, sim.duration = {duration:g} s]"
-                )
-        for i, d in enumerate(distances):
-            if abs(d) > control.contact_tol:
-                raise Bad(
-                    f"Scenario.q0: the run starts in contact (control.supervisor = False) but "
-                    f"{tip} is {d:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be within "
-                    f"control.contact_tol = {control.contact_tol:g} m of every surface"
-                )
+        i = int(np.argmax(np.abs(distances)))
+        if abs(distances[i]) > control.contact_tol:
+            raise Bad(
+                f"Scenario.q0: the run starts in contact (control.supervisor = False) but "
+                f"{tip} is {distances[i]:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be "
+                f"within control.contact_tol = {control.contact_tol:g} m of every surface",
+                key="Scenario.q0",
+                value=(i, distances[i]),
+            )
         if k > 1:  # dependent rows: A M⁻¹ Aᵀ singular, the first step would fail in numpy
             from hybrid_force.control.constraint import Constraint, dependent_rows
 
@@ -379,8 +397,11 @@ class Scenario:
                 raise Bad(
                     f"Scenario.surfaces: the constraint rows n̂ᵀJ of {names} are linearly "
                     f"dependent at q0 (singular values "
-                    f"{', '.join(f'{x:.3g}' for x in found[1])}): their contact forces are not "
-                    "determined"
+                    f"{', '.join(f'{x:.3g}' for x in found[1])}; {k} rows for "
+                    f"{self.robot.nv} joints): their contact forces are not determined; stack "
+                    "surfaces whose normals, seen through the arm's Jacobian, are independent",
+                    key="Scenario.surfaces",
+                    value=tuple(found[0]),
                 )
 
 
