@@ -26,9 +26,9 @@ from hybrid_force.scenario._tables import (
     _fmt,
     _typed_table,
     _wrap,
-    declared_keys,
     read_settings,
 )
+from hybrid_force.schema import keys_of
 
 if TYPE_CHECKING:  # annotations only: the builders import these where they build them
     pass
@@ -216,7 +216,7 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
     checked: list[tuple[str, dict]] = []
     for name, table in tables:
         types = surface_types()
-        schema = {kind: declared_keys(cls) for kind, cls in types.items()}
+        schema = {kind: keys_of(cls) for kind, cls in types.items()}
         kind, values = _typed_table(ctx, name, table, schema)
         try:
             s = types[kind](**values)
@@ -235,7 +235,7 @@ def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any,
     from hybrid_force.geometry.surface_path import SurfacePath
 
     types = path_types()
-    schema = {kind: declared_keys(path_parameters(cls)) for kind, cls in types.items()}
+    schema = {kind: keys_of(path_parameters(cls)) for kind, cls in types.items()}
     kind, values = _typed_table(ctx, "trajectory", table, schema)
     cls = types[kind]
     if issubclass(cls, SurfacePath):
@@ -368,7 +368,7 @@ def _tool_settings(table: object, robot: Any, ctx: _Context) -> Any:
     """``[tool]``: the ToolSettings, refused for an arm with too few joints for its task."""
     from hybrid_force.control.tool import ToolSettings
 
-    values = _check_table(ctx, "tool", table, declared_keys(ToolSettings))
+    values = _check_table(ctx, "tool", table, keys_of(ToolSettings))
     try:
         tool = ToolSettings(**values)
         tool.check_arm(robot)

@@ -14,7 +14,6 @@ import json
 import math
 import re
 import tomllib
-import typing
 import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -22,75 +21,64 @@ from typing import Any
 
 from hybrid_force.control.laws.base import check_options, law_names
 from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
-from hybrid_force.schema import MISSING_VALUE, Param, declared, default_of, specs, value_kind
-
+from hybrid_force.schema import (
+    Key,
+    Param,
+    arguments,
+    default_of,
+    json_key,
+    json_table,
+    keys_of,
+    markdown_row,
+    specs,
+    with_tables,
+)
 
 # --- schema --------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Key:
-    """One key of a table: its kind of value and whether it is required.
-
-    kinds: "str", "number", "integer" (a whole number), "bool", "vec3" (3 numbers), "vector"
-    (a list of numbers),
-    "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
-    "points" (a list of lists of numbers),
-    "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
-    table of texts: strings, or numbers and booleans turned into their TOML text),
-    "law_table" (a control law's own settings, checked against the law's keys).
-    ``param``: the field's declaration, whose range a number is checked against.
-    """
-
-    kind: str
-    required: bool = False
-    choices: tuple[str, ...] = ()
-    param: Param | None = None
-    default: Any = MISSING_VALUE
-
-
-_TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
+_TOP: dict[str, Key] = {"name": Key("str", True), "description": Key("str")}
 _TABLES = (
     "robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "contact", "sim",
     "tool",
 )  # fmt: skip
 
-_ROBOT: dict[str, _Key] = {
-    "model": _Key("str", True),
-    "tip": _Key("str"),
-    "package_dirs": _Key("str_list"),
-    "xacro_args": _Key("str_table"),
-    "lock_off_chain": _Key("bool"),
-    "xacro_trust": _Key("bool"),
+_ROBOT: dict[str, Key] = {
+    "model": Key("str", True),
+    "tip": Key("str"),
+    "package_dirs": Key("str_list"),
+    "xacro_args": Key("str_table"),
+    "lock_off_chain": Key("bool"),
+    "xacro_trust": Key("bool"),
 }
 
-_INITIAL: dict[str, _Key] = {
-    "tip": _Key("vec3"),
-    "seed": _Key("vector"),
-    "q": _Key("vector"),
-    "v": _Key("vector"),
+_INITIAL: dict[str, Key] = {
+    "tip": Key("vec3"),
+    "seed": Key("vector"),
+    "q": Key("vector"),
+    "v": Key("vector"),
 }
 
 
-def control_keys() -> dict[str, _Key]:
+def control_keys() -> dict[str, Key]:
     """The keys of [control]: ControlSettings' declared fields, ``law`` one of the registered
     laws, ``model`` (the controller's own model) and each law's table ``[control.<law>]``."""
     from hybrid_force.control.supervisor import ControlSettings
 
-    keys = declared_keys(ControlSettings)
+    keys = keys_of(ControlSettings)
     keys["law"] = dataclasses.replace(keys["law"], kind="choice", choices=law_names())
-    keys["model"] = _Key("str", param=Param("the controller's own model of the arm (the plant's)"))
+    keys["model"] = Key("str", param=Param("the controller's own model of the arm (the plant's)"))
     table = Param("the law's own settings ([control.<law>], `hybrid-force laws --options`)")
-    return {**keys, **{name: _Key("law_table", param=table) for name in law_names()}}
+    return {**keys, **{name: Key("law_table", param=table) for name in law_names()}}
 
 
-def sim_keys() -> dict[str, _Key]:
+def sim_keys() -> dict[str, Key]:
     """The keys of [sim]: SimSettings' declared fields (Baumgarte's flattened in) and the
     controller's ``model_mass_factor`` (ControlSettings.mass_factor), which [sim] holds."""
     from hybrid_force.control.supervisor import ControlSettings
     from hybrid_force.sim.settings import SimSettings
 
     mass = {f.name: (f, spec) for f, spec in specs(ControlSettings)}["mass_factor"]
-    factor = _Key("number", param=mass[1], default=default_of(mass[0]))
-    return {**declared_keys(SimSettings), "model_mass_factor": factor}
+    factor = Key("number", param=mass[1], default=default_of(mass[0]))
+    return {**keys_of(SimSettings), "model_mass_factor": factor}
 
 
 MAX_NESTING = 100
@@ -243,7 +231,7 @@ def _is_number(x: object) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
+def _check_value(ctx: _Context, key: str, value: object, spec: Key) -> object:
     """Check one value against its spec; return it as Python data (floats for numbers)."""
     kind = spec.kind
     if kind == "str":
@@ -383,7 +371,7 @@ def _vector(ctx: _Context, key: str, value: object, what: str) -> list[float]:
 
 
 def _check_table(
-    ctx: _Context, name: str, table: object, schema: Mapping[str, _Key]
+    ctx: _Context, name: str, table: object, schema: Mapping[str, Key]
 ) -> dict[str, Any]:
     """Check a table's keys (unknown, missing) and values; return the checked values."""
     if not isinstance(table, dict):
@@ -409,43 +397,6 @@ def _check_table(
     return out
 
 
-def declared_keys(cls: type) -> dict[str, _Key]:
-    """The keys of a table read into dataclass ``cls``: one per field declared with
-    :func:`~hybrid_force.schema.param` (its ``key`` or name), its kind from the field's type,
-    required when the field has no default; a nested settings dataclass's keys are the
-    table's own (``sim.baumgarte_alpha``)."""
-    out: dict[str, _Key] = {}
-    for f, spec in specs(cls):
-        if declared(f) and spec.toml:
-            kind, choices = value_kind(cls, f)
-            if kind == "table":
-                out.update(declared_keys(typing.get_type_hints(cls)[f.name]))
-                continue
-            default = default_of(f)
-            keyed = _Key(
-                kind, default is MISSING_VALUE, tuple(spec.choices or choices), spec, default
-            )
-            out[spec.key or f.name] = keyed
-    return out
-
-
-def dataclass_arguments(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
-    """The keyword arguments of ``cls`` from a table's checked ``values`` (by TOML key):
-    each given key under its field's name, a nested settings dataclass built from its own."""
-    out: dict[str, Any] = {}
-    for f, spec in specs(cls):
-        if not (declared(f) and spec.toml):
-            continue
-        if value_kind(cls, f)[0] == "table":
-            nested = typing.get_type_hints(cls)[f.name]
-            given = dataclass_arguments(nested, values)
-            if given:
-                out[f.name] = nested(**given)
-        elif (spec.key or f.name) in values:
-            out[f.name] = values[spec.key or f.name]
-    return out
-
-
 def read_settings(
     ctx: _Context, name: str, cls: type, table: object, values: Mapping[str, Any] | None = None
 ) -> Any:
@@ -454,15 +405,15 @@ def read_settings(
     every refusal naming the file, ``name.key`` and the value. ``values``: the table already
     checked (by :func:`_check_table` against :func:`declared_keys` and extra keys)."""
     if values is None:
-        values = _check_table(ctx, name, table, declared_keys(cls))
+        values = _check_table(ctx, name, table, keys_of(cls))
     try:
-        return cls(**dataclass_arguments(cls, values))
+        return cls(**arguments(cls, values))
     except BadInputError as exc:
         raise _wrap(ctx, name, values, exc) from None
 
 
 def _typed_table(
-    ctx: _Context, name: str, table: object, types: Mapping[str, Mapping[str, _Key]]
+    ctx: _Context, name: str, table: object, types: Mapping[str, Mapping[str, Key]]
 ) -> tuple[str, dict[str, Any]]:
     """A table with a ``type`` key selecting its schema; returns (type, checked values)."""
     if not isinstance(table, dict):
@@ -695,7 +646,7 @@ def _drop_never_acting(doc: dict[str, Any], ctx: _Context) -> None:
 
 
 # --- the reference: JSON Schema and docs tables, from the same keys ----------------------------
-def settings_tables() -> dict[str, dict[str, _Key]]:
+def settings_tables() -> dict[str, dict[str, Key]]:
     """The keys of every table with a fixed set of keys, by table name."""
     from hybrid_force.control.tool import ToolSettings
     from hybrid_force.sim.contact import ContactSettings
@@ -705,71 +656,21 @@ def settings_tables() -> dict[str, dict[str, _Key]]:
         "robot": _ROBOT,
         "initial": _INITIAL,
         "control": control_keys(),
-        "tool": declared_keys(ToolSettings),
+        "tool": keys_of(ToolSettings),
         "sim": sim_keys(),
-        "sensor": declared_keys(SensorSettings),
-        "contact": declared_keys(ContactSettings),
+        "sensor": keys_of(SensorSettings),
+        "contact": keys_of(ContactSettings),
     }
 
 
-def typed_tables() -> dict[str, dict[str, dict[str, _Key]]]:
+def typed_tables() -> dict[str, dict[str, dict[str, Key]]]:
     """The keys of each registered surface and path type: {"surface": {type: keys}, ...}."""
     from hybrid_force.geometry.paths import path_parameters, path_types
     from hybrid_force.geometry.surface_base import surface_types
 
     return {
-        "surface": {kind: declared_keys(cls) for kind, cls in surface_types().items()},
-        "trajectory": {
-            kind: declared_keys(path_parameters(cls)) for kind, cls in path_types().items()
-        },
-    }
-
-
-_NUMBERS = {"type": "array", "items": {"type": "number"}}
-_JSON: dict[str, dict[str, Any]] = {
-    "str": {"type": "string"},
-    "bool": {"type": "boolean"},
-    "number": {"type": "number"},
-    "integer": {"type": "integer"},
-    "vec3": {**_NUMBERS, "minItems": 3, "maxItems": 3},
-    "vector": _NUMBERS,
-    "points": {"type": "array", "items": _NUMBERS},
-    "number_or_vector": {"oneOf": [{"type": "number"}, _NUMBERS]},
-    "matrix": {"oneOf": [{"type": "number"}, _NUMBERS, {"type": "array", "items": _NUMBERS}]},
-    "str_list": {"type": "array", "items": {"type": "string", "minLength": 1}},
-    "str_table": {
-        "type": "object",
-        "additionalProperties": {"type": ["string", "number", "boolean"]},
-    },
-    "law_table": {"type": "object"},
-}
-
-
-def _json_key(key: _Key) -> dict[str, Any]:
-    out: dict[str, Any] = {"enum": list(key.choices)} if key.choices else dict(_JSON[key.kind])
-    spec = key.param
-    if spec is not None:
-        out["description"] = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
-        if spec.minimum is not None and key.kind == "number":
-            out["exclusiveMinimum" if spec.strict else "minimum"] = spec.minimum
-        if spec.maximum is not None and key.kind == "number":
-            out["exclusiveMaximum"] = spec.maximum
-    if key.default is not MISSING_VALUE and key.default is not None:
-        out["default"] = json.loads(json.dumps(key.default, default=list))
-    return out
-
-
-def _json_table(keys: Mapping[str, _Key], kind: str | None = None) -> dict[str, Any]:
-    properties = {name: _json_key(key) for name, key in keys.items()}
-    required = [name for name, key in keys.items() if key.required]
-    if kind is not None:
-        properties = {"type": {"const": kind}, **properties}
-        required = ["type", *required]
-    return {
-        "type": "object",
-        "properties": properties,
-        "required": required,
-        "additionalProperties": False,
+        "surface": {kind: keys_of(cls) for kind, cls in surface_types().items()},
+        "trajectory": {kind: keys_of(path_parameters(cls)) for kind, cls in path_types().items()},
     }
 
 
@@ -777,16 +678,16 @@ def json_schema() -> dict[str, Any]:
     """The JSON Schema (draft 2020-12) of a scenario file (``hybrid-force schema``), from the
     same declarations the reader uses."""
     typed = {
-        name: {"oneOf": [_json_table(keys, kind) for kind, keys in types.items()]}
+        name: {"oneOf": [json_table(keys, kind) for kind, keys in types.items()]}
         for name, types in typed_tables().items()
     }
-    tables = {name: _json_table(keys) for name, keys in settings_tables().items()}
+    tables = {name: json_table(keys) for name, keys in settings_tables().items()}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "hybrid_force scenario file (docs/scenarios.md)",
-        **_json_table(_TOP),
+        **json_table(_TOP),
         "properties": {
-            **{name: _json_key(key) for name, key in _TOP.items()},
+            **{name: json_key(key) for name, key in _TOP.items()},
             "surface": typed["surface"],
             "surfaces": {"type": "array", "minItems": 1, "items": typed["surface"]},
             "trajectory": typed["trajectory"],
@@ -796,76 +697,22 @@ def json_schema() -> dict[str, Any]:
     }
 
 
-_TYPE_TEXT = {
-    "str": "string",
-    "bool": "bool",
-    "number": "number",
-    "integer": "integer",
-    "vec3": "3 numbers",
-    "vector": "numbers",
-    "points": "array of points",
-    "number_or_vector": "number or numbers",
-    "matrix": "number, numbers or matrix",
-    "law_table": "table",
-}
-
-
-def _toml_text(value: object) -> str:
-    """A default as TOML writes it: ``20``, ``1e-05``, ``true``, ``"euler"``, ``[0, 0, 1]``."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return f"{value:g}"
-    if isinstance(value, (tuple, list)):
-        return "[" + ", ".join(_toml_text(x) for x in value) + "]"
-    if dataclasses.is_dataclass(value):
-        return ""
-    return json.dumps(value, ensure_ascii=False)
-
-
-def _markdown_row(name: str, key: _Key) -> str:
-    spec = key.param or Param()
-    if key.choices:
-        kind = " or ".join(f'`"{c}"`' for c in key.choices)
-    else:
-        kind = _TYPE_TEXT.get(key.kind, key.kind)
-    low, high = spec.minimum, spec.maximum
-    if low is not None and high is not None:
-        kind += f" in {'(' if spec.strict else '['}{low:g}, {high:g}{')' if spec.strict else ']'}"
-    elif low is not None:
-        kind += f" {'>' if spec.strict else '>='} {low:g}"
-    if key.required:
-        default = "required"
-    elif key.default is MISSING_VALUE:
-        default = ""
-    elif key.default is None:
-        default = "none"
-    else:
-        default = f"`{_toml_text(key.default)}`"
-    meaning = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
-    return f"| `{name}` | {kind} | {default} | {meaning} |"
-
-
 def markdown_tables() -> dict[str, str]:
     """The key tables of docs/scenarios.md, by the name of their marker
     (``<!-- generated: NAME -->`` ... ``<!-- end generated -->``)."""
     head = "| key | type | default | meaning |\n|---|---|---|---|"
     out = {
-        name: "\n".join([head, *(_markdown_row(k, key) for k, key in keys.items())])
+        name: "\n".join([head, *(markdown_row(k, key) for k, key in keys.items())])
         for name, keys in settings_tables().items()
         if name not in ("robot", "initial")
     }
     for table, types in typed_tables().items():
         for kind, keys in types.items():
-            rows = [_markdown_row(k, key) for k, key in keys.items()]
+            rows = [markdown_row(k, key) for k, key in keys.items()]
             out[f"{table}.{kind}"] = "\n".join([head, *rows])
     return out
 
 
-_MARKER = re.compile(r"(<!-- generated: (\S+) -->\n)(.*?)(\n<!-- end generated -->)", re.S)
-
-
 def with_generated_tables(text: str) -> str:
     """``text`` (docs/scenarios.md) with every generated block replaced by its table."""
-    tables = markdown_tables()
-    return _MARKER.sub(lambda m: m[1] + tables.get(m[2], f"(no table {m[2]})") + m[4], text)
+    return with_tables(text, markdown_tables())
