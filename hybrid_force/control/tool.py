@@ -51,8 +51,6 @@ from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.schema import check_fields, param
 
 __all__ = [
-    "ORIENTATIONS",
-    "ROLLS",
     "ToolAngleProbe",
     "ToolSettings",
     "ToolTarget",
@@ -60,8 +58,6 @@ __all__ = [
     "cross3",
 ]
 
-ORIENTATIONS: tuple[str, ...] = ("free", "normal")
-ROLLS: tuple[str, ...] = ("free", "held")
 #: A direction built from a shorter vector is undefined ([-] for a cross product of unit
 #: vectors, [m/s] for the travel speed across the axis or the normal).
 _MIN_NORM = 1e-6

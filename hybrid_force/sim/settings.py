@@ -31,35 +31,15 @@ Integrator = Literal["euler", "rk4"]
 
 @dataclass(frozen=True)
 class SimSettings:
-    """Settings of the simulation.
+    """Settings of the simulation: each field's unit, range and meaning are its
+    :func:`~hybrid_force.schema.param` (the ``[sim]`` table of docs/scenarios.md).
 
     Attributes:
-        duration: simulated time [s].
-        dt: time step [s] (1 ms by default).
-        integrator: "euler" (semi-implicit) or "rk4" (command held over the step).
-        baumgarte: stabilisation gains (section 6.2).
-        unilateral: release the contact when the surface would have to pull (f < 0).
-        release_tol: f below −release_tol [N] releases.
-        max_velocity: |q̇_i| beyond this [rad/s or m/s] is a runaway.
-        max_force: |f| beyond this [N] is a runaway.
-        settle_time: metrics "after settling" start here [s].
-        normalization: constraint row scaling, "tip" (f in N) or "joint" (the paper's J_Φn).
         reference: use the straightforward step instead of the fast one: every robot term
             from its own Pinocchio call, the general k-row constraint algebra, the numpy laws
             and CLIK, and a dense numpy solve of the KKT system instead of
             pin.forwardDynamics; no compiled kernel but the recorder's (the sample row is
             written the same way in both). About 10× slower; for tests.
-        seed: seed of the sensors' noise (an integer ≥ 0): a run with noisy sensors is
-            reproducible from it.
-        torque_limits: saturate the applied torque at the model's effort limits, where it
-            declares them (:attr:`Robot.effort_limits <hybrid_force.Robot.effort_limits>`);
-            False: apply the command as is (a demand beyond a limit is still reported).
-        joint_limits: "report" (a joint beyond its position or velocity limit is an event and
-            a warning) or "stop" (the run stops there, failed with reason "joint limit").
-        joint_friction_velocity: regularisation velocity ε [rad/s or m/s] > 0 of the joints'
-            Coulomb friction (the model's ``friction``, URDF ``<dynamics friction>``):
-            τ = −τ_c q̇/√(q̇² + ε²), the tip friction's law
-            (:func:`~hybrid_force.sim.contact.joint_dissipation`).
     """
 
     duration: float = param(20.0, unit="s", minimum=0.0, strict=True, doc="simulated time")
