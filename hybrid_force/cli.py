@@ -81,6 +81,25 @@ def _cmd_laws(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_schema(args: argparse.Namespace) -> int:
+    """Print the JSON Schema of a scenario file; ``--markdown``: the key tables of
+    docs/scenarios.md; ``--update-docs FILE``: rewrite FILE's generated tables in place."""
+    import json
+    from pathlib import Path
+
+    from hybrid_force.scenario._tables import json_schema, markdown_tables, with_generated_tables
+
+    if args.update_docs:
+        path = Path(args.update_docs)
+        path.write_text(with_generated_tables(path.read_text(encoding="utf-8")), encoding="utf-8")
+    elif args.markdown:
+        for name, table in markdown_tables().items():
+            print(f"<!-- generated: {name} -->\n{table}\n<!-- end generated -->\n")
+    else:
+        print(json.dumps(json_schema(), indent=2, ensure_ascii=False))
+    return 0
+
+
 def _cmd_robots(args: argparse.Namespace) -> int:
     """Print a table of the named robots (name, joints, default tip, source), or with
     ``--check MODEL`` what loading that model finds (hybrid_force.model.report)."""
@@ -462,6 +481,16 @@ def build_parser(
     )
     laws.add_argument("--options", action="store_true", help="also list each law's settings")
     laws.set_defaults(handler=_cmd_laws)
+    schema = sub.add_parser(
+        "schema",
+        help="the JSON Schema of a scenario file (for editors), or the docs' key tables",
+        description="Print the JSON Schema (draft 2020-12) of a scenario file, generated from "
+        "the settings dataclasses the loader reads; --markdown prints the key tables of "
+        "docs/scenarios.md, --update-docs FILE rewrites them in FILE.",
+    )
+    schema.add_argument("--markdown", action="store_true", help="print the docs' key tables")
+    schema.add_argument("--update-docs", metavar="FILE", default=None, help="rewrite its tables")
+    schema.set_defaults(handler=_cmd_schema)
     _add_run(sub)
     _add_plot(sub)
     _add_replay(sub)

@@ -314,28 +314,6 @@ def _counting_scans(monkeypatch: pytest.MonkeyPatch) -> list[tuple[float, float]
     return scans
 
 
-def test_reports_reused_scans_each_question_once(monkeypatch: pytest.MonkeyPatch) -> None:
-    scans = _counting_scans(monkeypatch)
-    delta = 0.05  # the shifted helix above: worst |d| = δ on [1, 5]
-    path, cyl = Helix((delta, 0.0, 10.0), 0.4, omega=1.0, rise=0.1), _ZCylinder(0.4)
-    with on_surface.reports_reused():
-        first = check_on_surface(path, cyl, 1.0, 5.0)
-        again = check_on_surface(path, cyl, 1.0, 5.0)
-        assert again is first and len(scans) == 1
-        # another span, another (equal) path object or surface: a new question, a new scan
-        check_on_surface(path, cyl, 1.0, 4.0)
-        check_on_surface(dataclasses.replace(path), cyl, 1.0, 5.0)
-        check_on_surface(path, _ZCylinder(0.4), 1.0, 5.0)
-        assert len(scans) == 4
-        with pytest.raises(PathParameterError, match="t1"):  # arguments checked every time
-            check_on_surface(path, cyl, 5.0, 1.0)
-    assert first.worst_distance == pytest.approx(delta, abs=1e-14)
-    # outside the block every call scans, and finds what the block's first scan found
-    outside = check_on_surface(path, cyl, 1.0, 5.0)
-    check_on_surface(path, cyl, 1.0, 5.0)
-    assert len(scans) == 6 and outside == first
-
-
 # --- FunctionPath ------------------------------------------------------------------------------
 def _helix_fns():
     def pos(t):

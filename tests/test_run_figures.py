@@ -15,6 +15,8 @@ import pytest
 from conftest import png_size
 
 from hybrid_force.errors import BadInputError
+from hybrid_force.geometry.surface_base import plane_basis
+from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.result import Result
 from hybrid_force.viz import _run_data, _wireframes, run_figures
 from hybrid_force.viz.plots import FIGURE_NAMES, PlotError, plot_result
@@ -260,11 +262,11 @@ def test_plane_basis_is_right_handed_orthonormal() -> None:
     rng = np.random.default_rng(3)
     for n in [np.array([0.0, 0.0, 1.0]), *rng.normal(size=(20, 3))]:
         n = n / np.linalg.norm(n)
-        u, w = _wireframes._plane_basis(n)
+        u, w = plane_basis(n)
         frame = np.column_stack([u, w, n])
         np.testing.assert_allclose(frame.T @ frame, np.eye(3), atol=1e-12)
         assert np.linalg.det(frame) == pytest.approx(1.0)
-    u, w = _wireframes._plane_basis(np.array([0.0, 0.0, 1.0]))
+    u, w = plane_basis(np.array([0.0, 0.0, 1.0]))
     np.testing.assert_allclose([u, w], [[1, 0, 0], [0, 1, 0]], atol=1e-15)
 
 
@@ -272,18 +274,16 @@ def test_surface_meshes_lie_on_their_surfaces() -> None:
     rng = np.random.default_rng(11)
     pts = rng.normal(size=(50, 3))
     c, a = np.array([0.1, -0.2, 0.3]), np.array([1.0, 2.0, 2.0]) / 3.0
-    x, y, z = _wireframes._cylinder_mesh(c, a, 0.7, pts)
-    g = np.stack([x, y, z], axis=-1) - c
+    g = Cylinder(0.7, c, a).patch(pts) - c
     radial = g - (g @ a)[..., None] * a
     np.testing.assert_allclose(np.linalg.norm(radial, axis=-1), 0.7, rtol=1e-12)
     s = g @ a
     s_pts = (pts - c) @ a
     assert s.min() <= s_pts.min() and s.max() >= s_pts.max()  # covers the motion's axial range
-    x, y, z = _wireframes._sphere_mesh(c, 0.7, c + 0.7 * np.array([[1.0, 0, 0], [0.9, 0.3, 0]]))
-    np.testing.assert_allclose(np.linalg.norm(np.stack([x, y, z], -1) - c, axis=-1), 0.7)
+    cap = Sphere(0.7, c).patch(c + 0.7 * np.array([[1.0, 0, 0], [0.9, 0.3, 0]]))
+    np.testing.assert_allclose(np.linalg.norm(cap - c, axis=-1), 0.7)
     normal = np.array([0.0, 0.6, 0.8])
-    x, y, z = _wireframes._plane_mesh(c, normal, pts)
-    np.testing.assert_allclose((np.stack([x, y, z], -1) - c) @ normal, 0.0, atol=1e-12)
+    np.testing.assert_allclose((Plane(c, normal).patch(pts) - c) @ normal, 0.0, atol=1e-12)
 
 
 def test_projection_choice() -> None:

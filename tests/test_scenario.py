@@ -617,12 +617,11 @@ def test_file_load_scans_the_path_once_and_a_run_built_by_hand_is_still_checked(
     monkeypatch.setattr(on_surface, "_scan", counted)
     text = BASE if not supervisor else BASE.replace("supervisor = false", "supervisor = true")
     loaded = load_scenario(_write(tmp_path, text, "ok.toml"))
-    # the loader checks the path (naming the file) and so does Scenario (for a run that starts
-    # in contact): one scan of the single surface over [0, sim.duration]
+    # Scenario checks the path, once (the loader names the file in its refusal): one scan of
+    # the single surface over [0, sim.duration]
     assert scans == [2.0]
     assert loaded.control.supervisor is supervisor
-    # the same objects in a Scenario built by hand: checked again (only when it starts in
-    # contact, the rule Scenario enforces), nothing remembered from the load
+    # the same objects in a Scenario built by hand: checked again, nothing remembered
     parts = {
         "robot": loaded.robot,
         "surfaces": loaded.surfaces,

@@ -75,6 +75,7 @@ from hybrid_force.events import Branch, Event, PhaseChange
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES, Phase
+from hybrid_force.schema import check_fields, param
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
@@ -131,23 +132,39 @@ class ControlSettings:
     read-only float array, f_d as a float or a tuple of floats.
     """
 
-    Kd: float | tuple | list | np.ndarray | None = None
-    kd_rate: float = 100.0
-    Lambda: float = 10.0
-    beta: float = 0.01
-    gamma: float = 20.0
-    f_d: float | tuple = 10.0
-    clik_gain: float = 7.0
-    max_dist: float = 0.05
-    contact_tol: float = 1e-5
-    P: float = 0.5
-    approach_rate: float | None = None
-    supervisor: bool = True
-    mass_factor: float = 1.0
-    branch_check_time: float = 1.0
-    branch_error: float = 1e-2
-    rate: float | None = None
-    law: str = "arimoto"
+    Kd: float | np.ndarray | None = param(None, doc="K_d: a number, (n,) or (n, n)")
+    kd_rate: float = param(
+        100.0, unit="1/s", minimum=0.0, strict=True, doc="κ of the default K_d = κ M(q0)"
+    )
+    Lambda: float = param(10.0, unit="1/s", minimum=0.0, strict=True, doc="Λ (eq. 4, 29)")
+    beta: float = param(0.01, unit="(m/s)/(N·s)", minimum=0.0, doc="β (eq. 4)")
+    gamma: float = param(20.0, unit="1/s", minimum=0.0, strict=True, doc="γ (eq. 11)")
+    f_d: float | tuple[float, ...] = param(
+        10.0, unit="N", doc="desired contact force: one, or one per surface (each >= 0)"
+    )
+    clik_gain: float = param(7.0, unit="1/s", minimum=0.0, strict=True, doc="CLIK γ (eq. 27)")
+    max_dist: float = param(0.05, unit="m", minimum=0.0, strict=True, doc="near-phase distance")
+    contact_tol: float = param(1e-5, unit="m", minimum=0.0, strict=True, doc="contact distance")
+    P: float = param(
+        0.5, minimum=0.0, maximum=1.0, strict=True, doc="proportionality factor of eq. 31"
+    )
+    approach_rate: float | None = param(
+        None, unit="1/s", minimum=0.0, strict=True, doc="λ_a of the approach (none: Λ)"
+    )
+    supervisor: bool = param(True, doc="phases by distance (false: always the hybrid law)")
+    mass_factor: float = param(
+        1.0, minimum=0.0, strict=True, toml=False, doc="controller's link masses / plant's"
+    )
+    branch_check_time: float = param(
+        1.0, unit="s", minimum=0.0, toml=False, doc="time before a stalled error is a branch"
+    )
+    branch_error: float = param(
+        1e-2, unit="m", minimum=0.0, strict=True, toml=False, doc="task error of a branch"
+    )
+    rate: float | None = param(
+        None, unit="Hz", minimum=0.0, strict=True, doc="control rate (none: every plant step)"
+    )
+    law: str = param("arimoto", doc="the control law (a registered law name)")
     options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -160,24 +177,16 @@ class ControlSettings:
         set_ = object.__setattr__
         if self.Kd is not None:
             set_(self, "Kd", check_damping_gain(self.Kd))
-        for name, minimum, strict, maximum, unit in _NUMBERS:
-            value = getattr(self, name)
-            if name in ("approach_rate", "rate") and value is None:
-                continue
-            what = f"ControlSettings.{name}"
-            number = checks.number(
-                value, what, GainError, minimum=minimum, strict=strict, maximum=maximum, unit=unit
-            )
-            set_(self, name, number)
+        supervisor = checks.flag(self.supervisor, "ControlSettings.supervisor", ControlError)
+        set_(self, "supervisor", supervisor)
+        law_spec(self.law)
+        check_fields(self, GainError, "ControlSettings.")
         if not self.max_dist > self.contact_tol:
             raise GainError(
                 f"need max_dist > contact_tol > 0, got max_dist={self.max_dist!r}, "
                 f"contact_tol={self.contact_tol!r}"
             )
-        law_spec(self.law)
         set_(self, "options", check_options(self.options))
-        supervisor = checks.flag(self.supervisor, "ControlSettings.supervisor", ControlError)
-        set_(self, "supervisor", supervisor)
         set_(self, "f_d", _desired_force(self.f_d))
 
     def f_d_for(self, k: int) -> np.ndarray:
@@ -192,25 +201,6 @@ class ControlSettings:
                 f"{len(f_d)} values: {self.f_d!r}"
             )
         return np.broadcast_to(f_d, (k,)).copy()
-
-
-_NUMBERS: tuple[tuple[str, float, bool, float | None, str], ...] = (
-    # name, minimum, minimum excluded, maximum (excluded), unit. The paper's assumptions:
-    # K_d > 0, Λ > 0, β ≥ 0, γ > 0 (eq. 4, 11), CLIK γ > 0 (eq. 27), 0 < P < 1 (eq. 31).
-    ("kd_rate", 0.0, True, None, "1/s"),
-    ("Lambda", 0.0, True, None, "1/s"),
-    ("beta", 0.0, False, None, "(m/s)/(N·s)"),
-    ("gamma", 0.0, True, None, "1/s"),
-    ("clik_gain", 0.0, True, None, "1/s"),
-    ("max_dist", 0.0, True, None, "m"),
-    ("contact_tol", 0.0, True, None, "m"),
-    ("P", 0.0, True, 1.0, ""),
-    ("approach_rate", 0.0, True, None, "1/s"),  # or None (then Λ)
-    ("mass_factor", 0.0, True, None, ""),
-    ("branch_check_time", 0.0, False, None, "s"),
-    ("branch_error", 0.0, True, None, "m"),
-    ("rate", 0.0, True, None, "Hz"),  # or None (every plant step)
-)
 
 
 def _desired_force(f_d: object) -> float | tuple[float, ...]:

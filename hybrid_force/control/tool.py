@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -48,10 +48,9 @@ from hybrid_force.errors import ControlError, ReachError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.schema import check_fields, param
 
 __all__ = [
-    "ORIENTATIONS",
-    "ROLLS",
     "ToolAngleProbe",
     "ToolSettings",
     "ToolTarget",
@@ -59,8 +58,6 @@ __all__ = [
     "cross3",
 ]
 
-ORIENTATIONS = ("free", "normal")
-ROLLS = ("free", "held")
 #: A direction built from a shorter vector is undefined ([-] for a cross product of unit
 #: vectors, [m/s] for the travel speed across the axis or the normal).
 _MIN_NORM = 1e-6
@@ -86,34 +83,32 @@ class ToolSettings:
     held roll with ``orientation = "free"``, which has no desired direction to apply them to.
     """
 
-    axis: tuple[float, float, float] | list[float] | np.ndarray = (0.0, 0.0, 1.0)
-    orientation: str = "free"
-    tilt: float = 0.0
-    tilt_axis: tuple[float, float, float] | list[float] | np.ndarray | None = None
-    roll: str = "free"
+    axis: tuple[float, float, float] = param(
+        (0.0, 0.0, 1.0), doc="the tool axis in the tip frame (normalised)"
+    )
+    orientation: Literal["free", "normal"] = param(
+        "free", doc="free: only the tip position; normal: the axis into the surface"
+    )
+    tilt: float = param(
+        0.0,
+        unit="rad",
+        minimum=-math.pi / 2,
+        maximum=math.pi / 2,
+        strict=True,
+        doc="angle between the tool axis and the inward normal",
+    )
+    tilt_axis: tuple[float, float, float] | None = param(
+        None, doc="world direction to lean about (none: towards the travel)"
+    )
+    roll: Literal["free", "held"] = param(
+        "free", doc="free: left to the posture; held: the whole orientation prescribed"
+    )
 
     def __post_init__(self) -> None:
         """Check every field (module conventions) and store the axes as unit float tuples."""
         set_ = object.__setattr__
         set_(self, "axis", _unit_tuple(self.axis, "tool.axis"))
-        for name, choices in (("orientation", ORIENTATIONS), ("roll", ROLLS)):
-            value = getattr(self, name)
-            try:
-                checks.one_of(value, f"tool.{name}", ControlError, choices)
-            except ControlError as exc:
-                raise ControlError(str(exc), key=f"tool.{name}", value=value) from None
-        try:
-            tilt = checks.number(self.tilt, "tool.tilt", ControlError, unit="rad")
-        except ControlError as exc:
-            raise ControlError(str(exc), key="tool.tilt", value=self.tilt) from None
-        if not abs(tilt) < math.pi / 2:
-            raise ControlError(
-                f"tool.tilt must be in (-pi/2, pi/2) [rad], got {tilt!r}: at 90° or more from "
-                "the normal the tool would lie on the surface or point out of it",
-                key="tool.tilt",
-                value=self.tilt,
-            )
-        set_(self, "tilt", tilt)
+        check_fields(self, ControlError, "tool.")
         if self.tilt_axis is not None:
             set_(self, "tilt_axis", _unit_tuple(self.tilt_axis, "tool.tilt_axis"))
         if self.orientation == "free":

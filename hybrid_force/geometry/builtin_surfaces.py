@@ -10,7 +10,7 @@ from __future__ import annotations
 import abc
 import math
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -26,7 +26,12 @@ from hybrid_force.geometry.surface_base import (
     _point3,
     _read_only,
     _xyz,
+    plane_basis,
+    register_surface,
 )
+from hybrid_force.schema import param
+
+_ORIGIN: Vec3 = (0.0, 0.0, 0.0)
 
 __all__ = ["Cylinder", "Plane", "Sphere"]
 
@@ -127,7 +132,8 @@ class _RoundSurface(Surface):
         return np.array((x + step * nx, y + step * ny, z + step * nz))
 
 
-@dataclass(frozen=True, init=False)
+@register_surface
+@dataclass(frozen=True)
 class Cylinder(_RoundSurface):
     """Infinite circular cylinder of radius r [m] around the line through ``center`` along ``axis``.
 
@@ -148,25 +154,19 @@ class Cylinder(_RoundSurface):
     kind: ClassVar[str] = "cylinder"
     _singular_where: ClassVar[str] = "lies on the cylinder axis"
 
-    radius: float
-    center: Vec3
-    axis: Vec3
-    inside: bool
+    radius: float = param(unit="m", minimum=0.0, strict=True, doc="radius")
+    center: Vec3 = param(_ORIGIN, unit="m", doc="a point on the axis")
+    axis: Vec3 = param((0.0, 0.0, 1.0), doc="direction of the axis (normalised)")
+    inside: bool = param(False, doc="the inside is the free side")
     _sign: float = field(init=False, repr=False, compare=False)
     _r2: float = field(init=False, repr=False, compare=False)
     _hess: np.ndarray = field(init=False, repr=False, compare=False)
 
-    def __init__(
-        self,
-        radius: float,
-        center: ArrayLike = (0.0, 0.0, 0.0),
-        axis: ArrayLike = (0.0, 0.0, 1.0),
-        inside: bool = False,
-    ) -> None:
-        r = _length("Cylinder", "radius", radius)
-        c = _point3("Cylinder", "center", center)
-        a = _direction("Cylinder", "axis", axis)
-        side = _boolean("Cylinder", "inside", inside)
+    def __post_init__(self) -> None:
+        r = _length("Cylinder", "radius", self.radius)
+        c = _point3("Cylinder", "center", self.center)
+        a = _direction("Cylinder", "axis", self.axis)
+        side = _boolean("Cylinder", "inside", self.inside)
         aa = np.asarray(a)
         self._freeze(r, c, side, np.eye(3) - np.outer(aa, aa), axis=a)
 
@@ -180,19 +180,24 @@ class Cylinder(_RoundSurface):
         t = wx * ax + wy * ay + wz * az
         return (wx - t * ax, wy - t * ay, wz - t * az)
 
-    def to_dict(self) -> dict[str, Any]:
-        """``{"type": "cylinder", "radius", "center", "axis" (unit), "inside"}``."""
-        return {
-            "type": self.kind,
-            "radius": self.radius,
-            "center": list(self.center),
-            "axis": list(self.axis),
-            "inside": self.inside,
-        }
+    def patch(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """(9, 37, 3) [m]: rings over the axial range of ``points``, padded (at least
+        ``margin``)."""
+        center, axis = np.array(self.center), np.array(self.axis)
+        u, w = plane_basis(axis)
+        along = (points - center) @ axis if points.size else np.zeros(1)
+        lo, hi = float(along.min()), float(along.max())
+        pad = max(margin, 0.08 * (hi - lo), 0.25 * self.radius if hi - lo < 1e-9 else 0.0)
+        ss = np.linspace(lo - pad, hi + pad, 9)
+        th = np.linspace(0.0, 2.0 * np.pi, 37)
+        ring = self.radius * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * w)
+        out: np.ndarray = center + ss[:, None, None] * axis + ring[None, :, :]
+        return out
 
 
 # --- sphere ----------------------------------------------------------------------------------
-@dataclass(frozen=True, init=False)
+@register_surface
+@dataclass(frozen=True)
 class Sphere(_RoundSurface):
     """Sphere of radius r [m] around ``center``.
 
@@ -204,22 +209,17 @@ class Sphere(_RoundSurface):
     kind: ClassVar[str] = "sphere"
     _singular_where: ClassVar[str] = "is at the sphere's centre"
 
-    radius: float
-    center: Vec3
-    inside: bool
+    radius: float = param(unit="m", minimum=0.0, strict=True, doc="radius")
+    center: Vec3 = param(_ORIGIN, unit="m", doc="centre")
+    inside: bool = param(False, doc="the inside is the free side")
     _sign: float = field(init=False, repr=False, compare=False)
     _r2: float = field(init=False, repr=False, compare=False)
     _hess: np.ndarray = field(init=False, repr=False, compare=False)
 
-    def __init__(
-        self,
-        radius: float,
-        center: ArrayLike = (0.0, 0.0, 0.0),
-        inside: bool = False,
-    ) -> None:
-        r = _length("Sphere", "radius", radius)
-        c = _point3("Sphere", "center", center)
-        side = _boolean("Sphere", "inside", inside)
+    def __post_init__(self) -> None:
+        r = _length("Sphere", "radius", self.radius)
+        c = _point3("Sphere", "center", self.center)
+        side = _boolean("Sphere", "inside", self.inside)
         self._freeze(r, c, side, np.eye(3))
 
     def _offset(self, x: float, y: float, z: float) -> Vec3:
@@ -227,17 +227,35 @@ class Sphere(_RoundSurface):
         cx, cy, cz = self.center
         return (x - cx, y - cy, z - cz)
 
-    def to_dict(self) -> dict[str, Any]:
-        """``{"type": "sphere", "radius", "center", "inside"}``."""
-        return {
-            "type": self.kind,
-            "radius": self.radius,
-            "center": list(self.center),
-            "inside": self.inside,
-        }
+    def patch(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """(13, 37, 3) [m]: the cap around the mean direction of ``points`` from the centre,
+        covering them with a margin (the whole sphere beyond a 150° cap)."""
+        center, radius = np.array(self.center), self.radius
+        amax, m = np.pi, np.array([0.0, 0.0, 1.0])
+        if points.size:
+            rel = points - center
+            mean = rel.mean(axis=0)
+            if np.linalg.norm(mean) > 1e-9 * max(radius, 1.0):
+                m = mean / np.linalg.norm(mean)
+                norms = np.linalg.norm(rel, axis=1)
+                ok = norms > 1e-12
+                cosang = np.clip((rel[ok] @ m) / norms[ok], -1.0, 1.0)
+                reach = float(np.arccos(cosang).max()) if cosang.size else 0.0
+                amax = reach * 1.15 + np.radians(8.0) + margin / radius
+                if amax > np.radians(150.0):
+                    amax = np.pi
+        u, w = plane_basis(m)
+        th = np.linspace(0.0, amax, 13)
+        ps = np.linspace(0.0, 2.0 * np.pi, 37)
+        dirs = np.cos(th)[:, None, None] * m + np.sin(th)[:, None, None] * (
+            np.cos(ps)[None, :, None] * u + np.sin(ps)[None, :, None] * w
+        )
+        out: np.ndarray = center + radius * dirs
+        return out
 
 
 # --- plane -----------------------------------------------------------------------------------
+@register_surface
 @dataclass(frozen=True, init=False)
 class Plane(Surface):
     """Plane through ``point`` [m] with unit ``normal`` n pointing to the free side.
@@ -247,8 +265,8 @@ class Plane(Surface):
 
     kind: ClassVar[str] = "plane"
 
-    point: Vec3
-    normal_vector: Vec3
+    point: Vec3 = param(unit="m", doc="a point of the plane")
+    normal_vector: Vec3 = param(key="normal", doc="normal to the free side (normalised)")
     _grad: np.ndarray = field(init=False, repr=False, compare=False)
     _hess: np.ndarray = field(init=False, repr=False, compare=False)
 
@@ -309,6 +327,17 @@ class Plane(Surface):
         nx, ny, nz = self.normal_vector
         return np.array((x - d * nx, y - d * ny, z - d * nz))
 
-    def to_dict(self) -> dict[str, Any]:
-        """``{"type": "plane", "point", "normal" (unit)}``."""
-        return {"type": self.kind, "point": list(self.point), "normal": list(self.normal_vector)}
+    def patch(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """(11, 11, 3) [m]: the patch under ``points``, padded (at least ``margin``)."""
+        point, normal = np.array(self.point), np.array(self.normal_vector)
+        u, w = plane_basis(normal)
+        if points.size:
+            a, b = (points - point) @ u, (points - point) @ w
+            a0, a1, b0, b1 = float(a.min()), float(a.max()), float(b.min()), float(b.max())
+        else:
+            a0 = a1 = b0 = b1 = 0.0
+        pad = max(margin, 0.1 * max(a1 - a0, b1 - b0, 0.1))
+        aa = np.linspace(a0 - pad, a1 + pad, 11)
+        bb = np.linspace(b0 - pad, b1 + pad, 11)
+        out: np.ndarray = point + aa[:, None, None] * u + bb[None, :, None] * w
+        return out

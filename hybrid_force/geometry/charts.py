@@ -18,14 +18,16 @@ in a scenario's ``[trajectory]``):
   projected onto the plane, world y if n ∥ x); an explicit ``u_axis`` is projected onto the plane
   and normalised.
 
-:func:`chart_for` picks the chart of a surface; a user-defined :class:`FunctionSurface` has none.
+:func:`chart_for` picks the chart registered for a surface's class (:func:`register_chart`, in
+the module that defines the chart); a user-defined :class:`FunctionSurface` has none.
 """
 
 from __future__ import annotations
 
 import abc
 import math
-from typing import Any, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -35,7 +37,14 @@ from hybrid_force.errors import PathParameterError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import axis_frame
 
-__all__ = ["CylinderChart", "PlaneChart", "SphereChart", "SurfaceChart", "chart_for"]
+__all__ = [
+    "CylinderChart",
+    "PlaneChart",
+    "SphereChart",
+    "SurfaceChart",
+    "chart_for",
+    "register_chart",
+]
 
 Vec3 = tuple[float, float, float]
 _ZERO: Vec3 = (0.0, 0.0, 0.0)
@@ -54,6 +63,9 @@ class SurfaceChart(abc.ABC):
     """Their units ("rad", "m")."""
     periods: ClassVar[tuple[float, float]]
     """The period of u and of v [their unit] (0: not periodic)."""
+
+    takes_u_axis: ClassVar[bool] = False
+    """The chart's u direction may be given (``u_axis``, a plane's)."""
 
     surface: Any
 
@@ -98,12 +110,29 @@ class SurfaceChart(abc.ABC):
         return {}
 
 
+C = TypeVar("C", bound=type[SurfaceChart])
+_CHARTS: dict[type, type[SurfaceChart]] = {}
+
+
+def register_chart(surface_type: type) -> Callable[[C], C]:
+    """Class decorator: the chart of ``surface_type`` (and its subclasses) for :func:`chart_for`.
+    The chart is built as ``chart(surface)``, or ``chart(surface, u_axis)`` when it sets
+    ``takes_u_axis``."""
+
+    def register(chart: C) -> C:
+        _CHARTS[surface_type] = chart
+        return chart
+
+    return register
+
+
 def _columns(u: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     uu = np.atleast_1d(np.asarray(u, dtype=float))
     vv = np.atleast_1d(np.asarray(v, dtype=float))
     return uu[:, None], vv[:, None]
 
 
+@register_chart(Cylinder)
 class CylinderChart(SurfaceChart):
     """(θ [rad], h [m]) on a :class:`Cylinder`: S = c + h·a + r (cos θ e1 + sin θ e2)."""
 
@@ -148,6 +177,7 @@ class CylinderChart(SurfaceChart):
         return math.atan2(float(w @ self._e2), float(w @ self._e1)), float(w @ self._a)
 
 
+@register_chart(Sphere)
 class SphereChart(SurfaceChart):
     """(φ, λ) [rad] on a :class:`Sphere`: S = c + r (cos φ cos λ, cos φ sin λ, sin φ)."""
 
@@ -195,6 +225,7 @@ class SphereChart(SurfaceChart):
         return math.atan2(wz, math.hypot(wx, wy)), math.atan2(wy, wx)
 
 
+@register_chart(Plane)
 class PlaneChart(SurfaceChart):
     """(u, v) [m] on a :class:`Plane`: S = point + u·e_u + v·e_v, e_v = n × e_u.
 
@@ -210,6 +241,7 @@ class PlaneChart(SurfaceChart):
     names = ("u", "v")
     units = ("m", "m")
     periods = (0.0, 0.0)
+    takes_u_axis = True
 
     def __init__(self, surface: Plane, u_axis: ArrayLike | None = None) -> None:
         self.surface = surface
@@ -273,28 +305,28 @@ def chart_for(surface: object, u_axis: ArrayLike | None = None) -> SurfaceChart:
     """The chart of a built-in surface (see the module doc).
 
     Args:
-        surface: a :class:`Cylinder`, :class:`Sphere` or :class:`Plane`.
+        surface: a surface with a registered chart (:class:`Cylinder`, :class:`Sphere`,
+            :class:`Plane`, ...).
         u_axis: (3,) the u direction of a plane's chart; only for a plane.
 
     Raises:
         PathParameterError: a surface with no chart (a user-defined FunctionSurface), or a
             ``u_axis`` for a surface that is not a plane.
     """
-    if u_axis is not None and not isinstance(surface, Plane):
+    chart = next((_CHARTS[c] for c in type(surface).__mro__ if c in _CHARTS), None)
+    if chart is not None and u_axis is not None and not chart.takes_u_axis:
         raise PathParameterError(
             f"u_axis is only for a plane's chart; {surface!r} has fixed coordinates",
             key="u_axis",
             value=u_axis,
         )
-    if isinstance(surface, Cylinder):
-        return CylinderChart(surface)
-    if isinstance(surface, Sphere):
-        return SphereChart(surface)
-    if isinstance(surface, Plane):
-        return PlaneChart(surface, u_axis)
+    if chart is not None:
+        build: Callable[..., SurfaceChart] = chart
+        return build(surface, u_axis) if chart.takes_u_axis else build(surface)
     raise PathParameterError(
         f"surface {checks.shown(surface)} has no chart (surface coordinates): paths in surface "
-        "coordinates and waypoints projected onto it need a cylinder, sphere or plane",
+        "coordinates and waypoints projected onto it need a surface with a chart (cylinder, "
+        "sphere, plane, ...)",
         key="surface",
         value=surface,
     )

@@ -1,17 +1,12 @@
 """Whether a desired path lies on a surface: the worst |d| of p_d(t) over a time span.
 
-The paper requires p_d to lie on Φ(p) = 0 (eq. 26); the scenario loader and ``Scenario`` refuse
-a run that starts in contact with a path farther than :data:`ON_SURFACE_TOL` from its surface.
-Both ask when a file is loaded: inside :func:`reports_reused` (the loader's) the second asks for
-a report already made.
+The paper requires p_d to lie on Φ(p) = 0 (eq. 26); ``Scenario`` (which the scenario loader
+builds) refuses a path farther than :data:`ON_SURFACE_TOL` from a surface.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-from collections.abc import Iterator
-from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -23,7 +18,7 @@ from hybrid_force.errors import PathParameterError, SurfaceError
 if TYPE_CHECKING:
     from hybrid_force.geometry.paths import Path
 
-__all__ = ["ON_SURFACE_TOL", "OnSurfaceReport", "check_on_surface", "reports_reused"]
+__all__ = ["ON_SURFACE_TOL", "OnSurfaceReport", "check_on_surface"]
 
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 0.618...
 
@@ -47,29 +42,6 @@ class OnSurfaceReport:
     worst_distance: float
     time_of_worst: float
     point_of_worst: np.ndarray = field(compare=False)
-
-
-_REPORTS: ContextVar[
-    dict[tuple[int, int, float, float, int], tuple[Any, Any, OnSurfaceReport]] | None
-] = ContextVar("hybrid_force_on_surface_reports", default=None)
-
-
-@contextlib.contextmanager
-def reports_reused() -> Iterator[None]:
-    """While open, :func:`check_on_surface` scans each (path, surface, span, samples) once.
-
-    A second call with the same path and surface objects returns the first report. For a
-    block that builds the objects and asks twice, as the scenario loader does (once to name
-    the file in its error, once in ``Scenario``, which must check a run built by hand too):
-    the paths and surfaces a file describes are immutable, so the report cannot change
-    between the two. The objects are held until the block ends, so their ids are not reused
-    meanwhile; nothing is kept after it, and outside such a block every call scans.
-    """
-    token = _REPORTS.set({})
-    try:
-        yield
-    finally:
-        _REPORTS.reset(token)
 
 
 def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray]:
@@ -131,13 +103,7 @@ def check_on_surface(
         raise PathParameterError(
             f"check_on_surface.surface must have a method distance(p) -> float, got {surface!r}"
         )
-    reports = _REPORTS.get()
-    if reports is None:
-        return _scan(path, surface, a, b, n)
-    key = (id(path), id(surface), a, b, n)
-    if key not in reports:
-        reports[key] = (path, surface, _scan(path, surface, a, b, n))
-    return reports[key][2]
+    return _scan(path, surface, a, b, n)
 
 
 def _scan(path: Path, surface: Any, a: float, b: float, n: int) -> OnSurfaceReport:

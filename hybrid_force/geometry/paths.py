@@ -33,11 +33,10 @@ Paths round-trip through plain dictionaries (:meth:`Path.to_dict`,
 from __future__ import annotations
 
 import abc
-import importlib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import KW_ONLY, dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -45,7 +44,8 @@ from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import PathParameterError, did_you_mean
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, OnSurfaceReport, check_on_surface
-from hybrid_force.geometry.surface_base import MAX_LENGTH
+from hybrid_force.geometry.surface_base import MAX_LENGTH, import_geometry
+from hybrid_force.schema import MISSING_VALUE, declared, default_of, param, specs
 
 _K = LazyKernels("hybrid_force.geometry._kernels")
 
@@ -153,6 +153,9 @@ _JERK_STEP = 1e-5  # [s] central difference of p̈_d (Path.direction_jet)
 class Path(abc.ABC):
     """A desired task-space path p_d(t) with its first two time derivatives."""
 
+    TYPE: ClassVar[str] = ""
+    """Its TOML ``type`` (a registered path type: :func:`register_path`)."""
+
     # The closed form as a small read-only float array that compiled code evaluates
     # (hybrid_force._kernels.path_sample): [0, phase, ω, basis (12)] for a helix or a circle;
     # empty when there is none (evaluated in Python).
@@ -198,6 +201,31 @@ class Path(abc.ABC):
     @abc.abstractmethod
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-able dict ``{"type": ..., <parameters>}`` for :func:`path_from_dict`."""
+
+
+# --- registry ----------------------------------------------------------------------------------
+_PATH_TYPES: dict[str, type[Path]] = {}
+P = TypeVar("P", bound=type[Path])
+
+
+def register_path(cls: P) -> P:
+    """Class decorator: register a path type under its ``TYPE`` (the TOML ``type``). Its
+    parameters are its :func:`~hybrid_force.schema.param` fields, or those of its ``PARAMS``
+    dataclass (a path on a surface: :func:`path_parameters`)."""
+    _PATH_TYPES[cls.TYPE] = cls
+    return cls
+
+
+def path_types() -> dict[str, type[Path]]:
+    """Every registered path type by its ``TYPE`` (every geometry module imported first)."""
+    import_geometry()
+    return _PATH_TYPES
+
+
+def path_parameters(cls: type) -> type:
+    """The dataclass that declares a path type's parameters: its ``PARAMS``, or itself."""
+    declaration: type = getattr(cls, "PARAMS", cls)
+    return declaration
 
 
 class _CircularPath(Path):
@@ -259,6 +287,15 @@ class _CircularPath(Path):
         desc.setflags(write=False)
         object.__setattr__(self, "_descriptor", desc)
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type", <its declared parameters>}`` (vectors as lists) for :func:`path_from_dict`."""
+        out: dict[str, Any] = {"type": self.TYPE}
+        for f, _ in specs(type(self)):
+            if declared(f):
+                value = getattr(self, f.name)
+                out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
     @property
     def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The right-handed orthonormal frame (e1, e2, a), each (3,) [-], read-only arrays."""
@@ -297,6 +334,7 @@ class _CircularPath(Path):
         return np.array([v, a, jerk])
 
 
+@register_path
 @dataclass(frozen=True)
 class Helix(_CircularPath):
     """Circular helix p(t) = c + rise·t·a + r(cos θ e1 + sin θ e2), θ = phase + omega·t.
@@ -313,32 +351,21 @@ class Helix(_CircularPath):
 
     TYPE: ClassVar[str] = "helix"
 
-    center: tuple[float, float, float]
-    radius: float
+    center: tuple[float, float, float] = param(unit="m", doc="the point on the axis at t = 0")
+    radius: float = param(unit="m", minimum=0.0, strict=True, doc="radius")
     _: KW_ONLY
-    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    omega: float
-    rise: float
-    phase: float = 0.0
+    axis: tuple[float, float, float] = param((0.0, 0.0, 1.0), doc="direction of the axis")
+    omega: float = param(unit="rad/s", doc="angular rate (> 0: counter-clockwise about a)")
+    rise: float = param(unit="m/s", doc="speed along the axis")
+    phase: float = param(0.0, unit="rad", doc="angle at t = 0, from e1")
     _basis: np.ndarray = field(init=False, repr=False, compare=False)
     _frame: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self._validate("axis", ("omega", "rise", "phase"))
 
-    def to_dict(self) -> dict[str, Any]:
-        """``{"type": "helix", "center", "radius", "axis", "omega", "rise", "phase"}``."""
-        return {
-            "type": self.TYPE,
-            "center": list(self.center),
-            "radius": self.radius,
-            "axis": list(self.axis),
-            "omega": self.omega,
-            "rise": self.rise,
-            "phase": self.phase,
-        }
 
-
+@register_path
 @dataclass(frozen=True)
 class Circle(_CircularPath):
     """Circle p(t) = c + r(cos θ e1 + sin θ e2), θ = phase + omega·t, in the plane ⟂ normal.
@@ -350,27 +377,16 @@ class Circle(_CircularPath):
 
     TYPE: ClassVar[str] = "circle"
 
-    center: tuple[float, float, float]
-    radius: float
-    normal: tuple[float, float, float]
-    omega: float
-    phase: float = 0.0
+    center: tuple[float, float, float] = param(unit="m", doc="centre")
+    radius: float = param(unit="m", minimum=0.0, strict=True, doc="radius")
+    normal: tuple[float, float, float] = param(doc="normal of the circle's plane")
+    omega: float = param(unit="rad/s", doc="angular rate (> 0: counter-clockwise about n)")
+    phase: float = param(0.0, unit="rad", doc="angle at t = 0, from e1")
     _basis: np.ndarray = field(init=False, repr=False, compare=False)
     _frame: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self._validate("normal", ("omega", "phase"))
-
-    def to_dict(self) -> dict[str, Any]:
-        """``{"type": "circle", "center", "radius", "normal", "omega", "phase"}``."""
-        return {
-            "type": self.TYPE,
-            "center": list(self.center),
-            "radius": self.radius,
-            "normal": list(self.normal),
-            "omega": self.omega,
-            "phase": self.phase,
-        }
 
 
 def paper_helix() -> Helix:
@@ -508,28 +524,8 @@ class FunctionPath(Path):
         """Not available: Python callables cannot be stored in a scenario or result file."""
         raise PathParameterError(
             f"{self!r} holds Python callables and cannot be written to a dict; "
-            f"serialisable path types are {_TYPE_NAMES}"
+            f"serialisable path types are {sorted(path_types())}"
         )
-
-
-# --- dictionaries --------------------------------------------------------------------------------
-_PATH_TYPES: dict[str, type[Helix] | type[Circle]] = {"helix": Helix, "circle": Circle}
-_REQUIRED: dict[str, tuple[str, ...]] = {
-    "helix": ("center", "radius", "omega", "rise"),
-    "circle": ("center", "radius", "normal", "omega"),
-}
-_OPTIONAL: dict[str, tuple[str, ...]] = {
-    "helix": ("axis", "phase"),
-    "circle": ("phase",),
-}
-
-
-_SURFACE_PATHS = {
-    # paths on a surface, built by their own modules (which import this one)
-    "waypoints": ("hybrid_force.geometry.waypoints", "WaypointPath"),
-    "raster": ("hybrid_force.geometry.raster", "RasterPath"),
-}
-_TYPE_NAMES = sorted([*_PATH_TYPES, *_SURFACE_PATHS])
 
 
 def path_from_dict(d: Mapping[str, Any]) -> Path:
@@ -544,18 +540,23 @@ def path_from_dict(d: Mapping[str, Any]) -> Path:
         )
     if "type" not in d:
         raise PathParameterError(
-            f"path dict has no 'type' key; valid types: {_TYPE_NAMES}; got {dict(d)!r}"
+            f"path dict has no 'type' key; valid types: {sorted(path_types())}; got {dict(d)!r}"
         )
     kind = d["type"]
-    if isinstance(kind, str) and kind in _SURFACE_PATHS:
-        module, name = _SURFACE_PATHS[kind]
-        cls = getattr(importlib.import_module(module), name)
-        built: Path = cls.from_dict(d)
+    types = path_types()
+    names = sorted(types)
+    if not isinstance(kind, str) or kind not in types:
+        hint = did_you_mean(kind, names) if isinstance(kind, str) else ""
+        raise PathParameterError(f"path.type {kind!r} is unknown{hint}; valid types: {names}")
+    cls = types[kind]
+    from_dict = getattr(cls, "from_dict", None)
+    if from_dict is not None:  # a path on a surface holds its surface's dict
+        built: Path = from_dict(d)
         return built
-    if not isinstance(kind, str) or kind not in _PATH_TYPES:
-        hint = did_you_mean(kind, _TYPE_NAMES) if isinstance(kind, str) else ""
-        raise PathParameterError(f"path.type {kind!r} is unknown{hint}; valid types: {_TYPE_NAMES}")
-    valid = (*_REQUIRED[kind], *_OPTIONAL[kind])
+    declared_fields = [(f.name, default_of(f)) for f, _ in specs(cls) if declared(f)]
+    required = [name for name, default in declared_fields if default is MISSING_VALUE]
+    optional = [name for name, default in declared_fields if default is not MISSING_VALUE]
+    valid = (*required, *optional)
     params = {k: v for k, v in d.items() if k != "type"}
     for key in params:
         if key not in valid:
@@ -563,10 +564,9 @@ def path_from_dict(d: Mapping[str, Any]) -> Path:
                 f"path.{key} is not a parameter of a {kind} path{did_you_mean(str(key), valid)}; "
                 f"valid keys: {['type', *valid]}"
             )
-    missing = [k for k in _REQUIRED[kind] if k not in params]
+    missing = [k for k in required if k not in params]
     if missing:
         raise PathParameterError(
-            f"{kind} path is missing {missing}; required keys: {list(_REQUIRED[kind])}, "
-            f"optional: {list(_OPTIONAL[kind])}"
+            f"{kind} path is missing {missing}; required keys: {required}, optional: {optional}"
         )
-    return _PATH_TYPES[kind](**params)
+    return cls(**params)

@@ -31,7 +31,8 @@ length): a rectangle reaching latitude ±π/2 with ``direction = "v"`` is refuse
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,9 +41,11 @@ from hybrid_force import _checks as checks
 from hybrid_force.errors import PathParameterError
 from hybrid_force.geometry.arc_length import piece_lengths, surface_speeds
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
+from hybrid_force.geometry.paths import register_path
 from hybrid_force.geometry.piecewise import PiecewiseCurve, blend_piece, line_piece
 from hybrid_force.geometry.surface_base import MAX_LENGTH
 from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, one_of, positive
+from hybrid_force.schema import param
 
 __all__ = ["MAX_PASSES", "RasterPath"]
 
@@ -58,6 +61,27 @@ _SINGULAR_RTOL = 1e-9
 """A pass whose ‖S_along‖ is below this times the largest pass's is degenerate (a pole)."""
 
 
+@dataclass(frozen=True)
+class RasterParameters:
+    """The parameters of a raster path (the scenario's ``[trajectory] type = "raster"``)."""
+
+    origin: tuple[float, ...] = param(
+        unit="surface coordinates", doc="[u0, v0], the corner where the first pass starts"
+    )
+    size: tuple[float, ...] = param(unit="surface coordinates", doc="[Lu, Lv] > 0, the extent")
+    spacing: float = param(
+        unit="surface coordinate", minimum=0.0, strict=True, doc="largest pass spacing"
+    )
+    speed: float = param(unit="m/s", minimum=0.0, strict=True, doc="cruise speed")
+    direction: Literal["u", "v"] = param("u", doc="the coordinate the passes run along")
+    surface: int = param(0, minimum=0, doc="index of the [[surfaces]] table it lies on")
+    ramp: float = param(
+        DEFAULT_RAMP, unit="s", minimum=0.0, strict=True, doc="start and stop ramps"
+    )
+    u_axis: tuple[float, float, float] | None = param(None, doc="a plane chart's u direction")
+
+
+@register_path
 class RasterPath(SurfacePath):
     """Back-and-forth coverage of a coordinate rectangle of a built-in surface (module doc).
 
@@ -82,6 +106,7 @@ class RasterPath(SurfacePath):
     """
 
     TYPE: ClassVar[str] = "raster"
+    PARAMS: ClassVar[type] = RasterParameters
     REQUIRED = ("origin", "size", "spacing", "speed")
     OPTIONAL = ("direction", "ramp", "u_axis")
     DERIVED = ("passes", "pass_spacing", *SurfacePath.DERIVED)
@@ -94,8 +119,8 @@ class RasterPath(SurfacePath):
         spacing: float,
         speed: float,
         *,
-        direction: str = "u",
-        ramp: float = DEFAULT_RAMP,
+        direction: str = RasterParameters.direction,
+        ramp: float = RasterParameters.ramp,
         u_axis: ArrayLike | None = None,
     ) -> None:
         owner = "RasterPath"

@@ -1,25 +1,38 @@
-"""The surface interface Φ(p) (paper eq. 1) and the checks its implementations share.
+"""The surface interface Φ(p) (paper eq. 1), the registry of surface types, and the checks
+their implementations share.
 
-:class:`Surface` is what the controller and the simulation use; the built-in surfaces are in
-:mod:`.builtin_surfaces`, the user-defined one in :mod:`.function_surface`, and the module
-:mod:`.surfaces` gathers them with the dict parser. The helpers below check constructor
-parameters (raising SurfaceParameterError naming the class, the parameter and the value) and
-points p (DimensionError or SurfaceError naming the surface and the method).
+:class:`Surface` is what the controller and the simulation use. A surface type registers
+itself in its own module with :func:`register_surface` under its TOML ``type``; its
+parameters are its dataclass fields declared with :func:`hybrid_force.schema.param` (the
+scenario reader, ``to_dict`` and ``surface_from_dict`` read them there). The helpers below
+check constructor parameters (raising SurfaceParameterError naming the class, the parameter
+and the value) and points p (DimensionError or SurfaceError naming the surface and the method).
 """
 
 from __future__ import annotations
 
 import abc
+import dataclasses
+import importlib
 import math
-from typing import Any, ClassVar
+import pkgutil
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
 from hybrid_force.errors import DimensionError, SurfaceError, SurfaceParameterError
+from hybrid_force.schema import Param, declared, specs
 
-__all__ = ["MAX_LENGTH", "Surface"]
+__all__ = [
+    "MAX_LENGTH",
+    "Surface",
+    "plane_basis",
+    "register_surface",
+    "surface_parameters",
+    "surface_types",
+]
 
 MAX_LENGTH = 1e6
 """The largest |coordinate| of a surface's point or centre and the largest radius [m]
@@ -137,6 +150,17 @@ def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
     return (x, y, z)
 
 
+def plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (u, w) with (u, w, n) a right-handed orthonormal frame, n: (3,) unit.
+
+    u is the world axis least aligned with n, projected on the plane normal to n, so that for
+    n = ±z the pair is (x, ±y) (the drawings' in-plane axes)."""
+    e = np.eye(3)[int(np.argmin(np.abs(n)))]
+    u = e - (e @ n) * n
+    u /= np.linalg.norm(u)
+    return u, np.cross(n, u)
+
+
 def _read_only(array: np.ndarray) -> np.ndarray:
     """Mark ``array`` read-only (shared constant derivative returned by ``evaluate``)."""
     array.flags.writeable = False
@@ -200,6 +224,61 @@ class Surface(abc.ABC):
     def closest_point(self, p: ArrayLike) -> np.ndarray:
         """Foot point on the surface nearest to p: (3,) [m]."""
 
-    @abc.abstractmethod
     def to_dict(self) -> dict[str, Any]:
-        """JSON-able description ``{"type": kind, ...parameters as floats / lists}``."""
+        """JSON-able description ``{"type": kind, ...parameters as floats / lists}`` (its
+        declared parameters, :func:`surface_parameters`)."""
+        return parameters_dict(self)
+
+    def patch(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray | None:
+        """A grid of points on the surface covering the part near ``points`` (M, 3) [m], at
+        least ``margin`` [m] beyond them where the surface is open: (n, m, 3) [m], rows and
+        columns joined as a quad mesh (the replay and the run figures draw it). None: this
+        surface cannot be drawn (the default)."""
+        return None
+
+
+# --- registry --------------------------------------------------------------------------------
+_SURFACE_TYPES: dict[str, type[Surface]] = {}
+_found = False
+S = TypeVar("S", bound=type[Surface])
+
+
+def register_surface(cls: S) -> S:
+    """Class decorator: register a surface type under its ``kind`` (its TOML ``type``)."""
+    _SURFACE_TYPES[cls.kind] = cls
+    return cls
+
+
+def import_geometry() -> None:
+    """Import every public module of :mod:`hybrid_force.geometry` once, so that each surface
+    and path type defined (and registered) in any of them is known without being listed."""
+    global _found
+    if not _found:
+        _found = True
+        import hybrid_force.geometry as package
+
+        for info in pkgutil.iter_modules(package.__path__):
+            if not info.name.startswith("_"):
+                importlib.import_module(f"{package.__name__}.{info.name}")
+
+
+def surface_types() -> dict[str, type[Surface]]:
+    """Every registered surface type by its ``kind``, in registration order (every geometry
+    module imported first: :func:`import_geometry`)."""
+    import_geometry()
+    return _SURFACE_TYPES
+
+
+def surface_parameters(cls: type) -> list[tuple[str, dataclasses.Field[Any], Param]]:
+    """The parameters a surface type declares (its :func:`~hybrid_force.schema.param`
+    fields): (key, field, Param) in order; the key is the TOML key and the constructor's."""
+    return [(spec.key or f.name, f, spec) for f, spec in specs(cls) if declared(f) and spec.toml]
+
+
+def parameters_dict(surface: Surface) -> dict[str, Any]:
+    """``{"type": kind, key: value}`` of a declared surface, vectors as lists (JSON-able)."""
+    out: dict[str, Any] = {"type": surface.kind}
+    for key, f, _ in surface_parameters(type(surface)):
+        value = getattr(surface, f.name)
+        out[key] = list(value) if isinstance(value, tuple) else value
+    return out

@@ -18,10 +18,10 @@ where the tool starts inside the cylinder and presses on its wall from within). 
 points to its free side; a :class:`FunctionSurface`'s Φ must be positive on its free side.
 
 Built in: :class:`Cylinder`, :class:`Sphere`, :class:`Plane`; user-defined:
-:class:`FunctionSurface`.
-:func:`surface_from_dict` inverts ``to_dict`` for the built-ins: the one parser of a surface
-dict. The interface is in :mod:`.surface_base`, the built-ins in :mod:`.builtin_surfaces`, the
-user-defined surface in :mod:`.function_surface`; this module gathers their names.
+:class:`FunctionSurface`; other types register themselves in their own module
+(:func:`~.surface_base.register_surface`, e.g. :mod:`.ellipsoid`).
+:func:`surface_from_dict` inverts ``to_dict`` for every registered type: the one parser of a
+surface dict. The interface and the registry are in :mod:`.surface_base`.
 """
 
 from __future__ import annotations
@@ -32,7 +32,13 @@ from typing import Any
 from hybrid_force.errors import SurfaceParameterError, did_you_mean
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
-from hybrid_force.geometry.surface_base import Surface, _fmt
+from hybrid_force.geometry.surface_base import (
+    Surface,
+    _fmt,
+    surface_parameters,
+    surface_types,
+)
+from hybrid_force.schema import MISSING_VALUE, default_of
 
 __all__ = [
     "Cylinder",
@@ -43,27 +49,21 @@ __all__ = [
     "surface_from_dict",
 ]
 
-# --- from a dict -----------------------------------------------------------------------------
-_BUILT_INS: dict[str, tuple[type[Surface], tuple[str, ...], tuple[str, ...]]] = {
-    # type: (class, required keys, optional keys)
-    "cylinder": (Cylinder, ("radius",), ("center", "axis", "inside")),
-    "sphere": (Sphere, ("radius",), ("center", "inside")),
-    "plane": (Plane, ("point", "normal"), ()),
-}
-
 
 def surface_from_dict(d: Mapping[str, Any]) -> Surface:
-    """Build a built-in surface from ``to_dict``'s output (the inverse of ``to_dict``).
+    """Build a registered surface from ``to_dict``'s output (the inverse of ``to_dict``).
 
-    ``d["type"]`` is one of "cylinder", "sphere", "plane"; the other keys are the constructor's
-    parameters (lists for vectors). Raises SurfaceParameterError on an unknown type, on the
-    non-serialisable "function" type, on missing or unknown keys, and on bad parameter values.
+    ``d["type"]`` is a registered type (:func:`~.surface_base.surface_types`: "cylinder",
+    "sphere", "plane", ...); the other keys are its declared parameters (lists for vectors).
+    Raises SurfaceParameterError on an unknown type, on the non-serialisable "function" type,
+    on missing or unknown keys, and on bad parameter values.
     """
+    types = surface_types()
     if not isinstance(d, Mapping):
         raise SurfaceParameterError(
             f"surface_from_dict: expected a dict with a 'type' key, got {_fmt(d)}"
         )
-    valid = ", ".join(repr(name) for name in _BUILT_INS)
+    valid = ", ".join(repr(name) for name in types)
     if "type" not in d:
         raise SurfaceParameterError(
             f"surface_from_dict: missing key 'type' in {_fmt(dict(d))}; valid types: {valid}"
@@ -74,12 +74,14 @@ def surface_from_dict(d: Mapping[str, Any]) -> Surface:
             "surface_from_dict: type 'function' cannot be rebuilt from a dict (its Python "
             f"callables are not serialised); build a FunctionSurface in code. Valid types: {valid}"
         )
-    if not isinstance(kind, str) or kind not in _BUILT_INS:
-        hint = did_you_mean(kind, _BUILT_INS) if isinstance(kind, str) else ""
+    if not isinstance(kind, str) or kind not in types:
+        hint = did_you_mean(kind, types) if isinstance(kind, str) else ""
         raise SurfaceParameterError(
             f"surface_from_dict: unknown surface type {kind!r}{hint}; valid types: {valid}"
         )
-    cls, required, optional = _BUILT_INS[kind]
+    declared = surface_parameters(types[kind])
+    required = [key for key, f, _ in declared if default_of(f) is MISSING_VALUE]
+    allowed = [key for key, _, _ in declared]
     params = {key: value for key, value in d.items() if key != "type"}
     missing = [key for key in required if key not in params]
     if missing:
@@ -87,7 +89,6 @@ def surface_from_dict(d: Mapping[str, Any]) -> Surface:
             f"surface_from_dict: {kind} is missing parameter(s) "
             f"{', '.join(repr(key) for key in missing)}; required: {', '.join(required)}"
         )
-    allowed = required + optional
     unknown = [key for key in params if key not in allowed]
     if unknown:
         key = str(unknown[0])
@@ -95,4 +96,4 @@ def surface_from_dict(d: Mapping[str, Any]) -> Surface:
             f"surface_from_dict: unknown parameter {unknown[0]!r} for {kind}"
             f"{did_you_mean(key, allowed)}; valid parameters: {', '.join(allowed)}"
         )
-    return cls(**params)
+    return types[kind](**params)

@@ -28,7 +28,8 @@ while staying C² and on the surface.
 from __future__ import annotations
 
 import warnings
-from typing import Any, ClassVar
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -37,9 +38,11 @@ from hybrid_force import _checks as checks
 from hybrid_force.errors import PathParameterError, PathWarning, SingularConfigurationError
 from hybrid_force.geometry.arc_length import piece_lengths
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
+from hybrid_force.geometry.paths import register_path
 from hybrid_force.geometry.piecewise import PiecewiseCurve, line_piece, natural_cubic_spline
 from hybrid_force.geometry.surface_base import MAX_LENGTH
 from hybrid_force.geometry.surface_path import DEFAULT_RAMP, SurfacePath, one_of, positive
+from hybrid_force.schema import param
 
 __all__ = ["DEFAULT_PROJECTION_TOL", "MAX_WAYPOINTS", "REPEATED_TOL", "WaypointPath"]
 
@@ -53,6 +56,30 @@ REPEATED_TOL = 1e-9
 """Two consecutive waypoints closer than this [m] on the surface are the same point (refused)."""
 
 
+@dataclass(frozen=True)
+class WaypointParameters:
+    """The parameters of a waypoint path (the scenario's ``[trajectory] type = "waypoints"``)."""
+
+    points: tuple[tuple[float, ...], ...] = param(
+        unit="m or surface coordinates", doc="[[x, y, z], ...] (world) or [[u, v], ...] (surface)"
+    )
+    speed: float = param(unit="m/s", minimum=0.0, strict=True, doc="cruise speed")
+    frame: Literal["world", "surface"] = param("world", doc="what the points are")
+    surface: int = param(0, minimum=0, doc="index of the [[surfaces]] table it lies on")
+    ramp: float = param(
+        DEFAULT_RAMP, unit="s", minimum=0.0, strict=True, doc="start and stop ramps"
+    )
+    u_axis: tuple[float, float, float] | None = param(None, doc="a plane chart's u direction")
+    projection_tol: float = param(
+        DEFAULT_PROJECTION_TOL,
+        unit="m",
+        minimum=0.0,
+        strict=True,
+        doc="a world point farther from the surface is projected with a warning",
+    )
+
+
+@register_path
 class WaypointPath(SurfacePath):
     """Waypoints on a built-in surface joined by a C² spline (see the module doc).
 
@@ -81,6 +108,7 @@ class WaypointPath(SurfacePath):
     """
 
     TYPE: ClassVar[str] = "waypoints"
+    PARAMS: ClassVar[type] = WaypointParameters
     REQUIRED = ("points", "speed")
     OPTIONAL = ("frame", "ramp", "u_axis", "projection_tol")
     DERIVED = ("projection_distances", *SurfacePath.DERIVED)
@@ -91,10 +119,10 @@ class WaypointPath(SurfacePath):
         points: ArrayLike,
         speed: float,
         *,
-        frame: str = "world",
-        ramp: float = DEFAULT_RAMP,
+        frame: str = WaypointParameters.frame,
+        ramp: float = WaypointParameters.ramp,
         u_axis: ArrayLike | None = None,
-        projection_tol: float = DEFAULT_PROJECTION_TOL,
+        projection_tol: float = WaypointParameters.projection_tol,
     ) -> None:
         owner = "WaypointPath"
         one_of(owner, "frame", frame, ("world", "surface"))

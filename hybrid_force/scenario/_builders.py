@@ -19,23 +19,19 @@ import numpy as np
 
 from hybrid_force.errors import BadInputError, FrameError, ReachError, RobotError, RunWarning
 from hybrid_force.scenario._tables import (
-    _CONTACT,
     _INITIAL,
     _ROBOT,
-    _SENSOR,
-    _SURFACE,
-    _TOOL,
-    _TRAJECTORY,
     _check_table,
     _Context,
     _fmt,
     _typed_table,
     _wrap,
+    read_settings,
 )
+from hybrid_force.schema import keys_of
 
 if TYPE_CHECKING:  # annotations only: the builders import these where they build them
-    from hybrid_force.geometry.paths import Path as DesiredPath
-    from hybrid_force.geometry.surfaces import Surface
+    pass
 
 
 @dataclass(frozen=True)
@@ -199,7 +195,9 @@ def _full_start(robot: Any, initial: object) -> tuple[str, dict[str, float]] | N
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
-    from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+    """The surfaces of [surface] or [[surfaces]], each built from its registered type's
+    declared parameters (:func:`~hybrid_force.geometry.surface_base.surface_types`)."""
+    from hybrid_force.geometry.surface_base import surface_types
 
     if "surface" in doc and "surfaces" in doc:
         raise ctx.table_error(
@@ -217,24 +215,11 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
     surfaces: list[Any] = []
     checked: list[tuple[str, dict]] = []
     for name, table in tables:
-        kind, values = _typed_table(ctx, name, table, _SURFACE)
-        s: Surface
+        types = surface_types()
+        schema = {kind: keys_of(cls) for kind, cls in types.items()}
+        kind, values = _typed_table(ctx, name, table, schema)
         try:
-            if kind == "cylinder":
-                s = Cylinder(
-                    values["radius"],
-                    values.get("center", [0.0, 0.0, 0.0]),
-                    values.get("axis", [0.0, 0.0, 1.0]),
-                    inside=values.get("inside", False),
-                )
-            elif kind == "sphere":
-                s = Sphere(
-                    values["radius"],
-                    values.get("center", [0.0, 0.0, 0.0]),
-                    inside=values.get("inside", False),
-                )
-            else:
-                s = Plane(values["point"], values["normal"])
+            s = types[kind](**values)
         except BadInputError as exc:
             raise _wrap(ctx, name, values, exc) from None
         surfaces.append(s)
@@ -243,44 +228,31 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
 
 
 def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any, dict[str, Any]]:
-    from hybrid_force.geometry.paths import Circle, Helix
+    """[trajectory]: its registered path type built from its declared parameters
+    (:func:`~hybrid_force.geometry.paths.path_types`); a path on a surface by
+    :func:`_surface_path`."""
+    from hybrid_force.geometry.paths import path_parameters, path_types
+    from hybrid_force.geometry.surface_path import SurfacePath
 
-    kind, values = _typed_table(ctx, "trajectory", table, _TRAJECTORY)
-    if kind in ("waypoints", "raster"):
+    types = path_types()
+    schema = {kind: keys_of(path_parameters(cls)) for kind, cls in types.items()}
+    kind, values = _typed_table(ctx, "trajectory", table, schema)
+    cls = types[kind]
+    if issubclass(cls, SurfacePath):
         raw = table if isinstance(table, dict) else {}
-        return _surface_path(kind, values, raw, surfaces, ctx), {"type": kind, **values}
-    path: DesiredPath
+        return _surface_path(cls, values, raw, surfaces, ctx), {"type": kind, **values}
     try:
-        if kind == "helix":
-            path = Helix(
-                values["center"],
-                values["radius"],
-                axis=values.get("axis", [0.0, 0.0, 1.0]),
-                omega=values["omega"],
-                rise=values["rise"],
-                phase=values.get("phase", 0.0),
-            )
-        else:
-            path = Circle(
-                values["center"],
-                values["radius"],
-                values["normal"],
-                values["omega"],
-                phase=values.get("phase", 0.0),
-            )
+        return cls(**values), {"type": kind, **values}
     except BadInputError as exc:
         raise _wrap(ctx, "trajectory", values, exc) from None
-    return path, {"type": kind, **values}
 
 
 def _surface_path(
-    kind: str, values: dict[str, Any], raw: Mapping[str, Any], surfaces: list[Any], ctx: _Context
+    cls: Any, values: dict[str, Any], raw: Mapping[str, Any], surfaces: list[Any], ctx: _Context
 ) -> Any:
     """A waypoints or raster path on surface ``trajectory.surface`` (default 0); its refusals
     name the key and the value as written (``raw``), its PathWarnings the file and the key."""
     from hybrid_force.errors import PathWarning
-    from hybrid_force.geometry.raster import RasterPath
-    from hybrid_force.geometry.waypoints import WaypointPath
 
     index = values.get("surface", 0)
     params = {k: v for k, v in values.items() if k != "surface"}
@@ -291,7 +263,6 @@ def _surface_path(
             f"must be the index of a surface, 0 to {len(surfaces) - 1} (the scenario has "
             f"{len(surfaces)})",
         )
-    cls = WaypointPath if kind == "waypoints" else RasterPath
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", PathWarning)
@@ -339,24 +310,10 @@ def _controller_model(
     return own
 
 
-def _sensor_settings(table: object, ctx: _Context) -> Any:
-    from hybrid_force.sim.sensors import SensorSettings
-
-    values = _check_table(ctx, "sensor", table, _SENSOR)
-    try:
-        return SensorSettings(**values)
-    except BadInputError as exc:
-        raise _wrap(ctx, "sensor", values, exc) from None
-
-
 def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
     from hybrid_force.sim.contact import ContactSettings
 
-    values = _check_table(ctx, "contact", table, _CONTACT)
-    try:
-        contact = ContactSettings(**values)
-    except BadInputError as exc:
-        raise _wrap(ctx, "contact", values, exc) from None
+    contact = read_settings(ctx, "contact", ContactSettings, table)
     if not contact.ideal:  # the rules across tables, named by the [sim] key they are about
         from hybrid_force.sim.settings import Scenario
 
@@ -367,43 +324,6 @@ def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
     return contact
 
 
-def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
-    from hybrid_force.sim.dynamics import Baumgarte
-    from hybrid_force.sim.loop import SimSettings
-
-    for key in ("baumgarte_alpha", "baumgarte_beta", "settle_time"):
-        if key in values and values[key] < 0:
-            raise ctx.error(f"sim.{key}", values[key], "must be >= 0")
-    for key in ("duration", "dt", "model_mass_factor"):
-        if key in values and values[key] <= 0:
-            raise ctx.error(f"sim.{key}", values[key], "must be > 0")
-    defaults = Baumgarte()
-    kwargs: dict[str, Any] = {
-        k: values[k]
-        for k in (
-            "duration",
-            "dt",
-            "integrator",
-            "settle_time",
-            "unilateral",
-            "normalization",
-            "seed",
-            "torque_limits",
-            "joint_limits",
-            "joint_friction_velocity",
-        )
-        if k in values
-    }
-    kwargs["baumgarte"] = Baumgarte(
-        alpha=values.get("baumgarte_alpha", defaults.alpha),
-        beta=values.get("baumgarte_beta", defaults.beta),
-    )
-    try:
-        return SimSettings(**kwargs)
-    except BadInputError as exc:
-        raise _wrap(ctx, "sim", values, exc) from None
-
-
 def _control_settings(
     values: Mapping[str, Any],
     sim_values: Mapping[str, Any],
@@ -411,60 +331,44 @@ def _control_settings(
     k: int,
     ctx: _Context,
 ) -> Any:
-    from hybrid_force.control.laws.arimoto import make_gains
+    """[control] (with [sim]'s model_mass_factor) → ControlSettings; K_d against the arm's
+    joints and f_d against the k surfaces, named by their keys."""
+    from hybrid_force.control.laws.arimoto import check_damping_gain
     from hybrid_force.control.laws.base import law_names
     from hybrid_force.control.supervisor import ControlSettings
 
-    defaults = ControlSettings()
-    kwargs = dict(values)
-    kwargs.pop("model", None)  # the controller's own model: loaded by _controller_model
-    options = {law: kwargs.pop(law) for law in law_names() if law in kwargs}  # checked
-    if options:
-        kwargs["options"] = options
-    n = robot.nv
-    if "Kd" in kwargs:
+    merged: dict[str, Any] = {
+        key: tuple(v) if key == "f_d" and isinstance(v, list) else v
+        for key, v in values.items()
+        if key != "model" and key not in law_names()
+    }
+    if "model_mass_factor" in sim_values:
+        merged["mass_factor"] = sim_values["model_mass_factor"]
+    merged["options"] = {law: values[law] for law in law_names() if law in values}
+    if "Kd" in values:
         try:
-            make_gains(
-                kwargs["Kd"],
-                kwargs.get("Lambda", defaults.Lambda),
-                kwargs.get("beta", defaults.beta),
-                kwargs.get("gamma", defaults.gamma),
-                n,
-            )
+            check_damping_gain(values["Kd"], robot.nv)
         except BadInputError as exc:
             raise _wrap(ctx, "control", values, exc) from None
-        kwargs["Kd"] = np.asarray(kwargs["Kd"], dtype=float)
-    if "f_d" in kwargs:
-        f_d = kwargs["f_d"]
-        if isinstance(f_d, list):
-            if len(f_d) != k:
-                raise ctx.error(
-                    "control.f_d", f_d, f"must be a number or {k} numbers (one per surface)"
-                )
-            kwargs["f_d"] = tuple(f_d)
-    for key in ("Lambda", "gamma", "clik_gain", "max_dist", "contact_tol", "kd_rate"):
-        if key in kwargs and kwargs[key] <= 0:
-            raise ctx.error(f"control.{key}", kwargs[key], "must be > 0")
-    if "beta" in kwargs and kwargs["beta"] < 0:
-        raise ctx.error("control.beta", kwargs["beta"], "must be >= 0")
-    if "model_mass_factor" in sim_values:
-        kwargs["mass_factor"] = sim_values["model_mass_factor"]
+    f_d = values.get("f_d")
+    if isinstance(f_d, list) and len(f_d) != k:
+        raise ctx.error("control.f_d", f_d, f"must be a number or {k} numbers (one per surface)")
     try:
-        return ControlSettings(**kwargs)
+        control = ControlSettings(**merged)
     except BadInputError as exc:
-        merged = dict(values)
-        if "model_mass_factor" in sim_values and "mass_factor" in str(exc):
+        if "mass_factor" in str(exc):
             raise ctx.error(
-                "sim.model_mass_factor", sim_values["model_mass_factor"], str(exc)
+                "sim.model_mass_factor", sim_values.get("model_mass_factor"), str(exc)
             ) from None
-        raise _wrap(ctx, "control", merged, exc) from None
+        raise _wrap(ctx, "control", values, exc) from None
+    return control
 
 
 def _tool_settings(table: object, robot: Any, ctx: _Context) -> Any:
     """``[tool]``: the ToolSettings, refused for an arm with too few joints for its task."""
     from hybrid_force.control.tool import ToolSettings
 
-    values = _check_table(ctx, "tool", table, _TOOL)
+    values = _check_table(ctx, "tool", table, keys_of(ToolSettings))
     try:
         tool = ToolSettings(**values)
         tool.check_arm(robot)

@@ -13,7 +13,6 @@ from typing import Any
 import numpy as np
 
 from hybrid_force.errors import BadInputError, ReachError, ScenarioError
-from hybrid_force.geometry.paths import ON_SURFACE_TOL
 from hybrid_force.scenario._tables import _Context, _fmt, _wrap
 
 PATH_CHECK_STEP = 0.02
@@ -54,91 +53,6 @@ def _check_control_rate(
         control_steps(control, sim)
     except BadInputError as exc:
         raise ctx.error("control.rate", control_values.get("rate"), str(exc)) from None
-
-
-def _check_path_on_surfaces(
-    path: Any,
-    traj: Mapping[str, Any],
-    surfaces: list[Any],
-    tables: list[tuple[str, dict]],
-    duration: float,
-    ctx: _Context,
-) -> None:
-    from hybrid_force.geometry.paths import check_on_surface
-
-    for surface, (name, table) in zip(surfaces, tables, strict=True):
-        shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
-        where = ", ".join(f"{k} = {_fmt(v)}" for k, v in table.items())
-        try:
-            report = check_on_surface(path, surface, 0.0, duration)
-        except BadInputError as exc:  # e.g. Φ(p_d) not finite: name the file and the tables
-            raise ScenarioError(
-                f"{ctx.file}: {shown}: the trajectory cannot be checked against [{name}] "
-                f"({where}): {' '.join(str(exc).split())}"
-            ) from None
-        if report.worst_distance > ON_SURFACE_TOL:
-            p = [round(float(x), 6) for x in report.point_of_worst]
-            raise ScenarioError(
-                f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "
-                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
-                f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
-                f"[0, sim.duration = {duration:g} s]"
-            )
-
-
-def _check_start(
-    robot: Any,
-    q0: Any,
-    surfaces: list[Any],
-    control: Any,
-    key: str,
-    value: object,
-    ctx: _Context,
-) -> None:
-    p = robot.tip_position(q0)
-    d = np.array([float(s.distance(p)) for s in surfaces])
-    where = f"tip at {[round(float(x), 6) for x in p]}"
-    if not control.supervisor:
-        worst = float(np.abs(d).max())
-        if worst > control.contact_tol:
-            raise ctx.error(
-                key,
-                value,
-                f"the run starts in contact (control.supervisor = false) but the start is "
-                f"{worst:.3g} m from the surface ({where}); it must be within control.contact_tol "
-                f"= {control.contact_tol:g} m",
-            )
-    elif float(d.min()) < -control.contact_tol:
-        raise ctx.error(
-            key,
-            value,
-            f"the start is {-float(d.min()):.3g} m behind the surface, inside the solid "
-            f"({where}); start on the free side",
-        )
-
-
-def _check_stacked_rows(
-    robot: Any, q0: Any, surfaces: list[Any], tables: list[tuple[str, dict]], ctx: _Context
-) -> None:
-    """Stacked surfaces whose constraint rows n̂ᵀJ are dependent at the start are refused:
-    A M⁻¹ Aᵀ is singular there and the contact force undefined (two parallel planes)."""
-    from hybrid_force.control.constraint import Constraint, dependent_rows
-
-    if len(surfaces) < 2:
-        return
-    rows, _ = Constraint(list(surfaces)).normal_rows(robot.tip_position(q0), robot.jacobian(q0))
-    found = dependent_rows(rows)
-    if found is None:
-        return
-    involved, sigma = found
-    names = [tables[i][0] for i in involved]
-    raise ctx.table_error(
-        ", ".join(names),
-        f"the constraint rows n̂ᵀJ of these stacked surfaces are linearly dependent at the "
-        f"start (singular values {', '.join(f'{x:.3g}' for x in sigma)}; {len(surfaces)} rows "
-        f"for {robot.nv} joints): their contact forces are not determined; stack surfaces "
-        "whose normals, seen through the arm's Jacobian, are independent",
-    )
 
 
 def _check_controller(

@@ -8,6 +8,7 @@ A message names the file, the ``table.key`` and the offending value, the format
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
@@ -19,164 +20,65 @@ from dataclasses import dataclass
 from typing import Any
 
 from hybrid_force.control.laws.base import check_options, law_names
-from hybrid_force.control.tool import ORIENTATIONS, ROLLS
 from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
-
+from hybrid_force.schema import (
+    Key,
+    Param,
+    arguments,
+    default_of,
+    json_key,
+    json_table,
+    keys_of,
+    markdown_row,
+    specs,
+    with_tables,
+)
 
 # --- schema --------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Key:
-    """One key of a table: its kind of value and whether it is required.
-
-    kinds: "str", "number", "integer" (a whole number), "bool", "vec3" (3 numbers), "vector"
-    (a list of numbers),
-    "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
-    "points" (a list of lists of numbers),
-    "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
-    table of texts: strings, or numbers and booleans turned into their TOML text),
-    "law_table" (a control law's own settings, checked against the law's keys).
-    """
-
-    kind: str
-    required: bool = False
-    choices: tuple[str, ...] = ()
-
-
-_TOP: dict[str, _Key] = {"name": _Key("str", True), "description": _Key("str")}
+_TOP: dict[str, Key] = {"name": Key("str", True), "description": Key("str")}
 _TABLES = (
     "robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "contact", "sim",
     "tool",
 )  # fmt: skip
 
-_ROBOT: dict[str, _Key] = {
-    "model": _Key("str", True),
-    "tip": _Key("str"),
-    "package_dirs": _Key("str_list"),
-    "xacro_args": _Key("str_table"),
-    "lock_off_chain": _Key("bool"),
-    "xacro_trust": _Key("bool"),
+_ROBOT: dict[str, Key] = {
+    "model": Key("str", True),
+    "tip": Key("str"),
+    "package_dirs": Key("str_list"),
+    "xacro_args": Key("str_table"),
+    "lock_off_chain": Key("bool"),
+    "xacro_trust": Key("bool"),
 }
 
-_SURFACE_TYPES = ("cylinder", "sphere", "plane")
-_SURFACE: dict[str, dict[str, _Key]] = {
-    "cylinder": {
-        "radius": _Key("number", True),
-        "center": _Key("vec3"),
-        "axis": _Key("vec3"),
-        "inside": _Key("bool"),
-    },
-    "sphere": {"radius": _Key("number", True), "center": _Key("vec3"), "inside": _Key("bool")},
-    "plane": {"point": _Key("vec3", True), "normal": _Key("vec3", True)},
+_INITIAL: dict[str, Key] = {
+    "tip": Key("vec3"),
+    "seed": Key("vector"),
+    "q": Key("vector"),
+    "v": Key("vector"),
 }
 
-_PATH_TYPES = ("helix", "circle", "waypoints", "raster")
-_TRAJECTORY: dict[str, dict[str, _Key]] = {
-    "helix": {
-        "center": _Key("vec3", True),
-        "radius": _Key("number", True),
-        "axis": _Key("vec3"),
-        "omega": _Key("number", True),
-        "rise": _Key("number", True),
-        "phase": _Key("number"),
-    },
-    "circle": {
-        "center": _Key("vec3", True),
-        "radius": _Key("number", True),
-        "normal": _Key("vec3", True),
-        "omega": _Key("number", True),
-        "phase": _Key("number"),
-    },
-    # paths on a surface (hybrid_force.geometry.waypoints, .raster): `surface` is the index of
-    # the [[surfaces]] table they lie on
-    "waypoints": {
-        "points": _Key("points", True),
-        "speed": _Key("number", True),
-        "frame": _Key("choice", choices=("world", "surface")),
-        "surface": _Key("integer"),
-        "ramp": _Key("number"),
-        "u_axis": _Key("vec3"),
-        "projection_tol": _Key("number"),
-    },
-    "raster": {
-        "origin": _Key("vector", True),
-        "size": _Key("vector", True),
-        "spacing": _Key("number", True),
-        "speed": _Key("number", True),
-        "direction": _Key("choice", choices=("u", "v")),
-        "surface": _Key("integer"),
-        "ramp": _Key("number"),
-        "u_axis": _Key("vec3"),
-    },
-}
 
-_INITIAL: dict[str, _Key] = {
-    "tip": _Key("vec3"),
-    "seed": _Key("vector"),
-    "q": _Key("vector"),
-    "v": _Key("vector"),
-}
+def control_keys() -> dict[str, Key]:
+    """The keys of [control]: ControlSettings' declared fields, ``law`` one of the registered
+    laws, ``model`` (the controller's own model) and each law's table ``[control.<law>]``."""
+    from hybrid_force.control.supervisor import ControlSettings
 
-_CONTROL: dict[str, _Key] = {
-    "Kd": _Key("matrix"),
-    "kd_rate": _Key("number"),
-    "Lambda": _Key("number"),
-    "beta": _Key("number"),
-    "gamma": _Key("number"),
-    "f_d": _Key("number_or_vector"),
-    "clik_gain": _Key("number"),
-    "max_dist": _Key("number"),
-    "contact_tol": _Key("number"),
-    "P": _Key("number"),
-    "approach_rate": _Key("number"),
-    "supervisor": _Key("bool"),
-    "rate": _Key("number"),
-    "law": _Key("choice", choices=law_names()),
-    "model": _Key("str"),
-    # [control.<law>]: each law's own settings (hybrid_force.control.laws.base.LAWS)
-    **{name: _Key("law_table") for name in law_names()},
-}
+    keys = keys_of(ControlSettings)
+    keys["law"] = dataclasses.replace(keys["law"], kind="choice", choices=law_names())
+    keys["model"] = Key("str", param=Param("the controller's own model of the arm (the plant's)"))
+    table = Param("the law's own settings ([control.<law>], `hybrid-force laws --options`)")
+    return {**keys, **{name: Key("law_table", param=table) for name in law_names()}}
 
-_TOOL: dict[str, _Key] = {
-    "axis": _Key("vec3"),
-    "orientation": _Key("choice", choices=ORIENTATIONS),
-    "tilt": _Key("number"),
-    "tilt_axis": _Key("vec3"),
-    "roll": _Key("choice", choices=ROLLS),
-}
 
-_SIM: dict[str, _Key] = {
-    "duration": _Key("number"),
-    "dt": _Key("number"),
-    "integrator": _Key("choice", choices=("euler", "rk4")),
-    "baumgarte_alpha": _Key("number"),
-    "baumgarte_beta": _Key("number"),
-    "model_mass_factor": _Key("number"),
-    "settle_time": _Key("number"),
-    "unilateral": _Key("bool"),
-    "normalization": _Key("choice", choices=("tip", "joint")),
-    "seed": _Key("integer"),
-    "torque_limits": _Key("bool"),
-    "joint_limits": _Key("choice", choices=("report", "stop")),
-    "joint_friction_velocity": _Key("number"),
-}
+def sim_keys() -> dict[str, Key]:
+    """The keys of [sim]: SimSettings' declared fields (Baumgarte's flattened in) and the
+    controller's ``model_mass_factor`` (ControlSettings.mass_factor), which [sim] holds."""
+    from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.sim.settings import SimSettings
 
-_CONTACT: dict[str, _Key] = {
-    "model": _Key("choice", choices=("rigid", "compliant")),
-    "stiffness": _Key("number"),
-    "damping": _Key("number"),
-    "exponent": _Key("number"),
-    "friction": _Key("number"),
-    "friction_velocity": _Key("number"),
-}
-
-_SENSOR: dict[str, _Key] = {
-    "force_noise": _Key("number"),
-    "force_bias": _Key("number"),
-    "force_cutoff": _Key("number"),
-    "force_delay": _Key("integer"),
-    "joint_noise": _Key("number"),
-    "velocity_noise": _Key("number"),
-}
+    mass = {f.name: (f, spec) for f, spec in specs(ControlSettings)}["mass_factor"]
+    factor = Key("number", param=mass[1], default=default_of(mass[0]))
+    return {**keys_of(SimSettings), "model_mass_factor": factor}
 
 
 MAX_NESTING = 100
@@ -329,7 +231,7 @@ def _is_number(x: object) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
+def _check_value(ctx: _Context, key: str, value: object, spec: Key) -> object:
     """Check one value against its spec; return it as Python data (floats for numbers)."""
     kind = spec.kind
     if kind == "str":
@@ -381,7 +283,7 @@ def _check_value(ctx: _Context, key: str, value: object, spec: _Key) -> object:
             raise ctx.error(key, value, f"must be one of {list(spec.choices)}{hint}")
         return value
     if kind == "number":
-        return _number(ctx, key, value)
+        return _in_range(ctx, key, value, _number(ctx, key, value), spec.param)
     if kind == "integer":
         if isinstance(value, bool) or not isinstance(value, int):
             raise ctx.error(key, value, f"must be a whole number, got {_type_name(value)}")
@@ -428,6 +330,29 @@ def _number(ctx: _Context, key: str, value: object) -> float:
     return out
 
 
+def _in_range(ctx: _Context, key: str, raw: object, value: float, spec: Param | None) -> float:
+    """``value`` (``raw`` as written) within its declared range (``"must be > 0 [s]"``)."""
+    if spec is None:
+        return value
+    low, high, strict = spec.minimum, spec.maximum, spec.strict
+    unit = f" [{spec.unit}]" if spec.unit else ""
+    if (
+        low is not None
+        and high is not None
+        and not (low < value < high or (not strict and low <= value <= high))
+    ):
+        ends = "()" if strict else "[]"
+        raise ctx.error(key, raw, f"must be in {ends[0]}{low:g}, {high:g}{ends[1]}{unit}")
+    if low is not None and (value <= low if strict else value < low):
+        rule = (
+            "a positive number (> 0)"
+            if strict and low == 0
+            else f"{'>' if strict else '>='} {low:g}"
+        )
+        raise ctx.error(key, raw, f"must be {rule}{unit}")
+    return value
+
+
 def _vector(ctx: _Context, key: str, value: object, what: str) -> list[float]:
     if not isinstance(value, list):
         raise ctx.error(key, value, f"must be {what}, got {_type_name(value)}")
@@ -446,7 +371,7 @@ def _vector(ctx: _Context, key: str, value: object, what: str) -> list[float]:
 
 
 def _check_table(
-    ctx: _Context, name: str, table: object, schema: Mapping[str, _Key]
+    ctx: _Context, name: str, table: object, schema: Mapping[str, Key]
 ) -> dict[str, Any]:
     """Check a table's keys (unknown, missing) and values; return the checked values."""
     if not isinstance(table, dict):
@@ -472,8 +397,23 @@ def _check_table(
     return out
 
 
+def read_settings(
+    ctx: _Context, name: str, cls: type, table: object, values: Mapping[str, Any] | None = None
+) -> Any:
+    """The one reader of a settings table: [name] → an instance of dataclass ``cls`` (its
+    keys, kinds, ranges and defaults from the fields' :func:`~hybrid_force.schema.param`),
+    every refusal naming the file, ``name.key`` and the value. ``values``: the table already
+    checked (by :func:`_check_table` against :func:`declared_keys` and extra keys)."""
+    if values is None:
+        values = _check_table(ctx, name, table, keys_of(cls))
+    try:
+        return cls(**arguments(cls, values))
+    except BadInputError as exc:
+        raise _wrap(ctx, name, values, exc) from None
+
+
 def _typed_table(
-    ctx: _Context, name: str, table: object, types: Mapping[str, Mapping[str, _Key]]
+    ctx: _Context, name: str, table: object, types: Mapping[str, Mapping[str, Key]]
 ) -> tuple[str, dict[str, Any]]:
     """A table with a ``type`` key selecting its schema; returns (type, checked values)."""
     if not isinstance(table, dict):
@@ -703,3 +643,76 @@ def _drop_never_acting(doc: dict[str, Any], ctx: _Context) -> None:
                 ),
                 stacklevel=3,
             )
+
+
+# --- the reference: JSON Schema and docs tables, from the same keys ----------------------------
+def settings_tables() -> dict[str, dict[str, Key]]:
+    """The keys of every table with a fixed set of keys, by table name."""
+    from hybrid_force.control.tool import ToolSettings
+    from hybrid_force.sim.contact import ContactSettings
+    from hybrid_force.sim.sensors import SensorSettings
+
+    return {
+        "robot": _ROBOT,
+        "initial": _INITIAL,
+        "control": control_keys(),
+        "tool": keys_of(ToolSettings),
+        "sim": sim_keys(),
+        "sensor": keys_of(SensorSettings),
+        "contact": keys_of(ContactSettings),
+    }
+
+
+def typed_tables() -> dict[str, dict[str, dict[str, Key]]]:
+    """The keys of each registered surface and path type: {"surface": {type: keys}, ...}."""
+    from hybrid_force.geometry.paths import path_parameters, path_types
+    from hybrid_force.geometry.surface_base import surface_types
+
+    return {
+        "surface": {kind: keys_of(cls) for kind, cls in surface_types().items()},
+        "trajectory": {kind: keys_of(path_parameters(cls)) for kind, cls in path_types().items()},
+    }
+
+
+def json_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a scenario file (``hybrid-force schema``), from the
+    same declarations the reader uses."""
+    typed = {
+        name: {"oneOf": [json_table(keys, kind) for kind, keys in types.items()]}
+        for name, types in typed_tables().items()
+    }
+    tables = {name: json_table(keys) for name, keys in settings_tables().items()}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "hybrid_force scenario file (docs/scenarios.md)",
+        **json_table(_TOP),
+        "properties": {
+            **{name: json_key(key) for name, key in _TOP.items()},
+            "surface": typed["surface"],
+            "surfaces": {"type": "array", "minItems": 1, "items": typed["surface"]},
+            "trajectory": typed["trajectory"],
+            **tables,
+        },
+        "required": [*(k for k, v in _TOP.items() if v.required), "robot", "trajectory", "initial"],
+    }
+
+
+def markdown_tables() -> dict[str, str]:
+    """The key tables of docs/scenarios.md, by the name of their marker
+    (``<!-- generated: NAME -->`` ... ``<!-- end generated -->``)."""
+    head = "| key | type | default | meaning |\n|---|---|---|---|"
+    out = {
+        name: "\n".join([head, *(markdown_row(k, key) for k, key in keys.items())])
+        for name, keys in settings_tables().items()
+        if name not in ("robot", "initial")
+    }
+    for table, types in typed_tables().items():
+        for kind, keys in types.items():
+            rows = [markdown_row(k, key) for k, key in keys.items()]
+            out[f"{table}.{kind}"] = "\n".join([head, *rows])
+    return out
+
+
+def with_generated_tables(text: str) -> str:
+    """``text`` (docs/scenarios.md) with every generated block replaced by its table."""
+    return with_tables(text, markdown_tables())

@@ -37,7 +37,6 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force.errors import BadInputError, ScenarioError
-from hybrid_force.geometry.on_surface import reports_reused
 from hybrid_force.geometry.paths import (
     ON_SURFACE_TOL,  # re-exported: the loader's and Scenario's rule
 )
@@ -48,8 +47,6 @@ from hybrid_force.scenario._builders import (
     _controller_model,
     _initial,
     _robot,
-    _sensor_settings,
-    _sim_settings,
     _start_in_limits,
     _start_solver,
     _surfaces,
@@ -67,14 +64,9 @@ from hybrid_force.scenario._checks import (
     _check_controller,
     _check_law_loops,
     _check_path_followable,
-    _check_path_on_surfaces,
     _check_pose_followable,
-    _check_stacked_rows,
-    _check_start,
 )
 from hybrid_force.scenario._tables import (
-    _CONTROL,
-    _SIM,
     _TABLES,
     _TOP,
     _apply_overrides,
@@ -82,9 +74,13 @@ from hybrid_force.scenario._tables import (
     _check_table,
     _Context,
     _drop_never_acting,
+    _fmt,
     _suggest,
     check_nesting,
+    control_keys,
     parse_override,
+    read_settings,
+    sim_keys,
     xacro_argument_text,
 )
 
@@ -202,15 +198,14 @@ def scenario_from_document(
 
 
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-    # the path on the surfaces is checked here (to name the file) and again by Scenario (which
-    # checks a run built by hand too): scanned once (~0.01-0.03 s, most of a load)
     check_nesting(doc, ctx)  # overrides may nest too
-    with reports_reused():
-        return _build_checked(doc, file, ctx)
+    return _build_checked(doc, file, ctx)
 
 
 def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-    from hybrid_force.sim.loop import Scenario
+    from hybrid_force.sim.loop import Scenario, SimSettings
+    from hybrid_force.sim.sensors import SensorSettings
+    from hybrid_force.sim.settings import check_path_on_surfaces
 
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:
@@ -236,20 +231,23 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     robot = _robot(doc["robot"], file, ctx, doc["initial"])
     surfaces, surface_tables = _surfaces(doc, ctx)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
-    control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
-    sim_values = _check_table(ctx, "sim", doc.get("sim", {}), _SIM)
+    control_values = _check_table(ctx, "control", doc.get("control", {}), control_keys())
+    sim_values = _check_table(ctx, "sim", doc.get("sim", {}), sim_keys())
     _check_acting(doc, ctx)  # a key with no effect here: refused (or warned about and dropped)
-    control_values = _check_table(ctx, "control", doc.get("control", {}), _CONTROL)
-    sim = _sim_settings(sim_values, ctx)
+    sim = read_settings(ctx, "sim", SimSettings, None, sim_values)
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
     _drop_never_acting(doc, ctx)
-    sensor = _sensor_settings(doc.get("sensor", {}), ctx)
+    sensor = read_settings(ctx, "sensor", SensorSettings, doc.get("sensor", {}))
     contact = _contact_settings(doc.get("contact", {}), sim, ctx)
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
     controller_model = _controller_model(control_values, robot, file, ctx, trust)
     tool = _tool_settings(doc.get("tool", {}), robot, ctx)
     _check_control_rate(control, sim, control_values, ctx)
-    _check_path_on_surfaces(path, traj, surfaces, surface_tables, sim.duration, ctx)
+    if control.supervisor:  # a run that starts in contact: checked by Scenario
+        try:
+            check_path_on_surfaces(path, surfaces, sim.duration)
+        except BadInputError as exc:
+            raise _refusal(exc, traj, surface_tables, None, control, sim, ctx) from None
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     fastest = max((abs(float(x)) for x in v0), default=0.0) if v0 is not None else 0.0
     if fastest > sim.max_velocity:
@@ -267,21 +265,8 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             robot, q0, _start_solver(tool, robot, surfaces, path, doc["initial"]["tip"]),
             doc["initial"].get("seed"), start_key,
         )  # fmt: skip
-    _check_start(robot, q0, surfaces, control, start_key, start_value, ctx)
-    _check_stacked_rows(robot, q0, surfaces, surface_tables, ctx)
-    own = controller_model if controller_model is not None else robot
-    _check_controller(own, surfaces, path, q0, control, sim, control_values, ctx, tool)
-    if tool.controlled:
-        configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)
-    else:
-        configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
-    _check_law_loops(
-        robot, surfaces, configurations, q0, control, sim, sensor, controller_model,
-        control_values.get("model"), ctx,
-    )  # fmt: skip
-    _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
-    try:
-        return Scenario(
+    try:  # the start, the stacked rows (and the path of a run in contact): by Scenario
+        scenario = Scenario(
             robot=robot,
             surfaces=surfaces,
             path=path,
@@ -297,5 +282,76 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             contact=contact,
             tool=tool,
         )
-    except BadInputError as exc:  # a rule across tables (e.g. stacked surfaces need no approach)
-        raise ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}") from None
+    except BadInputError as exc:
+        start = (robot, q0, start_key, start_value)
+        raise _refusal(exc, traj, surface_tables, start, control, sim, ctx) from None
+    own = controller_model if controller_model is not None else robot
+    _check_controller(own, surfaces, path, q0, control, sim, control_values, ctx, tool)
+    if tool.controlled:
+        configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)
+    else:
+        configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
+    _check_law_loops(
+        robot, surfaces, configurations, q0, control, sim, sensor, controller_model,
+        control_values.get("model"), ctx,
+    )  # fmt: skip
+    _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
+    return scenario
+
+
+def _refusal(
+    exc: BadInputError,
+    traj: Mapping[str, Any],
+    tables: list[tuple[str, dict[str, Any]]],
+    start: tuple[Any, Any, str, object] | None,
+    control: Any,
+    sim: Any,
+    ctx: _Context,
+) -> ScenarioError:
+    """Scenario's refusal of the path, the start or the stacked surfaces (its ``key`` and
+    ``value``) as the file's: naming the file, the keys and their values. ``start``: (the
+    arm, q0, the start's key and its value as written)."""
+    key, value = exc.key, exc.value
+    if key == "Scenario.path" and isinstance(value, tuple):
+        i, report = value
+        name, table = tables[i]
+        shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
+        where = ", ".join(f"{k} = {_fmt(v)}" for k, v in table.items())
+        if report is None:  # e.g. Φ(p_d) not finite
+            problem = " ".join(str(exc).split()).split("): ", 1)[-1]
+            return ScenarioError(
+                f"{ctx.file}: {shown}: the trajectory cannot be checked against [{name}] "
+                f"({where}): {problem}"
+            )
+        p = [round(float(x), 6) for x in report.point_of_worst]
+        return ScenarioError(
+            f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "
+            f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
+            f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
+            f"[0, sim.duration = {sim.duration:g} s]"
+        )
+    if key == "Scenario.q0" and isinstance(value, tuple) and start is not None:
+        robot, q0, start_key, start_value = start
+        d = float(value[1])
+        where = f"tip at {[round(float(x), 6) for x in robot.tip_position(q0)]}"
+        if control.supervisor:
+            problem = (
+                f"the start is {-d:.3g} m behind the surface, inside the solid ({where}); "
+                "start on the free side"
+            )
+        else:
+            problem = (
+                "the run starts in contact (control.supervisor = false) but the start is "
+                f"{abs(d):.3g} m from the surface ({where}); it must be within "
+                f"control.contact_tol = {control.contact_tol:g} m"
+            )
+        return ctx.error(start_key, start_value, problem)
+    if key == "Scenario.surfaces" and isinstance(value, tuple):
+        names = ", ".join(tables[i][0] for i in value)
+        detail = " ".join(str(exc).split()).split("at q0 ", 1)[-1]
+        return ctx.table_error(
+            names,
+            "the constraint rows n̂ᵀJ of these stacked surfaces are linearly dependent at the "
+            f"start {detail}",
+        )
+    return ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}")

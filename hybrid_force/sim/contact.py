@@ -49,8 +49,8 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from hybrid_force import _checks as checks
 from hybrid_force.errors import ContactSettingsError
+from hybrid_force.schema import check_fields, param
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -89,31 +89,19 @@ class ContactSettings:
         friction_velocity: regularisation velocity ε [m/s] > 0 of the friction law.
     """
 
-    model: ContactModel = "rigid"
-    stiffness: float = 1e6
-    damping: float = 0.0
-    exponent: float = 1.0
-    friction: float = 0.0
-    friction_velocity: float = 1e-3
+    model: ContactModel = param("rigid", doc="rigid (Lagrange multiplier) or compliant")
+    stiffness: float = param(
+        1e6, unit="N/m^n", minimum=0.0, strict=True, doc="k of the compliant law"
+    )
+    damping: float = param(0.0, unit="s/m", minimum=0.0, doc="c of the compliant law")
+    exponent: float = param(1.0, minimum=1.0, doc="n of the compliant law")
+    friction: float = param(0.0, minimum=0.0, doc="Coulomb coefficient μ (0: frictionless)")
+    friction_velocity: float = param(
+        1e-3, unit="m/s", minimum=0.0, strict=True, doc="regularisation velocity ε of friction"
+    )
 
     def __post_init__(self) -> None:
-        checks.one_of(self.model, "contact.model", ContactSettingsError, ("rigid", "compliant"))
-        for name, minimum, strict, unit in (
-            ("stiffness", 0.0, True, "N/m^n"),
-            ("damping", 0.0, False, "s/m"),
-            ("exponent", 1.0, False, ""),
-            ("friction", 0.0, False, ""),
-            ("friction_velocity", 0.0, True, "m/s"),
-        ):
-            value = checks.number(
-                getattr(self, name),
-                f"contact.{name}",
-                ContactSettingsError,
-                minimum=minimum,
-                strict=strict,
-                unit=unit,
-            )
-            object.__setattr__(self, name, value)
+        check_fields(self, ContactSettingsError, "contact.")
 
     @property
     def compliant(self) -> bool:

@@ -33,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import SimSettingsError
+from hybrid_force.schema import check_fields, param
 
 _K = LazyKernels("hybrid_force.sim._kernels")
 
@@ -62,16 +62,15 @@ class Baumgarte:
     (``baumgarte_alpha``, ``baumgarte_beta``). Gains are stored as floats.
     """
 
-    alpha: float = 50.0
-    beta: float = 50.0
+    alpha: float = param(
+        50.0, unit="1/s", minimum=0.0, key="baumgarte_alpha", doc="Baumgarte α (section 6.2)"
+    )
+    beta: float = param(
+        50.0, unit="1/s", minimum=0.0, key="baumgarte_beta", doc="Baumgarte β (section 6.2)"
+    )
 
     def __post_init__(self) -> None:
-        for name in ("alpha", "beta"):
-            what = f"Baumgarte {name} (sim.baumgarte_{name})"
-            value = checks.number(
-                getattr(self, name), what, SimSettingsError, minimum=0, unit="1/s"
-            )
-            object.__setattr__(self, name, value)
+        check_fields(self, SimSettingsError, "sim.")
 
     def gamma(self, drift: np.ndarray, rate: np.ndarray, phi: np.ndarray) -> np.ndarray:
         """γ (k,) for pin.forwardDynamics: drift + 2α φ̇ + β² φ."""

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force import _checks as checks
 from hybrid_force.errors import SensorError
+from hybrid_force.schema import check_fields, param
 
 __all__ = ["MAX_FORCE_DELAY", "SensorSettings", "Sensors"]
 
@@ -52,33 +52,23 @@ class SensorSettings:
         velocity_noise: σ of the joint velocity noise [rad/s or m/s], ≥ 0.
     """
 
-    force_noise: float = 0.0
-    force_bias: float = 0.0
-    force_cutoff: float = 0.0
-    force_delay: int = 0
-    joint_noise: float = 0.0
-    velocity_noise: float = 0.0
+    force_noise: float = param(0.0, unit="N", minimum=0.0, doc="σ of the white force noise")
+    force_bias: float = param(0.0, unit="N", doc="constant force offset")
+    force_cutoff: float = param(
+        0.0, unit="Hz", minimum=0.0, doc="cut-off of the first-order low-pass (0: none)"
+    )
+    force_delay: int = param(
+        0, minimum=0, maximum=MAX_FORCE_DELAY, doc="delay of the force, in control periods"
+    )
+    joint_noise: float = param(
+        0.0, unit="rad or m", minimum=0.0, doc="σ of the joint position noise"
+    )
+    velocity_noise: float = param(
+        0.0, unit="rad/s or m/s", minimum=0.0, doc="σ of the joint velocity noise"
+    )
 
     def __post_init__(self) -> None:
-        def set_number(name: str, minimum: float | None, unit: str) -> None:
-            value = checks.number(
-                getattr(self, name), f"sensor.{name}", SensorError, minimum=minimum, unit=unit
-            )
-            object.__setattr__(self, name, value)
-
-        set_number("force_noise", 0.0, "N")
-        set_number("force_bias", None, "N")
-        set_number("force_cutoff", 0.0, "Hz")
-        set_number("joint_noise", 0.0, "rad or m")
-        set_number("velocity_noise", 0.0, "rad/s or m/s")
-        delay = checks.integer(
-            self.force_delay,
-            "sensor.force_delay (control periods)",
-            SensorError,
-            minimum=0,
-            maximum=MAX_FORCE_DELAY,
-        )
-        object.__setattr__(self, "force_delay", delay)
+        check_fields(self, SensorError, "sensor.")
 
     @property
     def ideal(self) -> bool:

@@ -19,57 +19,55 @@ from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surfaces import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.result import DEFAULT_SETTLE_TIME
+from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
 
-__all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
+__all__ = ["Integrator", "Scenario", "SimSettings", "check_path_on_surfaces", "control_steps"]
 
 Integrator = Literal["euler", "rk4"]
 
 
 @dataclass(frozen=True)
 class SimSettings:
-    """Settings of the simulation.
+    """Settings of the simulation: each field's unit, range and meaning are its
+    :func:`~hybrid_force.schema.param` (the ``[sim]`` table of docs/scenarios.md)."""
 
-    Attributes:
-        duration: simulated time [s].
-        dt: time step [s] (1 ms by default).
-        integrator: "euler" (semi-implicit) or "rk4" (command held over the step).
-        baumgarte: stabilisation gains (section 6.2).
-        unilateral: release the contact when the surface would have to pull (f < 0).
-        release_tol: f below −release_tol [N] releases.
-        max_velocity: |q̇_i| beyond this [rad/s or m/s] is a runaway.
-        max_force: |f| beyond this [N] is a runaway.
-        settle_time: metrics "after settling" start here [s].
-        normalization: constraint row scaling, "tip" (f in N) or "joint" (the paper's J_Φn).
-        seed: seed of the sensors' noise (an integer ≥ 0): a run with noisy sensors is
-            reproducible from it.
-        torque_limits: saturate the applied torque at the model's effort limits, where it
-            declares them (:attr:`Robot.effort_limits <hybrid_force.Robot.effort_limits>`);
-            False: apply the command as is (a demand beyond a limit is still reported).
-        joint_limits: "report" (a joint beyond its position or velocity limit is an event and
-            a warning) or "stop" (the run stops there, failed with reason "joint limit").
-        joint_friction_velocity: regularisation velocity ε [rad/s or m/s] > 0 of the joints'
-            Coulomb friction (the model's ``friction``, URDF ``<dynamics friction>``):
-            τ = −τ_c q̇/√(q̇² + ε²), the tip friction's law
-            (:func:`~hybrid_force.sim.contact.joint_dissipation`).
-    """
-
-    duration: float = 20.0
-    dt: float = 1e-3
-    integrator: Integrator = "euler"
-    baumgarte: Baumgarte = field(default_factory=Baumgarte)
-    unilateral: bool = True
-    release_tol: float = 1e-9
-    max_velocity: float = 1e3
-    max_force: float = 1e7
-    settle_time: float = DEFAULT_SETTLE_TIME
-    normalization: Literal["tip", "joint"] = "tip"
-    seed: int = 0
-    torque_limits: bool = True
-    joint_limits: Literal["report", "stop"] = "report"
-    joint_friction_velocity: float = 1e-3
+    duration: float = param(20.0, unit="s", minimum=0.0, strict=True, doc="simulated time")
+    dt: float = param(1e-3, unit="s", minimum=0.0, strict=True, doc="time step")
+    integrator: Integrator = param(
+        "euler", doc="euler (semi-implicit) or rk4 (command held over the step)"
+    )
+    baumgarte: Baumgarte = param(default_factory=Baumgarte, doc="stabilisation gains")
+    unilateral: bool = param(True, doc="release the contact where the surface would pull")
+    release_tol: float = param(
+        1e-9, unit="N", minimum=0.0, strict=True, toml=False, doc="f below −release_tol releases"
+    )
+    max_velocity: float = param(
+        1e3, unit="rad/s or m/s", minimum=0.0, strict=True, toml=False, doc="runaway speed"
+    )
+    max_force: float = param(
+        1e7, unit="N", minimum=0.0, strict=True, toml=False, doc="runaway force"
+    )
+    settle_time: float = param(
+        DEFAULT_SETTLE_TIME, unit="s", minimum=0.0, doc="metrics after settling start here"
+    )
+    normalization: Literal["tip", "joint"] = param(
+        "tip", doc="constraint row scaling: tip (f in N) or joint (the paper's J_Φn)"
+    )
+    seed: int = param(0, minimum=0, doc="seed of the sensors' noise")
+    torque_limits: bool = param(True, doc="saturate the torque at the model's effort limits")
+    joint_limits: Literal["report", "stop"] = param(
+        "report", doc="a joint beyond its limits: report (an event) or stop the run"
+    )
+    joint_friction_velocity: float = param(
+        1e-3,
+        unit="rad/s or m/s",
+        minimum=0.0,
+        strict=True,
+        doc="regularisation velocity of the joints' Coulomb friction",
+    )
 
     def __post_init__(self) -> None:
         """Check every field; numbers are stored as floats, flags as bools.
@@ -77,24 +75,9 @@ class SimSettings:
         Raises SimSettingsError (a BadInputError) naming the field as the scenario file's
         ``[sim]`` key spells it (``sim.dt``) with the value and what is valid.
         """
-        from hybrid_force import _checks as checks
         from hybrid_force.errors import SimSettingsError
 
-        for name, strict, unit in (
-            ("duration", True, "s"),
-            ("dt", True, "s"),
-            ("release_tol", True, "N"),
-            ("max_velocity", True, "rad/s or m/s"),
-            ("max_force", True, "N"),
-            ("settle_time", False, "s"),
-            ("joint_friction_velocity", True, "rad/s or m/s"),
-        ):
-            what = f"sim.{name}"
-            value = getattr(self, name)
-            value = checks.number(
-                value, what, SimSettingsError, minimum=0, strict=strict, unit=unit
-            )
-            object.__setattr__(self, name, value)
+        check_fields(self, SimSettingsError, "sim.")
         if self.dt > self.duration:
             raise SimSettingsError(
                 f"sim.dt = {self.dt} s is larger than sim.duration = {self.duration} s"
@@ -103,17 +86,6 @@ class SimSettings:
             raise SimSettingsError(
                 f"sim.duration / sim.dt = {self.duration / self.dt:.3g} steps is absurd (max 5e7)"
             )
-        for name, choices in (
-            ("integrator", ("euler", "rk4")),
-            ("normalization", ("tip", "joint")),
-            ("joint_limits", ("report", "stop")),
-        ):
-            checks.one_of(getattr(self, name), f"sim.{name}", SimSettingsError, choices)
-        for name in ("unilateral", "torque_limits"):
-            value = checks.flag(getattr(self, name), f"sim.{name}", SimSettingsError)
-            object.__setattr__(self, name, value)
-        seed = checks.integer(self.seed, "sim.seed", SimSettingsError, minimum=0)
-        object.__setattr__(self, "seed", seed)
         if not isinstance(self.baumgarte, Baumgarte):
             raise SimSettingsError(
                 "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.Baumgarte, "
@@ -157,9 +129,9 @@ class Scenario:
       (the run would stop as a runaway at once); K_d's size against the arm's joints and
       f_d's count against the surfaces;
     * a run that starts in contact (``control.supervisor`` False): the desired path within
-      ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration] (sampled by
-      :func:`~hybrid_force.geometry.paths.check_on_surface`) and the start tip p(q0) within
-      ``control.contact_tol`` of every surface;
+      ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration]
+      (:func:`check_path_on_surfaces`) and the start tip p(q0) within ``control.contact_tol``
+      of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
       stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
@@ -322,9 +294,13 @@ class Scenario:
             )
 
     def _check_start_and_path(self) -> None:
-        """The contact conditions of the start (class docstring), as the scenario loader's."""
+        """The contact conditions of the start and, for a run that starts in contact, the
+        path on every surface (class docstring): the one check of a run, a file's or one
+        built by hand. Each refusal is a ScenarioValueError whose ``key`` names the field
+        ("Scenario.path", "Scenario.q0", "Scenario.surfaces") and whose ``value`` holds what
+        the loader names: (surface index, OnSurfaceReport or None) (:func:`check_path_on_surfaces`),
+        (surface index, distance [m]), the row indices."""
         from hybrid_force.errors import ScenarioValueError as Bad
-        from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
         if k > 1 and control.supervisor:
@@ -343,28 +319,21 @@ class Scenario:
                 raise Bad(
                     f"Scenario.q0: {tip} is {-distances[i]:.3g} m behind surfaces[{i}] "
                     f"({surfaces[i]!r}), inside the solid; start on the free side (distance "
-                    f">= -control.contact_tol = {-control.contact_tol:g} m)"
+                    f">= -control.contact_tol = {-control.contact_tol:g} m)",
+                    key="Scenario.q0",
+                    value=(i, distances[i]),
                 )
             return
-        duration = self.sim.duration
-        for i, surface in enumerate(surfaces):
-            report = check_on_surface(self.path, surface, 0.0, duration)
-            if report.worst_distance > ON_SURFACE_TOL:
-                raise Bad(
-                    f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
-                    f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
-                    f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); a run that starts in "
-                    "contact (control.supervisor = False) needs the desired path within "
-                    f"ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
-                    f"[0, sim.duration = {duration:g} s]"
-                )
-        for i, d in enumerate(distances):
-            if abs(d) > control.contact_tol:
-                raise Bad(
-                    f"Scenario.q0: the run starts in contact (control.supervisor = False) but "
-                    f"{tip} is {d:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be within "
-                    f"control.contact_tol = {control.contact_tol:g} m of every surface"
-                )
+        check_path_on_surfaces(self.path, surfaces, self.sim.duration)
+        i = int(np.argmax(np.abs(distances)))
+        if abs(distances[i]) > control.contact_tol:
+            raise Bad(
+                f"Scenario.q0: the run starts in contact (control.supervisor = False) but "
+                f"{tip} is {distances[i]:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be "
+                f"within control.contact_tol = {control.contact_tol:g} m of every surface",
+                key="Scenario.q0",
+                value=(i, distances[i]),
+            )
         if k > 1:  # dependent rows: A M⁻¹ Aᵀ singular, the first step would fail in numpy
             from hybrid_force.control.constraint import Constraint, dependent_rows
 
@@ -375,9 +344,42 @@ class Scenario:
                 raise Bad(
                     f"Scenario.surfaces: the constraint rows n̂ᵀJ of {names} are linearly "
                     f"dependent at q0 (singular values "
-                    f"{', '.join(f'{x:.3g}' for x in found[1])}): their contact forces are not "
-                    "determined"
+                    f"{', '.join(f'{x:.3g}' for x in found[1])}; {k} rows for "
+                    f"{self.robot.nv} joints): their contact forces are not determined; stack "
+                    "surfaces whose normals, seen through the arm's Jacobian, are independent",
+                    key="Scenario.surfaces",
+                    value=tuple(found[0]),
                 )
+
+
+def check_path_on_surfaces(path: Path, surfaces: Sequence[Surface], duration: float) -> None:
+    """The desired path within ``ON_SURFACE_TOL`` of every surface over [0, duration] [s]:
+    ScenarioValueError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
+    None when the path cannot be checked against it)) otherwise."""
+    from hybrid_force.errors import BadInputError
+    from hybrid_force.errors import ScenarioValueError as Bad
+    from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
+
+    for i, surface in enumerate(surfaces):
+        try:
+            report = check_on_surface(path, surface, 0.0, duration)
+        except BadInputError as exc:  # e.g. Φ(p_d) not finite
+            raise Bad(
+                f"Scenario.path cannot be checked against surfaces[{i}] ({surface!r}): "
+                f"{' '.join(str(exc).split())}",
+                key="Scenario.path",
+                value=(i, None),
+            ) from None
+        if report.worst_distance > ON_SURFACE_TOL:
+            raise Bad(
+                f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
+                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
+                f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
+                f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
+                f"[0, sim.duration = {duration:g} s]",
+                key="Scenario.path",
+                value=(i, report),
+            )
 
 
 def control_steps(control: ControlSettings, sim: SimSettings) -> int:

@@ -79,23 +79,6 @@ def _thin_polyline(t: np.ndarray, points: np.ndarray, max_points: int) -> np.nda
     return idx[finite[idx]]
 
 
-class _OpenCylinderGeometry:
-    """Factory for a meshcat CylinderGeometry without end caps (a surface, not a solid)."""
-
-    @staticmethod
-    def make(height: float, radius: float) -> Any:
-        import meshcat.geometry as mg
-
-        class OpenCylinder(mg.Cylinder):
-            def lower(self, object_data: Any) -> dict[str, Any]:
-                out = super().lower(object_data)
-                out["openEnded"] = True
-                out["heightSegments"] = 1
-                return out
-
-        return OpenCylinder(height, radius)
-
-
 def motion_points(result: Result) -> np.ndarray:
     """(M, 3) the finite points of the run's actual and desired tip paths [m]."""
     pts = np.vstack([result.p, result.p_d])
@@ -162,38 +145,23 @@ def draw_static(vis: Any, replay: Replay) -> None:
 
 def _surface_geometry(surface: Any, pts: np.ndarray, margin: float) -> tuple[Any, np.ndarray]:
     """(meshcat geometry, 4×4 placement) of a surface patch sized around the motion's points
-    pts (M, 3), at least ``margin`` [m] beyond them."""
+    pts (M, 3), at least ``margin`` [m] beyond them: the surface's own grid
+    (``Surface.patch``) as a triangle mesh."""
     import meshcat.geometry as mg
 
-    kind = surface.kind
-    if kind == "cylinder":
-        axis = np.asarray(surface.axis, dtype=float)
-        center = np.asarray(surface.center, dtype=float)
-        along = (pts - center) @ axis if pts.size else np.zeros(1)
-        lo, hi = float(along.min()), float(along.max())
-        pad = max(margin, 0.1 * (hi - lo))
-        lo, hi = lo - pad, hi + pad
-        mid = center + 0.5 * (lo + hi) * axis
-        geom = _OpenCylinderGeometry.make(hi - lo, float(surface.radius))
-        return geom, _homogeneous(_rotation_onto(1, axis), mid)
-    if kind == "sphere":
-        return mg.Sphere(float(surface.radius)), _homogeneous(
-            translation=np.asarray(surface.center, dtype=float)
-        )
-    if kind == "plane":
-        normal = np.asarray(surface.normal_vector, dtype=float)
-        point = np.asarray(surface.point, dtype=float)
-        if pts.size:
-            centroid = pts.mean(axis=0)
-            foot = centroid - float((centroid - point) @ normal) * normal
-            rel = pts - foot
-            rel = rel - np.outer(rel @ normal, normal)
-            half = float(np.max(np.linalg.norm(rel, axis=1)))
-        else:
-            foot, half = point, 0.0
-        side = 2.0 * (half + max(margin, 0.1 * half))
-        return mg.Box([side, side, 0.004]), _homogeneous(_rotation_onto(2, normal), foot)
-    raise ViewerError(f"cannot draw surface type {kind!r}; valid: cylinder, sphere, plane")
+    grid = surface.patch(pts, margin)
+    if grid is None:
+        raise ViewerError(f"cannot draw surface {surface!r}: it gives no patch (Surface.patch)")
+    n, m, _ = grid.shape
+    corner = (np.arange(n - 1)[:, None] * m + np.arange(m - 1)[None, :]).ravel()
+    faces = np.concatenate(
+        [
+            np.stack([corner, corner + m, corner + 1], axis=1),
+            np.stack([corner + 1, corner + m, corner + m + 1], axis=1),
+        ]
+    )
+    vertices = np.ascontiguousarray(grid.reshape(-1, 3), dtype=np.float32)
+    return mg.TriangularMeshGeometry(vertices, faces.astype(np.uint32)), np.eye(4)
 
 
 def arrow_pose(
