@@ -353,7 +353,7 @@ class Scenario:
 
 
 def check_path_on_surfaces(path: Path, surfaces: Sequence[Surface], duration: float) -> None:
-    """The desired path within ``ON_SURFACE_TOL`` of every surface over [0, duration] [s]:
+    """The desired path within ``ON_SURFACE_TOL`` of every surface for 0 ≤ t ≤ duration [s]:
     ScenarioValueError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
     None when the path cannot be checked against it)) otherwise."""
     from hybrid_force.errors import BadInputError
