@@ -116,8 +116,8 @@ def _cmd_robots(args: argparse.Namespace) -> int:
     ]
     if given:
         raise BadInputError(f"robots: {', '.join(given)} needs --check MODEL")
+    from hybrid_force.model.loading import load_robot
     from hybrid_force.model.registry import known_robots
-    from hybrid_force.model.robot import load_robot
 
     rows: list[tuple[str, str, str, str]] = []
     for entry in known_robots():
@@ -228,7 +228,8 @@ _SIGNAL_STATUS = {"SIGINT": 130, "SIGTERM": 143}
 def _cmd_run(args: argparse.Namespace) -> int:
     """Load, run, summarise and save a scenario (see the module docstring)."""
     from hybrid_force.run_output import RunOutput
-    from hybrid_force.scenario.loader import load_scenario, parse_override
+    from hybrid_force.scenario._tables import parse_override
+    from hybrid_force.scenario.loader import load_scenario
     from hybrid_force.sim.loop import simulate
 
     # what the options ask for beyond the core, before anything runs (MissingExtraError, exit 2)
@@ -311,7 +312,7 @@ def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> i
         # a second interrupt while saving must not leave half a pair: the writes are atomic
         output.save(exc.result)
         if args.plot and status == 1:
-            from hybrid_force.viz.plots import PlotError
+            from hybrid_force.errors import PlotError
 
             try:
                 _plot_result(exc.result, output.folder, quiet=True)
@@ -326,7 +327,7 @@ def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> i
 
 
 def _plot_result(result: Any, out: Path, *, quiet: bool) -> list[Path]:
-    from hybrid_force.viz.plots import plot_result
+    from hybrid_force.viz.run_figures import plot_result
 
     files = plot_result(result, out)
     if not quiet:
@@ -356,7 +357,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
                 f"plotting the sweep {path} needs --x <table.key> and --metric <name> "
                 "(and optionally --y <table.key> for a heat map)"
             )
-        from hybrid_force.viz.plots import plot_sweep
+        from hybrid_force.viz.sweep_plots import plot_sweep
 
         # not made here: plot_sweep makes it once the table has been read (nothing left behind)
         out = Path(args.out) if args.out is not None else path.parent

@@ -23,18 +23,16 @@ from typing import Any
 import numpy as np
 
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
-from hybrid_force.events import EVENT_KINDS  # re-exported: the kinds a run records
+from hybrid_force.events import EVENT_KINDS
 from hybrid_force.law_log import check_law_log
-from hybrid_force.metrics import (  # re-exported: the metrics of a result, computed there
+from hybrid_force.metrics import (
     CONVERGE_TOLERANCE,
-    DEFAULT_SETTLE_TIME,
     Metrics,
     compute_metrics,
 )
 from hybrid_force.phases import Phase
-from hybrid_force.result_file import (  # re-exported: the file's schema
+from hybrid_force.result_file import (
     ARRAY_NAMES,
-    MAX_META_DEPTH,
     OPTIONAL_ARRAYS,
     meta_to_json,
     read_arrays,
@@ -42,20 +40,7 @@ from hybrid_force.result_file import (  # re-exported: the file's schema
 )
 from hybrid_force.result_summary import summarise
 
-__all__ = [
-    "ARRAY_NAMES",
-    "CONVERGE_TOLERANCE",
-    "DEFAULT_SETTLE_TIME",
-    "EVENT_KINDS",
-    "MAX_META_DEPTH",
-    "OPTIONAL_ARRAYS",
-    "PHASE_CONTACT",
-    "PHASE_FREE",
-    "PHASE_NEAR",
-    "Metrics",
-    "Result",
-    "load_result",
-]
+__all__ = ["PHASE_CONTACT", "PHASE_FREE", "PHASE_NEAR", "Result", "load_result"]
 
 #: Phase codes of the ``phase`` array.
 PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT

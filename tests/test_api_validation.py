@@ -28,31 +28,22 @@ from hybrid_force.errors import (
     ControlError,
     DimensionError,
     GainError,
+    PathParameterError,
     ScenarioValueError,
     SimSettingsError,
     SimulationError,
     SurfaceError,
     SurfaceParameterError,
 )
-from hybrid_force.geometry.paths import (
-    Circle,
-    FunctionPath,
-    Helix,
-    PathParameterError,
-    check_on_surface,
-    paper_helix,
-    path_from_dict,
-)
-from hybrid_force.geometry.surfaces import (
-    Cylinder,
-    FunctionSurface,
-    Plane,
-    Sphere,
-    surface_from_dict,
-)
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.function_surface import FunctionSurface
+from hybrid_force.geometry.on_surface import check_on_surface
+from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix, path_from_dict
+from hybrid_force.geometry.surfaces import surface_from_dict
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import Baumgarte
-from hybrid_force.sim.loop import Scenario, SimSettings
+from hybrid_force.sim.settings import Scenario, SimSettings
 
 # --- bad values, by what was expected ------------------------------------------------------------
 NOT_A_NUMBER: list[tuple[str, object]] = [

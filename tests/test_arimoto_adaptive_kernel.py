@@ -29,7 +29,7 @@ from hybrid_force.control.laws.arimoto_adaptive import (
 )
 from hybrid_force.control.laws.base import LawContext, build_law
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.geometry.surfaces import Plane, Sphere
+from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate

@@ -12,8 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybrid_force.cli import FeatureUnavailableError, _import_feature, _Progress, main
-from hybrid_force.result import Metrics, Result
+from hybrid_force.cli import _import_feature, _Progress, main
+from hybrid_force.errors import FeatureUnavailableError
+from hybrid_force.metrics import Metrics
+from hybrid_force.result import Result
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((REPO_ROOT / "scenarios").glob("*.toml"))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hybrid_force.control.laws import base
-from hybrid_force.geometry.surfaces import Cylinder, Plane
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane
 from hybrid_force.metrics import (
     compute_tracking_metrics,
     impact_force_peak,

@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.errors import SingularConfigurationError, SurfaceError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 
 NORMALIZATIONS = ("tip", "joint")

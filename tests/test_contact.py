@@ -21,7 +21,7 @@ from hybrid_force import load_robot, simulate
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import BadInputError, ContactSettingsError, ScenarioError
-from hybrid_force.geometry.surfaces import Plane
+from hybrid_force.geometry.builtin_surfaces import Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.contact import (
@@ -200,7 +200,7 @@ def _energy_residual(robot: Robot, contact: ContactSettings, dt: float) -> tuple
     """(W_u − ΔT − ΔV − E_f, E_f) [J] of 0.4 s of the RTR pressed onto the cylinder and driven
     round it by a constant torque on top of gravity."""
     from hybrid_force.control.clik import inverse_kinematics
-    from hybrid_force.geometry.surfaces import Cylinder
+    from hybrid_force.geometry.builtin_surfaces import Cylinder
 
     plant = Plant(robot, Constraint(Cylinder(0.4)), SimSettings(), 1e-5, contact)
     q = inverse_kinematics(robot, np.array([0.4, 0.0, 7.0]), seed=np.array([0.0, 6.0, 2.0]))

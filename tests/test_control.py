@@ -31,7 +31,8 @@ from hybrid_force.control.laws.arimoto import (
     make_gains,
 )
 from hybrid_force.errors import GainError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import Baumgarte, constrained_acceleration, kkt_reference
 

@@ -19,7 +19,8 @@ import pytest
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.errors import SimSettingsError, SimulationError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import (
     Baumgarte,

@@ -17,7 +17,9 @@ from hybrid_force.errors import (
     SurfaceError,
     SurfaceParameterError,
 )
-from hybrid_force.geometry.surfaces import FunctionSurface, Plane, Sphere, surface_from_dict
+from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
+from hybrid_force.geometry.function_surface import FunctionSurface
+from hybrid_force.geometry.surfaces import surface_from_dict
 
 A = 0.7
 

@@ -34,7 +34,7 @@ from hybrid_force.control.laws.impedance import (
     ImpedanceWorkspace,
 )
 from hybrid_force.errors import SingularConfigurationError
-from hybrid_force.geometry.surfaces import Plane, Sphere
+from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.phases import CONTACT, NEAR
 from hybrid_force.result import Result

@@ -18,7 +18,7 @@ import pytest
 
 from hybrid_force import simulate
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.geometry.surfaces import Plane
+from hybrid_force.geometry.builtin_surfaces import Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.plant import Plant, ReferencePlant

@@ -49,20 +49,17 @@ from hybrid_force.control.laws.arimoto import (
     free_space_law,
     make_gains,
 )
-from hybrid_force.control.supervisor import (
-    CONTACT,
-    FREE,
-    NEAR,
-    ControlSettings,
-    HybridController,
-    ReferenceController,
-)
+from hybrid_force.control.supervisor import ControlSettings, HybridController, ReferenceController
 from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
 from hybrid_force.geometry.paths import Path as TaskPath
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere, Surface
-from hybrid_force.model.robot import Robot, RobotTerms, load_robot
+from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.model.robot import reference_terms as _reference_terms
+from hybrid_force.phases import CONTACT, FREE, NEAR
 from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.settings import SimSettings
 

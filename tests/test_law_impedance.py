@@ -33,8 +33,8 @@ from hybrid_force.control.laws.impedance import (
 )
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import ControlError, GainError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane
 from hybrid_force.geometry.paths import Circle
-from hybrid_force.geometry.surfaces import Cylinder, Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario

@@ -11,11 +11,13 @@ from conftest import png_size
 
 from hybrid_force.control.laws.base import law_log_names
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
-from hybrid_force.result import ARRAY_NAMES, Result
+from hybrid_force.result import Result
+from hybrid_force.result_file import ARRAY_NAMES
 from hybrid_force.run_output import RunOutput
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
-from hybrid_force.viz.plots import FIGURE_NAMES, plot_result
+from hybrid_force.viz.figure_names import FIGURE_NAMES
+from hybrid_force.viz.run_figures import plot_result
 
 N = 40
 

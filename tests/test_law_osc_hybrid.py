@@ -34,7 +34,7 @@ from hybrid_force.control.laws.osc_hybrid import (
     task_space,
 )
 from hybrid_force.errors import ControlError, ScenarioError, SingularConfigurationError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.model.robot import LWA, Robot, reference_terms
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate

@@ -17,8 +17,8 @@ import pytest
 from conftest import RTR_MJCF
 
 from hybrid_force.errors import FrameError, URDFError
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.report import format_report, model_report
-from hybrid_force.model.robot import load_robot
 
 # one triangle: an STL file coal (the replay's mesh loader) reads
 _TRIANGLE_STL = (

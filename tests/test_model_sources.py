@@ -1,5 +1,5 @@
 """Bring your own robot: package folders and meshes, xacro files, MJCF files, and the joints
-off the arm's chain (hybrid_force.model.robot.load_robot, the replay's visuals).
+off the arm's chain (hybrid_force.model.loading.load_robot, the replay's visuals).
 
 Every model here is a small file written by the test. References are independent of the
 code under test: the closed-form kinematics and mass matrix of a planar two-link arm of thin
@@ -24,7 +24,6 @@ import pytest
 import umsgpack
 from conftest import ROD_MACRO, RTR_MJCF
 
-from hybrid_force import replay
 from hybrid_force.errors import (
     FrameError,
     ModelWarning,
@@ -33,10 +32,13 @@ from hybrid_force.errors import (
     URDFError,
     ViewerError,
 )
-from hybrid_force.geometry.surfaces import Plane
-from hybrid_force.model.robot import Robot, expand_xacro, load_robot
+from hybrid_force.geometry.builtin_surfaces import Plane
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot
+from hybrid_force.model.xacro_files import expand_xacro
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.viz import replay
 
 REPO = Path(__file__).resolve().parents[1]
 

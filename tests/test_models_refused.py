@@ -22,7 +22,7 @@ import pytest
 
 from hybrid_force.cli import main as cli_main
 from hybrid_force.errors import BadInputError, URDFError
-from hybrid_force.model.robot import load_robot
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.urdf_check import check_urdf
 
 

@@ -92,8 +92,8 @@ def test_public_calls_with_wrong_types_raise_errors_of_the_package() -> None:
     """Each of these raised a raw TypeError, ValueError or AttributeError, or returned NaN."""
     from hybrid_force import load_robot, simulate
     from hybrid_force.errors import HybridForceError
+    from hybrid_force.geometry.builtin_surfaces import Cylinder
     from hybrid_force.geometry.paths import Helix
-    from hybrid_force.geometry.surfaces import Cylinder
     from hybrid_force.result import Result
 
     robot = load_robot("rtr")
@@ -180,7 +180,7 @@ def test_scenario_built_in_python_refuses_dependent_rows_too(tmp_path: Path) -> 
     import dataclasses
 
     from hybrid_force.errors import ScenarioValueError
-    from hybrid_force.geometry.surfaces import Plane
+    from hybrid_force.geometry.builtin_surfaces import Plane
 
     # the tip stands still on the planes x = 0.4 and z = 5: independent rows, accepted
     text = TWO_PARALLEL_PLANES.replace("normal = [0.0, 0.0, -1.0]", "normal = [1.0, 0.0, 0.0]")

@@ -28,12 +28,13 @@ from hybrid_force.control.laws.osc_hybrid import (
 )
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import ControlError, SingularConfigurationError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 from hybrid_force.scenario.loader import load_scenario
-from hybrid_force.sim.loop import Scenario, simulate
-from hybrid_force.sim.settings import SimSettings
+from hybrid_force.sim.loop import simulate
+from hybrid_force.sim.settings import Scenario, SimSettings
 
 RTOL = 1e-12  # one step, relative to the scale of the reference array
 RUN_TOL = 1e-10  # whole runs

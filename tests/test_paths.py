@@ -11,16 +11,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybrid_force.errors import BadInputError, SurfaceError
+from hybrid_force.errors import BadInputError, PathParameterError, SurfaceError
 from hybrid_force.geometry import on_surface
+from hybrid_force.geometry.on_surface import OnSurfaceReport, check_on_surface
 from hybrid_force.geometry.paths import (
     Circle,
     FunctionPath,
     Helix,
-    OnSurfaceReport,
-    PathParameterError,
     axis_frame,
-    check_on_surface,
     paper_helix,
     path_from_dict,
 )

@@ -10,9 +10,9 @@ import pytest
 from conftest import assert_continuous_at, assert_derivatives_are_differences, path_breaks
 
 from hybrid_force.errors import PathParameterError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import path_from_dict
 from hybrid_force.geometry.raster import RasterPath
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.phases import CONTACT
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate

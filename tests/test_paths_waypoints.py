@@ -11,9 +11,10 @@ import pytest
 from conftest import assert_continuous_at, assert_derivatives_are_differences, path_breaks
 
 from hybrid_force.errors import PathParameterError, PathWarning, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import chart_for
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import path_from_dict
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere
 from hybrid_force.geometry.waypoints import WaypointPath
 from hybrid_force.phases import CONTACT
 from hybrid_force.scenario.loader import load_scenario

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from hybrid_force import phases, replay, result, supervisor
+from hybrid_force import phases, result
+from hybrid_force.control import supervisor
 from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES, Phase
-from hybrid_force.viz import _run_data
+from hybrid_force.viz import _run_data, replay
 
 
 def test_codes_names_and_labels() -> None:

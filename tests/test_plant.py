@@ -17,8 +17,8 @@ from hybrid_force import RunWarning, load_robot, simulate
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import JointLimitError
+from hybrid_force.geometry.builtin_surfaces import Cylinder
 from hybrid_force.geometry.paths import paper_helix
-from hybrid_force.geometry.surfaces import Cylinder
 from hybrid_force.model.robot import Robot, reference_terms
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.plant import Plant, ReferencePlant

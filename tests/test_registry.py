@@ -11,8 +11,8 @@ import pinocchio as pin
 import pytest
 
 from hybrid_force.errors import BadInputError, UnknownRobotError
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.registry import RobotEntry, bundled_robots_dir, known_robots, resolve_robot
-from hybrid_force.model.robot import load_robot
 from hybrid_force.model.urdf_check import check_urdf
 
 ENTRIES = known_robots()

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from hybrid_force.errors import ContactSettingsError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import chart_for
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.sim.removal import (
     FlatPad,
     HertzPad,

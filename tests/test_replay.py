@@ -22,12 +22,11 @@ import pinocchio as pin
 import pytest
 import umsgpack
 
-from hybrid_force import replay
 from hybrid_force.errors import BadInputError, ResultFileError, ViewerError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
-from hybrid_force.model.robot import load_robot
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.model.loading import load_robot
 from hybrid_force.result import Result
-from hybrid_force.viz import scene_objects
+from hybrid_force.viz import replay, scene_objects
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 

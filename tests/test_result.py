@@ -17,14 +17,9 @@ import numpy as np
 import pytest
 
 from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
-from hybrid_force.result import (
-    ARRAY_NAMES,
-    MAX_META_DEPTH,
-    Metrics,
-    Result,
-    load_result,
-)
-from hybrid_force.result_file import _json_depth
+from hybrid_force.metrics import Metrics
+from hybrid_force.result import Result, load_result
+from hybrid_force.result_file import ARRAY_NAMES, MAX_META_DEPTH, _json_depth
 
 SCHEMA_NAMES = {
     "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas", "u_cmd",

@@ -24,7 +24,8 @@ from hybrid_force.errors import (
     UnknownRobotError,
     URDFError,
 )
-from hybrid_force.model.robot import Robot, RobotTerms, load_robot
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot, RobotTerms
 
 ARMS = ("rtr", "ur5", "panda")
 

@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 from conftest import png_size
 
-from hybrid_force.errors import BadInputError
+from hybrid_force.errors import BadInputError, PlotError
 from hybrid_force.result import Result
 from hybrid_force.viz import _run_data, _wireframes, run_figures
-from hybrid_force.viz.plots import FIGURE_NAMES, PlotError, plot_result
+from hybrid_force.viz.figure_names import FIGURE_NAMES
+from hybrid_force.viz.run_figures import plot_result
 
 EXPECTED = (
     "path3d.png",

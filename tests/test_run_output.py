@@ -17,7 +17,7 @@ from hybrid_force.cli import main
 from hybrid_force.errors import OutputError
 from hybrid_force.result import Result
 from hybrid_force.run_output import RunOutput
-from hybrid_force.viz.plots import FIGURE_NAMES
+from hybrid_force.viz.figure_names import FIGURE_NAMES
 
 REPO = Path(__file__).resolve().parents[1]
 CONTACT = REPO / "scenarios" / "paper_contact.toml"

@@ -15,7 +15,6 @@ from hybrid_force import (
     Circle,
     ControlSettings,
     Cylinder,
-    DivergenceError,
     Plane,
     Result,
     Scenario,
@@ -25,8 +24,8 @@ from hybrid_force import (
     paper_helix,
     simulate,
 )
-from hybrid_force.control.supervisor import CONTACT
-from hybrid_force.errors import RunWarning
+from hybrid_force.errors import DivergenceError, RunWarning
+from hybrid_force.phases import CONTACT
 
 
 def _contact_scenario(robot, duration: float, **sim) -> Scenario:

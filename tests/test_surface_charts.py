@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from hybrid_force.errors import PathParameterError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import PlaneChart, chart_for
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.piecewise import blend_piece, natural_cubic_spline
 from hybrid_force.geometry.surface_path import TimeLaw
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere
 
 SURFACES = [
     Cylinder(0.4),

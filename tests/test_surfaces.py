@@ -23,14 +23,10 @@ from hybrid_force.errors import (
     SurfaceError,
     SurfaceParameterError,
 )
-from hybrid_force.geometry.surfaces import (
-    Cylinder,
-    FunctionSurface,
-    Plane,
-    Sphere,
-    Surface,
-    surface_from_dict,
-)
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.function_surface import FunctionSurface
+from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.geometry.surfaces import surface_from_dict
 
 EPS = np.finfo(np.float64).eps
 

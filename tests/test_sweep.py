@@ -20,20 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybrid_force.studies.sweep import (
-    MAX_RUNS,
-    METRIC_COLUMNS,
-    TIMING_COLUMNS,
-    SweepError,
-    add_sweep_arguments,
-    expand,
-    read_sweep_csv,
-    run_id,
-    run_one,
-    run_sweep,
-    split_values,
-    sweep_command,
-)
+from hybrid_force.errors import SweepError
+from hybrid_force.studies.sweep import add_sweep_arguments, run_sweep, sweep_command
+from hybrid_force.studies.table import METRIC_COLUMNS, TIMING_COLUMNS, read_sweep_csv
+from hybrid_force.studies.tasks import run_one
+from hybrid_force.studies.variants import MAX_RUNS, expand, run_id, split_values
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -187,7 +178,7 @@ def test_pool_and_dask_give_identical_rows(tmp_path: Path, scenario: Path) -> No
     assert info["n_variants"] == 4 and info["columns"] == cols_p
     assert not [p for p in (tmp_path / "pool").iterdir() if p.name.endswith(".tmp")]
     # a heat map / line plot of the CSV
-    from hybrid_force.viz.plots import plot_sweep
+    from hybrid_force.viz.sweep_plots import plot_sweep
 
     png = plot_sweep(pool_csv, tmp_path / "line.png", x="control.Lambda", metric="t_end")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
@@ -711,7 +702,7 @@ def test_a_xacro_model_is_expanded_by_the_sweep_and_sent_as_urdf(
     tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
 ) -> None:
     """The worker gets the expanded URDF text: it runs with the xacro files gone."""
-    from hybrid_force.studies.sweep import _execute, _Source
+    from hybrid_force.studies.tasks import _execute, _Source
 
     scen = _xacro_study(tmp_path, write_xacro_rtr)
     task = _Source(scen).job("r1", {"control.Lambda": 5.0}, keep=True)
@@ -730,7 +721,7 @@ def test_run_one_on_a_relative_xacro_model_names_it_and_its_arguments(
     tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
 ) -> None:
     from hybrid_force.result import Result
-    from hybrid_force.viz.replay import Replay
+    from hybrid_force.viz.scene import Replay
 
     scen = _xacro_study(tmp_path, write_xacro_rtr)
     keep = tmp_path / "keep"
@@ -796,7 +787,7 @@ def test_run_one_on_an_mjcf_model(tmp_path: Path) -> None:
 def _thread_settings() -> dict[str, str | None]:
     import os
 
-    from hybrid_force.studies.sweep import THREAD_VARIABLES
+    from hybrid_force.studies.engines import THREAD_VARIABLES
 
     return {name: os.environ.get(name) for name in THREAD_VARIABLES}
 
@@ -806,7 +797,7 @@ def test_workers_start_single_threaded_and_the_environment_is_restored(monkeypat
     import os
     from concurrent.futures import ProcessPoolExecutor
 
-    from hybrid_force.studies.sweep import THREAD_VARIABLES, single_threaded_workers
+    from hybrid_force.studies.engines import THREAD_VARIABLES, single_threaded_workers
 
     for name in THREAD_VARIABLES:
         monkeypatch.delenv(name, raising=False)

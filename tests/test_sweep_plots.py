@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 from conftest import png_size
 
+from hybrid_force.errors import PlotError
 from hybrid_force.viz import sweep_plots
-from hybrid_force.viz.plots import PlotError, plot_sweep
+from hybrid_force.viz.sweep_plots import plot_sweep
 
 
 def test_log_scale_rule() -> None:

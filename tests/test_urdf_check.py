@@ -14,7 +14,8 @@ import pinocchio as pin
 import pytest
 
 from hybrid_force.errors import BadInputError, ModelWarning, URDFError
-from hybrid_force.model.urdf_check import check_urdf, urdf_text
+from hybrid_force.model.urdf_check import check_urdf
+from hybrid_force.model.urdf_text import urdf_text
 
 _JOINT = (
     '<joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>'
@@ -256,7 +257,7 @@ def test_a_few_percent_off_the_triangle_inequality_loads_with_one_warning(
     """A published-URDF kind of error (moments 0.1, 0.2, 0.31: 3.2 % short) loads through
     load_robot with its one warning, and the arm simulates: M(q0) by hand is izz + m r² of
     the link about the joint's z axis = 0.31 + 1 · 0.5² = 0.56 kg m²."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     inertial = _inertial("1", "0.1", "0", "0", "0.2", "0", "0.31").replace(
         '<origin xyz="0 0 0"/>', '<origin xyz="0.5 0 0"/>'
@@ -354,7 +355,7 @@ def test_a_parser_complaint_on_a_model_that_loads_is_one_warning(
     """urdfdom skips a visual it cannot read and writes several lines on the C stderr: they
     become one ModelWarning naming the file, and nothing reaches stderr directly."""
     from hybrid_force.errors import ModelWarning
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     text = rtr_urdf.read_text().replace('<cylinder radius="0.03"', '<cylinder radius="abc"', 1)
     path = tmp_path / "arm.urdf"
@@ -412,7 +413,7 @@ def test_links_welded_to_the_root_are_not_checked(tmp_path: Path, case: str, whe
 def test_a_bad_root_inertial_does_not_change_the_dynamics(tmp_path: Path, case: str) -> None:
     """The same arm with and without the root's inertial: the same M(q), loaded silently.
     By hand: M = izz + m r² = 0.1 + 2 · 0.5² = 0.6 kg m² about j1."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     plain = load_robot(_write(tmp_path, _welded_arm(), "plain.urdf"))
     odd = load_robot(_write(tmp_path, _welded_arm(root=_BAD_INERTIALS[case]), "odd.urdf"))
@@ -424,7 +425,7 @@ def test_a_bad_root_inertial_does_not_change_the_dynamics(tmp_path: Path, case: 
 def test_a_massless_end_link_with_inertia_is_checked_and_warns(tmp_path: Path) -> None:
     """The flange is fixed to the moving arm, so it is simulated: mass 0 with izz = 0.05 warns
     once, names the flange, and adds 0.05 kg m² to M (0.6 + 0.05 by hand)."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     flange = _inertial("0", "0.05", "0", "0", "0.05", "0", "0.05")
     path = _write(tmp_path, _welded_arm(flange=flange))
@@ -549,7 +550,7 @@ def test_check_urdf_takes_the_text_it_is_given(tmp_path: Path) -> None:
 def test_load_robot_accepts_extension_tags_and_undeclared_prefixes(tmp_path: Path) -> None:
     """The loader builds from urdf_text: the extended file gives the plain file's dynamics
     (M = izz + m r² = 0.1 + 2 · 0.5² = 0.6 kg m² by hand), silently."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     plain, extended = _extended()
     robot = load_robot(_write(tmp_path, extended))

@@ -20,8 +20,9 @@ from conftest import ROD_MACRO, RTR_XACRO
 
 from hybrid_force.cli import main
 from hybrid_force.errors import ScenarioError, URDFError
-from hybrid_force.model.robot import expand_xacro, load_robot
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.xacro_eval import eval_expression
+from hybrid_force.model.xacro_files import expand_xacro
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
 
@@ -344,7 +345,7 @@ def _result_file(
 ) -> Path:
     """A short hand-made result of an nq-joint arm whose meta["robot"] is ``robot_meta``
     (and meta["scenario"] ``scenario``)."""
-    from hybrid_force.geometry.surfaces import Plane
+    from hybrid_force.geometry.builtin_surfaces import Plane
 
     t = np.arange(11) * 0.01
     q = np.column_stack([0.1 * np.sin(t + j) + (5.0 if j == 1 else 0.0) for j in range(nq)])
@@ -412,7 +413,7 @@ def test_a_run_stores_the_expansion_and_the_replay_uses_it(
 def test_replay_of_an_old_urdf_result_reads_the_urdf_as_data(tmp_path: Path) -> None:
     """Without a stored text, a plain URDF file is read again (no expansion of any kind)."""
     pytest.importorskip("meshcat")
-    from hybrid_force.viz.replay import Replay
+    from hybrid_force.viz.scene import Replay
 
     rtr = Path(__file__).resolve().parents[1] / "robots" / "rtr.urdf"
     old = _result_file(tmp_path, {"model": str(rtr), "tip": "tip", "nq": 3})

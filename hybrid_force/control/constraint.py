@@ -36,7 +36,7 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import SingularConfigurationError, SurfaceError
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot, RobotTerms
 
 _K = LazyKernels("hybrid_force.control._kernels")

@@ -23,7 +23,7 @@ import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms, Normalization
 from hybrid_force.errors import ControlError, SingularConfigurationError
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 
 __all__ = [

@@ -69,19 +69,11 @@ from hybrid_force.errors import ControlError, GainError, RunWarning
 from hybrid_force.events import Branch, Event, PhaseChange
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot, RobotTerms
-from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES, Phase
+from hybrid_force.phases import CONTACT, FREE, NEAR, Phase
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
-__all__ = [
-    "CONTACT",
-    "FREE",
-    "NEAR",
-    "PHASE_NAMES",
-    "ControlSettings",
-    "HybridController",
-    "ReferenceController",
-]
+__all__ = ["ControlSettings", "HybridController", "ReferenceController"]
 
 _BRANCH_PERIOD = 0.01  # [s] the wrong-branch check runs at most this often (seconds-long test)
 

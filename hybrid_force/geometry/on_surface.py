@@ -103,7 +103,7 @@ def check_on_surface(
     """Worst |d| [m] of ``path`` on ``surface`` over times t0 ≤ t ≤ t1 [s].
 
     surface: any object with ``distance(p: (3,) ndarray) -> float``, the signed metric
-    distance [m] (e.g. hybrid_force.geometry.surfaces.Cylinder). The span is sampled at
+    distance [m] (e.g. hybrid_force.geometry.builtin_surfaces.Cylinder). The span is sampled at
     ``samples`` (≥ 2) uniform times; the bracket around the worst sample is then refined
     by a golden-section search for the maximum of |d|, so the reported value is accurate
     to rounding even between samples as long as |d| has a single peak within one sample

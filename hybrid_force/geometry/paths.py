@@ -1,4 +1,4 @@
-"""Desired task-space paths p_d(t) (and, re-exported, the check that a path lies on a surface).
+"""Desired task-space paths p_d(t).
 
 A path gives the desired tool position p_d(t) (3,) [m] together with its velocity
 ṗ_d(t) (3,) [m/s] and acceleration p̈_d(t) (3,) [m/s²]; the closed-loop inverse
@@ -44,21 +44,16 @@ import numpy as np
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import PathParameterError, did_you_mean
-from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, OnSurfaceReport, check_on_surface
 from hybrid_force.geometry.surface_base import MAX_LENGTH
 
 _K = LazyKernels("hybrid_force.geometry._kernels")
 
 __all__ = [
-    "ON_SURFACE_TOL",
     "Circle",
     "FunctionPath",
     "Helix",
-    "OnSurfaceReport",
     "Path",
-    "PathParameterError",
     "axis_frame",
-    "check_on_surface",
     "paper_helix",
     "path_from_dict",
     "path_time",

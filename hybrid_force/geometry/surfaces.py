@@ -34,14 +34,7 @@ from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.surface_base import Surface, _fmt
 
-__all__ = [
-    "Cylinder",
-    "FunctionSurface",
-    "Plane",
-    "Sphere",
-    "Surface",
-    "surface_from_dict",
-]
+__all__ = ["surface_from_dict"]
 
 # --- from a dict -----------------------------------------------------------------------------
 _BUILT_INS: dict[str, tuple[type[Surface], tuple[str, ...], tuple[str, ...]]] = {

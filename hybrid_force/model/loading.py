@@ -69,7 +69,7 @@ def load_robot(
 
     Loading (see :mod:`hybrid_force.model.urdf_check` for every refusal):
 
-    1. a URDF is read by :func:`~hybrid_force.model.urdf_check.urdf_text` (undeclared namespace
+    1. a URDF is read by :func:`~hybrid_force.model.urdf_text.urdf_text` (undeclared namespace
        prefixes declared); it, or xacro's expansion, goes through
        :func:`~hybrid_force.model.urdf_check.check_urdf` (structure, inertial data, no floating or
        planar joint, at least one moving joint) before Pinocchio sees it. An MJCF file: no
@@ -132,7 +132,7 @@ def load_robot(
             that is not a finite number within the joint's range.
     """
     from hybrid_force.model.registry import resolve_robot
-    from hybrid_force.model.urdf_check import urdf_text
+    from hybrid_force.model.urdf_text import urdf_text
 
     given = _absolute_dirs(package_dirs)
     args = _xacro_arguments(xacro_args)
@@ -477,7 +477,7 @@ def _build_model(
 
     Args:
         path: the model file (named in messages; read when ``xml`` is None).
-        xml: the URDF text (:func:`~hybrid_force.model.urdf_check.urdf_text` of ``path``, or
+        xml: the URDF text (:func:`~hybrid_force.model.urdf_text.urdf_text` of ``path``, or
             xacro's expansion of it), or None.
 
     Returns:

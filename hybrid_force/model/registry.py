@@ -185,7 +185,7 @@ def known_robots() -> list[RobotEntry]:
 def resolve_robot(name: str) -> RobotEntry:
     """Return the registry entry called ``name``.
 
-    A name is never a file: :func:`hybrid_force.model.robot.load_robot` sends here every text that
+    A name is never a file: :func:`hybrid_force.model.loading.load_robot` sends here every text that
     neither ends with ``.urdf`` nor holds a path separator, even if a file of that name exists
     in the working directory.
 

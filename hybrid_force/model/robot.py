@@ -29,7 +29,6 @@ everything :func:`load_robot` needs for it (package folders, xacro arguments, lo
 
 This module holds the arm (:class:`Robot`, :class:`RobotTerms`); the loading steps are in
 :mod:`hybrid_force.model.loading`, xacro's expansion in :mod:`hybrid_force.model.xacro_files`.
-Their public names are re-exported here.
 """
 
 from __future__ import annotations
@@ -45,27 +44,11 @@ import pinocchio as pin
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import DimensionError, FrameError, RobotError
 from hybrid_force.model.loading import (
-    MODEL_SUFFIXES,
     _default_tip,
-    load_robot,
-    model_kind,
-    robot_from_text,
 )
 from hybrid_force.model.loading import _is_path as _is_path  # the scenario loader's import
-from hybrid_force.model.xacro_files import expand_xacro, find_package
 
-__all__ = [
-    "LWA",
-    "MODEL_SUFFIXES",
-    "Robot",
-    "RobotTerms",
-    "expand_xacro",
-    "find_package",
-    "load_robot",
-    "model_kind",
-    "reference_terms",
-    "robot_from_text",
-]
+__all__ = ["LWA", "Robot", "RobotTerms", "reference_terms"]
 _K = LazyKernels("hybrid_force.model._kernels")
 
 
@@ -317,9 +300,9 @@ class Robot:
     @property
     def urdf_xml(self) -> str | None:
         """The URDF text the model was built from (None for an MJCF model): the file's text
-        as :func:`~hybrid_force.model.urdf_check.urdf_text` reads it, or xacro's expansion."""
+        as :func:`~hybrid_force.model.urdf_text.urdf_text` reads it, or xacro's expansion."""
         if self._urdf_xml is None and self.kind != "mjcf":
-            from hybrid_force.model.urdf_check import urdf_text
+            from hybrid_force.model.urdf_text import urdf_text
 
             self._urdf_xml = urdf_text(self.urdf_path)
         return self._urdf_xml

@@ -10,7 +10,7 @@ the link or joint, and the offending values or the cause; the command line turns
 status 2 and one ``error: ...`` line (never a traceback, never a crash inside Pinocchio).
 Every warning names the file, the link and the values.
 
-**Reading**: :func:`~hybrid_force.model.urdf_text.urdf_text` (re-exported here) makes the file
+**Reading**: :func:`~hybrid_force.model.urdf_text.urdf_text` makes the file
 acceptable to every XML parser of the toolkit; :func:`check_urdf` checks that text.
 
 **Before parsing**, :func:`check_urdf` (Pinocchio's parser, urdfdom, reports structural errors
@@ -50,7 +50,7 @@ without inertia, which the mass-matrix check below refuses, naming the joint).
 to it by a chain of fixed joints. Pinocchio merges them into the universe, which never moves,
 so their inertial data never enters M, C or g (a massless or empty world link is the rule in
 published URDFs). If urdfdom cannot read such an inertial, it says so on stderr and drops it;
-:func:`hybrid_force.model.robot.load_robot` turns that into a ``ModelWarning``.
+:func:`hybrid_force.model.loading.load_robot` turns that into a ``ModelWarning``.
 
 **Tolerances, and why the line between refusal and warning is there.** The simulation needs
 each link's spatial inertia positive semi-definite: a negative principal moment is a body
@@ -91,7 +91,7 @@ algorithm that assumes nv > 0 runs:
   named with its master: Pinocchio 4 models mimic joints (``mimic=True``) as
   ``JointModelMimic``, which its forward and impulse dynamics refuse, and loading them as
   independent joints would simulate an arm that does not exist. Mimic joints *off* that chain
-  (gripper fingers) are not refused: :func:`hybrid_force.model.robot.load_robot` locks them (see
+  (gripper fingers) are not refused: :func:`hybrid_force.model.loading.load_robot` locks them (see
   there);
 * a mass matrix that is singular at the neutral configuration q0 (:func:`check_mass_matrix`,
   run by :class:`~hybrid_force.model.robot.Robot` for every model): M(q0) must have its smallest
@@ -115,7 +115,7 @@ import pinocchio as pin
 from hybrid_force.errors import ModelWarning, URDFError
 from hybrid_force.model.urdf_text import urdf_text
 
-__all__ = ["check_arm_model", "check_mass_matrix", "check_urdf", "urdf_text"]
+__all__ = ["check_arm_model", "check_mass_matrix", "check_urdf"]
 
 # Inertia tolerances [relative to the largest principal moment; kg m²]: module docstring.
 _PSD_REL_TOL = 1e-4

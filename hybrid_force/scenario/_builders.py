@@ -35,7 +35,7 @@ from hybrid_force.scenario._tables import (
 
 if TYPE_CHECKING:  # annotations only: the builders import these where they build them
     from hybrid_force.geometry.paths import Path as DesiredPath
-    from hybrid_force.geometry.surfaces import Surface
+    from hybrid_force.geometry.surface_base import Surface
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def resolve_control_model(
 def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
     """A model reference of a scenario: (the registry name, "name") or (the model file,
     resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""
-    from hybrid_force.model.robot import _is_path, model_kind
+    from hybrid_force.model.loading import _is_path, model_kind
 
     if not _is_path(model):
         return model, "name"
@@ -151,7 +151,7 @@ def _robot(table: object, file: Path, ctx: _Context, initial: object = None) -> 
     """The scenario's arm. When ``initial.q`` or ``initial.seed`` (the ``initial`` table)
     lists every joint of the model file and the loader locks some, it is loaded again with
     the locked joints held at their values there (:func:`_full_start`)."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     resolved = _robot_table(table, file, ctx)
     values = resolved.values
@@ -199,7 +199,7 @@ def _full_start(robot: Any, initial: object) -> tuple[str, dict[str, float]] | N
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
-    from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+    from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 
     if "surface" in doc and "surfaces" in doc:
         raise ctx.table_error(
@@ -317,7 +317,7 @@ def _controller_model(
     relative to the scenario file), with the plant's tip and joints; None when not given.
     ``trust``: ``robot.xacro_trust``, which covers a xacro ``control.model`` too."""
     from hybrid_force.control.controller import check_same_joints
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     if "model" not in control_values:
         return None
@@ -369,7 +369,7 @@ def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
 
 def _sim_settings(values: Mapping[str, Any], ctx: _Context) -> Any:
     from hybrid_force.sim.dynamics import Baumgarte
-    from hybrid_force.sim.loop import SimSettings
+    from hybrid_force.sim.settings import SimSettings
 
     for key in ("baumgarte_alpha", "baumgarte_beta", "settle_time"):
         if key in values and values[key] < 0:

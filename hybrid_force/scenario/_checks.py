@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from hybrid_force.errors import BadInputError, ReachError, ScenarioError
-from hybrid_force.geometry.paths import ON_SURFACE_TOL
+from hybrid_force.geometry.on_surface import ON_SURFACE_TOL
 from hybrid_force.scenario._tables import _Context, _fmt, _wrap
 
 PATH_CHECK_STEP = 0.02
@@ -48,7 +48,7 @@ def _check_contact_step(
 def _check_control_rate(
     control: Any, sim: Any, control_values: Mapping[str, Any], ctx: _Context
 ) -> None:
-    from hybrid_force.sim.loop import control_steps
+    from hybrid_force.sim.settings import control_steps
 
     try:
         control_steps(control, sim)
@@ -64,7 +64,7 @@ def _check_path_on_surfaces(
     duration: float,
     ctx: _Context,
 ) -> None:
-    from hybrid_force.geometry.paths import check_on_surface
+    from hybrid_force.geometry.on_surface import check_on_surface
 
     for surface, (name, table) in zip(surfaces, tables, strict=True):
         shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
@@ -157,7 +157,7 @@ def _check_controller(
     the loops against the plant are :func:`_check_law_loops`)."""
     from hybrid_force.control.constraint import Constraint
     from hybrid_force.control.supervisor import ReferenceController
-    from hybrid_force.sim.loop import control_steps
+    from hybrid_force.sim.settings import control_steps
 
     try:
         constraint = Constraint(surfaces, normalization=sim.normalization)
@@ -307,7 +307,7 @@ def _check_law_loops(
     first check that fails is refused, naming its key, its value and the bound.
     """
     from hybrid_force.control.laws.base import LoopContext, law_loop_bounds
-    from hybrid_force.sim.loop import control_steps
+    from hybrid_force.sim.settings import control_steps
 
     steps = control_steps(control, sim)
     period = steps * sim.dt

@@ -1,7 +1,7 @@
 """Scenario files: one TOML file describes one run (robot, surfaces, path, start, gains, sim).
 
 :func:`load_scenario` reads a file, applies ``--set``-style overrides, validates every table
-and key, and returns the :class:`hybrid_force.sim.loop.Scenario` that
+and key, and returns the :class:`hybrid_force.sim.settings.Scenario` that
 :func:`hybrid_force.sim.loop.simulate` runs. The format is documented in docs/scenarios.md.
 
 Validation is done up front so a bad file fails in milliseconds, not after a long run. Every
@@ -38,11 +38,7 @@ from typing import Any
 
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.on_surface import reports_reused
-from hybrid_force.geometry.paths import (
-    ON_SURFACE_TOL,  # re-exported: the loader's and Scenario's rule
-)
 from hybrid_force.scenario._builders import (
-    RobotTable,
     _contact_settings,
     _control_settings,
     _controller_model,
@@ -56,12 +52,8 @@ from hybrid_force.scenario._builders import (
     _tool_settings,
     _tool_start,
     _trajectory,
-    resolve_control_model,
-    resolve_robot_table,
 )
 from hybrid_force.scenario._checks import (
-    PATH_CHECK_SAMPLES,
-    PATH_CHECK_STEP,
     _check_contact_step,
     _check_control_rate,
     _check_controller,
@@ -84,24 +76,9 @@ from hybrid_force.scenario._tables import (
     _drop_never_acting,
     _suggest,
     check_nesting,
-    parse_override,
-    xacro_argument_text,
 )
 
-__all__ = [
-    "MAX_FILE_BYTES",
-    "ON_SURFACE_TOL",
-    "PATH_CHECK_SAMPLES",
-    "PATH_CHECK_STEP",
-    "RobotTable",
-    "load_scenario",
-    "parse_override",
-    "read_scenario_document",
-    "resolve_control_model",
-    "resolve_robot_table",
-    "scenario_from_document",
-    "xacro_argument_text",
-]
+__all__ = ["MAX_FILE_BYTES", "load_scenario", "read_scenario_document", "scenario_from_document"]
 
 MAX_FILE_BYTES = 1 << 20
 """Largest scenario file read [bytes]: a scenario is a page of text, never megabytes."""
@@ -144,7 +121,7 @@ def _parse_toml(text: str, where: str) -> dict[str, Any]:
 
 def load_scenario(
     path: str | Path, overrides: Mapping[str, object] | None = None
-) -> Any:  # -> hybrid_force.sim.loop.Scenario
+) -> Any:  # -> hybrid_force.sim.settings.Scenario
     """Read, override, validate a scenario file and return a ``Scenario`` ready to simulate.
 
     Args:
@@ -153,7 +130,7 @@ def load_scenario(
             the file's data before validation; they replace or add keys.
 
     Returns:
-        :class:`hybrid_force.sim.loop.Scenario` with ``source`` = the file's data with the
+        :class:`hybrid_force.sim.settings.Scenario` with ``source`` = the file's data with the
         overrides applied (JSON-able).
 
     Raises:
@@ -185,7 +162,7 @@ def read_scenario_document(
 
 def scenario_from_document(
     doc: Mapping[str, Any], *, origin: str = "<scenario>", base_dir: str | Path = "."
-) -> Any:  # -> hybrid_force.sim.loop.Scenario
+) -> Any:  # -> hybrid_force.sim.settings.Scenario
     """Validate scenario data (as :func:`read_scenario_document` returns) into a Scenario.
 
     Args:
@@ -210,7 +187,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 
 
 def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-    from hybrid_force.sim.loop import Scenario
+    from hybrid_force.sim.settings import Scenario
 
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:

@@ -55,7 +55,7 @@ from hybrid_force.errors import ContactSettingsError
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from hybrid_force.geometry.surfaces import Surface
+    from hybrid_force.geometry.surface_base import Surface
     from hybrid_force.model.robot import Robot
 
 __all__ = [

@@ -60,9 +60,9 @@ from hybrid_force.sim.run_checks import (
     warning_notes,
 )
 from hybrid_force.sim.run_report import finish_result, merge_events, run_failure, run_meta
-from hybrid_force.sim.settings import Scenario, SimSettings, control_steps
+from hybrid_force.sim.settings import Scenario
 
-__all__ = ["Scenario", "SimSettings", "control_steps", "simulate"]
+__all__ = ["simulate"]
 
 
 def simulate(

@@ -25,6 +25,7 @@ from hybrid_force.errors import (
     DivergenceError,
     HybridForceError,
     JointLimitError,
+    PathParameterError,
     ReachError,
     RunFailedError,
     RunInterruptedError,
@@ -32,7 +33,7 @@ from hybrid_force.errors import (
     SingularConfigurationError,
 )
 from hybrid_force.events import Event
-from hybrid_force.geometry.paths import Path, PathParameterError
+from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot
 from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result

@@ -16,9 +16,9 @@ from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import SensorError
 from hybrid_force.geometry.paths import Path
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.metrics import DEFAULT_SETTLE_TIME
 from hybrid_force.model.robot import Robot
-from hybrid_force.result import DEFAULT_SETTLE_TIME
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
@@ -122,8 +122,9 @@ class SimSettings:
         object.__setattr__(self, "seed", seed)
         if not isinstance(self.baumgarte, Baumgarte):
             raise SimSettingsError(
-                "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.Baumgarte, "
-                f"e.g. Baumgarte(alpha=50.0, beta=50.0), got {checks.shown(self.baumgarte)}"
+                "sim.baumgarte (SimSettings.baumgarte) must be a "
+                "hybrid_force.sim.dynamics.Baumgarte, e.g. "
+                f" Baumgarte(alpha=50.0, beta=50.0), got {checks.shown(self.baumgarte)}"
             )
 
 
@@ -164,7 +165,7 @@ class Scenario:
       f_d's count against the surfaces;
     * a run that starts in contact (``control.supervisor`` False): the desired path within
       ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration] (sampled by
-      :func:`~hybrid_force.geometry.paths.check_on_surface`) and the start tip p(q0) within
+      :func:`~hybrid_force.geometry.on_surface.check_on_surface`) and the start tip p(q0) within
       ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
@@ -212,7 +213,7 @@ class Scenario:
         if not isinstance(surfaces, Sequence) or isinstance(surfaces, str | bytes) or not surfaces:
             raise Bad(
                 "Scenario.surfaces must be a non-empty sequence (list, tuple) of "
-                f"hybrid_force.geometry.surfaces.Surface, got {checks.shown(surfaces)}"
+                f"hybrid_force.geometry.surface_base.Surface, got {checks.shown(surfaces)}"
             )
         for i, surface in enumerate(surfaces):
             if not isinstance(surface, Surface):
@@ -330,7 +331,7 @@ class Scenario:
     def _check_start_and_path(self) -> None:
         """The contact conditions of the start (class docstring), as the scenario loader's."""
         from hybrid_force.errors import ScenarioValueError as Bad
-        from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
+        from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_on_surface
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
         if k > 1 and control.supervisor:

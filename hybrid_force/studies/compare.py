@@ -346,7 +346,7 @@ With 1, 130 and 143, running the same command again resumes.
 
 def compare_command(args: argparse.Namespace) -> int:
     """``hybrid-force compare``; returns the exit status (see ``_EXIT_STATUS_HELP``)."""
-    from hybrid_force.scenario.loader import parse_override
+    from hybrid_force.scenario._tables import parse_override
 
     scenario = Path(args.scenario)
     if not scenario.is_file():

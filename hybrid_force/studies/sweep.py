@@ -71,11 +71,9 @@ from hybrid_force.studies.command_line import add_engine_arguments, run_stoppabl
 # The parts of a sweep live in their own modules; their public names (and the private ones
 # earlier versions of this module held) stay importable from here.
 from hybrid_force.studies.engines import (
-    THREAD_VARIABLES,
     DaskEngine,
     PoolEngine,
     StartMethod,
-    single_threaded_workers,
 )
 from hybrid_force.studies.engines import (
     _watch_parent as _watch_parent,
@@ -86,9 +84,7 @@ from hybrid_force.studies.resume import _check_same_scenario as _check_same_scen
 from hybrid_force.studies.table import (
     _CSV_NAME,
     _JSON_NAME,
-    METRIC_COLUMNS,
     STATUSES,
-    TIMING_COLUMNS,
     _file_sha256,
     _Table,
     _write_atomic,
@@ -96,35 +92,16 @@ from hybrid_force.studies.table import (
 )
 from hybrid_force.studies.tasks import _execute as _execute
 from hybrid_force.studies.tasks import _one_line as _one_line
-from hybrid_force.studies.tasks import _save_blob, _Source, _Task, run_one
+from hybrid_force.studies.tasks import _save_blob, _Source, _Task
 from hybrid_force.studies.variants import (
     MAX_RUNS,
     expand,
     parse_grid,
     parse_random,
     run_id,
-    split_values,
 )
 
-__all__ = [
-    "MAX_RUNS",
-    "METRIC_COLUMNS",
-    "STATUSES",
-    "THREAD_VARIABLES",
-    "TIMING_COLUMNS",
-    "SweepError",
-    "add_engine_arguments",
-    "add_sweep_arguments",
-    "expand",
-    "read_sweep_csv",
-    "run_id",
-    "run_one",
-    "run_stoppable",
-    "run_sweep",
-    "single_threaded_workers",
-    "split_values",
-    "sweep_command",
-]
+__all__ = ["add_sweep_arguments", "run_sweep", "sweep_command"]
 
 
 def run_sweep(

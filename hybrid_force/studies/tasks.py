@@ -186,7 +186,7 @@ class _Source:
 
     def _note_missing(self, doc: Mapping[str, Any]) -> None:
         """Record the model files the variant names that do not exist (their sha256 None)."""
-        from hybrid_force.model.robot import _is_path
+        from hybrid_force.model.loading import _is_path
 
         for name in ("robot", "control"):
             table = doc.get(name)
@@ -217,7 +217,7 @@ class _Source:
                 scenario loader does.
         """
         from hybrid_force.errors import ModelWarning, RobotError
-        from hybrid_force.model.robot import expand_xacro
+        from hybrid_force.model.xacro_files import expand_xacro
 
         cache = json.dumps([key, str(target), xacro_args, package_dirs, trust], sort_keys=True)
         if cache not in self._urdfs:
@@ -265,7 +265,7 @@ class _Source:
         """The file ``control.model`` names (relative to the scenario's folder), as
         ``hybrid-force run`` loads it (a xacro file without arguments); None for none or a
         registry arm."""
-        from hybrid_force.scenario.loader import resolve_control_model
+        from hybrid_force.scenario._builders import resolve_control_model
 
         found = resolve_control_model(doc, self.path, origin=self.origin)
         if found is None:
@@ -296,7 +296,7 @@ class _Source:
         expressions as data unless ``robot.xacro_trust`` (or ``--trust-xacro``); its failure
         is bad input naming ``robot.model``, as the scenario loader says it.
         """
-        from hybrid_force.scenario.loader import resolve_robot_table
+        from hybrid_force.scenario._builders import resolve_robot_table
 
         table = resolve_robot_table(doc, self.path, origin=self.origin)
         lock = table.values.get("lock_off_chain")

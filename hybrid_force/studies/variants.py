@@ -187,7 +187,7 @@ def split_values(text: str) -> list[str]:
 
 def parse_grid(items: Sequence[str]) -> dict[str, list[Any]]:
     """``--grid`` options (``table.key=v1,v2,...``, TOML values) → ``{key: [values]}``."""
-    from hybrid_force.scenario.loader import parse_override
+    from hybrid_force.scenario._tables import parse_override
 
     grid: dict[str, list[Any]] = {}
     for item in items:

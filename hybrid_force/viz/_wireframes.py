@@ -16,7 +16,9 @@ from typing import Any
 import numpy as np
 
 from hybrid_force.errors import PlotError, SurfaceParameterError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface, surface_from_dict
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.geometry.surfaces import surface_from_dict
 
 # --------------------------------------------------------------------------------------------
 # Geometry helpers

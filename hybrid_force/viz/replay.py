@@ -54,26 +54,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.result import Result
-from hybrid_force.viz.live_server import LiveServer, _serve_replay
-from hybrid_force.viz.robot_visuals import PLACEHOLDER_SIZE, visual_geometry
-from hybrid_force.viz.scene import PHASE_COLORS, Replay, ReplaySettings
+from hybrid_force.viz.live_server import _serve_replay
+from hybrid_force.viz.scene import Replay, ReplaySettings
 
-__all__ = [
-    "PHASE_COLORS",
-    "PHASE_NAMES",
-    "PLACEHOLDER_SIZE",
-    "LiveServer",
-    "Replay",
-    "ReplaySettings",
-    "html",
-    "replay_command",
-    "serve",
-    "show",
-    "visual_geometry",
-    "write_html",
-]
+__all__ = ["html", "replay_command", "serve", "show", "write_html"]
 
 
 def html(result_or_path: Result | str | os.PathLike[str], *, fps: float = 30.0) -> str:

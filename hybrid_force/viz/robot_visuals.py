@@ -18,7 +18,7 @@ __all__ = ["PLACEHOLDER_SIZE", "visual_geometry"]
 
 
 def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
-    """The :func:`~hybrid_force.model.robot.load_robot` options a result's meta records.
+    """The :func:`~hybrid_force.model.loading.load_robot` options a result's meta records.
 
     From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``,
     ``locked_positions``: what :attr:`~hybrid_force.model.robot.Robot.reference` gives). A key
@@ -60,7 +60,7 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
 def _toml_text(value: object) -> str | None:
     """A scenario's xacro argument as the loader passes it (a TOML number or boolean as its
     text), or None for a value the loader refuses."""
-    from hybrid_force.scenario.loader import xacro_argument_text
+    from hybrid_force.scenario._tables import xacro_argument_text
 
     try:
         return xacro_argument_text(value)

@@ -46,14 +46,14 @@ from hybrid_force.viz._run_data import (
 )
 from hybrid_force.viz._style import _legend_right, _new_figure, _note, _out_dir, _save_atomic
 from hybrid_force.viz._wireframes import _finite_points, _projection, _surface_mesh
-from hybrid_force.viz.figure_names import FIGURE_NAMES, LAW_LOG_FIGURE, OPTIONAL_FIGURE_NAMES
+from hybrid_force.viz.figure_names import FIGURE_NAMES, LAW_LOG_FIGURE
 from hybrid_force.viz.law_log_figure import law_log_figure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["FIGURE_NAMES", "OPTIONAL_FIGURE_NAMES", "PlotError", "plot_result"]
+__all__ = ["plot_result"]
 
 _MAX_3D_POINTS = 4000  # 3D/2D path lines are decimated to at most this many points
 _KIND_COLOURS = {

@@ -26,8 +26,7 @@ from hybrid_force.viz.html_page import _atomic_write_text, _RecordingWindow, _st
 from hybrid_force.viz.live_server import _serve_replay
 from hybrid_force.viz.robot_visuals import _load_options, visual_geometry
 from hybrid_force.viz.scene_animation import animate
-from hybrid_force.viz.scene_objects import (  # PHASE_COLORS re-exported
-    PHASE_COLORS,
+from hybrid_force.viz.scene_objects import (
     ROBOT_ROOT,
     ROOT,
     draw_static,
@@ -35,7 +34,7 @@ from hybrid_force.viz.scene_objects import (  # PHASE_COLORS re-exported
     set_camera,
 )
 
-__all__ = ["PHASE_COLORS", "Replay", "ReplaySettings"]
+__all__ = ["Replay", "ReplaySettings"]
 
 
 # --------------------------------------------------------------------------- settings
@@ -140,10 +139,10 @@ class Replay:
     # ------------------------------------------------------------------ loading
     def _load_robot(self) -> Any:
         """The run's arm: rebuilt from the model text ``meta["robot"]`` stores
-        (:func:`~hybrid_force.model.robot.robot_from_text`: no xacro file is expanded and the
+        (:func:`~hybrid_force.model.loading.robot_from_text`: no xacro file is expanded and the
         model file is not read), or a registry arm by its name. A result saved before results
         stored the text replays a plain URDF or MJCF file read again, never a xacro file."""
-        from hybrid_force.model.robot import _is_path, load_robot, model_kind, robot_from_text
+        from hybrid_force.model.loading import _is_path, load_robot, model_kind, robot_from_text
 
         info = self.result.meta.get("robot")
         if not isinstance(info, dict) or not isinstance(info.get("model"), str):

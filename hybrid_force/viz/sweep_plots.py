@@ -20,7 +20,7 @@ from hybrid_force.viz._style import _new_figure, _note, _out_dir, _save_atomic
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["MAX_SWEEP_BYTES", "PlotError", "plot_sweep"]
+__all__ = ["MAX_SWEEP_BYTES", "plot_sweep"]
 
 MAX_SWEEP_BYTES = 256 * 2**20
 """The largest sweep CSV read (256 MiB): a sweep has at most 100 000 runs (MAX_RUNS), a few

@@ -39,7 +39,7 @@ if TYPE_CHECKING:  # annotations only: the registry is read without importing an
     from hybrid_force.control.constraint import Constraint, ConstraintTerms
     from hybrid_force.control.laws.arimoto import Command, ControlTrace, Desired, Gains
     from hybrid_force.control.supervisor import ControlSettings
-    from hybrid_force.geometry.surfaces import Surface
+    from hybrid_force.geometry.surface_base import Surface
     from hybrid_force.model.robot import Robot, RobotTerms
 
 __all__ = [

@@ -109,7 +109,7 @@ from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext
 from hybrid_force.errors import ControlError
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import RobotTerms
 
 __all__ = [
