@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 
+from hybrid_force._version import installed_version
 from hybrid_force.control.clik import ClikSettings, inverse_kinematics
 from hybrid_force.control.controller import Controller, ControllerModel
 from hybrid_force.control.supervisor import ControlSettings
@@ -20,13 +21,13 @@ from hybrid_force.errors import (
     HybridForceError,
     MissingExtraError,
     ModelWarning,
-    PathParameterError,
+    PathError,
+    ReachError,
     RobotError,
     RunFailedError,
     RunWarning,
     ScenarioError,
     SurfaceError,
-    SweepError,
 )
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
@@ -63,7 +64,7 @@ _LAZY = {
 def __getattr__(name: str) -> object:
     value: object
     if name == "__version__":
-        value = _installed_version()
+        value = installed_version()
     else:
         module = _LAZY.get(name)
         if module is None:
@@ -71,16 +72,6 @@ def __getattr__(name: str) -> object:
         value = getattr(importlib.import_module(module), name)
     globals()[name] = value
     return value
-
-
-def _installed_version() -> str:
-    """One source: the version in pyproject.toml, as installed (importlib.metadata: ~0.02 s)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("hybrid_force")
-    except PackageNotFoundError:  # run from a source tree that is not installed
-        return "0+unknown"
 
 
 def __dir__() -> list[str]:
@@ -105,9 +96,10 @@ __all__ = [
     "MissingExtraError",
     "ModelWarning",
     "Path",
-    "PathParameterError",
+    "PathError",
     "Plane",
     "RasterPath",
+    "ReachError",
     "Replay",
     "Result",
     "Robot",
@@ -121,7 +113,6 @@ __all__ = [
     "Sphere",
     "Surface",
     "SurfaceError",
-    "SweepError",
     "ToolSettings",
     "WaypointPath",
     "__version__",

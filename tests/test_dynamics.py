@@ -18,7 +18,7 @@ import pinocchio as pin
 import pytest
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.errors import SimSettingsError, SimulationError
+from hybrid_force.errors import RunFailedError, ScenarioError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
@@ -174,9 +174,9 @@ def test_baumgarte_gamma_formula() -> None:
 )
 def test_baumgarte_rejects_bad_gains(alpha: object, beta: object, key: str) -> None:
     """Bad input, not a run-time failure: a BadInputError naming the [sim] key."""
-    with pytest.raises(SimSettingsError, match=key) as info:
+    with pytest.raises(ScenarioError, match=key) as info:
         Baumgarte(alpha=alpha, beta=beta)  # type: ignore[arg-type]
-    assert not isinstance(info.value, SimulationError)
+    assert not isinstance(info.value, RunFailedError)
 
 
 def test_baumgarte_closes_on_the_surface(rtr: Robot) -> None:

@@ -4,7 +4,7 @@
    surface (cylinder, sphere, plane, a FunctionSurface whose gradient stays in Python) and on
    two stacked planes (k = 2), both row scalings, k_P = 0 and > 0: every output (u0, B and the
    trace: a, F0, φ, Nᵀτ₀, Λ, J̄) within 1e-12 of the reference's scale;
-2. singular configurations: the same SingularConfigurationError with the same message;
+2. singular configurations: the same SurfaceError with the same message;
 3. whole 0.2 s runs (0.4 s for free → near → contact), the compiled law against the reference
    law in the same (compiled) loop, and against the all-numpy reference run: q, v, u, f within
    1e-10 of their scale.
@@ -27,7 +27,7 @@ from hybrid_force.control.laws.osc_hybrid import (
     osc_gains,
 )
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.errors import ControlError, SingularConfigurationError
+from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle
@@ -170,9 +170,9 @@ def test_a_rank_deficient_jacobian_raises_the_reference_error(smallest: float) -
         assert ref.last is not None
         _close("Λ at cond 1e10", fast.Lambda, ref.last.task.Lambda)
         return
-    with pytest.raises(SingularConfigurationError) as expected:
+    with pytest.raises(SurfaceError) as expected:
         ref.free_space(terms, v, v, d)
-    with pytest.raises(SingularConfigurationError) as got:
+    with pytest.raises(SurfaceError) as got:
         fast.free_space(terms, v, v, d)
     assert str(got.value) == str(expected.value)
     assert got.value.key == "control.law" and got.value.value == "osc_hybrid"
@@ -191,7 +191,7 @@ def test_the_rtr_stretched_or_folded_raises_the_reference_error(rtr: Robot, q3: 
     ref, fast = OscHybridLaw(gains, constraint), OscHybridWorkspace(gains, constraint, 3)
     messages = []
     for law in (ref, fast):
-        with pytest.raises(SingularConfigurationError) as info:
+        with pytest.raises(SurfaceError) as info:
             law.hybrid(terms, cons, v, v, d, np.zeros(1), np.ones(1), None)
         messages.append(str(info.value))
     assert messages[0] == messages[1]

@@ -10,6 +10,8 @@ import sys
 import tomllib
 from pathlib import Path
 
+import pytest
+
 import hybrid_force
 
 
@@ -194,3 +196,40 @@ def test_licence_file_is_the_bsd_3_clause_text_named_by_the_metadata() -> None:
     assert text.endswith("EVEN IF ADVISED OF THE POSSIBILITY OF SUCH DAMAGE.")
     # PEP 639: no licence classifier beside a licence expression
     assert not [c for c in project["classifiers"] if c.startswith("License ::")]
+
+
+def test_at_most_twelve_exception_classes_each_with_its_attributes() -> None:
+    import inspect
+
+    import hybrid_force.errors as errors
+    from hybrid_force import _checks
+
+    classes = [
+        value
+        for value in vars(errors).values()
+        if inspect.isclass(value)
+        and issubclass(value, Exception | Warning)
+        and value.__module__ == errors.__name__
+    ]
+    assert len(classes) <= 12, [c.__name__ for c in classes]
+    assert set(errors.__all__) >= {c.__name__ for c in classes}
+    assert set(errors.OWN_WARNINGS) == {c for c in classes if issubclass(c, Warning)}
+    bad = errors.BadInputError("m", key="surface.radius", value=-1.0, file="x.toml", choices="ab")
+    assert (bad.key, bad.value, bad.file, bad.choices) == (
+        "surface.radius",
+        -1.0,
+        "x.toml",
+        ("a", "b"),
+    )
+    with pytest.raises(errors.ScenarioError) as info:
+        _checks.one_of("spline", "sim.integrator", errors.ScenarioError, ("rk4", "euler"))
+    assert info.value.value == "spline" and info.value.choices == ("rk4", "euler")
+    failed = errors.RunFailedError("m", reason="interrupted")
+    assert (failed.reason, failed.result, failed.signal) == ("interrupted", None, "SIGINT")
+    assert (
+        errors.RunFailedError("m").reason == "error" and errors.RunFailedError("m").signal is None
+    )
+    missing = errors.MissingExtraError("m", module="matplotlib", extra="plots")
+    assert (missing.module, missing.extra, missing.key, missing.value) == (
+        "matplotlib", "plots", "extra", "plots"
+    )  # fmt: skip

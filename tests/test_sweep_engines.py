@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from hybrid_force.errors import SweepError
+from hybrid_force.errors import BadInputError
 from hybrid_force.studies import engines, sweep, table, tasks, variants
 from hybrid_force.studies.engines import CHUNK_SECONDS, _ChunkSize
 from hybrid_force.studies.sweep import run_sweep
@@ -233,7 +233,7 @@ def test_a_sweep_runs_each_variant_once_with_the_first_sent_ahead(
 
 
 def test_a_bad_start_method_is_refused(tmp_path: Path, scenario: Path) -> None:
-    with pytest.raises(SweepError, match="start_method"):
+    with pytest.raises(BadInputError, match="start_method"):
         run_sweep(scenario, [{}], out_dir=tmp_path / "o", start_method="thread")  # type: ignore[arg-type]
 
 
@@ -279,12 +279,12 @@ def test_a_run_stopped_by_a_signal_stops_the_sweep_with_that_signal(
     """In the sweep's own process (the warm-up before a fork, run_one), a run interrupted by
     SIGTERM raises Terminated (exit status 143), by Ctrl-C a KeyboardInterrupt (130)."""
     from hybrid_force._signals import Terminated
-    from hybrid_force.errors import RunInterruptedError
+    from hybrid_force.errors import RunFailedError
 
     def interrupted(*args: object, **kwargs: object) -> None:
-        raise RunInterruptedError("stopped", signal=sig)
+        raise RunFailedError("stopped", signal=sig, reason="interrupted")
 
-    monkeypatch.setattr("hybrid_force.sim.loop.simulate", interrupted)
+    monkeypatch.setattr("hybrid_force.studies.tasks.simulate", interrupted)
     task = tasks._Source(scenario).job(run_id({}), {}, keep=False)
     assert isinstance(task, tasks._Task)
     with pytest.raises(KeyboardInterrupt) as caught:

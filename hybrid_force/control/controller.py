@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms, Normalization
-from hybrid_force.errors import ControlError, SingularConfigurationError
+from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
 
@@ -84,7 +84,7 @@ class ControllerModel:
         terms = self.robot.terms(q, v, self.data, out=self._terms)
         try:
             return terms, self.constraint.evaluate(terms, v, out=self._cons)
-        except SingularConfigurationError:
+        except SurfaceError:
             return terms, None
 
 
@@ -95,5 +95,5 @@ class ReferenceControllerModel(ControllerModel):
         terms = reference_terms(self.robot, q, v)
         try:
             return terms, self.constraint.evaluate_reference(terms, v)
-        except SingularConfigurationError:
+        except SurfaceError:
             return terms, None

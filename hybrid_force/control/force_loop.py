@@ -40,6 +40,7 @@ from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
+from hybrid_force.control.constraint import Constraint
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 
@@ -110,7 +111,6 @@ def inverse_effective_mass(
             (e.g. the desired path). row: ``sim.normalization``, "tip" (n̂ᵀJ) or "joint"
             (the paper's unit row J_Φ/‖J_Φ‖).
     """
-    from hybrid_force.control.constraint import Constraint
 
     constraint = Constraint(list(surfaces))
     smallest = np.inf

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import PathParameterError, SurfaceError
+from hybrid_force.errors import PathError, SurfaceError
 
 if TYPE_CHECKING:
     from hybrid_force.geometry.paths import Path
@@ -80,7 +80,7 @@ def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray
         p = np.full(1, np.nan)
     # math.isfinite on the 3 floats: a fifth of np.isfinite(p).all()'s cost, 2001+ times a check
     if p.shape != (3,) or not all(map(math.isfinite, p.tolist())):
-        raise PathParameterError(
+        raise PathError(
             f"path {path!r} gives a non-finite or wrongly shaped position "
             f"{checks.shown(raw)} at t={t!r}"
         )
@@ -110,25 +110,23 @@ def check_on_surface(
     spacing of the worst sample. The time of the worst is less precise (about 1e-8·scale
     s, since |d| is flat at its peak: the golden search resolves t to ~√ε).
 
-    Raises PathParameterError if t0, t1 are not finite, t1 <= t0, or samples < 2;
+    Raises PathError if t0, t1 are not finite, t1 <= t0, or samples < 2;
     SurfaceError if the surface returns a non-finite distance.
     """
-    a = checks.number(t0, "check_on_surface.t0", PathParameterError, unit="s")
-    b = checks.number(t1, "check_on_surface.t1", PathParameterError, unit="s")
+    a = checks.number(t0, "check_on_surface.t0", PathError, unit="s")
+    b = checks.number(t1, "check_on_surface.t1", PathError, unit="s")
     if not b > a:
-        raise PathParameterError(f"check_on_surface.t1 must be > t0, got t0={t0!r}, t1={t1!r}")
-    n = checks.integer(samples, "check_on_surface.samples", PathParameterError, minimum=2)
+        raise PathError(f"check_on_surface.t1 must be > t0, got t0={t0!r}, t1={t1!r}")
+    n = checks.integer(samples, "check_on_surface.samples", PathError, minimum=2)
     if n > _MAX_SAMPLES:
-        raise PathParameterError(
-            f"check_on_surface.samples must be <= {_MAX_SAMPLES:.0e}, got {samples!r}"
-        )
+        raise PathError(f"check_on_surface.samples must be <= {_MAX_SAMPLES:.0e}, got {samples!r}")
     if not callable(getattr(path, "position", None)):
-        raise PathParameterError(
+        raise PathError(
             f"check_on_surface.path must be a Path (with position(t) -> (3,)), "
             f"got {checks.shown(path)}"
         )
     if not callable(getattr(surface, "distance", None)):
-        raise PathParameterError(
+        raise PathError(
             f"check_on_surface.surface must have a method distance(p) -> float, got {surface!r}"
         )
     reports = _REPORTS.get()

@@ -3,8 +3,8 @@
 :class:`Surface` is what the controller and the simulation use; the built-in surfaces are in
 :mod:`.builtin_surfaces`, the user-defined one in :mod:`.function_surface`, and the module
 :mod:`.surfaces` gathers them with the dict parser. The helpers below check constructor
-parameters (raising SurfaceParameterError naming the class, the parameter and the value) and
-points p (DimensionError or SurfaceError naming the surface and the method).
+parameters (raising SurfaceError naming the class, the parameter and the value) and
+points p (BadInputError or SurfaceError naming the surface and the method).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import DimensionError, SurfaceError, SurfaceParameterError
+from hybrid_force.errors import BadInputError, SurfaceError
 
 __all__ = ["MAX_LENGTH", "Surface"]
 
@@ -48,14 +48,14 @@ def _fmt(value: object) -> str:
 def _positive_float(owner: str, name: str, value: object, unit: str = "m") -> float:
     """Check that ``value`` is a finite real number > 0 (not a bool) and return it as a float."""
     what = f"{owner}: parameter '{name}'"
-    return checks.number(value, what, SurfaceParameterError, minimum=0.0, strict=True, unit=unit)
+    return checks.number(value, what, SurfaceError, minimum=0.0, strict=True, unit=unit)
 
 
 def _length(owner: str, name: str, value: object) -> float:
     """A positive length [m] of at most :data:`MAX_LENGTH` (a radius)."""
     out = _positive_float(owner, name, value)
     if out > MAX_LENGTH:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{owner}: parameter '{name}' must be at most MAX_LENGTH = {MAX_LENGTH:g} m, got "
             f"{_fmt(value)}"
         )
@@ -66,7 +66,7 @@ def _point3(owner: str, name: str, value: object) -> Vec3:
     """A point [m] (3 finite numbers), each coordinate within ±:data:`MAX_LENGTH`."""
     point = _vector3(owner, name, value)
     if max(abs(x) for x in point) > MAX_LENGTH:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{owner}: parameter '{name}' must have coordinates within ±MAX_LENGTH = "
             f"{MAX_LENGTH:g} m, got {_fmt(value)}"
         )
@@ -76,9 +76,9 @@ def _point3(owner: str, name: str, value: object) -> Vec3:
 def _vector3(owner: str, name: str, value: object) -> Vec3:
     """Check that ``value`` is 3 finite real numbers [m] and return them as a float tuple."""
     what = f"{owner}: parameter '{name}'"
-    array = checks.array(value, what, SurfaceParameterError, valid="3 finite real numbers")
+    array = checks.array(value, what, SurfaceError, valid="3 finite real numbers")
     if array.shape != (3,):
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{what} must have shape (3,), got shape {array.shape}: {checks.shown(value)}"
         )
     x, y, z = array.tolist()
@@ -94,7 +94,7 @@ def _direction(owner: str, name: str, value: object) -> Vec3:
     x, y, z = _vector3(owner, name, value)
     norm = math.hypot(x, y, z)
     if not norm >= _MIN_DIRECTION_NORM:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{owner}: parameter '{name}' must be a non-zero direction "
             f"(norm >= {_MIN_DIRECTION_NORM:g}), got {_fmt(value)} with norm {norm:g}"
         )
@@ -105,7 +105,7 @@ def _direction(owner: str, name: str, value: object) -> Vec3:
 
 def _boolean(owner: str, name: str, value: object) -> bool:
     """Check that ``value`` is a bool (Python or numpy), not a truthy 1 or "yes"."""
-    return checks.flag(value, f"{owner}: parameter '{name}'", SurfaceParameterError)
+    return checks.flag(value, f"{owner}: parameter '{name}'", SurfaceError)
 
 
 def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
@@ -119,11 +119,11 @@ def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
         try:
             array = np.asarray(p, dtype=np.float64)
         except (TypeError, ValueError, OverflowError) as exc:
-            raise DimensionError(
+            raise BadInputError(
                 f"{owner!r}.{method}: point p must be 3 numbers [m], got {_fmt(p)} ({exc})"
             ) from exc
         if array.shape != (3,):
-            raise DimensionError(
+            raise BadInputError(
                 f"{owner!r}.{method}: point p must have shape (3,), got shape {array.shape}: "
                 f"{_fmt(p)}"
             )
@@ -193,7 +193,7 @@ class Surface(abc.ABC):
     def normal(self, p: ArrayLike) -> np.ndarray:
         """Unit normal ∇Φ/‖∇Φ‖: (3,), pointing to the free side.
 
-        Raises SingularConfigurationError where ∇Φ (nearly) vanishes.
+        Raises SurfaceError where ∇Φ (nearly) vanishes.
         """
 
     @abc.abstractmethod

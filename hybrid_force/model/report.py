@@ -2,7 +2,7 @@
 
 :func:`model_report` loads a model exactly as a scenario does
 (:func:`hybrid_force.model.loading.load_robot`: every refusal is the same
-:class:`~hybrid_force.errors.URDFError`) and gathers, in a :class:`ModelReport`:
+:class:`~hybrid_force.errors.RobotError`) and gathers, in a :class:`ModelReport`:
 
 * the moving joints with their URDF type, position range and effort limit as the
   simulation reads them (:attr:`~hybrid_force.model.robot.Robot.position_limits`
@@ -49,6 +49,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.errors import HybridForceError, ModelWarning
+from hybrid_force.model.loading import load_robot
 
 __all__ = ["JointInfo", "MeshRef", "ModelReport", "Reach", "format_report", "model_report"]
 
@@ -186,10 +187,9 @@ def model_report(
             :func:`~hybrid_force.model.loading.load_robot` (the scenario's ``[robot]`` keys).
 
     Raises:
-        URDFError, UnknownRobotError, FrameError: as :func:`~hybrid_force.model.loading.load_robot`
+        RobotError, RobotError, RobotError: as :func:`~hybrid_force.model.loading.load_robot`
             (a model that cannot be simulated, an unknown name, a tip that is no frame).
     """
-    from hybrid_force.model.loading import load_robot
 
     options: dict[str, Any] = {
         "package_dirs": tuple(package_dirs),

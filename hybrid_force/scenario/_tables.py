@@ -18,9 +18,9 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from hybrid_force.control.laws.base import check_options, law_names
+from hybrid_force.control.laws.base import LAWS, check_options, law_names, law_spec
 from hybrid_force.control.tool import ORIENTATIONS, ROLLS
-from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
+from hybrid_force.errors import BadInputError, RunWarning, ScenarioError, did_you_mean
 
 
 # --- schema --------------------------------------------------------------------------------------
@@ -562,7 +562,6 @@ def _law_reads(gain: str, doc: Mapping[str, Any]) -> bool:
     """The chosen law reads ``control.<gain>`` (its registry entry's ``gains``, not replaced by
     a key of its table or of [control]); Λ is also the approach rate's default (supervised
     runs without ``control.approach_rate``)."""
-    from hybrid_force.control.laws.base import law_spec
 
     law = _law(doc)
     spec = law_spec(law)
@@ -577,7 +576,6 @@ def _law_reads(gain: str, doc: Mapping[str, Any]) -> bool:
 
 
 def _gain_needs(gain: str) -> str:
-    from hybrid_force.control.laws.base import LAWS
 
     readers = [name for name, spec in LAWS.items() if gain in spec.gains]
     replaced = {str(spec.gains[gain]) for spec in LAWS.values() if spec.gains.get(gain)}
@@ -689,7 +687,6 @@ def _check_acting(doc: Mapping[str, Any], ctx: _Context) -> None:
 def _drop_never_acting(doc: dict[str, Any], ctx: _Context) -> None:
     """Warn about a key of :data:`_NEVER_ACTS` (its value already checked) and drop it from
     ``doc`` (in place): the run's recorded scenario then does not list it."""
-    from hybrid_force.errors import RunWarning
 
     for dotted, why in _NEVER_ACTS.items():
         table, _, key = dotted.partition(".")

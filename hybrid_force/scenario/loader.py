@@ -77,6 +77,7 @@ from hybrid_force.scenario._tables import (
     _suggest,
     check_nesting,
 )
+from hybrid_force.sim.settings import Scenario
 
 __all__ = ["MAX_FILE_BYTES", "load_scenario", "read_scenario_document", "scenario_from_document"]
 
@@ -187,7 +188,6 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 
 
 def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-    from hybrid_force.sim.settings import Scenario
 
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:

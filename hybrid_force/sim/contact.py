@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import ContactSettingsError
+from hybrid_force.errors import ScenarioError, SurfaceError
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -97,7 +97,7 @@ class ContactSettings:
     friction_velocity: float = 1e-3
 
     def __post_init__(self) -> None:
-        checks.one_of(self.model, "contact.model", ContactSettingsError, ("rigid", "compliant"))
+        checks.one_of(self.model, "contact.model", ScenarioError, ("rigid", "compliant"))
         for name, minimum, strict, unit in (
             ("stiffness", 0.0, True, "N/m^n"),
             ("damping", 0.0, False, "s/m"),
@@ -108,7 +108,7 @@ class ContactSettings:
             value = checks.number(
                 getattr(self, name),
                 f"contact.{name}",
-                ContactSettingsError,
+                ScenarioError,
                 minimum=minimum,
                 strict=strict,
                 unit=unit,
@@ -288,7 +288,6 @@ def largest_stable_dt(
             joint path's samples.
         f0: the operating normal force [N] (the task's largest f_d).
     """
-    from hybrid_force.errors import SingularConfigurationError
 
     if not settings.compliant and settings.friction == 0.0:
         return math.inf
@@ -301,7 +300,7 @@ def largest_stable_dt(
         for surface in surfaces:
             try:
                 normal = surface.normal(terms.p)
-            except SingularConfigurationError:
+            except SurfaceError:
                 continue
             if settings.compliant:
                 best = min(best, stable_dt_compliant(settings, float(normal @ G @ normal), f0))

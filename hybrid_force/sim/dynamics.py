@@ -35,7 +35,7 @@ import pinocchio as pin
 
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import SimSettingsError
+from hybrid_force.errors import ScenarioError
 
 _K = LazyKernels("hybrid_force.sim._kernels")
 
@@ -58,7 +58,7 @@ class Baumgarte:
             off. Defaults give a 20 ms time constant, far slower than dt = 1 ms and far faster
             than the motion.
 
-    Raises SimSettingsError (a BadInputError) for a gain that is not a finite real number
+    Raises ScenarioError (a BadInputError) for a gain that is not a finite real number
     ≥ 0 (a bool, a string, nan, −1), naming it as the scenario file's ``[sim]`` key
     (``baumgarte_alpha``, ``baumgarte_beta``). Gains are stored as floats.
     """
@@ -69,9 +69,7 @@ class Baumgarte:
     def __post_init__(self) -> None:
         for name in ("alpha", "beta"):
             what = f"Baumgarte {name} (sim.baumgarte_{name})"
-            value = checks.number(
-                getattr(self, name), what, SimSettingsError, minimum=0, unit="1/s"
-            )
+            value = checks.number(getattr(self, name), what, ScenarioError, minimum=0, unit="1/s")
             object.__setattr__(self, name, value)
 
     def gamma(self, drift: np.ndarray, rate: np.ndarray, phi: np.ndarray) -> np.ndarray:

@@ -44,7 +44,7 @@ import numpy as np
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.controller import Controller
 from hybrid_force.control.laws.base import law_log_names
-from hybrid_force.errors import ControlError, LostContactError, ScenarioValueError
+from hybrid_force.errors import ControlError, RunFailedError, ScenarioError
 from hybrid_force.events import RunStopped
 from hybrid_force.law_log import NAMES_KEY as LAW_LOG_NAMES
 from hybrid_force.phases import CONTACT
@@ -85,9 +85,9 @@ def simulate(
     Raises:
         RunFailedError: the run started and stopped early, or ended in a state it must not
             claim as a success; ``err.result`` holds every sample computed, its meta has
-            ``status = "failed"`` and ``reason``. Subclasses: DivergenceError (non-finite
-            state, runaway, singular constraint), LostContactError (started in contact with
-            ``control.supervisor = false`` and ended off the surface), RunInterruptedError
+            ``status = "failed"`` and ``reason``. Subclasses: RunFailedError (non-finite
+            state, runaway, singular constraint), RunFailedError (started in contact with
+            ``control.supervisor = false`` and ended off the surface), RunFailedError
             (KeyboardInterrupt, i.e. Ctrl-C, or SIGTERM turned into one by the CLI); reason
             "path" when the desired path became singular or unreachable, "error" for any other
             exception (its type and message are in ``meta["error"]``).
@@ -99,7 +99,7 @@ def simulate(
             tool left the surface and was not back at the end (also in ``meta["warnings"]``).
     """
     if not isinstance(scenario, Scenario):  # not an AttributeError from deep inside
-        raise ScenarioValueError(
+        raise ScenarioError(
             f"simulate() takes a hybrid_force Scenario (load_scenario(...) or Scenario(...)), "
             f"got {scenario!r:.80}"
         )
@@ -196,9 +196,9 @@ def simulate(
                 if len(caught) > len(caught_at):  # a Python warning at this step: its time
                     caught_at.extend([t] * (len(caught) - len(caught_at)))
                 if not ok:
-                    check_finite(t, q, v, f, sim)  # raises DivergenceError with the details
+                    check_finite(t, q, v, f, sim)  # raises RunFailedError with the details
                 if stop_at is not None:
-                    stop_at.check(t, q, v)  # raises JointLimitError
+                    stop_at.check(t, q, v)  # raises RunFailedError
                 if i == N - 1:
                     break
                 if i == 1:
@@ -252,5 +252,5 @@ def simulate(
             f"(control.supervisor = false), left it at t = {left:.6g} s and ended off it"
         )
         failed = result.with_meta(status="failed", reason="lost contact", error=message)
-        raise LostContactError(message, result=failed)
+        raise RunFailedError(message, result=failed, reason="lost contact")
     return result

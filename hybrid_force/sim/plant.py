@@ -32,7 +32,7 @@ import pinocchio as pin
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import _GRAD_TOL, Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.errors import RobotError, SingularConfigurationError
+from hybrid_force.errors import RobotError, SurfaceError
 from hybrid_force.events import Event, Impact, Release, Touch
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms, reference_terms
@@ -177,7 +177,7 @@ class Plant:
         off the surface (e.g. the tip on a cylinder's axis).
 
         Raises:
-            SingularConfigurationError: the rows are undefined while in contact.
+            SurfaceError: the rows are undefined while in contact.
         """
         terms = self.robot.terms(q, v, self.data, out=self._terms)
         if self._dissipates:  # pin.forwardDynamics reads data.M, which crba just filled
@@ -187,7 +187,7 @@ class Plant:
     def _rows_or_none(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms | None:
         try:
             return self._constraint_terms(terms, v)
-        except SingularConfigurationError:
+        except SurfaceError:
             if self.in_contact:
                 raise
             return None
@@ -522,7 +522,7 @@ class Plant:
         row = self._row
         gn = _K.project_one(desc, self._tip, grad, phi, J6, q_tmp, q_out, row[0])
         if not gn >= _GRAD_TOL:
-            self._rows(q_tmp)  # raises the precise SingularConfigurationError
+            self._rows(q_tmp)  # raises the precise SurfaceError
         v_out[:] = pin.impulseDynamics(model, self._imp, q_out, v_tmp, row, 0.0, 0.0)
         return q_out, v_out
 

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import SensorError
+from hybrid_force.errors import ScenarioError
 
 __all__ = ["MAX_FORCE_DELAY", "SensorSettings", "Sensors"]
 
@@ -62,7 +62,7 @@ class SensorSettings:
     def __post_init__(self) -> None:
         def set_number(name: str, minimum: float | None, unit: str) -> None:
             value = checks.number(
-                getattr(self, name), f"sensor.{name}", SensorError, minimum=minimum, unit=unit
+                getattr(self, name), f"sensor.{name}", ScenarioError, minimum=minimum, unit=unit
             )
             object.__setattr__(self, name, value)
 
@@ -74,7 +74,7 @@ class SensorSettings:
         delay = checks.integer(
             self.force_delay,
             "sensor.force_delay (control periods)",
-            SensorError,
+            ScenarioError,
             minimum=0,
             maximum=MAX_FORCE_DELAY,
         )

@@ -1,7 +1,7 @@
 """Surface wireframes and the 2-D view of the run figures (pure numpy).
 
 The surface dicts of a result are read by :func:`hybrid_force.geometry.surfaces.surface_from_dict`,
-the one parser of a surface dict (a bad one is a PlotError naming its index).
+the one parser of a surface dict (a bad one is a BadInputError naming its index).
 
 Wireframes of the built-in surfaces (cylinder, sphere, plane) cover the part of the surface near
 the motion; :func:`_projection` chooses the plane of the paper's Fig. 3b.
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import PlotError, SurfaceParameterError
+from hybrid_force.errors import BadInputError, SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.geometry.surfaces import surface_from_dict
@@ -33,8 +33,8 @@ def _drawable(s: Mapping[str, Any], i: int) -> Surface | None:
         return None
     try:
         return surface_from_dict(s)
-    except SurfaceParameterError as exc:
-        raise PlotError(f"result meta['surfaces'][{i}] cannot be drawn: {exc}") from exc
+    except SurfaceError as exc:
+        raise BadInputError(f"result meta['surfaces'][{i}] cannot be drawn: {exc}") from exc
 
 
 def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -13,8 +13,9 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 
-from hybrid_force.errors import HybridForceError, ViewerError
+from hybrid_force.errors import BadInputError, HybridForceError
 from hybrid_force.phases import PHASE_NAMES
 
 if TYPE_CHECKING:  # annotations only: the Replay imports this module
@@ -38,7 +39,6 @@ ROBOT_ROOT = "robot"
 def _rotation_onto(axis: int, direction: np.ndarray) -> np.ndarray:
     """Rotation matrix (3, 3) that maps the unit vector of ``axis`` (0 x, 1 y, 2 z) onto the
     unit vector along ``direction`` (3,)."""
-    import pinocchio as pin
 
     d = np.asarray(direction, dtype=float)
     d = d / np.linalg.norm(d)
@@ -193,7 +193,7 @@ def _surface_geometry(surface: Any, pts: np.ndarray, margin: float) -> tuple[Any
             foot, half = point, 0.0
         side = 2.0 * (half + max(margin, 0.1 * half))
         return mg.Box([side, side, 0.004]), _homogeneous(_rotation_onto(2, normal), foot)
-    raise ViewerError(f"cannot draw surface type {kind!r}; valid: cylinder, sphere, plane")
+    raise BadInputError(f"cannot draw surface type {kind!r}; valid: cylinder, sphere, plane")
 
 
 def arrow_pose(

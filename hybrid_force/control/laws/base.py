@@ -31,7 +31,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from hybrid_force.errors import ControlError, GainError, did_you_mean
+from hybrid_force.control.constraint import Constraint
+from hybrid_force.errors import ControlError, did_you_mean
 
 if TYPE_CHECKING:  # annotations only: the registry is read without importing any law
     from collections.abc import Sequence
@@ -289,7 +290,6 @@ class LoopContext:
     def rows(self, q: np.ndarray, robot: Robot | None = None) -> np.ndarray:
         """(k, n) the constraint rows A at q of ``robot`` (default the plant), scaled as
         ``sim.normalization`` says."""
-        from hybrid_force.control.constraint import Constraint
 
         arm = self.plant if robot is None else robot
         A, _ = Constraint(list(self.surfaces)).normal_rows(arm.tip_position(q), arm.jacobian(q))
@@ -481,7 +481,7 @@ def check_options(options: object) -> dict[str, dict[str, Any]]:
 
     Raises:
         ControlError: an unknown law or key (naming ``control.<law>.<key>`` and the valid
-            ones), or GainError: a value of the wrong kind or out of range.
+            ones), or ControlError: a value of the wrong kind or out of range.
     """
     if not isinstance(options, Mapping):
         raise ControlError(
@@ -531,14 +531,16 @@ def _check_option(where: str, value: object, option: Option) -> object:
             )
         return value
     if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
-        raise GainError(
+        raise ControlError(
             f"{where} must be a finite real number, got {value!r}", key=where, value=value
         )
     number = float(value)
     low = option.minimum
     if low is not None and (number < low or (option.strict and number == low)):
         relation = ">" if option.strict else ">="
-        raise GainError(f"{where} = {number!r} must be {relation} {low:g}", key=where, value=value)
+        raise ControlError(
+            f"{where} = {number!r} must be {relation} {low:g}", key=where, value=value
+        )
     return number
 
 

@@ -82,6 +82,11 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.force_loop import (
+    force_feedthrough,
+    largest_integral_step,
+    velocity_loop_number,
+)
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import (
     LawContext,
@@ -90,7 +95,8 @@ from hybrid_force.control.laws.base import (
     below,
     check_options,
 )
-from hybrid_force.errors import GainError, SingularConfigurationError
+from hybrid_force.control.laws.osc_hybrid import task_space
+from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.model.robot import RobotTerms
 
 _K = LazyKernels("hybrid_force.control.laws._impedance_kernels")
@@ -122,7 +128,7 @@ class ImpedanceGains:
         feedforward: True: add M q̈_d + C q̇_d of the desired joint path (g is always added).
 
     Raises:
-        ControlError: a value the ``[control.impedance]`` table would refuse (a GainError
+        ControlError: a value the ``[control.impedance]`` table would refuse (a ControlError
             for a rate ≤ 0, a ControlError for a flag that is not a bool), naming
             ``control.impedance.<key>``.
     """
@@ -148,7 +154,7 @@ def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
     """Λ = (J M⁻¹ Jᵀ)⁻¹ (3, 3) [kg] of the model terms, symmetric.
 
     Raises:
-        SingularConfigurationError: J M⁻¹ Jᵀ is singular (the tip cannot move along some
+        SurfaceError: J M⁻¹ Jᵀ is singular (the tip cannot move along some
             direction, so no Cartesian stiffness acts there).
     """
     try:
@@ -158,9 +164,9 @@ def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
     return 0.5 * (Lam + Lam.T)
 
 
-def _singular(robot: RobotTerms) -> SingularConfigurationError:
+def _singular(robot: RobotTerms) -> SurfaceError:
     """The error of a configuration where J M⁻¹ Jᵀ (or M) is singular."""
-    return SingularConfigurationError(
+    return SurfaceError(
         f"the tip at {robot.p.tolist()} cannot move in every direction (J M⁻¹ Jᵀ is "
         "singular): the Cartesian impedance is undefined there"
     )
@@ -289,7 +295,7 @@ class ImpedanceWorkspace(ImpedanceLaw):
 
     The same numbers (:func:`hybrid_force.control.laws._impedance_kernels.impedance`: the
     Cholesky factorisation of M and the small solves written out) without numpy's per-call
-    overhead; the same errors (a SingularConfigurationError where J M⁻¹ Jᵀ or M is
+    overhead; the same errors (a SurfaceError where J M⁻¹ Jᵀ or M is
     singular). The command returned, ``stiffness``, ``damping`` and ``offset`` are
     overwritten at every call: copy to keep.
     """
@@ -398,13 +404,13 @@ def build(context: LawContext) -> ImpedanceLaw:
     (compiled), or :class:`ImpedanceLaw` (numpy) when ``context.reference``.
 
     Raises:
-        GainError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
+        ControlError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
             not follow the continuous law), naming ``control.impedance.<key>``.
     """
     gains = ImpedanceGains(**context.options)
     for key, rate in (("omega", gains.omega), ("force_rate", gains.force_rate)):
         if rate * context.dt >= _MAX_RATE_STEP:
-            raise GainError(
+            raise ControlError(
                 f"control.impedance.{key} = {rate:g} 1/s is too fast for the control period "
                 f"{context.dt:g} s: {key}·dt = {rate * context.dt:.3g} must stay below "
                 f"{_MAX_RATE_STEP}",
@@ -428,12 +434,6 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     κ_f ρ T < :func:`~hybrid_force.control.force_loop.largest_integral_step` (1 without
     filter and delay). The law reads none of the paper's K_d, β, γ.
     """
-    from hybrid_force.control.force_loop import (
-        force_feedthrough,
-        largest_integral_step,
-        velocity_loop_number,
-    )
-    from hybrid_force.control.laws.osc_hybrid import task_space
 
     gains = ImpedanceGains(**context.options_of("impedance"))
     rate = 2.0 * gains.zeta * gains.omega

@@ -67,7 +67,7 @@ k_P: the tick-to-tick map of (f − f_d, e_F) has determinant −k_P, so k_P < 1
 (default 0); with k_P = 0 force noise σ leaves |f − f_d| of RMS σ √(k_I T / (2 − k_I T)).
 
 What it cannot do: it needs a tip Jacobian of full row rank (3 ≤ n and away from a singular
-configuration, else SingularConfigurationError); it has no Lyapunov function in joules
+configuration, else SurfaceError); it has no Lyapunov function in joules
 (``V`` is NaN): the decoupling of (2) is exact only with the exact model.
 
 Runs compiled: :class:`OscHybridWorkspace`, one Numba call per step
@@ -87,9 +87,15 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
+from hybrid_force.control.force_loop import (
+    force_feedthrough,
+    largest_integral_step,
+    max_stable_loop_gain,
+    velocity_loop_number,
+)
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext, below
-from hybrid_force.errors import ControlError, SingularConfigurationError
+from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.model.robot import RobotTerms
 
 _K = LazyKernels("hybrid_force.control.laws._osc_hybrid_kernels")
@@ -189,7 +195,7 @@ def task_space(M: np.ndarray, J: np.ndarray) -> TaskSpace:
     """Λ and J̄ of the mass matrix M (n, n) and the tip Jacobian J (3, n).
 
     Raises:
-        SingularConfigurationError: J M⁻¹ Jᵀ is (nearly) singular (the tip cannot move in
+        SurfaceError: J M⁻¹ Jᵀ is (nearly) singular (the tip cannot move in
             some direction): Λ is undefined there.
     """
     Minv_Jt = np.linalg.solve(M, J.T)  # (n, 3)
@@ -205,9 +211,9 @@ def task_space(M: np.ndarray, J: np.ndarray) -> TaskSpace:
     return TaskSpace(Lambda=Lambda, Jbar=Minv_Jt @ Lambda, J=J)
 
 
-def _singular(cond: float) -> SingularConfigurationError:
+def _singular(cond: float) -> SurfaceError:
     """The error of a (nearly) singular J M⁻¹ Jᵀ, whose cond estimate is ``cond``."""
-    return SingularConfigurationError(
+    return SurfaceError(
         f"law {_NAME!r}: the task-space inertia (J M⁻¹ Jᵀ)⁻¹ is undefined: cond(J M⁻¹ Jᵀ) "
         f"≈ {cond:.3g} (the tip Jacobian is rank deficient: a singular configuration, or "
         "fewer than 3 joints move the tip)",
@@ -373,7 +379,7 @@ class OscHybridWorkspace:
     small dense factorisations, the directions W from the surfaces' closed forms) without
     allocating. A state the kernel does not finish (cond(J M⁻¹ Jᵀ) at or above its limit, an M
     without Cholesky factor, a singular WᵀW) is handed to the reference, which raises its error
-    (the same SingularConfigurationError, the same message) or computes the step. The command
+    (the same SurfaceError, the same message) or computes the step. The command
     returned and the arrays below are overwritten at every call: copy to keep.
 
     Args:
@@ -592,11 +598,6 @@ def force_gain_bounds(
     1 + k_I T/2 without filter and delay); with k_P = 0 the integral alone needs
     k_I ρ T below :func:`~hybrid_force.control.force_loop.largest_integral_step` (1).
     Empty unless the run is sampled."""
-    from hybrid_force.control.force_loop import (
-        force_feedthrough,
-        largest_integral_step,
-        max_stable_loop_gain,
-    )
 
     if not context.sampled:
         return []
@@ -647,7 +648,6 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     **Force loop**: :func:`force_gain_bounds` with k_P = ``force_p``, k_I = ``force_i``.
     The law reads none of the paper's K_d, β, γ: no check of theirs applies.
     """
-    from hybrid_force.control.force_loop import velocity_loop_number
 
     gains = osc_gains(context.options_of(_NAME), 0.0)
     qs = [context.q0, *context.configurations]

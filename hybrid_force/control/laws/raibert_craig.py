@@ -106,8 +106,10 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
+from hybrid_force.control.force_loop import velocity_loop_number
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import LawContext, LoopBound, LoopContext
+from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
 from hybrid_force.errors import ControlError
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import RobotTerms
@@ -513,8 +515,6 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     bound is k_p < 1 + k_i T/2 without filter and delay: the docstring's tick-to-tick map
     f ← −k_p f + … with the integral's half-step. The law reads none of β and K_d.
     """
-    from hybrid_force.control.force_loop import velocity_loop_number
-    from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
 
     s, opts = context.settings, context.options_of(_NAME)
     wp = float(opts.get("position_rate", s.Lambda))
