@@ -52,10 +52,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.supervisor import ControlSettings
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane
 from hybrid_force.geometry.paths import Circle, paper_helix
-from hybrid_force.geometry.surfaces import Cylinder, Plane
-from hybrid_force.model.robot import Robot, load_robot
-from hybrid_force.sim.loop import Scenario, SimSettings, simulate
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot
+from hybrid_force.sim.loop import simulate
+from hybrid_force.sim.settings import Scenario, SimSettings
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _DT = 1e-3

@@ -22,8 +22,10 @@ import sys
 import time
 from pathlib import Path
 
-from hybrid_force.studies.sweep import expand, read_sweep_csv, run_sweep
-from hybrid_force.viz.plots import plot_sweep
+from hybrid_force.studies.sweep import run_sweep
+from hybrid_force.studies.table import read_sweep_csv
+from hybrid_force.studies.variants import expand
+from hybrid_force.viz.sweep_plots import plot_sweep
 
 REPO = Path(__file__).resolve().parents[1]
 KD_RATES = (10, 30, 100, 300)

@@ -32,7 +32,7 @@ import numpy as np
 
 from hybrid_force import simulate
 from hybrid_force.errors import RunFailedError
-from hybrid_force.model.robot import load_robot
+from hybrid_force.model.loading import load_robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.studies.hybrid_stability import (
     FOLDED,

@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from hybrid_force import simulate
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.raster import RasterPath
 from hybrid_force.geometry.surface_path import SurfacePath
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.waypoints import WaypointPath
 from hybrid_force.scenario.loader import load_scenario
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force import load_robot, simulate
-from hybrid_force.geometry.surfaces import Cylinder
+from hybrid_force.geometry.builtin_surfaces import Cylinder
 from hybrid_force.scenario.loader import load_scenario
 
 

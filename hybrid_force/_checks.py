@@ -73,8 +73,14 @@ def suggested(value: float, accepted: Callable[[float], bool]) -> str:
     return repr(value)
 
 
-def _fail(error: ErrorType, what: str, valid: str, value: object) -> NoReturn:
-    raise error(f"{what} must be {valid}, got {shown(value)}")
+def _fail(
+    error: ErrorType,
+    what: str,
+    valid: str,
+    value: object,
+    choices: Iterable[str] | None = None,
+) -> NoReturn:
+    raise error(f"{what} must be {valid}, got {shown(value)}", value=value, choices=choices)
 
 
 def _rule(minimum: float | None, strict: bool, maximum: float | None, unit: str) -> str:
@@ -150,7 +156,7 @@ def one_of(value: object, what: str, error: ErrorType, choices: Iterable[str]) -
     """``value`` if it is one of the strings ``choices`` (listed in the message otherwise)."""
     options = tuple(choices)
     if not isinstance(value, str) or value not in options:
-        _fail(error, what, "one of " + ", ".join(repr(c) for c in options), value)
+        _fail(error, what, "one of " + ", ".join(repr(c) for c in options), value, options)
     return value
 
 

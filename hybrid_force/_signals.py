@@ -18,7 +18,7 @@ __all__ = ["Terminated", "sigterm_raises"]
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM reached the command (``signal`` names it, as RunInterruptedError does)."""
+    """SIGTERM reached the command (``signal`` names it, as RunFailedError does)."""
 
     signal = "SIGTERM"
 

@@ -33,8 +33,9 @@ Anything else that escapes a command (out of memory, an unexpected exception fro
 is one line ``error: <command>: ...`` with exit status 1, never a traceback; the environment
 variable ``HYBRID_FORCE_TRACEBACK=1`` shows the traceback instead.
 
-Heavy modules (Pinocchio, numpy, matplotlib, meshcat) are imported inside the subcommand
-functions, so ``--help`` stays fast.
+The edges of the optional extras (figures, the replay, sweeps and comparisons: matplotlib,
+meshcat, dask) and the model report are imported inside the subcommand functions that need
+them, so ``--help`` and ``run`` do not load them.
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ from __future__ import annotations
 import argparse
 import atexit
 import gc
+import importlib
+import json
 import os
 import sys
 import time
@@ -53,15 +56,26 @@ from typing import Any, NoReturn, TextIO
 from hybrid_force._extras import require as require_extra
 from hybrid_force._jit import own_kernels_only
 from hybrid_force._signals import sigterm_raises
+from hybrid_force.control.laws.base import LAWS
 from hybrid_force.errors import (
+    OWN_WARNINGS,
     BadInputError,
-    FeatureUnavailableError,
-    HybridForceWarning,
+    MissingExtraError,
     RunFailedError,
-    RunInterruptedError,
     RunWarning,
-    SimulationError,
 )
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.registry import known_robots
+from hybrid_force.result import Result
+from hybrid_force.run_output import RunOutput
+from hybrid_force.scenario._tables import (
+    json_schema,
+    markdown_tables,
+    parse_override,
+    with_generated_tables,
+)
+from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.sim.loop import simulate
 
 __all__ = ["build_parser", "main"]
 
@@ -71,7 +85,6 @@ Handler = Callable[[argparse.Namespace], int]
 def _cmd_laws(args: argparse.Namespace) -> int:
     """Print the control laws a scenario's ``control.law`` may name, one line each; with
     ``--options`` also each law's ``[control.<law>]`` keys."""
-    from hybrid_force.control.laws.base import LAWS
 
     width = max(len(name) for name in LAWS)
     for name, spec in LAWS.items():
@@ -84,10 +97,6 @@ def _cmd_laws(args: argparse.Namespace) -> int:
 def _cmd_schema(args: argparse.Namespace) -> int:
     """Print the JSON Schema of a scenario file; ``--markdown``: the key tables of
     docs/scenarios.md; ``--update-docs FILE``: rewrite FILE's generated tables in place."""
-    import json
-    from pathlib import Path
-
-    from hybrid_force.scenario._tables import json_schema, markdown_tables, with_generated_tables
 
     if args.update_docs:
         path = Path(args.update_docs)
@@ -135,8 +144,6 @@ def _cmd_robots(args: argparse.Namespace) -> int:
     ]
     if given:
         raise BadInputError(f"robots: {', '.join(given)} needs --check MODEL")
-    from hybrid_force.model.registry import known_robots
-    from hybrid_force.model.robot import load_robot
 
     rows: list[tuple[str, str, str, str]] = []
     for entry in known_robots():
@@ -150,15 +157,15 @@ def _cmd_robots(args: argparse.Namespace) -> int:
 
 
 def _import_feature(module: str, feature: str) -> Any:
-    """Import ``module`` for ``feature``; FeatureUnavailableError if the module is missing."""
-    import importlib
+    """Import ``module`` for ``feature``; MissingExtraError (exit status 2) if it is missing."""
 
     try:
         return importlib.import_module(module)
     except ModuleNotFoundError as exc:
         if exc.name == module:
-            raise FeatureUnavailableError(
-                f"{feature} is not available: the module {module} is missing from this install"
+            raise MissingExtraError(
+                f"{feature} is not available: the module {module} is missing from this install",
+                module=module,
             ) from None
         raise
 
@@ -246,9 +253,6 @@ _SIGNAL_STATUS = {"SIGINT": 130, "SIGTERM": 143}
 
 def _cmd_run(args: argparse.Namespace) -> int:
     """Load, run, summarise and save a scenario (see the module docstring)."""
-    from hybrid_force.run_output import RunOutput
-    from hybrid_force.scenario.loader import load_scenario, parse_override
-    from hybrid_force.sim.loop import simulate
 
     # what the options ask for beyond the core, before anything runs (MissingExtraError, exit 2)
     if args.plot:
@@ -262,12 +266,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.trust_xacro:
         overrides["robot.xacro_trust"] = True
     with warnings.catch_warnings(record=True) as loaded:  # shown now, kept in the summary
-        warnings.simplefilter("always", HybridForceWarning)
+        for category in OWN_WARNINGS:
+            warnings.simplefilter("always", category)
         scenario = load_scenario(args.scenario, overrides)
     _show_warnings(loaded)
-    load_notes = [
-        _one_line(w.message) for w in loaded if issubclass(w.category, HybridForceWarning)
-    ]
+    load_notes = [_one_line(w.message) for w in loaded if issubclass(w.category, OWN_WARNINGS)]
     output = RunOutput(
         args.out if args.out is not None else Path("runs") / scenario.name,
         inputs=[Path(args.scenario)],
@@ -324,17 +327,15 @@ def _show_warnings(caught: Sequence[warnings.WarningMessage]) -> None:
 
 def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> int:
     """Save the partial result of a failed run, say where; return the exit status."""
-    status = _SIGNAL_STATUS.get(exc.signal, 130) if isinstance(exc, RunInterruptedError) else 1
+    status = _SIGNAL_STATUS.get(exc.signal or "SIGINT", 130) if exc.reason == "interrupted" else 1
     where = ""
     if exc.result is not None:
         # a second interrupt while saving must not leave half a pair: the writes are atomic
         output.save(exc.result)
         if args.plot and status == 1:
-            from hybrid_force.viz.plots import PlotError
-
             try:
                 _plot_result(exc.result, output.folder, quiet=True)
-            except PlotError as plot_exc:  # e.g. fewer than 2 samples: the run's verdict stands
+            except BadInputError as plot_exc:  # e.g. fewer than 2 samples: the run's verdict stands
                 print(f"warning: no figures: {_one_line(plot_exc)}", file=sys.stderr)
         t_end = float(exc.result.t[-1]) if exc.result.n_samples else 0.0
         where = (
@@ -345,7 +346,7 @@ def _run_failed(exc: RunFailedError, output: Any, args: argparse.Namespace) -> i
 
 
 def _plot_result(result: Any, out: Path, *, quiet: bool) -> list[Path]:
-    from hybrid_force.viz.plots import plot_result
+    from hybrid_force.viz.run_figures import plot_result
 
     files = plot_result(result, out)
     if not quiet:
@@ -363,7 +364,6 @@ def _cmd_plot(args: argparse.Namespace) -> int:
             raise BadInputError(
                 f"--x, --y and --metric apply to a sweep CSV, not to a run result ({path})"
             )
-        from hybrid_force.result import Result
 
         result = Result.load(path)
         out = _output_dir(args.out if args.out is not None else path.parent)
@@ -375,7 +375,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
                 f"plotting the sweep {path} needs --x <table.key> and --metric <name> "
                 "(and optionally --y <table.key> for a heat map)"
             )
-        from hybrid_force.viz.plots import plot_sweep
+        from hybrid_force.viz.sweep_plots import plot_sweep
 
         # not made here: plot_sweep makes it once the table has been read (nothing left behind)
         out = Path(args.out) if args.out is not None else path.parent
@@ -397,9 +397,10 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
 def _cmd_study_missing(args: argparse.Namespace) -> int:
     _import_feature(f"hybrid_force.studies.{args.command}", f"the {args.command} command")
-    raise FeatureUnavailableError(
-        f"the {args.command} command is not available"
-    )  # pragma: no cover
+    raise MissingExtraError(  # pragma: no cover
+        f"the {args.command} command is not available",
+        module=f"hybrid_force.studies.{args.command}",
+    )
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
@@ -589,7 +590,7 @@ def _add_study(sub: Any, name: str, summary: str, description: str, with_options
         return
     try:
         module = _import_feature(f"hybrid_force.studies.{name}", f"the {name} command")
-    except FeatureUnavailableError:
+    except MissingExtraError:
         parser.add_argument("args", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
         parser.set_defaults(handler=_cmd_study_missing)
         return
@@ -618,7 +619,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BadInputError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    except (SimulationError, FeatureUnavailableError) as exc:
+    except RunFailedError as exc:
         print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:  # outside a run (Terminated: SIGTERM in a run's clean-up)
@@ -659,7 +660,7 @@ def _show_warning(
     """The toolkit's own warnings as one line ``warning: <message>``; others (numpy's
     RuntimeWarning of an overflow, a library's DeprecationWarning) as one line too, with their
     category and where they come from, not Python's two lines with the source."""
-    if issubclass(category, HybridForceWarning):
+    if issubclass(category, OWN_WARNINGS):
         print(f"warning: {_one_line(message)}", file=sys.stderr)
     else:
         where = f"{Path(filename).name}:{lineno}"

@@ -1,57 +1,51 @@
-"""One exception tree for hybrid_force.
+"""One exception tree for hybrid_force: twelve classes, each with the attributes of its cause.
 
-Every error names what was wrong (the file, the frame, the parameter, the value)
-and, where there is a finite set of valid choices, lists them. Anything a user
-can cause with bad input is a subclass of :class:`BadInputError`; the command
-line maps those to exit status 2 and prints ``error: <message>``.
-A run that fails at run time raises :class:`SimulationError` (exit status 1).
+Every error names what was wrong (the file, the frame, the parameter, the value) and, where
+there is a finite set of valid choices, lists them. Anything a user can cause with bad input is
+a :class:`BadInputError` (``key``, ``value``, ``file``, ``choices``); the command line maps those
+to exit status 2 and prints ``error: <message>``. A run that starts and does not finish raises
+:class:`RunFailedError` (exit status 1), whose ``reason`` says why and whose ``result`` holds the
+run up to the failure.
+
+============================  ======================================================
+class                         raised for
+============================  ======================================================
+``HybridForceError``          the base of every error of the toolkit
+``BadInputError``             any invalid input (arrays of the wrong shape, an output
+                              path, a result file, a figure, the replay, a sweep, ...)
+``ScenarioError``             a scenario: its file, or Scenario and the settings in Python
+``RobotError``                a robot model (unknown name, URDF, frame)
+``SurfaceError``              a surface (a parameter), or a configuration singular for it
+``PathError``                 a desired path (a parameter, or a point off its surface)
+``ControlError``              a controller or its gains
+``ReachError``                a point out of reach, a Jacobian singular on the path
+``MissingExtraError``         an optional library (extra) or part that is not installed
+``RunFailedError``            a run that started and did not finish (``reason``)
+``ModelWarning``              a model loaded, but its parser reported problems
+``RunWarning``                a run, or its input, did something the user must know
+============================  ======================================================
 """
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterable
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:  # for annotations only: errors.py imports nothing of the package at run time
-    from hybrid_force.result import Result
+from typing import Any
 
 __all__ = [
+    "OWN_WARNINGS",
     "BadInputError",
-    "ContactSettingsError",
     "ControlError",
-    "DimensionError",
-    "DivergenceError",
-    "FeatureUnavailableError",
-    "FrameError",
-    "GainError",
     "HybridForceError",
-    "HybridForceWarning",
-    "JointLimitError",
-    "LostContactError",
     "MissingExtraError",
     "ModelWarning",
-    "OutputError",
-    "PathParameterError",
-    "PathWarning",
-    "PlotError",
+    "PathError",
     "ReachError",
-    "ResultFileError",
     "RobotError",
     "RunFailedError",
-    "RunInterruptedError",
     "RunWarning",
     "ScenarioError",
-    "ScenarioValueError",
-    "SensorError",
-    "SimSettingsError",
-    "SimulationError",
-    "SingularConfigurationError",
     "SurfaceError",
-    "SurfaceParameterError",
-    "SweepError",
-    "URDFError",
-    "UnknownRobotError",
-    "ViewerError",
     "did_you_mean",
 ]
 
@@ -61,13 +55,14 @@ class HybridForceError(Exception):
 
 
 class BadInputError(HybridForceError, ValueError):
-    """Input given by the user (file, parameter, option) is invalid.
+    """Input given by the user (file, parameter, option, array) is invalid.
 
     Attributes:
         key: the offending key as a scenario file spells it (``"surface.radius"``), or None
             where the error is not about one key.
         value: the offending value (None when ``key`` is None or the key is missing).
-        file: the scenario file, when the error comes from one.
+        file: the file the error comes from (a scenario, a model, a result), when there is one.
+        choices: the valid choices, when there is a finite set of them (else None).
     """
 
     def __init__(
@@ -77,202 +72,109 @@ class BadInputError(HybridForceError, ValueError):
         key: str | None = None,
         value: object = None,
         file: str | None = None,
+        choices: Iterable[str] | None = None,
     ) -> None:
         super().__init__(message)
         self.key, self.value, self.file = key, value, file
+        self.choices = None if choices is None else tuple(choices)
 
 
-# --- robot model -----------------------------------------------------------
+class ScenarioError(BadInputError):
+    """A scenario is invalid: its file (the message names the file, ``table.key`` and value), or
+    a :class:`~hybrid_force.sim.settings.Scenario` or one of its settings (sim, contact,
+    sensor) built in Python (the message names the field as the file's key spells it)."""
+
+
 class RobotError(BadInputError):
-    """A robot model could not be loaded or used."""
+    """A robot model could not be found, loaded or used: a name that is neither bundled, in
+    example-robot-data nor a file, a URDF that is missing, malformed or physically impossible,
+    a frame the model does not have."""
 
 
-class UnknownRobotError(RobotError):
-    """A robot name is neither bundled, in example-robot-data, nor a file."""
-
-
-class URDFError(RobotError):
-    """A URDF file is missing, malformed or physically impossible."""
-
-
-class FrameError(RobotError):
-    """A frame name does not exist in the model."""
-
-
-class DimensionError(BadInputError):
-    """An array has the wrong length or shape (e.g. q of the wrong size)."""
-
-
-# --- surfaces and constraints ----------------------------------------------
 class SurfaceError(BadInputError):
-    """A surface or constraint is invalid."""
+    """A surface is invalid (a parameter: radius, axis, normal, ...), or the configuration is
+    singular for the contact: ∇Φ vanishes, J_Φ is (near) zero, stacked constraint rows are
+    dependent, or the tip's J M⁻¹ Jᵀ is singular (so the law cannot act along the normal)."""
 
 
-class SurfaceParameterError(SurfaceError):
-    """A surface parameter (radius, axis, normal, ...) is invalid."""
+class PathError(BadInputError):
+    """A desired path is invalid: a parameter (radius, axis, omega, waypoints, ...), or a
+    check_on_surface argument."""
 
 
-class SingularConfigurationError(SurfaceError):
-    """∇Φ vanishes, or J_Φ is (near) zero, so J_Φn is undefined."""
-
-
-# --- control -----------------------------------------------------------------
 class ControlError(BadInputError):
-    """A controller or desired path cannot be built or evaluated."""
-
-
-class GainError(ControlError):
-    """A gain breaks the paper's assumptions (K_d > 0, Λ > 0, β ≥ 0, γ > 0)."""
+    """A controller or desired path cannot be built or evaluated, e.g. a gain that breaks the
+    law's assumptions (K_d > 0, Λ > 0, β ≥ 0, γ > 0)."""
 
 
 class ReachError(ControlError):
     """A task-space point is out of reach, or the Jacobian is singular on the path."""
 
 
-# --- simulation, results, edges ----------------------------------------------
-class SimulationError(HybridForceError):
-    """A simulation failed at run time (not bad input)."""
-
-
-class RunFailedError(SimulationError):
-    """A run that started and did not finish as asked; ``result`` holds what it computed.
-
-    ``result`` is the :class:`~hybrid_force.result.Result` up to the failure (its meta has
-    ``status = "failed"`` and ``reason``), or None when nothing was recorded. ``reason`` is a
-    short tag: "diverged", "joint limit", "lost contact", "interrupted", "path", "error".
-    """
-
-    reason = "error"
-
-    def __init__(self, message: str, result: Result | None = None) -> None:
-        super().__init__(message)
-        self.result = result
-
-
-class DivergenceError(RunFailedError):
-    """Non-finite state or a runaway; ``result`` holds the run up to the failure."""
-
-    reason = "diverged"
-
-
-class JointLimitError(RunFailedError):
-    """A joint crossed its position or velocity limit with ``sim.joint_limits = "stop"``."""
-
-    reason = "joint limit"
-
-
-class LostContactError(RunFailedError):
-    """A run that started in contact without the supervisor ended off the surface."""
-
-    reason = "lost contact"
-
-
-class RunInterruptedError(RunFailedError):
-    """Ctrl-C (SIGINT) or SIGTERM stopped the run; ``signal`` names which."""
-
-    reason = "interrupted"
-
-    def __init__(self, message: str, result: Result | None = None, signal: str = "SIGINT") -> None:
-        super().__init__(message, result)
-        self.signal = signal
-
-
-class HybridForceWarning(UserWarning):
-    """Base class of the warnings hybrid_force issues (the CLI prints ``warning: <message>``)."""
-
-
-class ModelWarning(HybridForceWarning):
-    """A model loaded, but its parser reported problems (e.g. a visual element it skipped)."""
-
-
-class RunWarning(HybridForceWarning):
-    """A run finished but did something the user must know: it left a joint's range,
-    exceeded an effort limit, or lost contact with the surface (also in its summary)."""
-
-
-class PathWarning(HybridForceWarning):
-    """A desired path was built from input it had to adjust: a waypoint given in world
-    coordinates lay farther from its surface than the tolerance and was projected onto it."""
-
-
-class OutputError(BadInputError):
-    """An output path cannot be used: not writable, locked by another run, or it would
-    overwrite an input or another output of the same run."""
-
-
-class SensorError(BadInputError):
-    """A sensor setting (the ``[sensor]`` table) or the control rate is invalid."""
-
-
-class ScenarioError(BadInputError):
-    """A scenario file is invalid; the message names the file, table.key and value."""
-
-
-class ScenarioValueError(BadInputError):
-    """A field of a :class:`~hybrid_force.sim.loop.Scenario` built in Python is invalid.
-
-    Raised by ``Scenario(...)`` itself: a wrong type or shape (robot, surfaces, path, q0, v0,
-    control, sim, name, description, source), settings that do not fit the robot or the
-    surfaces (K_d's size, one f_d per surface), a run starting in contact whose desired path
-    or start is off a surface, or a start inside the solid. The message names the field.
-    """
-
-
-class SimSettingsError(BadInputError):
-    """A simulation setting (:class:`~hybrid_force.sim.loop.SimSettings`, ``Baumgarte``) is
-    invalid; the message names the setting as the scenario file's ``[sim]`` key spells it."""
-
-
-class ContactSettingsError(BadInputError):
-    """A contact setting (the ``[contact]`` table,
-    :class:`~hybrid_force.sim.contact.ContactSettings`) is invalid, or the time step is too
-    long for it."""
-
-
-class ResultFileError(BadInputError):
-    """A result file is missing, truncated or not a hybrid_force result."""
-
-
-class ViewerError(BadInputError):
-    """The 3D replay cannot be produced (missing model, port in use, ...)."""
-
-
-# --- edges: command line, figures, sweeps, paths --------------------------------------------
-class PathParameterError(BadInputError):
-    """A path parameter (radius, axis, omega, ...) or a check_on_surface argument is invalid."""
-
-
-class PlotError(BadInputError):
-    """A run or a sweep file cannot be plotted (missing array, wrong shape, unknown column, ...)."""
-
-
-class SweepError(BadInputError):
-    """A sweep specification (grid, random range, samples, output directory) is invalid."""
-
-
 class MissingExtraError(BadInputError):
     """A part of the toolkit was asked for whose optional library is not installed: figures
     (matplotlib, the ``plots`` extra), the 3D replay (meshcat, ``replay``) or the Dask engine
-    (dask and distributed, ``dask``). The message names the extra to install.
+    (dask and distributed, ``dask``), or a subcommand's module missing from this checkout. The
+    message names the extra to install.
 
     Attributes:
-        module: the library that cannot be imported (``"matplotlib"``).
-        extra: the extra that installs it (``"plots"``): ``pip install "hybrid_force[plots]"``.
+        module: the module that cannot be imported (``"matplotlib"``).
+        extra: the extra that installs it (``"plots"``): ``pip install "hybrid_force[plots]"``;
+            None for a module of the toolkit itself.
         key, value: as for every :class:`BadInputError`: ``"extra"`` and the extra's name.
     """
 
-    def __init__(self, message: str, *, module: str, extra: str) -> None:
+    def __init__(self, message: str, *, module: str, extra: str | None = None) -> None:
         super().__init__(message, key="extra", value=extra)
         self.module, self.extra = module, extra
 
 
-class FeatureUnavailableError(HybridForceError):
-    """A subcommand's module (e.g. hybrid_force.viz.replay) is not installed in this checkout."""
+class RunFailedError(HybridForceError):
+    """A run that started and did not finish as asked; ``result`` holds what it computed.
+
+    Attributes:
+        reason: a short tag of why: ``"diverged"`` (non-finite state, runaway, singular
+            constraint), ``"joint limit"`` (a joint crossed a limit with
+            ``sim.joint_limits = "stop"``), ``"lost contact"`` (a run that started in contact
+            without the supervisor ended off the surface), ``"interrupted"`` (Ctrl-C or
+            SIGTERM), ``"path"`` (the desired path cannot be followed), ``"error"`` (anything
+            else, e.g. lost runs of a sweep).
+        result: the :class:`~hybrid_force.result.Result` up to the failure (its meta has
+            ``status = "failed"`` and ``reason``), or None when nothing was recorded.
+        signal: for ``reason = "interrupted"``, the signal that stopped the run
+            (``"SIGINT"`` or ``"SIGTERM"``); None otherwise.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        result: Any = None,
+        *,
+        reason: str = "error",
+        signal: str | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.result, self.reason = result, reason
+        self.signal = signal if signal is not None or reason != "interrupted" else "SIGINT"
+
+
+class ModelWarning(UserWarning):
+    """A model loaded, but its parser reported problems (e.g. a visual element it skipped)."""
+
+
+class RunWarning(UserWarning):
+    """A run finished but did something the user must know: it left a joint's range, exceeded
+    an effort limit, or lost contact with the surface (also in its summary); or its input was
+    adjusted: a waypoint given in world coordinates lay farther from its surface than the
+    tolerance and was projected onto it (the CLI prints ``warning: <message>``)."""
+
+
+#: The warnings of the toolkit (the command line prints them as ``warning: <message>``; a run's
+#: summary keeps them): ``warnings.simplefilter("error", ...)`` each, or ``issubclass`` both.
+OWN_WARNINGS: tuple[type[UserWarning], ...] = (ModelWarning, RunWarning)
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """Return ``" (did you mean 'x'?)"`` for the closest choice, or ``""``."""
-    import difflib  # here: only a refused name needs it (~5 ms of a command's start)
-
     close = difflib.get_close_matches(word, list(choices), n=1)
     return f" (did you mean '{close[0]}'?)" if close else ""

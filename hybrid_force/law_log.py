@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import BadInputError, DimensionError
+from hybrid_force.errors import BadInputError
 
 __all__ = ["NAMES_KEY", "check_law_log", "law_log_names"]
 
@@ -42,7 +42,7 @@ def check_law_log(value: Any, n_samples: int, meta: Mapping[str, Any]) -> np.nda
 
     Raises:
         BadInputError: not real numbers, or names that are not a list of strings;
-        DimensionError: a shape other than (N, m).
+        BadInputError: a shape other than (N, m).
     """
     names = law_log_names(meta)
     if value is None:
@@ -53,7 +53,7 @@ def check_law_log(value: Any, n_samples: int, meta: Mapping[str, Any]) -> np.nda
             f"Result array 'law_log' must hold real numbers (float64), got dtype {arr.dtype}"
         )
     if arr.shape != (n_samples, len(names)):
-        raise DimensionError(
+        raise BadInputError(
             f"Result array 'law_log' must have shape (N, m) = ({n_samples}, {len(names)}), one "
             f"column per name of meta['{NAMES_KEY}'], got shape {tuple(arr.shape)}"
         )

@@ -21,16 +21,15 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from hybrid_force.errors import BadInputError, DimensionError
+from hybrid_force.errors import BadInputError
 from hybrid_force.phases import CONTACT, Phase
 
-if TYPE_CHECKING:  # annotations only: result imports this module
+if TYPE_CHECKING:
     from hybrid_force.geometry.surface_base import Surface
-    from hybrid_force.result import Result
 
 __all__ = [
     "CONVERGE_TOLERANCE",
@@ -50,6 +49,35 @@ __all__ = [
     "time_staying_within",
 ]
 
+
+class RunArrays(Protocol):
+    """What the metrics read of a run: a :class:`~hybrid_force.result.Result` (whose module
+    imports this one), or anything with the same arrays."""
+
+    @property
+    def t(self) -> np.ndarray: ...
+    @property
+    def p(self) -> np.ndarray: ...
+    @property
+    def p_d(self) -> np.ndarray: ...
+    @property
+    def f(self) -> np.ndarray: ...
+    @property
+    def f_d(self) -> np.ndarray: ...
+    @property
+    def phi(self) -> np.ndarray: ...
+    @property
+    def phase(self) -> np.ndarray: ...
+    @property
+    def u(self) -> np.ndarray: ...
+    @property
+    def meta(self) -> dict[str, Any]: ...
+    @property
+    def n_samples(self) -> int: ...
+    @property
+    def events(self) -> list[dict[str, Any]]: ...
+
+
 #: Settling time [s] used by :func:`compute_metrics` when ``meta["settings"]`` has none.
 DEFAULT_SETTLE_TIME = 5.0
 #: ``time_to_converge`` is the first time after which ``||p - p_d||`` stays below this [m]
@@ -61,7 +89,7 @@ FORCE_TOLERANCE = 1.0
 IMPACT_WINDOW = 0.5
 
 
-def _settle_time(result: Result, settle_time: float | None) -> float:
+def _settle_time(result: RunArrays, settle_time: float | None) -> float:
     """The settling time [s]: ``settle_time``, else the run's ``sim.settle_time``, else 5 s."""
     if settle_time is None:
         settings = result.meta.get("settings") or {}
@@ -165,7 +193,7 @@ class Metrics:
 
 
 def compute_metrics(
-    result: Result,
+    result: RunArrays,
     settle_time: float | None = None,
     converge_tolerance: float = CONVERGE_TOLERANCE,
 ) -> Metrics:
@@ -263,7 +291,7 @@ def compute_metrics(
 
 
 # ----------------------------------------------------------------------------- tracking
-def force_error(result: Result) -> np.ndarray:
+def force_error(result: RunArrays) -> np.ndarray:
     """(N,) force error ``|f - f_d|`` [N] at every sample (k > 1: the Euclidean norm over the k
     constraints); off the surface f = 0, so it is ``|f_d|`` there."""
     df = result.f - result.f_d
@@ -305,18 +333,18 @@ def tangential_component(e: np.ndarray, normals: np.ndarray) -> np.ndarray:
         (N, 3) e_t; NaN rows where e or a normal is not finite.
 
     Raises:
-        DimensionError: e not (N, 3), or normals neither (N, 3) nor (N, k, 3).
+        BadInputError: e not (N, 3), or normals neither (N, 3) nor (N, k, 3).
     """
     e = np.asarray(e, dtype=float)
     g = np.asarray(normals, dtype=float)
     if g.ndim == 2:
         g = g[:, None, :]
     if e.ndim != 2 or e.shape[1] != 3:
-        raise DimensionError(
+        raise BadInputError(
             f"tangential_component: e must have shape (N, 3), got {e.shape}", key="e", value=e.shape
         )
     if g.ndim != 3 or g.shape[0] != e.shape[0] or g.shape[2] != 3:
-        raise DimensionError(
+        raise BadInputError(
             f"tangential_component: normals must have shape ({e.shape[0]}, 3) or "
             f"({e.shape[0]}, k, 3), got {np.shape(normals)}",
             key="normals",
@@ -436,7 +464,7 @@ class TrackingMetrics:
         return dataclasses.asdict(self)
 
 
-def path_error(result: Result, surfaces: Sequence[Surface]) -> np.ndarray:
+def path_error(result: RunArrays, surfaces: Sequence[Surface]) -> np.ndarray:
     """(N,) ``‖e_t‖`` [m]: the norm of the tangential part of ``p − p_d``, the normals of
     ``surfaces`` taken at p (:func:`tangential_component`, :func:`surface_normals`)."""
     e_t = tangential_component(result.p - result.p_d, surface_normals(surfaces, result.p))
@@ -444,7 +472,7 @@ def path_error(result: Result, surfaces: Sequence[Surface]) -> np.ndarray:
 
 
 def compute_tracking_metrics(
-    result: Result,
+    result: RunArrays,
     surfaces: Sequence[Surface],
     settle_time: float | None = None,
     *,
@@ -478,7 +506,7 @@ def compute_tracking_metrics(
             )
     k = 1 if result.f.ndim == 1 else result.f.shape[1]
     if len(surfaces) != k:
-        raise DimensionError(
+        raise BadInputError(
             f"metrics: the run has {k} constraint(s) but {len(surfaces)} surface(s) were given",
             key="surfaces",
             value=len(surfaces),
@@ -487,7 +515,7 @@ def compute_tracking_metrics(
     t = result.t
     e_t = path_error(result, surfaces) if path_errors is None else np.asarray(path_errors, float)
     if e_t.shape != t.shape:
-        raise DimensionError(
+        raise BadInputError(
             f"metrics: path_errors must have shape {t.shape}, got {e_t.shape}",
             key="path_errors",
             value=e_t.shape,

@@ -22,19 +22,17 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
-from hybrid_force.events import EVENT_KINDS  # re-exported: the kinds a run records
+from hybrid_force.errors import BadInputError
+from hybrid_force.events import EVENT_KINDS
 from hybrid_force.law_log import check_law_log
-from hybrid_force.metrics import (  # re-exported: the metrics of a result, computed there
+from hybrid_force.metrics import (
     CONVERGE_TOLERANCE,
-    DEFAULT_SETTLE_TIME,
     Metrics,
     compute_metrics,
 )
 from hybrid_force.phases import Phase
-from hybrid_force.result_file import (  # re-exported: the file's schema
+from hybrid_force.result_file import (
     ARRAY_NAMES,
-    MAX_META_DEPTH,
     OPTIONAL_ARRAYS,
     meta_to_json,
     read_arrays,
@@ -42,20 +40,7 @@ from hybrid_force.result_file import (  # re-exported: the file's schema
 )
 from hybrid_force.result_summary import summarise
 
-__all__ = [
-    "ARRAY_NAMES",
-    "CONVERGE_TOLERANCE",
-    "DEFAULT_SETTLE_TIME",
-    "EVENT_KINDS",
-    "MAX_META_DEPTH",
-    "OPTIONAL_ARRAYS",
-    "PHASE_CONTACT",
-    "PHASE_FREE",
-    "PHASE_NEAR",
-    "Metrics",
-    "Result",
-    "load_result",
-]
+__all__ = ["PHASE_CONTACT", "PHASE_FREE", "PHASE_NEAR", "Result", "load_result"]
 
 #: Phase codes of the ``phase`` array.
 PHASE_FREE, PHASE_NEAR, PHASE_CONTACT = Phase.FREE, Phase.NEAR, Phase.CONTACT
@@ -97,9 +82,9 @@ def _as_phase_array(value: Any) -> np.ndarray:
 
 
 def _check_shape(name: str, arr: np.ndarray, expected: tuple[int, ...]) -> None:
-    """Raise DimensionError naming ``name`` unless ``arr.shape == expected``."""
+    """Raise BadInputError naming ``name`` unless ``arr.shape == expected``."""
     if arr.shape != expected:
-        raise DimensionError(
+        raise BadInputError(
             f"Result array '{name}' must have shape {expected}, got shape {tuple(arr.shape)}"
         )
 
@@ -167,7 +152,7 @@ class Result:
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
-        """Copy, convert and validate every array and ``meta`` (DimensionError/BadInputError)."""
+        """Copy, convert and validate every array and ``meta`` (BadInputError/BadInputError)."""
         arrays = {
             name: _as_phase_array(getattr(self, name))
             if name == "phase"
@@ -176,20 +161,20 @@ class Result:
         }
         t = arrays["t"]
         if t.ndim != 1:
-            raise DimensionError(
+            raise BadInputError(
                 f"Result array 't' must have shape (N,), got shape {tuple(t.shape)}"
             )
         n_samples = t.shape[0]
         q = arrays["q"]
         if q.ndim != 2 or q.shape[0] != n_samples or q.shape[1] < 1:
-            raise DimensionError(
+            raise BadInputError(
                 f"Result array 'q' must have shape (N, nq) = ({n_samples}, nq ≥ 1), "
                 f"got shape {tuple(q.shape)}"
             )
         nq = q.shape[1]
         v = arrays["v"]
         if v.ndim != 2 or v.shape[0] != n_samples or not 1 <= v.shape[1] <= nq:
-            raise DimensionError(
+            raise BadInputError(
                 f"Result array 'v' must have shape (N, n) = ({n_samples}, {nq}) "
                 f"(n ≤ nq = {nq} for continuous/spherical joints), got shape {tuple(v.shape)}"
             )
@@ -208,7 +193,7 @@ class Result:
         for name in ("f", "f_d", "phi"):
             arr = arrays[name]
             if arr.shape != constraint_shape:
-                raise DimensionError(
+                raise BadInputError(
                     f"Result array '{name}' must have shape {constraint_shape} like 'f' "
                     f"((N,) for one constraint, (N, k) for k ≥ 2), got shape {tuple(arr.shape)}"
                 )
@@ -222,7 +207,7 @@ class Result:
             )
         f_meas = arrays["f"] if self.f_meas is None else _as_float_array("f_meas", self.f_meas)
         if f_meas.shape != constraint_shape:
-            raise DimensionError(
+            raise BadInputError(
                 f"Result array 'f_meas' must have shape {constraint_shape} like 'f', got shape "
                 f"{tuple(f_meas.shape)}"
             )
@@ -362,18 +347,18 @@ class Result:
         """Read a result saved by :meth:`save`.
 
         Raises:
-            ResultFileError: naming the file, if it is missing, not an npz archive (truncated or
+            BadInputError: naming the file, if it is missing, not an npz archive (truncated or
                 garbage), lacks arrays (listed), has no or bad ``meta`` JSON, or holds arrays of
                 inconsistent shapes or dtypes.
         """
         if not isinstance(path, str | os.PathLike):
-            raise ResultFileError(f"a result file is named by a path, got {path!r:.80}")
+            raise BadInputError(f"a result file is named by a path, got {path!r:.80}")
         src = Path(path)
         data, meta = read_arrays(src)
         try:
             return cls(**data, meta=meta)
         except BadInputError as exc:
-            raise ResultFileError(f"result file '{src}' is inconsistent: {exc}") from exc
+            raise BadInputError(f"result file '{src}' is inconsistent: {exc}") from exc
 
     # ------------------------------------------------------------------ metrics
     def metrics(
@@ -397,5 +382,5 @@ class Result:
 
 
 def load_result(path: str | os.PathLike[str]) -> Result:
-    """Read a result file; same as :meth:`Result.load` (ResultFileError naming the file)."""
+    """Read a result file; same as :meth:`Result.load` (BadInputError naming the file)."""
     return Result.load(path)

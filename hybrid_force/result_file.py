@@ -26,10 +26,12 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
+from numpy.lib import format as npy_format
 from numpy.lib.npyio import NpzFile
 
 from hybrid_force._atomic import atomic_file, prepare_target
-from hybrid_force.errors import BadInputError, ResultFileError
+from hybrid_force._memory import available_memory
+from hybrid_force.errors import BadInputError
 
 __all__ = [
     "ARRAY_NAMES",
@@ -118,26 +120,22 @@ def _check_archive(fh: BinaryIO, src: Path) -> None:
     allocates the claimed shape before reading). Zip and header errors propagate to
     :func:`read_arrays`, which reports them as an unreadable archive.
     """
-    from numpy.lib import format as npy_format
-
-    from hybrid_force.sim.run_checks import available_memory
-
     if fh.read(6) == b"\x93NUMPY":
-        raise ResultFileError(
+        raise BadInputError(
             f"result file '{src}' holds a single numpy array, not an .npz result archive"
         )
     fh.seek(0)
     with zipfile.ZipFile(fh) as archive:
         members = archive.infolist()
         if len(members) > _MAX_MEMBERS:
-            raise ResultFileError(
+            raise BadInputError(
                 f"result file '{src}' has {len(members)} members; a result has "
                 f"{len(ARRAY_NAMES) + 1}"
             )
         total = sum(m.file_size for m in members)
         free = available_memory()
         if free is not None and 2 * total > free:
-            raise ResultFileError(
+            raise BadInputError(
                 f"result file '{src}' would take {total / 2**30:.3g} GiB once decompressed "
                 f"(twice that while loading); {free / 2**30:.3g} GiB of memory is available"
             )
@@ -156,7 +154,7 @@ def _check_archive(fh: BinaryIO, src: Path) -> None:
             claimed = math.prod(shape) * dtype.itemsize
             if claimed > member.file_size:
                 name = member.filename.removesuffix(".npy")
-                raise ResultFileError(
+                raise BadInputError(
                     f"result file '{src}': array '{name}' claims shape "
                     f"{shape} ({claimed} bytes) but its member holds {member.file_size} bytes"
                 )
@@ -184,9 +182,9 @@ def write_arrays(target: Path, arrays: Mapping[str, np.ndarray], meta_text: str)
     exception re-raised; an existing file at ``target`` is untouched until the final replace.
 
     Raises:
-        ResultFileError: ``target`` is a directory, or its parent cannot be created.
+        BadInputError: ``target`` is a directory, or its parent cannot be created.
     """
-    prepare_target(target, ResultFileError, "save result")
+    prepare_target(target, BadInputError, "save result")
     payload: dict[str, Any] = dict(arrays)
     payload[META_KEY] = np.array(meta_text, dtype=np.str_)
     with atomic_file(target) as fh:
@@ -199,14 +197,14 @@ def read_arrays(src: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     file holds) and the decoded meta dict of the result file ``src``.
 
     Raises:
-        ResultFileError: naming the file, if it is missing, not an npz archive (truncated or
+        BadInputError: naming the file, if it is missing, not an npz archive (truncated or
             garbage), too large for memory, lacks arrays (listed), or has no or bad ``meta``
             JSON (not an object, nested more than :data:`MAX_META_DEPTH` levels).
     """
     if not src.exists():
-        raise ResultFileError(f"result file '{src}' does not exist")
+        raise BadInputError(f"result file '{src}' does not exist")
     if not src.is_file():
-        raise ResultFileError(f"result file '{src}' is not a regular file")
+        raise BadInputError(f"result file '{src}' is not a regular file")
     data: dict[str, np.ndarray] = {}
     try:
         # open the file ourselves: np.load leaks its handle when the zip is corrupt
@@ -215,7 +213,7 @@ def read_arrays(src: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
             fh.seek(0)
             loaded = np.load(fh, allow_pickle=False)
             if not isinstance(loaded, NpzFile):
-                raise ResultFileError(
+                raise BadInputError(
                     f"result file '{src}' holds a single numpy array, not an .npz result archive"
                 )
             with loaded as npz:
@@ -223,14 +221,14 @@ def read_arrays(src: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
                 missing = [n for n in (*ARRAY_NAMES, META_KEY) if n not in names]
                 if missing:
                     found = ", ".join(sorted(names)) or "none"
-                    raise ResultFileError(
+                    raise BadInputError(
                         f"result file '{src}' is not a complete hybrid_force result: "
                         f"missing array(s) {', '.join(missing)} (found: {found})"
                     )
                 for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS, META_KEY):
                     if name in names:
                         data[name] = npz[name]
-    except ResultFileError:
+    except BadInputError:
         raise
     except (
         OSError,
@@ -241,30 +239,30 @@ def read_arrays(src: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         KeyError,
         RuntimeError,
     ) as exc:  # RuntimeError: an encrypted member; NotImplementedError: unknown compression
-        raise ResultFileError(
+        raise BadInputError(
             f"result file '{src}' is not a readable .npz archive (truncated or not a "
             f"hybrid_force result): {type(exc).__name__}: {exc}"
         ) from exc
     meta_arr = data.pop(META_KEY)
     if meta_arr.shape != () or meta_arr.dtype.kind != "U":
-        raise ResultFileError(
+        raise BadInputError(
             f"result file '{src}': 'meta' must be a 0-d unicode string array of JSON text, "
             f"got dtype {meta_arr.dtype} shape {meta_arr.shape}"
         )
     try:
         meta = json.loads(str(meta_arr))
     except json.JSONDecodeError as exc:
-        raise ResultFileError(f"result file '{src}': 'meta' is not valid JSON: {exc}") from exc
+        raise BadInputError(f"result file '{src}': 'meta' is not valid JSON: {exc}") from exc
     except RecursionError:
         meta = None  # nested beyond Python's recursion limit: refused just below
     depth = _json_depth(meta) if meta is not None else MAX_META_DEPTH + 1
     if depth > MAX_META_DEPTH:
-        raise ResultFileError(
+        raise BadInputError(
             f"result file '{src}': 'meta' is nested more than {MAX_META_DEPTH} levels deep "
             "(a result's meta needs about 5)"
         )
     if not isinstance(meta, dict):
-        raise ResultFileError(
+        raise BadInputError(
             f"result file '{src}': 'meta' must be a JSON object, got {type(meta).__name__}"
         )
     return data, meta

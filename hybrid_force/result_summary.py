@@ -7,15 +7,31 @@ are built from it too.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-if TYPE_CHECKING:  # for annotations only: the Result imports this module
-    from hybrid_force.result import Result
+from hybrid_force.metrics import Metrics
 
-__all__ = ["summarise"]
+__all__ = ["SummarisedRun", "summarise"]
 
 
-def summarise(result: Result, settle_time: float | None = None) -> dict[str, Any]:
+class SummarisedRun(Protocol):
+    """What the summary reads of a run: a :class:`~hybrid_force.result.Result` (whose module
+    imports this one)."""
+
+    @property
+    def t(self) -> Any: ...
+    @property
+    def meta(self) -> dict[str, Any]: ...
+    @property
+    def n_samples(self) -> int: ...
+    @property
+    def events(self) -> list[dict[str, Any]]: ...
+    @property
+    def status(self) -> str: ...
+    def metrics(self, settle_time: float | None = None) -> Metrics: ...
+
+
+def summarise(result: SummarisedRun, settle_time: float | None = None) -> dict[str, Any]:
     """JSON-able dict: what the run was and how it ended, then its metrics.
 
     Keys: name, run_id (the same in result.npz's meta: a summary and a result with the same

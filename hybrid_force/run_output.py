@@ -30,7 +30,7 @@ from types import TracebackType
 from typing import Any
 
 from hybrid_force._atomic import atomic_file, prepare_target
-from hybrid_force.errors import OutputError
+from hybrid_force.errors import BadInputError
 from hybrid_force.viz.figure_names import FIGURE_NAMES, OPTIONAL_FIGURE_NAMES
 
 __all__ = ["RESULT_NAME", "SUMMARY_NAME", "RunOutput", "locked_folder"]
@@ -69,13 +69,13 @@ class RunOutput:
         }
         what = mine.get(_key(target))
         if what is not None:
-            raise OutputError(f"{option} {str(path)!r} is {what}: choose another file")
-        prepare_target(target, OutputError, f"write {option}", key=option)
+            raise BadInputError(f"{option} {str(path)!r} is {what}: choose another file")
+        prepare_target(target, BadInputError, f"write {option}", key=option)
         _probe(target.parent, option)
         return target
 
     def __enter__(self) -> RunOutput:
-        """Create the folder, prove it writable and take its lock (OutputError if held).
+        """Create the folder, prove it writable and take its lock (BadInputError if held).
 
         Also refused: a folder where the run's own files would replace one of its inputs
         (a scenario file called summary.json in the output folder, say).
@@ -83,7 +83,7 @@ class RunOutput:
         ours = {_key(f) for f in (self.result, self.summary, *self.figures)}
         for given in self._inputs:
             if _key(given) in ours:
-                raise OutputError(
+                raise BadInputError(
                     f"--out {str(self.folder)!r}: the run would replace its input {str(given)!r}"
                 )
         self._stack.enter_context(locked_folder(self.folder))
@@ -110,7 +110,7 @@ class RunOutput:
             with atomic_file(self.summary, "w", encoding="utf-8") as fh:
                 fh.write(text)
         except OSError as exc:
-            raise OutputError(
+            raise BadInputError(
                 f"cannot write the results into {str(self.folder)!r}: {exc}"
             ) from None
         return summary
@@ -125,31 +125,31 @@ def locked_folder(folder: Path, option: str = "--out") -> Iterator[Path]:
     process). Runs and sweeps both take it: two commands never write into one folder at once.
 
     Raises:
-        OutputError: naming ``option`` and the folder: cannot be created or written, not a
+        BadInputError: naming ``option`` and the folder: cannot be created or written, not a
             folder, or another command holds its lock.
     """
     where = f"{option} {str(folder)!r}"
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"{where}: cannot create the output folder: {exc.strerror}") from None
+        raise BadInputError(f"{where}: cannot create the output folder: {exc.strerror}") from None
     if not folder.is_dir():
-        raise OutputError(f"{where} is not a folder")
+        raise BadInputError(f"{where} is not a folder")
     _probe(folder, option)
     try:
         fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     except OSError as exc:
-        raise OutputError(f"{where}: cannot open it: {exc.strerror}") from None
+        raise BadInputError(f"{where}: cannot open it: {exc.strerror}") from None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
             if exc.errno in (errno.EWOULDBLOCK, errno.EACCES, errno.EAGAIN):
-                raise OutputError(
+                raise BadInputError(
                     f"{where}: another run or sweep is writing into this folder (it holds the "
                     f"folder's lock); wait for it or choose another {option}"
                 ) from None
-            raise OutputError(f"{where}: cannot lock it: {exc}") from None
+            raise BadInputError(f"{where}: cannot lock it: {exc}") from None
         yield folder
     finally:
         os.close(fd)  # closing the descriptor releases the lock
@@ -161,13 +161,13 @@ def _key(path: Path) -> str:
 
 
 def _probe(folder: Path, option: str) -> None:
-    """OutputError unless a file can be created (and removed) in ``folder``."""
+    """BadInputError unless a file can be created (and removed) in ``folder``."""
     if not folder.is_dir():
-        raise OutputError(f"{option}: the folder {str(folder)!r} does not exist")
+        raise BadInputError(f"{option}: the folder {str(folder)!r} does not exist")
     try:
         fd, name = tempfile.mkstemp(dir=folder, prefix=".hybrid-force-probe.")
     except OSError as exc:
-        raise OutputError(
+        raise BadInputError(
             f"{option}: cannot write into {str(folder)!r}: {exc.strerror or exc}"
         ) from None
     os.close(fd)

@@ -23,6 +23,8 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import MISSING, dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
+from hybrid_force import _checks as checks
+
 if TYPE_CHECKING:
     from hybrid_force.errors import BadInputError
 
@@ -169,7 +171,6 @@ def check_fields(obj: Any, error: type[BadInputError], prefix: str) -> None:
     its range, each flag a bool, each text one of its choices. A field whose default is None
     may be None. Other kinds are left to the class. Raises ``error`` naming the field as
     ``prefix`` + its key (``"sim.dt"``), with its value and what is valid."""
-    from hybrid_force import _checks as checks
 
     cls = type(obj)
     for f, spec in specs(cls):

@@ -34,7 +34,7 @@ def rtr_urdf() -> Path:
 @pytest.fixture(scope="module")
 def rtr() -> Robot:
     """The paper's RTR arm (robots/rtr.urdf), tip "tip"."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     return load_robot("rtr")
 
@@ -42,7 +42,7 @@ def rtr() -> Robot:
 @pytest.fixture(scope="module")
 def ur5() -> Robot:
     """The UR5 of example-robot-data (6 revolute joints)."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     return load_robot("ur5")
 
@@ -50,7 +50,7 @@ def ur5() -> Robot:
 @pytest.fixture(scope="module")
 def panda() -> Robot:
     """The Franka Panda of example-robot-data (7 joints; its fingers locked by the registry)."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     return load_robot("panda")
 

@@ -27,7 +27,7 @@ from hybrid_force.control.laws.arimoto import Desired, make_gains
 from hybrid_force.control.laws.arimoto_adaptive import AdaptiveArimotoWorkspace, make_adaptation
 from hybrid_force.control.laws.base import LawContext, LawInput, build_law
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.geometry.surfaces import Plane, Sphere
+from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hybrid_force.control.force_loop import max_stable_gain, spectral_radius
-from hybrid_force.errors import PathParameterError
+from hybrid_force.errors import PathError
 from hybrid_force.geometry.builtin_surfaces import Sphere
 from hybrid_force.geometry.raster import MAX_PASSES, RasterPath
 
@@ -103,7 +103,7 @@ def test_a_400_period_delay_is_checked_in_seconds_by_the_cli(tmp_path: Path) -> 
 # --- raster passes -----------------------------------------------------------------------------
 def test_a_raster_of_more_than_max_passes_is_refused_before_it_is_built() -> None:
     start = time.perf_counter()
-    with pytest.raises(PathParameterError, match="20001 passes") as info:
+    with pytest.raises(PathError, match="20001 passes") as info:
         RasterPath(Sphere(0.3), [0.6, -0.3], [0.2, 0.6], 1e-5, 0.04, direction="v")
     assert time.perf_counter() - start < 1.0
     assert info.value.key == "spacing" and info.value.value == 1e-5
@@ -118,7 +118,7 @@ def test_the_smallest_spacing_a_message_gives_is_accepted_when_copied(
     from hybrid_force.geometry import raster
 
     monkeypatch.setattr(raster, "MAX_PASSES", 7)  # the rule at a size that builds in no time
-    with pytest.raises(PathParameterError, match="more than the 7 a raster may have") as info:
+    with pytest.raises(PathError, match="more than the 7 a raster may have") as info:
         RasterPath(Sphere(0.3), [0.6, -0.3], [size, 0.6], 1e-3, 0.04, direction="v")
     suggested = float(str(info.value).rsplit(" ", 1)[-1])
     assert suggested == pytest.approx(size / 6, rel=1e-3)
@@ -196,7 +196,7 @@ def test_fixed_joints_count_against_the_element_bound_not_the_joint_bound(
 
 def test_nested_mjcf_replicates_are_refused_before_they_are_copied(tmp_path: Path) -> None:
     from hybrid_force import load_robot
-    from hybrid_force.errors import URDFError
+    from hybrid_force.errors import RobotError
 
     body = (
         '<body name="b" pos="0.1 0 0"><joint name="j" type="hinge" axis="0 0 1"/>'
@@ -209,7 +209,7 @@ def test_nested_mjcf_replicates_are_refused_before_they_are_copied(tmp_path: Pat
         "</worldbody></mujoco>"
     )
     start = time.perf_counter()
-    with pytest.raises(URDFError, match=r"replicate count='1000'.*MAX_ELEMENTS"):
+    with pytest.raises(RobotError, match=r"replicate count='1000'.*MAX_ELEMENTS"):
         load_robot(mjcf)
     assert time.perf_counter() - start < 10.0
 
@@ -224,7 +224,7 @@ def test_a_chain_at_the_maximum_loads(tmp_path: Path) -> None:
 
 def test_a_deep_mjcf_chain_is_refused_before_pinocchio_parses_it(tmp_path: Path) -> None:
     from hybrid_force import load_robot
-    from hybrid_force.errors import URDFError
+    from hybrid_force.errors import RobotError
 
     bodies = 400
     inner = "".join(
@@ -236,7 +236,7 @@ def test_a_deep_mjcf_chain_is_refused_before_pinocchio_parses_it(tmp_path: Path)
     mjcf.write_text(
         f'<mujoco model="m"><worldbody>{inner}{"</body>" * bodies}</worldbody></mujoco>'
     )
-    with pytest.raises(URDFError, match="more than 100 moving joints") as info:
+    with pytest.raises(RobotError, match="more than 100 moving joints") as info:
         load_robot(mjcf)
     assert str(mjcf) in str(info.value)
     # nested deeper than any model, without a joint: the depth is the limit
@@ -244,19 +244,19 @@ def test_a_deep_mjcf_chain_is_refused_before_pinocchio_parses_it(tmp_path: Path)
     empty.write_text(
         f"<mujoco><worldbody>{'<frame>' * 5000}{'</frame>' * 5000}</worldbody></mujoco>"
     )
-    with pytest.raises(URDFError, match="nest more than 256 deep"):
+    with pytest.raises(RobotError, match="nest more than 256 deep"):
         load_robot(empty)
 
 
 def test_a_model_file_beyond_the_byte_limit_is_refused_unread(tmp_path: Path) -> None:
     from hybrid_force import load_robot
-    from hybrid_force.errors import URDFError
+    from hybrid_force.errors import RobotError
     from hybrid_force.model.urdf_text import MAX_MODEL_BYTES
 
     big = tmp_path / "big.urdf"
     with big.open("wb") as fh:  # sparse: nothing is written but the size
         fh.truncate(MAX_MODEL_BYTES + 1)
-    with pytest.raises(URDFError, match="MAX_MODEL_BYTES") as info:
+    with pytest.raises(RobotError, match="MAX_MODEL_BYTES") as info:
         load_robot(big)
     assert str(big) in str(info.value)
 
@@ -269,7 +269,7 @@ def test_more_than_max_waypoints_are_refused_before_the_spline_is_built() -> Non
     pipe = Cylinder(0.15, [0.45, 0.0, 0.4], [1.0, 0.0, 0.0], inside=True)
     points = np.c_[np.linspace(-2.17, -1.0, 40 * MAX_WAYPOINTS), np.full(40 * MAX_WAYPOINTS, -0.05)]
     start = time.perf_counter()
-    with pytest.raises(PathParameterError, match=f"more than the {MAX_WAYPOINTS}") as info:
+    with pytest.raises(PathError, match=f"more than the {MAX_WAYPOINTS}") as info:
         WaypointPath(pipe, points, 0.02, frame="surface")
     assert time.perf_counter() - start < 1.0  # building them took about 70 s
     assert info.value.key == "points"

@@ -116,10 +116,11 @@ def run_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The paper's 6.4 setup simulated for 1.2 s (contact from t ≈ 0.9 s), saved."""
     from hybrid_force.control.clik import inverse_kinematics
     from hybrid_force.control.supervisor import ControlSettings
+    from hybrid_force.geometry.builtin_surfaces import Cylinder
     from hybrid_force.geometry.paths import paper_helix
-    from hybrid_force.geometry.surfaces import Cylinder
-    from hybrid_force.model.robot import load_robot
-    from hybrid_force.sim.loop import Scenario, SimSettings, simulate
+    from hybrid_force.model.loading import load_robot
+    from hybrid_force.sim.loop import simulate
+    from hybrid_force.sim.settings import Scenario, SimSettings
 
     robot = load_robot("rtr")
     q0 = inverse_kinematics(robot, [0.1, 0.1, 2], seed=[0.5, 1, 2.0])
@@ -178,8 +179,8 @@ def _check_scene(page: Any, result: Result) -> None:
     """Scene content, FK at a contact frame, phase/force state, two times → two images."""
     from PIL import Image
 
-    from hybrid_force.model.robot import load_robot
-    from hybrid_force.viz.replay import Replay
+    from hybrid_force.model.loading import load_robot
+    from hybrid_force.viz.scene import Replay
 
     rep = Replay(result)
     nodes = rep.node_paths()

@@ -12,8 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybrid_force.cli import FeatureUnavailableError, _import_feature, _Progress, main
-from hybrid_force.result import Metrics, Result
+from hybrid_force.cli import _import_feature, _Progress, main
+from hybrid_force.errors import MissingExtraError
+from hybrid_force.metrics import Metrics
+from hybrid_force.result import Result
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((REPO_ROOT / "scenarios").glob("*.toml"))
@@ -214,7 +216,7 @@ def test_help_of_every_command(command: str) -> None:
 
 
 def test_missing_feature_module_is_a_clear_error() -> None:
-    with pytest.raises(FeatureUnavailableError, match="the thing is not available"):
+    with pytest.raises(MissingExtraError, match="the thing is not available"):
         _import_feature("hybrid_force.no_such_module", "the thing")
 
 

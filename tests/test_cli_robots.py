@@ -63,13 +63,13 @@ def test_bad_input_error_is_one_line_exit_2(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A BadInputError raised inside a subcommand becomes ``error: ...`` and status 2."""
-    import hybrid_force.model.robot
-    from hybrid_force.errors import URDFError
+    import hybrid_force.cli
+    from hybrid_force.errors import RobotError
 
     def broken(name: str, tip: str | None = None) -> None:
-        raise URDFError(f"URDF file not found: /nowhere/{name}.urdf\n(second line)")
+        raise RobotError(f"URDF file not found: /nowhere/{name}.urdf\n(second line)")
 
-    monkeypatch.setattr(hybrid_force.model.robot, "load_robot", broken)
+    monkeypatch.setattr(hybrid_force.cli, "load_robot", broken)
     assert main(["robots"]) == 2
     captured = capsys.readouterr()
     assert captured.err == "error: URDF file not found: /nowhere/rtr.urdf (second line)\n"

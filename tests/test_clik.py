@@ -22,7 +22,7 @@ from hybrid_force.control.clik import (
     StepClock,
     inverse_kinematics,
 )
-from hybrid_force.errors import GainError, ReachError
+from hybrid_force.errors import ControlError, ReachError
 from hybrid_force.geometry.paths import Circle, Path, paper_helix
 from hybrid_force.model.robot import Robot
 
@@ -187,7 +187,7 @@ def test_singular_jacobian_on_path_raises(rtr: Robot) -> None:
     "kwargs", [{"gamma": 0.0}, {"gamma": -7.0}, {"damping": -1.0}, {"posture_gain": np.nan}]
 )
 def test_bad_settings(kwargs: dict[str, float]) -> None:
-    with pytest.raises(GainError, match=next(iter(kwargs))):
+    with pytest.raises(ControlError, match=next(iter(kwargs))):
         ClikSettings(**kwargs)
 
 

@@ -24,8 +24,8 @@ from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.pose_clik import PoseJointPath, pose_inverse_kinematics
 from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import ControlError, ReachError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Sphere
 from hybrid_force.geometry.paths import Circle, Helix
-from hybrid_force.geometry.surfaces import Cylinder, Sphere
 from hybrid_force.model.robot import Robot
 
 UR5_SEED = np.array([0.0, -1.57, 1.57, -1.57, -1.57, 0.0])

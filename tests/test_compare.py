@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hybrid_force.control.laws import base
-from hybrid_force.geometry.surfaces import Cylinder, Plane
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane
 from hybrid_force.metrics import (
     compute_tracking_metrics,
     impact_force_peak,
@@ -101,9 +101,9 @@ def test_tangential_component_marks_non_finite_samples_and_checks_shapes() -> No
     n = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
     e_t = tangential_component(e, n)
     assert e_t[0].tolist() == [1.0, 0.0, 0.0] and np.all(np.isnan(e_t[1]))
-    from hybrid_force.errors import DimensionError
+    from hybrid_force.errors import BadInputError
 
-    with pytest.raises(DimensionError, match="normals"):
+    with pytest.raises(BadInputError, match="normals"):
         tangential_component(e, np.zeros((3, 3)))
 
 
@@ -209,12 +209,12 @@ def test_tracking_metrics_of_a_hand_built_run() -> None:
 
 
 def test_tracking_metrics_refuse_the_wrong_number_of_surfaces() -> None:
-    from hybrid_force.errors import DimensionError
+    from hybrid_force.errors import BadInputError
 
     t = np.arange(4) * DT
-    with pytest.raises(DimensionError, match="2 surface"):
+    with pytest.raises(BadInputError, match="2 surface"):
         compute_tracking_metrics(_result(t), [Cylinder(0.4), Cylinder(0.5)])
-    with pytest.raises(DimensionError, match="path_errors"):
+    with pytest.raises(BadInputError, match="path_errors"):
         compute_tracking_metrics(_result(t), [Cylinder(0.4)], path_errors=np.zeros(3))
 
 
@@ -363,13 +363,13 @@ def test_a_law_that_diverges_is_a_row_saying_so(
 
 
 def test_plot_comparison_refuses_no_law_and_mismatched_curves(tmp_path: Path) -> None:
-    from hybrid_force.errors import PlotError
+    from hybrid_force.errors import BadInputError
     from hybrid_force.viz.compare_plots import COMPARE_FIGURES, LawCurve, plot_comparison
 
-    with pytest.raises(PlotError, match="no law"):
+    with pytest.raises(BadInputError, match="no law"):
         plot_comparison([], tmp_path)
     t = np.arange(5) * DT
-    with pytest.raises(PlotError, match="path_error"):
+    with pytest.raises(BadInputError, match="path_error"):
         LawCurve("a", "ok", t, np.ones(5), np.ones(4))
     # a failed law whose values are all non-finite is left out, the others drawn
     curves = [

@@ -8,7 +8,7 @@ Independent references:
 - raw drift = d/dt J_Φ(q + v t) · v, and Ȧ, Ȧ⁺, Q̇ by central finite differences along
   q(t) = q + v t (they are total time derivatives along the motion);
 - A q̈ + drift = Φ̈ / s against a second difference of Φ(p(q + v t + ½ q̈ t²));
-- singular cases raise SingularConfigurationError, never NaN.
+- singular cases raise SurfaceError, never NaN.
 """
 
 from __future__ import annotations
@@ -20,8 +20,9 @@ from hypothesis import strategies as st
 from oracles.terms import constraint_terms
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.errors import SingularConfigurationError, SurfaceError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.errors import SurfaceError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 
 NORMALIZATIONS = ("tip", "joint")
@@ -325,8 +326,8 @@ def test_stacked_rows_equal_the_oracle(ur5: Robot, normalization: str) -> None:
         terms = ur5.terms(q, v, data)
         try:
             want = constraint_terms(con, terms, v)
-        except SingularConfigurationError:
-            with pytest.raises(SingularConfigurationError):
+        except SurfaceError:
+            with pytest.raises(SurfaceError):
                 con.evaluate(terms, v)
             continue
         got = con.evaluate(terms, v)
@@ -346,7 +347,7 @@ def test_tip_on_cylinder_axis_is_singular(rtr: Robot, normalization: str) -> Non
     q = np.array([0.3, 5.0, 0.8])
     p = rtr.tip_position(q)
     for surface in (Cylinder(0.4, center=p), Cylinder(0.2, center=p, axis=(1, 1, 0)), Sphere(1, p)):
-        with pytest.raises(SingularConfigurationError, match="∇Φ vanishes"):
+        with pytest.raises(SurfaceError, match="∇Φ vanishes"):
             Constraint(surface, normalization).at(rtr, q, np.ones(3))
 
 
@@ -362,7 +363,7 @@ def test_rtr_elbow_straight_or_folded_is_singular(
     """
     q = np.array([0.7, 4.0, q3])
     for surface in (Cylinder(0.4), Cylinder(1.0, inside=True)):
-        with pytest.raises(SingularConfigurationError, match="J_Φ is \\(near\\) zero"):
+        with pytest.raises(SurfaceError, match="J_Φ is \\(near\\) zero"):
             Constraint(surface, normalization).at(rtr, q, np.array([0.2, -0.1, 0.3]))
 
 
@@ -373,7 +374,7 @@ def test_near_singular_elbow_is_finite_or_raises(rtr: Robot, normalization: str)
         q = np.array([0.7, 4.0, eps])
         try:
             ct = Constraint(Cylinder(0.4), normalization).at(rtr, q, np.ones(3))
-        except SingularConfigurationError:
+        except SurfaceError:
             continue
         for x in (ct.A, ct.A_pinv, ct.Q, ct.Qdot, ct.A_pinv_dot, ct.drift):
             assert np.all(np.isfinite(x))
@@ -383,13 +384,13 @@ def test_near_singular_elbow_is_finite_or_raises(rtr: Robot, normalization: str)
 def test_identical_stacked_surfaces_are_singular(
     rtr: Robot, ur5: Robot, normalization: str
 ) -> None:
-    with pytest.raises(SingularConfigurationError, match="dependent"):
+    with pytest.raises(SurfaceError, match="dependent"):
         Constraint([Cylinder(0.4), Cylinder(0.4)], normalization).at(rtr, [0.3, 5.0, 0.8])
     plane = Plane((0, 0, 0.2), (0, 0, 1))
-    with pytest.raises(SingularConfigurationError, match="dependent"):
+    with pytest.raises(SurfaceError, match="dependent"):
         Constraint([plane, plane], normalization).at(ur5, [0.1, -1.0, 1.2, 0.3, 0.5, 0.2])
     # parallel planes at different heights: same normal, rows dependent
-    with pytest.raises(SingularConfigurationError):
+    with pytest.raises(SurfaceError):
         Constraint([plane, Plane((0, 0, 0.5), (0, 0, 2))], normalization).at(
             ur5, [0.1, -1.0, 1.2, 0.3, 0.5, 0.2]
         )
@@ -416,5 +417,5 @@ def test_normal_rows_are_unit_normal_rows_and_first_order_distances() -> None:
     np.testing.assert_allclose(rows[0], n_cyl @ J, atol=1e-15)
     np.testing.assert_allclose(rows[1], J[2], atol=1e-15)
     np.testing.assert_allclose(dist, [(0.25 - 0.16) / (2 * 0.5), 0.2], atol=1e-15)
-    with pytest.raises(SingularConfigurationError):
+    with pytest.raises(SurfaceError):
         cons.normal_rows(np.array([0.0, 0.0, 2.0]), J)  # on the cylinder's axis

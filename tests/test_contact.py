@@ -22,8 +22,8 @@ from oracles.run import oracle_run
 from hybrid_force import load_robot, simulate
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.errors import BadInputError, ContactSettingsError, ScenarioError
-from hybrid_force.geometry.surfaces import Plane
+from hybrid_force.errors import BadInputError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.contact import (
@@ -73,7 +73,7 @@ def test_settings_refuse_bad_values_naming_the_key() -> None:
         ({"friction": -0.1}, "contact.friction"),
         ({"friction_velocity": 0.0}, "contact.friction_velocity"),
     ):
-        with pytest.raises(ContactSettingsError, match=key.replace(".", r"\.")):
+        with pytest.raises(ScenarioError, match=key.replace(".", r"\.")):
             ContactSettings(**kwargs)  # type: ignore[arg-type]
 
 
@@ -202,7 +202,7 @@ def _energy_residual(robot: Robot, contact: ContactSettings, dt: float) -> tuple
     """(W_u − ΔT − ΔV − E_f, E_f) [J] of 0.4 s of the RTR pressed onto the cylinder and driven
     round it by a constant torque on top of gravity."""
     from hybrid_force.control.clik import inverse_kinematics
-    from hybrid_force.geometry.surfaces import Cylinder
+    from hybrid_force.geometry.builtin_surfaces import Cylinder
 
     plant = Plant(robot, Constraint(Cylinder(0.4)), SimSettings(), 1e-5, contact)
     q = inverse_kinematics(robot, np.array([0.4, 0.0, 7.0]), seed=np.array([0.0, 6.0, 2.0]))
@@ -307,7 +307,7 @@ def test_compliant_and_friction_runs_agree_with_the_reference_plant(paper, monke
 
 
 def test_a_step_too_long_for_the_contact_is_refused(paper, repo_root: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    with pytest.raises(ContactSettingsError, match=r"largest stable step .* is ([0-9.e-]+) s"):
+    with pytest.raises(ScenarioError, match=r"largest stable step .* is ([0-9.e-]+) s"):
         _run(paper, ContactSettings(model="compliant", stiffness=1e9), 1e-3)
     text = (repo_root / "scenarios" / "paper_contact.toml").read_text()
     bad = tmp_path / "stiff.toml"

@@ -31,8 +31,9 @@ from hybrid_force.control.laws.arimoto import (
     default_damping_gain,
     make_gains,
 )
-from hybrid_force.errors import GainError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.errors import ControlError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import Baumgarte, constrained_acceleration
 
@@ -182,7 +183,7 @@ def test_make_gains_accepts_scalar_vector_matrix() -> None:
     ],
 )
 def test_make_gains_rejects_bad_kd(Kd: object, match: str) -> None:
-    with pytest.raises(GainError, match=match) as info:
+    with pytest.raises(ControlError, match=match) as info:
         make_gains(Kd, 1.0, 0.1, 1.0, 2)  # type: ignore[arg-type]
     assert "Kd" in str(info.value)
 
@@ -201,7 +202,7 @@ def test_make_gains_rejects_bad_kd(Kd: object, match: str) -> None:
 )
 def test_make_gains_rejects_bad_scalars(name: str, args: tuple[float, float, float]) -> None:
     bad = args[("Lambda", "beta", "gamma").index(name)]
-    with pytest.raises(GainError) as info:
+    with pytest.raises(ControlError) as info:
         make_gains(1.0, *args, 3)
     message = str(info.value)
     assert name in message

@@ -19,8 +19,9 @@ import pytest
 from oracles.plant import kkt
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.errors import SimSettingsError, SimulationError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface
+from hybrid_force.errors import RunFailedError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import (
     Baumgarte,
@@ -173,9 +174,9 @@ def test_baumgarte_gamma_formula() -> None:
 )
 def test_baumgarte_rejects_bad_gains(alpha: object, beta: object, key: str) -> None:
     """Bad input, not a run-time failure: a BadInputError naming the [sim] key."""
-    with pytest.raises(SimSettingsError, match=key) as info:
+    with pytest.raises(ScenarioError, match=key) as info:
         Baumgarte(alpha=alpha, beta=beta)  # type: ignore[arg-type]
-    assert not isinstance(info.value, SimulationError)
+    assert not isinstance(info.value, RunFailedError)
 
 
 def test_baumgarte_closes_on_the_surface(rtr: Robot) -> None:

@@ -10,14 +10,16 @@ import numpy as np
 import pytest
 from test_replay import embedded_commands
 
-from hybrid_force.errors import ScenarioError, SurfaceParameterError
+from hybrid_force.errors import ScenarioError, SurfaceError
+from hybrid_force.geometry.builtin_surfaces import Sphere
 from hybrid_force.geometry.charts import chart_for
 from hybrid_force.geometry.ellipsoid import Ellipsoid, EllipsoidChart
-from hybrid_force.geometry.paths import Circle, check_on_surface
+from hybrid_force.geometry.on_surface import check_on_surface
+from hybrid_force.geometry.paths import Circle
 from hybrid_force.geometry.raster import RasterPath
-from hybrid_force.geometry.surfaces import Sphere, surface_from_dict
+from hybrid_force.geometry.surfaces import surface_from_dict
 from hybrid_force.geometry.waypoints import WaypointPath
-from hybrid_force.scenario import load_scenario
+from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
 from hybrid_force.viz import replay
 
@@ -119,9 +121,9 @@ def test_inside_flips_signs() -> None:
 
 def test_parameters_round_trip_and_are_checked() -> None:
     assert surface_from_dict(json.loads(json.dumps(TILTED.to_dict()))) == TILTED
-    with pytest.raises(SurfaceParameterError, match=r"semi_axes\[1\]"):
+    with pytest.raises(SurfaceError, match=r"semi_axes\[1\]"):
         Ellipsoid((0.5, 0.0, 0.2))
-    with pytest.raises(SurfaceParameterError, match="semi_axes"):
+    with pytest.raises(SurfaceError, match="semi_axes"):
         Ellipsoid((0.5, 0.2))  # type: ignore[arg-type]
 
 

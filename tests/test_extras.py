@@ -67,7 +67,7 @@ for name, argv in commands.items():
 # the Python API: the error carries the library and the extra
 from hybrid_force.result import Result
 from hybrid_force.studies.sweep import run_sweep
-from hybrid_force.viz.plots import plot_result
+from hybrid_force.viz.run_figures import plot_result
 from hybrid_force.viz.replay import write_html
 
 result = Result.load(f"{out}/run/result.npz")

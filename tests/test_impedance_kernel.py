@@ -7,7 +7,7 @@ ImpedanceWorkspace) against its numpy oracle (ImpedanceLaw of tests/oracles/laws
    update, the preload φ agree to 1e-12 relative to the largest entry of the reference (the
    preload exactly: the same operations).
 2. Singular J M⁻¹ Jᵀ (a tip that cannot move along one axis) and singular M raise the same
-   SingularConfigurationError with the same message on both paths.
+   SurfaceError with the same message on both paths.
 3. Whole short runs of paper_contact (0.2 s, contact) and ur5_plane (0.2 s near the plane,
    0.4 s to include the touch at 0.284 s), compiled law vs its oracle (all else the same),
    agree to 1e-10 in q, q̇, u and f.
@@ -29,8 +29,8 @@ from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import LawContext, LawInput
 from hybrid_force.control.laws.impedance import ImpedanceGains, ImpedanceWorkspace
-from hybrid_force.errors import SingularConfigurationError
-from hybrid_force.geometry.surfaces import Plane, Sphere
+from hybrid_force.errors import SurfaceError
+from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.phases import CONTACT, NEAR
 from hybrid_force.result import Result
@@ -153,10 +153,10 @@ def test_singular_configurations_raise_the_same_error(rtr: Robot) -> None:
     for bad in (bad_J, bad_M):
         messages = []
         for law in (ImpedanceWorkspace(gains, con, 1), ImpedanceLaw(gains, con, 1)):
-            with pytest.raises(SingularConfigurationError) as info:
+            with pytest.raises(SurfaceError) as info:
                 law.free_space(LawInput(bad, v, e_q, desired))
             messages.append(str(info.value))
-            with pytest.raises(SingularConfigurationError) as info:
+            with pytest.raises(SurfaceError) as info:
                 law.hybrid(LawInput(bad, v, e_q, desired, cons, np.zeros(1), np.ones(1)))
             messages.append(str(info.value))
         assert len(set(messages)) == 1, messages

@@ -19,7 +19,7 @@ from oracles.plant import OraclePlant
 
 from hybrid_force import simulate
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.geometry.surfaces import Plane
+from hybrid_force.geometry.builtin_surfaces import Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.plant import Plant

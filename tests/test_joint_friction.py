@@ -22,7 +22,7 @@ from hybrid_force import load_robot, simulate
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.errors import RobotError
-from hybrid_force.geometry.surfaces import Cylinder, Plane
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.contact import joint_dissipation

@@ -56,18 +56,16 @@ from hybrid_force.control.laws.arimoto import (
     make_gains,
 )
 from hybrid_force.control.laws.base import LawInput
-from hybrid_force.control.supervisor import (
-    CONTACT,
-    FREE,
-    NEAR,
-    ControlSettings,
-    HybridController,
-)
-from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.control.supervisor import ControlSettings, HybridController
+from hybrid_force.errors import SurfaceError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
 from hybrid_force.geometry.paths import Path as TaskPath
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere, Surface
-from hybrid_force.model.robot import Robot, RobotTerms, load_robot
+from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot, RobotTerms
+from hybrid_force.phases import CONTACT, FREE, NEAR
 from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.settings import SimSettings
 
@@ -377,14 +375,14 @@ def test_singular_points_raise_on_both_paths(arms: dict[str, Robot], reference: 
     _, grad, _ = on_axis.evaluate(p)
     np.testing.assert_array_equal(grad, np.zeros(3))
     for normalization in ("tip", "joint"):
-        with pytest.raises(SingularConfigurationError, match="∇Φ vanishes"):
+        with pytest.raises(SurfaceError, match="∇Φ vanishes"):
             _evaluate(Constraint(on_axis, normalization), terms, v, reference)
     # q1 = q3 = 0: the tip (1.9, 0, z) cannot move along x (J_Φ = n̂ᵀJ = 0 for a plane ⟂ x)
     terms, v = _rtr_terms(robot, [0.0, 6.0, 0.0], [0.3, -0.2, 0.5])
     assert np.abs(terms.J[0]).max() < 1e-15
     wall = Plane((2.5, 0.0, 0.0), (-1.0, 0.0, 0.0))
     for normalization in ("tip", "joint"):
-        with pytest.raises(SingularConfigurationError, match="J_Φ is \\(near\\) zero"):
+        with pytest.raises(SurfaceError, match="J_Φ is \\(near\\) zero"):
             _evaluate(Constraint(wall, normalization), terms, v, reference)
 
 

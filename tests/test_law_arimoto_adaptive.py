@@ -22,7 +22,8 @@ from hybrid_force.control.laws.arimoto_adaptive import (
     make_adaptation,
 )
 from hybrid_force.control.laws.base import LawInput
-from hybrid_force.geometry.surfaces import Cylinder
+from hybrid_force.geometry.builtin_surfaces import Cylinder
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.regressor import (
     SlotineLiRegressor,
     dynamic_parameters,
@@ -30,7 +31,7 @@ from hybrid_force.model.regressor import (
     sample_regressors,
     visible_columns,
 )
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.robot import Robot
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate

@@ -28,9 +28,9 @@ from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.impedance import DEFAULTS, ImpedanceGains
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.errors import ControlError, GainError, ScenarioError
+from hybrid_force.errors import ControlError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane
 from hybrid_force.geometry.paths import Circle
-from hybrid_force.geometry.surfaces import Cylinder, Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
@@ -302,7 +302,7 @@ def test_sampled_with_force_noise_lets_through_the_predicted_level() -> None:
 
 
 def test_bad_settings_are_refused_naming_the_key() -> None:
-    for bad, error in (({"zeta": 0.0}, GainError), ({"feedforward": 1}, ControlError)):
+    for bad, error in (({"zeta": 0.0}, ControlError), ({"feedforward": 1}, ControlError)):
         with pytest.raises(error) as info:
             ImpedanceGains(**bad)  # type: ignore[arg-type]
         ((key, value),) = bad.items()

@@ -10,12 +10,14 @@ import pytest
 from conftest import png_size
 
 from hybrid_force.control.laws.base import law_log_names
-from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
-from hybrid_force.result import ARRAY_NAMES, Result
+from hybrid_force.errors import BadInputError
+from hybrid_force.result import Result
+from hybrid_force.result_file import ARRAY_NAMES
 from hybrid_force.run_output import RunOutput
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
-from hybrid_force.viz.plots import FIGURE_NAMES, plot_result
+from hybrid_force.viz.figure_names import FIGURE_NAMES
+from hybrid_force.viz.run_figures import plot_result
 
 N = 40
 
@@ -93,9 +95,9 @@ def test_a_file_written_before_the_log_existed_loads_with_an_empty_one(tmp_path:
 
 def test_a_log_that_does_not_match_its_names_is_refused(tmp_path: Path) -> None:
     log, names = _estimates()
-    with pytest.raises(DimensionError, match="law_log"):
+    with pytest.raises(BadInputError, match="law_log"):
         _result(log, names[:2])
-    with pytest.raises(DimensionError, match="law_log"):
+    with pytest.raises(BadInputError, match="law_log"):
         _result(log[:-1], names)
     with pytest.raises(BadInputError, match="law_log_names"):
         _result(log, [1, 2, 3])  # type: ignore[list-item]
@@ -106,7 +108,7 @@ def test_a_log_that_does_not_match_its_names_is_refused(tmp_path: Path) -> None:
     with np.load(path) as npz:
         arrays = {k: npz[k] for k in npz.files if k != "meta"}
     np.savez(path, **arrays, meta=np.array('{"name": "x", "status": "ok", "events": []}'))
-    with pytest.raises(ResultFileError, match="law_log"):
+    with pytest.raises(BadInputError, match="law_log"):
         Result.load(path)
 
 

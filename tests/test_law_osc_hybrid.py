@@ -29,8 +29,8 @@ from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Desired
 from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.laws.osc_hybrid import OscOptions, check, osc_gains, task_space
-from hybrid_force.errors import ControlError, ScenarioError, SingularConfigurationError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
+from hybrid_force.errors import ControlError, ScenarioError, SurfaceError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.model.robot import LWA, Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
@@ -95,7 +95,7 @@ def test_rtr_has_no_null_space(rtr: Robot, rng) -> None:
 def test_a_rank_deficient_jacobian_is_refused(smallest: float) -> None:
     """J M⁻¹ Jᵀ = diag(1, 1, smallest²): cond ∞ or 1e16, above the 1e12 limit."""
     J = np.diag([1.0, 1.0, smallest])
-    with pytest.raises(SingularConfigurationError) as info:
+    with pytest.raises(SurfaceError) as info:
         task_space(np.eye(3), J)
     assert info.value.key == "control.law" and info.value.value == "osc_hybrid"
     assert np.allclose(task_space(np.eye(3), np.diag([1.0, 1.0, 1e-5])).Lambda[2, 2], 1e10)

@@ -1,5 +1,5 @@
 """Tests of hybrid_force.viz.live_server without a browser: the server binds to the loopback
-interface only, a port in use is a ViewerError naming it, and closing it ends the process.
+interface only, a port in use is a BadInputError naming it, and closing it ends the process.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import time
 import pytest
 from conftest import process_alive
 
-from hybrid_force.errors import ViewerError
+from hybrid_force.errors import BadInputError
 from hybrid_force.viz.live_server import LiveServer
 
 
@@ -33,7 +33,7 @@ def test_live_server_loopback_port_in_use_and_cleanup() -> None:
         probe.bind(("127.0.0.1", 0))
         busy_port = probe.getsockname()[1]
         probe.listen()
-        with pytest.raises(ViewerError, match=f"port {busy_port} .* already in use"):
+        with pytest.raises(BadInputError, match=f"port {busy_port} .* already in use"):
             LiveServer(busy_port)
     server = LiveServer()
     pid = server.pid

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from hybrid_force.errors import ModelWarning, SurfaceParameterError
+from hybrid_force.errors import ModelWarning, SurfaceError
 from hybrid_force.geometry.mesh_field import (
     MAX_NODES,
     _grid,
@@ -208,29 +208,29 @@ def test_default_resolution_follows_the_facets(sphere_file: Path, tmp_path: Path
 
 
 def test_bad_mesh_files_are_refused_naming_key_and_file(tmp_path: Path) -> None:
-    with pytest.raises(SurfaceParameterError, match=r"surface\.file = '.*missing\.stl'.*read"):
+    with pytest.raises(SurfaceError, match=r"surface\.file = '.*missing\.stl'.*read"):
         read_mesh(tmp_path / "missing.stl")
     garbage = tmp_path / "garbage.stl"
     garbage.write_bytes(b"\x00\x01binary garbage" * 7)
-    with pytest.raises(SurfaceParameterError, match=r"surface\.file = '.*garbage\.stl'"):
+    with pytest.raises(SurfaceError, match=r"surface\.file = '.*garbage\.stl'"):
         read_mesh(garbage)
     empty = tmp_path / "empty.obj"
     empty.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
-    with pytest.raises(SurfaceParameterError, match="no triangle faces"):
+    with pytest.raises(SurfaceError, match="no triangle faces"):
         read_mesh(empty)
     nan = tmp_path / "nan.obj"
     nan.write_text("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
-    with pytest.raises(SurfaceParameterError, match=r"non-finite|no triangle"):
+    with pytest.raises(SurfaceError, match=r"non-finite|no triangle"):
         read_mesh(nan)
     other = tmp_path / "part.step"
     other.write_text("ISO-10303-21;")
-    with pytest.raises(SurfaceParameterError, match=r"valid: \.stl, \.obj, \.ply"):
+    with pytest.raises(SurfaceError, match=r"valid: \.stl, \.obj, \.ply"):
         read_mesh(other)
     box = tmp_path / "box.stl"
     trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(box)
-    with pytest.raises(SurfaceParameterError, match="scale must be"):
+    with pytest.raises(SurfaceError, match="scale must be"):
         read_mesh(box, scale=-1.0)
-    with pytest.raises(SurfaceParameterError, match=r"1e-6 to 1e3 m"):
+    with pytest.raises(SurfaceError, match=r"1e-6 to 1e3 m"):
         read_mesh(box, scale=1e6)
 
 
@@ -240,15 +240,15 @@ def test_a_grid_above_the_memory_bound_is_refused_with_the_finest_valid_spacing(
     box = tmp_path / "box.stl"
     trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(box)
     part = read_mesh(box)
-    with pytest.raises(SurfaceParameterError, match=r"surface\.resolution = 0\.001 m") as info:
+    with pytest.raises(SurfaceError, match=r"surface\.resolution = 0\.001 m") as info:
         build_field(part, 0.001, cache=False)
     finest = float(str(info.value).rsplit(">= ", 1)[1].split(" m")[0])
     assert f"{MAX_NODES:,}" in str(info.value)
     _grid(part, finest * 1.05, "surface.resolution")  # the suggestion, rounded up, is accepted
-    with pytest.raises(SurfaceParameterError):
+    with pytest.raises(SurfaceError):
         _grid(part, finest * 0.95, "surface.resolution")
     for bad in (0.0, -1.0, math.nan, math.inf):
-        with pytest.raises(SurfaceParameterError, match="finite number > 0"):
+        with pytest.raises(SurfaceError, match="finite number > 0"):
             build_field(part, bad, cache=False)
 
 

@@ -21,7 +21,7 @@ import pytest
 
 from hybrid_force import load_robot
 from hybrid_force.cli import main
-from hybrid_force.errors import ModelWarning, URDFError
+from hybrid_force.errors import ModelWarning, RobotError
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -501,7 +501,7 @@ def test_what_cannot_be_honoured_is_refused(
 ) -> None:
     assert edit[0] in FRAMES
     path = _write(tmp_path, "frames", FRAMES.replace(*edit))
-    with pytest.raises(URDFError, match=match):
+    with pytest.raises(RobotError, match=match):
         load_robot(path, lock_off_chain=False)
 
 
@@ -550,5 +550,5 @@ def test_an_uneven_torque_range_is_refused_unless_its_joint_is_locked(tmp_path: 
     )
     path = _write(tmp_path, "panda", text)
     assert load_robot(path, tip="tcp").nv == 7
-    with pytest.raises(URDFError, match=r"joint 'finger_joint1': .* is \[0, 1\], not symmetric"):
+    with pytest.raises(RobotError, match=r"joint 'finger_joint1': .* is \[0, 1\], not symmetric"):
         load_robot(path, tip="tcp", lock_off_chain=False)

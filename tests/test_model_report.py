@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from conftest import RTR_MJCF
 
-from hybrid_force.errors import FrameError, URDFError
+from hybrid_force.errors import RobotError
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.report import format_report, model_report
-from hybrid_force.model.robot import load_robot
 
 # one triangle: an STL file coal (the replay's mesh loader) reads
 _TRIANGLE_STL = (
@@ -96,7 +96,7 @@ def test_rtr_with_another_tip() -> None:
 
 
 def test_a_tip_that_is_no_frame_is_refused() -> None:
-    with pytest.raises(FrameError, match="'nope' not found"):
+    with pytest.raises(RobotError, match="'nope' not found"):
         model_report("rtr", tip="nope")
 
 
@@ -247,7 +247,7 @@ def test_a_root_inertial_only_urdfdom_complains_about(tmp_path: Path) -> None:
 
 def test_a_model_that_cannot_be_simulated_is_refused(tmp_path: Path) -> None:
     text = _ARM.replace('name="j1" type="revolute"', 'name="j1" type="floating"')
-    with pytest.raises(URDFError, match=r"arm\.urdf.*joint 'j1'.*floating joint"):
+    with pytest.raises(RobotError, match=r"arm\.urdf.*joint 'j1'.*floating joint"):
         model_report(_write(tmp_path, text))
 
 

@@ -1,5 +1,5 @@
 """Bring your own robot: package folders and meshes, xacro files, MJCF files, and the joints
-off the arm's chain (hybrid_force.model.robot.load_robot, the replay's visuals).
+off the arm's chain (hybrid_force.model.loading.load_robot, the replay's visuals).
 
 Every model here is a small file written by the test. References are independent of the
 code under test: the closed-form kinematics and mass matrix of a planar two-link arm of thin
@@ -24,19 +24,14 @@ import pytest
 import umsgpack
 from conftest import ROD_MACRO, RTR_MJCF
 
-from hybrid_force import replay
-from hybrid_force.errors import (
-    FrameError,
-    ModelWarning,
-    RobotError,
-    ScenarioError,
-    URDFError,
-    ViewerError,
-)
-from hybrid_force.geometry.surfaces import Plane
-from hybrid_force.model.robot import Robot, expand_xacro, load_robot
+from hybrid_force.errors import BadInputError, ModelWarning, RobotError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Plane
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot
+from hybrid_force.model.xacro_files import expand_xacro
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.viz import replay, robot_visuals
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -198,7 +193,7 @@ def test_placeholder_stands_at_the_visual_origin(tmp_path: Path) -> None:
     arm, packages = _mesh_tree(tmp_path)
     robot = load_robot(arm, package_dirs=[packages])
     with pytest.warns(ModelWarning, match="missing.stl"):
-        visual = replay.visual_geometry(robot)
+        visual = robot_visuals.visual_geometry(robot)
     (cube,) = [g for g in visual.geometryObjects if g.name == "l2_0"]
     np.testing.assert_allclose(cube.placement.translation, [0.25, 0.0, 0.0], atol=1e-15)
     np.testing.assert_allclose(cube.geometry.halfSide, [0.025] * 3, atol=1e-15)
@@ -215,7 +210,7 @@ def test_ros_package_path_resolves_package_uris(
     assert robot.package_dirs == (str(tmp_path / "none"), str(packages), str(arm.parent))
     assert robot.reference["package_dirs"] == []  # the environment's folders are not stored
     with pytest.warns(ModelWarning) as record:
-        visual = replay.visual_geometry(robot)
+        visual = robot_visuals.visual_geometry(robot)
     assert len(record) == 1 and "missing.stl" in str(record[0].message)
     (part,) = [g for g in visual.geometryObjects if g.name == "l1_0"]
     assert part.meshPath == str(packages / "mypkg" / "meshes" / "part.stl")
@@ -250,7 +245,7 @@ def test_relative_and_file_uris_resolve_against_the_urdf_folder(tmp_path: Path) 
     )
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no mesh is missing
-        visual = replay.visual_geometry(load_robot(arm))
+        visual = robot_visuals.visual_geometry(load_robot(arm))
     paths = sorted(g.meshPath for g in visual.geometryObjects)
     assert paths == [str(tmp_path / "meshes" / "a.stl")] * 2
 
@@ -261,7 +256,7 @@ def test_an_unreadable_mesh_is_a_placeholder_with_one_warning(tmp_path: Path) ->
     (packages / "mypkg" / "meshes" / "missing.stl").write_bytes(b"garbage\x00\x01")
     robot = load_robot(arm, package_dirs=[packages])
     with pytest.warns(ModelWarning) as record:
-        visual = replay.visual_geometry(robot)
+        visual = robot_visuals.visual_geometry(robot)
     assert len(record) == 1
     message = str(record[0].message)
     assert "mesh 'package://mypkg/meshes/missing.stl' of link 'l2' cannot be read" in message
@@ -358,7 +353,7 @@ def test_xacro_find_resolves_through_package_dirs(tmp_path: Path) -> None:
     (tmp_path / "robot" / "parts" / "rod.xacro").unlink()  # only the package's copy exists
     robot = load_robot(path, package_dirs=[tmp_path / "packages"], xacro_args={"l1": "0.8"})
     np.testing.assert_allclose(robot.tip_position([0.0, 0.0]), [1.3, 0.0, 0.0], atol=1e-15)
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         load_robot(path)
     message = str(info.value)
     assert str(path) in message and "$(find armpkg)" in message
@@ -389,7 +384,7 @@ def test_xacro_errors_name_the_file_and_xacros_message(
 ) -> None:
     path = _xacro_arm(tmp_path)
     path.write_text(edit(path.read_text()))
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         load_robot(path)
     message = str(info.value)
     assert message.startswith(f"xacro cannot expand {path}")
@@ -401,7 +396,7 @@ def test_xacro_expansion_is_checked_as_a_urdf(tmp_path: Path) -> None:
     """A expansion with an impossible inertia: the URDF check names the .xacro file."""
     path = _xacro_arm(tmp_path)
     path.write_text(path.read_text().replace('mass="2"', 'mass="-2"'))
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         load_robot(path)
     message = str(info.value)
     assert f"{path} (as expanded by xacro)" in message and "link 'l1'" in message
@@ -411,7 +406,7 @@ def test_xacro_expansion_is_checked_as_a_urdf(tmp_path: Path) -> None:
 def test_xacro_arguments_only_for_a_xacro_file(tmp_path: Path) -> None:
     arm = tmp_path / "arm.urdf"
     arm.write_text(_planar_urdf())
-    with pytest.raises(URDFError, match=r"xacro arguments \(l1\) are given for .*arm.urdf"):
+    with pytest.raises(RobotError, match=r"xacro arguments \(l1\) are given for .*arm.urdf"):
         load_robot(arm, xacro_args={"l1": "2"})
     with pytest.raises(RobotError, match="xacro_args must map argument names to texts"):
         load_robot(_xacro_arm(tmp_path), xacro_args={"l1": 2.0})  # type: ignore[dict-item]
@@ -430,7 +425,7 @@ def test_a_replay_rebuilds_a_xacro_arm_from_the_stored_expansion(tmp_path: Path)
     old = _result(robot, {"model": robot.source, "tip": "tip", "nq": 2}).with_meta(
         scenario={"robot": {"model": "arm.urdf.xacro", "xacro_args": {"l1": 0.6}}}
     )
-    with pytest.raises(ViewerError, match=r"arm\.urdf\.xacro' is a xacro file .* does not store"):
+    with pytest.raises(BadInputError, match=r"arm\.urdf\.xacro' is a xacro file .* does not store"):
         replay.Replay(old)
 
 
@@ -590,21 +585,23 @@ def test_mjcf_free_and_ball_joints_and_includes_are_refused(tmp_path: Path) -> N
     free.write_text(
         RTR_MJCF.replace('<body name="link1">', '<body name="link1"><freejoint name="fly"/>')
     )
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         load_robot(free)
     message = str(info.value)
     assert str(free) in message and "free joint 'fly'" in message and "fixed-base" in message
     ball = tmp_path / "ball.xml"
     ball.write_text(RTR_MJCF.replace('type="slide"', 'type="ball"'))
-    with pytest.raises(URDFError, match=r"ball.xml: body 'link2' has a ball joint 'q2'"):
+    with pytest.raises(RobotError, match=r"ball.xml: body 'link2' has a ball joint 'q2'"):
         load_robot(ball)
     inc = tmp_path / "inc.xml"
     inc.write_text(RTR_MJCF.replace("<worldbody>", '<include file="more.xml"/><worldbody>'))
-    with pytest.raises(URDFError, match=r"inc.xml: <include file='more.xml'>: Pinocchio's MJCF"):
+    with pytest.raises(RobotError, match=r"inc.xml: <include file='more.xml'>: Pinocchio's MJCF"):
         load_robot(inc)
     broken = tmp_path / "broken.xml"
     broken.write_text(RTR_MJCF.replace('type="slide"', 'type="screw"'))
-    with pytest.raises(URDFError, match=r"Pinocchio cannot parse MJCF .*broken.xml: Unknown joint"):
+    with pytest.raises(
+        RobotError, match=r"Pinocchio cannot parse MJCF .*broken.xml: Unknown joint"
+    ):
         load_robot(broken)
     urdf_as_xml = tmp_path / "arm.xml"  # a URDF named .xml is a URDF
     urdf_as_xml.write_text(_planar_urdf())
@@ -717,7 +714,7 @@ def test_the_default_tip_of_a_gripper_file_decides_what_is_locked(tmp_path: Path
 
 def test_a_tip_on_the_base_cannot_lock_the_rest(tmp_path: Path) -> None:
     path = _gripper_urdf(tmp_path / "g.urdf")
-    with pytest.raises(FrameError, match=r"tip frame 'base' .* is on the base"):
+    with pytest.raises(RobotError, match=r"tip frame 'base' .* is on the base"):
         load_robot(path, tip="base")
 
 

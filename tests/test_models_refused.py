@@ -1,4 +1,4 @@
-"""Models the toolkit cannot simulate are refused with a URDFError naming file and cause.
+"""Models the toolkit cannot simulate are refused with a RobotError naming file and cause.
 
 Every model here is a small URDF written inline, so the expected verdict follows from the text:
 no moving joint (nv = 0), a floating or planar joint, a mimic joint on the chain to the tip,
@@ -21,8 +21,8 @@ import pinocchio as pin
 import pytest
 
 from hybrid_force.cli import main as cli_main
-from hybrid_force.errors import BadInputError, URDFError
-from hybrid_force.model.robot import load_robot
+from hybrid_force.errors import BadInputError, RobotError
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.urdf_check import check_urdf
 
 
@@ -82,8 +82,8 @@ def _write(tmp_path: Path, text: str, name: str = "arm.urdf") -> Path:
 
 
 def _refusal(path: Path, tip: str | None = None) -> str:
-    """The message of the URDFError that load_robot raises for ``path``."""
-    with pytest.raises(URDFError) as info:
+    """The message of the RobotError that load_robot raises for ``path``."""
+    with pytest.raises(RobotError) as info:
         load_robot(path, tip=tip)
     message = str(info.value)
     assert str(path) in message  # every message names the file
@@ -267,7 +267,7 @@ def test_mimic_naming_no_moving_joint_is_malformed(tmp_path: Path) -> None:
         '<joint name="j2" type="revolute">',
         '<joint name="j2" type="revolute"><mimic joint="tip_joint"/>',
     )
-    with pytest.raises(URDFError, match=r"'j2' has <mimic joint='tip_joint'>, which names no"):
+    with pytest.raises(RobotError, match=r"'j2' has <mimic joint='tip_joint'>, which names no"):
         check_urdf(_write(tmp_path, text))
 
 
@@ -309,7 +309,7 @@ def test_mass_check_is_relative_to_the_arm_scale(tmp_path: Path) -> None:
 
 
 def test_refusals_are_bad_input() -> None:
-    assert issubclass(URDFError, BadInputError)
+    assert issubclass(RobotError, BadInputError)
 
 
 # --- continuous joints -------------------------------------------------------------------------

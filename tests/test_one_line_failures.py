@@ -68,9 +68,9 @@ def test_the_stable_beta_a_message_gives_is_accepted_when_copied() -> None:
 @pytest.mark.parametrize("tip", [5, b"tip", ["tip"]])
 def test_a_tip_that_is_not_a_text_is_a_frame_error_listing_the_frames(tip: object) -> None:
     from hybrid_force import load_robot
-    from hybrid_force.errors import FrameError
+    from hybrid_force.errors import RobotError
 
-    with pytest.raises(FrameError, match=r"tip must be a frame name \(a str\)") as info:
+    with pytest.raises(RobotError, match=r"tip must be a frame name \(a str\)") as info:
         load_robot("rtr", tip=tip)  # type: ignore[arg-type]
     assert info.value.key == "tip" and info.value.value == tip
     assert "frames of" in str(info.value) and "link3" in str(info.value)
@@ -79,11 +79,11 @@ def test_a_tip_that_is_not_a_text_is_a_frame_error_listing_the_frames(tip: objec
 @pytest.mark.parametrize("scenario", ["paper_contact", "ur5_sphere_normal"])
 @pytest.mark.parametrize("t", [math.inf, -math.inf, math.nan, "1"])
 def test_a_path_evaluated_at_a_non_finite_time_names_t(scenario: str, t: object) -> None:
-    from hybrid_force.errors import PathParameterError
+    from hybrid_force.errors import PathError
 
     path = load_scenario(SCENARIOS / f"{scenario}.toml").path
     for method in (path.evaluate, path.position, path.direction_jet):
-        with pytest.raises(PathParameterError, match="the time t at which it is evaluated") as info:
+        with pytest.raises(PathError, match="the time t at which it is evaluated") as info:
             method(t)  # type: ignore[arg-type]
         assert info.value.key == "t"
 
@@ -92,8 +92,8 @@ def test_public_calls_with_wrong_types_raise_errors_of_the_package() -> None:
     """Each of these raised a raw TypeError, ValueError or AttributeError, or returned NaN."""
     from hybrid_force import load_robot, simulate
     from hybrid_force.errors import HybridForceError
+    from hybrid_force.geometry.builtin_surfaces import Cylinder
     from hybrid_force.geometry.paths import Helix
-    from hybrid_force.geometry.surfaces import Cylinder
     from hybrid_force.result import Result
 
     robot = load_robot("rtr")
@@ -179,8 +179,8 @@ def test_two_parallel_planes_are_refused_naming_both_surfaces(tmp_path: Path) ->
 def test_scenario_built_in_python_refuses_dependent_rows_too(tmp_path: Path) -> None:
     import dataclasses
 
-    from hybrid_force.errors import ScenarioValueError
-    from hybrid_force.geometry.surfaces import Plane
+    from hybrid_force.errors import ScenarioError
+    from hybrid_force.geometry.builtin_surfaces import Plane
 
     # the tip stands still on the planes x = 0.4 and z = 5: independent rows, accepted
     text = TWO_PARALLEL_PLANES.replace("normal = [0.0, 0.0, -1.0]", "normal = [1.0, 0.0, 0.0]")
@@ -192,7 +192,7 @@ def test_scenario_built_in_python_refuses_dependent_rows_too(tmp_path: Path) -> 
     scenario.write_text(text)
     base = load_scenario(scenario)
     flipped = Plane([0.6, 0.0, 5.0], [-1.0, 0.0, 0.0])  # the same plane, facing the other way
-    with pytest.raises(ScenarioValueError, match=r"surfaces\[0\], surfaces\[1\] are linearly"):
+    with pytest.raises(ScenarioError, match=r"surfaces\[0\], surfaces\[1\] are linearly"):
         dataclasses.replace(base, surfaces=[base.surfaces[1], flipped])
 
 
@@ -381,14 +381,14 @@ def test_a_sweep_over_a_key_nested_thousands_deep_is_refused(tmp_path: Path) -> 
 )
 def test_an_mjcf_number_that_is_no_number_is_refused(tmp_path: Path, body: str, named: str) -> None:
     from hybrid_force import load_robot
-    from hybrid_force.errors import URDFError
+    from hybrid_force.errors import RobotError
 
     mjcf = tmp_path / "arm.xml"
     mjcf.write_text(
         f'<mujoco><worldbody>{body}<joint name="j" type="hinge"/>'
         '<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>'
     )
-    with pytest.raises(URDFError, match=named) as info:
+    with pytest.raises(RobotError, match=named) as info:
         load_robot(mjcf)
     assert str(mjcf) in str(info.value)
 
@@ -405,14 +405,14 @@ def test_an_impossible_mjcf_value_is_refused(
     tmp_path: Path, joint: str, inertial: str, named: str
 ) -> None:
     from hybrid_force import load_robot
-    from hybrid_force.errors import URDFError
+    from hybrid_force.errors import RobotError
 
     mjcf = tmp_path / "arm.xml"
     mjcf.write_text(
         f'<mujoco><worldbody><body name="b"><joint name="j" type="hinge" {joint}/>'
         f'<inertial pos="0 0 0" {inertial}/></body></worldbody></mujoco>'
     )
-    with pytest.raises(URDFError, match=named):
+    with pytest.raises(RobotError, match=named):
         load_robot(mjcf)
 
 

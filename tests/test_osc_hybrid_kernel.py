@@ -5,7 +5,7 @@
    surface (cylinder, sphere, plane, a FunctionSurface whose gradient stays in Python) and on
    two stacked planes (k = 2), both row scalings, k_P = 0 and > 0: every output (u0, B and the
    trace: a, F0, φ, Nᵀτ₀, Λ, J̄) within 1e-12 of the reference's scale;
-2. singular configurations: the same SingularConfigurationError with the same message, and an
+2. singular configurations: the same SurfaceError with the same message, and an
    M without Cholesky factor solved by LU as the oracle's numpy solve;
 3. whole 0.2 s runs (0.4 s for free → near → contact), the compiled law against the reference
    law in the same (compiled) loop, and against the oracle controller on the reference plant:
@@ -33,13 +33,14 @@ from hybrid_force.control.laws.osc_hybrid import (
     osc_gains,
 )
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.errors import ControlError, SingularConfigurationError
+from hybrid_force.errors import ControlError, SurfaceError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.scenario.loader import load_scenario
-from hybrid_force.sim.loop import Scenario, simulate
-from hybrid_force.sim.settings import SimSettings
+from hybrid_force.sim.loop import simulate
+from hybrid_force.sim.settings import Scenario, SimSettings
 
 RTOL = 1e-12  # one step, relative to the scale of the reference array
 RUN_TOL = 1e-10  # whole runs
@@ -178,9 +179,9 @@ def test_a_rank_deficient_jacobian_raises_the_reference_error(smallest: float) -
         assert ref.last is not None
         _close("Λ at cond 1e10", fast.Lambda, ref.last.task.Lambda)
         return
-    with pytest.raises(SingularConfigurationError) as expected:
+    with pytest.raises(SurfaceError) as expected:
         ref.free_space(LawInput(terms, v, v, d))
-    with pytest.raises(SingularConfigurationError) as got:
+    with pytest.raises(SurfaceError) as got:
         fast.free_space(LawInput(terms, v, v, d))
     assert str(got.value) == str(expected.value)
     assert got.value.key == "control.law" and got.value.value == "osc_hybrid"
@@ -199,7 +200,7 @@ def test_the_rtr_stretched_or_folded_raises_the_reference_error(rtr: Robot, q3: 
     ref, fast = OscHybridLaw(gains, constraint, 3), OscHybridWorkspace(gains, constraint, 3)
     messages = []
     for law in (ref, fast):
-        with pytest.raises(SingularConfigurationError) as info:
+        with pytest.raises(SurfaceError) as info:
             law.hybrid(LawInput(terms, v, v, d, cons, np.zeros(1), np.ones(1)))
         messages.append(str(info.value))
     assert messages[0] == messages[1]

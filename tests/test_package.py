@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import ast
+import importlib
 import re
 import subprocess
 import sys
 import tomllib
 from pathlib import Path
+
+import pytest
 
 import hybrid_force
 
@@ -77,22 +81,21 @@ def test_a_command_loads_numba_without_scipy_and_runs_the_same(tmp_path) -> None
         assert np.array_equal(getattr(there, name), getattr(here, name)), name
 
 
-def test_module_paths_of_before_the_layers_still_import_the_same_modules() -> None:
-    # A fresh interpreter: the old names must work whatever was imported before.
+def test_module_paths_of_before_the_layers_are_gone() -> None:
+    # no alias of a 0.1 module path (hybrid_force.robot, hybrid_force.simulate, ...) is kept
     code = (
-        "import importlib, sys\n"
-        "from hybrid_force._compat import MOVED\n"
-        "import hybrid_force\n"
-        "for old, new in MOVED.items():\n"
-        "    assert importlib.import_module(old) is importlib.import_module(new), old\n"
-        "from hybrid_force.simulate import Scenario, SimSettings\n"
-        "from hybrid_force.control import Gains, make_gains\n"
-        "from hybrid_force.scenario import load_scenario\n"
+        "import importlib, hybrid_force\n"
+        "for old in ('robot', 'simulate', 'sweep', 'replay', 'plots', 'supervisor', '_compat'):\n"
+        "    try:\n"
+        "        importlib.import_module('hybrid_force.' + old)\n"
+        "    except ModuleNotFoundError:\n"
+        "        continue\n"
+        "    raise SystemExit(old)\n"
         "assert callable(hybrid_force.simulate) and hybrid_force.simulate.__name__ == 'simulate'\n"
         "print('ok')\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
+    assert out.returncode == 0, out.stderr + out.stdout
     assert out.stdout.strip() == "ok"
 
 
@@ -103,21 +106,44 @@ def test_version_has_one_source_the_project_metadata() -> None:
     assert hybrid_force.__version__ == pyproject["project"]["version"]
 
 
-def test_names_of_split_modules_stay_importable_from_their_old_module() -> None:
-    # scenario.loader and result were split along their seams; what they exported before the
-    # split is the same object from the old module, the package and the new one
-    import hybrid_force.metrics as metrics
-    import hybrid_force.result as result
-    import hybrid_force.scenario as scenario
-    import hybrid_force.scenario.loader as loader
+def _defined_names(tree: ast.Module) -> set[str]:
+    """The names a module's own statements bind at module level (not its imports)."""
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names |= {n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+    return names
 
-    for name in scenario.__all__:
-        assert getattr(loader, name) is getattr(scenario, name), name
-    for name in ("MAX_FILE_BYTES", "PATH_CHECK_STEP", "PATH_CHECK_SAMPLES"):
-        assert hasattr(loader, name), name
-    for name in ("Metrics", "CONVERGE_TOLERANCE", "DEFAULT_SETTLE_TIME"):
-        assert getattr(result, name) is getattr(metrics, name), name
-    assert hybrid_force.Metrics is metrics.Metrics
+
+def test_every_name_has_one_home() -> None:
+    """A module's ``__all__`` lists only what it defines; ``hybrid_force.__all__`` (at most 50
+    names) lists names defined elsewhere, each read from the module that defines it."""
+    package = Path(hybrid_force.__file__).parent
+    for path in sorted(package.rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        exported = [
+            ast.literal_eval(node.value)
+            for node in tree.body
+            if isinstance(node, ast.Assign)
+            and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets)
+        ]
+        if path == package / "__init__.py" or not exported:
+            continue
+        foreign = sorted(set(exported[0]) - _defined_names(tree))
+        assert not foreign, f"{path.relative_to(package)} re-exports {foreign}"
+    assert len(hybrid_force.__all__) <= 50
+    for name in hybrid_force.__all__:
+        value = getattr(hybrid_force, name)
+        home = getattr(value, "__module__", None)
+        if name != "__version__" and home is not None:
+            module = importlib.import_module(home)
+            assert name in _defined_names(ast.parse(Path(str(module.__file__)).read_text()))
+    for name in ("sim", "control", "scenario", "viz"):  # the packages hold no names
+        module = importlib.import_module(f"hybrid_force.{name}")
+        assert not hasattr(module, "__all__"), name
 
 
 REPO = Path(__file__).resolve().parents[1]
@@ -170,3 +196,40 @@ def test_licence_file_is_the_bsd_3_clause_text_named_by_the_metadata() -> None:
     assert text.endswith("EVEN IF ADVISED OF THE POSSIBILITY OF SUCH DAMAGE.")
     # PEP 639: no licence classifier beside a licence expression
     assert not [c for c in project["classifiers"] if c.startswith("License ::")]
+
+
+def test_at_most_twelve_exception_classes_each_with_its_attributes() -> None:
+    import inspect
+
+    import hybrid_force.errors as errors
+    from hybrid_force import _checks
+
+    classes = [
+        value
+        for value in vars(errors).values()
+        if inspect.isclass(value)
+        and issubclass(value, Exception | Warning)
+        and value.__module__ == errors.__name__
+    ]
+    assert len(classes) <= 12, [c.__name__ for c in classes]
+    assert set(errors.__all__) >= {c.__name__ for c in classes}
+    assert set(errors.OWN_WARNINGS) == {c for c in classes if issubclass(c, Warning)}
+    bad = errors.BadInputError("m", key="surface.radius", value=-1.0, file="x.toml", choices="ab")
+    assert (bad.key, bad.value, bad.file, bad.choices) == (
+        "surface.radius",
+        -1.0,
+        "x.toml",
+        ("a", "b"),
+    )
+    with pytest.raises(errors.ScenarioError) as info:
+        _checks.one_of("spline", "sim.integrator", errors.ScenarioError, ("rk4", "euler"))
+    assert info.value.value == "spline" and info.value.choices == ("rk4", "euler")
+    failed = errors.RunFailedError("m", reason="interrupted")
+    assert (failed.reason, failed.result, failed.signal) == ("interrupted", None, "SIGINT")
+    assert (
+        errors.RunFailedError("m").reason == "error" and errors.RunFailedError("m").signal is None
+    )
+    missing = errors.MissingExtraError("m", module="matplotlib", extra="plots")
+    assert (missing.module, missing.extra, missing.key, missing.value) == (
+        "matplotlib", "plots", "extra", "plots"
+    )  # fmt: skip

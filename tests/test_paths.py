@@ -11,16 +11,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybrid_force.errors import BadInputError, SurfaceError
+from hybrid_force.errors import BadInputError, PathError, SurfaceError
 from hybrid_force.geometry import on_surface
+from hybrid_force.geometry.on_surface import OnSurfaceReport, check_on_surface
 from hybrid_force.geometry.paths import (
     Circle,
     FunctionPath,
     Helix,
-    OnSurfaceReport,
-    PathParameterError,
     axis_frame,
-    check_on_surface,
     paper_helix,
     path_from_dict,
 )
@@ -279,18 +277,18 @@ def test_worst_at_the_end_of_the_span() -> None:
 
 def test_check_on_surface_bad_input() -> None:
     h, cyl = paper_helix(), _ZCylinder(0.4)
-    with pytest.raises(PathParameterError, match="t1"):
+    with pytest.raises(PathError, match="t1"):
         check_on_surface(h, cyl, 1.0, 1.0)
-    with pytest.raises(PathParameterError, match="t1"):
+    with pytest.raises(PathError, match="t1"):
         check_on_surface(h, cyl, 2.0, 1.0)
-    with pytest.raises(PathParameterError, match="t0"):
+    with pytest.raises(PathError, match="t0"):
         check_on_surface(h, cyl, float("nan"), 1.0)
-    with pytest.raises(PathParameterError, match="t1"):
+    with pytest.raises(PathError, match="t1"):
         check_on_surface(h, cyl, 0.0, float("inf"))
     for bad in (1, 0, -3, 2.5, True):
-        with pytest.raises(PathParameterError, match="samples"):
+        with pytest.raises(PathError, match="samples"):
             check_on_surface(h, cyl, 0.0, 1.0, samples=bad)
-    with pytest.raises(PathParameterError, match="distance"):
+    with pytest.raises(PathError, match="distance"):
         check_on_surface(h, object(), 0.0, 1.0)
 
     class _NanSurface:
@@ -375,22 +373,22 @@ def test_function_path_matches_helix_class() -> None:
 
 
 def test_function_path_bad_input() -> None:
-    with pytest.raises(PathParameterError, match="position"):
+    with pytest.raises(PathError, match="position"):
         FunctionPath(None)  # type: ignore[arg-type]
-    with pytest.raises(PathParameterError, match="velocity"):
+    with pytest.raises(PathError, match="velocity"):
         FunctionPath(lambda t: (0, 0, 0), velocity=3.0)  # type: ignore[arg-type]
     for bad in (0.0, -1e-3, float("nan")):
-        with pytest.raises(PathParameterError, match="step"):
+        with pytest.raises(PathError, match="step"):
             FunctionPath(lambda t: (0, 0, 0), step=bad)
     nan_at_2 = FunctionPath(lambda t: (t, 0.0, math.nan if t > 2 else 0.0))
     nan_at_2.evaluate(1.0)
-    with pytest.raises(PathParameterError, match=r"position\(2\.5\).*non-finite"):
+    with pytest.raises(PathError, match=r"position\(2\.5\).*non-finite"):
         nan_at_2.evaluate(2.5)
-    with pytest.raises(PathParameterError, match=r"shape \(2,\)"):
+    with pytest.raises(PathError, match=r"shape \(2,\)"):
         FunctionPath(lambda t: (t, 0.0)).evaluate(0.0)
-    with pytest.raises(PathParameterError, match="acceleration"):
+    with pytest.raises(PathError, match="acceleration"):
         FunctionPath(lambda t: (t, 0, 0), acceleration=lambda t: "abc").evaluate(0.0)
-    with pytest.raises(PathParameterError, match="cannot be written"):
+    with pytest.raises(PathError, match="cannot be written"):
         FunctionPath(lambda t: (t, 0, 0)).to_dict()
 
 
@@ -430,17 +428,17 @@ def test_dict_round_trip() -> None:
 
 
 def test_path_from_dict_bad_input() -> None:
-    with pytest.raises(PathParameterError, match=r"did you mean 'helix'.*circle"):
+    with pytest.raises(PathError, match=r"did you mean 'helix'.*circle"):
         path_from_dict({"type": "helx", "center": [0, 0, 0], "radius": 1})
-    with pytest.raises(PathParameterError, match="no 'type'"):
+    with pytest.raises(PathError, match="no 'type'"):
         path_from_dict({"center": [0, 0, 0]})
-    with pytest.raises(PathParameterError, match=r"missing \['rise'\]"):
+    with pytest.raises(PathError, match=r"missing \['rise'\]"):
         path_from_dict({"type": "helix", "center": [0, 0, 0], "radius": 1, "omega": 1})
-    with pytest.raises(PathParameterError, match=r"path\.radus.*did you mean 'radius'"):
+    with pytest.raises(PathError, match=r"path\.radus.*did you mean 'radius'"):
         path_from_dict({"type": "circle", "radus": 1})
-    with pytest.raises(PathParameterError, match="table/dict"):
+    with pytest.raises(PathError, match="table/dict"):
         path_from_dict([1, 2, 3])  # type: ignore[arg-type]
-    with pytest.raises(PathParameterError, match=r"Circle\.radius.*-2"):
+    with pytest.raises(PathError, match=r"Circle\.radius.*-2"):
         path_from_dict(
             {"type": "circle", "center": [0, 0, 0], "radius": -2, "normal": [0, 0, 1], "omega": 1}
         )
@@ -476,7 +474,7 @@ _GOOD_CIRCLE = {"center": (0, 0, 0), "radius": 0.4, "normal": (0, 0, 1), "omega"
 )
 def test_bad_parameters_are_named(cls, good, name, value) -> None:
     kwargs = {**good, name: value}
-    with pytest.raises(PathParameterError) as info:
+    with pytest.raises(PathError) as info:
         cls(**kwargs)
     msg = str(info.value)
     assert f"{cls.__name__}.{name}" in msg
@@ -485,7 +483,7 @@ def test_bad_parameters_are_named(cls, good, name, value) -> None:
 
 
 def test_axis_frame_rejects_zero_axis() -> None:
-    with pytest.raises(PathParameterError, match="axis"):
+    with pytest.raises(PathError, match="axis"):
         axis_frame((0.0, 0.0, 0.0))
 
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from conftest import assert_continuous_at, assert_derivatives_are_differences, path_breaks
 
-from hybrid_force.errors import PathParameterError, ScenarioError
+from hybrid_force.errors import PathError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import path_from_dict
 from hybrid_force.geometry.raster import RasterPath
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.phases import CONTACT
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
@@ -117,7 +117,7 @@ def test_dict_round_trip() -> None:
 def test_bad_rasters_are_refused_naming_the_parameter(
     surface: object, args: tuple, kwargs: dict, key: str, match: str
 ) -> None:
-    with pytest.raises(PathParameterError, match=match) as info:
+    with pytest.raises(PathError, match=match) as info:
         RasterPath(surface, *args, **kwargs)
     assert info.value.key == key
 

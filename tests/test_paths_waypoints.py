@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 from conftest import assert_continuous_at, assert_derivatives_are_differences, path_breaks
 
-from hybrid_force.errors import PathParameterError, PathWarning, ScenarioError
+from hybrid_force.errors import PathError, RunWarning, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import chart_for
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import path_from_dict
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere
 from hybrid_force.geometry.waypoints import WaypointPath
 from hybrid_force.phases import CONTACT
 from hybrid_force.scenario.loader import load_scenario
@@ -121,7 +122,7 @@ def test_two_points_on_a_cylinder_give_a_helix_at_the_speed() -> None:
 def test_world_points_are_projected_and_the_distances_reported() -> None:
     plane = Plane((0.0, 0.0, 5.0), (0.0, 0.0, 1.0))
     points = [[0.6, 0.0, 5.0], [0.7, 0.2, 5.0004], [0.5, 0.4, 4.99]]
-    with pytest.warns(PathWarning, match=r"points\[2\].*0\.01 m from Plane.*projection_tol"):
+    with pytest.warns(RunWarning, match=r"points\[2\].*0\.01 m from Plane.*projection_tol"):
         path = WaypointPath(plane, points, 0.1)
     assert path.projection_distances is not None
     np.testing.assert_allclose(path.projection_distances, [0.0, 4e-4, 0.01], atol=1e-12)
@@ -153,7 +154,7 @@ def test_dict_round_trip() -> None:
     assert again.to_dict() == data
     for t in np.linspace(0.0, path.duration, 7):
         np.testing.assert_array_equal(again.evaluate(t), path.evaluate(t))
-    with pytest.raises(PathParameterError, match="not a parameter of a waypoints path"):
+    with pytest.raises(PathError, match="not a parameter of a waypoints path"):
         path_from_dict({**data, "colour": "red"})
 
 
@@ -199,7 +200,7 @@ def test_bad_waypoints_are_refused_naming_the_parameter(
     surface: object, points: list, kwargs: dict, key: str, match: str
 ) -> None:
     kwargs = {"speed": 0.1, **kwargs}
-    with pytest.raises(PathParameterError, match=match) as info:
+    with pytest.raises(PathError, match=match) as info:
         WaypointPath(surface, points, **kwargs)
     assert info.value.key == key
 
@@ -207,7 +208,7 @@ def test_bad_waypoints_are_refused_naming_the_parameter(
 def test_a_user_defined_surface_is_refused() -> None:
     ball = FunctionSurface(lambda p: float(p @ p) - 1.0)
     for frame, point in (("surface", [0.0, 0.0]), ("world", [1.0, 0.0, 0.0])):
-        with pytest.raises(PathParameterError, match="has no chart"):
+        with pytest.raises(PathError, match="has no chart"):
             WaypointPath(ball, [point, point], 0.1, frame=frame)
 
 
@@ -292,5 +293,5 @@ def test_the_loader_names_file_key_and_value(tmp_path: Path, trajectory: str, me
 
 def test_the_loader_warns_of_a_far_projection_naming_file_and_key(tmp_path: Path) -> None:
     trajectory = 'type = "waypoints"\npoints = [[0.4, 0.0, 7.0], [0.0, 0.45, 7.05]]\nspeed = 0.1'
-    with pytest.warns(PathWarning, match=r"x\.toml: trajectory\.points = .*0\.05 m from"):
+    with pytest.warns(RunWarning, match=r"x\.toml: trajectory\.points = .*0\.05 m from"):
         _load(tmp_path, trajectory)

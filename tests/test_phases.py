@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from hybrid_force import phases, replay, result, supervisor
+import ast
+from pathlib import Path
+
+from hybrid_force import phases, result
 from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES, Phase
 from hybrid_force.viz import _run_data
 
@@ -16,7 +19,14 @@ def test_codes_names_and_labels() -> None:
 
 
 def test_every_module_uses_the_same_definition() -> None:
-    assert (supervisor.FREE, supervisor.NEAR, supervisor.CONTACT) == (FREE, NEAR, CONTACT)
-    assert supervisor.PHASE_NAMES is phases.PHASE_NAMES
+    # one home: no other module of the package binds the codes or their names
     assert tuple(Phase) == (result.PHASE_FREE, result.PHASE_NEAR, result.PHASE_CONTACT)
-    assert _run_data.CONTACT is phases.CONTACT and replay.PHASE_NAMES is phases.PHASE_NAMES
+    assert _run_data.CONTACT is phases.CONTACT
+    package = Path(phases.__file__).parent
+    for path in sorted(package.rglob("*.py")):
+        if path.name == "phases.py" or path.stem.endswith("kernels"):
+            continue  # Numba kernels hold the codes as literals (their tests check the values)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Assign):
+                bound = {n.id for t in node.targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+                assert not bound & {"FREE", "NEAR", "CONTACT", "PHASE_NAMES"}, path

@@ -18,9 +18,9 @@ from oracles.terms import constraint_terms, robot_terms
 from hybrid_force import RunWarning, load_robot, simulate
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.errors import JointLimitError
+from hybrid_force.errors import RunFailedError
+from hybrid_force.geometry.builtin_surfaces import Cylinder
 from hybrid_force.geometry.paths import paper_helix
-from hybrid_force.geometry.surfaces import Cylinder
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.plant import Plant
@@ -153,8 +153,9 @@ def test_joint_limits_report_an_event_or_stop_the_run(tmp_path: Path, rtr_urdf: 
         ("q3", pytest.approx(res.t[crossed[0]]), 3.2)
     ]
     stop = dataclasses.replace(sc, sim=dataclasses.replace(sc.sim, joint_limits="stop"))
-    with pytest.raises(JointLimitError, match="joint q3 left its range") as info:
+    with pytest.raises(RunFailedError, match="joint q3 left its range") as info:
         simulate(stop, controller=push)
+    assert info.value.reason == "joint limit"
     kept = info.value.result
     assert kept is not None and kept.meta["reason"] == "joint limit"
     assert kept.n_samples == crossed[0] + 1  # up to and with the first sample beyond

@@ -29,8 +29,9 @@ from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Desired
 from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.laws.raibert_craig import RaibertCraigGains, RaibertCraigWorkspace
+from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
-from hybrid_force.geometry.surfaces import Plane, Sphere, Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate

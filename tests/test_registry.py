@@ -10,9 +10,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force.errors import BadInputError, UnknownRobotError
+from hybrid_force.errors import BadInputError, RobotError
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.registry import RobotEntry, bundled_robots_dir, known_robots, resolve_robot
-from hybrid_force.model.robot import load_robot
 from hybrid_force.model.urdf_check import check_urdf
 
 ENTRIES = known_robots()
@@ -153,7 +153,7 @@ def test_wrong_package_dir_fails_mesh_resolution(tmp_path: Path) -> None:
 
 
 def test_unknown_name_lists_known_names_and_suggests() -> None:
-    with pytest.raises(UnknownRobotError) as info:
+    with pytest.raises(RobotError) as info:
         resolve_robot("ur55")
     message = str(info.value)
     assert "'ur55'" in message
@@ -164,12 +164,12 @@ def test_unknown_name_lists_known_names_and_suggests() -> None:
 
 
 def test_unknown_name_without_close_match() -> None:
-    with pytest.raises(UnknownRobotError, match=r"unknown robot 'zzzzzz'; known robots: rtr"):
+    with pytest.raises(RobotError, match=r"unknown robot 'zzzzzz'; known robots: rtr"):
         resolve_robot("zzzzzz")
 
 
 def test_unknown_name_says_how_to_use_a_file() -> None:
-    with pytest.raises(UnknownRobotError, match=r"to use a file, give a path such as \./my_arm\)"):
+    with pytest.raises(RobotError, match=r"to use a file, give a path such as \./my_arm\)"):
         resolve_robot("my_arm")
 
 

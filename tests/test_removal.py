@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_force.errors import ContactSettingsError
+from hybrid_force.errors import ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import chart_for
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.sim.removal import (
     FlatPad,
     HertzPad,
@@ -34,9 +34,9 @@ def test_hertz_patch_is_johnsons_closed_form() -> None:
     a_sphere, _ = pad.patch(force, 1 / 0.3, 1 / 0.3)
     r_eff = 0.02 * 0.3 / 0.32
     assert a_sphere == pytest.approx((3 * force * r_eff / (4 * 5e6)) ** (1 / 3), rel=1e-14)
-    with pytest.raises(ContactSettingsError, match=r"tool\.pad\.radius = 0\.02 m.*concave"):
+    with pytest.raises(ScenarioError, match=r"tool\.pad\.radius = 0\.02 m.*concave"):
         pad.patch(force, -1 / 0.01, 0.0)
-    with pytest.raises(ContactSettingsError, match=r"tool\.pad\.modulus"):
+    with pytest.raises(ScenarioError, match=r"tool\.pad\.modulus"):
         HertzPad(radius=0.02, modulus=0.0)
 
 

@@ -22,12 +22,11 @@ import pinocchio as pin
 import pytest
 import umsgpack
 
-from hybrid_force import replay
-from hybrid_force.errors import BadInputError, ResultFileError, ViewerError
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
-from hybrid_force.model.robot import load_robot
+from hybrid_force.errors import BadInputError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.model.loading import load_robot
 from hybrid_force.result import Result
-from hybrid_force.viz import scene_objects
+from hybrid_force.viz import replay, scene_objects
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 
@@ -278,7 +277,7 @@ def test_write_html_atomic(result: Result, tmp_path: Path, monkeypatch: pytest.M
         raise OSError("disk full")
 
     monkeypatch.setattr(os, "replace", failing_replace)
-    with pytest.raises(ViewerError, match="disk full"):
+    with pytest.raises(BadInputError, match="disk full"):
         replay.write_html(result, target)
     assert target.read_text(encoding="utf-8") == "old"
     assert sorted(p.name for p in target.parent.iterdir()) == ["replay.html"]
@@ -293,29 +292,29 @@ def test_write_html_from_saved_file_and_command(result: Result, tmp_path: Path) 
 
 
 def test_bad_result_files(result: Result, tmp_path: Path) -> None:
-    with pytest.raises(ResultFileError, match="does not exist"):
+    with pytest.raises(BadInputError, match="does not exist"):
         replay.write_html(tmp_path / "missing.npz", tmp_path / "x.html")
     saved = result.save(tmp_path / "result.npz")
     truncated = tmp_path / "truncated.npz"
     truncated.write_bytes(saved.read_bytes()[: saved.stat().st_size // 2])
-    with pytest.raises(ResultFileError, match="truncated"):
+    with pytest.raises(BadInputError, match="truncated"):
         replay.write_html(truncated, tmp_path / "x.html")
     text = tmp_path / "notes.npz"
     text.write_text("not a result", encoding="utf-8")
-    with pytest.raises(ResultFileError, match=r"notes\.npz"):
+    with pytest.raises(BadInputError, match=r"notes\.npz"):
         replay.replay_command(SimpleNamespace(result=str(text), html=str(tmp_path / "x.html")))
     assert not (tmp_path / "x.html").exists()
-    with pytest.raises(ViewerError, match="is a directory"):
+    with pytest.raises(BadInputError, match="is a directory"):
         replay.write_html(result, tmp_path)
 
 
 def test_missing_robot(result: Result) -> None:
     meta = dict(result.meta)
     meta["robot"] = {"model": "no_such_robot", "tip": "tip", "nq": 3}
-    with pytest.raises(ViewerError, match="result's robot 'no_such_robot' cannot be found"):
+    with pytest.raises(BadInputError, match="result's robot 'no_such_robot' cannot be found"):
         replay.Replay(result.with_meta(**meta))
     meta["robot"] = {"model": "ur5", "tip": None, "nq": 6}
-    with pytest.raises(ViewerError, match="nq = 6"):
+    with pytest.raises(BadInputError, match="nq = 6"):
         replay.Replay(result.with_meta(**meta))
 
 
@@ -330,7 +329,7 @@ def test_load_options_of_the_wrong_type_in_meta_are_ignored(result: Result) -> N
     rep = replay.Replay(result.with_meta(**meta))
     assert rep.robot.nv == 3 and rep.robot.reference["package_dirs"] == []
     meta["robot"] = {"model": "rtr", "tip": "tip", "nq": 3, "xacro_args": {"l2": "1"}}
-    with pytest.raises(ViewerError, match=r"xacro arguments \(l2\) are given for rtr"):
+    with pytest.raises(BadInputError, match=r"xacro arguments \(l2\) are given for rtr"):
         replay.Replay(result.with_meta(**meta))
 
 

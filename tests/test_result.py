@@ -16,15 +16,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hybrid_force.errors import BadInputError, DimensionError, ResultFileError
-from hybrid_force.result import (
-    ARRAY_NAMES,
-    MAX_META_DEPTH,
-    Metrics,
-    Result,
-    load_result,
-)
-from hybrid_force.result_file import _json_depth
+from hybrid_force.errors import BadInputError
+from hybrid_force.metrics import Metrics
+from hybrid_force.result import Result, load_result
+from hybrid_force.result_file import ARRAY_NAMES, MAX_META_DEPTH, _json_depth
 
 SCHEMA_NAMES = {
     "t", "q", "v", "q_d", "u", "p", "p_d", "f", "f_d", "phi", "V", "phase", "f_meas", "u_cmd",
@@ -147,7 +142,7 @@ def test_save_creates_parent_directory_and_overwrites(tmp_path: Path) -> None:
 
 
 def test_save_into_a_directory_path_is_rejected(tmp_path: Path) -> None:
-    with pytest.raises(ResultFileError, match=str(tmp_path)):
+    with pytest.raises(BadInputError, match=str(tmp_path)):
         _random_result().save(tmp_path)
 
 
@@ -225,7 +220,7 @@ def _contents(path: Path) -> dict[str, np.ndarray]:
 
 def test_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "nope.npz"
-    with pytest.raises(ResultFileError, match=r"nope.npz.*does not exist"):
+    with pytest.raises(BadInputError, match=r"nope.npz.*does not exist"):
         Result.load(path)
 
 
@@ -233,7 +228,7 @@ def test_truncated_file(tmp_path: Path) -> None:
     path = _good_file(tmp_path)
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
-    with pytest.raises(ResultFileError, match=r"good.npz") as info:
+    with pytest.raises(BadInputError, match=r"good.npz") as info:
         Result.load(path)
     assert isinstance(info.value, BadInputError)
 
@@ -244,14 +239,14 @@ def test_truncated_file(tmp_path: Path) -> None:
 def test_garbage_file(tmp_path: Path, content: bytes) -> None:
     path = tmp_path / "junk.npz"
     path.write_bytes(content)
-    with pytest.raises(ResultFileError, match=r"junk.npz"):
+    with pytest.raises(BadInputError, match=r"junk.npz"):
         load_result(path)
 
 
 def test_npy_instead_of_npz(tmp_path: Path) -> None:
     path = tmp_path / "single.npy"
     np.save(path, np.arange(3.0))
-    with pytest.raises(ResultFileError, match=r"single.npy.*single numpy array"):
+    with pytest.raises(BadInputError, match=r"single.npy.*single numpy array"):
         Result.load(path)
 
 
@@ -261,7 +256,7 @@ def test_npz_missing_arrays_lists_them(tmp_path: Path) -> None:
     del arrays["phi"]
     del arrays["V"]
     _rewrite(path, arrays)
-    with pytest.raises(ResultFileError, match=r"good.npz") as info:
+    with pytest.raises(BadInputError, match=r"good.npz") as info:
         Result.load(path)
     msg = str(info.value)
     assert "phi" in msg and "V" in msg
@@ -273,15 +268,15 @@ def test_bad_meta_json(tmp_path: Path) -> None:
     arrays = _contents(path)
     arrays["meta"] = np.array('{"name": "x", ')
     _rewrite(path, arrays)
-    with pytest.raises(ResultFileError, match=r"good.npz.*meta.*JSON"):
+    with pytest.raises(BadInputError, match=r"good.npz.*meta.*JSON"):
         Result.load(path)
     arrays["meta"] = np.array("[1, 2]")
     _rewrite(path, arrays)
-    with pytest.raises(ResultFileError, match=r"good.npz.*JSON object"):
+    with pytest.raises(BadInputError, match=r"good.npz.*JSON object"):
         Result.load(path)
     arrays["meta"] = np.array([1.0, 2.0])
     _rewrite(path, arrays)
-    with pytest.raises(ResultFileError, match=r"good.npz.*meta"):
+    with pytest.raises(BadInputError, match=r"good.npz.*meta"):
         Result.load(path)
 
 
@@ -290,7 +285,7 @@ def test_inconsistent_shapes_in_file(tmp_path: Path) -> None:
     arrays = _contents(path)
     arrays["u"] = arrays["u"][:-1]
     _rewrite(path, arrays)
-    with pytest.raises(ResultFileError, match=r"good.npz.*'u'.*\(50, 3\).*\(49, 3\)"):
+    with pytest.raises(BadInputError, match=r"good.npz.*'u'.*\(50, 3\).*\(49, 3\)"):
         Result.load(path)
 
 
@@ -299,7 +294,7 @@ def test_wrong_dtype_in_file(tmp_path: Path) -> None:
     arrays = _contents(path)
     arrays["phase"] = arrays["phase"].astype(float)
     _rewrite(path, arrays)
-    with pytest.raises(ResultFileError, match=r"good.npz.*phase"):
+    with pytest.raises(BadInputError, match=r"good.npz.*phase"):
         Result.load(path)
 
 
@@ -309,7 +304,7 @@ def test_object_array_in_file_is_refused(tmp_path: Path) -> None:
     arrays["q"] = np.array([{"a": 1}], dtype=object)
     with path.open("wb") as fh:
         np.savez(fh, allow_pickle=True, **arrays)
-    with pytest.raises(ResultFileError, match=r"good.npz"):
+    with pytest.raises(BadInputError, match=r"good.npz"):
         Result.load(path)
 
 
@@ -328,7 +323,7 @@ def test_construction_shape_errors_name_array_and_shapes() -> None:
     for name, (bad, pattern) in cases.items():
         arrays = _random_arrays(rng)
         arrays[name] = bad
-        with pytest.raises(DimensionError, match=pattern):
+        with pytest.raises(BadInputError, match=pattern):
             Result(**arrays, meta=_meta())
 
 
@@ -336,7 +331,7 @@ def test_single_constraint_must_be_flat() -> None:
     arrays = _random_arrays(np.random.default_rng(4))
     for name in ("f", "f_d", "phi"):
         arrays[name] = arrays[name][:, None]
-    with pytest.raises(DimensionError, match=r"'f'.*\(50,\).*\(50, 1\)"):
+    with pytest.raises(BadInputError, match=r"'f'.*\(50,\).*\(50, 1\)"):
         Result(**arrays, meta=_meta())
 
 
@@ -596,7 +591,7 @@ def test_metrics_is_a_frozen_dataclass() -> None:
 
 
 # --------------------------------------------------------------------------- bounded resources
-# Crafted archives must be refused with a ResultFileError naming the file, before anything
+# Crafted archives must be refused with a BadInputError naming the file, before anything
 # large is allocated or decompressed; through the CLI: exit 2 and one 'error:' line.
 def _npy_header(shape: tuple[int, ...], descr: str = "<f8") -> bytes:
     """A version 1.0 .npy header claiming ``shape`` of ``descr`` (no data)."""
@@ -675,7 +670,7 @@ def test_npy_header_claiming_terabytes_is_refused_before_numpy_allocates(
 ) -> None:
     path = _crafted_header_file(tmp_path)
     calls = _refuse_np_load(monkeypatch)
-    with pytest.raises(ResultFileError) as info:
+    with pytest.raises(BadInputError) as info:
         Result.load(path)
     msg = str(info.value)
     assert str(path) in msg and "'t'" in msg and "(1000000000000,)" in msg
@@ -699,14 +694,14 @@ def test_npy_header_claiming_terabytes_through_plot_and_replay(
 def test_declared_sizes_beyond_available_memory_are_refused(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import hybrid_force.sim.run_checks as run_checks
+    import hybrid_force.result_file as result_file
 
     path = _good_file(tmp_path)
     assert Result.load(path).n_samples == 50  # a genuine result, loadable with real memory
-    monkeypatch.setattr(run_checks, "available_memory", lambda: None)  # unknown: not checked
+    monkeypatch.setattr(result_file, "available_memory", lambda: None)  # unknown: not checked
     assert Result.load(path).n_samples == 50
-    monkeypatch.setattr(run_checks, "available_memory", lambda: 1000)
-    with pytest.raises(ResultFileError) as info:
+    monkeypatch.setattr(result_file, "available_memory", lambda: 1000)
+    with pytest.raises(BadInputError) as info:
         Result.load(path)
     msg = str(info.value)
     assert str(path) in msg and "decompressed" in msg and "memory is available" in msg
@@ -717,14 +712,14 @@ def test_declared_sizes_beyond_available_memory_are_refused(
 def test_deflated_zip_bomb_is_refused_before_decompression(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import hybrid_force.sim.run_checks as run_checks
+    import hybrid_force.result_file as result_file
 
     n = 4 << 20  # 32 MiB of float64 zeros, deflated to a few tens of kB
     path = tmp_path / "bomb.npz"
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("t.npy", _npy_header((n,)) + bytes(8 * n))
     assert path.stat().st_size < 200_000
-    monkeypatch.setattr(run_checks, "available_memory", lambda: 1 << 20)  # 1 MiB free
+    monkeypatch.setattr(result_file, "available_memory", lambda: 1 << 20)  # 1 MiB free
     calls = _refuse_np_load(monkeypatch)
     opened: list[Any] = []
 
@@ -734,7 +729,7 @@ def test_deflated_zip_bomb_is_refused_before_decompression(
 
     monkeypatch.setattr(zipfile.ZipFile, "open", no_open)
     start = time.perf_counter()
-    with pytest.raises(ResultFileError) as info:
+    with pytest.raises(BadInputError) as info:
         Result.load(path)
     elapsed = time.perf_counter() - start
     assert str(path) in str(info.value) and "memory is available" in str(info.value)
@@ -752,7 +747,7 @@ def test_member_whose_declared_size_understates_its_content_is_refused(tmp_path:
     path.write_bytes(_patch_zip_headers(path.read_bytes(), (22, "<I", size), (24, "<I", size)))
     with zipfile.ZipFile(path) as zf:
         assert zf.getinfo("t.npy").file_size == size
-    with pytest.raises(ResultFileError, match=re.escape(str(path))):
+    with pytest.raises(BadInputError, match=re.escape(str(path))):
         Result.load(path)
 
 
@@ -764,7 +759,7 @@ def test_archive_with_a_thousand_members_is_refused(
         for i in range(1000):
             zf.writestr(f"a{i}.npy", _npy_header((1,)) + bytes(8))
     calls = _refuse_np_load(monkeypatch)
-    with pytest.raises(ResultFileError) as info:
+    with pytest.raises(BadInputError) as info:
         Result.load(path)
     assert str(path) in str(info.value) and "1000 members" in str(info.value)
     assert calls == []
@@ -793,7 +788,7 @@ def test_meta_nested_too_deeply_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
 ) -> None:
     path = _with_meta_text(tmp_path, text)
-    with pytest.raises(ResultFileError) as info:
+    with pytest.raises(BadInputError) as info:
         Result.load(path)
     msg = str(info.value)
     assert str(path) in msg and f"more than {MAX_META_DEPTH} levels" in msg
@@ -808,7 +803,7 @@ def test_meta_nesting_up_to_the_limit_loads(tmp_path: Path) -> None:
     path = _with_meta_text(tmp_path, json.dumps({"name": "x", "deep": deep}))  # 64 levels
     assert _json_depth(Result.load(path).meta) == MAX_META_DEPTH
     path = _with_meta_text(tmp_path, json.dumps({"name": "x", "deep": [deep]}))  # 65 levels
-    with pytest.raises(ResultFileError, match=r"nested more than 64"):
+    with pytest.raises(BadInputError, match=r"nested more than 64"):
         Result.load(path)
 
 
@@ -818,7 +813,7 @@ def test_npy_file_given_instead_of_npz_through_the_cli(
     path = tmp_path / "single.npz"  # an .npy file under a result's name
     with path.open("wb") as fh:
         np.save(fh, np.arange(10**5, dtype=float))
-    with pytest.raises(ResultFileError, match=r"single numpy array"):
+    with pytest.raises(BadInputError, match=r"single numpy array"):
         Result.load(path)
     status, line = _cli(capsys, "plot", str(path))
     assert status == 2 and str(path) in line and "single numpy array" in line
@@ -838,7 +833,7 @@ def test_npy_header_in_member_without_npy_suffix_is_refused(
         "t",
         _npy_header((2**57,)) + b"\0" * 16,
     )
-    with pytest.raises(ResultFileError, match=re.escape(str(path))):
+    with pytest.raises(BadInputError, match=re.escape(str(path))):
         Result.load(path)
     status, line = _cli(capsys, "plot", str(path))
     assert status == 2 and str(path) in line
@@ -857,7 +852,7 @@ def test_unsupported_zip_member_is_refused(
 ) -> None:
     path = _good_file(tmp_path)
     path.write_bytes(_patch_zip_headers(path.read_bytes(), local, central))
-    with pytest.raises(ResultFileError, match=re.escape(str(path))):
+    with pytest.raises(BadInputError, match=re.escape(str(path))):
         Result.load(path)
     status, line = _cli(capsys, "plot", str(path))
     assert status == 2 and str(path) in line
@@ -875,5 +870,5 @@ def test_a_file_without_the_measured_force_loads_with_the_true_one(tmp_path: Pat
 
 def test_a_measured_force_of_the_wrong_shape_is_refused() -> None:
     base = _random_result(5)
-    with pytest.raises(DimensionError, match="f_meas"):
+    with pytest.raises(BadInputError, match="f_meas"):
         Result(**{n: getattr(base, n) for n in ARRAY_NAMES}, f_meas=np.zeros(4))

@@ -15,11 +15,12 @@ import pytest
 from conftest import png_size
 
 from hybrid_force.errors import BadInputError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.surface_base import plane_basis
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.result import Result
 from hybrid_force.viz import _run_data, _wireframes, run_figures
-from hybrid_force.viz.plots import FIGURE_NAMES, PlotError, plot_result
+from hybrid_force.viz.figure_names import FIGURE_NAMES
+from hybrid_force.viz.run_figures import plot_result
 
 EXPECTED = (
     "path3d.png",
@@ -304,11 +305,11 @@ def test_bad_results_raise_plot_error(tmp_path: Path) -> None:
     class Partial:
         t = np.linspace(0, 1, 5)
 
-    with pytest.raises(PlotError, match="'p'"):
+    with pytest.raises(BadInputError, match="'p'"):
         plot_result(Partial(), tmp_path)
-    with pytest.raises(PlotError, match="path separator"):
+    with pytest.raises(BadInputError, match="path separator"):
         plot_result(_synthetic(), tmp_path, prefix="a/b")
-    assert issubclass(PlotError, BadInputError)
+    assert issubclass(BadInputError, BadInputError)
 
 
 def test_surface_dicts_are_read_by_the_surface_parser(tmp_path: Path) -> None:
@@ -317,7 +318,7 @@ def test_surface_dicts_are_read_by_the_surface_parser(tmp_path: Path) -> None:
     base = _synthetic()
     bad = {"type": "cylinder", "radius": -0.4}
     broken = dataclasses.replace(base, meta=dict(base.meta, surfaces=[{"type": "function"}, bad]))
-    with pytest.raises(PlotError, match=r"meta\['surfaces'\]\[1\] cannot be drawn.*radius"):
+    with pytest.raises(BadInputError, match=r"meta\['surfaces'\]\[1\] cannot be drawn.*radius"):
         plot_result(broken, tmp_path)
     skipped = dataclasses.replace(base, meta=dict(base.meta, surfaces=[{"type": "function"}]))
     assert len(plot_result(skipped, tmp_path)) == len(FIGURE_NAMES)

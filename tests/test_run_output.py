@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from hybrid_force.cli import main
-from hybrid_force.errors import OutputError
+from hybrid_force.errors import BadInputError
 from hybrid_force.result import Result
 from hybrid_force.run_output import RunOutput
-from hybrid_force.viz.plots import FIGURE_NAMES
+from hybrid_force.viz.figure_names import FIGURE_NAMES
 
 REPO = Path(__file__).resolve().parents[1]
 CONTACT = REPO / "scenarios" / "paper_contact.toml"
@@ -39,7 +39,7 @@ def test_second_holder_of_a_folder_is_refused_and_the_lock_dies_with_the_first(
 ) -> None:
     first = RunOutput(tmp_path / "out")
     with first:
-        with pytest.raises(OutputError, match="another run or sweep is writing into this folder"):
+        with pytest.raises(BadInputError, match="another run or sweep is writing into this folder"):
             RunOutput(tmp_path / "out").__enter__()
         # a different folder is independent
         with RunOutput(tmp_path / "other"):
@@ -124,7 +124,7 @@ def test_output_path_that_is_a_file_is_refused_before_simulating(
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     ran: list[object] = []
-    monkeypatch.setattr(sys.modules["hybrid_force.sim.loop"], "simulate", ran.append)
+    monkeypatch.setattr(sys.modules["hybrid_force.cli"], "simulate", ran.append)
     code, _, err = _run(capsys, *_tiny(blocker / "out"))
     assert code == 2 and err.startswith("error: --out") and err.count("\n") == 1
     assert ran == [] and blocker.read_text() == "not a folder"

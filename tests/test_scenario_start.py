@@ -15,7 +15,8 @@ import pinocchio as pin
 import pytest
 
 from hybrid_force.errors import ReachError, RunWarning
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot
 from hybrid_force.scenario._builders import _start_in_limits, _start_solver, _wrapped_into_limits
 from hybrid_force.scenario.loader import load_scenario
 

@@ -17,7 +17,7 @@ import pytest
 from hybrid_force.cli import main
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
-from hybrid_force.errors import BadInputError, ScenarioError, SensorError
+from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.scenario._tables import (
     _Context,
     json_schema,
@@ -46,7 +46,7 @@ class _Options:
     steps: int = param(3, minimum=1, doc="a count")
 
     def __post_init__(self) -> None:
-        check_fields(self, SensorError, "control.mine.")
+        check_fields(self, ScenarioError, "control.mine.")
 
 
 @pytest.mark.parametrize("cls", SETTINGS, ids=[c.__name__ for c in SETTINGS])
@@ -60,12 +60,12 @@ def test_every_toml_field_has_a_known_kind_and_a_doc(cls: type) -> None:
 
 def test_the_generic_check_names_the_key_and_the_value() -> None:
     assert _Options(gain=3).gain == 3.0 and isinstance(_Options(gain=3).gain, float)
-    with pytest.raises(SensorError, match=r"control\.mine\.gain must be a positive") as info:
+    with pytest.raises(ScenarioError, match=r"control\.mine\.gain must be a positive") as info:
         _Options(gain=0.0)
     assert info.value.key == "control.mine.gain" and info.value.value == 0.0
-    with pytest.raises(SensorError, match=r"control\.mine\.mode must be one of 'a', 'b'"):
+    with pytest.raises(ScenarioError, match=r"control\.mine\.mode must be one of 'a', 'b'"):
         _Options(mode="c")  # type: ignore[arg-type]
-    with pytest.raises(SensorError, match=r"control\.mine\.steps must be an integer >= 1"):
+    with pytest.raises(ScenarioError, match=r"control\.mine\.steps must be an integer >= 1"):
         _Options(steps=0)
 
 

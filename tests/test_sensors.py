@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_force.errors import BadInputError, SensorError
+from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.sim.sensors import Sensors, SensorSettings
 
 T = 1e-3  # control period [s]
@@ -77,6 +77,6 @@ def test_noise_has_its_standard_deviation_and_bias_and_is_reproducible() -> None
     ],
 )
 def test_bad_settings_are_refused_naming_the_key(kwargs: dict, key: str) -> None:
-    with pytest.raises(SensorError, match=key.replace(".", r"\.")) as info:
+    with pytest.raises(ScenarioError, match=key.replace(".", r"\.")) as info:
         SensorSettings(**kwargs)
     assert isinstance(info.value, BadInputError)

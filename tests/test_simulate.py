@@ -16,7 +16,6 @@ from hybrid_force import (
     Circle,
     ControlSettings,
     Cylinder,
-    DivergenceError,
     Plane,
     Result,
     Scenario,
@@ -26,8 +25,8 @@ from hybrid_force import (
     paper_helix,
     simulate,
 )
-from hybrid_force.control.supervisor import CONTACT
-from hybrid_force.errors import RunWarning
+from hybrid_force.errors import RunFailedError, RunWarning
+from hybrid_force.phases import CONTACT
 
 
 def _contact_scenario(robot, duration: float, **sim) -> Scenario:
@@ -256,8 +255,9 @@ def test_model_mismatch_degrades_but_stays_bounded(rtr, factor: float) -> None:
 
 def test_runaway_stops_with_a_partial_failed_result(rtr, tmp_path) -> None:
     sc = _contact_scenario(rtr, 2.0, max_velocity=5.0)  # the 6.3 start needs > 5 m/s
-    with pytest.raises(DivergenceError) as info:
+    with pytest.raises(RunFailedError) as info:
         simulate(sc)
+    assert info.value.reason == "diverged"
     partial = info.value.result
     assert partial is not None and partial.meta["status"] == "failed"
     assert 0 < len(partial.t) < 2001
@@ -393,14 +393,15 @@ def test_logged_contact_is_the_real_contact_state() -> None:
 
 
 def test_lost_contact_without_supervisor_fails_with_its_result() -> None:
-    from hybrid_force.errors import LostContactError
+    from hybrid_force.errors import RunFailedError
 
     sc = _paper_contact(**{"initial.v": [0.0, 0.0, 3.0], "control.f_d": 0.0, "sim.duration": 1.0})
     with (
         pytest.warns(UserWarning, match="left the surface"),
-        pytest.raises(LostContactError, match="lost contact") as info,
+        pytest.raises(RunFailedError, match="lost contact") as info,
     ):
         simulate(sc)
+    assert info.value.reason == "lost contact"
     result = info.value.result
     assert result.status == "failed" and result.meta["reason"] == "lost contact"
     assert result.n_samples == 1001  # the whole run is kept
@@ -412,7 +413,7 @@ def test_lost_contact_without_supervisor_fails_with_its_result() -> None:
 
 @pytest.mark.parametrize(
     ("raised", "error", "reason"),
-    [(KeyboardInterrupt, "RunInterruptedError", "interrupted"),
+    [(KeyboardInterrupt, "RunFailedError", "interrupted"),
      (RuntimeError, "RunFailedError", "error")],
 )  # fmt: skip
 def test_a_run_stopped_by_any_exception_keeps_its_samples(

@@ -8,11 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_force.errors import PathParameterError
+from hybrid_force.errors import PathError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import PlaneChart, chart_for
+from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.piecewise import blend_piece, natural_cubic_spline
 from hybrid_force.geometry.surface_path import TimeLaw
-from hybrid_force.geometry.surfaces import Cylinder, FunctionSurface, Plane, Sphere
 
 SURFACES = [
     Cylinder(0.4),
@@ -95,16 +96,16 @@ def test_a_plane_chart_takes_a_u_axis_projected_onto_the_plane() -> None:
     np.testing.assert_allclose(e_u, [0.0, 1.0, 0.0], atol=1e-15)
     np.testing.assert_allclose(e_v, [-1.0, 0.0, 0.0], atol=1e-15)
     assert chart.to_dict() == {"u_axis": [0.0, 1.0, 0.0]}
-    with pytest.raises(PathParameterError, match=r"u_axis.*no component in the plane") as info:
+    with pytest.raises(PathError, match=r"u_axis.*no component in the plane") as info:
         chart_for(Plane((0.0, 0.0, 5.0), (0.0, 0.0, 1.0)), u_axis=(0.0, 0.0, -3.0))
     assert info.value.key == "u_axis"
-    with pytest.raises(PathParameterError, match="u_axis is only for a plane"):
+    with pytest.raises(PathError, match="u_axis is only for a plane"):
         chart_for(Cylinder(0.4), u_axis=(1.0, 0.0, 0.0))
 
 
 def test_a_user_defined_surface_has_no_chart() -> None:
     surface = FunctionSurface(lambda p: float(p @ p) - 1.0)
-    with pytest.raises(PathParameterError, match="has no chart"):
+    with pytest.raises(PathError, match="has no chart"):
         chart_for(surface)
 
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from conftest import path_breaks
 
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.raster import RasterPath
 from hybrid_force.geometry.surface_path import SurfacePath
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.waypoints import WaypointPath
 
 PATHS = {

@@ -20,20 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybrid_force.studies.sweep import (
-    MAX_RUNS,
-    METRIC_COLUMNS,
-    TIMING_COLUMNS,
-    SweepError,
-    add_sweep_arguments,
-    expand,
-    read_sweep_csv,
-    run_id,
-    run_one,
-    run_sweep,
-    split_values,
-    sweep_command,
-)
+from hybrid_force.errors import BadInputError
+from hybrid_force.studies.sweep import add_sweep_arguments, run_sweep, sweep_command
+from hybrid_force.studies.table import METRIC_COLUMNS, TIMING_COLUMNS, read_sweep_csv
+from hybrid_force.studies.tasks import run_one
+from hybrid_force.studies.variants import MAX_RUNS, expand, run_id, split_values
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -125,7 +116,7 @@ def test_expand_random_samples_are_shared_by_grid_points_and_in_range() -> None:
     ],
 )
 def test_expand_rejects_bad_specs(grid, random, samples, match) -> None:
-    with pytest.raises(SweepError, match=match):
+    with pytest.raises(BadInputError, match=match):
         expand(grid, random, samples, 0)
 
 
@@ -187,7 +178,7 @@ def test_pool_and_dask_give_identical_rows(tmp_path: Path, scenario: Path) -> No
     assert info["n_variants"] == 4 and info["columns"] == cols_p
     assert not [p for p in (tmp_path / "pool").iterdir() if p.name.endswith(".tmp")]
     # a heat map / line plot of the CSV
-    from hybrid_force.viz.plots import plot_sweep
+    from hybrid_force.viz.sweep_plots import plot_sweep
 
     png = plot_sweep(pool_csv, tmp_path / "line.png", x="control.Lambda", metric="t_end")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
@@ -260,10 +251,10 @@ def test_resume_refuses_another_scenario(tmp_path: Path, scenario: Path) -> None
         scenario, [{"control.Lambda": -1.0}], workers=1, out_dir=tmp_path / "o", progress=False
     )
     scenario.write_text(SCENARIO.format(duration=0.25))
-    with pytest.raises(SweepError, match="different version"):
+    with pytest.raises(BadInputError, match="different version"):
         run_sweep(scenario, [{"control.Lambda": -1.0}], out_dir=tmp_path / "o", progress=False)
     (tmp_path / "x.csv").write_text("a,b\n1,2\n")
-    with pytest.raises(SweepError, match="not a sweep CSV"):
+    with pytest.raises(BadInputError, match="not a sweep CSV"):
         read_sweep_csv(tmp_path / "x.csv")
 
 
@@ -310,9 +301,9 @@ def test_sweep_command(tmp_path: Path, scenario: Path, capsys: pytest.CaptureFix
         (("--random", "sim.model_mass_factor=0.9"), "lo:hi"),
         (("--grid", "Lambda=1,2"), "table.key"),
     ]:
-        with pytest.raises(SweepError, match=match):
+        with pytest.raises(BadInputError, match=match):
             sweep_command(_args(str(scenario), *bad, "--out", str(out)))
-    with pytest.raises(SweepError, match="does not exist"):
+    with pytest.raises(BadInputError, match="does not exist"):
         sweep_command(_args(str(tmp_path / "missing.toml")))
 
 
@@ -511,20 +502,20 @@ def test_huge_sweeps_are_refused_before_expanding(tmp_path: Path, scenario: Path
     assert MAX_RUNS == 100_000
     t0 = time.perf_counter()
     big = {f"t.k{i}": list(range(10)) for i in range(12)}  # 10**12 variants
-    with pytest.raises(SweepError, match=r"would have 1000000000000 runs .*--grid t\.k0: 10"):
+    with pytest.raises(BadInputError, match=r"would have 1000000000000 runs .*--grid t\.k0: 10"):
         expand(big, {}, 0, 0)
-    with pytest.raises(SweepError, match=r"--grid a\.x: 1000 values × --samples 101"):
+    with pytest.raises(BadInputError, match=r"--grid a\.x: 1000 values × --samples 101"):
         expand({"a.x": list(range(1000))}, {"s.m": (0.0, 1.0)}, 101, 0)
-    with pytest.raises(SweepError, match="--samples 1000000000"):
+    with pytest.raises(BadInputError, match="--samples 1000000000"):
         expand({}, {"s.m": (0.0, 1.0)}, 10**9, 0)  # not drawn: 8 GB of samples
-    with pytest.raises(SweepError, match=r"lists 100001 values"):
+    with pytest.raises(BadInputError, match=r"lists 100001 values"):
         expand({"a.x": range(MAX_RUNS + 1)}, {}, 0, 0)
     assert time.perf_counter() - t0 < 2.0
     assert len(expand({"a.x": list(range(1000)), "b.y": list(range(100))}, {}, 0, 0)) == MAX_RUNS
     values = ",".join(str(i) for i in range(MAX_RUNS + 1))
-    with pytest.raises(SweepError, match=r"--grid control\.Lambda lists 100001 values"):
+    with pytest.raises(BadInputError, match=r"--grid control\.Lambda lists 100001 values"):
         sweep_command(_args(str(scenario), "--grid", f"control.Lambda={values}"))
-    with pytest.raises(SweepError, match="at most 100000"):
+    with pytest.raises(BadInputError, match="at most 100000"):
         run_sweep(scenario, [{"a.x": i} for i in range(MAX_RUNS + 1)], out_dir=tmp_path / "o")
     assert not (tmp_path / "o").exists()
 
@@ -602,7 +593,7 @@ def test_a_scenario_file_changed_during_the_sweep_stops_it(tmp_path: Path, scena
         seen.append(row)
         scenario.write_text(SCENARIO.format(duration=0.2))
 
-    with pytest.raises(SweepError, match="changed or removed during the sweep"):
+    with pytest.raises(BadInputError, match="changed or removed during the sweep"):
         run_sweep(
             scenario, variants, workers=1, out_dir=tmp_path / "o", progress=False, on_row=edit
         )
@@ -711,7 +702,7 @@ def test_a_xacro_model_is_expanded_by_the_sweep_and_sent_as_urdf(
     tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
 ) -> None:
     """The worker gets the expanded URDF text: it runs with the xacro files gone."""
-    from hybrid_force.studies.sweep import _execute, _Source
+    from hybrid_force.studies.tasks import _execute, _Source
 
     scen = _xacro_study(tmp_path, write_xacro_rtr)
     task = _Source(scen).job("r1", {"control.Lambda": 5.0}, keep=True)
@@ -730,7 +721,7 @@ def test_run_one_on_a_relative_xacro_model_names_it_and_its_arguments(
     tmp_path: Path, write_xacro_rtr: Callable[[Path], Path]
 ) -> None:
     from hybrid_force.result import Result
-    from hybrid_force.viz.replay import Replay
+    from hybrid_force.viz.scene import Replay
 
     scen = _xacro_study(tmp_path, write_xacro_rtr)
     keep = tmp_path / "keep"
@@ -796,7 +787,7 @@ def test_run_one_on_an_mjcf_model(tmp_path: Path) -> None:
 def _thread_settings() -> dict[str, str | None]:
     import os
 
-    from hybrid_force.studies.sweep import THREAD_VARIABLES
+    from hybrid_force.studies.engines import THREAD_VARIABLES
 
     return {name: os.environ.get(name) for name in THREAD_VARIABLES}
 
@@ -806,7 +797,7 @@ def test_workers_start_single_threaded_and_the_environment_is_restored(monkeypat
     import os
     from concurrent.futures import ProcessPoolExecutor
 
-    from hybrid_force.studies.sweep import THREAD_VARIABLES, single_threaded_workers
+    from hybrid_force.studies.engines import THREAD_VARIABLES, single_threaded_workers
 
     for name in THREAD_VARIABLES:
         monkeypatch.delenv(name, raising=False)

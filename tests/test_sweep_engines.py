@@ -11,18 +11,13 @@ from pathlib import Path
 
 import pytest
 
+from hybrid_force.errors import BadInputError
 from hybrid_force.studies import engines, sweep, table, tasks, variants
 from hybrid_force.studies.engines import CHUNK_SECONDS, _ChunkSize
-from hybrid_force.studies.sweep import (
-    TIMING_COLUMNS,
-    SweepError,
-    expand,
-    read_sweep_csv,
-    run_id,
-    run_one,
-    run_sweep,
-)
-from hybrid_force.studies.table import _cell
+from hybrid_force.studies.sweep import run_sweep
+from hybrid_force.studies.table import TIMING_COLUMNS, _cell, read_sweep_csv
+from hybrid_force.studies.tasks import run_one
+from hybrid_force.studies.variants import expand, run_id
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -238,7 +233,7 @@ def test_a_sweep_runs_each_variant_once_with_the_first_sent_ahead(
 
 
 def test_a_bad_start_method_is_refused(tmp_path: Path, scenario: Path) -> None:
-    with pytest.raises(SweepError, match="start_method"):
+    with pytest.raises(BadInputError, match="start_method"):
         run_sweep(scenario, [{}], out_dir=tmp_path / "o", start_method="thread")  # type: ignore[arg-type]
 
 
@@ -269,16 +264,7 @@ def test_forked_workers_run_openblas_on_one_thread() -> None:
     assert out[1].strip() == str([1] * int(out[0]))
 
 
-def test_the_parts_of_a_sweep_are_importable_from_the_sweep_module() -> None:
-    import importlib
-
-    old = importlib.import_module("hybrid_force.sweep")  # the path before 0.2
-    assert old is sweep
-    assert sweep.run_id is variants.run_id and sweep.expand is variants.expand
-    assert sweep.read_sweep_csv is table.read_sweep_csv
-    assert sweep.METRIC_COLUMNS is table.METRIC_COLUMNS and sweep.run_one is tasks.run_one
-    assert sweep.single_threaded_workers is engines.single_threaded_workers
-    assert sweep._watch_parent is engines._watch_parent and sweep._execute is tasks._execute
+def test_the_parts_of_a_sweep_live_in_their_own_modules_of_at_most_600_lines() -> None:
     for name in sweep.__all__:
         assert getattr(sweep, name) is not None, name
     for module in (engines, sweep, table, tasks, variants):
@@ -293,12 +279,12 @@ def test_a_run_stopped_by_a_signal_stops_the_sweep_with_that_signal(
     """In the sweep's own process (the warm-up before a fork, run_one), a run interrupted by
     SIGTERM raises Terminated (exit status 143), by Ctrl-C a KeyboardInterrupt (130)."""
     from hybrid_force._signals import Terminated
-    from hybrid_force.errors import RunInterruptedError
+    from hybrid_force.errors import RunFailedError
 
     def interrupted(*args: object, **kwargs: object) -> None:
-        raise RunInterruptedError("stopped", signal=sig)
+        raise RunFailedError("stopped", signal=sig, reason="interrupted")
 
-    monkeypatch.setattr("hybrid_force.sim.loop.simulate", interrupted)
+    monkeypatch.setattr("hybrid_force.studies.tasks.simulate", interrupted)
     task = tasks._Source(scenario).job(run_id({}), {}, keep=False)
     assert isinstance(task, tasks._Task)
     with pytest.raises(KeyboardInterrupt) as caught:

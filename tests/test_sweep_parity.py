@@ -19,8 +19,7 @@ from typing import Any
 import pytest
 
 from hybrid_force.cli import main
-from hybrid_force.studies.sweep import METRIC_COLUMNS, read_sweep_csv
-from hybrid_force.studies.table import read_table
+from hybrid_force.studies.table import METRIC_COLUMNS, read_sweep_csv, read_table
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 from conftest import png_size
 
+from hybrid_force.errors import BadInputError
 from hybrid_force.viz import sweep_plots
-from hybrid_force.viz.plots import PlotError, plot_sweep
+from hybrid_force.viz.sweep_plots import plot_sweep
 
 
 def test_log_scale_rule() -> None:
@@ -113,17 +114,17 @@ def test_sweep_where_every_run_failed_still_draws(tmp_path: Path) -> None:
 
 
 def test_plot_sweep_wrong_column_lists_columns(sweep_csv: Path, tmp_path: Path) -> None:
-    with pytest.raises(PlotError) as info:
+    with pytest.raises(BadInputError) as info:
         plot_sweep(sweep_csv, tmp_path / "x.png", x="control.kd", metric="final_position_error")
     msg = str(info.value)
     assert "sweep.csv" in msg and "'control.kd'" in msg
     for col in ("control.Kd", "control.Lambda", "status", "final_position_error"):
         assert col in msg
     assert "did you mean 'control.Kd'" in msg
-    with pytest.raises(PlotError, match="available columns"):
+    with pytest.raises(BadInputError, match="available columns"):
         plot_sweep(sweep_csv, tmp_path / "x.png", x="control.Kd", y="nope", metric="status")
-    with pytest.raises(PlotError, match=r"not numeric \(data row 1 has 'ok'\)"):
+    with pytest.raises(BadInputError, match=r"not numeric \(data row 1 has 'ok'\)"):
         plot_sweep(sweep_csv, tmp_path / "x.png", x="control.Kd", metric="status")
-    with pytest.raises(PlotError, match="does not exist"):
+    with pytest.raises(BadInputError, match="does not exist"):
         plot_sweep(tmp_path / "missing.csv", tmp_path / "x.png", x="a", metric="b")
     assert not (tmp_path / "x.png").exists()

@@ -24,12 +24,13 @@ import pytest
 
 from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import ControlError, ScenarioError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle, Helix, paper_helix
 from hybrid_force.geometry.raster import RasterPath
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.waypoints import WaypointPath
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
 
@@ -247,7 +248,7 @@ def _reduced(robot: Robot, keep: int) -> Robot:
 def test_arms_with_too_few_joints_are_refused(ur5: Robot) -> None:
     from hybrid_force.control.constraint import Constraint
     from hybrid_force.control.supervisor import HybridController
-    from hybrid_force.sim.loop import Scenario
+    from hybrid_force.sim.settings import Scenario
 
     four, five = _reduced(ur5, 4), _reduced(ur5, 5)
     assert (four.nv, five.nv) == (4, 5)
@@ -450,7 +451,8 @@ def test_metrics_of_the_tool_angle_by_hand() -> None:
 
 
 def test_figure_only_for_runs_with_a_tool_angle(sphere_run: Result, tmp_path: Path) -> None:
-    from hybrid_force.viz.plots import FIGURE_NAMES, plot_result
+    from hybrid_force.viz.figure_names import FIGURE_NAMES
+    from hybrid_force.viz.run_figures import plot_result
 
     short = sphere_run.truncated(2000)
     written = plot_result(short, tmp_path / "tool")
@@ -465,7 +467,7 @@ def test_figure_only_for_runs_with_a_tool_angle(sphere_run: Result, tmp_path: Pa
 def test_replay_draws_the_tool_axis(sphere_run: Result) -> None:
     from test_replay import animation_tracks, embedded_commands
 
-    from hybrid_force.viz.replay import Replay, ReplaySettings
+    from hybrid_force.viz.scene import Replay, ReplaySettings
 
     short = sphere_run.truncated(1001)
     replay = Replay(short, ReplaySettings(fps=5.0))

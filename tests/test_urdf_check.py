@@ -1,4 +1,4 @@
-"""hybrid_force.model.urdf_check: what breaks the simulation raises URDFError, implausible but
+"""hybrid_force.model.urdf_check: what breaks the simulation raises RobotError, implausible but
 simulable inertial data is one ModelWarning per link, unsimulated links are not checked,
 and extension tags (including undeclared namespace prefixes) do not stop a model; every
 message names the file, the link and the values."""
@@ -13,8 +13,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hybrid_force.errors import BadInputError, ModelWarning, URDFError
-from hybrid_force.model.urdf_check import check_urdf, urdf_text
+from hybrid_force.errors import BadInputError, ModelWarning, RobotError
+from hybrid_force.model.urdf_check import check_urdf
+from hybrid_force.model.urdf_text import urdf_text
 
 _JOINT = (
     '<joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>'
@@ -77,18 +78,18 @@ def test_plausible_inertials_pass(tmp_path: Path, inertial: str) -> None:
 # --- files and XML --------------------------------------------------------------------
 def test_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "nope.urdf"
-    with pytest.raises(URDFError, match=r"not found.*nope\.urdf"):
+    with pytest.raises(RobotError, match=r"not found.*nope\.urdf"):
         check_urdf(path)
 
 
 def test_directory_is_not_a_file(tmp_path: Path) -> None:
-    with pytest.raises(URDFError, match="not a file"):
+    with pytest.raises(RobotError, match="not a file"):
         check_urdf(tmp_path)
 
 
 def test_malformed_xml_reports_parser_reason_and_position(tmp_path: Path) -> None:
     path = _write(tmp_path, '<robot name="t"><link name="a">\n</robot>\n', "bad.urdf")
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         check_urdf(path)
     message = str(info.value)
     assert "bad.urdf" in message
@@ -97,22 +98,22 @@ def test_malformed_xml_reports_parser_reason_and_position(tmp_path: Path) -> Non
 
 
 def test_empty_file(tmp_path: Path) -> None:
-    with pytest.raises(URDFError, match=r"empty\.urdf.*no element found"):
+    with pytest.raises(RobotError, match=r"empty\.urdf.*no element found"):
         check_urdf(_write(tmp_path, "", "empty.urdf"))
 
 
 def test_xml_that_is_not_a_urdf(tmp_path: Path) -> None:
-    with pytest.raises(URDFError, match=r"not a URDF.*<sdf>.*expected <robot>"):
+    with pytest.raises(RobotError, match=r"not a URDF.*<sdf>.*expected <robot>"):
         check_urdf(_write(tmp_path, '<sdf version="1.6"><model name="m"/></sdf>'))
 
 
 def test_robot_without_links(tmp_path: Path) -> None:
-    with pytest.raises(URDFError, match="no <link>"):
+    with pytest.raises(RobotError, match="no <link>"):
         check_urdf(_write(tmp_path, '<robot name="t"></robot>'))
 
 
 def test_urdf_error_is_bad_input() -> None:
-    assert issubclass(URDFError, BadInputError)
+    assert issubclass(RobotError, BadInputError)
 
 
 @pytest.mark.parametrize(
@@ -131,26 +132,26 @@ def test_urdf_error_is_bad_input() -> None:
     ids=["joint-type", "unknown-child", "no-parent", "no-effort", "no-limit", "two-roots"],
 )
 def test_structural_errors(tmp_path: Path, joint: str, pattern: str) -> None:
-    with pytest.raises(URDFError, match=pattern):
+    with pytest.raises(RobotError, match=pattern):
         check_urdf(_write(tmp_path, _urdf(joint=joint)))
 
 
 def test_duplicate_link_name(tmp_path: Path) -> None:
     text = _urdf().replace('<link name="base"/>', '<link name="base"/><link name="base"/>')
-    with pytest.raises(URDFError, match="duplicate link name 'base'"):
+    with pytest.raises(RobotError, match="duplicate link name 'base'"):
         check_urdf(_write(tmp_path, text))
 
 
 def test_non_numeric_mass(tmp_path: Path) -> None:
     inertial = _inertial("heavy", "1", "0", "0", "1", "0", "1")
-    with pytest.raises(URDFError, match=r"'arm'.*value='heavy' is not a number"):
+    with pytest.raises(RobotError, match=r"'arm'.*value='heavy' is not a number"):
         check_urdf(_write(tmp_path, _urdf(inertial)))
 
 
 # --- refused: inertial data the simulation cannot take ----------------------------------
 def test_negative_mass(tmp_path: Path) -> None:
     path = _write(tmp_path, _urdf(_inertial("-1.5", "1", "0", "0", "1", "0", "1")))
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         check_urdf(path)
     message = str(info.value)
     assert str(path) in message
@@ -159,21 +160,21 @@ def test_negative_mass(tmp_path: Path) -> None:
 
 
 def test_negative_mass_with_zero_inertia_is_refused_too(tmp_path: Path) -> None:
-    with pytest.raises(URDFError, match=r"'arm'.*mass = -2 kg"):
+    with pytest.raises(RobotError, match=r"'arm'.*mass = -2 kg"):
         check_urdf(_write(tmp_path, _urdf(_inertial("-2", "0", "0", "0", "0", "0", "0"))))
 
 
 @pytest.mark.parametrize("value", ["nan", "inf"])
 def test_non_finite_values(tmp_path: Path, value: str) -> None:
-    with pytest.raises(URDFError, match=rf"mass {value} is not finite"):
+    with pytest.raises(RobotError, match=rf"mass {value} is not finite"):
         check_urdf(_write(tmp_path, _urdf(_inertial(value, "1", "0", "0", "1", "0", "1"))))
-    with pytest.raises(URDFError, match="non-finite"):
+    with pytest.raises(RobotError, match="non-finite"):
         check_urdf(_write(tmp_path, _urdf(_inertial("1", value, "0", "0", "1", "0", "1"))))
 
 
 def test_negative_diagonal_is_not_psd(tmp_path: Path) -> None:
     path = _write(tmp_path, _urdf(_inertial("1", "-0.1", "0", "0", "1", "0", "1")))
-    with pytest.raises(URDFError, match=r"'arm'.*not positive semi-definite.*ixx=-0\.1"):
+    with pytest.raises(RobotError, match=r"'arm'.*not positive semi-definite.*ixx=-0\.1"):
         check_urdf(path)
 
 
@@ -182,13 +183,13 @@ def test_large_product_of_inertia_is_not_psd(tmp_path: Path) -> None:
     inertia = np.array([[1, 2, 0], [2, 1, 0], [0, 0, 1]], dtype=float)
     assert np.linalg.det(inertia) < 0
     path = _write(tmp_path, _urdf(_inertial("1", "1", "2", "0", "1", "0", "1")))
-    with pytest.raises(URDFError, match=r"not positive semi-definite.*principal moments -1, 1, 3"):
+    with pytest.raises(RobotError, match=r"not positive semi-definite.*principal moments -1, 1, 3"):
         check_urdf(path)
 
 
 def test_massless_link_with_a_non_psd_inertia_is_refused(tmp_path: Path) -> None:
     """Mass 0 is only a warning; an indefinite inertia on top of it is still refused."""
-    with pytest.raises(URDFError, match=r"'arm'.*not positive semi-definite"):
+    with pytest.raises(RobotError, match=r"'arm'.*not positive semi-definite"):
         check_urdf(_write(tmp_path, _urdf(_inertial("0", "1", "2", "0", "1", "0", "1"))))
 
 
@@ -196,7 +197,7 @@ def test_psd_tolerance_is_round_off_of_six_digits(tmp_path: Path) -> None:
     """A thin rod (moments 0, 1, 1) whose zero moment was printed as -1e-6 passes (silently):
     1e-6 of the largest moment is 6-digit rounding. -1e-3 is no rounding: refused."""
     check_urdf(_write(tmp_path, _urdf(_inertial("1", "-1e-06", "0", "0", "1", "0", "1"))))
-    with pytest.raises(URDFError, match=r"not positive semi-definite.*-0\.001"):
+    with pytest.raises(RobotError, match=r"not positive semi-definite.*-0\.001"):
         check_urdf(_write(tmp_path, _urdf(_inertial("1", "-0.001", "0", "0", "1", "0", "1"))))
 
 
@@ -256,7 +257,7 @@ def test_a_few_percent_off_the_triangle_inequality_loads_with_one_warning(
     """A published-URDF kind of error (moments 0.1, 0.2, 0.31: 3.2 % short) loads through
     load_robot with its one warning, and the arm simulates: M(q0) by hand is izz + m r² of
     the link about the joint's z axis = 0.31 + 1 · 0.5² = 0.56 kg m²."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     inertial = _inertial("1", "0.1", "0", "0", "0.2", "0", "0.31").replace(
         '<origin xyz="0 0 0"/>', '<origin xyz="0.5 0 0"/>'
@@ -278,7 +279,7 @@ def test_triangle_tolerance_accepts_rounding_only(tmp_path: Path) -> None:
 
 def test_missing_inertia_element(tmp_path: Path) -> None:
     text = _urdf('<inertial><mass value="1"/></inertial>')
-    with pytest.raises(URDFError, match=r"'arm'.*no <inertia>"):
+    with pytest.raises(RobotError, match=r"'arm'.*no <inertia>"):
         check_urdf(_write(tmp_path, text))
 
 
@@ -286,7 +287,7 @@ def test_missing_inertia_element(tmp_path: Path) -> None:
 @pytest.mark.parametrize("jtype", ["floating", "planar"])
 def test_floating_and_planar_joints_are_refused(tmp_path: Path, jtype: str) -> None:
     joint = f'<joint name="free" type="{jtype}"><parent link="base"/><child link="arm"/></joint>'
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         check_urdf(_write(tmp_path, _urdf(joint=joint)))
     message = str(info.value)
     assert "robot.urdf" in message
@@ -296,13 +297,13 @@ def test_floating_and_planar_joints_are_refused(tmp_path: Path, jtype: str) -> N
 
 def test_a_model_needs_a_moving_joint(tmp_path: Path) -> None:
     fixed = '<joint name="j1" type="fixed"><parent link="base"/><child link="arm"/></joint>'
-    with pytest.raises(URDFError, match=r"no moving joint \(its only joint is fixed, so nv = 0\)"):
+    with pytest.raises(RobotError, match=r"no moving joint \(its only joint is fixed, so nv = 0\)"):
         check_urdf(_write(tmp_path, _urdf(joint=fixed)))
     check_urdf(_write(tmp_path, _urdf()))  # the same tree with j1 revolute passes
 
 
 def test_a_single_link_without_joints_has_no_moving_joint(tmp_path: Path) -> None:
-    with pytest.raises(URDFError, match=r"robot\.urdf.*no moving joint \(it has no joint"):
+    with pytest.raises(RobotError, match=r"robot\.urdf.*no moving joint \(it has no joint"):
         check_urdf(_write(tmp_path, '<robot name="t"><link name="only"/></robot>'))
 
 
@@ -313,11 +314,11 @@ def test_mimic_attributes_are_checked(tmp_path: Path) -> None:
         '<child link="hand"/><limit effort="1" velocity="1"/>MIMIC</joint></robot>',
     )
     check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="j1" multiplier="2"/>')))
-    with pytest.raises(URDFError, match=r"'j2': <mimic>.*multiplier='two' is not a number"):
+    with pytest.raises(RobotError, match=r"'j2': <mimic>.*multiplier='two' is not a number"):
         check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="j1" multiplier="two"/>')))
-    with pytest.raises(URDFError, match=r"'j2' has <mimic joint='nope'>"):
+    with pytest.raises(RobotError, match=r"'j2' has <mimic joint='nope'>"):
         check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="nope"/>')))
-    with pytest.raises(URDFError, match=r"'j2' has <mimic joint='j2'>"):
+    with pytest.raises(RobotError, match=r"'j2' has <mimic joint='j2'>"):
         check_urdf(_write(tmp_path, two.replace("MIMIC", '<mimic joint="j2"/>')))
 
 
@@ -343,7 +344,7 @@ def test_joint_numbers_are_checked_before_pinocchio(
     assert old in text
     path = tmp_path / "arm.urdf"
     path.write_text(text.replace(old, new, 1))
-    with pytest.raises(URDFError, match=words) as info:
+    with pytest.raises(RobotError, match=words) as info:
         check_urdf(path)
     assert str(path) in str(info.value)
 
@@ -354,7 +355,7 @@ def test_a_parser_complaint_on_a_model_that_loads_is_one_warning(
     """urdfdom skips a visual it cannot read and writes several lines on the C stderr: they
     become one ModelWarning naming the file, and nothing reaches stderr directly."""
     from hybrid_force.errors import ModelWarning
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     text = rtr_urdf.read_text().replace('<cylinder radius="0.03"', '<cylinder radius="abc"', 1)
     path = tmp_path / "arm.urdf"
@@ -412,7 +413,7 @@ def test_links_welded_to_the_root_are_not_checked(tmp_path: Path, case: str, whe
 def test_a_bad_root_inertial_does_not_change_the_dynamics(tmp_path: Path, case: str) -> None:
     """The same arm with and without the root's inertial: the same M(q), loaded silently.
     By hand: M = izz + m r² = 0.1 + 2 · 0.5² = 0.6 kg m² about j1."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     plain = load_robot(_write(tmp_path, _welded_arm(), "plain.urdf"))
     odd = load_robot(_write(tmp_path, _welded_arm(root=_BAD_INERTIALS[case]), "odd.urdf"))
@@ -424,7 +425,7 @@ def test_a_bad_root_inertial_does_not_change_the_dynamics(tmp_path: Path, case: 
 def test_a_massless_end_link_with_inertia_is_checked_and_warns(tmp_path: Path) -> None:
     """The flange is fixed to the moving arm, so it is simulated: mass 0 with izz = 0.05 warns
     once, names the flange, and adds 0.05 kg m² to M (0.6 + 0.05 by hand)."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     flange = _inertial("0", "0.05", "0", "0", "0.05", "0", "0.05")
     path = _write(tmp_path, _welded_arm(flange=flange))
@@ -534,7 +535,7 @@ def test_urdf_text_strips_a_utf8_byte_order_mark(tmp_path: Path) -> None:
 def test_urdf_text_reports_malformed_xml_like_the_check(tmp_path: Path) -> None:
     path = _write(tmp_path, '<robot name="t" a:b="1"><link name="a">\n</robot>\n', "bad.urdf")
     expected = r"malformed URDF .*bad\.urdf: XML parse error: mismatched tag: line 2"
-    with pytest.raises(URDFError, match=expected):
+    with pytest.raises(RobotError, match=expected):
         urdf_text(path)
 
 
@@ -542,14 +543,14 @@ def test_check_urdf_takes_the_text_it_is_given(tmp_path: Path) -> None:
     """check_urdf(path, text=...) checks the text (e.g. an expansion) and names the path."""
     path = tmp_path / "virtual.urdf"  # never written
     check_urdf(path, text=_urdf(_ARM))
-    with pytest.raises(URDFError, match=r"virtual\.urdf.*mass = -1 kg"):
+    with pytest.raises(RobotError, match=r"virtual\.urdf.*mass = -1 kg"):
         check_urdf(path, text=_urdf(_inertial("-1", "1", "0", "0", "1", "0", "1")))
 
 
 def test_load_robot_accepts_extension_tags_and_undeclared_prefixes(tmp_path: Path) -> None:
     """The loader builds from urdf_text: the extended file gives the plain file's dynamics
     (M = izz + m r² = 0.1 + 2 · 0.5² = 0.6 kg m² by hand), silently."""
-    from hybrid_force.model.robot import load_robot
+    from hybrid_force.model.loading import load_robot
 
     plain, extended = _extended()
     robot = load_robot(_write(tmp_path, extended))

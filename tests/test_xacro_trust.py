@@ -19,9 +19,10 @@ import pytest
 from conftest import ROD_MACRO, RTR_XACRO
 
 from hybrid_force.cli import main
-from hybrid_force.errors import ScenarioError, URDFError
-from hybrid_force.model.robot import expand_xacro, load_robot
+from hybrid_force.errors import RobotError, ScenarioError
+from hybrid_force.model.loading import load_robot
 from hybrid_force.model.xacro_eval import eval_expression
+from hybrid_force.model.xacro_files import expand_xacro
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import load_scenario
 
@@ -92,7 +93,7 @@ def test_load_robot_refuses_the_payload_without_running_it(
 ) -> None:
     marker = tmp_path / "PWNED"
     path = _write(tmp_path, extra, value, marker)
-    with pytest.raises(URDFError) as info:
+    with pytest.raises(RobotError) as info:
         load_robot(path)
     assert not marker.exists()
     _assert_refused(" ".join(str(info.value).split()), path, piece)
@@ -105,7 +106,7 @@ def test_xacro_is_left_as_it_was(tmp_path: Path) -> None:
 
     saved = (xacro.safe_eval, substitution_args._eval)
     path = _write(tmp_path, "", "${open('x')}", tmp_path / "m")
-    with pytest.raises(URDFError):
+    with pytest.raises(RobotError):
         expand_xacro(path, {}, [])
     assert (xacro.safe_eval, substitution_args._eval) == saved
 
@@ -114,7 +115,7 @@ def test_an_included_file_named_by_an_expression_is_refused(tmp_path: Path) -> N
     marker = tmp_path / "PWNED"
     include = f"<xacro:include filename=\"${{__import__('os').system('touch {marker}')}}\"/>"
     path = _write(tmp_path, include, "x", marker)
-    with pytest.raises(URDFError, match=r"contains a double underscore"):
+    with pytest.raises(RobotError, match=r"contains a double underscore"):
         load_robot(path)
     assert not marker.exists()
     # a file name made of properties is ordinary data
@@ -134,14 +135,14 @@ def test_trust_lets_xacro_run_the_file(tmp_path: Path) -> None:
     benign = _write(tmp_path / "b", "", "x", marker)
     benign.write_text(benign.read_text().replace('name="link3"', "name=\"${'LINK3'.lower()}\""))
     with pytest.raises(
-        URDFError, match=r"the expression ''LINK3'.lower\(\)' reads the attribute 'lower'"
+        RobotError, match=r"the expression ''LINK3'.lower\(\)' reads the attribute 'lower'"
     ):
         load_robot(benign)
     assert load_robot(benign, xacro_trust=True).nv == 3
     fmt = '<xacro:property name="f" value="\'{}\'.format(2 * 3)"/>'
     evaluated = _write(tmp_path / "e", fmt, "$(eval ${f})", marker)
     assert 'note="6"' in expand_xacro(evaluated, {}, [], trust=True)
-    with pytest.raises(URDFError, match=r"reads the attribute 'format'"):
+    with pytest.raises(RobotError, match=r"reads the attribute 'format'"):
         expand_xacro(evaluated, {}, [])
 
 
@@ -226,7 +227,7 @@ def test_the_bounds_are_not_in_the_way_of_ordinary_numbers() -> None:
     assert eval_expression("2**4000 > 0", table) is True
     assert eval_expression("'ab' * 1000", table) == "ab" * 1000
     assert eval_expression("10.0**300", table) == 1e300
-    with pytest.raises(URDFError, match="more than 4096 bits"):
+    with pytest.raises(RobotError, match="more than 4096 bits"):
         eval_expression("2**5000", table)
     with pytest.raises(NameError, match="name 'nope' is not defined"):
         eval_expression("nope + 1", table)  # an ordinary mistake: xacro's own message
@@ -248,9 +249,9 @@ def test_a_macro_bomb_is_refused(tmp_path: Path) -> None:
         '<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">'
         f"{''.join(body)}<xacro:m29/></robot>"
     )
-    with pytest.raises(URDFError, match=rf"{path}.*more than {MAX_MACRO_CALLS} macro calls"):
+    with pytest.raises(RobotError, match=rf"{path}.*more than {MAX_MACRO_CALLS} macro calls"):
         load_robot(path)
-    with pytest.raises(URDFError, match=r"rounds to -1000000000000 digits"):
+    with pytest.raises(RobotError, match=r"rounds to -1000000000000 digits"):
         eval_expression("round(5, -10**12)", {})
 
 
@@ -344,7 +345,7 @@ def _result_file(
 ) -> Path:
     """A short hand-made result of an nq-joint arm whose meta["robot"] is ``robot_meta``
     (and meta["scenario"] ``scenario``)."""
-    from hybrid_force.geometry.surfaces import Plane
+    from hybrid_force.geometry.builtin_surfaces import Plane
 
     t = np.arange(11) * 0.01
     q = np.column_stack([0.1 * np.sin(t + j) + (5.0 if j == 1 else 0.0) for j in range(nq)])
@@ -412,7 +413,7 @@ def test_a_run_stores_the_expansion_and_the_replay_uses_it(
 def test_replay_of_an_old_urdf_result_reads_the_urdf_as_data(tmp_path: Path) -> None:
     """Without a stored text, a plain URDF file is read again (no expansion of any kind)."""
     pytest.importorskip("meshcat")
-    from hybrid_force.viz.replay import Replay
+    from hybrid_force.viz.scene import Replay
 
     rtr = Path(__file__).resolve().parents[1] / "robots" / "rtr.urdf"
     old = _result_file(tmp_path, {"model": str(rtr), "tip": "tip", "nq": 3})

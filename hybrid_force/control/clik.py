@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import ControlError, DimensionError, GainError, ReachError
+from hybrid_force.errors import BadInputError, ControlError, ReachError
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot
@@ -57,7 +57,7 @@ class ClikSettings:
     def __post_init__(self) -> None:
         """Check the gains (finite real numbers, not bools) and store them as floats.
 
-        Raises GainError naming the gain ("clik gamma", "damping", "posture_gain").
+        Raises ControlError naming the gain ("clik gamma", "damping", "posture_gain").
         """
         for name, what, strict, unit in (
             ("gamma", "clik gamma (paper eq. 27)", True, "1/s"),
@@ -65,7 +65,7 @@ class ClikSettings:
             ("posture_gain", "clik posture_gain", False, "1/s"),
         ):
             value = checks.number(
-                getattr(self, name), what, GainError, minimum=0.0, strict=strict, unit=unit
+                getattr(self, name), what, ControlError, minimum=0.0, strict=strict, unit=unit
             )
             object.__setattr__(self, name, value)
 
@@ -98,16 +98,16 @@ def inverse_kinematics(
 
     Raises:
         ReachError: the iterations do not converge (the point is out of reach from the seed).
-        DimensionError: target or seed is not real numbers of the right size.
+        BadInputError: target or seed is not real numbers of the right size.
         ControlError: tol is not a number > 0, max_iter not an integer >= 1.
     """
-    target = checks.array(target, "inverse_kinematics: target", DimensionError, valid=_TARGET)
+    target = checks.array(target, "inverse_kinematics: target", BadInputError, valid=_TARGET)
     if target.shape != (3,):
-        raise DimensionError(
+        raise BadInputError(
             f"inverse_kinematics: target must be {_TARGET}, got shape {target.shape}"
         )
     if seed is not None:
-        seed = checks.array(seed, "inverse_kinematics: seed", DimensionError, valid="nq numbers")
+        seed = checks.array(seed, "inverse_kinematics: seed", BadInputError, valid="nq numbers")
     what = "inverse_kinematics: tol"
     tol = checks.number(tol, what, ControlError, minimum=0, strict=True, unit="m")
     max_iter = checks.integer(max_iter, "inverse_kinematics: max_iter", ControlError, minimum=1)

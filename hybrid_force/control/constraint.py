@@ -35,8 +35,8 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import SingularConfigurationError, SurfaceError
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.errors import SurfaceError
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot, RobotTerms
 
 _K = LazyKernels("hybrid_force.control._kernels")
@@ -202,7 +202,7 @@ class Constraint:
                 :meth:`ConstraintTerms.zeros`); default: fresh arrays. Ignored for k > 1.
 
         Raises:
-            SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
+            SurfaceError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
                 stacked rows are dependent.
         """
         if self.k == 1:
@@ -225,7 +225,7 @@ class Constraint:
         gram = A @ A.T
         cond = np.linalg.cond(gram)
         if not np.isfinite(cond) or cond > _COND_TOL:
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"the {k} stacked constraint rows are (nearly) dependent at tip {terms.p.tolist()} "
                 f"(cond(A Aᵀ) = {cond:.3g}): the surfaces are tangent there or the arm cannot "
                 "move independently along their normals"
@@ -268,7 +268,7 @@ class Constraint:
         row_dot = h_pdot @ J + grad @ terms.Jdot
         row_norm = float(np.sqrt(row @ row))
         if row_norm < _ROW_TOL * grad_norm * (1.0 + float(np.abs(J).max())):
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"J_Φ is (near) zero for surface {i} ({surface!r}) at tip {p.tolist()}: the arm "
                 "cannot move its tip along the surface normal in this configuration, so J_Φn "
                 "is undefined"
@@ -313,7 +313,7 @@ class Constraint:
             desc, grad, hess, jac, tip, v, self._tip_scaling, rows, cols, squares, scalars
         )
         if not grad_norm >= _GRAD_TOL or not row_norm >= _ROW_TOL * grad_norm * (1.0 + jmax):
-            self._row(0, surface, terms)  # raises the precise SingularConfigurationError
+            self._row(0, surface, terms)  # raises the precise SurfaceError
         return c
 
     def normal_rows(self, p: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -364,12 +364,12 @@ def dependent_rows(rows: np.ndarray) -> tuple[list[int], np.ndarray] | None:
 def _gradient(
     i: int, surface: Surface, p: np.ndarray, consequence: str
 ) -> tuple[float, np.ndarray, np.ndarray, float]:
-    """(Φ, ∇Φ, ∇²Φ, ‖∇Φ‖) of surface i at p; SingularConfigurationError where ∇Φ vanishes
+    """(Φ, ∇Φ, ∇²Φ, ‖∇Φ‖) of surface i at p; SurfaceError where ∇Φ vanishes
     (the message ends with ``consequence``)."""
     value, grad, hess = surface.evaluate(p)
     norm = float(np.sqrt(grad @ grad))
     if norm < _GRAD_TOL:
-        raise SingularConfigurationError(
+        raise SurfaceError(
             f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r}): " + consequence
         )
     return value, grad, hess, norm

@@ -22,8 +22,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms, Normalization
-from hybrid_force.errors import ControlError, SingularConfigurationError
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.errors import ControlError, SurfaceError
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot, RobotTerms
 
 __all__ = [
@@ -83,5 +83,5 @@ class ControllerModel:
         terms = self.robot.terms(q, v, self.data, out=self._terms)
         try:
             return terms, self.constraint.evaluate(terms, v, out=self._cons)
-        except SingularConfigurationError:
+        except SurfaceError:
             return terms, None

@@ -41,7 +41,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 
 __all__ = [

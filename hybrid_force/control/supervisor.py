@@ -70,20 +70,16 @@ from hybrid_force.control.pose_clik import (
     pose_inverse_kinematics,
 )
 from hybrid_force.control.tool import ToolSettings, ToolTarget
-from hybrid_force.errors import ControlError, GainError, RunWarning
+from hybrid_force.errors import ControlError, RunWarning
 from hybrid_force.events import Branch, Event, PhaseChange
 from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot, RobotTerms
-from hybrid_force.phases import CONTACT, FREE, NEAR, PHASE_NAMES, Phase
+from hybrid_force.phases import CONTACT, FREE, NEAR, Phase
 from hybrid_force.schema import check_fields, param
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
 __all__ = [
-    "CONTACT",
-    "FREE",
-    "NEAR",
-    "PHASE_NAMES",
     "ControlSettings",
     "ControllerStart",
     "HybridController",
@@ -127,7 +123,7 @@ class ControlSettings:
             sim.dt by ``Scenario`` and :func:`hybrid_force.sim.loop.simulate`).
 
     Every number must be a finite real number (not a bool, not a string) within the range
-    above, ``supervisor`` a bool: anything else raises :class:`GainError` (a number) or
+    above, ``supervisor`` a bool: anything else raises :class:`ControlError` (a number) or
     :class:`ControlError` naming the field. Numbers are stored as floats, K_d as a float or a
     read-only float array, f_d as a float or a tuple of floats.
     """
@@ -180,9 +176,9 @@ class ControlSettings:
         supervisor = checks.flag(self.supervisor, "ControlSettings.supervisor", ControlError)
         set_(self, "supervisor", supervisor)
         law_spec(self.law)
-        check_fields(self, GainError, "ControlSettings.")
+        check_fields(self, ControlError, "ControlSettings.")
         if not self.max_dist > self.contact_tol:
-            raise GainError(
+            raise ControlError(
                 f"need max_dist > contact_tol > 0, got max_dist={self.max_dist!r}, "
                 f"contact_tol={self.contact_tol!r}"
             )
@@ -192,11 +188,11 @@ class ControlSettings:
     def f_d_for(self, k: int) -> np.ndarray:
         """The desired contact force of each of ``k`` surfaces: (k,) [N], a new array.
 
-        Raises GainError if f_d has neither 1 nor k values.
+        Raises ControlError if f_d has neither 1 nor k values.
         """
         f_d = np.atleast_1d(np.asarray(self.f_d, dtype=float))
         if f_d.shape not in ((1,), (k,)):
-            raise GainError(
+            raise ControlError(
                 f"ControlSettings.f_d must be one number or {k} numbers (one per surface), got "
                 f"{len(f_d)} values: {self.f_d!r}"
             )
@@ -208,13 +204,13 @@ def _desired_force(f_d: object) -> float | tuple[float, ...]:
     what = "ControlSettings.f_d"
     valid = "a finite real number >= 0 [N] or a sequence of them (one per surface)"
     if isinstance(f_d, numbers.Real) and not isinstance(f_d, bool | np.bool_):
-        values = np.array([checks.number(f_d, what, GainError, unit="N")])
+        values = np.array([checks.number(f_d, what, ControlError, unit="N")])
     else:
-        values = checks.array(f_d, what, GainError, valid=valid)
+        values = checks.array(f_d, what, ControlError, valid=valid)
         if values.ndim != 1 or values.size == 0:
-            raise GainError(f"{what} must be {valid}, got {checks.shown(f_d)}")
+            raise ControlError(f"{what} must be {valid}, got {checks.shown(f_d)}")
     if np.any(values < 0):
-        raise GainError(
+        raise ControlError(
             f"{what} = {checks.shown(f_d)}: a surface can only push, so f_d must be >= 0 N "
             "(0 is allowed: touch without pressing); a negative desired force would ask the "
             "surface to pull"
@@ -270,7 +266,7 @@ def check_controller(
         dt: the control period [s]. tool: the ``[tool]`` settings. t0: start time [s].
 
     Raises:
-        ReachError: q_d(0) out of reach. GainError, ControlError: a gain or a law's setting.
+        ReachError: q_d(0) out of reach. ControlError, ControlError: a gain or a law's setting.
     """
     s, n = settings, robot.nv
     q0 = robot.check_q(q0, "q0")
@@ -288,7 +284,7 @@ def check_controller(
     spec = law_spec(s.law)
     # only a law that reads K_d is held to it (each law checks its own gains: loop_bounds)
     if "Kd" in spec.gains and stiffness * dt > 0.5:
-        raise GainError(
+        raise ControlError(
             f"dt·λ_max(M⁻¹K_d) = {stiffness * dt:.3g} at q0 is too large for explicit "
             f"integration (must stay well below 2; limit here 0.5): lower Kd or dt = {dt}"
         )

@@ -47,7 +47,7 @@ from hybrid_force import _checks as checks
 from hybrid_force.errors import ControlError, ReachError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import Path
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.schema import check_fields, param
 
 __all__ = [

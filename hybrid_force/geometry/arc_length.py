@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybrid_force.errors import PathParameterError
+from hybrid_force.errors import PathError
 from hybrid_force.geometry.charts import SurfaceChart
 from hybrid_force.geometry.piecewise import PiecewiseCurve, blend_piece
 
@@ -76,7 +76,7 @@ def arc_length_map(chart: SurfaceChart, curve: PiecewiseCurve) -> PiecewiseCurve
     column, breaks at the tabulated ℓ (see the module doc).
 
     Raises:
-        PathParameterError: the curve nearly stops somewhere (‖p'‖ → 0), so σ(ℓ) has no
+        PathError: the curve nearly stops somewhere (‖p'‖ → 0), so σ(ℓ) has no
             bounded derivative there.
     """
     lengths, pieces = [], []
@@ -90,7 +90,7 @@ def arc_length_map(chart: SurfaceChart, curve: PiecewiseCurve) -> PiecewiseCurve
         q = np.linalg.norm(first, axis=1)
         fastest = max(fastest, float(q.max()))
         if not float(q.min()) > _STOP_RTOL * fastest:
-            raise PathParameterError(
+            raise PathError(
                 f"the path nearly stops on the surface near parameter {curve.breaks[k]:.6g} "
                 f"(speed {float(q.min()):.3g} per unit of the curve's parameter): move its points"
             )

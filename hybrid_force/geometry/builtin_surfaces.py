@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.errors import SurfaceError
 from hybrid_force.geometry.surface_base import (
     _SINGULAR_RTOL,
     Surface,
@@ -43,7 +43,7 @@ class _RoundSurface(Surface):
     With w the offset of p from the centre or axis (:meth:`_offset`) and ρ = ‖w‖:
     Φ = ±(ρ² − r²), ∇Φ = ±2w, d = ±(ρ − r) (+ when the outside is free, − when ``inside``);
     the Hessian ±2I or ±2(I − aaᵀ) is constant and stored as ``_hess``. ``normal`` and
-    ``closest_point`` raise SingularConfigurationError within 1e-9 · r of the centre or axis.
+    ``closest_point`` raise SurfaceError within 1e-9 · r of the centre or axis.
     Subclasses set radius, inside, _sign, _r2, _hess, _singular_where and :meth:`_offset`.
     """
 
@@ -112,7 +112,7 @@ class _RoundSurface(Surface):
         wx, wy, wz = self._offset(x, y, z)
         rho = math.hypot(wx, wy, wz)
         if rho <= _SINGULAR_RTOL * self.radius:
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"{self!r}.{method}: p = [{x:.9g}, {y:.9g}, {z:.9g}] {self._singular_where} "
                 f"(distance {rho:.3g} m <= {_SINGULAR_RTOL:g} * radius), where ∇Φ = 0 "
                 "and the normal is undefined"
@@ -145,7 +145,7 @@ class Cylinder(_RoundSurface):
       Φ = r² − ρ², d = r − ρ.
 
     ∇Φ = ±2 w⊥, ∇²Φ = ±2 (I − a aᵀ). ``normal`` and ``closest_point`` raise
-    SingularConfigurationError within 1e-9 · r of the axis.
+    SurfaceError within 1e-9 · r of the axis.
 
     Parameters: radius > 0 [m]; center: (3,) [m], any point on the axis; axis: (3,), any non-zero
     direction, normalised internally; inside: which side is free.
@@ -203,7 +203,7 @@ class Sphere(_RoundSurface):
 
     With w = p − c: ``inside=False`` (outside free): Φ = ‖w‖² − r², d = ‖w‖ − r;
     ``inside=True`` (inside free): Φ = r² − ‖w‖², d = r − ‖w‖. ∇Φ = ±2w, ∇²Φ = ±2I.
-    ``normal`` and ``closest_point`` raise SingularConfigurationError within 1e-9 · r of the centre.
+    ``normal`` and ``closest_point`` raise SurfaceError within 1e-9 · r of the centre.
     """
 
     kind: ClassVar[str] = "sphere"

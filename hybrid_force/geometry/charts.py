@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import PathParameterError
+from hybrid_force.errors import PathError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import axis_frame
 
@@ -235,7 +235,7 @@ class PlaneChart(SurfaceChart):
             ``axis_frame(normal)`` (world x projected onto the plane, world y if n ∥ x).
 
     Raises:
-        PathParameterError: a ``u_axis`` that is zero, not finite or (nearly) along the normal.
+        PathError: a ``u_axis`` that is zero, not finite or (nearly) along the normal.
     """
 
     names = ("u", "v")
@@ -283,16 +283,16 @@ class PlaneChart(SurfaceChart):
 
 
 def _in_plane_axis(u_axis: ArrayLike, n: np.ndarray) -> np.ndarray:
-    raw = checks.array(u_axis, "u_axis", PathParameterError, valid="3 finite real numbers")
+    raw = checks.array(u_axis, "u_axis", PathError, valid="3 finite real numbers")
     if raw.shape != (3,):
-        raise PathParameterError(
+        raise PathError(
             f"u_axis must be 3 numbers, got {checks.shown(u_axis)}", key="u_axis", value=u_axis
         )
     length = float(np.linalg.norm(raw))
     along = raw - float(raw @ n) * n
     size = float(np.linalg.norm(along))
     if not size > _PARALLEL_TOL * length:
-        raise PathParameterError(
+        raise PathError(
             f"u_axis {raw.tolist()} has no component in the plane (normal {n.tolist()}): give a "
             "direction along the plane",
             key="u_axis",
@@ -310,12 +310,12 @@ def chart_for(surface: object, u_axis: ArrayLike | None = None) -> SurfaceChart:
         u_axis: (3,) the u direction of a plane's chart; only for a plane.
 
     Raises:
-        PathParameterError: a surface with no chart (a user-defined FunctionSurface), or a
+        PathError: a surface with no chart (a user-defined FunctionSurface), or a
             ``u_axis`` for a surface that is not a plane.
     """
     chart = next((_CHARTS[c] for c in type(surface).__mro__ if c in _CHARTS), None)
     if chart is not None and u_axis is not None and not chart.takes_u_axis:
-        raise PathParameterError(
+        raise PathError(
             f"u_axis is only for a plane's chart; {surface!r} has fixed coordinates",
             key="u_axis",
             value=u_axis,
@@ -323,7 +323,7 @@ def chart_for(surface: object, u_axis: ArrayLike | None = None) -> SurfaceChart:
     if chart is not None:
         build: Callable[..., SurfaceChart] = chart
         return build(surface, u_axis) if chart.takes_u_axis else build(surface)
-    raise PathParameterError(
+    raise PathError(
         f"surface {checks.shown(surface)} has no chart (surface coordinates): paths in surface "
         "coordinates and waypoints projected onto it need a surface with a chart (cylinder, "
         "sphere, plane, ...)",

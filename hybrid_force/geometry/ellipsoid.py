@@ -23,7 +23,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hybrid_force.errors import SingularConfigurationError, SurfaceParameterError
+from hybrid_force.errors import SurfaceError
 from hybrid_force.geometry.charts import SurfaceChart, register_chart
 from hybrid_force.geometry.mesh_field import rpy_matrix
 from hybrid_force.geometry.surface_base import (
@@ -53,7 +53,7 @@ class Ellipsoid(Surface):
     """Ellipsoid of semi-axes (a, b, c) [m] around ``center`` [m], its axes turned by ``rpy``.
 
     Φ and its derivatives: the module doc. ``inside=True`` makes the interior the free side
-    (Φ and d negated). ``normal`` raises SingularConfigurationError at the centre.
+    (Φ and d negated). ``normal`` raises SurfaceError at the centre.
 
     Parameters: semi_axes: (3,) [m] all > 0; center: (3,) [m]; rpy: (3,) [rad], roll, pitch,
     yaw of the ellipsoid's axes in the world; inside: which side is free.
@@ -77,7 +77,7 @@ class Ellipsoid(Surface):
         rpy = _vector3("Ellipsoid", "rpy", self.rpy)
         side = _boolean("Ellipsoid", "inside", self.inside)
         if max(axes) > 1e6 * min(axes):
-            raise SurfaceParameterError(
+            raise SurfaceError(
                 f"Ellipsoid: parameter 'semi_axes' = {list(axes)} spans more than 1e6 "
                 "between its shortest and longest axis"
             )
@@ -148,7 +148,7 @@ class Ellipsoid(Surface):
         g = self._R @ (q / np.square(self.semi_axes))
         size = float(np.linalg.norm(g))
         if size <= _SINGULAR_RTOL / min(self.semi_axes):
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"{self!r}.normal: p = {np.asarray(p, dtype=float).tolist()} is at the "
                 "ellipsoid's centre, where ∇Φ = 0 and the normal is undefined"
             )

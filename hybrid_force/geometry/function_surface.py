@@ -13,12 +13,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hybrid_force.errors import (
-    DimensionError,
-    SingularConfigurationError,
-    SurfaceError,
-    SurfaceParameterError,
-)
+from hybrid_force.errors import BadInputError, SurfaceError
 from hybrid_force.geometry.surface_base import Surface, _fmt, _positive_float, _xyz
 
 __all__ = ["FunctionSurface"]
@@ -65,12 +60,12 @@ class FunctionSurface(Surface):
 
     ``closest_point`` is first order (one Newton step p − Φ ∇Φ/‖∇Φ‖²); it lies on the surface
     to O(d²). ``normal``, ``closest_point`` and the first-order ``distance`` raise
-    SingularConfigurationError where ‖∇Φ‖ < ``singular_tol`` (same units as ∇Φ).
+    SurfaceError where ‖∇Φ‖ < ``singular_tol`` (same units as ∇Φ).
     ``to_dict`` gives ``{"type": "function"}`` only: a function surface cannot be rebuilt
     from a dict.
 
     Results of the callables are checked: a non-finite Φ raises SurfaceError, a gradient not
-    of shape (3,) or a Hessian not of shape (3, 3) raises DimensionError, naming the callable.
+    of shape (3,) or a Hessian not of shape (3, 3) raises BadInputError, naming the callable.
     """
 
     kind: ClassVar[str] = "function"
@@ -96,7 +91,7 @@ class FunctionSurface(Surface):
     ) -> None:
         owner = "FunctionSurface"
         if not callable(phi):
-            raise SurfaceParameterError(
+            raise SurfaceError(
                 f"FunctionSurface: parameter 'phi' must be a callable phi(p) -> float, "
                 f"got {_fmt(phi)}"
             )
@@ -106,7 +101,7 @@ class FunctionSurface(Surface):
             ("distance", distance),
         ):
             if function is not None and not callable(function):
-                raise SurfaceParameterError(
+                raise SurfaceError(
                     f"FunctionSurface: parameter '{name}' must be a callable of p or None, "
                     f"got {_fmt(function)}"
                 )
@@ -170,7 +165,7 @@ class FunctionSurface(Surface):
             ) from exc
         shape = (3,) if name != "hessian" else (3, 3)
         if value.shape != shape:
-            raise DimensionError(
+            raise BadInputError(
                 f"{self!r}: {name} returned shape {value.shape} at p = {_fmt(p)}, expected {shape}"
             )
         if not np.all(np.isfinite(value)):
@@ -273,7 +268,7 @@ class FunctionSurface(Surface):
         grad = self._gradient_at(q)
         norm = float(np.linalg.norm(grad))
         if norm < self.singular_tol:
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"{self!r}.{method}: ‖∇Φ‖ = {norm:.3g} < singular_tol = {self.singular_tol:g} "
                 f"at p = {_fmt(q)}; the normal is undefined there"
             )

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from hybrid_force._atomic import atomic_file
-from hybrid_force.errors import SurfaceParameterError
+from hybrid_force.errors import SurfaceError
 
 __all__ = [
     "MAX_NODES",
@@ -106,7 +106,7 @@ def read_mesh(
     """Read an STL, OBJ or PLY file with trimesh and place it: p = R(rpy) · scale · x + position.
 
     Raises:
-        SurfaceParameterError: naming ``key`` and the file: unreadable, not a triangle mesh,
+        SurfaceError: naming ``key`` and the file: unreadable, not a triangle mesh,
             no faces, non-finite vertices, a scale that is not a finite number > 0, or a part
             whose size is not between 1e-6 m and 1e3 m.
     """
@@ -116,35 +116,33 @@ def read_mesh(
     if not (isinstance(scale, (int, float)) and not isinstance(scale, bool)) or not (
         math.isfinite(scale) and scale > 0
     ):
-        raise SurfaceParameterError(f"{key}: scale must be a finite number > 0, got {scale!r}")
+        raise SurfaceError(f"{key}: scale must be a finite number > 0, got {scale!r}")
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise SurfaceParameterError(
-            f"{key} = '{file}': cannot read the file ({exc.strerror})"
-        ) from None
+        raise SurfaceError(f"{key} = '{file}': cannot read the file ({exc.strerror})") from None
     kind = path.suffix.lower().lstrip(".")
     if kind not in ("stl", "obj", "ply"):
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{key} = '{file}': unknown mesh format '{path.suffix}'; valid: .stl, .obj, .ply"
         )
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types on a corrupt file
         why = " ".join(str(exc).split())[:200] or type(exc).__name__
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{key} = '{file}': not a readable {kind.upper()} mesh ({why})"
         ) from None
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     if faces.ndim != 2 or faces.shape[0] == 0 or faces.shape[1] != 3:
-        raise SurfaceParameterError(f"{key} = '{file}': the mesh has no triangle faces")
+        raise SurfaceError(f"{key} = '{file}': the mesh has no triangle faces")
     if not np.isfinite(vertices).all():
-        raise SurfaceParameterError(f"{key} = '{file}': the mesh has non-finite vertices")
+        raise SurfaceError(f"{key} = '{file}': the mesh has non-finite vertices")
     placed = vertices * float(scale) @ rpy_matrix(rpy).T + np.asarray(position, dtype=np.float64)
     size = float(np.linalg.norm(placed.max(axis=0) - placed.min(axis=0)))
     if not 1e-6 <= size <= 1e3:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{key} = '{file}': the placed part is {size:.3g} m across; valid: 1e-6 to 1e3 m "
             "(is surface.scale right? it converts the file's units to metres)"
         )
@@ -215,7 +213,7 @@ def _grid(part: MeshPart, h: float, key: str) -> tuple[np.ndarray, tuple[int, in
     nodes = int(np.prod(counts.astype(np.float64)))
     if nodes > MAX_NODES:
         finest = h * (nodes / MAX_NODES) ** (1.0 / 3.0)
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{key} = {h:g} m: the grid would have {counts[0]} x {counts[1]} x {counts[2]} = "
             f"{nodes:,} nodes, above the bound of {MAX_NODES:,} (about "
             f"{MAX_NODES * 24 / 1e6:.0f} MB while building); valid for this part: >= {finest:.3g} m"
@@ -393,14 +391,14 @@ def build_field(
     Read from the cache when a file of the same mesh, placement and settings is there.
 
     Raises:
-        SurfaceParameterError: ``key``: a resolution that is not a finite number > 0, or a
+        SurfaceError: ``key``: a resolution that is not a finite number > 0, or a
             grid above :data:`MAX_NODES` (the message gives the finest valid spacing).
     """
     h = default_resolution(part) if resolution is None else resolution
     if not (isinstance(h, (int, float)) and not isinstance(h, bool)) or not (
         math.isfinite(h) and h > 0
     ):
-        raise SurfaceParameterError(f"{key}: must be a finite number > 0 [m], got {resolution!r}")
+        raise SurfaceError(f"{key}: must be a finite number > 0 [m], got {resolution!r}")
     h = float(h)
     origin, counts = _grid(part, h, key)
     name = hashlib.sha256(f"{_FORMAT}|{part.digest}|{h!r}|{inside}".encode()).hexdigest()[:32]

@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hybrid_force.errors import ModelWarning, SingularConfigurationError
+from hybrid_force.errors import ModelWarning, SurfaceError
 from hybrid_force.geometry.mesh_field import DistanceField, MeshPart, build_field, read_mesh
 from hybrid_force.geometry.surface_base import Surface, _xyz
 
@@ -116,7 +116,7 @@ class MeshSurface(Surface):
         grad = self.field.evaluate(x)[1]
         norm = float(np.linalg.norm(grad))
         if not norm >= _SINGULAR_GRADIENT:
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"{self!r}.normal: ‖∇Φ‖ = {norm:.3g} at p = {x.tolist()} (on the part's medial "
                 "axis, where the distance has no normal)"
             )
@@ -129,9 +129,7 @@ class MeshSurface(Surface):
             value, grad, _ = self.field.evaluate(x)
             g2 = float(grad @ grad)
             if not g2 >= _SINGULAR_GRADIENT**2:
-                raise SingularConfigurationError(
-                    f"{self!r}.closest_point: ‖∇Φ‖ vanishes at {x.tolist()}"
-                )
+                raise SurfaceError(f"{self!r}.closest_point: ‖∇Φ‖ vanishes at {x.tolist()}")
             x = x - (value / g2) * grad
             if abs(value) <= 1e-12:
                 break

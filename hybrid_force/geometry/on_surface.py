@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import PathParameterError, SurfaceError
+from hybrid_force.errors import PathError, SurfaceError
 
 if TYPE_CHECKING:
     from hybrid_force.geometry.paths import Path
@@ -52,7 +52,7 @@ def _abs_distance(path: Path, surface: Any, t: float) -> tuple[float, np.ndarray
         p = np.full(1, np.nan)
     # math.isfinite on the 3 floats: a fifth of np.isfinite(p).all()'s cost, 2001+ times a check
     if p.shape != (3,) or not all(map(math.isfinite, p.tolist())):
-        raise PathParameterError(
+        raise PathError(
             f"path {path!r} gives a non-finite or wrongly shaped position "
             f"{checks.shown(raw)} at t={t!r}"
         )
@@ -75,32 +75,30 @@ def check_on_surface(
     """Worst |d| [m] of ``path`` on ``surface`` over times t0 ≤ t ≤ t1 [s].
 
     surface: any object with ``distance(p: (3,) ndarray) -> float``, the signed metric
-    distance [m] (e.g. hybrid_force.geometry.surfaces.Cylinder). The span is sampled at
+    distance [m] (e.g. hybrid_force.geometry.builtin_surfaces.Cylinder). The span is sampled at
     ``samples`` (≥ 2) uniform times; the bracket around the worst sample is then refined
     by a golden-section search for the maximum of |d|, so the reported value is accurate
     to rounding even between samples as long as |d| has a single peak within one sample
     spacing of the worst sample. The time of the worst is less precise (about 1e-8·scale
     s, since |d| is flat at its peak: the golden search resolves t to ~√ε).
 
-    Raises PathParameterError if t0, t1 are not finite, t1 <= t0, or samples < 2;
+    Raises PathError if t0, t1 are not finite, t1 <= t0, or samples < 2;
     SurfaceError if the surface returns a non-finite distance.
     """
-    a = checks.number(t0, "check_on_surface.t0", PathParameterError, unit="s")
-    b = checks.number(t1, "check_on_surface.t1", PathParameterError, unit="s")
+    a = checks.number(t0, "check_on_surface.t0", PathError, unit="s")
+    b = checks.number(t1, "check_on_surface.t1", PathError, unit="s")
     if not b > a:
-        raise PathParameterError(f"check_on_surface.t1 must be > t0, got t0={t0!r}, t1={t1!r}")
-    n = checks.integer(samples, "check_on_surface.samples", PathParameterError, minimum=2)
+        raise PathError(f"check_on_surface.t1 must be > t0, got t0={t0!r}, t1={t1!r}")
+    n = checks.integer(samples, "check_on_surface.samples", PathError, minimum=2)
     if n > _MAX_SAMPLES:
-        raise PathParameterError(
-            f"check_on_surface.samples must be <= {_MAX_SAMPLES:.0e}, got {samples!r}"
-        )
+        raise PathError(f"check_on_surface.samples must be <= {_MAX_SAMPLES:.0e}, got {samples!r}")
     if not callable(getattr(path, "position", None)):
-        raise PathParameterError(
+        raise PathError(
             f"check_on_surface.path must be a Path (with position(t) -> (3,)), "
             f"got {checks.shown(path)}"
         )
     if not callable(getattr(surface, "distance", None)):
-        raise PathParameterError(
+        raise PathError(
             f"check_on_surface.surface must have a method distance(p) -> float, got {surface!r}"
         )
     return _scan(path, surface, a, b, n)

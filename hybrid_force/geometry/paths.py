@@ -1,4 +1,4 @@
-"""Desired task-space paths p_d(t) (and, re-exported, the check that a path lies on a surface).
+"""Desired task-space paths p_d(t).
 
 A path gives the desired tool position p_d(t) (3,) [m] together with its velocity
 ṗ_d(t) (3,) [m/s] and acceleration p̈_d(t) (3,) [m/s²]; the closed-loop inverse
@@ -42,23 +42,18 @@ import numpy as np
 
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import PathParameterError, did_you_mean
-from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, OnSurfaceReport, check_on_surface
+from hybrid_force.errors import PathError, did_you_mean
 from hybrid_force.geometry.surface_base import MAX_LENGTH, import_geometry
 from hybrid_force.schema import MISSING_VALUE, declared, default_of, param, specs
 
 _K = LazyKernels("hybrid_force.geometry._kernels")
 
 __all__ = [
-    "ON_SURFACE_TOL",
     "Circle",
     "FunctionPath",
     "Helix",
-    "OnSurfaceReport",
     "Path",
-    "PathParameterError",
     "axis_frame",
-    "check_on_surface",
     "paper_helix",
     "path_from_dict",
     "path_time",
@@ -76,29 +71,29 @@ _UNITS = {"omega": "rad/s", "rise": "m/s", "phase": "rad"}
 
 # --- helpers -------------------------------------------------------------------------------------
 def path_time(path: object, t: object) -> float:
-    """The time ``t`` [s] at which a path is evaluated, as a float; PathParameterError
+    """The time ``t`` [s] at which a path is evaluated, as a float; PathError
     (key ``t``) for a non-finite or non-real one, instead of a raw math or numpy error."""
     if isinstance(t, float) and math.isfinite(t):  # the common case, without the generic check
         return float(t)
     what = f"{type(path).__name__}: the time t at which it is evaluated"
     try:
-        return checks.number(t, what, PathParameterError, unit="s")
-    except PathParameterError as exc:  # the same message, with its key
-        raise PathParameterError(str(exc), key="t", value=t) from None
+        return checks.number(t, what, PathError, unit="s")
+    except PathError as exc:  # the same message, with its key
+        raise PathError(str(exc), key="t", value=t) from None
 
 
 def _finite_float(owner: str, name: str, value: object, unit: str = "") -> float:
     """Return ``value`` (a real number, not a bool) as a finite float or raise
-    :class:`PathParameterError` naming ``owner.name``."""
-    return checks.number(value, f"{owner}.{name}", PathParameterError, unit=unit)
+    :class:`PathError` naming ``owner.name``."""
+    return checks.number(value, f"{owner}.{name}", PathError, unit=unit)
 
 
 def _vector3(owner: str, name: str, value: object) -> tuple[float, float, float]:
     """Return ``value`` as a finite 3-vector of real numbers (tuple of floats) or raise."""
     what = f"{owner}.{name}"
-    arr = checks.array(value, what, PathParameterError, valid="3 finite real numbers")
+    arr = checks.array(value, what, PathError, valid="3 finite real numbers")
     if arr.shape != (3,):
-        raise PathParameterError(
+        raise PathError(
             f"{what} must be 3 finite numbers (shape (3,)), got {checks.shown(value)} "
             f"with shape {arr.shape}"
         )
@@ -114,7 +109,7 @@ def _unit3(owner: str, name: str, value: object) -> np.ndarray:
         vec = vec / float(np.abs(vec).max())
         norm = float(np.linalg.norm(vec))
     if not norm >= _AXIS_MIN_NORM:
-        raise PathParameterError(
+        raise PathError(
             f"{owner}.{name} must be a non-zero direction (length >= {_AXIS_MIN_NORM:g}), "
             f"got {value!r} with length {norm:g}"
         )
@@ -129,7 +124,7 @@ def axis_frame(axis: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     world x (projection shorter than 1e-6) world y is used instead. e2 = a × e1, so
     e1 × e2 = a. Returns three (3,) unit vectors [-].
 
-    Raises PathParameterError for a zero or non-finite axis.
+    Raises PathError for a zero or non-finite axis.
     """
     a = _unit3("axis_frame", "axis", axis)
     ref = np.array([1.0, 0.0, 0.0])
@@ -248,7 +243,7 @@ class _CircularPath(Path):
         owner = type(self).__name__
         center = _vector3(owner, "center", self.center)
         radius = checks.number(
-            self.radius, f"{owner}.radius", PathParameterError, minimum=0.0, strict=True, unit="m"
+            self.radius, f"{owner}.radius", PathError, minimum=0.0, strict=True, unit="m"
         )
         raw = getattr(self, direction)
         vector = _vector3(owner, direction, raw)
@@ -262,7 +257,7 @@ class _CircularPath(Path):
         sizes.update((name, abs(getattr(self, name))) for name in scalars)
         for name, size in sizes.items():
             if size > MAX_LENGTH:
-                raise PathParameterError(
+                raise PathError(
                     f"{owner}.{name} = {checks.shown(getattr(self, name))} is beyond "
                     f"MAX_LENGTH = {MAX_LENGTH:g} {_UNITS.get(name, 'm')}",
                     key=name,
@@ -425,7 +420,7 @@ class FunctionPath(Path):
     [t−2h, t+2h], also for t near the start of a run. Each evaluation costs up to 9 calls
     of ``position`` plus the given derivatives, so give analytic derivatives in hot loops.
 
-    A non-finite or wrongly shaped result raises :class:`PathParameterError` naming the
+    A non-finite or wrongly shaped result raises :class:`PathError` naming the
     callable and t. A FunctionPath cannot be written to a dict (:meth:`to_dict` raises).
     """
 
@@ -445,13 +440,11 @@ class FunctionPath(Path):
             ("acceleration", acceleration, False),
         ):
             if (fn is not None or required) and not callable(fn):
-                raise PathParameterError(
+                raise PathError(
                     f"FunctionPath.{name} must be a callable of t returning 3 numbers, "
                     f"got {checks.shown(fn)}"
                 )
-        h = checks.number(
-            step, "FunctionPath.step", PathParameterError, minimum=0.0, strict=True, unit="s"
-        )
+        h = checks.number(step, "FunctionPath.step", PathError, minimum=0.0, strict=True, unit="s")
         self._position_fn = position
         self._velocity_fn = velocity
         self._acceleration_fn = acceleration
@@ -473,15 +466,15 @@ class FunctionPath(Path):
         try:
             out = np.array(raw, dtype=float)
         except (TypeError, ValueError, OverflowError) as exc:
-            raise PathParameterError(
+            raise PathError(
                 f"FunctionPath.{kind}({t!r}) must return 3 numbers, got {raw!r} ({exc})"
             ) from exc
         if out.shape != (3,):
-            raise PathParameterError(
+            raise PathError(
                 f"FunctionPath.{kind}({t!r}) must return shape (3,), got shape {out.shape}"
             )
         if not np.all(np.isfinite(out)):
-            raise PathParameterError(
+            raise PathError(
                 f"FunctionPath.{kind}({t!r}) returned a non-finite value {out.tolist()}"
             )
         return out
@@ -522,7 +515,7 @@ class FunctionPath(Path):
 
     def to_dict(self) -> dict[str, Any]:
         """Not available: Python callables cannot be stored in a scenario or result file."""
-        raise PathParameterError(
+        raise PathError(
             f"{self!r} holds Python callables and cannot be written to a dict; "
             f"serialisable path types are {sorted(path_types())}"
         )
@@ -532,14 +525,14 @@ def path_from_dict(d: Mapping[str, Any]) -> Path:
     """Build a path from ``{"type": "helix" | "circle" | "waypoints" | "raster", <parameters>}``
     (inverse of to_dict; a waypoint or raster dict holds its surface's dict).
 
-    Raises PathParameterError for an unknown type, missing or unknown keys, or bad values.
+    Raises PathError for an unknown type, missing or unknown keys, or bad values.
     """
     if not isinstance(d, Mapping):
-        raise PathParameterError(
+        raise PathError(
             f"path must be a table/dict with a 'type' key, got {d!r} ({type(d).__name__})"
         )
     if "type" not in d:
-        raise PathParameterError(
+        raise PathError(
             f"path dict has no 'type' key; valid types: {sorted(path_types())}; got {dict(d)!r}"
         )
     kind = d["type"]
@@ -547,7 +540,7 @@ def path_from_dict(d: Mapping[str, Any]) -> Path:
     names = sorted(types)
     if not isinstance(kind, str) or kind not in types:
         hint = did_you_mean(kind, names) if isinstance(kind, str) else ""
-        raise PathParameterError(f"path.type {kind!r} is unknown{hint}; valid types: {names}")
+        raise PathError(f"path.type {kind!r} is unknown{hint}; valid types: {names}")
     cls = types[kind]
     from_dict = getattr(cls, "from_dict", None)
     if from_dict is not None:  # a path on a surface holds its surface's dict
@@ -560,13 +553,13 @@ def path_from_dict(d: Mapping[str, Any]) -> Path:
     params = {k: v for k, v in d.items() if k != "type"}
     for key in params:
         if key not in valid:
-            raise PathParameterError(
+            raise PathError(
                 f"path.{key} is not a parameter of a {kind} path{did_you_mean(str(key), valid)}; "
                 f"valid keys: {['type', *valid]}"
             )
     missing = [k for k in required if k not in params]
     if missing:
-        raise PathParameterError(
+        raise PathError(
             f"{kind} path is missing {missing}; required keys: {required}, optional: {optional}"
         )
     return cls(**params)

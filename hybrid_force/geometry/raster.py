@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import PathParameterError
+from hybrid_force.errors import PathError
 from hybrid_force.geometry.arc_length import piece_lengths, surface_speeds
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.paths import register_path
@@ -97,7 +97,7 @@ class RasterPath(SurfacePath):
         u_axis: (3,) the u direction of a plane's coordinates (:class:`.charts.PlaneChart`).
 
     Raises:
-        PathParameterError: bad values, naming the parameter (its ``key``).
+        PathError: bad values, naming the parameter (its ``key``).
 
     Attributes:
         passes: the number of passes.
@@ -134,7 +134,7 @@ class RasterPath(SurfacePath):
         along = 0 if direction == "u" else 1
         across = 1 - along
         if step > extent[across]:
-            raise PathParameterError(
+            raise PathError(
                 f"{owner}.spacing = {step:g} is larger than the rectangle across the passes "
                 f"(size[{across}] = {extent[across]:g} {chart.units[across]}, "
                 f"{chart.names[across]}): at least two passes must fit",
@@ -143,7 +143,7 @@ class RasterPath(SurfacePath):
             )
         passes_wanted = extent[across] / step - 1e-9  # a float: it may be huge
         if passes_wanted + 1 > MAX_PASSES:
-            raise PathParameterError(
+            raise PathError(
                 f"{owner}.spacing = {step:g} across size[{across}] = {extent[across]:g} "
                 f"{chart.units[across]} makes {math.ceil(passes_wanted) + 1:.6g} passes, more "
                 f"than the {MAX_PASSES} a raster may have: spacing must be at least "
@@ -173,15 +173,15 @@ class RasterPath(SurfacePath):
 def _pair(owner: str, name: str, value: object, positive_values: bool) -> tuple[float, float]:
     valid = "2 finite numbers > 0" if positive_values else "2 finite numbers [u, v]"
     try:
-        array = checks.array(value, f"{owner}.{name}", PathParameterError, valid=valid)
-    except PathParameterError as exc:
-        raise PathParameterError(str(exc), key=name, value=value) from None
+        array = checks.array(value, f"{owner}.{name}", PathError, valid=valid)
+    except PathError as exc:
+        raise PathError(str(exc), key=name, value=value) from None
     if array.shape != (2,) or (positive_values and not bool(np.all(array > 0.0))):
-        raise PathParameterError(
+        raise PathError(
             f"{owner}.{name} must be {valid}, got {checks.shown(value)}", key=name, value=value
         )
     if float(np.abs(array).max()) > MAX_LENGTH:  # coordinates in m or rad: far beyond any use
-        raise PathParameterError(
+        raise PathError(
             f"{owner}.{name} = {checks.shown(value)} is beyond MAX_LENGTH = {MAX_LENGTH:g}",
             key=name,
             value=value,
@@ -215,7 +215,7 @@ def _raster_curve(
     largest = max(scales)
     for k, scale in enumerate(scales):
         if not scale > _SINGULAR_RTOL * largest:
-            raise PathParameterError(
+            raise PathError(
                 f"RasterPath: pass {k} at {chart.names[1 - along]} = "
                 f"{starts[k][1 - along]:.6g} has no length on the surface (a pole of the chart): "
                 "keep the rectangle off it",

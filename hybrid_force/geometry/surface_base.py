@@ -5,8 +5,8 @@ their implementations share.
 itself in its own module with :func:`register_surface` under its TOML ``type``; its
 parameters are its dataclass fields declared with :func:`hybrid_force.schema.param` (the
 scenario reader, ``to_dict`` and ``surface_from_dict`` read them there). The helpers below
-check constructor parameters (raising SurfaceParameterError naming the class, the parameter
-and the value) and points p (DimensionError or SurfaceError naming the surface and the method).
+check constructor parameters (raising SurfaceError naming the class, the parameter
+and the value) and points p (BadInputError or SurfaceError naming the surface and the method).
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+import hybrid_force.geometry as package
 from hybrid_force import _checks as checks
-from hybrid_force.errors import DimensionError, SurfaceError, SurfaceParameterError
+from hybrid_force.errors import BadInputError, SurfaceError
 from hybrid_force.schema import Param, declared, specs
 
 __all__ = [
@@ -61,14 +62,14 @@ def _fmt(value: object) -> str:
 def _positive_float(owner: str, name: str, value: object, unit: str = "m") -> float:
     """Check that ``value`` is a finite real number > 0 (not a bool) and return it as a float."""
     what = f"{owner}: parameter '{name}'"
-    return checks.number(value, what, SurfaceParameterError, minimum=0.0, strict=True, unit=unit)
+    return checks.number(value, what, SurfaceError, minimum=0.0, strict=True, unit=unit)
 
 
 def _length(owner: str, name: str, value: object) -> float:
     """A positive length [m] of at most :data:`MAX_LENGTH` (a radius)."""
     out = _positive_float(owner, name, value)
     if out > MAX_LENGTH:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{owner}: parameter '{name}' must be at most MAX_LENGTH = {MAX_LENGTH:g} m, got "
             f"{_fmt(value)}"
         )
@@ -79,7 +80,7 @@ def _point3(owner: str, name: str, value: object) -> Vec3:
     """A point [m] (3 finite numbers), each coordinate within ±:data:`MAX_LENGTH`."""
     point = _vector3(owner, name, value)
     if max(abs(x) for x in point) > MAX_LENGTH:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{owner}: parameter '{name}' must have coordinates within ±MAX_LENGTH = "
             f"{MAX_LENGTH:g} m, got {_fmt(value)}"
         )
@@ -89,9 +90,9 @@ def _point3(owner: str, name: str, value: object) -> Vec3:
 def _vector3(owner: str, name: str, value: object) -> Vec3:
     """Check that ``value`` is 3 finite real numbers [m] and return them as a float tuple."""
     what = f"{owner}: parameter '{name}'"
-    array = checks.array(value, what, SurfaceParameterError, valid="3 finite real numbers")
+    array = checks.array(value, what, SurfaceError, valid="3 finite real numbers")
     if array.shape != (3,):
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{what} must have shape (3,), got shape {array.shape}: {checks.shown(value)}"
         )
     x, y, z = array.tolist()
@@ -107,7 +108,7 @@ def _direction(owner: str, name: str, value: object) -> Vec3:
     x, y, z = _vector3(owner, name, value)
     norm = math.hypot(x, y, z)
     if not norm >= _MIN_DIRECTION_NORM:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"{owner}: parameter '{name}' must be a non-zero direction "
             f"(norm >= {_MIN_DIRECTION_NORM:g}), got {_fmt(value)} with norm {norm:g}"
         )
@@ -118,7 +119,7 @@ def _direction(owner: str, name: str, value: object) -> Vec3:
 
 def _boolean(owner: str, name: str, value: object) -> bool:
     """Check that ``value`` is a bool (Python or numpy), not a truthy 1 or "yes"."""
-    return checks.flag(value, f"{owner}: parameter '{name}'", SurfaceParameterError)
+    return checks.flag(value, f"{owner}: parameter '{name}'", SurfaceError)
 
 
 def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
@@ -132,11 +133,11 @@ def _xyz(p: ArrayLike, owner: object, method: str) -> Vec3:
         try:
             array = np.asarray(p, dtype=np.float64)
         except (TypeError, ValueError, OverflowError) as exc:
-            raise DimensionError(
+            raise BadInputError(
                 f"{owner!r}.{method}: point p must be 3 numbers [m], got {_fmt(p)} ({exc})"
             ) from exc
         if array.shape != (3,):
-            raise DimensionError(
+            raise BadInputError(
                 f"{owner!r}.{method}: point p must have shape (3,), got shape {array.shape}: "
                 f"{_fmt(p)}"
             )
@@ -217,7 +218,7 @@ class Surface(abc.ABC):
     def normal(self, p: ArrayLike) -> np.ndarray:
         """Unit normal ∇Φ/‖∇Φ‖: (3,), pointing to the free side.
 
-        Raises SingularConfigurationError where ∇Φ (nearly) vanishes.
+        Raises SurfaceError where ∇Φ (nearly) vanishes.
         """
 
     @abc.abstractmethod
@@ -255,7 +256,6 @@ def import_geometry() -> None:
     global _found
     if not _found:
         _found = True
-        import hybrid_force.geometry as package
 
         for info in pkgutil.iter_modules(package.__path__):
             if not info.name.startswith("_"):

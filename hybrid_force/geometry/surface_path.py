@@ -24,11 +24,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import BadInputError, PathParameterError, did_you_mean
+from hybrid_force.errors import BadInputError, PathError, did_you_mean
 from hybrid_force.geometry.arc_length import SUBDIVISIONS, arc_length_map
 from hybrid_force.geometry.charts import SurfaceChart, Vec3
 from hybrid_force.geometry.paths import Path, path_time
 from hybrid_force.geometry.piecewise import PiecewiseCurve
+from hybrid_force.geometry.surfaces import surface_from_dict
 
 __all__ = ["DEFAULT_RAMP", "SurfacePath", "TimeLaw", "one_of", "positive"]
 
@@ -68,7 +69,7 @@ class TimeLaw:
     def __post_init__(self) -> None:
         for name, unit in (("length", "m"), ("speed", "m/s"), ("ramp", "s")):
             value = checks.number(
-                getattr(self, name), name, PathParameterError, minimum=0.0, strict=True, unit=unit
+                getattr(self, name), name, PathError, minimum=0.0, strict=True, unit=unit
             )
             object.__setattr__(self, name, value)
         rate = min(self.speed, self.length / self.ramp)
@@ -155,28 +156,27 @@ class SurfacePath(Path):
         """The path of :meth:`to_dict`'s output (``d["surface"]`` a built-in surface's dict).
 
         Raises:
-            PathParameterError: a missing or unknown key, or a bad value.
+            PathError: a missing or unknown key, or a bad value.
         """
-        from hybrid_force.geometry.surfaces import surface_from_dict
 
         params = {k: v for k, v in d.items() if k not in ("type", *cls.DERIVED)}
         valid = ("surface", *cls.REQUIRED, *cls.OPTIONAL)
         for key in params:
             if key not in valid:
-                raise PathParameterError(
+                raise PathError(
                     f"path.{key} is not a parameter of a {cls.TYPE} path"
                     f"{did_you_mean(str(key), valid)}; valid keys: {['type', *valid]}"
                 )
         missing = [k for k in ("surface", *cls.REQUIRED) if k not in params]
         if missing:
-            raise PathParameterError(
+            raise PathError(
                 f"{cls.TYPE} path is missing {missing}; required keys: "
                 f"{['surface', *cls.REQUIRED]}, optional: {list(cls.OPTIONAL)}"
             )
         try:
             surface = surface_from_dict(params.pop("surface"))
         except BadInputError as exc:
-            raise PathParameterError(f"path.surface: {exc}") from None
+            raise PathError(f"path.surface: {exc}") from None
         required = [params.pop(k) for k in cls.REQUIRED]
         build: Any = cls  # each subclass's constructor: (surface, *required, **optional)
         return build(surface, *required, **params)
@@ -304,21 +304,21 @@ class SurfacePath(Path):
 
 
 def one_of(owner: str, name: str, value: object, choices: tuple[str, ...]) -> str:
-    """``value`` if it is one of ``choices``, or PathParameterError naming ``owner.name``."""
+    """``value`` if it is one of ``choices``, or PathError naming ``owner.name``."""
     if not isinstance(value, str) or value not in choices:
         shown = " or ".join(repr(c) for c in choices)
-        raise PathParameterError(
+        raise PathError(
             f"{owner}.{name} must be {shown}, got {checks.shown(value)}", key=name, value=value
         )
     return value
 
 
 def positive(owner: str, name: str, value: object, unit: str) -> float:
-    """``value`` as a finite float > 0, or PathParameterError naming ``owner.name`` (its key:
+    """``value`` as a finite float > 0, or PathError naming ``owner.name`` (its key:
     ``name``)."""
     try:
         return checks.number(
-            value, f"{owner}.{name}", PathParameterError, minimum=0.0, strict=True, unit=unit
+            value, f"{owner}.{name}", PathError, minimum=0.0, strict=True, unit=unit
         )
-    except PathParameterError as exc:
-        raise PathParameterError(str(exc), key=name, value=value) from None
+    except PathError as exc:
+        raise PathError(str(exc), key=name, value=value) from None

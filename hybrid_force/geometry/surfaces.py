@@ -29,8 +29,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from hybrid_force.errors import SurfaceParameterError, did_you_mean
-from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.errors import SurfaceError, did_you_mean
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.surface_base import (
     Surface,
@@ -40,14 +39,7 @@ from hybrid_force.geometry.surface_base import (
 )
 from hybrid_force.schema import MISSING_VALUE, default_of
 
-__all__ = [
-    "Cylinder",
-    "FunctionSurface",
-    "Plane",
-    "Sphere",
-    "Surface",
-    "surface_from_dict",
-]
+__all__ = ["surface_from_dict"]
 
 
 def surface_from_dict(d: Mapping[str, Any]) -> Surface:
@@ -55,28 +47,26 @@ def surface_from_dict(d: Mapping[str, Any]) -> Surface:
 
     ``d["type"]`` is a registered type (:func:`~.surface_base.surface_types`: "cylinder",
     "sphere", "plane", ...); the other keys are its declared parameters (lists for vectors).
-    Raises SurfaceParameterError on an unknown type, on the non-serialisable "function" type,
+    Raises SurfaceError on an unknown type, on the non-serialisable "function" type,
     on missing or unknown keys, and on bad parameter values.
     """
     types = surface_types()
     if not isinstance(d, Mapping):
-        raise SurfaceParameterError(
-            f"surface_from_dict: expected a dict with a 'type' key, got {_fmt(d)}"
-        )
+        raise SurfaceError(f"surface_from_dict: expected a dict with a 'type' key, got {_fmt(d)}")
     valid = ", ".join(repr(name) for name in types)
     if "type" not in d:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"surface_from_dict: missing key 'type' in {_fmt(dict(d))}; valid types: {valid}"
         )
     kind = d["type"]
     if kind == FunctionSurface.kind:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             "surface_from_dict: type 'function' cannot be rebuilt from a dict (its Python "
             f"callables are not serialised); build a FunctionSurface in code. Valid types: {valid}"
         )
     if not isinstance(kind, str) or kind not in types:
         hint = did_you_mean(kind, types) if isinstance(kind, str) else ""
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"surface_from_dict: unknown surface type {kind!r}{hint}; valid types: {valid}"
         )
     declared = surface_parameters(types[kind])
@@ -85,14 +75,14 @@ def surface_from_dict(d: Mapping[str, Any]) -> Surface:
     params = {key: value for key, value in d.items() if key != "type"}
     missing = [key for key in required if key not in params]
     if missing:
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"surface_from_dict: {kind} is missing parameter(s) "
             f"{', '.join(repr(key) for key in missing)}; required: {', '.join(required)}"
         )
     unknown = [key for key in params if key not in allowed]
     if unknown:
         key = str(unknown[0])
-        raise SurfaceParameterError(
+        raise SurfaceError(
             f"surface_from_dict: unknown parameter {unknown[0]!r} for {kind}"
             f"{did_you_mean(key, allowed)}; valid parameters: {', '.join(allowed)}"
         )

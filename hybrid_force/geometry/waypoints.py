@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import PathParameterError, PathWarning, SingularConfigurationError
+from hybrid_force.errors import PathError, RunWarning, SurfaceError
 from hybrid_force.geometry.arc_length import piece_lengths
 from hybrid_force.geometry.charts import SurfaceChart, chart_for
 from hybrid_force.geometry.paths import register_path
@@ -51,7 +51,7 @@ MAX_WAYPOINTS = 1000
 (its spline piece and arc-length map), so 1000 take 2 s; a 1 MiB scenario could list 40,000."""
 
 DEFAULT_PROJECTION_TOL = 1e-3
-"""A world waypoint farther than this [m] from its surface is projected with a PathWarning."""
+"""A world waypoint farther than this [m] from its surface is projected with a RunWarning."""
 REPEATED_TOL = 1e-9
 """Two consecutive waypoints closer than this [m] on the surface are the same point (refused)."""
 
@@ -93,10 +93,10 @@ class WaypointPath(SurfacePath):
         ramp: duration [s] > 0 of the start and stop ramps.
         u_axis: (3,) the u direction of a plane's coordinates (:class:`.charts.PlaneChart`).
         projection_tol: [m] > 0; a world point farther from the surface is projected with a
-            :class:`~hybrid_force.errors.PathWarning`.
+            :class:`~hybrid_force.errors.RunWarning`.
 
     Raises:
-        PathParameterError: bad values, naming the parameter (its ``key``), e.g. fewer than two
+        PathError: bad values, naming the parameter (its ``key``), e.g. fewer than two
             points, repeated consecutive points, speed ≤ 0, a world point whose projection is
             undefined (on a cylinder's axis, at a sphere's centre), ``frame="surface"`` or
             ``"world"`` on a surface without a chart.
@@ -132,7 +132,7 @@ class WaypointPath(SurfacePath):
         chart = chart_for(surface, u_axis)
         given = _point_array(points, 3 if frame == "world" else 2, frame)
         if len(given) > MAX_WAYPOINTS:
-            raise PathParameterError(
+            raise PathError(
                 f"{owner}.points: {len(given)} waypoints, more than the {MAX_WAYPOINTS} a path "
                 "may have (MAX_WAYPOINTS): fewer points, or a coarser spacing between them",
                 key="points",
@@ -153,7 +153,7 @@ class WaypointPath(SurfacePath):
         if distances is not None and float(distances.max()) > tol:
             i = int(np.argmax(distances))
             warnings.warn(
-                PathWarning(
+                RunWarning(
                     f"{owner}: points[{i}] = {given[i].tolist()} is {distances[i]:.3g} m from "
                     f"{surface!r} (more than projection_tol = {tol:g} m); the path passes its "
                     f"closest point on the surface instead"
@@ -173,18 +173,18 @@ def _point_array(points: ArrayLike, width: int, frame: str) -> np.ndarray:
     what = "3 world coordinates [x, y, z]" if width == 3 else "2 surface coordinates [u, v]"
     valid = f'a list of at least 2 points of {what} (frame = "{frame}")'
     try:
-        array = checks.array(points, "WaypointPath.points", PathParameterError, valid=valid)
-    except PathParameterError as exc:
-        raise PathParameterError(str(exc), key="points", value=points) from None
+        array = checks.array(points, "WaypointPath.points", PathError, valid=valid)
+    except PathError as exc:
+        raise PathError(str(exc), key="points", value=points) from None
     if array.ndim != 2 or array.shape[1] != width or array.shape[0] < 2:
-        raise PathParameterError(
+        raise PathError(
             f"WaypointPath.points must be {valid}, got shape {array.shape}",
             key="points",
             value=points,
         )
     if float(np.abs(array).max()) > MAX_LENGTH:  # m or rad: squares of distances stay finite
         i = int(np.argmax(np.abs(array).max(axis=1)))
-        raise PathParameterError(
+        raise PathError(
             f"WaypointPath.points[{i}] = {array[i].tolist()} is beyond MAX_LENGTH = {MAX_LENGTH:g}",
             key="points",
             value=points,
@@ -203,8 +203,8 @@ def _project(
     for i, p in enumerate(points):
         try:
             foot = surface.closest_point(p)
-        except SingularConfigurationError as exc:
-            raise PathParameterError(
+        except SurfaceError as exc:
+            raise PathError(
                 f"WaypointPath.points[{i}] = {p.tolist()}: its closest point on the surface is "
                 f"undefined ({' '.join(str(exc).split())}); move the point off it",
                 key="points",
@@ -229,7 +229,7 @@ def _chord_length_spline(chart: SurfaceChart, uv: np.ndarray, given: object) -> 
     lengths = piece_lengths(chart, straight)
     for i, length in enumerate(lengths):
         if not length >= REPEATED_TOL:
-            raise PathParameterError(
+            raise PathError(
                 f"WaypointPath.points[{i}] and points[{i + 1}] are the same point on the surface "
                 f"({length:.3g} m apart, surface coordinates {uv[i].tolist()} and "
                 f"{uv[i + 1].tolist()}); remove one of them",

@@ -1,7 +1,7 @@
 """Loading an arm (:func:`load_robot`): a registry name or a URDF, xacro or MJCF file, checked,
 built by Pinocchio, its joints off the tip's chain locked.
 
-Every refusal is a :class:`~hybrid_force.errors.URDFError` (or FrameError, RobotError) naming the
+Every refusal is a :class:`~hybrid_force.errors.RobotError` (or RobotError, RobotError) naming the
 file and the cause; the checks themselves are in :mod:`hybrid_force.model.urdf_check`.
 """
 
@@ -16,22 +16,21 @@ import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force.errors import FrameError, ModelWarning, RobotError, URDFError
-from hybrid_force.model.urdf_text import check_file_size, check_model_size
+from hybrid_force.errors import ModelWarning, RobotError
+from hybrid_force.model.registry import resolve_robot
+from hybrid_force.model.robot import Robot, default_tip_frame
+from hybrid_force.model.urdf_check import check_arm_model, check_urdf
+from hybrid_force.model.urdf_text import check_file_size, check_model_size, urdf_text
 from hybrid_force.model.xacro_files import (
     _absolute_dirs,
     _check_urdf_text,
     _ros_package_path,
     expand_xacro,
 )
-
-if TYPE_CHECKING:
-    from hybrid_force.model.robot import Robot
 
 __all__ = ["MODEL_SUFFIXES", "load_robot", "model_kind", "robot_from_text"]
 
@@ -69,7 +68,7 @@ def load_robot(
 
     Loading (see :mod:`hybrid_force.model.urdf_check` for every refusal):
 
-    1. a URDF is read by :func:`~hybrid_force.model.urdf_check.urdf_text` (undeclared namespace
+    1. a URDF is read by :func:`~hybrid_force.model.urdf_text.urdf_text` (undeclared namespace
        prefixes declared); it, or xacro's expansion, goes through
        :func:`~hybrid_force.model.urdf_check.check_urdf` (structure, inertial data, no floating or
        planar joint, at least one moving joint) before Pinocchio sees it. An MJCF file: no
@@ -120,19 +119,17 @@ def load_robot(
             a locked joint, every value a finite number within the joint's range.
 
     Raises:
-        UnknownRobotError: a name that is not known (lists the known names).
-        URDFError: the file is missing, malformed, physically impossible, outside the
+        RobotError: a name that is not known (lists the known names).
+        RobotError: the file is missing, malformed, physically impossible, outside the
             toolkit's scope, or xacro cannot expand it (the message names the file and the
             cause; for xacro, its own message), or, without ``xacro_trust``, one of its
             expressions is outside the safe evaluator's allowlist (the message names the
             file, the expression and how to opt in).
-        FrameError: ``tip`` is not a frame of the model (lists the frames), or no moving
+        RobotError: ``tip`` is not a frame of the model (lists the frames), or no moving
             joint lies between the root and it while the joints off its chain are locked.
         RobotError: ``locked_positions`` names a joint that is not locked, or holds a value
             that is not a finite number within the joint's range.
     """
-    from hybrid_force.model.registry import resolve_robot
-    from hybrid_force.model.urdf_check import urdf_text
 
     given = _absolute_dirs(package_dirs)
     args = _xacro_arguments(xacro_args)
@@ -146,7 +143,7 @@ def load_robot(
         path = Path(model)
         kind = model_kind(path)
         if not path.is_file():
-            raise URDFError(f"{_KIND_LABELS[kind]} not found: {path}")
+            raise RobotError(f"{_KIND_LABELS[kind]} not found: {path}")
         name, default_tip, source = str(model), None, str(path.resolve())
         search = (*given, *_ros_package_path(), str(path.resolve().parent))
         lock_all = True if lock_off_chain is None else lock_off_chain
@@ -157,7 +154,7 @@ def load_robot(
         search = (*given, *entry.package_dirs, *_ros_package_path())
         lock_all = False if lock_off_chain is None else lock_off_chain
     if args and kind != "xacro":
-        raise URDFError(
+        raise RobotError(
             f"xacro arguments ({', '.join(sorted(args))}) are given for {name}, which is not a "
             ".xacro file"
         )
@@ -211,9 +208,8 @@ def robot_from_text(
             model file's).
 
     Raises:
-        URDFError, FrameError: as :func:`load_robot` for the text.
+        RobotError, RobotError: as :func:`load_robot` for the text.
     """
-    from hybrid_force.model.urdf_check import check_urdf
 
     if fmt not in ("urdf", "mjcf") or not isinstance(text, str):
         raise RobotError(f"a model text must be 'urdf' or 'mjcf' text, got {fmt!r}")
@@ -266,16 +262,13 @@ def _arm(
 ) -> Robot:
     """Steps 3 and 4 of :func:`load_robot`: the tip frame, the locked joints, the checks and
     the :class:`Robot`."""
-    from hybrid_force.model.robot import Robot
-    from hybrid_force.model.urdf_check import check_arm_model
-
-    tip_name = tip if tip is not None else _default_tip(pin_model)
+    tip_name = tip if tip is not None else default_tip_frame(pin_model)
     _require_frame(pin_model, tip_name, path)
     file_joints = tuple(pin_model.names[j] for j in range(1, pin_model.njoints))
     pin_model, held = _lock_joints(pin_model, path, tip_name, locked, mimic, lock_all, positions)
     for joint, (lo, hi) in uneven.items():
         if pin_model.existJointName(joint):
-            raise URDFError(
+            raise RobotError(
                 f"unsupported MJCF {path}: joint {joint!r}: the torque MuJoCo lets act on it "
                 f"(its actuatorfrcrange and actuators) is [{lo:g}, {hi:g}], not symmetric "
                 "about 0; the toolkit's effort limit bounds |u|: make the ranges symmetric "
@@ -369,9 +362,11 @@ def _lock_joints(
     chain_ids = set(model.supports[model.frames[model.getFrameId(tip)].parentJoint])
     off_chain = [model.names[j] for j in range(1, model.njoints) if j not in chain_ids]
     if lock_all and off_chain and chain_ids <= {0}:
-        raise FrameError(
+        raise RobotError(
             f"tip frame '{tip}' of {path} is on the base: no joint lies between the root and "
-            "it, so locking the joints off its chain would leave none; choose a tip on the arm"
+            "it, so locking the joints off its chain would leave none; choose a tip on the arm",
+            key="tip",
+            value=tip,
         )
     extra = [j for j in off_chain if (lock_all or j in mimic) and j not in locked]
     to_lock = [*locked, *extra]
@@ -477,7 +472,7 @@ def _build_model(
 
     Args:
         path: the model file (named in messages; read when ``xml`` is None).
-        xml: the URDF text (:func:`~hybrid_force.model.urdf_check.urdf_text` of ``path``, or
+        xml: the URDF text (:func:`~hybrid_force.model.urdf_text.urdf_text` of ``path``, or
             xacro's expansion of it), or None.
 
     Returns:
@@ -516,7 +511,7 @@ def _build_model(
             # urdfdom says why on stderr, in several lines: its first one joins the error
             why = said()
             detail = f" ({why[0]})" if why else ""
-            raise URDFError(f"Pinocchio cannot parse {path}: {exc}{detail}") from exc
+            raise RobotError(f"Pinocchio cannot parse {path}: {exc}{detail}") from exc
     for name, (has_effort, has_velocity) in continuous.items():
         jid = model.getJointId(name)
         iq, iv = model.idx_qs[jid], model.idx_vs[jid]
@@ -537,7 +532,7 @@ def _build_mjcf(
     symmetric about 0 (refused unless they are locked). With ``text``, that is the file's
     text (``path`` is then not read; it names the model in messages).
 
-    Refused before the parser runs (URDFError naming the file): malformed XML, a root
+    Refused before the parser runs (RobotError naming the file): malformed XML, a root
     element other than ``<mujoco>``, and what :func:`~hybrid_force.model.mjcf.prepare_mjcf`
     refuses (``<include>``, ``<attach>``, a free or ball joint, …). The parser reads the
     file as :func:`~hybrid_force.model.mjcf.prepare_mjcf` rewrites it (frames and replicates
@@ -559,11 +554,11 @@ def _build_mjcf(
         check_model_size(f"MJCF {path}", data, "mjcf")
         root = ET.fromstring(data)
     except ET.ParseError as exc:
-        raise URDFError(f"malformed MJCF {path}: XML parse error: {exc}") from None
+        raise RobotError(f"malformed MJCF {path}: XML parse error: {exc}") from None
     except OSError as exc:
-        raise URDFError(f"cannot read MJCF {path}: {exc}") from None
+        raise RobotError(f"cannot read MJCF {path}: {exc}") from None
     if root.tag != "mujoco":
-        raise URDFError(
+        raise RobotError(
             f"not an MJCF file: {path}: root element is <{root.tag}>, expected <mujoco> "
             "(or <robot> for a URDF)"
         )
@@ -600,7 +595,7 @@ def _build_mjcf(
                 why = said()
                 detail = f" ({why[0]})" if why else ""
                 message = _pinocchio_message(exc).replace(str(copy), str(path))
-                raise URDFError(f"Pinocchio cannot parse MJCF {path}: {message}{detail}") from None
+                raise RobotError(f"Pinocchio cannot parse MJCF {path}: {message}{detail}") from None
     complete_model(model, prepared)
     for note in notes:
         warnings.warn(f"{path}: {note}", ModelWarning, stacklevel=3)
@@ -618,7 +613,7 @@ whatever memory held (a body at z = 2e243 for pos="a b c"), so they are read her
 
 
 def _check_mjcf_numbers(root: ET.Element, path: Path) -> None:
-    """URDFError naming the element and attribute for a numeric MJCF attribute that is not
+    """RobotError naming the element and attribute for a numeric MJCF attribute that is not
     finite numbers, a negative mass or inertia, or a joint range with lower > upper."""
     for element in root.iter():
         for key in _MJCF_NUMBERS:
@@ -631,12 +626,12 @@ def _check_mjcf_numbers(root: ET.Element, path: Path) -> None:
             except ValueError:
                 values = []
             if not values or not all(math.isfinite(x) for x in values):
-                raise URDFError(f"malformed MJCF {path}: {where}: must be finite numbers")
+                raise RobotError(f"malformed MJCF {path}: {where}: must be finite numbers")
             if key in ("mass", "diaginertia") and min(values) < 0.0:
-                raise URDFError(f"malformed MJCF {path}: {where}: must not be negative")
+                raise RobotError(f"malformed MJCF {path}: {where}: must not be negative")
             lower_above = len(values) == 2 and values[0] > values[1]
             if key == "range" and element.tag == "joint" and lower_above:
-                raise URDFError(f"malformed MJCF {path}: {where}: lower above upper")
+                raise RobotError(f"malformed MJCF {path}: {where}: lower above upper")
 
 
 _MJCF_SCOPE = (
@@ -646,7 +641,7 @@ _MJCF_SCOPE = (
 
 
 def _read_model_bytes(path: Path, label: str) -> bytes:
-    """The file's bytes, refused (URDFError) beyond MAX_MODEL_BYTES before it is read."""
+    """The file's bytes, refused (RobotError) beyond MAX_MODEL_BYTES before it is read."""
     check_file_size(path, label)
     return path.read_bytes()
 
@@ -665,10 +660,10 @@ def _q_index(model: pin.Model, joint: str) -> int:
 
 
 def _require_frame(model: pin.Model, tip: str, path: Path) -> None:
-    """FrameError listing the model's frames if ``tip`` is not one of them (or not a text)."""
+    """RobotError listing the model's frames if ``tip`` is not one of them (or not a text)."""
     if not isinstance(tip, str):  # Pinocchio would raise a raw Boost.Python ArgumentError
         frames = [f.name for f in model.frames]
-        raise FrameError(
+        raise RobotError(
             f"tip must be a frame name (a str), got {tip!r} ({type(tip).__name__}); frames of "
             f"{path} are: {', '.join(frames)}",
             key="tip",
@@ -676,12 +671,8 @@ def _require_frame(model: pin.Model, tip: str, path: Path) -> None:
         )
     if not model.existFrame(tip):
         frames = [f.name for f in model.frames]
-        raise FrameError(f"tip frame '{tip}' not found in {path}; frames are: {', '.join(frames)}")
-
-
-def _default_tip(model: pin.Model) -> str:
-    """The last body frame of the model (the end of the last link in the URDF)."""
-    for frame in reversed(model.frames):
-        if frame.type == pin.FrameType.BODY:
-            return frame.name
-    return model.frames[-1].name
+        raise RobotError(
+            f"tip frame '{tip}' not found in {path}; frames are: {', '.join(frames)}",
+            key="tip",
+            value=tip,
+        )

@@ -36,7 +36,7 @@ What each element maps to is listed in ``docs/robots.md``; in short:
   (:func:`_actuated`; +inf when nothing bounds it); ``damping``, ``frictionloss`` and
   ``armature`` Pinocchio's ``model.damping``, ``model.friction`` and ``model.armature``.
 
-Refused (:class:`~hybrid_force.errors.URDFError` naming the file and the element):
+Refused (:class:`~hybrid_force.errors.RobotError` naming the file and the element):
 ``<include>``, ``<attach>``, ``<composite>``, ``<flexcomp>``, free and ball joints, an element
 with two orientations, an undefined class,
 a gravity other than MuJoCo's default (0, 0, -9.81) m/s² (the toolkit's),
@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force.errors import ModelWarning, URDFError
+from hybrid_force.errors import ModelWarning, RobotError
 from hybrid_force.model.urdf_text import MAX_ELEMENTS
 
 __all__ = ["MjcfJoint", "PreparedMjcf", "complete_model", "prepare_mjcf"]
@@ -148,14 +148,14 @@ def prepare_mjcf(path: Path, root: ET.Element) -> PreparedMjcf:
         the rewritten text, the joints' data and the world's sites (:class:`PreparedMjcf`).
 
     Raises:
-        URDFError: an element refused (module docstring), naming the file and the element.
+        RobotError: an element refused (module docstring), naming the file and the element.
     """
     root = copy.deepcopy(root)
     for tag, why in _REFUSED.items():
         found = root.find(f".//{tag}")
         if found is not None:
             detail = " ".join(f"{k}={v!r}" for k, v in found.attrib.items())
-            raise URDFError(
+            raise RobotError(
                 f"unsupported MJCF {path}: <{tag}{' ' + detail if detail else ''}>: {why}"
             )
     compiler = _compiler(path, root)
@@ -165,7 +165,7 @@ def prepare_mjcf(path: Path, root: ET.Element) -> PreparedMjcf:
             _to_quaternion(path, element, compiler)
     worldbody = root.find("worldbody")
     if worldbody is None:
-        raise URDFError(f"unsupported MJCF {path}: no <worldbody>: the model has no body")
+        raise RobotError(f"unsupported MJCF {path}: no <worldbody>: the model has no body")
     defaults = _defaults(root)
     _expand_replicates(path, worldbody, compiler)
     _expand_frames(path, worldbody, defaults)
@@ -213,10 +213,10 @@ def _compiler(path: Path, root: ET.Element) -> _Compiler:
         attrs.update(element.attrib)
     angle = attrs.get("angle", "degree")
     if angle not in ("degree", "radian"):
-        raise URDFError(f"malformed MJCF {path}: <compiler angle={angle!r}>: degree or radian")
+        raise RobotError(f"malformed MJCF {path}: <compiler angle={angle!r}>: degree or radian")
     seq = attrs.get("eulerseq", "xyz")
     if len(seq) != 3 or any(c not in "xyzXYZ" for c in seq):
-        raise URDFError(
+        raise RobotError(
             f"malformed MJCF {path}: <compiler eulerseq={seq!r}>: three of x, y, z, X, Y, Z"
         )
     for key, neutral in _MASS_OPTIONS.items():
@@ -228,7 +228,7 @@ def _compiler(path: Path, root: ET.Element) -> _Compiler:
         except ValueError:
             same = raw == neutral
         if not same:
-            raise URDFError(
+            raise RobotError(
                 f"unsupported MJCF {path}: <compiler {key}={raw!r}>: MuJoCo changes the bodies' "
                 "masses or inertias by it and Pinocchio's parser does not: write the masses "
                 "and inertias the model should have"
@@ -243,13 +243,13 @@ def _check_gravity(path: Path, root: ET.Element) -> None:
         if raw is not None:
             values = _numbers(path, "<option>", option, "gravity", 3)
             if not np.array_equal(values, [0.0, 0.0, -9.81]):
-                raise URDFError(
+                raise RobotError(
                     f"unsupported MJCF {path}: <option gravity={raw!r}>: the toolkit simulates "
                     "gravity (0, 0, -9.81) m/s² (MuJoCo's default)"
                 )
         for flag in option.findall("flag"):
             if flag.get("gravity", "enable") != "enable":
-                raise URDFError(
+                raise RobotError(
                     f"unsupported MJCF {path}: <flag gravity={flag.get('gravity')!r}>: the "
                     "toolkit simulates gravity (0, 0, -9.81) m/s² (MuJoCo's default)"
                 )
@@ -287,7 +287,7 @@ def _numbers(path: Path, where: str, element: ET.Element, key: str, count: int) 
     except ValueError:
         values = np.zeros(0)
     if values.size != count or not np.all(np.isfinite(values)):
-        raise URDFError(
+        raise RobotError(
             f"malformed MJCF {path}: {where} attribute {key}={raw!r} must be {count} finite numbers"
         )
     return values
@@ -298,7 +298,7 @@ def _bool(path: Path, where: str, attrs: Mapping[str, str], key: str, default: b
     if raw is None:
         return default
     if raw not in ("true", "false"):
-        raise URDFError(f"malformed MJCF {path}: {where} {key}={raw!r} must be true or false")
+        raise RobotError(f"malformed MJCF {path}: {where} {key}={raw!r} must be true or false")
     return raw == "true"
 
 
@@ -318,7 +318,7 @@ def _orientation(path: Path, element: ET.Element, compiler: _Compiler) -> pin.Qu
         return None
     where = _where(element)
     if len(given) > 1:
-        raise URDFError(
+        raise RobotError(
             f"malformed MJCF {path}: {where} gives several orientations ({', '.join(given)})"
         )
     key = given[0]
@@ -343,14 +343,14 @@ def _orientation(path: Path, element: ET.Element, compiler: _Compiler) -> pin.Qu
         z = _nonzero(path, where, key, _numbers(path, where, element, key, 3))
         quat = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), z / np.linalg.norm(z))
     if quat.norm() == 0.0:
-        raise URDFError(f"malformed MJCF {path}: {where} quat={element.get('quat')!r} is zero")
+        raise RobotError(f"malformed MJCF {path}: {where} quat={element.get('quat')!r} is zero")
     quat.normalize()
     return quat
 
 
 def _nonzero(path: Path, where: str, key: str, vector: np.ndarray) -> np.ndarray:
     if not np.linalg.norm(vector) > 1e-12:
-        raise URDFError(f"malformed MJCF {path}: {where} {key} has a zero-length axis")
+        raise RobotError(f"malformed MJCF {path}: {where} {key} has a zero-length axis")
     return vector
 
 
@@ -410,11 +410,11 @@ def _expand_replicates(path: Path, element: ET.Element, compiler: _Compiler) -> 
         except ValueError:
             count = 0
         if count < 1:
-            raise URDFError(f"malformed MJCF {path}: {where}: count must be a positive integer")
+            raise RobotError(f"malformed MJCF {path}: {where}: count must be a positive integer")
         # bounded before copying: nested replicates multiply (1000 x 1000 bodies in two lines)
         inside = sum(1 for e in child.iter() if e.tag in ("body", "joint"))
         if count * inside > 2 * MAX_ELEMENTS:
-            raise URDFError(
+            raise RobotError(
                 f"unsupported MJCF {path}: {where} would make {count * inside} bodies and "
                 f"joints, more than a model may have (MAX_ELEMENTS = {MAX_ELEMENTS} of each, "
                 "docs/robots.md)"
@@ -505,7 +505,7 @@ def _compose(path: Path, element: ET.Element, pose: pin.SE3) -> None:
         if element.get("dir") is not None:
             element.set("dir", _text(pose.rotation @ _numbers(path, where, element, "dir", 3)))
     else:
-        raise URDFError(
+        raise RobotError(
             f"unsupported MJCF {path}: {where} inside a <frame>: only bodies, geoms, sites, "
             "cameras, lights, inertials, joints, frames and replicates are placed by a frame"
         )
@@ -588,7 +588,7 @@ def _joints(
         for element in elements:
             cls = element.get("class", childclass)
             if cls not in defaults:
-                raise URDFError(
+                raise RobotError(
                     f"malformed MJCF {path}: {_where(element)} uses class {cls!r}, which no "
                     "<default> defines"
                 )
@@ -596,7 +596,7 @@ def _joints(
             kind = "free" if element.tag == "freejoint" else attrs.get("type", "hinge")
             name = element.get("name", "(unnamed)")
             if kind in ("free", "ball"):
-                raise URDFError(
+                raise RobotError(
                     f"unsupported MJCF {path}: body {body.get('name', '?')!r} has a {kind} "
                     f"joint {name!r}; hybrid_force simulates fixed-base arms with "
                     "one-coordinate joints (hinge, slide) only: remove the joint (the body is "
@@ -632,7 +632,7 @@ def _float(path: Path, who: str, attrs: Mapping[str, str], key: str) -> float:
     except ValueError:
         value = math.nan
     if not math.isfinite(value):
-        raise URDFError(f"malformed MJCF {path}: {who}: {key}={raw!r} is not a finite number")
+        raise RobotError(f"malformed MJCF {path}: {who}: {key}={raw!r} is not a finite number")
     return value
 
 
@@ -643,7 +643,7 @@ def _pair(path: Path, who: str, attrs: Mapping[str, str], key: str) -> tuple[flo
     except ValueError:
         values = []
     if len(values) != 2 or not all(math.isfinite(v) for v in values):
-        raise URDFError(f"malformed MJCF {path}: {who}: {key}={raw!r} must be 2 finite numbers")
+        raise RobotError(f"malformed MJCF {path}: {who}: {key}={raw!r} must be 2 finite numbers")
     return values[0], values[1]
 
 
@@ -653,12 +653,12 @@ def _limited(
     """The range ``key`` when MuJoCo enforces it (``flag``: true, false or auto), else None."""
     value = attrs.get(flag, "auto")
     if value not in ("true", "false", "auto"):
-        raise URDFError(
+        raise RobotError(
             f"malformed MJCF {path}: {who}: {flag}={value!r} must be true, false or auto"
         )
     if value == "auto":
         if key in attrs and not autolimits:
-            raise URDFError(
+            raise RobotError(
                 f"malformed MJCF {path}: {who} has {key} but no {flag}, and "
                 '<compiler autolimits="false">: MuJoCo refuses it (give limited="true" or '
                 '"false")'
@@ -668,7 +668,7 @@ def _limited(
         return None
     lo, hi = _pair(path, who, attrs, key)
     if not lo < hi:
-        raise URDFError(
+        raise RobotError(
             f"malformed MJCF {path}: {who}: {flag}=true needs {key} lower < upper, "
             f"got {attrs.get(key, '(none)')!r}"
         )
@@ -688,7 +688,7 @@ def _joint(
     for key in ("damping", "frictionloss", "armature"):
         values[key] = _float(path, f"joint {name!r}", attrs, key)
         if values[key] < 0.0:
-            raise URDFError(
+            raise RobotError(
                 f"malformed MJCF {path}: joint {name!r}: {key}={attrs[key]!r} is negative"
             )
     return MjcfJoint(
@@ -732,7 +732,7 @@ def _actuated(
                 continue
             cls = element.get("class", "main")
             if cls not in defaults:
-                raise URDFError(
+                raise RobotError(
                     f"malformed MJCF {path}: {_where(element)} uses class {cls!r}, which no "
                     "<default> defines"
                 )
@@ -753,7 +753,7 @@ def _actuated(
             try:
                 ratio = float(gear[0])
             except (ValueError, IndexError):
-                raise URDFError(
+                raise RobotError(
                     f"malformed MJCF {path}: {who}: gear={attrs.get('gear')!r} is not a number"
                 ) from None
             torque = _scaled(ratio, force)
@@ -796,7 +796,7 @@ def _control_gain(path: Path, who: str, tag: str, attrs: Mapping[str, str]) -> f
     try:
         return float(raw[0])
     except (ValueError, IndexError):
-        raise URDFError(
+        raise RobotError(
             f"malformed MJCF {path}: {who}: gainprm={attrs.get('gainprm')!r} is not a number"
         ) from None
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from hybrid_force.errors import UnknownRobotError, did_you_mean
+from hybrid_force.errors import RobotError, did_you_mean
 
 __all__ = ["RobotEntry", "bundled_robots_dir", "known_robots", "resolve_robot"]
 
@@ -185,12 +185,12 @@ def known_robots() -> list[RobotEntry]:
 def resolve_robot(name: str) -> RobotEntry:
     """Return the registry entry called ``name``.
 
-    A name is never a file: :func:`hybrid_force.model.robot.load_robot` sends here every text that
+    A name is never a file: :func:`hybrid_force.model.loading.load_robot` sends here every text that
     neither ends with ``.urdf`` nor holds a path separator, even if a file of that name exists
     in the working directory.
 
     Raises:
-        UnknownRobotError: no robot has that name; the message lists the known names, the
+        RobotError: no robot has that name; the message lists the known names, the
             closest match, and how to use a file instead (a path such as ``./name``).
     """
     # the bundled robots first, as in known_robots(): a bundled name is found without reading
@@ -204,7 +204,7 @@ def resolve_robot(name: str) -> RobotEntry:
             return entry
     names = [e.name for e in entries]
     hint = did_you_mean(name, names)
-    raise UnknownRobotError(
+    raise RobotError(
         f"unknown robot {name!r}{hint}; known robots: {', '.join(names) or '(none)'} "
         f"(to use a file, give a path such as ./{name})"
     )

@@ -1,8 +1,8 @@
 """What a model is, as the simulation will see it: ``hybrid-force robots --check MODEL``.
 
 :func:`model_report` loads a model exactly as a scenario does
-(:func:`hybrid_force.model.robot.load_robot`: every refusal is the same
-:class:`~hybrid_force.errors.URDFError`) and gathers, in a :class:`ModelReport`:
+(:func:`hybrid_force.model.loading.load_robot`: every refusal is the same
+:class:`~hybrid_force.errors.RobotError`) and gathers, in a :class:`ModelReport`:
 
 * the moving joints with their URDF type, position range and effort limit as the
   simulation reads them (:attr:`~hybrid_force.model.robot.Robot.position_limits`
@@ -22,15 +22,15 @@ The URDF's own content (joint types such as ``continuous``, which Pinocchio turn
 revolute joints, the full joint list and the visuals) is read with yourdfpy (imported here, on
 first use: about 0.7 s), from the text the model was built from
 (:attr:`Robot.urdf_xml <hybrid_force.model.robot.Robot.urdf_xml>`: the file as
-:func:`hybrid_force.model.urdf_check.urdf_text` reads it, or xacro's expansion). The dynamics-side
+:func:`hybrid_force.model.urdf_text.urdf_text` reads it, or xacro's expansion). The dynamics-side
 numbers (limits, masses, placements) come from the Pinocchio model the simulation uses. An
 MJCF model, or a file yourdfpy cannot read, still gets the Pinocchio part and a note.
 
-Mesh resolution, the replay's (:func:`hybrid_force.viz.replay.visual_geometry`), so that a mesh
-reported found is one the replay draws: ``package://NAME/REST`` is ``DIR/NAME/REST`` in the
-first of the robot's ``package_dirs`` that holds it; ``file://PATH`` and a plain path are
-taken as is when absolute, else relative to the model file's folder, then to each package
-folder; another URI scheme (``http://``) names no file.
+Mesh resolution, the replay's (:func:`hybrid_force.viz.robot_visuals.visual_geometry`), so
+that a mesh reported found is one the replay draws: ``package://NAME/REST`` is
+``DIR/NAME/REST`` in the first of the robot's ``package_dirs`` that holds it; ``file://PATH``
+and a plain path are taken as is when absolute, else relative to the model file's folder, then
+to each package folder; another URI scheme (``http://``) names no file.
 """
 
 from __future__ import annotations
@@ -49,6 +49,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.errors import HybridForceError, ModelWarning
+from hybrid_force.model.loading import load_robot
 
 __all__ = ["JointInfo", "MeshRef", "ModelReport", "Reach", "format_report", "model_report"]
 
@@ -183,13 +184,12 @@ def model_report(
         model: a registry name or a model path (see :func:`~hybrid_force.load_robot`).
         tip: the tip frame (default: the model's default tip).
         package_dirs, xacro_args, lock_off_chain, xacro_trust: as for
-            :func:`~hybrid_force.model.robot.load_robot` (the scenario's ``[robot]`` keys).
+            :func:`~hybrid_force.model.loading.load_robot` (the scenario's ``[robot]`` keys).
 
     Raises:
-        URDFError, UnknownRobotError, FrameError: as :func:`~hybrid_force.model.robot.load_robot`
+        RobotError, RobotError, RobotError: as :func:`~hybrid_force.model.loading.load_robot`
             (a model that cannot be simulated, an unknown name, a tip that is no frame).
     """
-    from hybrid_force.model.robot import load_robot
 
     options: dict[str, Any] = {
         "package_dirs": tuple(package_dirs),

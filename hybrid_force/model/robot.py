@@ -17,7 +17,7 @@ never wrapped), so nq = nv = n. Revolute joints in rad, prismatic in m.
 
 Models the toolkit cannot simulate (no moving joint, a floating, planar, free or ball joint,
 a mimic joint on the tip's chain, a mass matrix singular at q0) are refused with a
-:class:`~hybrid_force.errors.URDFError` naming the file and the cause, before any Pinocchio
+:class:`~hybrid_force.errors.RobotError` naming the file and the cause, before any Pinocchio
 algorithm runs on them: the checks are in :mod:`hybrid_force.model.urdf_check`, the loading steps
 in :func:`load_robot`.
 
@@ -29,7 +29,6 @@ everything :func:`load_robot` needs for it (package folders, xacro arguments, lo
 
 This module holds the arm (:class:`Robot`, :class:`RobotTerms`); the loading steps are in
 :mod:`hybrid_force.model.loading`, xacro's expansion in :mod:`hybrid_force.model.xacro_files`.
-Their public names are re-exported here.
 """
 
 from __future__ import annotations
@@ -43,29 +42,21 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import DimensionError, FrameError, RobotError
-from hybrid_force.model.loading import (
-    MODEL_SUFFIXES,
-    _default_tip,
-    load_robot,
-    model_kind,
-    robot_from_text,
-)
-from hybrid_force.model.loading import _is_path as _is_path  # the scenario loader's import
-from hybrid_force.model.xacro_files import expand_xacro, find_package
+from hybrid_force.errors import BadInputError, RobotError
+from hybrid_force.model.urdf_check import check_mass_matrix
+from hybrid_force.model.urdf_text import urdf_text
 
-__all__ = [
-    "LWA",
-    "MODEL_SUFFIXES",
-    "Robot",
-    "RobotTerms",
-    "expand_xacro",
-    "find_package",
-    "load_robot",
-    "model_kind",
-    "robot_from_text",
-]
+__all__ = ["LWA", "Robot", "RobotTerms", "default_tip_frame"]
 _K = LazyKernels("hybrid_force.model._kernels")
+
+
+def default_tip_frame(model: pin.Model) -> str:
+    """The tip frame of a model that names none: its last body frame (the end of the last link
+    in the URDF)."""
+    for frame in reversed(model.frames):
+        if frame.type == pin.FrameType.BODY:
+            return frame.name
+    return model.frames[-1].name
 
 
 #: The frame convention of every Jacobian here: the tip's velocity in world axes.
@@ -228,7 +219,6 @@ class Robot:
                 f"robot '{name}': the model has no moving joint (nv = 0); an arm needs at least "
                 "one revolute or prismatic joint"
             )
-        from hybrid_force.model.urdf_check import check_mass_matrix
 
         check_mass_matrix(model, f"unsupported model of robot '{name}' ({urdf_path})")
         self.model = model
@@ -258,10 +248,10 @@ class Robot:
         moving = tuple(model.names[j] for j in range(1, model.njoints))
         self._file_joints = moving if file_joints is None else tuple(file_joints)
         if tip is None:
-            tip = _default_tip(model)
+            tip = default_tip_frame(model)
         if not isinstance(tip, str) or not model.existFrame(tip):  # not Boost.Python's error
             frames = [f.name for f in model.frames]
-            raise FrameError(
+            raise RobotError(
                 f"tip frame {tip!r} not found in {self.urdf_path}; frames are: {', '.join(frames)}",
                 key="tip",
                 value=tip,
@@ -316,10 +306,8 @@ class Robot:
     @property
     def urdf_xml(self) -> str | None:
         """The URDF text the model was built from (None for an MJCF model): the file's text
-        as :func:`~hybrid_force.model.urdf_check.urdf_text` reads it, or xacro's expansion."""
+        as :func:`~hybrid_force.model.urdf_text.urdf_text` reads it, or xacro's expansion."""
         if self._urdf_xml is None and self.kind != "mjcf":
-            from hybrid_force.model.urdf_check import urdf_text
-
             self._urdf_xml = urdf_text(self.urdf_path)
         return self._urdf_xml
 
@@ -399,11 +387,11 @@ class Robot:
         return self.model.createData()
 
     def check_q(self, q: object, what: str = "q") -> np.ndarray:
-        """Return q as a float (nq,) array; DimensionError if its length or values are wrong."""
+        """Return q as a float (nq,) array; BadInputError if its length or values are wrong."""
         return _check_vector(q, self.nq, what, self.name)
 
     def check_v(self, v: object, what: str = "v") -> np.ndarray:
-        """Return v as a float (nv,) array; DimensionError if its length or values are wrong."""
+        """Return v as a float (nv,) array; BadInputError if its length or values are wrong."""
         return _check_vector(v, self.nv, what, self.name)
 
     # --- dynamics (eq. 2, 21–23) ----------------------------------------------
@@ -469,7 +457,7 @@ class Robot:
         if out is None:
             out = RobotTerms.zeros(model.nv)
         if out._packs is None:
-            raise DimensionError("out must come from RobotTerms.zeros(n)")
+            raise BadInputError("out must come from RobotTerms.zeros(n)")
         mats, vecs, jac, tip = out._packs
         Mu = pin.crba(model, data, q)
         g = pin.computeGeneralizedGravity(model, data, q)
@@ -493,7 +481,7 @@ class Robot:
         The kinematics are unchanged; M, C and g scale by ``factor``.
         """
         if not (np.isfinite(factor) and factor > 0):
-            raise DimensionError(f"mass factor must be a positive finite number, got {factor!r}")
+            raise BadInputError(f"mass factor must be a positive finite number, got {factor!r}")
         model = self.model.copy()
         for i in range(model.njoints):
             inertia = model.inertias[i]
@@ -522,13 +510,13 @@ def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
     try:
         arr = np.asarray(x, dtype=float)
     except (TypeError, ValueError, OverflowError) as exc:  # "abc", [1, [2]], 10**400
-        raise DimensionError(
+        raise BadInputError(
             f"{what} for robot '{robot}' must be {size} real numbers, got {x!r:.80} ({exc})"
         ) from None
     if arr.shape != (size,):
-        raise DimensionError(
+        raise BadInputError(
             f"{what} for robot '{robot}' must have shape ({size},), got shape {arr.shape}"
         )
     if not np.all(np.isfinite(arr)):
-        raise DimensionError(f"{what} for robot '{robot}' has non-finite values: {arr}")
+        raise BadInputError(f"{what} for robot '{robot}' has non-finite values: {arr}")
     return arr

@@ -5,12 +5,12 @@ that every mainstream simulator loads (a massless fixed root link, a massless en
 carries a small inertia, an inertia a few percent off the triangle inequality) load here too,
 with one :class:`~hybrid_force.errors.ModelWarning` per implausible link.
 
-Every refusal raises a :class:`~hybrid_force.errors.URDFError` whose message names the file,
+Every refusal raises a :class:`~hybrid_force.errors.RobotError` whose message names the file,
 the link or joint, and the offending values or the cause; the command line turns it into exit
 status 2 and one ``error: ...`` line (never a traceback, never a crash inside Pinocchio).
 Every warning names the file, the link and the values.
 
-**Reading**: :func:`~hybrid_force.model.urdf_text.urdf_text` (re-exported here) makes the file
+**Reading**: :func:`~hybrid_force.model.urdf_text.urdf_text` makes the file
 acceptable to every XML parser of the toolkit; :func:`check_urdf` checks that text.
 
 **Before parsing**, :func:`check_urdf` (Pinocchio's parser, urdfdom, reports structural errors
@@ -50,7 +50,7 @@ without inertia, which the mass-matrix check below refuses, naming the joint).
 to it by a chain of fixed joints. Pinocchio merges them into the universe, which never moves,
 so their inertial data never enters M, C or g (a massless or empty world link is the rule in
 published URDFs). If urdfdom cannot read such an inertial, it says so on stderr and drops it;
-:func:`hybrid_force.model.robot.load_robot` turns that into a ``ModelWarning``.
+:func:`hybrid_force.model.loading.load_robot` turns that into a ``ModelWarning``.
 
 **Tolerances, and why the line between refusal and warning is there.** The simulation needs
 each link's spatial inertia positive semi-definite: a negative principal moment is a body
@@ -91,7 +91,7 @@ algorithm that assumes nv > 0 runs:
   named with its master: Pinocchio 4 models mimic joints (``mimic=True``) as
   ``JointModelMimic``, which its forward and impulse dynamics refuse, and loading them as
   independent joints would simulate an arm that does not exist. Mimic joints *off* that chain
-  (gripper fingers) are not refused: :func:`hybrid_force.model.robot.load_robot` locks them (see
+  (gripper fingers) are not refused: :func:`hybrid_force.model.loading.load_robot` locks them (see
   there);
 * a mass matrix that is singular at the neutral configuration q0 (:func:`check_mass_matrix`,
   run by :class:`~hybrid_force.model.robot.Robot` for every model): M(q0) must have its smallest
@@ -112,10 +112,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force.errors import ModelWarning, URDFError
+from hybrid_force.errors import ModelWarning, RobotError
 from hybrid_force.model.urdf_text import urdf_text
 
-__all__ = ["check_arm_model", "check_mass_matrix", "check_urdf", "urdf_text"]
+__all__ = ["check_arm_model", "check_mass_matrix", "check_urdf"]
 
 # Inertia tolerances [relative to the largest principal moment; kg m²]: module docstring.
 _PSD_REL_TOL = 1e-4
@@ -142,7 +142,7 @@ def check_urdf(path: Path | str, text: str | None = None) -> None:
         text: the file's text as :func:`urdf_text` returns it (read from ``path`` if None).
 
     Raises:
-        URDFError: the message names the file and, where relevant, the link or joint and
+        RobotError: the message names the file and, where relevant, the link or joint and
             the offending values.
 
     Warns:
@@ -155,9 +155,9 @@ def check_urdf(path: Path | str, text: str | None = None) -> None:
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
-        raise URDFError(f"malformed URDF {path}: XML parse error: {exc}") from exc
+        raise RobotError(f"malformed URDF {path}: XML parse error: {exc}") from exc
     if root.tag != "robot":
-        raise URDFError(f"not a URDF: {path}: root element is <{root.tag}>, expected <robot>")
+        raise RobotError(f"not a URDF: {path}: root element is <{root.tag}>, expected <robot>")
     links = _check_links(path, root)
     welded = _check_joints(path, root, links)
     for link in root.findall("link"):
@@ -180,13 +180,13 @@ def _check_links(path: Path, root: ET.Element) -> set[str]:
     names: set[str] = set()
     elements = root.findall("link")
     if not elements:
-        raise URDFError(f"not a URDF: {path}: <robot> has no <link> element")
+        raise RobotError(f"not a URDF: {path}: <robot> has no <link> element")
     for i, link in enumerate(elements):
         name = link.get("name")
         if not name:
-            raise URDFError(f"malformed URDF {path}: <link> number {i + 1} has no name")
+            raise RobotError(f"malformed URDF {path}: <link> number {i + 1} has no name")
         if name in names:
-            raise URDFError(f"malformed URDF {path}: duplicate link name {name!r}")
+            raise RobotError(f"malformed URDF {path}: duplicate link name {name!r}")
         names.add(name)
     return names
 
@@ -211,13 +211,13 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
     for i, joint in enumerate(root.findall("joint")):
         name = joint.get("name")
         if not name:
-            raise URDFError(f"malformed URDF {path}: <joint> number {i + 1} has no name")
+            raise RobotError(f"malformed URDF {path}: <joint> number {i + 1} has no name")
         if name in joint_names:
-            raise URDFError(f"malformed URDF {path}: duplicate joint name {name!r}")
+            raise RobotError(f"malformed URDF {path}: duplicate joint name {name!r}")
         joint_names.add(name)
         jtype = joint.get("type")
         if jtype not in _JOINT_TYPES:
-            raise URDFError(
+            raise RobotError(
                 f"malformed URDF {path}: joint {name!r} has type {jtype!r}; "
                 f"valid types: {', '.join(_JOINT_TYPES)}"
             )
@@ -229,7 +229,7 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
                 else [a for a in ("effort", "velocity") if limit.get(a) is None]
             )
             if missing:
-                raise URDFError(
+                raise RobotError(
                     f"malformed URDF {path}: {jtype} joint {name!r} lacks "
                     f"{', '.join(missing)} (required by URDF)"
                 )
@@ -239,9 +239,9 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
             element = joint.find(tag)
             link = element.get("link") if element is not None else None
             if not link:
-                raise URDFError(f"malformed URDF {path}: joint {name!r} has no <{tag} link=...>")
+                raise RobotError(f"malformed URDF {path}: joint {name!r} has no <{tag} link=...>")
             if link not in links:
-                raise URDFError(
+                raise RobotError(
                     f"malformed URDF {path}: joint {name!r} names {tag} link {link!r}, "
                     "which is not defined"
                 )
@@ -258,7 +258,7 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
                     _float_attr(path, f"joint {name!r}: <mimic>", mimic, key)
         child = ends["child"]
         if child in parent_of:
-            raise URDFError(
+            raise RobotError(
                 f"malformed URDF {path}: link {child!r} is the child of two joints "
                 f"({parent_of[child]!r} and {name!r})"
             )
@@ -268,19 +268,19 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
     roots = sorted(links - parent_of.keys())
     if len(roots) != 1:
         detail = "none (the joints form a cycle)" if not roots else ", ".join(map(repr, roots))
-        raise URDFError(
+        raise RobotError(
             f"malformed URDF {path}: the links must form one tree with one root link; "
             f"root links found: {detail}"
         )
     for name, master in masters.items():
         if types.get(master) not in _MOVING_TYPES or master == name:
-            raise URDFError(
+            raise RobotError(
                 f"malformed URDF {path}: joint {name!r} has <mimic joint={master!r}>, which "
                 "names no other revolute, continuous or prismatic joint of the model"
             )
     if unsupported:
         name, jtype, ends = unsupported[0]
-        raise URDFError(
+        raise RobotError(
             f"unsupported URDF {path}: joint {name!r} (parent link {ends['parent']!r}, child "
             f"link {ends['child']!r}) is a {jtype} joint; {_FIXED_BASE_ONLY}"
         )
@@ -289,7 +289,7 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
         what = {0: "it has no joint", 1: "its only joint is fixed"}.get(
             count, f"all {count} joints are fixed"
         )
-        raise URDFError(
+        raise RobotError(
             f"unsupported URDF {path}: the model has no moving joint ({what}, so nv = 0); "
             "an arm needs at least one revolute, continuous or prismatic joint"
         )
@@ -302,7 +302,7 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
 
 
 def _vector_attr(path: Path, where: str, element: ET.Element, key: str) -> list[float] | None:
-    """The attribute as 3 finite numbers, None when absent; URDFError otherwise."""
+    """The attribute as 3 finite numbers, None when absent; RobotError otherwise."""
     raw = element.get(key)
     if raw is None:
         return None
@@ -311,7 +311,7 @@ def _vector_attr(path: Path, where: str, element: ET.Element, key: str) -> list[
     except ValueError:
         values = []
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise URDFError(
+        raise RobotError(
             f"malformed URDF {path}: {where} attribute {key}={raw!r} must be 3 finite numbers"
         )
     return values
@@ -334,7 +334,7 @@ def _check_joint_numbers(path: Path, name: str, jtype: str, joint: ET.Element) -
     if axis is not None:
         xyz = _vector_attr(path, f"{where}: <axis>", axis, "xyz")
         if xyz is not None and jtype in _MOVING_TYPES and not any(xyz):
-            raise URDFError(f"malformed URDF {path}: {where}: <axis xyz='0 0 0'> has no direction")
+            raise RobotError(f"malformed URDF {path}: {where}: <axis xyz='0 0 0'> has no direction")
     limit = joint.find("limit")
     if limit is None:
         return
@@ -344,13 +344,13 @@ def _check_joint_numbers(path: Path, name: str, jtype: str, joint: ET.Element) -
             value = _float_attr(path, f"{where}: <limit>", limit, key)
             if not math.isfinite(value) or (key in ("effort", "velocity") and value < 0):
                 valid = "finite" if key in ("lower", "upper") else "finite and >= 0"
-                raise URDFError(
+                raise RobotError(
                     f"malformed URDF {path}: {where}: <limit {key}={limit.get(key)!r}> must be "
                     f"{valid}"
                 )
             values[key] = value
     if values.get("lower", -math.inf) > values.get("upper", math.inf):
-        raise URDFError(
+        raise RobotError(
             f"malformed URDF {path}: {where}: <limit lower={values['lower']:g} "
             f"upper={values['upper']:g}>: lower is above upper"
         )
@@ -359,11 +359,11 @@ def _check_joint_numbers(path: Path, name: str, jtype: str, joint: ET.Element) -
 def _float_attr(path: Path, where: str, element: ET.Element, key: str) -> float:
     raw = element.get(key)
     if raw is None:
-        raise URDFError(f"malformed URDF {path}: {where} lacks attribute {key!r}")
+        raise RobotError(f"malformed URDF {path}: {where} lacks attribute {key!r}")
     try:
         return float(raw)
     except ValueError:
-        raise URDFError(
+        raise RobotError(
             f"malformed URDF {path}: {where} attribute {key}={raw!r} is not a number"
         ) from None
 
@@ -382,24 +382,24 @@ def _check_inertial(path: Path, link: str, inertial: ET.Element) -> list[str]:
     _check_origin(path, f"{where} <origin>", inertial)
     mass_el = inertial.find("mass")
     if mass_el is None:
-        raise URDFError(f"malformed URDF {path}: {where} has no <mass> element")
+        raise RobotError(f"malformed URDF {path}: {where} has no <mass> element")
     mass = _float_attr(path, f"{where} <mass>", mass_el, "value")
     inertia_el = inertial.find("inertia")
     if inertia_el is None:
-        raise URDFError(f"malformed URDF {path}: {where} has no <inertia> element")
+        raise RobotError(f"malformed URDF {path}: {where} has no <inertia> element")
     ixx, ixy, ixz, iyy, iyz, izz = (
         _float_attr(path, f"{where} <inertia>", inertia_el, k) for k in _INERTIA_KEYS
     )
     values = (ixx, ixy, ixz, iyy, iyz, izz)
     shown = ", ".join(f"{k}={v:g}" for k, v in zip(_INERTIA_KEYS, values, strict=True))
     if not math.isfinite(mass):
-        raise URDFError(f"physically impossible URDF {path}: {where} mass {mass} is not finite")
+        raise RobotError(f"physically impossible URDF {path}: {where} mass {mass} is not finite")
     if not all(math.isfinite(v) for v in values):
-        raise URDFError(
+        raise RobotError(
             f"physically impossible URDF {path}: {where} inertia has a non-finite entry ({shown})"
         )
     if mass < 0.0:
-        raise URDFError(
+        raise RobotError(
             f"physically impossible URDF {path}: {where} mass = {mass:g} kg; a link's mass "
             "must be >= 0 (0 with an all-zero inertia, or no <inertial>, for a massless frame)"
         )
@@ -410,7 +410,7 @@ def _check_inertial(path: Path, link: str, inertial: ET.Element) -> list[str]:
     largest = float(np.max(np.abs(moments)))
     principal = ", ".join(f"{m:.6g}" for m in moments)
     if moments[0] < -(_PSD_REL_TOL * largest + _ABS_TOL):
-        raise URDFError(
+        raise RobotError(
             f"physically impossible URDF {path}: {where} inertia is not positive "
             f"semi-definite ({shown}; principal moments {principal} kg m²): a negative "
             "moment is a negative kinetic energy, which the dynamics cannot integrate"
@@ -450,20 +450,20 @@ def check_arm_model(
         mimic: ``{mimic joint: its master}`` as declared by the URDF's ``<mimic>`` elements.
 
     Raises:
-        URDFError: nv = 0, a joint that is not one-coordinate revolute or prismatic, or a
+        RobotError: nv = 0, a joint that is not one-coordinate revolute or prismatic, or a
             mimic joint on the chain from the root to ``tip``; the message names the file, the
             joints and the cause.
     """
     where = f"unsupported URDF {path}"
     if model.nv == 0:
-        raise URDFError(
+        raise RobotError(
             f"{where}: the model has no moving joint left (nv = 0); an arm needs at least "
             "one revolute, continuous or prismatic joint"
         )
     for jid in range(1, model.njoints):
         joint = model.joints[jid]
         if joint.nq != 1 or joint.nv != 1:
-            raise URDFError(
+            raise RobotError(
                 f"{where}: joint {model.names[jid]!r} is a {joint.shortname()} "
                 f"(nq = {joint.nq}, nv = {joint.nv}); only one-coordinate revolute and "
                 f"prismatic joints are supported: {_FIXED_BASE_ONLY}"
@@ -473,7 +473,7 @@ def check_arm_model(
     on_chain = [model.names[j] for j in chain if model.names[j] in mimic]
     if on_chain:
         listed = ", ".join(f"{j!r} (mimics {mimic[j]!r})" for j in on_chain)
-        raise URDFError(
+        raise RobotError(
             f"{where}: mimic joints on the arm's chain are not supported: Pinocchio 4's "
             f"forward and impulse dynamics refuse them; joint {listed} lies on the chain from "
             f"the root to the tip frame {tip!r} (choose another tip, or replace the mimic "
@@ -512,7 +512,7 @@ def check_mass_matrix(model: pin.Model, where: str) -> None:
             f"moving joint(s) {', '.join(map(repr, moved))} together move nothing with inertia "
             "(e.g. a point mass on a joint's axis)"
         )
-    raise URDFError(
+    raise RobotError(
         f"{where}: the mass matrix M(q0) at the neutral configuration is singular "
         f"(smallest eigenvalue {eig[0]:.3g}, largest {eig[-1]:.3g}): {cause}; give the links "
         "these joints move a positive mass and inertia"

@@ -20,7 +20,7 @@ import re
 import xml.parsers.expat
 from pathlib import Path
 
-from hybrid_force.errors import URDFError
+from hybrid_force.errors import RobotError
 
 __all__ = [
     "MAX_ELEMENTS",
@@ -72,24 +72,24 @@ def urdf_text(path: Path | str) -> str:
         the sanitised XML text (same lines as the file).
 
     Raises:
-        URDFError: the file is missing, a directory, unreadable, not decodable, or not
+        RobotError: the file is missing, a directory, unreadable, not decodable, or not
             well-formed XML (the parser's reason, line and column).
     """
     path = Path(path)
     if not path.exists():
-        raise URDFError(f"URDF file not found: {path}")
+        raise RobotError(f"URDF file not found: {path}")
     if not path.is_file():
-        raise URDFError(f"URDF path is not a file: {path}")
+        raise RobotError(f"URDF path is not a file: {path}")
     try:
         check_file_size(path, "URDF")
         raw = path.read_bytes()
     except OSError as exc:
-        raise URDFError(f"cannot read URDF {path}: {exc}") from exc
+        raise RobotError(f"cannot read URDF {path}: {exc}") from exc
     scan = _PrefixScan(f"URDF {path}", "urdf")
     try:
         scan.parse(raw)
     except xml.parsers.expat.ExpatError as exc:  # the same text ElementTree's ParseError has
-        raise URDFError(f"malformed URDF {path}: XML parse error: {exc}") from None
+        raise RobotError(f"malformed URDF {path}: XML parse error: {exc}") from None
     encoding = scan.encoding or "utf-8"
     if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
         encoding = "utf-16"
@@ -99,11 +99,11 @@ def urdf_text(path: Path | str) -> str:
         text = raw.decode(encoding)
         root_at = len(raw[: scan.root_byte].decode(encoding))
     except (LookupError, UnicodeDecodeError) as exc:
-        raise URDFError(f"cannot decode URDF {path} as {encoding}: {exc}") from None
+        raise RobotError(f"cannot decode URDF {path} as {encoding}: {exc}") from None
     if scan.undeclared:
         end = root_at + 1 + len(scan.root_name)
         if text[root_at:end] != "<" + scan.root_name:  # never seen; refuse rather than guess
-            raise URDFError(f"cannot locate the root element <{scan.root_name}> in {path}")
+            raise RobotError(f"cannot locate the root element <{scan.root_name}> in {path}")
         declarations = "".join(
             f' xmlns:{prefix}="{_UNDECLARED_NS}{prefix}"' for prefix in scan.undeclared
         )
@@ -124,12 +124,12 @@ def check_model_size(source: str, data: bytes | str, kind: str) -> None:
             ``"mjcf"`` (every ``<joint>``/``<freejoint>`` and ``<body>``).
 
     Raises:
-        URDFError: naming ``source``, the count and the maximum. Malformed XML is not refused
+        RobotError: naming ``source``, the count and the maximum. Malformed XML is not refused
             here: the parser that follows says where.
     """
     size = len(data.encode("utf-8")) if isinstance(data, str) else len(data)
     if size > MAX_MODEL_BYTES:
-        raise URDFError(_too_large(source, size))
+        raise RobotError(_too_large(source, size))
     with contextlib.suppress(xml.parsers.expat.ExpatError):
         _PrefixScan(source, kind).parse(data)
 
@@ -142,18 +142,18 @@ def _too_large(source: str, size: int) -> str:
 
 
 def check_file_size(path: Path, label: str) -> None:
-    """URDFError before a file beyond :data:`MAX_MODEL_BYTES` is read (an OSError of stat
+    """RobotError before a file beyond :data:`MAX_MODEL_BYTES` is read (an OSError of stat
     propagates: the caller says why the file cannot be read)."""
     size = path.stat().st_size
     if size > MAX_MODEL_BYTES:
-        raise URDFError(_too_large(f"{label} {path}", size))
+        raise RobotError(_too_large(f"{label} {path}", size))
 
 
 class _PrefixScan:
     """One pass of expat without namespace processing over the raw bytes: the declared
     encoding, the root element's name and byte offset, and the prefixes used out of scope;
     on the way, the model's size against :data:`MAX_JOINTS` and :data:`MAX_XML_DEPTH` (a
-    URDFError from a handler stops expat at once)."""
+    RobotError from a handler stops expat at once)."""
 
     def __init__(self, source: str, kind: str) -> None:
         self.source, self.kind = source, kind
@@ -192,7 +192,7 @@ class _PrefixScan:
     def _count(self, name: str, depth: int, attributes: dict[str, str]) -> None:
         """Count ``name`` (at ``depth``, the root at 1); refuse beyond the maximums."""
         if depth > MAX_XML_DEPTH:
-            raise URDFError(
+            raise RobotError(
                 f"{self.source}: elements nest more than {MAX_XML_DEPTH} deep (at <{name}>, "
                 f"line {self._parser.CurrentLineNumber}): MAX_XML_DEPTH, docs/robots.md"
             )
@@ -207,13 +207,13 @@ class _PrefixScan:
         self.links += link
         line = self._parser.CurrentLineNumber
         if self.moving > MAX_JOINTS:
-            raise URDFError(
+            raise RobotError(
                 f"{self.source} has more than {MAX_JOINTS} moving joints (line {line}): a model "
                 f"may have at most MAX_JOINTS = {MAX_JOINTS} (docs/robots.md)"
             )
         if self.joints > MAX_ELEMENTS or self.links > MAX_ELEMENTS:
             what = "joints" if self.joints > MAX_ELEMENTS else "links or bodies"
-            raise URDFError(
+            raise RobotError(
                 f"{self.source} has more than {MAX_ELEMENTS} {what} (line {line}): a model may "
                 f"have at most MAX_ELEMENTS = {MAX_ELEMENTS} of each, fixed joints included "
                 "(docs/robots.md)"

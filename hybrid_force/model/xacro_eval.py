@@ -13,7 +13,7 @@ arithmetic, comparison and boolean operators; ``a if c else b``; subscripts; and
 
 Anything else (attribute access, other calls, ``lambda``, comprehensions, f-strings, a
 double underscore anywhere in the text, a result beyond :data:`MAX_INT_BITS` bits or
-:data:`MAX_LENGTH` items) raises :class:`~hybrid_force.errors.URDFError` saying how to opt in
+:data:`MAX_LENGTH` items) raises :class:`~hybrid_force.errors.RobotError` saying how to opt in
 to xacro's own evaluation (``robot.xacro_trust = true``, ``--trust-xacro``). An ordinary
 mistake (an undefined name, a division by zero, a type error) raises the same Python error
 that xacro's evaluation would, so xacro's message about it is unchanged.
@@ -29,7 +29,7 @@ import re
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from hybrid_force.errors import URDFError
+from hybrid_force.errors import RobotError
 
 __all__ = [
     "BUILTIN_NAMES",
@@ -151,7 +151,7 @@ _PERCENT = re.compile(r"%(?:\([^)]*\))?[-#0 +]*(\*|\d*)(?:\.(\*|\d*))?[hlL]?.")
 
 
 class _Refused(Exception):
-    """An expression outside the allowlist (turned into a URDFError by the caller)."""
+    """An expression outside the allowlist (turned into a RobotError by the caller)."""
 
 
 def _short(text: str, limit: int = 80) -> str:
@@ -376,13 +376,13 @@ def _parse(text: str) -> ast.expr:
 
 
 def _run(text: str, lookup: Callable[[str], Any], member: Callable[[Any, str], Any]) -> Any:
-    """Evaluate ``text``; a refusal is a URDFError naming the expression."""
+    """Evaluate ``text``; a refusal is a RobotError naming the expression."""
     try:
         return _Evaluator(lookup, member).value(_parse(text))
     except _Refused as exc:
-        raise URDFError(f"the expression '{_short(text)}' {exc}; {TRUST_HINT}") from None
+        raise RobotError(f"the expression '{_short(text)}' {exc}; {TRUST_HINT}") from None
     except RecursionError:
-        raise URDFError(f"the expression '{_short(text)}' is nested too deeply") from None
+        raise RobotError(f"the expression '{_short(text)}' is nested too deeply") from None
 
 
 def _unknown(name: str) -> NameError | _Refused:
@@ -445,7 +445,7 @@ def eval_expression(text: str, symbols: Any) -> Any:
     ``python`` and ``xacro``.
 
     Raises:
-        URDFError: the expression is outside the allowlist (see the module docstring).
+        RobotError: the expression is outside the allowlist (see the module docstring).
         NameError, TypeError, ValueError, ZeroDivisionError, …: as Python's ``eval`` would.
     """
     xacro_ns = _xacro_namespace()
@@ -480,7 +480,7 @@ def eval_substitution(text: str, context: dict[str, Any]) -> str:
     one).
 
     Raises:
-        URDFError: the expression is outside the allowlist.
+        RobotError: the expression is outside the allowlist.
         NameError, TypeError, …: as Python's ``eval`` would.
     """
     from xacro import substitution_args as sa
@@ -519,7 +519,7 @@ def counted_macro_calls(handle: Callable[..., bool]) -> Callable[..., bool]:
         if str(getattr(node, "tagName", "")).startswith("xacro:"):
             calls += 1
             if calls > MAX_MACRO_CALLS:
-                raise URDFError(
+                raise RobotError(
                     f"more than {MAX_MACRO_CALLS} macro calls (the last one: <{node.tagName}>): "
                     f"the expansion is refused as unbounded; {TRUST_HINT}"
                 )

@@ -10,10 +10,12 @@ import io
 import os
 import threading
 import warnings
+import xml.parsers.expat
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
-from hybrid_force.errors import ModelWarning, RobotError, URDFError
+from hybrid_force.errors import ModelWarning, RobotError
+from hybrid_force.model.urdf_check import check_urdf
 from hybrid_force.model.urdf_text import check_file_size, check_model_size
 
 __all__ = ["expand_xacro", "find_package"]
@@ -55,10 +57,6 @@ def find_package(name: str, package_dirs: Sequence[str]) -> Path | None:
     return None
 
 
-class _FindError(Exception):
-    """``$(find NAME)`` found no folder NAME (raised inside xacro, reported by expand_xacro)."""
-
-
 def expand_xacro(
     path: str | os.PathLike[str],
     args: Mapping[str, str],
@@ -95,7 +93,7 @@ def expand_xacro(
         trust: let xacro evaluate the file's expressions as Python (the file's code runs).
 
     Raises:
-        URDFError: the ``xacro`` package is missing, or xacro cannot expand the file (XML
+        RobotError: the ``xacro`` package is missing, or xacro cannot expand the file (XML
             syntax, an undefined argument or property, a missing include, ``$(find NAME)``
             with no folder NAME); the message names the file (and the included file where it
             happened) and xacro's own message. With ``check``: an expansion that is not a
@@ -114,10 +112,9 @@ def expand_xacro(
             eval_substitution,
         )
     except ImportError as exc:
-        raise URDFError(
+        raise RobotError(
             f"cannot expand {path}: the 'xacro' package is missing ({exc}); pip install xacro"
         ) from None
-    import xml.parsers.expat
 
     dirs = tuple(
         dict.fromkeys(
@@ -128,7 +125,7 @@ def expand_xacro(
     def find(name: str) -> str:
         found = find_package(name, dirs)
         if found is None:
-            raise _FindError(
+            raise RobotError(  # inside xacro, which wraps it: expand_xacro unwraps it
                 f"$(find {name}): no folder '{name}' in the package folders "
                 f"({', '.join(dirs) or 'none'}); add the folder that holds it to "
                 "robot.package_dirs (load_robot's package_dirs) or ROS_PACKAGE_PATH"
@@ -162,19 +159,19 @@ def expand_xacro(
             if macros:
                 with contextlib.suppress(Exception):
                     where += f" (in macro '{macros[-1].body.getAttribute('name')}')"
-            cause: BaseException | None = exc  # xacro wraps our $(find) error: unwrap it
+            cause: BaseException | None = exc  # xacro wraps our $(find) RobotError: unwrap it
             for _ in range(10):
-                if cause is None or isinstance(cause, (_FindError, URDFError)):
+                if cause is None or isinstance(cause, RobotError):
                     break
                 cause = getattr(cause, "exc", None) or cause.__cause__ or cause.__context__
-            cause = cause if isinstance(cause, (_FindError, URDFError)) else None
+            cause = cause if isinstance(cause, RobotError) else None
             if isinstance(exc, xml.parsers.expat.ExpatError):
                 why = f"XML syntax error: {exc}"
             elif cause is not None:
                 why = str(cause)
             else:
                 why = " ".join(str(exc).split()) or type(exc).__name__
-            raise URDFError(f"xacro cannot expand {path}{where}: {why}") from None
+            raise RobotError(f"xacro cannot expand {path}{where}: {why}") from None
         finally:
             if includes is not None:
                 includes.extend(str(f) for f in getattr(xacro, "all_includes", None) or [])
@@ -196,7 +193,6 @@ def expand_xacro(
 def _check_urdf_text(path: Path, xml: str, *, expanded: bool) -> None:
     """:func:`~hybrid_force.model.urdf_check.check_urdf` on the URDF text of ``path``; for xacro's
     expansion (``expanded``) its messages say ``<path> (as expanded by xacro)``."""
-    from hybrid_force.model.urdf_check import check_urdf
 
     if not expanded:
         check_urdf(path, text=xml)
@@ -206,8 +202,8 @@ def _check_urdf_text(path: Path, xml: str, *, expanded: bool) -> None:
         warnings.simplefilter("always", ModelWarning)
         try:
             check_urdf(path, text=xml)
-        except URDFError as exc:
-            raise URDFError(str(exc).replace(str(path), shown, 1)) from None
+        except RobotError as exc:
+            raise RobotError(str(exc).replace(str(path), shown, 1)) from None
     for w in caught:
         message = str(w.message)
         if issubclass(w.category, ModelWarning):

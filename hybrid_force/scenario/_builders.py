@@ -17,7 +17,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybrid_force.errors import BadInputError, FrameError, ReachError, RobotError, RunWarning
+from hybrid_force.control.clik import inverse_kinematics
+from hybrid_force.control.controller import check_same_joints
+from hybrid_force.control.laws.arimoto import check_damping_gain
+from hybrid_force.control.laws.base import law_names
+from hybrid_force.control.pose_clik import pose_inverse_kinematics
+from hybrid_force.control.supervisor import ControlSettings
+from hybrid_force.control.tool import ToolSettings, ToolTarget
+from hybrid_force.errors import BadInputError, ReachError, RobotError, RunWarning
+from hybrid_force.geometry.paths import path_parameters, path_types
+from hybrid_force.geometry.surface_base import surface_types
+from hybrid_force.geometry.surface_path import SurfacePath
+from hybrid_force.model.loading import _is_path, load_robot, model_kind
 from hybrid_force.scenario._tables import (
     _INITIAL,
     _ROBOT,
@@ -29,6 +40,9 @@ from hybrid_force.scenario._tables import (
     read_settings,
 )
 from hybrid_force.schema import keys_of
+from hybrid_force.sim.contact import ContactSettings
+from hybrid_force.sim.run_checks import joint_names, limit_slack
+from hybrid_force.sim.settings import Scenario
 
 if TYPE_CHECKING:  # annotations only: the builders import these where they build them
     pass
@@ -100,7 +114,6 @@ def resolve_control_model(
 def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
     """A model reference of a scenario: (the registry name, "name") or (the model file,
     resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""
-    from hybrid_force.model.robot import _is_path, model_kind
 
     if not _is_path(model):
         return model, "name"
@@ -147,7 +160,6 @@ def _robot(table: object, file: Path, ctx: _Context, initial: object = None) -> 
     """The scenario's arm. When ``initial.q`` or ``initial.seed`` (the ``initial`` table)
     lists every joint of the model file and the loader locks some, it is loaded again with
     the locked joints held at their values there (:func:`_full_start`)."""
-    from hybrid_force.model.robot import load_robot
 
     resolved = _robot_table(table, file, ctx)
     values = resolved.values
@@ -168,10 +180,13 @@ def _robot(table: object, file: Path, ctx: _Context, initial: object = None) -> 
             except RobotError as exc:
                 raw = initial.get(key) if isinstance(initial, dict) else None
                 raise ctx.error(f"initial.{key}", raw, " ".join(str(exc).split())) from None
-    except FrameError as exc:
-        raise ctx.error("robot.tip", values.get("tip"), " ".join(str(exc).split())) from None
-    except RobotError as exc:
-        raise ctx.error("robot.model", resolved.model, " ".join(str(exc).split())) from None
+    except RobotError as exc:  # a frame error has key "tip"
+        key, value = (
+            ("robot.tip", values.get("tip"))
+            if exc.key == "tip"
+            else ("robot.model", resolved.model)
+        )
+        raise ctx.error(key, value, " ".join(str(exc).split())) from None
     return robot
 
 
@@ -197,7 +212,6 @@ def _full_start(robot: Any, initial: object) -> tuple[str, dict[str, float]] | N
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
     """The surfaces of [surface] or [[surfaces]], each built from its registered type's
     declared parameters (:func:`~hybrid_force.geometry.surface_base.surface_types`)."""
-    from hybrid_force.geometry.surface_base import surface_types
 
     if "surface" in doc and "surfaces" in doc:
         raise ctx.table_error(
@@ -231,8 +245,6 @@ def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any,
     """[trajectory]: its registered path type built from its declared parameters
     (:func:`~hybrid_force.geometry.paths.path_types`); a path on a surface by
     :func:`_surface_path`."""
-    from hybrid_force.geometry.paths import path_parameters, path_types
-    from hybrid_force.geometry.surface_path import SurfacePath
 
     types = path_types()
     schema = {kind: keys_of(path_parameters(cls)) for kind, cls in types.items()}
@@ -252,7 +264,6 @@ def _surface_path(
 ) -> Any:
     """A waypoints or raster path on surface ``trajectory.surface`` (default 0); its refusals
     name the key and the value as written (``raw``), its PathWarnings the file and the key."""
-    from hybrid_force.errors import PathWarning
 
     index = values.get("surface", 0)
     params = {k: v for k, v in values.items() if k != "surface"}
@@ -265,7 +276,7 @@ def _surface_path(
         )
     try:
         with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", PathWarning)
+            warnings.simplefilter("always", RunWarning)
             path = cls(surfaces[index], **params)
     except BadInputError as exc:
         if exc.key in params:
@@ -273,9 +284,9 @@ def _surface_path(
             raise ctx.error(f"trajectory.{exc.key}", raw.get(exc.key), message) from None
         raise _wrap(ctx, "trajectory", params, exc) from None
     for w in caught:
-        if issubclass(w.category, PathWarning):
+        if issubclass(w.category, RunWarning):
             message = f"{ctx.file}: trajectory.points = {_fmt(raw.get('points'))}: {w.message}"
-            warnings.warn(PathWarning(message), stacklevel=2)
+            warnings.warn(RunWarning(message), stacklevel=2)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return path
@@ -287,8 +298,6 @@ def _controller_model(
     """``control.model``: the controller's own model of the arm (a name, or a model path
     relative to the scenario file), with the plant's tip and joints; None when not given.
     ``trust``: ``robot.xacro_trust``, which covers a xacro ``control.model`` too."""
-    from hybrid_force.control.controller import check_same_joints
-    from hybrid_force.model.robot import load_robot
 
     if "model" not in control_values:
         return None
@@ -311,12 +320,9 @@ def _controller_model(
 
 
 def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
-    from hybrid_force.sim.contact import ContactSettings
 
     contact = read_settings(ctx, "contact", ContactSettings, table)
     if not contact.ideal:  # the rules across tables, named by the [sim] key they are about
-        from hybrid_force.sim.settings import Scenario
-
         try:
             Scenario._check_contact_settings(contact, sim)
         except BadInputError as exc:
@@ -333,9 +339,6 @@ def _control_settings(
 ) -> Any:
     """[control] (with [sim]'s model_mass_factor) → ControlSettings; K_d against the arm's
     joints and f_d against the k surfaces, named by their keys."""
-    from hybrid_force.control.laws.arimoto import check_damping_gain
-    from hybrid_force.control.laws.base import law_names
-    from hybrid_force.control.supervisor import ControlSettings
 
     merged: dict[str, Any] = {
         key: tuple(v) if key == "f_d" and isinstance(v, list) else v
@@ -366,7 +369,6 @@ def _control_settings(
 
 def _tool_settings(table: object, robot: Any, ctx: _Context) -> Any:
     """``[tool]``: the ToolSettings, refused for an arm with too few joints for its task."""
-    from hybrid_force.control.tool import ToolSettings
 
     values = _check_table(ctx, "tool", table, keys_of(ToolSettings))
     try:
@@ -383,8 +385,6 @@ def _tool_start(
 ) -> Any:
     """The start of ``initial.tip`` with the tool along a_d(0) too (``orientation = "normal"``):
     the pose inverse kinematics from the position-only solution q0."""
-    from hybrid_force.control.pose_clik import pose_inverse_kinematics
-    from hybrid_force.control.tool import ToolTarget
 
     try:
         target = ToolTarget(tool, surfaces[0], path)
@@ -425,7 +425,6 @@ def _wrapped_into_limits(robot: Any, q: np.ndarray) -> np.ndarray:
 def _outside_limits(robot: Any, q: np.ndarray) -> list[str]:
     """The joints of q (nq,) outside their position limits (:func:`_outside_joints`), as
     'name = value (limits [lo, hi])'."""
-    from hybrid_force.sim.run_checks import joint_names
 
     lower, upper = robot.position_limits
     names = joint_names(robot)
@@ -438,7 +437,6 @@ def _outside_limits(robot: Any, q: np.ndarray) -> list[str]:
 def _outside_joints(robot: Any, q: np.ndarray) -> np.ndarray:
     """Indices into q (nq,) beyond their position limits by the run's rule (round-off on a
     bound is no crossing: :func:`~hybrid_force.sim.run_checks.limit_slack`)."""
-    from hybrid_force.sim.run_checks import limit_slack
 
     lower, upper = robot.position_limits
     return np.flatnonzero((q < lower - limit_slack(lower)) | (q > upper + limit_slack(upper)))
@@ -447,9 +445,6 @@ def _outside_joints(robot: Any, q: np.ndarray) -> np.ndarray:
 def _start_solver(tool: Any, robot: Any, surfaces: list[Any], path: Any, tip: object) -> Any:
     """seed (nq,) → a start with the tip at ``tip`` (and the tool along a_d(0) when pointed),
     as the loader finds it from ``initial.seed``; raises ReachError."""
-    from hybrid_force.control.clik import inverse_kinematics
-    from hybrid_force.control.pose_clik import pose_inverse_kinematics
-    from hybrid_force.control.tool import ToolTarget
 
     position = np.array(tip, dtype=float)
     target = ToolTarget(tool, surfaces[0], path) if tool.controlled else None
@@ -509,7 +504,6 @@ def _start_in_limits(
 
 
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:
-    from hybrid_force.control.clik import inverse_kinematics
 
     values = _check_table(ctx, "initial", table, _INITIAL)
     raw = table if isinstance(table, dict) else {}

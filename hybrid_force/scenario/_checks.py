@@ -11,9 +11,19 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
+from hybrid_force.control.clik import _COND_MAX, ClikSettings, newton_ik
+from hybrid_force.control.constraint import Constraint
+from hybrid_force.control.laws.base import LoopContext, law_loop_bounds
+from hybrid_force.control.pose_clik import follow_pose
+from hybrid_force.control.supervisor import check_controller
+from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import BadInputError, ReachError, ScenarioError
+from hybrid_force.model.robot import LWA
 from hybrid_force.scenario._tables import _Context, _fmt, _wrap
+from hybrid_force.sim.contact import largest_stable_dt, step_text
+from hybrid_force.sim.settings import control_steps
 
 PATH_CHECK_STEP = 0.02
 """Spacing [s] of the samples at which the loader follows the desired path by inverse
@@ -31,7 +41,6 @@ def _check_contact_step(
     ctx: _Context,
 ) -> None:
     """Refuse a sim.dt too long for the contact model anywhere on the desired joint path."""
-    from hybrid_force.sim.contact import largest_stable_dt, step_text
 
     f0 = float(np.max(control.f_d_for(len(surfaces))))
     dt_max = largest_stable_dt(contact, robot, surfaces, configurations, f0)
@@ -47,7 +56,6 @@ def _check_contact_step(
 def _check_control_rate(
     control: Any, sim: Any, control_values: Mapping[str, Any], ctx: _Context
 ) -> None:
-    from hybrid_force.sim.loop import control_steps
 
     try:
         control_steps(control, sim)
@@ -70,10 +78,6 @@ def _check_controller(
     the plant), without building it (:func:`~hybrid_force.control.supervisor.check_controller`):
     q_d(0) in reach, the gains, dt·λ_max(M_c⁻¹K_d) and the law's own checks (the controller's
     own consistency; the loops against the plant are :func:`_check_law_loops`)."""
-    from hybrid_force.control.constraint import Constraint
-    from hybrid_force.control.supervisor import check_controller
-    from hybrid_force.control.tool import ToolSettings
-    from hybrid_force.sim.loop import control_steps
 
     try:
         constraint = Constraint(surfaces, normalization=sim.normalization)
@@ -114,10 +118,6 @@ def _check_path_followable(
     (``hybrid_force.control.clik``). A singular instant between two samples can still stop the run;
     the run then keeps its partial result. Returns the configurations found (one per sample).
     """
-    import pinocchio as pin
-
-    from hybrid_force.control.clik import _COND_MAX, ClikSettings, newton_ik
-    from hybrid_force.model.robot import LWA
 
     n = int(min(PATH_CHECK_SAMPLES, max(2, math.ceil(duration / PATH_CHECK_STEP) + 1)))
     damping = ClikSettings().damping if robot.nv > 3 else 0.0
@@ -166,9 +166,6 @@ def _check_pose_followable(
     and the tool direction (and the roll, when held) followed by the pose inverse kinematics
     (:func:`hybrid_force.control.pose_clik.follow_pose`), the pose task Jacobian as well
     conditioned as the pose CLIK needs. Returns the configurations found."""
-    from hybrid_force.control.clik import ClikSettings
-    from hybrid_force.control.pose_clik import follow_pose
-    from hybrid_force.control.tool import ToolTarget
 
     n = int(min(PATH_CHECK_SAMPLES, max(2, math.ceil(duration / PATH_CHECK_STEP) + 1)))
     what = f'tool.orientation = "normal", tool.roll = "{tool.roll}"'
@@ -220,8 +217,6 @@ def _check_law_loops(
     with its masses × ``sim.model_mass_factor``; the plant's masses are the simulator's. The
     first check that fails is refused, naming its key, its value and the bound.
     """
-    from hybrid_force.control.laws.base import LoopContext, law_loop_bounds
-    from hybrid_force.sim.loop import control_steps
 
     steps = control_steps(control, sim)
     period = steps * sim.dt

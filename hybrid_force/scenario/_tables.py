@@ -19,8 +19,12 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from hybrid_force.control.laws.base import check_options, law_names
-from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
+from hybrid_force.control.laws.base import LAWS, check_options, law_names, law_spec
+from hybrid_force.control.supervisor import ControlSettings
+from hybrid_force.control.tool import ToolSettings
+from hybrid_force.errors import BadInputError, RunWarning, ScenarioError, did_you_mean
+from hybrid_force.geometry.paths import path_parameters, path_types
+from hybrid_force.geometry.surface_base import surface_types
 from hybrid_force.schema import (
     Key,
     Param,
@@ -33,6 +37,9 @@ from hybrid_force.schema import (
     specs,
     with_tables,
 )
+from hybrid_force.sim.contact import ContactSettings
+from hybrid_force.sim.sensors import SensorSettings
+from hybrid_force.sim.settings import SimSettings
 
 # --- schema --------------------------------------------------------------------------------------
 _TOP: dict[str, Key] = {"name": Key("str", True), "description": Key("str")}
@@ -61,7 +68,6 @@ _INITIAL: dict[str, Key] = {
 def control_keys() -> dict[str, Key]:
     """The keys of [control]: ControlSettings' declared fields, ``law`` one of the registered
     laws, ``model`` (the controller's own model) and each law's table ``[control.<law>]``."""
-    from hybrid_force.control.supervisor import ControlSettings
 
     keys = keys_of(ControlSettings)
     keys["law"] = dataclasses.replace(keys["law"], kind="choice", choices=law_names())
@@ -73,8 +79,6 @@ def control_keys() -> dict[str, Key]:
 def sim_keys() -> dict[str, Key]:
     """The keys of [sim]: SimSettings' declared fields (Baumgarte's flattened in) and the
     controller's ``model_mass_factor`` (ControlSettings.mass_factor), which [sim] holds."""
-    from hybrid_force.control.supervisor import ControlSettings
-    from hybrid_force.sim.settings import SimSettings
 
     mass = {f.name: (f, spec) for f, spec in specs(ControlSettings)}["mass_factor"]
     factor = Key("number", param=mass[1], default=default_of(mass[0]))
@@ -502,7 +506,6 @@ def _law_reads(gain: str, doc: Mapping[str, Any]) -> bool:
     """The chosen law reads ``control.<gain>`` (its registry entry's ``gains``, not replaced by
     a key of its table or of [control]); Λ is also the approach rate's default (supervised
     runs without ``control.approach_rate``)."""
-    from hybrid_force.control.laws.base import law_spec
 
     law = _law(doc)
     spec = law_spec(law)
@@ -517,7 +520,6 @@ def _law_reads(gain: str, doc: Mapping[str, Any]) -> bool:
 
 
 def _gain_needs(gain: str) -> str:
-    from hybrid_force.control.laws.base import LAWS
 
     readers = [name for name, spec in LAWS.items() if gain in spec.gains]
     replaced = {str(spec.gains[gain]) for spec in LAWS.values() if spec.gains.get(gain)}
@@ -629,7 +631,6 @@ def _check_acting(doc: Mapping[str, Any], ctx: _Context) -> None:
 def _drop_never_acting(doc: dict[str, Any], ctx: _Context) -> None:
     """Warn about a key of :data:`_NEVER_ACTS` (its value already checked) and drop it from
     ``doc`` (in place): the run's recorded scenario then does not list it."""
-    from hybrid_force.errors import RunWarning
 
     for dotted, why in _NEVER_ACTS.items():
         table, _, key = dotted.partition(".")
@@ -648,9 +649,6 @@ def _drop_never_acting(doc: dict[str, Any], ctx: _Context) -> None:
 # --- the reference: JSON Schema and docs tables, from the same keys ----------------------------
 def settings_tables() -> dict[str, dict[str, Key]]:
     """The keys of every table with a fixed set of keys, by table name."""
-    from hybrid_force.control.tool import ToolSettings
-    from hybrid_force.sim.contact import ContactSettings
-    from hybrid_force.sim.sensors import SensorSettings
 
     return {
         "robot": _ROBOT,
@@ -665,8 +663,6 @@ def settings_tables() -> dict[str, dict[str, Key]]:
 
 def typed_tables() -> dict[str, dict[str, dict[str, Key]]]:
     """The keys of each registered surface and path type: {"surface": {type: keys}, ...}."""
-    from hybrid_force.geometry.paths import path_parameters, path_types
-    from hybrid_force.geometry.surface_base import surface_types
 
     return {
         "surface": {kind: keys_of(cls) for kind, cls in surface_types().items()},

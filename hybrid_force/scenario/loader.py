@@ -1,7 +1,7 @@
 """Scenario files: one TOML file describes one run (robot, surfaces, path, start, gains, sim).
 
 :func:`load_scenario` reads a file, applies ``--set``-style overrides, validates every table
-and key, and returns the :class:`hybrid_force.sim.loop.Scenario` that
+and key, and returns the :class:`hybrid_force.sim.settings.Scenario` that
 :func:`hybrid_force.sim.loop.simulate` runs. The format is documented in docs/scenarios.md.
 
 Validation is done up front so a bad file fails in milliseconds, not after a long run. Every
@@ -37,11 +37,8 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force.errors import BadInputError, ScenarioError
-from hybrid_force.geometry.paths import (
-    ON_SURFACE_TOL,  # re-exported: the loader's and Scenario's rule
-)
+from hybrid_force.geometry.on_surface import ON_SURFACE_TOL
 from hybrid_force.scenario._builders import (
-    RobotTable,
     _contact_settings,
     _control_settings,
     _controller_model,
@@ -53,12 +50,8 @@ from hybrid_force.scenario._builders import (
     _tool_settings,
     _tool_start,
     _trajectory,
-    resolve_control_model,
-    resolve_robot_table,
 )
 from hybrid_force.scenario._checks import (
-    PATH_CHECK_SAMPLES,
-    PATH_CHECK_STEP,
     _check_contact_step,
     _check_control_rate,
     _check_controller,
@@ -78,26 +71,13 @@ from hybrid_force.scenario._tables import (
     _suggest,
     check_nesting,
     control_keys,
-    parse_override,
     read_settings,
     sim_keys,
-    xacro_argument_text,
 )
+from hybrid_force.sim.sensors import SensorSettings
+from hybrid_force.sim.settings import Scenario, SimSettings, check_path_on_surfaces
 
-__all__ = [
-    "MAX_FILE_BYTES",
-    "ON_SURFACE_TOL",
-    "PATH_CHECK_SAMPLES",
-    "PATH_CHECK_STEP",
-    "RobotTable",
-    "load_scenario",
-    "parse_override",
-    "read_scenario_document",
-    "resolve_control_model",
-    "resolve_robot_table",
-    "scenario_from_document",
-    "xacro_argument_text",
-]
+__all__ = ["MAX_FILE_BYTES", "load_scenario", "read_scenario_document", "scenario_from_document"]
 
 MAX_FILE_BYTES = 1 << 20
 """Largest scenario file read [bytes]: a scenario is a page of text, never megabytes."""
@@ -140,7 +120,7 @@ def _parse_toml(text: str, where: str) -> dict[str, Any]:
 
 def load_scenario(
     path: str | Path, overrides: Mapping[str, object] | None = None
-) -> Any:  # -> hybrid_force.sim.loop.Scenario
+) -> Any:  # -> hybrid_force.sim.settings.Scenario
     """Read, override, validate a scenario file and return a ``Scenario`` ready to simulate.
 
     Args:
@@ -149,7 +129,7 @@ def load_scenario(
             the file's data before validation; they replace or add keys.
 
     Returns:
-        :class:`hybrid_force.sim.loop.Scenario` with ``source`` = the file's data with the
+        :class:`hybrid_force.sim.settings.Scenario` with ``source`` = the file's data with the
         overrides applied (JSON-able).
 
     Raises:
@@ -181,7 +161,7 @@ def read_scenario_document(
 
 def scenario_from_document(
     doc: Mapping[str, Any], *, origin: str = "<scenario>", base_dir: str | Path = "."
-) -> Any:  # -> hybrid_force.sim.loop.Scenario
+) -> Any:  # -> hybrid_force.sim.settings.Scenario
     """Validate scenario data (as :func:`read_scenario_document` returns) into a Scenario.
 
     Args:
@@ -203,9 +183,6 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 
 
 def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-    from hybrid_force.sim.loop import Scenario, SimSettings
-    from hybrid_force.sim.sensors import SensorSettings
-    from hybrid_force.sim.settings import check_path_on_surfaces
 
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:

@@ -15,7 +15,7 @@ import pinocchio as pin
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.errors import RobotError, SingularConfigurationError
+from hybrid_force.errors import RobotError, SurfaceError
 from hybrid_force.events import Event
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms
@@ -96,7 +96,7 @@ class Arm:
         off the surface (e.g. the tip on a cylinder's axis).
 
         Raises:
-            SingularConfigurationError: the rows are undefined while in contact.
+            SurfaceError: the rows are undefined while in contact.
         """
         terms = self.robot.terms(q, v, self.data, out=self._terms)
         if self._dissipates:  # pin.forwardDynamics reads data.M, which crba just filled
@@ -106,7 +106,7 @@ class Arm:
     def _rows_or_none(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms | None:
         try:
             return self._constraint_terms(terms, v)
-        except SingularConfigurationError:
+        except SurfaceError:
             if self.in_contact:
                 raise
             return None

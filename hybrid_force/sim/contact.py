@@ -49,13 +49,13 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from hybrid_force.errors import ContactSettingsError
+from hybrid_force.errors import ScenarioError, SurfaceError
 from hybrid_force.schema import check_fields, param
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from hybrid_force.geometry.surfaces import Surface
+    from hybrid_force.geometry.surface_base import Surface
     from hybrid_force.model.robot import Robot
 
 __all__ = [
@@ -101,7 +101,7 @@ class ContactSettings:
     )
 
     def __post_init__(self) -> None:
-        check_fields(self, ContactSettingsError, "contact.")
+        check_fields(self, ScenarioError, "contact.")
 
     @property
     def compliant(self) -> bool:
@@ -276,7 +276,6 @@ def largest_stable_dt(
             joint path's samples.
         f0: the operating normal force [N] (the task's largest f_d).
     """
-    from hybrid_force.errors import SingularConfigurationError
 
     if not settings.compliant and settings.friction == 0.0:
         return math.inf
@@ -289,7 +288,7 @@ def largest_stable_dt(
         for surface in surfaces:
             try:
                 normal = surface.normal(terms.p)
-            except SingularConfigurationError:
+            except SurfaceError:
                 continue
             if settings.compliant:
                 best = min(best, stable_dt_compliant(settings, float(normal @ G @ normal), f0))

@@ -34,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import SimSettingsError
+from hybrid_force.errors import ScenarioError
 from hybrid_force.schema import check_fields, param
 
 _K = LazyKernels("hybrid_force.sim._kernels")
@@ -57,7 +57,7 @@ class Baumgarte:
             off. Defaults give a 20 ms time constant, far slower than dt = 1 ms and far faster
             than the motion.
 
-    Raises SimSettingsError (a BadInputError) for a gain that is not a finite real number
+    Raises ScenarioError (a BadInputError) for a gain that is not a finite real number
     ≥ 0 (a bool, a string, nan, −1), naming it as the scenario file's ``[sim]`` key
     (``baumgarte_alpha``, ``baumgarte_beta``). Gains are stored as floats.
     """
@@ -70,7 +70,7 @@ class Baumgarte:
     )
 
     def __post_init__(self) -> None:
-        check_fields(self, SimSettingsError, "sim.")
+        check_fields(self, ScenarioError, "sim.")
 
     def gamma(self, drift: np.ndarray, rate: np.ndarray, phi: np.ndarray) -> np.ndarray:
         """γ (k,) for pin.forwardDynamics: drift + 2α φ̇ + β² φ."""

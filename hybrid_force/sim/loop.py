@@ -39,7 +39,7 @@ import numpy as np
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.controller import Controller
-from hybrid_force.errors import ControlError, LostContactError, ScenarioValueError
+from hybrid_force.errors import ControlError, RunFailedError, ScenarioError
 from hybrid_force.law_log import NAMES_KEY as LAW_LOG_NAMES
 from hybrid_force.result import Result
 from hybrid_force.sim.control_side import build_control_side
@@ -47,9 +47,9 @@ from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.record import Record
 from hybrid_force.sim.run_checks import SampleChecks, check_contact_step
 from hybrid_force.sim.run_report import failed_run, finish_result, merge_events, run_meta
-from hybrid_force.sim.settings import Scenario, SimSettings, control_steps
+from hybrid_force.sim.settings import Scenario
 
-__all__ = ["Scenario", "SimSettings", "control_steps", "simulate"]
+__all__ = ["simulate"]
 
 
 def simulate(
@@ -72,9 +72,9 @@ def simulate(
     Raises:
         RunFailedError: the run started and stopped early, or ended in a state it must not
             claim as a success; ``err.result`` holds every sample computed, its meta has
-            ``status = "failed"`` and ``reason``. Subclasses: DivergenceError (non-finite
-            state, runaway, singular constraint), LostContactError (started in contact with
-            ``control.supervisor = false`` and ended off the surface), RunInterruptedError
+            ``status = "failed"`` and ``reason``. Subclasses: RunFailedError (non-finite
+            state, runaway, singular constraint), RunFailedError (started in contact with
+            ``control.supervisor = false`` and ended off the surface), RunFailedError
             (KeyboardInterrupt, i.e. Ctrl-C, or SIGTERM turned into one by the CLI); reason
             "path" when the desired path became singular or unreachable, "error" for any other
             exception (its type and message are in ``meta["error"]``).
@@ -86,7 +86,7 @@ def simulate(
             tool left the surface and was not back at the end (also in ``meta["warnings"]``).
     """
     if not isinstance(scenario, Scenario):  # not an AttributeError from deep inside
-        raise ScenarioValueError(
+        raise ScenarioError(
             f"simulate() takes a hybrid_force Scenario (load_scenario(...) or Scenario(...)), "
             f"got {scenario!r:.80}"
         )
@@ -172,5 +172,5 @@ def simulate(
             f"(control.supervisor = false), left it at t = {left:.6g} s and ended off it"
         )
         failed = result.with_meta(status="failed", reason="lost contact", error=message)
-        raise LostContactError(message, result=failed)
+        raise RunFailedError(message, result=failed, reason="lost contact")
     return result

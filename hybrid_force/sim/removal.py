@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import ContactSettingsError
+from hybrid_force.errors import ScenarioError
 
 __all__ = [
     "FlatPad",
@@ -50,7 +50,7 @@ class HertzPad:
     def __post_init__(self) -> None:
         for key, value in (("tool.pad.radius", self.radius), ("tool.pad.modulus", self.modulus)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ContactSettingsError(
+                raise ScenarioError(
                     f"{key} must be a finite number > 0, got {value!r}", key=key, value=value
                 )
 
@@ -59,7 +59,7 @@ class HertzPad:
         κ₁, κ₂ [1/m] (> 0 convex; a concave part with 1/R + κ ≤ 0 conforms: refused)."""
         inv1, inv2 = 1.0 / self.radius + kappa1, 1.0 / self.radius + kappa2
         if not (inv1 > 0 and inv2 > 0):
-            raise ContactSettingsError(
+            raise ScenarioError(
                 f"tool.pad.radius = {self.radius:g} m: the part is concave with a radius of "
                 f"curvature {1 / -min(kappa1, kappa2):.4g} m <= the pad's: Hertz contact does "
                 "not apply (the pad conforms to the part)",
@@ -83,7 +83,7 @@ class FlatPad:
         if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius)) or not (
             self.radius > 0
         ):
-            raise ContactSettingsError(
+            raise ScenarioError(
                 f"tool.pad.radius must be a finite number > 0, got {self.radius!r}",
                 key="tool.pad.radius",
                 value=self.radius,

@@ -217,7 +217,7 @@ class RigidContact:
         row = self._row
         gn = _K.project_one(desc, arm._tip, grad, phi, J6, q_tmp, q_out, row[0])
         if not gn >= _GRAD_TOL:
-            arm._rows(q_tmp)  # raises the precise SingularConfigurationError
+            arm._rows(q_tmp)  # raises the precise SurfaceError
         v_out[:] = pin.impulseDynamics(model, arm._imp, q_out, v_tmp, row, 0.0, 0.0)
         return q_out, v_out
 

@@ -18,14 +18,16 @@ contact model before it starts, :func:`check_finite` (a non-finite or runaway st
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybrid_force.errors import BadInputError, DivergenceError, JointLimitError
+from hybrid_force._memory import available_memory
+from hybrid_force.errors import OWN_WARNINGS, BadInputError, RunFailedError, ScenarioError
 from hybrid_force.events import LimitCrossed
+from hybrid_force.metrics import FORCE_TOLERANCE
+from hybrid_force.sim.contact import largest_stable_dt, step_text
 
 if TYPE_CHECKING:  # annotations only: the loop's settings import this module's callers
     from hybrid_force.model.robot import Robot
@@ -35,7 +37,6 @@ __all__ = [
     "LOG_COPIES",
     "JointLimits",
     "SampleChecks",
-    "available_memory",
     "check_contact_step",
     "check_finite",
     "check_log_memory",
@@ -52,21 +53,6 @@ __all__ = [
 #: the Result and the Result's own read-only copies.
 LOG_COPIES = 3
 _LIMIT_TOL = 1e-9  # relative slack on a limit [−], so round-off on the bound is not a violation
-
-
-def available_memory() -> int | None:
-    """Memory [bytes] the system can give without swapping (MemAvailable), None if unknown."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
 
 
 def check_log_memory(n_samples: int, width: int, duration: float, dt: float) -> int:
@@ -274,7 +260,7 @@ class JointLimits:
         self.any |= bool(np.isfinite(velocity).any())
 
     def check(self, t: float, q: np.ndarray, v: np.ndarray) -> None:
-        """Raise JointLimitError naming the first joint beyond a limit at time t [s]."""
+        """Raise RunFailedError naming the first joint beyond a limit at time t [s]."""
         if (
             np.all(q >= self.lower)
             and np.all(q <= self.upper)
@@ -283,14 +269,16 @@ class JointLimits:
             return
         for j, name in enumerate(self.names):
             if not self.lower[j] <= q[j] <= self.upper[j]:
-                raise JointLimitError(
+                raise RunFailedError(
                     f"joint {name} left its range [{self.lower[j]:.6g}, {self.upper[j]:.6g}] at "
-                    f't = {t:.6g} s (q = {q[j]:.6g}; sim.joint_limits = "stop")'
+                    f't = {t:.6g} s (q = {q[j]:.6g}; sim.joint_limits = "stop")',
+                    reason="joint limit",
                 )
             if j < v.shape[0] and not abs(v[j]) <= self.velocity[j]:
-                raise JointLimitError(
+                raise RunFailedError(
                     f"joint {name} exceeded its velocity limit {self.velocity[j]:.6g} at "
-                    f't = {t:.6g} s (v = {v[j]:.6g}; sim.joint_limits = "stop")'
+                    f't = {t:.6g} s (v = {v[j]:.6g}; sim.joint_limits = "stop")',
+                    reason="joint limit",
                 )
 
 
@@ -312,12 +300,12 @@ class SampleChecks:
 
     def check(self, t: float, ok: bool, q: np.ndarray, v: np.ndarray, f: np.ndarray) -> None:
         """After the sample at t [s] (``ok``: what the record found, q, v, f its state): time
-        the warnings raised since the last one; raise DivergenceError (:func:`check_finite`)
-        when not ok, JointLimitError (:class:`JointLimits`) beyond a limit it stops at."""
+        the warnings raised since the last one; raise RunFailedError (:func:`check_finite`)
+        when not ok, RunFailedError (:class:`JointLimits`) beyond a limit it stops at."""
         if len(self.caught) > len(self.caught_at):  # a Python warning at this step: its time
             self.caught_at.extend([t] * (len(self.caught) - len(self.caught_at)))
         if not ok:
-            check_finite(t, q, v, f, self.sim)  # raises DivergenceError with the details
+            check_finite(t, q, v, f, self.sim)  # raises RunFailedError with the details
         if self.stop_at is not None:
             self.stop_at.check(t, q, v)
 
@@ -339,36 +327,37 @@ def joint_names(robot: Robot) -> list[str]:
 
 
 def check_finite(t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray, sim: SimSettings) -> None:
-    """Raise DivergenceError, with the state, if q (nq,), v (nv,) or f (k,) at time t [s] is
+    """Raise RunFailedError, with the state, if q (nq,), v (nv,) or f (k,) at time t [s] is
     not finite or |q̇| or |f| exceeds ``sim.max_velocity`` or ``sim.max_force``."""
     vmax = float(np.abs(v).max())
     fmax = float(np.abs(f).max()) if f.size else 0.0
     if vmax <= sim.max_velocity and fmax <= sim.max_force and np.isfinite(q @ q):
         return
     if not (np.isfinite(vmax) and np.isfinite(fmax) and np.all(np.isfinite(q))):
-        raise DivergenceError(
-            f"non-finite state at t = {t:.6g} s: q = {q.tolist()}, v = {v.tolist()}"
+        raise RunFailedError(
+            f"non-finite state at t = {t:.6g} s: q = {q.tolist()}, v = {v.tolist()}",
+            reason="diverged",
         )
     if vmax > sim.max_velocity:
-        raise DivergenceError(
+        raise RunFailedError(
             f"runaway at t = {t:.6g} s: |q̇| = {vmax:.3g} > {sim.max_velocity:.3g} "
-            f"(q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()})"
+            f"(q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()})",
+            reason="diverged",
         )
-    raise DivergenceError(
+    raise RunFailedError(
         f"runaway at t = {t:.6g} s: |f| = {fmax:.3g} N > {sim.max_force:.3g} N "
-        f"(q = {np.round(q, 6).tolist()})"
+        f"(q = {np.round(q, 6).tolist()})",
+        reason="diverged",
     )
 
 
 def check_contact_step(sc: Scenario, q0: np.ndarray, f0: float) -> None:
     """Refuse a time step too long for the contact model (compliant stiffness, friction's
     regularisation) at the start configuration q0 (nq,); f0 [N]: the task's force."""
-    from hybrid_force.errors import ContactSettingsError
-    from hybrid_force.sim.contact import largest_stable_dt, step_text
 
     dt_max = largest_stable_dt(sc.contact, sc.robot, sc.surfaces, [q0], f0)
     if sc.sim.dt > dt_max:
-        raise ContactSettingsError(
+        raise ScenarioError(
             f"sim.dt = {sc.sim.dt:g} s is too long for the contact "
             f"({_contact_text(sc.contact.to_dict())}): the largest stable step at the start "
             f"is {step_text(dt_max)} s (docs/contact.md, time step)",
@@ -396,8 +385,6 @@ settled (:func:`run_behaviour`)."""
 
 def force_tolerance(f_d: float) -> float:
     """The force error [N] a settled run stays within: 1 N or 10 % of f_d, the larger."""
-    from hybrid_force.metrics import FORCE_TOLERANCE
-
     return max(FORCE_TOLERANCE, 0.1 * f_d)
 
 
@@ -483,12 +470,11 @@ def warning_notes(caught: Sequence[Any], times: Sequence[float]) -> list[str]:
         caught: ``warnings.WarningMessage`` records, in order. times: the simulated time [s]
             at which each was raised (as long as ``caught``).
     """
-    from hybrid_force.errors import HybridForceWarning
 
     seen: dict[str, list[float]] = {}
     for w, when in zip(caught, times, strict=False):
         text = " ".join(str(w.message).split())
-        if not issubclass(w.category, HybridForceWarning):
+        if not issubclass(w.category, OWN_WARNINGS):
             text = f"{w.category.__name__}: {text}"
         seen.setdefault(text, []).append(float(when))
     out = []

@@ -20,19 +20,19 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._version import installed_version
+from hybrid_force.control.laws.base import law_spec
 from hybrid_force.control.supervisor import HybridController
 from hybrid_force.errors import (
-    DivergenceError,
     HybridForceError,
-    JointLimitError,
+    PathError,
     ReachError,
     RunFailedError,
-    RunInterruptedError,
     RunWarning,
-    SingularConfigurationError,
+    SurfaceError,
 )
 from hybrid_force.events import Event, RunStopped
-from hybrid_force.geometry.paths import Path, PathParameterError
+from hybrid_force.geometry.paths import Path
 from hybrid_force.model.robot import Robot
 from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
@@ -55,10 +55,9 @@ __all__ = ["failed_run", "finish_result", "merge_events", "run_failure", "run_me
 
 
 def _versions() -> dict:
-    from hybrid_force import __version__
 
     return {
-        "hybrid_force": __version__,
+        "hybrid_force": installed_version(),
         "pinocchio": pin.__version__,
         "numpy": np.__version__,
         "python": platform.python_version(),
@@ -140,7 +139,6 @@ def _gains_meta(sc: Scenario, law: HybridController) -> dict:
     """The controller's gains and supervisor settings that this run reads: the paper's K_d,
     Λ, β, γ only for a law that reads them (``LawSpec.gains``), the approach settings only
     with the supervisor; ``control.P``, which no configuration reads, never (issue 27)."""
-    from hybrid_force.control.laws.base import law_spec
 
     c, g = sc.control, law.gains
     spec = law_spec(c.law)
@@ -159,7 +157,7 @@ def _path_meta(path: Path) -> dict:
     (Python callables cannot be stored; the run itself is not affected)."""
     try:
         return path.to_dict()
-    except PathParameterError:
+    except PathError:
         return {"type": "function", "repr": repr(path)}
 
 
@@ -175,17 +173,19 @@ def run_failure(exc: BaseException, name: str, t: float) -> RunFailedError:
     where = f"run '{name}' stopped at t = {t:.6g} s"
     if isinstance(exc, KeyboardInterrupt):
         signal_name = getattr(exc, "signal", "SIGINT")
-        return RunInterruptedError(f"{where}: interrupted ({signal_name})", signal=signal_name)
-    if isinstance(exc, JointLimitError):
-        return JointLimitError(f"{where}: {exc}")
-    if isinstance(exc, DivergenceError):
-        return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
+        return RunFailedError(
+            f"{where}: interrupted ({signal_name})", signal=signal_name, reason="interrupted"
+        )
+    if isinstance(exc, RunFailedError) and exc.reason == "joint limit":
+        return RunFailedError(f"{where}: {exc}", reason="joint limit")
+    if isinstance(exc, RunFailedError) and exc.reason == "diverged":
+        return RunFailedError(f"run '{name}' failed at t = {t:.6g} s: {exc}", reason="diverged")
     if isinstance(exc, ReachError):
         failure = RunFailedError(f"{where}: the desired path cannot be followed: {exc}")
         failure.reason = "path"
         return failure
-    if isinstance(exc, SingularConfigurationError | np.linalg.LinAlgError):
-        return DivergenceError(f"run '{name}' failed at t = {t:.6g} s: {exc}")
+    if isinstance(exc, SurfaceError | np.linalg.LinAlgError):
+        return RunFailedError(f"run '{name}' failed at t = {t:.6g} s: {exc}", reason="diverged")
     return RunFailedError(f"{where} by an unexpected error: {type(exc).__name__}: {exc}")
 
 

@@ -53,7 +53,7 @@ import itertools
 
 import numpy as np
 
-from hybrid_force.errors import SimulationError
+from hybrid_force.errors import RunFailedError
 
 __all__ = ["held_set", "saturation_solutions"]
 
@@ -174,7 +174,7 @@ def _enumerate(
     fixed = _pattern(u0, effort) * ~can  # a command that does not depend on f
     idx = np.flatnonzero(can)
     if idx.size > _MAX_ENUMERATED:
-        raise SimulationError(
+        raise RunFailedError(
             f"torque saturation on {B.shape[1]} stacked surfaces tries every held set of the "
             f"joints that can reach a limit: 3^{idx.size} sets for {idx.size} joints is too "
             f"many (at most {_MAX_ENUMERATED} joints); switch sim.torque_limits off or use "

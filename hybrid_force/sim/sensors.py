@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import SensorError
+from hybrid_force.errors import ScenarioError
 from hybrid_force.schema import check_fields, param
 
 __all__ = ["MAX_FORCE_DELAY", "SensorSettings", "Sensors"]
@@ -68,7 +68,7 @@ class SensorSettings:
     )
 
     def __post_init__(self) -> None:
-        check_fields(self, SensorError, "sensor.")
+        check_fields(self, ScenarioError, "sensor.")
 
     @property
     def ideal(self) -> bool:

@@ -4,21 +4,26 @@ controller and sensor settings), each checked when it is built."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
 from hybrid_force import _checks as checks
+from hybrid_force.control.constraint import Constraint, dependent_rows
 from hybrid_force.control.controller import check_same_joints
+from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
-from hybrid_force.errors import SensorError
+from hybrid_force.errors import BadInputError, ScenarioError
+from hybrid_force.errors import ScenarioError as Bad
+from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_on_surface
 from hybrid_force.geometry.paths import Path
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.metrics import DEFAULT_SETTLE_TIME
 from hybrid_force.model.robot import Robot
-from hybrid_force.result import DEFAULT_SETTLE_TIME
 from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
@@ -72,24 +77,24 @@ class SimSettings:
     def __post_init__(self) -> None:
         """Check every field; numbers are stored as floats, flags as bools.
 
-        Raises SimSettingsError (a BadInputError) naming the field as the scenario file's
+        Raises ScenarioError (a BadInputError) naming the field as the scenario file's
         ``[sim]`` key spells it (``sim.dt``) with the value and what is valid.
         """
-        from hybrid_force.errors import SimSettingsError
 
-        check_fields(self, SimSettingsError, "sim.")
+        check_fields(self, ScenarioError, "sim.")
         if self.dt > self.duration:
-            raise SimSettingsError(
+            raise ScenarioError(
                 f"sim.dt = {self.dt} s is larger than sim.duration = {self.duration} s"
             )
         if self.duration / self.dt > 5e7:
-            raise SimSettingsError(
+            raise ScenarioError(
                 f"sim.duration / sim.dt = {self.duration / self.dt:.3g} steps is absurd (max 5e7)"
             )
         if not isinstance(self.baumgarte, Baumgarte):
-            raise SimSettingsError(
-                "sim.baumgarte (SimSettings.baumgarte) must be a hybrid_force.Baumgarte, "
-                f"e.g. Baumgarte(alpha=50.0, beta=50.0), got {checks.shown(self.baumgarte)}"
+            raise ScenarioError(
+                "sim.baumgarte (SimSettings.baumgarte) must be a "
+                "hybrid_force.sim.dynamics.Baumgarte, e.g. "
+                f" Baumgarte(alpha=50.0, beta=50.0), got {checks.shown(self.baumgarte)}"
             )
 
 
@@ -122,8 +127,8 @@ class Scenario:
             scenario file's rule, ``NAME_PATTERN``, matched in full). description: free text.
         source: the scenario as loaded from a file (JSON-able dict), stored in the result.
 
-    Checked on construction, like a scenario file by its loader (ScenarioValueError, or the
-    GainError of a K_d or f_d that does not fit the arm or the surfaces, naming the field):
+    Checked on construction, like a scenario file by its loader (ScenarioError, or the
+    ControlError of a K_d or f_d that does not fit the arm or the surfaces, naming the field):
 
     * the types and shapes above, finite q0 and v0, every |v0_i| below ``sim.max_velocity``
       (the run would stop as a runaway at once); K_d's size against the arm's joints and
@@ -158,12 +163,6 @@ class Scenario:
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
-        import re
-        from collections.abc import Mapping
-
-        from hybrid_force import _checks as checks
-        from hybrid_force.control.laws.arimoto import check_damping_gain
-        from hybrid_force.errors import ScenarioValueError as Bad
 
         set_ = object.__setattr__
         robot = self.robot
@@ -178,7 +177,7 @@ class Scenario:
         if not isinstance(surfaces, Sequence) or isinstance(surfaces, str | bytes) or not surfaces:
             raise Bad(
                 "Scenario.surfaces must be a non-empty sequence (list, tuple) of "
-                f"hybrid_force.geometry.surfaces.Surface, got {checks.shown(surfaces)}"
+                f"hybrid_force.geometry.surface_base.Surface, got {checks.shown(surfaces)}"
             )
         for i, surface in enumerate(surfaces):
             if not isinstance(surface, Surface):
@@ -259,12 +258,10 @@ class Scenario:
         """The contact settings against the simulation's: a compliant or frictional contact
         needs the explicit Euler step (its forces are evaluated once per step) and forces in
         newtons (``sim.normalization = "tip"``)."""
-        from hybrid_force import _checks as checks
-        from hybrid_force.errors import ScenarioValueError
 
         contact = self.contact
         if not isinstance(contact, ContactSettings):
-            raise ScenarioValueError(
+            raise ScenarioError(
                 "Scenario.contact must be a hybrid_force.sim.contact.ContactSettings, "
                 f"got {checks.shown(contact)}"
             )
@@ -272,21 +269,20 @@ class Scenario:
 
     @staticmethod
     def _check_contact_settings(contact: ContactSettings, sim: SimSettings) -> None:
-        """Raise ContactSettingsError (key: the ``[sim]`` key) where they do not fit."""
-        from hybrid_force.errors import ContactSettingsError
+        """Raise ScenarioError (key: the ``[sim]`` key) where they do not fit."""
 
         if contact.ideal:
             return
         what = f'contact.model = "{contact.model}", contact.friction = {contact.friction:g}'
         if sim.integrator != "euler":
-            raise ContactSettingsError(
+            raise ScenarioError(
                 f'{what} needs sim.integrator = "euler" (the contact forces are evaluated once '
                 f'per step), got "{sim.integrator}"',
                 key="sim.integrator",
                 value=sim.integrator,
             )
         if sim.normalization != "tip":
-            raise ContactSettingsError(
+            raise ScenarioError(
                 f'{what} needs sim.normalization = "tip" (forces in newtons), '
                 f'got "{sim.normalization}"',
                 key="sim.normalization",
@@ -296,11 +292,10 @@ class Scenario:
     def _check_start_and_path(self) -> None:
         """The contact conditions of the start and, for a run that starts in contact, the
         path on every surface (class docstring): the one check of a run, a file's or one
-        built by hand. Each refusal is a ScenarioValueError whose ``key`` names the field
+        built by hand. Each refusal is a ScenarioError whose ``key`` names the field
         ("Scenario.path", "Scenario.q0", "Scenario.surfaces") and whose ``value`` holds what
         the loader names: (surface index, OnSurfaceReport or None) (:func:`check_path_on_surfaces`),
         (surface index, distance [m]), the row indices."""
-        from hybrid_force.errors import ScenarioValueError as Bad
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
         if k > 1 and control.supervisor:
@@ -335,8 +330,6 @@ class Scenario:
                 value=(i, distances[i]),
             )
         if k > 1:  # dependent rows: A M⁻¹ Aᵀ singular, the first step would fail in numpy
-            from hybrid_force.control.constraint import Constraint, dependent_rows
-
             rows, _ = Constraint(list(surfaces)).normal_rows(p, self.robot.jacobian(self.q0))
             found = dependent_rows(rows)
             if found is not None:
@@ -354,11 +347,8 @@ class Scenario:
 
 def check_path_on_surfaces(path: Path, surfaces: Sequence[Surface], duration: float) -> None:
     """The desired path within ``ON_SURFACE_TOL`` of every surface for 0 ≤ t ≤ duration [s]:
-    ScenarioValueError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
+    ScenarioError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
     None when the path cannot be checked against it)) otherwise."""
-    from hybrid_force.errors import BadInputError
-    from hybrid_force.errors import ScenarioValueError as Bad
-    from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
 
     for i, surface in enumerate(surfaces):
         try:
@@ -386,7 +376,7 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
     """Plant steps per control tick: 1/(rate·dt), which must be a whole number ≥ 1.
 
     Raises:
-        SensorError: naming control.rate and sim.dt, with the nearest rates that fit.
+        ScenarioError: naming control.rate and sim.dt, with the nearest rates that fit.
     """
     if control.rate is None:
         return 1
@@ -394,14 +384,14 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
     if steps is None:
         ratio = _ratio(control.rate, sim.dt)
         if ratio > 1e15:  # a rate so low that no nearby whole number is a different float
-            raise SensorError(
+            raise ScenarioError(
                 f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
                 f"sim.dt = {sim.dt:g} s: 1 / (rate · dt) = {ratio:.6g} is far beyond any run"
             )
         fits = sorted({1.0 / (n * sim.dt) for n in (max(int(ratio), 1), int(ratio) + 1)})
         # printed so that the text copied into control.rate is accepted (1000/3 Hz: 333.3333...)
         shown = [checks.suggested(r, lambda x: _whole_steps(x, sim.dt) is not None) for r in fits]
-        raise SensorError(
+        raise ScenarioError(
             f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
             f"sim.dt = {sim.dt:g} s (1 / (rate · dt) = {ratio:.6g}); the controller ticks every "
             f"n plant steps: rates that fit nearby: {', '.join(f'{r} Hz' for r in shown)}"

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force._signals import Terminated, sigterm_raises
-from hybrid_force.errors import SimulationError
+from hybrid_force.errors import RunFailedError
 from hybrid_force.studies.tasks import _one_line
 
 __all__ = ["add_engine_arguments", "run_stoppable"]
@@ -74,7 +74,7 @@ def run_stoppable(
     Returns:
         What ``run`` returns, or the exit status of a command it stopped (with one line on
         stderr): 143 SIGTERM, 130 Ctrl-C (the finished rows are in ``table``), 1 runs were
-        lost (a SimulationError); and the number of new rows. Bad input propagates.
+        lost (a RunFailedError); and the number of new rows. Bad input propagates.
     """
     n_new = 0
 
@@ -98,6 +98,6 @@ def run_stoppable(
     except KeyboardInterrupt:
         stopped("interrupted")
         return 130, n_new
-    except SimulationError as exc:
+    except RunFailedError as exc:
         print(f"error: {_one_line(str(exc))}", file=sys.stderr)
         return 1, n_new

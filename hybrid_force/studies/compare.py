@@ -32,7 +32,13 @@ from typing import Any
 
 from hybrid_force._extras import available as extra_available
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import SweepError, did_you_mean
+from hybrid_force.control.laws.base import law_names, law_spec
+from hybrid_force.errors import BadInputError, did_you_mean
+from hybrid_force.metrics import compute_tracking_metrics, force_error, path_error
+from hybrid_force.result import Result
+from hybrid_force.run_output import locked_folder
+from hybrid_force.scenario._tables import parse_override
+from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 from hybrid_force.studies.engines import StartMethod
 from hybrid_force.studies.progress import Progress, format_duration
@@ -91,30 +97,29 @@ def check_laws(laws: Sequence[str] | None) -> tuple[str, ...]:
     """The laws to compare: ``laws`` checked against the registry, or every registered law.
 
     Raises:
-        SweepError: (key ``--laws``) no law, or a law that is unknown or given twice, naming
+        BadInputError: (key ``--laws``) no law, or a law that is unknown or given twice, naming
             it and the valid names.
     """
-    from hybrid_force.control.laws.base import law_names
 
     valid = law_names()
     if laws is None:
         return valid
     names = tuple(laws)
     if not names:
-        raise SweepError(
+        raise BadInputError(
             f"--laws lists no law; valid: {', '.join(valid)}", key="--laws", value=names
         )
     seen: set[str] = set()
     for name in names:
         if name not in valid:
-            raise SweepError(
+            raise BadInputError(
                 f"--laws: {name!r} is not a known law{did_you_mean(name, valid)}; valid: "
                 f"{', '.join(valid)}",
                 key="--laws",
                 value=name,
             )
         if name in seen:
-            raise SweepError(
+            raise BadInputError(
                 f"--laws lists {name!r} twice; valid: {', '.join(valid)}",
                 key="--laws",
                 value=name,
@@ -132,10 +137,9 @@ def _variants(laws: Sequence[str], overrides: Mapping[str, Any]) -> list[dict[st
     default): the loader refuses a key without effect (issue 27), and ``--set`` is for
     every law.
     """
-    from hybrid_force.control.laws.base import law_names, law_spec
 
     if "control.law" in overrides:
-        raise SweepError(
+        raise BadInputError(
             "--set control.law is not allowed: the laws are chosen with --laws",
             key="control.law",
             value=overrides["control.law"],
@@ -177,7 +181,6 @@ def compare_row(
         A dict with the keys of :data:`COMPARE_COLUMNS` but ``result``; metric values are
         None unless the status is "ok".
     """
-    from hybrid_force.metrics import compute_tracking_metrics
 
     row: dict[str, Any] = {"law": law, "status": run["status"], "error": run["error"] or None}
     row.update(dict.fromkeys(METRIC_UNITS))
@@ -226,15 +229,11 @@ def run_compare(
 
     Raises:
         MissingExtraError: ``figures`` without matplotlib (checked before any run).
-        SweepError: a bad law list, ``control.law`` among the overrides, or anything
+        BadInputError: a bad law list, ``control.law`` among the overrides, or anything
             :func:`~hybrid_force.studies.sweep.run_sweep` refuses; ScenarioError: the scenario
             file (checked as every run sees it, before any run).
-        SimulationError: runs were lost (a worker died); rerunning resumes.
+        RunFailedError: runs were lost (a worker died); rerunning resumes.
     """
-    from hybrid_force.metrics import force_error, path_error
-    from hybrid_force.result import Result
-    from hybrid_force.run_output import locked_folder
-    from hybrid_force.scenario.loader import load_scenario
     from hybrid_force.viz.compare_plots import LawCurve, plot_comparison
 
     if figures:
@@ -346,17 +345,16 @@ With 1, 130 and 143, running the same command again resumes.
 
 def compare_command(args: argparse.Namespace) -> int:
     """``hybrid-force compare``; returns the exit status (see ``_EXIT_STATUS_HELP``)."""
-    from hybrid_force.scenario.loader import parse_override
 
     scenario = Path(args.scenario)
     if not scenario.is_file():
-        raise SweepError(
+        raise BadInputError(
             f"scenario file '{scenario}' does not exist", key="FILE", value=str(scenario)
         )
     laws = check_laws(None if args.laws is None else [s.strip() for s in args.laws.split(",")])
     overrides = dict(parse_override(text) for text in args.set)
     if args.workers is not None and args.workers < 1:
-        raise SweepError(
+        raise BadInputError(
             f"--workers must be a positive integer, got {args.workers}",
             key="--workers",
             value=args.workers,

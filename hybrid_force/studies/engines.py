@@ -7,10 +7,12 @@ compiled kernels once (before their first task), and die with the sweep.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import ctypes
 import gc
 import itertools
+import logging
 import multiprocessing
 import os
 import signal
@@ -24,7 +26,7 @@ from concurrent.futures import wait as _futures_wait
 from typing import Any, Literal
 
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import SweepError
+from hybrid_force.errors import BadInputError
 from hybrid_force.studies.tasks import _execute, _one_line, _Outcome, _Task, warm_up
 
 __all__ = ["THREAD_VARIABLES", "single_threaded_workers"]
@@ -282,7 +284,7 @@ class PoolEngine:
         self, workers: int | None, n_jobs: int, start_method: StartMethod = "auto"
     ) -> None:
         if start_method not in ("auto", "fork", "spawn"):
-            raise SweepError(f"start_method must be auto, fork or spawn, got {start_method!r}")
+            raise BadInputError(f"start_method must be auto, fork or spawn, got {start_method!r}")
         self.n = max(1, min(int(workers or os.cpu_count() or 1), n_jobs))
         if start_method == "auto":
             start_method = "fork" if _fork_is_safe() else "spawn"
@@ -408,7 +410,7 @@ class DaskEngine:
             try:
                 self.client = stack.enter_context(Client(self.scheduler, timeout=30))
             except (OSError, TimeoutError, ValueError) as exc:
-                raise SweepError(
+                raise BadInputError(
                     f"cannot connect to the Dask scheduler at {self.scheduler!r}: {exc} "
                     "(give tcp://host:port of a running scheduler, or 'local')"
                 ) from exc
@@ -460,8 +462,6 @@ def _stop_local_workers(cluster: Any) -> None:
     (Closing the cluster would ask each worker to finish its task for 4 s first.) Dask's
     warnings about the cancelled and killed tasks are silenced: they are expected here.
     """
-    import asyncio
-    import logging
 
     async def close_all() -> None:
         nannies = list(cluster.workers.values())

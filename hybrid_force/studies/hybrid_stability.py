@@ -47,7 +47,8 @@ from hybrid_force.control.laws.raibert_craig import (
 from hybrid_force.control.supervisor import ControlSettings, HybridController
 from hybrid_force.geometry.builtin_surfaces import Plane
 from hybrid_force.geometry.paths import FunctionPath
-from hybrid_force.model.robot import Robot, load_robot
+from hybrid_force.model.loading import load_robot
+from hybrid_force.model.robot import Robot
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.settings import Scenario, SimSettings
 

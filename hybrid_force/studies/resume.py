@@ -3,7 +3,7 @@
 A sweep's ``sweep.json`` records the sha256 of its scenario file, of every file its tasks read
 (model files, xacro includes: ``inputs``) and the hybrid_force version. A resumed sweep reuses
 the rows of its folder only when all of them are unchanged, compared by content; otherwise it
-refuses (SweepError, exit status 2) naming what changed, so that one table never mixes rows of
+refuses (BadInputError, exit status 2) naming what changed, so that one table never mixes rows of
 two scenarios, two arms or two versions of the toolkit.
 """
 
@@ -13,7 +13,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hybrid_force.errors import SweepError
+import hybrid_force
+from hybrid_force.errors import BadInputError
 from hybrid_force.studies.table import _CSV_NAME, _JSON_NAME
 from hybrid_force.studies.tasks import _sha256_or_none
 
@@ -25,13 +26,12 @@ __all__: list[str] = []
 
 def _version() -> str:
     """The installed hybrid_force's version: rows of another version are not reused."""
-    import hybrid_force
 
     return str(hybrid_force.__version__)
 
 
 def _check_same_scenario(out: Path, scenario: Path, sha: str) -> None:
-    """SweepError if ``out`` holds a sweep of another version of the scenario file."""
+    """BadInputError if ``out`` holds a sweep of another version of the scenario file."""
     info_path = out / _JSON_NAME
     if info_path.exists() and (out / _CSV_NAME).exists():
         try:
@@ -39,7 +39,7 @@ def _check_same_scenario(out: Path, scenario: Path, sha: str) -> None:
         except (OSError, json.JSONDecodeError):
             old = {}
         if old.get("scenario_sha256") not in (None, sha):
-            raise SweepError(
+            raise BadInputError(
                 f"'{out}' holds a sweep of a different version of the scenario "
                 f"(sha256 {old.get('scenario_sha256')}, now {sha} for '{scenario}'); "
                 "use another --out or delete that directory"
@@ -53,7 +53,7 @@ def _check_same_inputs(out: Path, source: _Source) -> dict[str, dict[str, str | 
     else with the file as it is now; so is the hybrid_force version.
 
     Raises:
-        SweepError: the rows in ``out`` were made by another hybrid_force version, or from a
+        BadInputError: the rows in ``out`` were made by another hybrid_force version, or from a
             file that has another content now (or was added or removed), naming the file,
             the scenario key that reads it and both sha256.
     """
@@ -67,7 +67,7 @@ def _check_same_inputs(out: Path, source: _Source) -> dict[str, dict[str, str | 
     old = old if isinstance(old, dict) else {}
     made_by = old.get("hybrid_force_version")
     if made_by != _version():
-        raise SweepError(
+        raise BadInputError(
             f"'{out}' holds rows made by hybrid_force {made_by or '(an earlier version)'} "
             f"(hybrid_force_version in '{info_path}'), now {_version()}: they are not reused; "
             "use another --out or delete that directory",
@@ -88,7 +88,7 @@ def _check_same_inputs(out: Path, source: _Source) -> dict[str, dict[str, str | 
                 else "is missing now" if now is None
                 else f"has another content now (sha256 {was}, now {now})"
             )  # fmt: skip
-            raise SweepError(
+            raise BadInputError(
                 f"'{out}' holds rows made from another version of '{name}' ({key} of the "
                 f"scenario): the file {what}; they are not reused, so as not to mix two "
                 "versions in one table: use another --out or delete that directory",

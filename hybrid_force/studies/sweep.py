@@ -30,7 +30,7 @@ Resuming: run again with the same arguments and ``--out DIR``. Rows already in
 ``DIR/sweep.csv`` (matched by run id) are kept and not run again; ``DIR/sweep.json`` records
 the arguments, the hybrid_force version and the sha256 of the scenario file and of every file
 its rows read (model files of ``robot.model`` and ``control.model``, xacro includes). A sweep
-refuses to resume (SweepError, exit status 2, naming the file) in a DIR whose rows were made
+refuses to resume (BadInputError, exit status 2, naming the file) in a DIR whose rows were made
 from another content of any of them or by another version
 (:mod:`~hybrid_force.studies.resume`): a table never mixes two worlds.
 
@@ -64,18 +64,17 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import SimulationError, SweepError
+from hybrid_force.errors import BadInputError, RunFailedError
 from hybrid_force.run_output import locked_folder
+from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 
 # The parts of a sweep live in their own modules; their public names (and the private ones
 # earlier versions of this module held) stay importable from here.
 from hybrid_force.studies.engines import (
-    THREAD_VARIABLES,
     DaskEngine,
     PoolEngine,
     StartMethod,
-    single_threaded_workers,
 )
 from hybrid_force.studies.engines import (
     _watch_parent as _watch_parent,
@@ -86,9 +85,7 @@ from hybrid_force.studies.resume import _check_same_scenario as _check_same_scen
 from hybrid_force.studies.table import (
     _CSV_NAME,
     _JSON_NAME,
-    METRIC_COLUMNS,
     STATUSES,
-    TIMING_COLUMNS,
     _file_sha256,
     _Table,
     _write_atomic,
@@ -96,35 +93,16 @@ from hybrid_force.studies.table import (
 )
 from hybrid_force.studies.tasks import _execute as _execute
 from hybrid_force.studies.tasks import _one_line as _one_line
-from hybrid_force.studies.tasks import _save_blob, _Source, _Task, run_one
+from hybrid_force.studies.tasks import _save_blob, _Source, _Task
 from hybrid_force.studies.variants import (
     MAX_RUNS,
     expand,
     parse_grid,
     parse_random,
     run_id,
-    split_values,
 )
 
-__all__ = [
-    "MAX_RUNS",
-    "METRIC_COLUMNS",
-    "STATUSES",
-    "THREAD_VARIABLES",
-    "TIMING_COLUMNS",
-    "SweepError",
-    "add_engine_arguments",
-    "add_sweep_arguments",
-    "expand",
-    "read_sweep_csv",
-    "run_id",
-    "run_one",
-    "run_stoppable",
-    "run_sweep",
-    "single_threaded_workers",
-    "split_values",
-    "sweep_command",
-]
+__all__ = ["add_sweep_arguments", "run_sweep", "sweep_command"]
 
 
 def run_sweep(
@@ -187,11 +165,11 @@ def run_sweep(
 
     Raises:
         MissingExtraError: a ``scheduler`` without dask installed (the ``dask`` extra).
-        SweepError: duplicate variants, more than :data:`MAX_RUNS` of them, a bad out_dir, a
+        BadInputError: duplicate variants, more than :data:`MAX_RUNS` of them, a bad out_dir, a
             DIR made from another scenario file, model file or hybrid_force version, a
             scenario or model file changed during the sweep, a result that cannot be saved.
         ScenarioError: the scenario file cannot be read or is not TOML.
-        SimulationError: runs were lost (a worker process died); the finished rows are saved
+        RunFailedError: runs were lost (a worker process died); the finished rows are saved
             and rerunning the same sweep runs the missing ones.
 
     Any exception (Ctrl-C included) kills the local workers before it propagates, and
@@ -199,9 +177,9 @@ def run_sweep(
     """
     scenario = Path(scenario_path)
     if not scenario.is_file():
-        raise SweepError(f"scenario file '{scenario}' does not exist")
+        raise BadInputError(f"scenario file '{scenario}' does not exist")
     if hasattr(variants, "__len__") and len(variants) > MAX_RUNS:
-        raise SweepError(
+        raise BadInputError(
             f"the sweep has {len(variants)} variants; at most {MAX_RUNS} (MAX_RUNS) are allowed: "
             "split it into several sweeps, each with its own --out"
         )
@@ -209,9 +187,9 @@ def run_sweep(
     ids = [run_id(v) for v in variants]
     if len(set(ids)) != len(ids):
         dup = next(v for v, rid in zip(variants, ids, strict=True) if ids.count(rid) > 1)
-        raise SweepError(f"the variant {dup!r} appears more than once")
+        raise BadInputError(f"the variant {dup!r} appears more than once")
     if workers is not None and (isinstance(workers, bool) or int(workers) < 1):
-        raise SweepError(f"--workers must be a positive integer, got {workers!r}")
+        raise BadInputError(f"--workers must be a positive integer, got {workers!r}")
     if scheduler is not None:  # before anything is written
         require_extra("dask", "the Dask engine (--scheduler)")
     # read here, never by a worker; ScenarioError if unreadable
@@ -221,13 +199,13 @@ def run_sweep(
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise SweepError(f"cannot create output directory '{out}': {exc}") from exc
+        raise BadInputError(f"cannot create output directory '{out}': {exc}") from exc
     keep_dir = (out / "results").resolve() if keep_results else None
     # The workers start first, and load their kernels while this process goes on; before the
     # folder is locked, so that no forked worker holds a copy of the lock. Which variants are
     # left is read here without the lock (it only sizes the pool) and again under it.
     guess = [(rid, v) for rid, v in zip(ids, variants, strict=True)]
-    with contextlib.suppress(SweepError):
+    with contextlib.suppress(BadInputError):
         if (out / _CSV_NAME).exists():
             done = _Table(out / _CSV_NAME, variants)
             guess = [(rid, v) for rid, v in guess if not done.finished(rid)]
@@ -301,7 +279,7 @@ def run_sweep(
                 out.rmdir()
     if lost:
         missing = sum(1 for rid in ids if rid not in table.rows)
-        raise SimulationError(
+        raise RunFailedError(
             f"{len(lost)} run(s) were lost ({lost[0]}); {missing} variant(s) have no row; the "
             f"{len(table.rows)} finished rows are in '{table.path}'; run the same sweep again "
             "to run the missing ones"
@@ -341,7 +319,7 @@ def _run_todo(
             try:
                 _save_blob(keep_dir, str(row["run_id"]), blob)
             except OSError as exc:
-                raise SweepError(f"cannot save a result into '{keep_dir}': {exc}") from exc
+                raise BadInputError(f"cannot save a result into '{keep_dir}': {exc}") from exc
         table.add(row)
         table.write(force=False)
         report.advance(ok=row.get("status") == "ok")
@@ -464,23 +442,22 @@ def sweep_command(args: argparse.Namespace) -> int:
 
     0: every variant has a row and at least one is ok (rows not ok are counted in a warning on
     stderr); 1: no run is ok, or rows with status "error", or lost runs (a worker died);
-    2: bad input (raised as :class:`SweepError` / BadInputError, e.g. more than
+    2: bad input (raised as :class:`BadInputError` / BadInputError, e.g. more than
     :data:`MAX_RUNS` variants); 130: Ctrl-C; 143: SIGTERM. With 1, 130 and 143 the finished
     rows are saved and rerunning the same command completes the sweep.
     """
-    from hybrid_force.scenario.loader import load_scenario
 
     scenario = Path(args.scenario)
     if not scenario.is_file():
-        raise SweepError(f"scenario file '{scenario}' does not exist")
+        raise BadInputError(f"scenario file '{scenario}' does not exist")
     grid = parse_grid(args.grid)
     random = parse_random(args.random)
     if random and args.samples is None:
-        raise SweepError("--random needs --samples N (random samples per grid point)")
+        raise BadInputError("--random needs --samples N (random samples per grid point)")
     if args.samples is not None and not random:
-        raise SweepError("--samples needs at least one --random table.key=lo:hi")
+        raise BadInputError("--samples needs at least one --random table.key=lo:hi")
     if args.workers is not None and args.workers < 1:
-        raise SweepError(f"--workers must be a positive integer, got {args.workers}")
+        raise BadInputError(f"--workers must be a positive integer, got {args.workers}")
     variants = expand(grid, random, args.samples or 0, args.seed)
     fixed = {key: values[0] for key, values in grid.items() if len(values) == 1}
     if args.trust_xacro:

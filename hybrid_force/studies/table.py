@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force._atomic import atomic_file
-from hybrid_force.errors import SweepError
+from hybrid_force.errors import BadInputError
 from hybrid_force.studies.variants import _canonical, run_id
 
 __all__ = ["METRIC_COLUMNS", "STATUSES", "TIMING_COLUMNS", "read_sweep_csv", "read_table"]
@@ -89,7 +89,7 @@ def read_table(
 ) -> tuple[list[str], list[dict[str, str]]]:
     """Read a CSV table: (columns, rows as dicts of strings).
 
-    Raises SweepError naming ``what`` file if it is unreadable or a row has the wrong number
+    Raises BadInputError naming ``what`` file if it is unreadable or a row has the wrong number
     of cells.
     """
     src = Path(path)
@@ -99,18 +99,18 @@ def read_table(
             rows = [dict(r) for r in reader]
             columns = list(reader.fieldnames or [])
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise SweepError(f"cannot read {what} file '{src}': {exc}") from exc
+        raise BadInputError(f"cannot read {what} file '{src}': {exc}") from exc
     for i, r in enumerate(rows):
         if None in r or any(v is None for v in r.values()):
-            raise SweepError(f"'{src}' row {i + 2} has the wrong number of cells")
+            raise BadInputError(f"'{src}' row {i + 2} has the wrong number of cells")
     return columns, rows
 
 
 def read_sweep_csv(path: str | os.PathLike[str]) -> tuple[list[str], list[dict[str, str]]]:
-    """Read a sweep CSV: (columns, rows as dicts of strings). Raises SweepError if unreadable."""
+    """Read a sweep CSV: (columns, rows as dicts of strings). Raises BadInputError if unreadable."""
     columns, rows = read_table(path)
     if columns and "run_id" not in columns:
-        raise SweepError(
+        raise BadInputError(
             f"'{path}' is not a sweep CSV (no run_id column; columns: {', '.join(columns)}); "
             "choose another --out"
         )
@@ -136,7 +136,7 @@ def _file_sha256(path: Path) -> str:
     try:
         return hashlib.sha256(path.read_bytes()).hexdigest()
     except OSError as exc:
-        raise SweepError(f"cannot read scenario file '{path}': {exc}") from exc
+        raise BadInputError(f"cannot read scenario file '{path}': {exc}") from exc
 
 
 class _Table:
@@ -152,7 +152,7 @@ class _Table:
         fixed = {*_FIXED_HEAD, *_STATUS_COLUMNS, *METRIC_COLUMNS, *TIMING_COLUMNS}
         clash = [k for k in params if k in fixed]
         if clash:
-            raise SweepError(f"parameter name(s) {', '.join(clash)} clash with sweep columns")
+            raise BadInputError(f"parameter name(s) {', '.join(clash)} clash with sweep columns")
         self.rows: dict[str, dict[str, str]] = {}
         self.foreign: list[dict[str, str]] = []  # rows of run ids not in this sweep: kept
         if path.exists():

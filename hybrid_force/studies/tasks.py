@@ -12,6 +12,8 @@ compiled kernels a task's runs use, once per process.
 from __future__ import annotations
 
 import contextlib
+import copy
+import dataclasses
 import gc
 import hashlib
 import json
@@ -26,7 +28,18 @@ from typing import Any
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force._signals import Terminated
-from hybrid_force.errors import BadInputError, ScenarioError, SimulationError, SweepError
+from hybrid_force.errors import (
+    BadInputError,
+    ModelWarning,
+    RobotError,
+    RunFailedError,
+    ScenarioError,
+)
+from hybrid_force.model.loading import _is_path
+from hybrid_force.model.xacro_files import expand_xacro
+from hybrid_force.scenario._builders import resolve_control_model, resolve_robot_table
+from hybrid_force.scenario.loader import read_scenario_document, scenario_from_document
+from hybrid_force.sim.loop import simulate
 from hybrid_force.studies.table import METRIC_COLUMNS, TIMING_COLUMNS
 from hybrid_force.studies.variants import run_id
 
@@ -123,7 +136,6 @@ class _Source:
     def __init__(
         self, path: Path, *, scratch: str | None = None, trust_xacro: bool = False
     ) -> None:
-        from hybrid_force.scenario.loader import read_scenario_document
 
         self.path = path
         self.trust_xacro = trust_xacro  # --trust-xacro: as robot.xacro_trust = true
@@ -133,60 +145,63 @@ class _Source:
         try:
             self.signature = _signature(path)
         except OSError as exc:
-            raise SweepError(f"cannot read scenario file '{path}': {exc}") from exc
+            raise BadInputError(f"cannot read scenario file '{path}': {exc}") from exc
         self._urdfs: dict[str, _Urdf | str] = {}  # model and options → file, or why not
         # every file the tasks made so far read, absolute path → {"key", "sha256"} (None: the
         # file was missing): a resumed sweep reuses rows only if each is unchanged
         self.inputs: dict[str, dict[str, str | None]] = {}
+        self._changed: list[str] = []  # the variant's files changed since read (messages)
 
     def job(self, rid: str, params: Mapping[str, Any], keep: bool) -> _Task | dict[str, Any]:
         """The task of one variant, or its finished row when it is bad input already here.
 
         Raises:
-            SweepError: the scenario file was changed since the sweep started, or a model file
+            BadInputError: the scenario file was changed since the sweep started, or a model file
                 the variant reads was read before with another content (its rows would mix two
                 versions of the scenario or of the arm).
         """
-        from hybrid_force.scenario.loader import read_scenario_document
 
         self.check_unchanged()
+        self._changed.clear()
         try:
             doc = read_scenario_document(self.path, dict(params))
             self._note_missing(doc)  # a bad-input row depends on a missing file too
             urdf, robot_meta = self._urdf(doc)
             control = self._control(doc)
-        except SweepError:
-            raise  # a file changed during the sweep: no verdict on the variant
         except BadInputError as exc:
+            self._check_inputs()  # a file changed during the sweep: no verdict on the variant
             row = _new_row(rid, params)
             row["status"] = "bad input"
             row["error"] = _one_line(str(exc))
             row["wall_time"] = 0.0
             return row
+        self._check_inputs()
         return _Task(
             rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta, control
         )
 
     def _record(self, key: str, path: str, digest: str | None) -> None:
-        """Note that a task read the file ``path`` (for ``key``) with this sha256.
-
-        Raises:
-            SweepError: the file was read before with another content during this sweep
-                (its rows would mix two versions of it).
-        """
+        """Note that a task read the file ``path`` (for ``key``) with this sha256; a file read
+        before with another content during this sweep is kept for :meth:`_check_inputs`."""
         path = os.path.abspath(path)
         seen = self.inputs.get(path)
         if seen is not None and seen["sha256"] != digest:
-            raise SweepError(
+            self._changed.append(
                 f"the file '{path}' ({key} of '{self.path}') was changed during the sweep "
                 f"(sha256 {seen['sha256']}, now {digest}); the finished rows are kept, but a "
                 "new version of the file needs another --out"
             )
+            return
         self.inputs[path] = {"key": key, "sha256": digest}
+
+    def _check_inputs(self) -> None:
+        """BadInputError naming the first file the variant read that was read before with another
+        content during this sweep (its rows would mix two versions of it)."""
+        if self._changed:
+            raise BadInputError(self._changed[0], file=str(self.path))
 
     def _note_missing(self, doc: Mapping[str, Any]) -> None:
         """Record the model files the variant names that do not exist (their sha256 None)."""
-        from hybrid_force.model.robot import _is_path
 
         for name in ("robot", "control"):
             table = doc.get(name)
@@ -216,8 +231,6 @@ class _Source:
             ScenarioError: it cannot be read or expanded, naming the file and key as the
                 scenario loader does.
         """
-        from hybrid_force.errors import ModelWarning, RobotError
-        from hybrid_force.model.robot import expand_xacro
 
         cache = json.dumps([key, str(target), xacro_args, package_dirs, trust], sort_keys=True)
         if cache not in self._urdfs:
@@ -265,7 +278,6 @@ class _Source:
         """The file ``control.model`` names (relative to the scenario's folder), as
         ``hybrid-force run`` loads it (a xacro file without arguments); None for none or a
         registry arm."""
-        from hybrid_force.scenario.loader import resolve_control_model
 
         found = resolve_control_model(doc, self.path, origin=self.origin)
         if found is None:
@@ -276,14 +288,14 @@ class _Source:
         return self._read_model("control.model", model, target, kind, {}, (), trust=trust)
 
     def check_unchanged(self) -> None:
-        """SweepError if the file was changed or removed since it was first read (the rows of
+        """BadInputError if the file was changed or removed since it was first read (the rows of
         two versions of a scenario would share a table)."""
         try:
             unchanged = _signature(self.path) == self.signature
         except OSError:
             unchanged = False
         if not unchanged:
-            raise SweepError(
+            raise BadInputError(
                 f"the scenario file '{self.path}' was changed or removed during the sweep; "
                 "the finished rows are kept, but a new version of the file needs another --out"
             )
@@ -296,7 +308,6 @@ class _Source:
         expressions as data unless ``robot.xacro_trust`` (or ``--trust-xacro``); its failure
         is bad input naming ``robot.model``, as the scenario loader says it.
         """
-        from hybrid_force.scenario.loader import resolve_robot_table
 
         table = resolve_robot_table(doc, self.path, origin=self.origin)
         lock = table.values.get("lock_off_chain")
@@ -412,8 +423,6 @@ def warm_up(task: _Task) -> None:
     objects that live as long as the process and no garbage worth collecting, and the full
     collections their number triggers would cost a tenth of the warm-up.
     """
-    import copy
-    import dataclasses
 
     doc = copy.deepcopy(task.doc)
     sim = doc.get("sim")
@@ -446,9 +455,6 @@ def _simulate_into(
     Returns the bytes of the saved Result when the task keeps it, else None. Raises only on an
     unexpected exception (the caller makes it status "error").
     """
-    from hybrid_force.errors import DivergenceError, RunFailedError, RunInterruptedError
-    from hybrid_force.scenario.loader import scenario_from_document
-    from hybrid_force.sim.loop import simulate
 
     doc = dict(task.doc)
     robot = doc.get("robot")
@@ -468,21 +474,18 @@ def _simulate_into(
     try:
         scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
         result = simulate(scenario)
-    except RunInterruptedError as exc:
-        # the sweep is being stopped (e.g. in the warm-up of its own process): not a verdict
-        stop = Terminated if exc.signal == "SIGTERM" else KeyboardInterrupt
-        raise stop from exc
     except RunFailedError as exc:
+        if exc.reason == "interrupted":
+            # the sweep is being stopped (e.g. in the warm-up of its own process): not a verdict
+            stop = Terminated if exc.signal == "SIGTERM" else KeyboardInterrupt
+            raise stop from exc
         # "error": an unexpected exception inside the run, retried on resume like any other
         row["status"] = (
-            "diverged" if isinstance(exc, DivergenceError)
+            "diverged" if exc.reason == "diverged"
             else "error" if exc.reason == "error" else "failed"
         )  # fmt: skip
         row["error"] = _one_line(f"{exc.reason}: {exc}")
         result = exc.result
-    except SimulationError as exc:
-        row["status"] = "diverged"
-        row["error"] = _one_line(f"{type(exc).__name__}: {exc}")
     except BadInputError as exc:
         row["status"] = "bad input"
         row["error"] = _one_line(str(exc))

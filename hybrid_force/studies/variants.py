@@ -14,7 +14,10 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from hybrid_force.errors import SweepError
+import numpy as np
+
+from hybrid_force.errors import BadInputError
+from hybrid_force.scenario._tables import MAX_NESTING, parse_override
 
 __all__ = ["MAX_RUNS", "expand", "parse_grid", "parse_random", "run_id", "split_values"]
 
@@ -56,16 +59,15 @@ def run_id(params: Mapping[str, Any]) -> str:
 
 
 def _check_key(key: str, option: str) -> None:
-    from hybrid_force.scenario._tables import MAX_NESTING
 
     table, dot, name = key.partition(".")
     if not (dot and table and name):
-        raise SweepError(
+        raise BadInputError(
             f"{option} key {key!r:.80} must be of the form table.key (e.g. control.Lambda)"
         )
     parts = key.count(".") + 1
     if parts > MAX_NESTING:  # each part nests a table: copying the variant would recurse
-        raise SweepError(
+        raise BadInputError(
             f"{option} key {key[:60]!r}... has {parts} parts, more than a scenario's tables "
             f"nest (MAX_NESTING = {MAX_NESTING}, docs/scenarios.md)"
         )
@@ -96,29 +98,28 @@ def expand(
         An empty grid and no random ranges give one variant, ``{}`` (the scenario as is).
 
     Raises:
-        SweepError: a key not of the form table.key, a key both in grid and random, an empty
+        BadInputError: a key not of the form table.key, a key both in grid and random, an empty
             value list, a value listed twice, a range with lo > hi or not finite, samples < 1,
             more than :data:`MAX_RUNS` variants (checked before anything is expanded).
     """
-    import numpy as np
 
     for key, values in grid.items():
         _check_key(key, "--grid")
         if len(values) == 0:
-            raise SweepError(f"--grid {key} has no values")
+            raise BadInputError(f"--grid {key} has no values")
         if len(values) > MAX_RUNS:
-            raise SweepError(
+            raise BadInputError(
                 f"--grid {key} lists {len(values)} values; at most {MAX_RUNS} (MAX_RUNS) are "
                 "allowed"
             )
     if random and (isinstance(samples, bool) or not isinstance(samples, int) or samples < 1):
-        raise SweepError(f"--samples must be a positive integer with --random, got {samples!r}")
+        raise BadInputError(f"--samples must be a positive integer with --random, got {samples!r}")
     n_runs = math.prod(len(values) for values in grid.values()) * (samples if random else 1)
     if n_runs > MAX_RUNS:
         sizes = [f"--grid {key}: {len(values)} values" for key, values in grid.items()]
         if random:
             sizes.append(f"--samples {samples}")
-        raise SweepError(
+        raise BadInputError(
             f"the sweep would have {n_runs} runs ({' × '.join(sizes)}); at most {MAX_RUNS} "
             "(MAX_RUNS) are allowed: split it into several sweeps, each with its own --out"
         )
@@ -127,19 +128,19 @@ def expand(
         for v in values:
             text = json.dumps(_canonical(v), sort_keys=True)
             if text in seen:
-                raise SweepError(f"--grid {key} lists the value {v!r} twice")
+                raise BadInputError(f"--grid {key} lists the value {v!r} twice")
             seen.add(text)
     both = sorted(set(grid) & set(random))
     if both:
-        raise SweepError(f"{', '.join(both)} is given both as --grid and as --random")
+        raise BadInputError(f"{', '.join(both)} is given both as --grid and as --random")
     for key, rng_range in random.items():
         _check_key(key, "--random")
         try:
             lo, hi = (float(x) for x in rng_range)
         except (TypeError, ValueError) as exc:
-            raise SweepError(f"--random {key} must be a pair lo:hi, got {rng_range!r}") from exc
+            raise BadInputError(f"--random {key} must be a pair lo:hi, got {rng_range!r}") from exc
         if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-            raise SweepError(f"--random {key}={lo}:{hi} needs finite lo <= hi")
+            raise BadInputError(f"--random {key}={lo}:{hi} needs finite lo <= hi")
     points = [dict(zip(grid, combo, strict=True)) for combo in itertools.product(*grid.values())]
     if not random:
         return [{k: _canonical(v) for k, v in p.items()} for p in points]
@@ -187,25 +188,24 @@ def split_values(text: str) -> list[str]:
 
 def parse_grid(items: Sequence[str]) -> dict[str, list[Any]]:
     """``--grid`` options (``table.key=v1,v2,...``, TOML values) → ``{key: [values]}``."""
-    from hybrid_force.scenario.loader import parse_override
 
     grid: dict[str, list[Any]] = {}
     for item in items:
         key, sep, values = item.partition("=")
         key = key.strip()
         if not sep or not key or not values.strip():
-            raise SweepError(f"--grid {item!r} must be table.key=v1,v2,...")
+            raise BadInputError(f"--grid {item!r} must be table.key=v1,v2,...")
         if key in grid:
-            raise SweepError(f"--grid {key} is given twice; list all its values in one option")
+            raise BadInputError(f"--grid {key} is given twice; list all its values in one option")
         texts = split_values(values)
         if len(texts) > MAX_RUNS:
-            raise SweepError(
+            raise BadInputError(
                 f"--grid {key} lists {len(texts)} values; at most {MAX_RUNS} (MAX_RUNS) are allowed"
             )
         parsed = []
         for text in texts:
             if not text:
-                raise SweepError(f"--grid {item!r} has an empty value")
+                raise BadInputError(f"--grid {item!r} has an empty value")
             parsed.append(parse_override(f"{key}={text}")[1])
         grid[key] = parsed
     return grid
@@ -223,8 +223,10 @@ def parse_random(items: Sequence[str]) -> dict[str, tuple[float, float]]:
                 raise ValueError
             lo, hi = float(lo_text), float(hi_text)
         except ValueError:
-            raise SweepError(f"--random {item!r} must be table.key=lo:hi (two numbers)") from None
+            raise BadInputError(
+                f"--random {item!r} must be table.key=lo:hi (two numbers)"
+            ) from None
         if key in out:
-            raise SweepError(f"--random {key} is given twice")
+            raise BadInputError(f"--random {key} is given twice")
         out[key] = (lo, hi)
     return out

@@ -15,8 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import PlotError
+from hybrid_force.errors import BadInputError
+from hybrid_force.law_log import check_law_log, law_log_names
 from hybrid_force.phases import CONTACT, NEAR
+from hybrid_force.result import Result
 
 _ZOOM_S = 10.0  # [s] zoom window of force_error.png and window of desired_force.png
 _SWITCH_KINDS = ("near", "contact", "impact", "release")
@@ -67,14 +69,14 @@ class _Run:
 
 def _array(result: object, attr: str) -> np.ndarray:
     if not hasattr(result, attr):
-        raise PlotError(
+        raise BadInputError(
             f"cannot plot {type(result).__name__}: it has no attribute {attr!r} "
             "(expected a hybrid_force Result with t, p, p_d, f, f_d, V, phase, meta)"
         )
     try:
         return np.asarray(getattr(result, attr), dtype=float)
     except (TypeError, ValueError) as exc:
-        raise PlotError(f"result.{attr} is not a numeric array: {exc}") from exc
+        raise BadInputError(f"result.{attr} is not a numeric array: {exc}") from exc
 
 
 def _as_columns(a: np.ndarray, attr: str, n: int) -> np.ndarray:
@@ -82,26 +84,30 @@ def _as_columns(a: np.ndarray, attr: str, n: int) -> np.ndarray:
     if a.ndim == 1:
         a = a[:, None]
     if a.ndim != 2 or a.shape[0] != n or a.shape[1] < 1:
-        raise PlotError(f"result.{attr} has shape {a.shape}; expected ({n},) or ({n}, k)")
+        raise BadInputError(f"result.{attr} has shape {a.shape}; expected ({n},) or ({n}, k)")
     return a
 
 
 def _read_events(meta: Mapping[str, Any]) -> tuple[tuple[float, str], ...]:
     raw = meta.get("events") or []
     if not isinstance(raw, Sequence) or isinstance(raw, str):
-        raise PlotError(f"result meta['events'] must be a list of dicts, got {type(raw).__name__}")
+        raise BadInputError(
+            f"result meta['events'] must be a list of dicts, got {type(raw).__name__}"
+        )
     events: list[tuple[float, str]] = []
     for i, ev in enumerate(raw):
         if not isinstance(ev, Mapping) or "t" not in ev or "kind" not in ev:
-            raise PlotError(f"result meta['events'][{i}] = {ev!r} lacks the keys 't' and 'kind'")
+            raise BadInputError(
+                f"result meta['events'][{i}] = {ev!r} lacks the keys 't' and 'kind'"
+            )
         try:
             te = float(ev["t"])
         except (TypeError, ValueError) as exc:
-            raise PlotError(
+            raise BadInputError(
                 f"result meta['events'][{i}]['t'] = {ev['t']!r} is not a number"
             ) from exc
         if not math.isfinite(te):
-            raise PlotError(f"result meta['events'][{i}]['t'] = {te} is not finite")
+            raise BadInputError(f"result meta['events'][{i}]['t'] = {te} is not finite")
         events.append((te, str(ev["kind"])))
     return tuple(sorted(events))
 
@@ -115,7 +121,7 @@ def _read_surfaces(meta: Mapping[str, Any]) -> tuple[Mapping[str, Any], ...]:
         if hasattr(s, "to_dict"):
             s = s.to_dict()
         if not isinstance(s, Mapping):
-            raise PlotError(f"result meta['surfaces'][{i}] = {s!r} is not a surface dict")
+            raise BadInputError(f"result meta['surfaces'][{i}] = {s!r} is not a surface dict")
         out.append(s)
     return tuple(out)
 
@@ -123,35 +129,33 @@ def _read_surfaces(meta: Mapping[str, Any]) -> tuple[Mapping[str, Any], ...]:
 def _load_run(result: object) -> _Run:
     """Check a Result (or a path to a saved one) and gather what the figures need."""
     if isinstance(result, str | os.PathLike):
-        from hybrid_force.result import Result  # lazy: plots is an edge module
-
         result = Result.load(result)
     t = _array(result, "t")
     if t.ndim != 1 or t.shape[0] < 2:
-        raise PlotError(
+        raise BadInputError(
             f"result.t has shape {t.shape}; need a 1-D time vector of at least 2 samples"
         )
     if not np.all(np.isfinite(t)):
         bad = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise PlotError(f"result.t[{bad}] = {t[bad]} is not finite")
+        raise BadInputError(f"result.t[{bad}] = {t[bad]} is not finite")
     n = t.shape[0]
     p, p_d = _array(result, "p"), _array(result, "p_d")
     for attr, a in (("p", p), ("p_d", p_d)):
         if a.shape != (n, 3):
-            raise PlotError(f"result.{attr} has shape {a.shape}; expected ({n}, 3)")
+            raise BadInputError(f"result.{attr} has shape {a.shape}; expected ({n}, 3)")
     f = _as_columns(_array(result, "f"), "f", n)
     f_d = _as_columns(_array(result, "f_d"), "f_d", n)
     if f_d.shape != f.shape:
-        raise PlotError(f"result.f_d has shape {f_d.shape} but result.f has shape {f.shape}")
+        raise BadInputError(f"result.f_d has shape {f_d.shape} but result.f has shape {f.shape}")
     v = _array(result, "V")
     if v.shape != (n,):
-        raise PlotError(f"result.V has shape {v.shape}; expected ({n},)")
+        raise BadInputError(f"result.V has shape {v.shape}; expected ({n},)")
     phase = np.asarray(getattr(result, "phase", np.zeros(n)))
     if phase.shape != (n,):
-        raise PlotError(f"result.phase has shape {phase.shape}; expected ({n},)")
+        raise BadInputError(f"result.phase has shape {phase.shape}; expected ({n},)")
     meta = getattr(result, "meta", None) or {}
     if not isinstance(meta, Mapping):
-        raise PlotError(f"result.meta must be a dict, got {type(meta).__name__}")
+        raise BadInputError(f"result.meta must be a dict, got {type(meta).__name__}")
     name = str(meta.get("name") or "unnamed run")
     f_meas = getattr(result, "f_meas", None)
     if f_meas is not None:
@@ -163,7 +167,7 @@ def _load_run(result: object) -> _Run:
     if tool_angle is not None:
         tool_angle = np.asarray(tool_angle, dtype=float)
         if tool_angle.shape != (n,):
-            raise PlotError(f"result.tool_angle has shape {tool_angle.shape}; expected ({n},)")
+            raise BadInputError(f"result.tool_angle has shape {tool_angle.shape}; expected ({n},)")
     settle = (meta.get("settings") or {}).get("settle_time")
     return _Run(
         name=name,
@@ -188,7 +192,6 @@ def _read_law_log(
     result: object, meta: Mapping[str, Any], n: int
 ) -> tuple[np.ndarray | None, tuple[str, ...]]:
     """The law's own signals (N, m) and their names, or (None, ()) when it logged none."""
-    from hybrid_force.law_log import check_law_log, law_log_names
 
     value = getattr(result, "law_log", None)
     try:
@@ -197,7 +200,7 @@ def _read_law_log(
             return None, ()
         return check_law_log(np.asarray(value, dtype=float), n, meta), names
     except (ValueError, TypeError) as exc:  # the checks' BadInputError is a ValueError
-        raise PlotError(f"result.law_log: {exc}") from exc
+        raise BadInputError(f"result.law_log: {exc}") from exc
 
 
 # --------------------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hybrid_force._atomic import atomic_file
-from hybrid_force.errors import PlotError
+from hybrid_force.errors import BadInputError
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -52,9 +52,9 @@ def _save_atomic(fig: Figure, path: Path) -> None:
 def _out_dir(out_dir: str | os.PathLike[str]) -> Path:
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
-        raise PlotError(f"output directory {str(out)!r} exists and is not a directory")
+        raise BadInputError(f"output directory {str(out)!r} exists and is not a directory")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise PlotError(f"cannot create output directory {str(out)!r}: {exc}") from exc
+        raise BadInputError(f"cannot create output directory {str(out)!r}: {exc}") from exc
     return out

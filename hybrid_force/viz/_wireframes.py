@@ -1,7 +1,7 @@
 """Surface wireframes and the 2-D view of the run figures (pure numpy).
 
 The surface dicts of a result are read by :func:`hybrid_force.geometry.surfaces.surface_from_dict`,
-the one parser of a surface dict (a bad one is a PlotError naming its index).
+the one parser of a surface dict (a bad one is a BadInputError naming its index).
 
 A surface's wireframe is its own patch near the motion (``Surface.patch``);
 :func:`_projection` chooses the plane of the paper's Fig. 3b.
@@ -15,9 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.errors import PlotError, SurfaceParameterError
-from hybrid_force.geometry.surface_base import plane_basis, surface_types
-from hybrid_force.geometry.surfaces import Cylinder, Plane, Sphere, Surface, surface_from_dict
+from hybrid_force.errors import BadInputError, SurfaceError
+from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
+from hybrid_force.geometry.surface_base import Surface, plane_basis, surface_types
+from hybrid_force.geometry.surfaces import surface_from_dict
 
 
 def _drawable(s: Mapping[str, Any], i: int) -> Surface | None:
@@ -27,8 +28,8 @@ def _drawable(s: Mapping[str, Any], i: int) -> Surface | None:
         return None
     try:
         return surface_from_dict(s)
-    except SurfaceParameterError as exc:
-        raise PlotError(f"result meta['surfaces'][{i}] cannot be drawn: {exc}") from exc
+    except SurfaceError as exc:
+        raise BadInputError(f"result meta['surfaces'][{i}] cannot be drawn: {exc}") from exc
 
 
 def _finite_points(*arrays: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import PlotError
+from hybrid_force.errors import BadInputError
 from hybrid_force.viz._style import _legend_right, _new_figure, _note, _out_dir, _save_atomic
 
 if TYPE_CHECKING:
@@ -60,7 +60,7 @@ class LawCurve:
         n = np.shape(self.t)
         for name in ("force_error", "path_error"):
             if np.shape(getattr(self, name)) != n or len(n) != 1:
-                raise PlotError(
+                raise BadInputError(
                     f"LawCurve {self.law!r}: t and {name} must have the same shape (N,), got "
                     f"{n} and {np.shape(getattr(self, name))}"
                 )
@@ -141,12 +141,12 @@ def plot_comparison(
         The paths written, in the order of :data:`COMPARE_FIGURES`.
 
     Raises:
-        PlotError: no curve, or an output folder that cannot be made.
+        BadInputError: no curve, or an output folder that cannot be made.
         MissingExtraError: matplotlib cannot be imported (the ``plots`` extra).
     """
     require_extra("plots", "figures")
     if not curves:
-        raise PlotError("plot_comparison: no law to draw")
+        raise BadInputError("plot_comparison: no law to draw")
     out = _out_dir(out_dir)
     written: list[Path] = []
     specs = (

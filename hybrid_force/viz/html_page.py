@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force._atomic import atomic_file, prepare_target
-from hybrid_force.errors import ViewerError
+from hybrid_force.errors import BadInputError
 
 
 def _pack_command(command: Any) -> bytes:
@@ -43,7 +43,9 @@ def _meshcat_js() -> str:
         try:
             _MAIN_JS.append(js.read_text(encoding="utf-8"))
         except OSError as exc:
-            raise ViewerError(f"meshcat's viewer JavaScript '{js}' cannot be read: {exc}") from exc
+            raise BadInputError(
+                f"meshcat's viewer JavaScript '{js}' cannot be read: {exc}"
+            ) from exc
     return _MAIN_JS[0]
 
 
@@ -93,10 +95,10 @@ window.viewer = viewer;
 
 def _atomic_write_text(target: Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``target`` through a temp file in its folder and os.replace."""
-    prepare_target(target, ViewerError, "write HTML")
+    prepare_target(target, BadInputError, "write HTML")
     try:
         with atomic_file(target, "w", encoding="utf-8") as fh:
             fh.write(text)
     except OSError as exc:
-        raise ViewerError(f"cannot write HTML to '{target}': {exc}") from exc
+        raise BadInputError(f"cannot write HTML to '{target}': {exc}") from exc
     return target

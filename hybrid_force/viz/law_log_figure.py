@@ -15,13 +15,12 @@ import numpy as np
 
 from hybrid_force.viz._run_data import _Run
 from hybrid_force.viz._style import _new_figure, _note
-from hybrid_force.viz.figure_names import LAW_LOG_FIGURE
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["LAW_LOG_FIGURE", "law_log_figure"]
+__all__ = ["law_log_figure"]
 
 _MAX_LEGEND = 16  # more lines than this: no legend (it would hide the plot), a note instead
 

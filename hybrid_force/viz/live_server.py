@@ -5,6 +5,7 @@ down in every case (Ctrl-C, SIGTERM, SIGHUP, or the death of the process that st
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import select
 import signal
@@ -17,8 +18,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import hybrid_force
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import ViewerError
+from hybrid_force.errors import BadInputError
 
 if TYPE_CHECKING:
     from hybrid_force.viz.scene import Replay
@@ -47,7 +49,7 @@ class _ZmqWindow:
     def _request(self, frames: list[bytes], timeout_ms: int = _ZMQ_TIMEOUT_MS) -> bytes:
         self.socket.send_multipart(frames)
         if not self.socket.poll(timeout_ms):
-            raise ViewerError(f"the meshcat server did not answer within {timeout_ms / 1000:g} s")
+            raise BadInputError(f"the meshcat server did not answer within {timeout_ms / 1000:g} s")
         return self.socket.recv()
 
     def send(self, command: Any) -> None:
@@ -58,7 +60,7 @@ class _ZmqWindow:
             [data["type"].encode("utf-8"), data["path"].encode("utf-8"), umsgpack.packb(data)]
         )
         if reply != b"ok":
-            raise ViewerError(f"the meshcat server refused a command: {reply!r}")
+            raise BadInputError(f"the meshcat server refused a command: {reply!r}")
 
     def wait_for_browser(self, timeout: float | None = None) -> bool:
         """Block until a browser is connected (True) or ``timeout`` [s] passed (False).
@@ -87,7 +89,7 @@ class LiveServer:
         port: web port; None picks the first free port from 7000 up.
 
     Raises:
-        ViewerError: the port is in use or invalid, or the server did not start.
+        BadInputError: the port is in use or invalid, or the server did not start.
         MissingExtraError: meshcat cannot be imported (the ``replay`` extra).
 
     ``url`` is the page to open; ``visualizer()`` returns a ``meshcat.Visualizer`` connected to
@@ -99,7 +101,7 @@ class LiveServer:
         if port is not None and (
             isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535
         ):
-            raise ViewerError(f"port must be an int in 1..65535 or None (pick one), got {port!r}")
+            raise BadInputError(f"port must be an int in 1..65535 or None (pick one), got {port!r}")
         require_extra("replay", "the live 3D viewer")
         self.port_requested = port
         self.process: subprocess.Popen[bytes] | None = None
@@ -109,7 +111,6 @@ class LiveServer:
         self._start()
 
     def _start(self) -> None:
-        import hybrid_force
 
         package_parent = str(Path(hybrid_force.__file__).resolve().parent.parent)
         env = dict(os.environ)
@@ -146,7 +147,7 @@ class LiveServer:
         while not (b"zmq_url=" in buffer and b"web_url=" in buffer and buffer.endswith(b"\n")):
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise ViewerError(
+                raise BadInputError(
                     f"the meshcat server did not start within {_SERVER_START_TIMEOUT:g} s"
                 )
             ready, _, _ = select.select([proc.stdout], [], [], min(remaining, 0.2))
@@ -158,11 +159,11 @@ class LiveServer:
             if proc.poll() is not None:
                 err = proc.stderr.read().decode("utf-8", "replace") if proc.stderr else ""
                 if "port in use" in err:
-                    raise ViewerError(
+                    raise BadInputError(
                         f"port {self.port_requested} on 127.0.0.1 is already in use; choose "
                         "another port or omit it to pick a free one"
                     )
-                raise ViewerError(
+                raise BadInputError(
                     f"the meshcat server exited with status {proc.returncode}: "
                     f"{err.strip()[-800:] or '(no output)'}"
                 )
@@ -182,13 +183,13 @@ class LiveServer:
         import meshcat
 
         if self._window is None:
-            raise ViewerError("the meshcat server is closed")
+            raise BadInputError("the meshcat server is closed")
         return meshcat.Visualizer(window=self._window)
 
     def wait_for_browser(self, timeout: float | None = None) -> bool:
         """Block until a browser has connected (True), or ``timeout`` [s] passed (False)."""
         if self._window is None:
-            raise ViewerError("the meshcat server is closed")
+            raise BadInputError("the meshcat server is closed")
         return self._window.wait_for_browser(timeout)
 
     def close(self) -> None:
@@ -229,7 +230,6 @@ def _server_main() -> None:
     argv: [parent pid, port or ""]. Exits when the parent process goes away, on SIGTERM, and
     ignores SIGINT (the parent shuts it down after Ctrl-C). Prints ``zmq_url=`` and ``web_url=``.
     """
-    import functools
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     parent = int(sys.argv[1])

@@ -54,26 +54,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.result import Result
-from hybrid_force.viz.live_server import LiveServer, _serve_replay
-from hybrid_force.viz.robot_visuals import PLACEHOLDER_SIZE, visual_geometry
-from hybrid_force.viz.scene import PHASE_COLORS, Replay, ReplaySettings
+from hybrid_force.run_output import RunOutput
+from hybrid_force.viz.live_server import _serve_replay
+from hybrid_force.viz.scene import Replay, ReplaySettings
 
-__all__ = [
-    "PHASE_COLORS",
-    "PHASE_NAMES",
-    "PLACEHOLDER_SIZE",
-    "LiveServer",
-    "Replay",
-    "ReplaySettings",
-    "html",
-    "replay_command",
-    "serve",
-    "show",
-    "visual_geometry",
-    "write_html",
-]
+__all__ = ["html", "replay_command", "serve", "show", "write_html"]
 
 
 def html(result_or_path: Result | str | os.PathLike[str], *, fps: float = 30.0) -> str:
@@ -93,8 +79,8 @@ def write_html(
     run at real speed, resampled at ``fps`` frames per second.
 
     Raises:
-        ResultFileError: ``result_or_path`` is a missing, truncated or non-result file.
-        ViewerError: the result's robot cannot be found, or ``path`` cannot be written.
+        BadInputError: ``result_or_path`` is a missing, truncated or non-result file.
+        BadInputError: the result's robot cannot be found, or ``path`` cannot be written.
     """
     return Replay(result_or_path, ReplaySettings(fps=fps)).write_html(path)
 
@@ -119,7 +105,7 @@ def serve(
         browser_timeout: stop waiting for a browser after this many seconds [s] (None: wait).
 
     Raises:
-        ResultFileError, ViewerError: as :func:`write_html`; ViewerError also when ``port``
+        BadInputError, BadInputError: as :func:`write_html`; BadInputError also when ``port``
             is already in use.
     """
     replay = Replay(result_or_path, ReplaySettings(fps=fps))
@@ -155,8 +141,6 @@ def replay_command(args: Any) -> int:
     """
     html_path = getattr(args, "html", None)
     if html_path is not None:
-        from hybrid_force.run_output import RunOutput
-
         # never write the page over the result it replays, or over its summary or figures
         source = Path(args.result)
         html_path = RunOutput(source.parent, inputs=[source]).check_extra("--html", html_path)

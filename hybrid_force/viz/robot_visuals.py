@@ -5,20 +5,23 @@ with a placeholder cube for every mesh that cannot be found or read.
 from __future__ import annotations
 
 import os
+import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
-from hybrid_force.errors import ModelWarning, URDFError, ViewerError
+from hybrid_force.errors import BadInputError, ModelWarning, RobotError
+from hybrid_force.scenario._tables import xacro_argument_text
 
 __all__ = ["PLACEHOLDER_SIZE", "visual_geometry"]
 
 
 def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
-    """The :func:`~hybrid_force.model.robot.load_robot` options a result's meta records.
+    """The :func:`~hybrid_force.model.loading.load_robot` options a result's meta records.
 
     From ``meta["robot"]`` (``package_dirs``, ``xacro_args``, ``lock_off_chain``,
     ``locked_positions``: what :attr:`~hybrid_force.model.robot.Robot.reference` gives). A key
@@ -60,7 +63,6 @@ def _load_options(meta: dict[str, Any]) -> dict[str, Any]:
 def _toml_text(value: object) -> str | None:
     """A scenario's xacro argument as the loader passes it (a TOML number or boolean as its
     text), or None for a value the loader refuses."""
-    from hybrid_force.scenario.loader import xacro_argument_text
 
     try:
         return xacro_argument_text(value)
@@ -106,25 +108,24 @@ def visual_geometry(robot: Any) -> Any:
     of the robot becomes a placeholder, with one warning saying why.
 
     Raises:
-        ViewerError: the model file cannot be read or parsed any more.
+        BadInputError: the model file cannot be read or parsed any more.
     """
-    import pinocchio as pin
 
     label = f"robot '{robot.name}'"
     if str(robot.urdf_path) != robot.name:
         label += f" ({robot.urdf_path})"
     try:
         return _build_visuals(robot, pin, placeholders_only=False, label=label)
-    except ViewerError:
+    except BadInputError:
         raise
     except (RuntimeError, ValueError, IndexError) as exc:  # a mesh Pinocchio cannot use
         why = " ".join(str(exc).split("message:", 1)[-1].split())
     try:
         visual = _build_visuals(robot, pin, placeholders_only=True, label=label)
-    except ViewerError:
+    except BadInputError:
         raise
     except (RuntimeError, ValueError, IndexError, OSError) as exc:
-        raise ViewerError(f"cannot load the visual geometry of {label}: {exc}") from exc
+        raise BadInputError(f"cannot load the visual geometry of {label}: {exc}") from exc
     warnings.warn(
         f"{label}: Pinocchio cannot read its meshes ({why}); every mesh is drawn as a "
         f"{PLACEHOLDER_SIZE:g} m cube",
@@ -172,15 +173,14 @@ def _scale(text: str | None) -> np.ndarray:
 def _build_visuals(robot: Any, pin: Any, *, placeholders_only: bool, label: str) -> Any:
     """Build the visual geometry from a copy of the model's XML (see :func:`visual_geometry`);
     warn about each mesh drawn as a placeholder (not when ``placeholders_only``)."""
-    import tempfile
 
     try:
         if robot.kind == "mjcf":  # its text (a replayed arm's, from its result file)
             root = _prepared_mjcf(Path(robot.urdf_path), robot.model_xml)
         else:
             root = ET.fromstring(robot.urdf_xml)
-    except (OSError, ET.ParseError, URDFError) as exc:
-        raise ViewerError(f"cannot load the visual geometry of {label}: {exc}") from exc
+    except (OSError, ET.ParseError, RobotError) as exc:
+        raise BadInputError(f"cannot load the visual geometry of {label}: {exc}") from exc
     base = Path(robot.urdf_path).resolve().parent
     dirs = [str(d) for d in robot.package_dirs]
     meshes = _Meshes(all_missing=placeholders_only)

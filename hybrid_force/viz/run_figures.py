@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import PlotError
+from hybrid_force.errors import BadInputError
 from hybrid_force.phases import NEAR
 from hybrid_force.viz._run_data import (
     _intervals,
@@ -46,14 +46,14 @@ from hybrid_force.viz._run_data import (
 )
 from hybrid_force.viz._style import _legend_right, _new_figure, _note, _out_dir, _save_atomic
 from hybrid_force.viz._wireframes import _finite_points, _projection, _surface_mesh
-from hybrid_force.viz.figure_names import FIGURE_NAMES, LAW_LOG_FIGURE, OPTIONAL_FIGURE_NAMES
+from hybrid_force.viz.figure_names import FIGURE_NAMES, LAW_LOG_FIGURE
 from hybrid_force.viz.law_log_figure import law_log_figure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["FIGURE_NAMES", "OPTIONAL_FIGURE_NAMES", "PlotError", "plot_result"]
+__all__ = ["plot_result"]
 
 _MAX_3D_POINTS = 4000  # 3D/2D path lines are decimated to at most this many points
 _KIND_COLOURS = {
@@ -457,13 +457,13 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     ``{prefix}path3d.png``, ``projection.png``, ``position_errors.png``, ``force_error.png``,
     ``desired_force.png``, ``lyapunov.png``, then ``law_log.png`` when the law logged signals
     of its own and ``tool_angle.png`` for a run with a ``tool_angle`` (see the module
-    docstring). Existing files are replaced atomically. Raises :class:`PlotError` on a missing
+    docstring). Existing files are replaced atomically. Raises :class:`BadInputError` on a missing
     attribute or wrong shape, :class:`~hybrid_force.errors.MissingExtraError` without matplotlib
     (the ``plots`` extra).
     """
     require_extra("plots", "figures")
     if os.sep in prefix or (os.altsep and os.altsep in prefix):
-        raise PlotError(
+        raise BadInputError(
             f"prefix {prefix!r} must be a file-name prefix, not contain a path separator"
         )
     run = _load_run(result)

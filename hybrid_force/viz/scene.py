@@ -17,17 +17,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
+from pinocchio.visualize import MeshcatVisualizer
 
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import BadInputError, HybridForceError, ViewerError
+from hybrid_force.errors import BadInputError, HybridForceError
+from hybrid_force.geometry.surfaces import surface_from_dict
+from hybrid_force.model.loading import _is_path, load_robot, model_kind, robot_from_text
 from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.result import Result
 from hybrid_force.viz.html_page import _atomic_write_text, _RecordingWindow, _static_page
 from hybrid_force.viz.live_server import _serve_replay
 from hybrid_force.viz.robot_visuals import _load_options, visual_geometry
 from hybrid_force.viz.scene_animation import animate
-from hybrid_force.viz.scene_objects import (  # PHASE_COLORS re-exported
-    PHASE_COLORS,
+from hybrid_force.viz.scene_objects import (
     ROBOT_ROOT,
     ROOT,
     draw_static,
@@ -35,7 +38,7 @@ from hybrid_force.viz.scene_objects import (  # PHASE_COLORS re-exported
     set_camera,
 )
 
-__all__ = ["PHASE_COLORS", "Replay", "ReplaySettings"]
+__all__ = ["Replay", "ReplaySettings"]
 
 
 # --------------------------------------------------------------------------- settings
@@ -90,7 +93,7 @@ class ReplaySettings:
 
 # --------------------------------------------------------------------------- helpers
 def _load_result(result_or_path: Result | str | os.PathLike[str]) -> Result:
-    """The Result itself, or Result.load(path) (ResultFileError on a bad file)."""
+    """The Result itself, or Result.load(path) (BadInputError on a bad file)."""
     if isinstance(result_or_path, Result):
         return result_or_path
     if isinstance(result_or_path, (str, os.PathLike)):
@@ -111,8 +114,8 @@ class Replay:
 
     Raises:
         MissingExtraError: meshcat cannot be imported (the ``replay`` extra).
-        ResultFileError: the file is missing, truncated or not a result.
-        ViewerError: the result's robot model cannot be loaded, or a surface cannot be rebuilt.
+        BadInputError: the file is missing, truncated or not a result.
+        BadInputError: the result's robot model cannot be loaded, or a surface cannot be rebuilt.
 
     Attributes:
         result: the run.
@@ -132,7 +135,7 @@ class Replay:
         self.settings = settings if settings is not None else ReplaySettings()
         self.result = _load_result(result)
         if self.result.n_samples < 1:
-            raise ViewerError("cannot replay a result without samples (N = 0)")
+            raise BadInputError("cannot replay a result without samples (N = 0)")
         self.robot = self._load_robot()
         self.surfaces = self._load_surfaces()
         self._resample()
@@ -140,14 +143,13 @@ class Replay:
     # ------------------------------------------------------------------ loading
     def _load_robot(self) -> Any:
         """The run's arm: rebuilt from the model text ``meta["robot"]`` stores
-        (:func:`~hybrid_force.model.robot.robot_from_text`: no xacro file is expanded and the
+        (:func:`~hybrid_force.model.loading.robot_from_text`: no xacro file is expanded and the
         model file is not read), or a registry arm by its name. A result saved before results
         stored the text replays a plain URDF or MJCF file read again, never a xacro file."""
-        from hybrid_force.model.robot import _is_path, load_robot, model_kind, robot_from_text
 
         info = self.result.meta.get("robot")
         if not isinstance(info, dict) or not isinstance(info.get("model"), str):
-            raise ViewerError(
+            raise BadInputError(
                 f"result '{self.result.meta.get('name')}' has no robot model in meta['robot'] "
                 f"(got {info!r}); expected {{'model': <name or model path>, 'tip': <frame>}}"
             )
@@ -157,12 +159,12 @@ class Replay:
         options = _load_options(self.result.meta)
         text, fmt = info.get("model_text"), info.get("model_format")
         if text is not None and not (isinstance(text, str) and fmt in ("urdf", "mjcf")):
-            raise ViewerError(
+            raise BadInputError(
                 f"result's robot '{model}': meta['robot'] has a model_text that is not a "
                 f"URDF or MJCF text (model_format {fmt!r})"
             )
         if text is None and _is_path(model) and model_kind(model) == "xacro":
-            raise ViewerError(
+            raise BadInputError(
                 f"result's robot '{model}' is a xacro file and the result does not store its "
                 "expansion (it was saved by an older version): replaying it would expand the "
                 "file, which may run code it carries; run the scenario again to replay it"
@@ -181,18 +183,17 @@ class Replay:
                 unlocked = load(lock_off_chain=False)
                 robot = unlocked if unlocked.nq == self.result.nq else robot
         except HybridForceError as exc:
-            raise ViewerError(f"result's robot '{model}' cannot be found: {exc}") from exc
+            raise BadInputError(f"result's robot '{model}' cannot be found: {exc}") from exc
         except (OSError, ValueError, RuntimeError) as exc:
-            raise ViewerError(f"result's robot '{model}' cannot be found: {exc}") from exc
+            raise BadInputError(f"result's robot '{model}' cannot be found: {exc}") from exc
         if robot.nq != self.result.nq:
-            raise ViewerError(
+            raise BadInputError(
                 f"result's robot '{model}' has nq = {robot.nq} but the result's q has "
                 f"{self.result.nq} columns"
             )
         return robot
 
     def _load_surfaces(self) -> list[Any]:
-        from hybrid_force.geometry.surfaces import surface_from_dict
 
         out: list[Any] = []
         for i, d in enumerate(self.result.meta.get("surfaces") or []):
@@ -202,7 +203,7 @@ class Replay:
             try:
                 out.append(surface_from_dict(d))
             except HybridForceError as exc:
-                raise ViewerError(f"result's surface {i} cannot be rebuilt: {exc}") from exc
+                raise BadInputError(f"result's surface {i} cannot be rebuilt: {exc}") from exc
         return out
 
     # ------------------------------------------------------------------ resampling
@@ -233,7 +234,6 @@ class Replay:
         model = self.robot.model
         if model.nq == model.nv:
             return np.column_stack([np.interp(times, r.t, r.q[:, j]) for j in range(r.nq)])
-        import pinocchio as pin
 
         out = np.empty((times.size, r.nq))
         for i, tau in enumerate(times):
@@ -311,7 +311,6 @@ class Replay:
             play: start playing at once.
             repetitions: how many times the animation plays.
         """
-        from pinocchio.visualize import MeshcatVisualizer
 
         visual_model = self._visual_model()
         viz = MeshcatVisualizer(self.robot.model, None, visual_model)

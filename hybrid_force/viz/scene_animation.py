@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 
 from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.viz.scene_objects import ROOT, _homogeneous, _rotation_onto, arrow_pose
@@ -120,7 +121,6 @@ def _animate_tip_and_force(vis: Any, anim: Any, replay: Replay) -> None:
 
 def _tool_poses(replay: Replay) -> list[np.ndarray]:
     """4×4 placement of the tool rod per frame: +y along −a (a = R(q) â), origin at the tip."""
-    import pinocchio as pin
 
     axis = replay.tool_axis
     assert axis is not None

@@ -13,8 +13,9 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 
-from hybrid_force.errors import HybridForceError, ViewerError
+from hybrid_force.errors import BadInputError, HybridForceError
 from hybrid_force.phases import PHASE_NAMES
 
 if TYPE_CHECKING:  # annotations only: the Replay imports this module
@@ -38,7 +39,6 @@ ROBOT_ROOT = "robot"
 def _rotation_onto(axis: int, direction: np.ndarray) -> np.ndarray:
     """Rotation matrix (3, 3) that maps the unit vector of ``axis`` (0 x, 1 y, 2 z) onto the
     unit vector along ``direction`` (3,)."""
-    import pinocchio as pin
 
     d = np.asarray(direction, dtype=float)
     d = d / np.linalg.norm(d)
@@ -151,7 +151,7 @@ def _surface_geometry(surface: Any, pts: np.ndarray, margin: float) -> tuple[Any
 
     grid = surface.patch(pts, margin)
     if grid is None:
-        raise ViewerError(f"cannot draw surface {surface!r}: it gives no patch (Surface.patch)")
+        raise BadInputError(f"cannot draw surface {surface!r}: it gives no patch (Surface.patch)")
     n, m, _ = grid.shape
     corner = (np.arange(n - 1)[:, None] * m + np.arange(m - 1)[None, :]).ravel()
     faces = np.concatenate(

@@ -14,13 +14,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybrid_force._extras import require as require_extra
-from hybrid_force.errors import PlotError, did_you_mean
+from hybrid_force.errors import BadInputError, did_you_mean
 from hybrid_force.viz._style import _new_figure, _note, _out_dir, _save_atomic
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["MAX_SWEEP_BYTES", "PlotError", "plot_sweep"]
+__all__ = ["MAX_SWEEP_BYTES", "plot_sweep"]
 
 MAX_SWEEP_BYTES = 256 * 2**20
 """The largest sweep CSV read (256 MiB): a sweep has at most 100 000 runs (MAX_RUNS), a few
@@ -37,7 +37,7 @@ class _Sweep:
 
     def require(self, column: str, role: str) -> None:
         if column not in self.columns:
-            raise PlotError(
+            raise BadInputError(
                 f"{role} column {column!r} is not in {str(self.path)!r}"
                 f"{did_you_mean(column, self.columns)}; available columns: "
                 + ", ".join(self.columns)
@@ -75,7 +75,7 @@ def _read_sweep(csv_path: str | os.PathLike[str]) -> _Sweep:
     try:
         size = path.stat().st_size
         if size > MAX_SWEEP_BYTES:
-            raise PlotError(
+            raise BadInputError(
                 f"sweep file {str(path)!r} is {size} bytes, more than the {MAX_SWEEP_BYTES} a "
                 "sweep table may have (MAX_SWEEP_BYTES)"
             )
@@ -87,20 +87,20 @@ def _read_sweep(csv_path: str | os.PathLike[str]) -> _Sweep:
                 if not cells:
                     continue  # a blank line, as DictReader skips it
                 if len(cells) != len(columns):  # a ragged row: not a table this plot can read
-                    raise PlotError(
+                    raise BadInputError(
                         f"sweep file {str(path)!r}, line {reader.line_num}: {len(cells)} fields "
                         f"where the header has {len(columns)}"
                     )
                 rows_list.append(dict(zip(columns, cells, strict=True)))
             rows = tuple(rows_list)
     except FileNotFoundError as exc:
-        raise PlotError(f"sweep file {str(path)!r} does not exist") from exc
+        raise BadInputError(f"sweep file {str(path)!r} does not exist") from exc
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise PlotError(f"cannot read sweep file {str(path)!r}: {exc}") from exc
+        raise BadInputError(f"cannot read sweep file {str(path)!r}: {exc}") from exc
     if not columns:
-        raise PlotError(f"sweep file {str(path)!r} is empty (no header row)")
+        raise BadInputError(f"sweep file {str(path)!r} is empty (no header row)")
     if not rows:
-        raise PlotError(f"sweep file {str(path)!r} has a header but no rows")
+        raise BadInputError(f"sweep file {str(path)!r} has a header but no rows")
     return _Sweep(path=path, columns=columns, rows=rows)
 
 
@@ -301,7 +301,7 @@ def plot_sweep(
     heat map). Several rows with the same parameter values are summarised by their median. The
     colour (or y) scale is logarithmic when the positive metric spans more than 2 decades.
     Writes a PNG to out_path atomically (parent directories created) and returns out_path.
-    Raises :class:`PlotError` naming the file and listing the columns when x, y or metric is not
+    Raises :class:`BadInputError` naming the file and listing the columns when x, y or metric is not
     a column, when the metric holds text in an ok row, and when the file is missing or empty;
     :class:`~hybrid_force.errors.MissingExtraError` without matplotlib (the ``plots`` extra).
     """
@@ -312,14 +312,16 @@ def plot_sweep(
     if y is not None:
         sweep.require(y, "y")
         if y == x:
-            raise PlotError(f"x and y are both {x!r}; a heat map needs two different parameters")
+            raise BadInputError(
+                f"x and y are both {x!r}; a heat map needs two different parameters"
+            )
     if metric in (x, y):
-        raise PlotError(f"metric {metric!r} is also a swept parameter; choose another column")
+        raise BadInputError(f"metric {metric!r} is also a swept parameter; choose another column")
     ok = sweep.ok()
     for i, row in enumerate(sweep.rows):
         cell = (row.get(metric) or "").strip()
         if ok[i] and cell and not _is_number(cell):
-            raise PlotError(
+            raise BadInputError(
                 f"metric column {metric!r} of {str(sweep.path)!r} is not numeric (data row "
                 f"{i + 1} has {cell!r}); available columns: " + ", ".join(sweep.columns)
             )

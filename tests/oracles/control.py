@@ -27,7 +27,7 @@ from hybrid_force.control.laws.base import LawInput
 from hybrid_force.control.pose_clik import PoseJointPath, _orientation_error
 from hybrid_force.control.supervisor import HybridController
 from hybrid_force.control.tool import cross3
-from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.errors import SurfaceError
 from hybrid_force.model.robot import LWA, RobotTerms
 from oracles.terms import constraint_terms, robot_terms
 
@@ -374,7 +374,7 @@ class ReferenceControllerModel(ControllerModel):
         terms = robot_terms(self.robot, q, v)
         try:
             return terms, constraint_terms(self.constraint, terms, v)
-        except SingularConfigurationError:
+        except SurfaceError:
             return terms, None
 
 

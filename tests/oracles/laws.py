@@ -37,7 +37,7 @@ from hybrid_force.control.laws.raibert_craig import (
     pseudo_inverse,
     selection_matrix,
 )
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.regressor import SlotineLiRegressor
 from hybrid_force.model.robot import Robot, RobotTerms
 from oracles.control import ReferenceLaw, arimoto_law, free_space_law
@@ -64,7 +64,7 @@ def cartesian_inertia(robot: RobotTerms) -> np.ndarray:
     """Λ = (J M⁻¹ Jᵀ)⁻¹ (3, 3) [kg] of the model terms, symmetric.
 
     Raises:
-        SingularConfigurationError: J M⁻¹ Jᵀ is singular (the tip cannot move along some
+        SurfaceError: J M⁻¹ Jᵀ is singular (the tip cannot move along some
             direction, so no Cartesian stiffness acts there).
     """
     try:

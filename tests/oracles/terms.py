@@ -4,7 +4,7 @@ from each surface's value, gradient and Hessian with the general k-row algebra i
 ``robot_terms`` checks :meth:`Robot.terms <hybrid_force.model.robot.Robot.terms>` (six Pinocchio
 calls and a kernel); ``constraint_terms`` checks :meth:`Constraint.evaluate
 <hybrid_force.control.constraint.Constraint.evaluate>` (the k = 1 kernel and the stacked
-numpy algebra), raising the same SingularConfigurationError where the rows are undefined.
+numpy algebra), raising the same SurfaceError where the rows are undefined.
 Both return new arrays.
 """
 
@@ -20,7 +20,7 @@ from hybrid_force.control.constraint import (
     Constraint,
     ConstraintTerms,
 )
-from hybrid_force.errors import SingularConfigurationError
+from hybrid_force.errors import SurfaceError
 from hybrid_force.model.robot import LWA, Robot, RobotTerms
 
 __all__ = ["constraint_terms", "robot_terms"]
@@ -57,7 +57,7 @@ def constraint_terms(constraint: Constraint, terms: RobotTerms, v: np.ndarray) -
     (the package's stacked algebra takes A⁺ = Aᵀ(AAᵀ)⁻¹ and the rate of (AAᵀ)⁻¹ instead).
 
     Raises:
-        SingularConfigurationError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
+        SurfaceError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
             stacked rows are dependent (cond(AAᵀ) beyond 1e12).
     """
     p, J, pdot = terms.p, terms.J, terms.pdot
@@ -67,7 +67,7 @@ def constraint_terms(constraint: Constraint, terms: RobotTerms, v: np.ndarray) -
         value, grad, hess = surface.evaluate(p)
         grad_norm = float(np.sqrt(grad @ grad))
         if grad_norm < _GRAD_TOL:
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"∇Φ vanishes at tip position {p.tolist()} on surface {i} ({surface!r})"
             )
         h_pdot = hess @ pdot
@@ -75,7 +75,7 @@ def constraint_terms(constraint: Constraint, terms: RobotTerms, v: np.ndarray) -
         row_dot = h_pdot @ J + grad @ terms.Jdot
         row_norm = float(np.sqrt(row @ row))
         if row_norm < _ROW_TOL * grad_norm * (1.0 + float(np.abs(J).max())):
-            raise SingularConfigurationError(
+            raise SurfaceError(
                 f"J_Φ is (near) zero for surface {i} ({surface!r}) at tip {p.tolist()}"
             )
         if constraint.normalization == "tip":
@@ -96,7 +96,7 @@ def constraint_terms(constraint: Constraint, terms: RobotTerms, v: np.ndarray) -
     sigma = np.linalg.svd(A, compute_uv=False)  # cond(AAᵀ) = (σ_max / σ_min)²
     cond = (sigma[0] / sigma[-1]) ** 2 if sigma[-1] > 0.0 else np.inf
     if not np.isfinite(cond) or cond > _COND_TOL:
-        raise SingularConfigurationError(
+        raise SurfaceError(
             f"the {len(rows)} stacked constraint rows are (nearly) dependent at tip "
             f"{p.tolist()} (cond(A Aᵀ) = {cond:.3g})"
         )

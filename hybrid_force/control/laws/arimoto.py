@@ -49,7 +49,7 @@ from hybrid_force.control.laws.base import (
     below,
     register,
 )
-from hybrid_force.errors import GainError
+from hybrid_force.errors import ControlError
 
 _K = LazyKernels("hybrid_force.control._kernels")
 
@@ -116,22 +116,24 @@ def check_damping_gain(Kd: object, n: int | None = None) -> float | np.ndarray:
         Kd as a float, or as a new read-only float64 array of shape (n,) or (n, n).
 
     Raises:
-        GainError: wrong type or shape, non-finite entries, not symmetric, not positive
+        ControlError: wrong type or shape, non-finite entries, not symmetric, not positive
             definite; the message names ``Kd``.
     """
-    K = checks.array(Kd, "Kd", GainError, valid=_KD_VALID)
+    K = checks.array(Kd, "Kd", ControlError, valid=_KD_VALID)
     if n is not None and K.shape not in ((), (n,), (n, n)):
-        raise GainError(
+        raise ControlError(
             f"Kd must be a scalar, a vector of {n} or an {n}x{n} matrix, got shape {K.shape}"
         )
     if K.ndim > 2 or K.size == 0 or (K.ndim == 2 and K.shape[0] != K.shape[1]):
-        raise GainError(f"Kd must be {_KD_VALID}, got shape {K.shape}: {checks.shown(Kd)}")
+        raise ControlError(f"Kd must be {_KD_VALID}, got shape {K.shape}: {checks.shown(Kd)}")
     M = K * np.eye(1) if K.ndim == 0 else (np.diag(K) if K.ndim == 1 else K)
     if not np.allclose(M, M.T, rtol=1e-12, atol=1e-12 * float(np.abs(M).max() + 1)):
-        raise GainError(f"Kd must be symmetric (paper eq. 11: K_d = K_dᵀ > 0), got {M.tolist()}")
+        raise ControlError(f"Kd must be symmetric (paper eq. 11: K_d = K_dᵀ > 0), got {M.tolist()}")
     eig_min = float(np.linalg.eigvalsh(M).min())
     if eig_min <= 0:
-        raise GainError(f"Kd must be positive definite; its smallest eigenvalue is {eig_min:.6g}")
+        raise ControlError(
+            f"Kd must be positive definite; its smallest eigenvalue is {eig_min:.6g}"
+        )
     if K.ndim == 0:
         return float(K)
     K.setflags(write=False)
@@ -154,18 +156,18 @@ def make_gains(
         n: the number of joints (an integer in [1, 10000]).
 
     Raises:
-        GainError: K_d not symmetric positive definite, Λ ≤ 0, β < 0, γ ≤ 0, non-finite values,
+        ControlError: K_d not symmetric positive definite, Λ ≤ 0, β < 0, γ ≤ 0, non-finite values,
             or a value that is not a real number (a bool, a string, 10**400); the message
             names the gain.
     """
     n = checks.integer(
-        n, "make_gains: n (the number of joints)", GainError, minimum=1, maximum=_MAX_JOINTS
+        n, "make_gains: n (the number of joints)", ControlError, minimum=1, maximum=_MAX_JOINTS
     )
     K = check_damping_gain(Kd, n)
     K = np.array(K * np.eye(n) if isinstance(K, float) else (np.diag(K) if K.ndim == 1 else K))
-    lam = checks.number(Lambda, "Lambda (paper eq. 4, 29)", GainError, minimum=0, strict=True)
-    b = checks.number(beta, "beta (paper eq. 4)", GainError, minimum=0)
-    g = checks.number(gamma, "gamma (paper eq. 11)", GainError, minimum=0, strict=True)
+    lam = checks.number(Lambda, "Lambda (paper eq. 4, 29)", ControlError, minimum=0, strict=True)
+    b = checks.number(beta, "beta (paper eq. 4)", ControlError, minimum=0)
+    g = checks.number(gamma, "gamma (paper eq. 11)", ControlError, minimum=0, strict=True)
     return Gains(Kd=K, Lambda=lam, beta=b, gamma=g)
 
 

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.errors import ControlError, GainError, did_you_mean
+from hybrid_force.errors import ControlError, did_you_mean
 from hybrid_force.schema import Param, specs
 
 if TYPE_CHECKING:  # annotations only (the laws' modules import this one)
@@ -47,7 +47,7 @@ if TYPE_CHECKING:  # annotations only (the laws' modules import this one)
     from hybrid_force.control.constraint import ConstraintTerms
     from hybrid_force.control.laws.arimoto import Command, ControlTrace, Desired, Gains
     from hybrid_force.control.supervisor import ControlSettings
-    from hybrid_force.geometry.surfaces import Surface
+    from hybrid_force.geometry.surface_base import Surface
     from hybrid_force.model.robot import Robot, RobotTerms
 
 __all__ = [
@@ -192,7 +192,7 @@ class LawSpec:
             does not record it).
         loop_bounds: the law's pre-run stability checks (``LoopContext -> list[LoopBound]``);
             None: the law has none.
-        check: the checks the factory needs passed (ControlError, GainError naming the key),
+        check: the checks the factory needs passed (ControlError, ControlError naming the key),
             run by :func:`check_law` before the factory and by the scenario loader alone;
             None: the law has none.
     """
@@ -410,7 +410,7 @@ def check_options(options: object) -> dict[str, dict[str, Any]]:
 
     Raises:
         ControlError: an unknown law or key (naming ``control.<law>.<key>`` and the valid
-            ones), or GainError: a value of the wrong kind or out of range.
+            ones), or ControlError: a value of the wrong kind or out of range.
     """
     if not isinstance(options, Mapping):
         raise ControlError(
@@ -447,7 +447,7 @@ def check_options(options: object) -> dict[str, dict[str, Any]]:
 def check_value(where: str, value: object, f: dataclasses.Field[Any], spec: Param) -> object:
     """One value of a law's table for its field ``f`` (a bool, one of ``spec.choices``, or a
     finite real number within ``spec``'s range, returned as a float); ``where`` names it in
-    the error (ControlError, or GainError for a number)."""
+    the error (ControlError, or ControlError for a number)."""
     if str(f.type).startswith("bool"):
         if not isinstance(value, bool):
             raise ControlError(
@@ -464,14 +464,16 @@ def check_value(where: str, value: object, f: dataclasses.Field[Any], spec: Para
             )
         return value
     if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
-        raise GainError(
+        raise ControlError(
             f"{where} must be a finite real number, got {value!r}", key=where, value=value
         )
     number = float(value)
     low = spec.minimum
     if low is not None and (number < low or (spec.strict and number == low)):
         relation = ">" if spec.strict else ">="
-        raise GainError(f"{where} = {number!r} must be {relation} {low:g}", key=where, value=value)
+        raise ControlError(
+            f"{where} = {number!r} must be {relation} {low:g}", key=where, value=value
+        )
     return number
 
 
@@ -488,7 +490,7 @@ class LawOptions:
     law: ClassVar[str] = ""
 
     def __post_init__(self) -> None:
-        """Check each field (ControlError or GainError naming ``control.<law>.<key>``)."""
+        """Check each field (ControlError or ControlError naming ``control.<law>.<key>``)."""
         for f, spec in specs(type(self)):
             value = getattr(self, f.name)
             if value is None and f.default is None:

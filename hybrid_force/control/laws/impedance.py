@@ -100,7 +100,7 @@ from hybrid_force.control.laws.base import (
     register,
 )
 from hybrid_force.control.laws.osc_hybrid import task_space
-from hybrid_force.errors import GainError, SingularConfigurationError
+from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.schema import param
 
@@ -123,7 +123,7 @@ class ImpedanceGains(LawOptions):
     """Settings of the impedance law (the ``[control.impedance]`` table).
 
     Raises:
-        ControlError: a value the ``[control.impedance]`` table would refuse (a GainError
+        ControlError: a value the ``[control.impedance]`` table would refuse (a ControlError
             for a rate ≤ 0, a ControlError for a flag that is not a bool), naming
             ``control.impedance.<key>``.
     """
@@ -154,9 +154,9 @@ class ImpedanceGains(LawOptions):
 DEFAULTS: dict[str, Any] = dataclasses.asdict(ImpedanceGains())
 
 
-def _singular(robot: RobotTerms) -> SingularConfigurationError:
+def _singular(robot: RobotTerms) -> SurfaceError:
     """The error of a configuration where J M⁻¹ Jᵀ (or M) is singular."""
-    return SingularConfigurationError(
+    return SurfaceError(
         f"the tip at {robot.p.tolist()} cannot move in every direction (J M⁻¹ Jᵀ is "
         "singular): the Cartesian impedance is undefined there"
     )
@@ -166,7 +166,7 @@ class ImpedanceWorkspace(Law):
     """The impedance law (module docstring) as one compiled call per step, into arrays
     preallocated here (:func:`hybrid_force.control.laws._impedance_kernels.impedance`: the
     Cholesky factorisation of M and the small solves written out); a
-    SingularConfigurationError where J M⁻¹ Jᵀ or M is singular. The command returned,
+    SurfaceError where J M⁻¹ Jᵀ or M is singular. The command returned,
     ``stiffness``, ``damping`` and ``offset`` are overwritten at every call: copy to keep.
 
     Args:
@@ -290,13 +290,13 @@ def check(context: LawContext) -> None:
     """The registry's check of ``control.law = "impedance"``.
 
     Raises:
-        GainError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
+        ControlError: ω·dt or κ_f·dt ≥ 0.5 (the explicit step or the sampled admittance would
             not follow the continuous law), naming ``control.impedance.<key>``.
     """
     gains = ImpedanceGains(**context.options)
     for key, rate in (("omega", gains.omega), ("force_rate", gains.force_rate)):
         if rate * context.dt >= _MAX_RATE_STEP:
-            raise GainError(
+            raise ControlError(
                 f"control.impedance.{key} = {rate:g} 1/s is too fast for the control period "
                 f"{context.dt:g} s: {key}·dt = {rate * context.dt:.3g} must stay below "
                 f"{_MAX_RATE_STEP}",

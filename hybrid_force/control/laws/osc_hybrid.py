@@ -67,7 +67,7 @@ k_P: the tick-to-tick map of (f − f_d, e_F) has determinant −k_P, so k_P < 1
 (default 0); with k_P = 0 force noise σ leaves |f − f_d| of RMS σ √(k_I T / (2 − k_I T)).
 
 What it cannot do: it needs a tip Jacobian of full row rank (3 ≤ n and away from a singular
-configuration, else SingularConfigurationError); it has no Lyapunov function in joules
+configuration, else SurfaceError); it has no Lyapunov function in joules
 (``V`` is NaN): the decoupling of (2) is exact only with the exact model.
 
 Runs compiled: :class:`OscHybridWorkspace`, one Numba call per step
@@ -104,7 +104,7 @@ from hybrid_force.control.laws.base import (
     below,
     register,
 )
-from hybrid_force.errors import ControlError, SingularConfigurationError
+from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.schema import param
 
 _K = LazyKernels("hybrid_force.control.laws._osc_hybrid_kernels")
@@ -232,7 +232,7 @@ def task_space(M: np.ndarray, J: np.ndarray) -> TaskSpace:
     """Λ and J̄ of the mass matrix M (n, n) and the tip Jacobian J (3, n).
 
     Raises:
-        SingularConfigurationError: J M⁻¹ Jᵀ is (nearly) singular (the tip cannot move in
+        SurfaceError: J M⁻¹ Jᵀ is (nearly) singular (the tip cannot move in
             some direction): Λ is undefined there.
     """
     Minv_Jt = np.linalg.solve(M, J.T)  # (n, 3)
@@ -248,9 +248,9 @@ def task_space(M: np.ndarray, J: np.ndarray) -> TaskSpace:
     return TaskSpace(Lambda=Lambda, Jbar=Minv_Jt @ Lambda, J=J)
 
 
-def _singular(cond: float) -> SingularConfigurationError:
+def _singular(cond: float) -> SurfaceError:
     """The error of a (nearly) singular J M⁻¹ Jᵀ, whose cond estimate is ``cond``."""
-    return SingularConfigurationError(
+    return SurfaceError(
         f"law {_NAME!r}: the task-space inertia (J M⁻¹ Jᵀ)⁻¹ is undefined: cond(J M⁻¹ Jᵀ) "
         f"≈ {cond:.3g} (the tip Jacobian is rank deficient: a singular configuration, or "
         "fewer than 3 joints move the tip)",
@@ -299,7 +299,7 @@ class OscHybridWorkspace(Law):
     :func:`hybrid_force.control.laws._osc_hybrid_kernels.osc_hybrid` computes Λ, J̄ and Nᵀτ₀
     by small dense factorisations and the directions W from the surfaces' closed forms,
     without allocating. Where J M⁻¹ Jᵀ is (nearly) singular, cond(J M⁻¹ Jᵀ) ≥ 1e12, it raises
-    SingularConfigurationError; where M or WᵀW is exactly singular, numpy's LinAlgError. The
+    SurfaceError; where M or WᵀW is exactly singular, numpy's LinAlgError. The
     command returned and the arrays below are overwritten at every call: copy to keep.
 
     Args:

@@ -119,7 +119,7 @@ from hybrid_force.control.laws.base import (
 )
 from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
 from hybrid_force.errors import ControlError
-from hybrid_force.geometry.surfaces import Surface
+from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.schema import param
 
 __all__ = [
