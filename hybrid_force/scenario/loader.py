@@ -205,6 +205,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     from hybrid_force.sim.loop import Scenario, SimSettings
     from hybrid_force.sim.sensors import SensorSettings
+    from hybrid_force.sim.settings import check_path_on_surfaces
 
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:
@@ -242,6 +243,11 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     controller_model = _controller_model(control_values, robot, file, ctx, trust)
     tool = _tool_settings(doc.get("tool", {}), robot, ctx)
     _check_control_rate(control, sim, control_values, ctx)
+    if control.supervisor:  # a run that starts in contact: checked by Scenario
+        try:
+            check_path_on_surfaces(path, surfaces, sim.duration)
+        except BadInputError as exc:
+            raise _refusal(exc, traj, surface_tables, None, control, sim, ctx) from None
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     fastest = max((abs(float(x)) for x in v0), default=0.0) if v0 is not None else 0.0
     if fastest > sim.max_velocity:
@@ -259,7 +265,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             robot, q0, _start_solver(tool, robot, surfaces, path, doc["initial"]["tip"]),
             doc["initial"].get("seed"), start_key,
         )  # fmt: skip
-    try:  # the path, the start and the stacked rows: checked once, by Scenario
+    try:  # the start, the stacked rows (and the path of a run in contact): by Scenario
         scenario = Scenario(
             robot=robot,
             surfaces=surfaces,
@@ -297,7 +303,7 @@ def _refusal(
     exc: BadInputError,
     traj: Mapping[str, Any],
     tables: list[tuple[str, dict[str, Any]]],
-    start: tuple[Any, Any, str, object],
+    start: tuple[Any, Any, str, object] | None,
     control: Any,
     sim: Any,
     ctx: _Context,
@@ -306,7 +312,6 @@ def _refusal(
     ``value``) as the file's: naming the file, the keys and their values. ``start``: (the
     arm, q0, the start's key and its value as written)."""
     key, value = exc.key, exc.value
-    robot, q0, start_key, start_value = start
     if key == "Scenario.path" and isinstance(value, tuple):
         i, report = value
         name, table = tables[i]
@@ -325,7 +330,8 @@ def _refusal(
             f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
             f"[0, sim.duration = {sim.duration:g} s]"
         )
-    if key == "Scenario.q0" and isinstance(value, tuple):
+    if key == "Scenario.q0" and isinstance(value, tuple) and start is not None:
+        robot, q0, start_key, start_value = start
         d = float(value[1])
         where = f"tip at {[round(float(x), 6) for x in robot.tip_position(q0)]}"
         if control.supervisor:

@@ -24,7 +24,7 @@ from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
 
-__all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
+__all__ = ["Integrator", "Scenario", "SimSettings", "check_path_on_surfaces", "control_steps"]
 
 Integrator = Literal["euler", "rk4"]
 
@@ -140,10 +140,10 @@ class Scenario:
     * the types and shapes above, finite q0 and v0, every |v0_i| below ``sim.max_velocity``
       (the run would stop as a runaway at once); K_d's size against the arm's joints and
       f_d's count against the surfaces;
-    * the desired path within ``ON_SURFACE_TOL`` (1e-6 m) of every surface over
-      [0, sim.duration] (sampled by :func:`~hybrid_force.geometry.paths.check_on_surface`);
-    * a run that starts in contact (``control.supervisor`` False): the start tip p(q0)
-      within ``control.contact_tol`` of every surface;
+    * a run that starts in contact (``control.supervisor`` False): the desired path within
+      ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration]
+      (:func:`check_path_on_surfaces`) and the start tip p(q0) within ``control.contact_tol``
+      of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
       stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
@@ -306,37 +306,15 @@ class Scenario:
             )
 
     def _check_start_and_path(self) -> None:
-        """The path on every surface and the contact conditions of the start (class
-        docstring): the one check of a run, a file's or one built by hand. Each refusal is a
-        ScenarioValueError whose ``key`` names the field ("Scenario.path", "Scenario.q0",
-        "Scenario.surfaces") and whose ``value`` holds what the loader names: (surface
-        index, OnSurfaceReport or None), (surface index, distance [m]), the row indices."""
-        from hybrid_force.errors import BadInputError
+        """The contact conditions of the start and, for a run that starts in contact, the
+        path on every surface (class docstring): the one check of a run, a file's or one
+        built by hand. Each refusal is a ScenarioValueError whose ``key`` names the field
+        ("Scenario.path", "Scenario.q0", "Scenario.surfaces") and whose ``value`` holds what
+        the loader names: (surface index, OnSurfaceReport or None) (:func:`check_path_on_surfaces`),
+        (surface index, distance [m]), the row indices."""
         from hybrid_force.errors import ScenarioValueError as Bad
-        from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
-        duration = self.sim.duration
-        for i, surface in enumerate(surfaces):
-            try:
-                report = check_on_surface(self.path, surface, 0.0, duration)
-            except BadInputError as exc:  # e.g. Φ(p_d) not finite
-                raise Bad(
-                    f"Scenario.path cannot be checked against surfaces[{i}] ({surface!r}): "
-                    f"{' '.join(str(exc).split())}",
-                    key="Scenario.path",
-                    value=(i, None),
-                ) from None
-            if report.worst_distance > ON_SURFACE_TOL:
-                raise Bad(
-                    f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
-                    f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
-                    f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
-                    f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
-                    f"[0, sim.duration = {duration:g} s]",
-                    key="Scenario.path",
-                    value=(i, report),
-                )
         if k > 1 and control.supervisor:
             raise Bad(
                 f"Scenario.surfaces: {k} stacked surfaces are supported only for a run that starts "
@@ -358,6 +336,7 @@ class Scenario:
                     value=(i, distances[i]),
                 )
             return
+        check_path_on_surfaces(self.path, surfaces, self.sim.duration)
         i = int(np.argmax(np.abs(distances)))
         if abs(distances[i]) > control.contact_tol:
             raise Bad(
@@ -383,6 +362,36 @@ class Scenario:
                     key="Scenario.surfaces",
                     value=tuple(found[0]),
                 )
+
+
+def check_path_on_surfaces(path: Path, surfaces: Sequence[Surface], duration: float) -> None:
+    """The desired path within ``ON_SURFACE_TOL`` of every surface over 0 ≤ t ≤ duration (s):
+    ScenarioValueError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
+    None when the path cannot be checked against it)) otherwise."""
+    from hybrid_force.errors import BadInputError
+    from hybrid_force.errors import ScenarioValueError as Bad
+    from hybrid_force.geometry.paths import ON_SURFACE_TOL, check_on_surface
+
+    for i, surface in enumerate(surfaces):
+        try:
+            report = check_on_surface(path, surface, 0.0, duration)
+        except BadInputError as exc:  # e.g. Φ(p_d) not finite
+            raise Bad(
+                f"Scenario.path cannot be checked against surfaces[{i}] ({surface!r}): "
+                f"{' '.join(str(exc).split())}",
+                key="Scenario.path",
+                value=(i, None),
+            ) from None
+        if report.worst_distance > ON_SURFACE_TOL:
+            raise Bad(
+                f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
+                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
+                f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
+                f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
+                f"[0, sim.duration = {duration:g} s]",
+                key="Scenario.path",
+                value=(i, report),
+            )
 
 
 def control_steps(control: ControlSettings, sim: SimSettings) -> int:
