@@ -21,7 +21,7 @@ from oracles.run import oracle_run
 
 from hybrid_force import load_robot, simulate
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.builtin_surfaces import Plane
 from hybrid_force.model.robot import Robot

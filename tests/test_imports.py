@@ -15,8 +15,6 @@ import ast
 from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
-
 PACKAGE = Path(__file__).resolve().parents[1] / "hybrid_force"
 
 #: Libraries imported inside functions on purpose: each is heavy (numba, trimesh, libigl,
@@ -136,14 +134,6 @@ def find_cycle(edges: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="two cycles left in files of other changes of issue 29 (only their import lines may "
-    "move here): control.laws.arimoto -> laws.base -> arimoto and control.supervisor -> "
-    "laws.base -> supervisor (laws/base.py's registry imports the law's types and "
-    "ControlSettings); viz.scene -> viz.scene_objects -> viz.scene (scene_objects annotates with "
-    "Replay, ReplaySettings), and through it scene_animation and live_server",
-)
 def test_the_package_has_no_import_cycle() -> None:
     edges = graph()
     cycle = find_cycle(edges)

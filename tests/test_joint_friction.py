@@ -20,7 +20,7 @@ import pytest
 
 from hybrid_force import load_robot, simulate
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.errors import RobotError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane
 from hybrid_force.model.robot import Robot

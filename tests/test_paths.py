@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from hybrid_force.errors import BadInputError, PathError, SurfaceError
 from hybrid_force.geometry import on_surface
+from hybrid_force.geometry.builtin_surfaces import Cylinder
 from hybrid_force.geometry.on_surface import OnSurfaceReport, check_on_surface
 from hybrid_force.geometry.paths import (
     Circle,
@@ -237,8 +238,7 @@ def test_paper_helix_lies_on_the_paper_cylinder() -> None:
 
 
 def test_paper_helix_on_the_real_cylinder() -> None:
-    surfaces = pytest.importorskip("hybrid_force.geometry.surfaces")
-    rep = check_on_surface(paper_helix(), surfaces.Cylinder(0.4), 0.0, 20.0)
+    rep = check_on_surface(paper_helix(), Cylinder(0.4), 0.0, 20.0)
     assert rep.worst_distance < 1e-12
 
 
@@ -259,10 +259,9 @@ def test_shifted_helix_reported_off_by_the_shift(samples: int) -> None:
 
 
 def test_shifted_helix_on_the_real_cylinder() -> None:
-    surfaces = pytest.importorskip("hybrid_force.geometry.surfaces")
     path = Helix((0.0, 0.03, 10.0), 0.4, omega=1.0, rise=0.1)
     # shift along y: the wall is nearest at θ = −π/2 ≡ 3π/2 (inside by 0.03)
-    rep = check_on_surface(path, surfaces.Cylinder(0.4), 3.0, 6.0, samples=101)
+    rep = check_on_surface(path, Cylinder(0.4), 3.0, 6.0, samples=101)
     assert rep.worst_distance == pytest.approx(0.03, abs=1e-14)
     assert rep.time_of_worst == pytest.approx(1.5 * math.pi, abs=1e-6)
 

@@ -17,7 +17,7 @@ from oracles.terms import constraint_terms, robot_terms
 
 from hybrid_force import RunWarning, load_robot, simulate
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.errors import RunFailedError
 from hybrid_force.geometry.builtin_surfaces import Cylinder
 from hybrid_force.geometry.paths import paper_helix

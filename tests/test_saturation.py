@@ -18,7 +18,7 @@ from oracles.plant import kkt
 
 from hybrid_force import simulate
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.geometry.builtin_surfaces import Plane
 from hybrid_force.model.robot import Robot
 from hybrid_force.scenario.loader import load_scenario

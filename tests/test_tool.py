@@ -467,7 +467,8 @@ def test_figure_only_for_runs_with_a_tool_angle(sphere_run: Result, tmp_path: Pa
 def test_replay_draws_the_tool_axis(sphere_run: Result) -> None:
     from test_replay import animation_tracks, embedded_commands
 
-    from hybrid_force.viz.scene import Replay, ReplaySettings
+    from hybrid_force.viz.replay_view import ReplaySettings
+    from hybrid_force.viz.scene import Replay
 
     short = sphere_run.truncated(1001)
     replay = Replay(short, ReplaySettings(fps=5.0))

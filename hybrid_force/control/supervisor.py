@@ -48,16 +48,12 @@ from hybrid_force.control.clik import (
     inverse_kinematics,
 )
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.arimoto import (
+from hybrid_force.control.laws.arimoto import check_damping_gain, default_damping_gain, make_gains
+from hybrid_force.control.laws.base import (
     Command,
     ControlTrace,
     Desired,
     Gains,
-    check_damping_gain,
-    default_damping_gain,
-    make_gains,
-)
-from hybrid_force.control.laws.base import (
     Law,
     LawContext,
     LawInput,

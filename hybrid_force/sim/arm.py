@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.errors import RobotError, SurfaceError
 from hybrid_force.events import Event
 from hybrid_force.model.robot import LWA as _LWA

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.events import Release, Touch
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.sim.arm import Arm

@@ -15,7 +15,7 @@ import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.controller import Controller, ControllerModel
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.control.pose_clik import PoseJointPath
 from hybrid_force.control.supervisor import HybridController
 from hybrid_force.control.tool import ToolAngleProbe, ToolTarget

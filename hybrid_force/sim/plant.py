@@ -21,7 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.sim.arm import Arm
 from hybrid_force.sim.compliant_contact import CompliantContact

@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.laws.arimoto import Command
-from hybrid_force.control.laws.base import law_log_names
+from hybrid_force.control.laws.base import Command, law_log_names
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result

@@ -34,7 +34,7 @@ import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import _GRAD_TOL, ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.events import Impact, Release
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import RobotTerms

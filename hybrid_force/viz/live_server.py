@@ -23,7 +23,7 @@ from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import BadInputError
 
 if TYPE_CHECKING:
-    from hybrid_force.viz.scene import Replay
+    from hybrid_force.viz.replay_view import ReplayView
 
 __all__ = ["LiveServer"]
 
@@ -284,7 +284,7 @@ def _signals_raise_interrupt() -> Iterator[None]:
 
 
 def _serve_replay(
-    replay: Replay,
+    replay: ReplayView,
     *,
     port: int | None,
     loop: bool,

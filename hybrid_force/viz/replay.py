@@ -57,7 +57,8 @@ from typing import Any
 from hybrid_force.result import Result
 from hybrid_force.run_output import RunOutput
 from hybrid_force.viz.live_server import _serve_replay
-from hybrid_force.viz.scene import Replay, ReplaySettings
+from hybrid_force.viz.replay_view import ReplaySettings
+from hybrid_force.viz.scene import Replay
 
 __all__ = ["html", "replay_command", "serve", "show", "write_html"]
 

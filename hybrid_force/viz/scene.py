@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +27,7 @@ from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.result import Result
 from hybrid_force.viz.html_page import _atomic_write_text, _RecordingWindow, _static_page
 from hybrid_force.viz.live_server import _serve_replay
+from hybrid_force.viz.replay_view import ReplaySettings
 from hybrid_force.viz.robot_visuals import _load_options, visual_geometry
 from hybrid_force.viz.scene_animation import animate
 from hybrid_force.viz.scene_objects import (
@@ -38,57 +38,7 @@ from hybrid_force.viz.scene_objects import (
     set_camera,
 )
 
-__all__ = ["Replay", "ReplaySettings"]
-
-
-# --------------------------------------------------------------------------- settings
-@dataclass(frozen=True)
-class ReplaySettings:
-    """How a run is drawn.
-
-    Attributes:
-        fps: animation frames per second [1/s]; the run is resampled at this rate.
-        force_scale: arrow length per newton [m/N].
-        force_cap: longest arrow [m].
-        max_path_points: at most this many points per path polyline.
-        surface_opacity: opacity of the surfaces in (0, 1].
-        margin: extra size around the motion for surfaces [m] (at least; 10 % of the span
-            is used if larger).
-        tip_radius: radius of the tip marker sphere [m].
-        tool_length: length of the tool axis drawn for a run with ``[tool] orientation =
-            "normal"``: a rod from the tip back along the axis [m].
-    """
-
-    fps: float = 30.0
-    force_scale: float = 0.02
-    force_cap: float = 0.5
-    max_path_points: int = 1500
-    surface_opacity: float = 0.3
-    margin: float = 0.2
-    tip_radius: float = 0.045
-    tool_length: float = 0.15
-
-    def __post_init__(self) -> None:
-        for name in ("fps", "force_scale", "force_cap", "margin", "tip_radius", "tool_length"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise BadInputError(f"ReplaySettings.{name} must be a number, got {value!r}")
-            if not math.isfinite(value) or value <= 0.0:
-                raise BadInputError(f"ReplaySettings.{name} must be finite and > 0, got {value!r}")
-        if self.fps > 1000.0:
-            raise BadInputError(f"ReplaySettings.fps must be <= 1000, got {self.fps!r}")
-        if not 0.0 < self.surface_opacity <= 1.0:
-            raise BadInputError(
-                f"ReplaySettings.surface_opacity must be in (0, 1], got {self.surface_opacity!r}"
-            )
-        if isinstance(self.max_path_points, bool) or not isinstance(self.max_path_points, int):
-            raise BadInputError(
-                f"ReplaySettings.max_path_points must be an int, got {self.max_path_points!r}"
-            )
-        if self.max_path_points < 2:
-            raise BadInputError(
-                f"ReplaySettings.max_path_points must be >= 2, got {self.max_path_points}"
-            )
+__all__ = ["Replay"]
 
 
 # --------------------------------------------------------------------------- helpers

@@ -17,8 +17,8 @@ import pinocchio as pin
 from hybrid_force.phases import PHASE_NAMES
 from hybrid_force.viz.scene_objects import ROOT, _homogeneous, _rotation_onto, arrow_pose
 
-if TYPE_CHECKING:  # annotations only: the Replay imports this module
-    from hybrid_force.viz.scene import Replay
+if TYPE_CHECKING:  # annotations only
+    from hybrid_force.viz.replay_view import ReplayView
 
 __all__ = ["animate"]
 
@@ -44,7 +44,9 @@ class _PlacementCapture:
             """Ignored (visibility of visuals is set once on the real viewer)."""
 
 
-def animate(vis: Any, viz: Any, replay: Replay, *, play: bool = True, repetitions: int = 1) -> None:
+def animate(
+    vis: Any, viz: Any, replay: ReplayView, *, play: bool = True, repetitions: int = 1
+) -> None:
     """Send the replay's animation to ``vis`` (a ``meshcat.Visualizer``) and set every moving
     node at its first frame.
 
@@ -84,7 +86,7 @@ def animate(vis: Any, viz: Any, replay: Replay, *, play: bool = True, repetition
     vis.set_animation(anim, play=play, repetitions=repetitions)
 
 
-def _animate_tip_and_force(vis: Any, anim: Any, replay: Replay) -> None:
+def _animate_tip_and_force(vis: Any, anim: Any, replay: ReplayView) -> None:
     """Tip marker (placement, visible phase) and force arrows at every frame."""
     root = vis[ROOT]
     tip_node = root["tip"]
@@ -119,7 +121,7 @@ def _animate_tip_and_force(vis: Any, anim: Any, replay: Replay) -> None:
                 node.set_property("visible", "boolean", visible)
 
 
-def _tool_poses(replay: Replay) -> list[np.ndarray]:
+def _tool_poses(replay: ReplayView) -> list[np.ndarray]:
     """4×4 placement of the tool rod per frame: +y along −a (a = R(q) â), origin at the tip."""
 
     axis = replay.tool_axis

@@ -18,9 +18,9 @@ import pinocchio as pin
 from hybrid_force.errors import BadInputError, HybridForceError
 from hybrid_force.phases import PHASE_NAMES
 
-if TYPE_CHECKING:  # annotations only: the Replay imports this module
+if TYPE_CHECKING:  # annotations only
     from hybrid_force.result import Result
-    from hybrid_force.viz.scene import Replay, ReplaySettings
+    from hybrid_force.viz.replay_view import ReplaySettings, ReplayView
 
 __all__ = ["PHASE_COLORS", "arrow_pose", "draw_static", "motion_points", "set_camera"]
 
@@ -85,7 +85,7 @@ def motion_points(result: Result) -> np.ndarray:
     return pts[np.all(np.isfinite(pts), axis=1)]
 
 
-def draw_static(vis: Any, replay: Replay) -> None:
+def draw_static(vis: Any, replay: ReplayView) -> None:
     """Send the replay's surfaces, paths, tip markers, force arrows and tool rod to ``vis``
     (a ``meshcat.Visualizer``), each at rest; :mod:`.scene_animation` moves them."""
     import meshcat.geometry as mg

@@ -16,7 +16,7 @@ import pytest
 
 import hybrid_force.sim.loop as loop
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command
+from hybrid_force.control.laws.base import Command
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.rigid_contact import RigidContact

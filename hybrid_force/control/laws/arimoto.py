@@ -25,7 +25,6 @@ one finds V̇ = −sᵀK_d s − βγ e_Fᵀe_F (eq. 16) for any row scaling, be
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,6 +39,9 @@ from hybrid_force.control.force_loop import (
 )
 from hybrid_force.control.laws.base import (
     PAPER_GAINS,
+    Command,
+    ControlTrace,
+    Gains,
     Law,
     LawContext,
     LawInput,
@@ -54,10 +56,6 @@ from hybrid_force.errors import ControlError
 _K = LazyKernels("hybrid_force.control._kernels")
 
 __all__ = [
-    "Command",
-    "ControlTrace",
-    "Desired",
-    "Gains",
     "LawWorkspace",
     "build",
     "check_damping_gain",
@@ -66,23 +64,6 @@ __all__ = [
     "loop_bounds",
     "make_gains",
 ]
-
-
-@dataclass(frozen=True)
-class Gains:
-    """Gains of the paper's laws.
-
-    Attributes:
-        Kd: (n, n) symmetric positive definite damping gain K_d [N·m·s/rad …] (eq. 11, 30).
-        Lambda: Λ > 0 [1/s] position-error gain (eq. 4, 29).
-        beta: β ≥ 0 [(m/s)/(N·s) for the "tip" scaling] momentum-error gain (eq. 4).
-        gamma: γ > 0 [1/s] force gain (eq. 11).
-    """
-
-    Kd: np.ndarray
-    Lambda: float
-    beta: float
-    gamma: float
 
 
 def default_damping_gain(M0: np.ndarray, rate: float = 20.0) -> np.ndarray:
@@ -169,48 +150,6 @@ def make_gains(
     b = checks.number(beta, "beta (paper eq. 4)", ControlError, minimum=0)
     g = checks.number(gamma, "gamma (paper eq. 11)", ControlError, minimum=0, strict=True)
     return Gains(Kd=K, Lambda=lam, beta=b, gamma=g)
-
-
-@dataclass(frozen=True)
-class Desired:
-    """Desired motion at one instant: q_d, q̇_d, q̈_d, each (n,) [rad or m, /s, /s²], and the
-    task-space path it follows, p_d, ṗ_d, p̈_d, each (3,) [m, m/s, m/s²] (None when not given).
-    """
-
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-    p: np.ndarray | None = None
-    pd: np.ndarray | None = None
-    pdd: np.ndarray | None = None
-
-
-@dataclass(frozen=True)
-class Command:
-    """Joint command u = u0 + B f (u0: (n,) [N or N·m]; B: (n, k) or None when u ignores f)."""
-
-    u0: np.ndarray
-    B: np.ndarray | None
-
-
-@dataclass(frozen=True)
-class ControlTrace:
-    """What a law computed at one step (for logging and tests).
-
-    e_q (n,), s (n,), s0 (n,), s1 (n,), e_F (k,) [N·s], qdot_r (n,), qddot_r0 (n,) = q̈_r at f = 0,
-    qddot_r_f (n, k) with q̈_r = qddot_r0 + qddot_r_f f, V [J] (section 5.1), f_d (k,) [N].
-    """
-
-    e_q: np.ndarray
-    s: np.ndarray
-    s0: np.ndarray
-    s1: np.ndarray
-    e_F: np.ndarray
-    qdot_r: np.ndarray
-    qddot_r0: np.ndarray
-    qddot_r_f: np.ndarray | None
-    V: float
-    f_d: np.ndarray
 
 
 class LawWorkspace(Law):

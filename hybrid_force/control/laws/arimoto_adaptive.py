@@ -75,9 +75,12 @@ import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.arimoto import Command, ControlTrace, Gains, loop_bounds
+from hybrid_force.control.laws.arimoto import loop_bounds
 from hybrid_force.control.laws.base import (
     PAPER_GAINS,
+    Command,
+    ControlTrace,
+    Gains,
     Law,
     LawContext,
     LawInput,

@@ -33,7 +33,7 @@ import math
 import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -45,18 +45,21 @@ if TYPE_CHECKING:  # annotations only (the laws' modules import this one)
     from collections.abc import Sequence
 
     from hybrid_force.control.constraint import ConstraintTerms
-    from hybrid_force.control.laws.arimoto import Command, ControlTrace, Desired, Gains
-    from hybrid_force.control.supervisor import ControlSettings
     from hybrid_force.geometry.surface_base import Surface
     from hybrid_force.model.robot import Robot, RobotTerms
 
 __all__ = [
     "LAWS",
     "PAPER_GAINS",
+    "Command",
+    "ControlTrace",
+    "Desired",
+    "Gains",
     "Law",
     "LawContext",
     "LawInput",
     "LawOptions",
+    "LawSettings",
     "LawSpec",
     "LoopBound",
     "LoopContext",
@@ -71,6 +74,89 @@ __all__ = [
     "law_spec",
     "register",
 ]
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Gains of the paper's laws.
+
+    Attributes:
+        Kd: (n, n) symmetric positive definite damping gain K_d [N·m·s/rad …] (eq. 11, 30).
+        Lambda: Λ > 0 [1/s] position-error gain (eq. 4, 29).
+        beta: β ≥ 0 [(m/s)/(N·s) for the "tip" scaling] momentum-error gain (eq. 4).
+        gamma: γ > 0 [1/s] force gain (eq. 11).
+    """
+
+    Kd: np.ndarray
+    Lambda: float
+    beta: float
+    gamma: float
+
+
+@dataclass(frozen=True)
+class Desired:
+    """Desired motion at one instant: q_d, q̇_d, q̈_d, each (n,) [rad or m, /s, /s²], and the
+    task-space path it follows, p_d, ṗ_d, p̈_d, each (3,) [m, m/s, m/s²] (None when not given).
+    """
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    p: np.ndarray | None = None
+    pd: np.ndarray | None = None
+    pdd: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Command:
+    """Joint command u = u0 + B f (u0: (n,) [N or N·m]; B: (n, k) or None when u ignores f)."""
+
+    u0: np.ndarray
+    B: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class ControlTrace:
+    """What a law computed at one step (for logging and tests).
+
+    e_q (n,), s (n,), s0 (n,), s1 (n,), e_F (k,) [N·s], qdot_r (n,), qddot_r0 (n,) = q̈_r at f = 0,
+    qddot_r_f (n, k) with q̈_r = qddot_r0 + qddot_r_f f, V [J] (section 5.1), f_d (k,) [N].
+    """
+
+    e_q: np.ndarray
+    s: np.ndarray
+    s0: np.ndarray
+    s1: np.ndarray
+    e_F: np.ndarray
+    qdot_r: np.ndarray
+    qddot_r0: np.ndarray
+    qddot_r_f: np.ndarray | None
+    V: float
+    f_d: np.ndarray
+
+
+class LawSettings(Protocol):
+    """What a law reads of the control settings
+    (:class:`~hybrid_force.control.supervisor.ControlSettings` has these fields)."""
+
+    @property
+    def law(self) -> str: ...
+    @property
+    def options(self) -> Mapping[str, Mapping[str, Any]]: ...
+    @property
+    def Lambda(self) -> float: ...
+    @property
+    def beta(self) -> float: ...
+    @property
+    def gamma(self) -> float: ...
+    @property
+    def approach_rate(self) -> float | None: ...
+    @property
+    def Kd(self) -> float | np.ndarray | None: ...
+    @property
+    def kd_rate(self) -> float: ...
+    @property
+    def mass_factor(self) -> float: ...
 
 
 @dataclass
@@ -164,7 +250,7 @@ class LawContext:
 
     robot: Robot
     constraint: Constraint
-    settings: ControlSettings
+    settings: LawSettings
     gains: Gains
     M0: np.ndarray
     q0: np.ndarray
@@ -300,7 +386,7 @@ class LoopContext:
     normalization: str
     configurations: Sequence[np.ndarray]
     q0: np.ndarray
-    settings: ControlSettings
+    settings: LawSettings
     period: float
     sampled: bool
     alpha: float = 1.0

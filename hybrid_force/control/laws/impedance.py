@@ -87,8 +87,9 @@ from hybrid_force.control.force_loop import (
     largest_integral_step,
     velocity_loop_number,
 )
-from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import (
+    Command,
+    Desired,
     Law,
     LawContext,
     LawInput,

@@ -92,8 +92,9 @@ from hybrid_force.control.force_loop import (
     max_stable_loop_gain,
     velocity_loop_number,
 )
-from hybrid_force.control.laws.arimoto import Command, Desired
 from hybrid_force.control.laws.base import (
+    Command,
+    Desired,
     Law,
     LawContext,
     LawInput,

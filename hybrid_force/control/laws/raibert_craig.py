@@ -106,8 +106,8 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.force_loop import velocity_loop_number
-from hybrid_force.control.laws.arimoto import Command
 from hybrid_force.control.laws.base import (
+    Command,
     Law,
     LawContext,
     LawInput,
