@@ -968,8 +968,8 @@ def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPat
     "normal"``) at every sample of [0, duration] (each load takes well under a second)."""
     import hybrid_force.control.clik as clik
     import hybrid_force.control.pose_clik as pose_clik
-    import hybrid_force.scenario._checks as scenario_checks
-    from hybrid_force.scenario._checks import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
+    import hybrid_force.sim.prerun as scenario_checks
+    from hybrid_force.sim.prerun import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
 
     calls: list[int] = []
     # the solver where it is defined and where the path check calls it

@@ -10,15 +10,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import math
-import re
 import tomllib
 import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from hybrid_force._file_errors import _Context, _fmt, _wrap
 from hybrid_force.control.laws.base import LAWS, check_options, law_names, law_spec
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
@@ -121,15 +120,6 @@ def check_nesting(doc: Mapping[str, Any], ctx: _Context) -> None:
 
 
 # --- messages ------------------------------------------------------------------------------------
-def _fmt(value: object) -> str:
-    """A value as it would be written in TOML (JSON is close enough), shortened."""
-    try:
-        text = json.dumps(value, ensure_ascii=False)
-    except (TypeError, ValueError, RecursionError):
-        text = repr(value) if not isinstance(value, dict | list) else "[...]"
-    return text if len(text) <= 100 else text[:97] + "..."
-
-
 def _type_name(value: object) -> str:
     if isinstance(value, bool):
         return "a boolean"
@@ -156,21 +146,6 @@ def _suggest(word: str, choices: Iterable[str]) -> str:
         if o == low or (len(o) >= 3 and low.startswith(o)) or (len(low) >= 3 and o.startswith(low)):
             return f" (did you mean '{option}'?)"
     return ""
-
-
-class _Context:
-    """Builds error messages for one file: ``<file>: <table.key> = <value>: <problem>``."""
-
-    def __init__(self, file: str) -> None:
-        self.file = file
-
-    def error(self, key: str, value: object, problem: str) -> ScenarioError:
-        return ScenarioError(
-            f"{self.file}: {key} = {_fmt(value)}: {problem}", key=key, value=value, file=self.file
-        )
-
-    def table_error(self, key: str, problem: str) -> ScenarioError:
-        return ScenarioError(f"{self.file}: {key}: {problem}", key=key, file=self.file)
 
 
 # --- overrides -----------------------------------------------------------------------------------
@@ -443,18 +418,6 @@ def _typed_table(
                 f"{', '.join(schema)}",
             )
     return kind, _check_table(ctx, name, rest, schema)
-
-
-def _wrap(
-    ctx: _Context, table: str, values: Mapping[str, Any], exc: BaseException
-) -> ScenarioError:
-    """Re-raise a constructor's BadInputError naming the file and the key it is about."""
-    message = " ".join(str(exc).split())
-    for key in sorted(values, key=len, reverse=True):
-        if re.search(rf"(?<![A-Za-z_]){re.escape(key)}(?![A-Za-z_])", message):
-            return ctx.error(f"{table}.{key}", values[key], message)
-    shown = ", ".join(f"{table}.{k} = {_fmt(v)}" for k, v in values.items())
-    return ScenarioError(f"{ctx.file}: {shown or table}: {message}")
 
 
 def xacro_argument_text(value: object) -> str:

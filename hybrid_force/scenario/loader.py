@@ -23,7 +23,7 @@ where a number is expected is an error, whatever it contains.
 
 This module reads the file and runs the steps in order; the steps live beside it: the keys
 and messages every table shares in ``_tables``, the settings of each table in ``_builders``,
-the rules across tables that run the model in ``_checks``.
+the rules across tables that run the model in :mod:`hybrid_force.sim.prerun`.
 """
 
 from __future__ import annotations
@@ -44,20 +44,9 @@ from hybrid_force.scenario._builders import (
     _controller_model,
     _initial,
     _robot,
-    _start_in_limits,
-    _start_solver,
     _surfaces,
     _tool_settings,
-    _tool_start,
     _trajectory,
-)
-from hybrid_force.scenario._checks import (
-    _check_contact_step,
-    _check_control_rate,
-    _check_controller,
-    _check_law_loops,
-    _check_path_followable,
-    _check_pose_followable,
 )
 from hybrid_force.scenario._tables import (
     _TABLES,
@@ -74,8 +63,17 @@ from hybrid_force.scenario._tables import (
     read_settings,
     sim_keys,
 )
+from hybrid_force.sim.prerun import (
+    _check_contact_step,
+    _check_control_rate,
+    _check_controller,
+    _check_law_loops,
+    _check_path_followable,
+    _check_pose_followable,
+)
 from hybrid_force.sim.sensors import SensorSettings
 from hybrid_force.sim.settings import Scenario, SimSettings, check_path_on_surfaces
+from hybrid_force.sim.start import start_at_tip
 
 __all__ = ["MAX_FILE_BYTES", "load_scenario", "read_scenario_document", "scenario_from_document"]
 
@@ -235,13 +233,8 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             f"|v| = {fastest:.6g} is beyond sim.max_velocity = "
             f"{sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
         )
-    if tool.controlled and start_key == "initial.tip":
-        q0 = _tool_start(tool, robot, surfaces, path, q0, start_value, ctx)
     if start_key == "initial.tip":
-        q0 = _start_in_limits(
-            robot, q0, _start_solver(tool, robot, surfaces, path, doc["initial"]["tip"]),
-            doc["initial"].get("seed"), start_key,
-        )  # fmt: skip
+        q0 = start_at_tip(robot, tool, surfaces, path, q0, doc["initial"], ctx)
     try:  # the start, the stacked rows (and the path of a run in contact): by Scenario
         scenario = Scenario(
             robot=robot,
