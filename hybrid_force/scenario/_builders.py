@@ -7,25 +7,22 @@ The rules across tables, which need the model, are :mod:`hybrid_force.sim.prerun
 
 from __future__ import annotations
 
-import os
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from hybrid_force.control.controller import check_same_joints
 from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.laws.base import law_names
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
-from hybrid_force.errors import BadInputError, RobotError, RunWarning
+from hybrid_force.errors import BadInputError, RunWarning
 from hybrid_force.geometry.paths import path_parameters, path_types
 from hybrid_force.geometry.surface_base import surface_types
 from hybrid_force.geometry.surface_path import SurfacePath
-from hybrid_force.model.loading import _is_path, load_robot, model_kind
+from hybrid_force.model.scenario_robot import RobotTable, model_target, robot_table
 from hybrid_force.scenario._tables import (
     _INITIAL,
     _ROBOT,
@@ -39,31 +36,6 @@ from hybrid_force.scenario._tables import (
 from hybrid_force.schema import keys_of
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.settings import Scenario
-
-if TYPE_CHECKING:  # annotations only: the builders import these where they build them
-    pass
-
-
-@dataclass(frozen=True)
-class RobotTable:
-    """A scenario's ``[robot]`` table, checked and resolved as the loader resolves it.
-
-    Attributes:
-        values: the checked values of the table (``xacro_args`` as texts).
-        model: ``robot.model`` as written.
-        target: the registry name, or the model file's path (relative ones joined to the
-            scenario file's folder; the file exists).
-        kind: ``"name"`` (a registry arm), ``"urdf"``, ``"xacro"`` or ``"mjcf"``.
-        package_dirs: ``robot.package_dirs`` as absolute folders (each exists).
-        xacro_args: ``robot.xacro_args`` as ``{name: text}``.
-    """
-
-    values: dict[str, Any]
-    model: str
-    target: str | Path
-    kind: str
-    package_dirs: tuple[str, ...]
-    xacro_args: dict[str, str]
 
 
 def resolve_robot_table(
@@ -103,106 +75,13 @@ def resolve_control_model(
     if not isinstance(model, str):
         return None
     ctx = _Context(str(path) if origin is None else origin)
-    target, kind = _model_target(model, "control.model", Path(path), ctx)
+    target, kind = model_target(model, "control.model", Path(path), ctx)
     return None if kind == "name" else (model, Path(target), kind)
 
 
-def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
-    """A model reference of a scenario: (the registry name, "name") or (the model file,
-    resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""
-
-    if not _is_path(model):
-        return model, "name"
-    candidate = Path(model)
-    target = candidate if candidate.is_absolute() else file.parent / candidate
-    kind = model_kind(target)
-    if not target.is_file():
-        label = {"urdf": "URDF", "xacro": "xacro", "mjcf": "MJCF"}[kind]
-        raise ctx.error(
-            key,
-            model,
-            f"{label} file not found (paths are relative to the scenario file): {target}",
-        )
-    return target, kind
-
-
 def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
-    values = _check_table(ctx, "robot", table, _ROBOT)
     raw = table if isinstance(table, dict) else {}
-    model: str = values["model"]
-    target, kind = _model_target(model, "robot.model", file, ctx)
-    dirs = []
-    for folder_text in values.get("package_dirs", []):
-        folder = Path(folder_text)
-        folder = folder if folder.is_absolute() else file.parent / folder
-        if not folder.is_dir():
-            raise ctx.error(
-                "robot.package_dirs",
-                raw.get("package_dirs"),
-                f"folder not found (paths are relative to the scenario file): {folder}",
-            )
-        dirs.append(os.path.abspath(folder))
-    args = values.get("xacro_args", {})
-    if args and kind != "xacro":
-        raise ctx.error(
-            "robot.xacro_args",
-            raw.get("xacro_args"),
-            f"robot.model = {_fmt(model)} is not a .xacro file: only a xacro model takes arguments",
-        )
-    return RobotTable(values, model, target, kind, tuple(dirs), dict(args))
-
-
-def _robot(table: object, file: Path, ctx: _Context, initial: object = None) -> Any:
-    """The scenario's arm. When ``initial.q`` or ``initial.seed`` (the ``initial`` table)
-    lists every joint of the model file and the loader locks some, it is loaded again with
-    the locked joints held at their values there (:func:`_full_start`)."""
-
-    resolved = _robot_table(table, file, ctx)
-    values = resolved.values
-    options: dict[str, Any] = {
-        "tip": values.get("tip"),
-        "package_dirs": resolved.package_dirs,
-        "xacro_args": resolved.xacro_args or None,
-        "lock_off_chain": values.get("lock_off_chain"),
-        "xacro_trust": values.get("xacro_trust", False),
-    }
-    try:
-        robot = load_robot(resolved.target, **options)
-        held = _full_start(robot, initial)
-        if held is not None:
-            key, numbers = held
-            try:
-                robot = load_robot(resolved.target, **options, locked_positions=numbers)
-            except RobotError as exc:
-                raw = initial.get(key) if isinstance(initial, dict) else None
-                raise ctx.error(f"initial.{key}", raw, " ".join(str(exc).split())) from None
-    except RobotError as exc:  # a frame error has key "tip"
-        key, value = (
-            ("robot.tip", values.get("tip"))
-            if exc.key == "tip"
-            else ("robot.model", resolved.model)
-        )
-        raise ctx.error(key, value, " ".join(str(exc).split())) from None
-    return robot
-
-
-def _full_start(robot: Any, initial: object) -> tuple[str, dict[str, float]] | None:
-    """(``"q"`` or ``"seed"``, {locked joint: its value}) when that key of the ``initial``
-    table lists one number per joint of the model file and the robot has locked joints;
-    None otherwise (a wrong count or type is refused later, by :func:`_initial`)."""
-    if not robot.locked_joints or not isinstance(initial, dict):
-        return None
-    names = robot.file_joints
-    for key in ("q", "seed"):
-        values = initial.get(key)
-        if (
-            isinstance(values, list)
-            and len(values) == len(names) != robot.nq
-            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
-        ):
-            locked = robot.locked_joints
-            return key, {n: float(v) for n, v in zip(names, values, strict=True) if n in locked}
-    return None
+    return robot_table(_check_table(ctx, "robot", table, _ROBOT), raw, file, ctx)
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
@@ -286,33 +165,6 @@ def _surface_path(
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return path
-
-
-def _controller_model(
-    control_values: Mapping[str, Any], robot: Any, file: Path, ctx: _Context, trust: bool = False
-) -> Any:
-    """``control.model``: the controller's own model of the arm (a name, or a model path
-    relative to the scenario file), with the plant's tip and joints; None when not given.
-    ``trust``: ``robot.xacro_trust``, which covers a xacro ``control.model`` too."""
-
-    if "model" not in control_values:
-        return None
-    model: str = control_values["model"]
-    target, _ = _model_target(model, "control.model", file, ctx)
-    try:
-        own = load_robot(target, xacro_trust=trust)
-        # held where the plant's are (initial.q listing every joint), when it locks them too
-        held = {k: v for k, v in robot.locked_joints.items() if k in own.locked_joints}
-        if held != {k: own.locked_joints[k] for k in held}:
-            own = load_robot(target, locked_positions=held, xacro_trust=trust)
-        check_same_joints(robot, own)
-        if own.tip != robot.tip:  # the same arm: the plant's tip frame
-            own = load_robot(
-                target, tip=robot.tip, locked_positions=held or None, xacro_trust=trust
-            )
-    except BadInputError as exc:
-        raise ctx.error("control.model", model, " ".join(str(exc).split())) from None
-    return own
 
 
 def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:

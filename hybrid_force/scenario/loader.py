@@ -38,12 +38,12 @@ from typing import Any
 
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL
+from hybrid_force.model.scenario_robot import load_arm, load_controller_model
 from hybrid_force.scenario._builders import (
     _contact_settings,
     _control_settings,
-    _controller_model,
     _initial,
-    _robot,
+    _robot_table,
     _surfaces,
     _tool_settings,
     _trajectory,
@@ -203,7 +203,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         if table not in doc:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
-    robot = _robot(doc["robot"], file, ctx, doc["initial"])
+    robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
     surfaces, surface_tables = _surfaces(doc, ctx)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), control_keys())
@@ -215,7 +215,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     sensor = read_settings(ctx, "sensor", SensorSettings, doc.get("sensor", {}))
     contact = _contact_settings(doc.get("contact", {}), sim, ctx)
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
-    controller_model = _controller_model(control_values, robot, file, ctx, trust)
+    controller_model = load_controller_model(control_values, robot, file, ctx, trust)
     tool = _tool_settings(doc.get("tool", {}), robot, ctx)
     _check_control_rate(control, sim, control_values, ctx)
     if control.supervisor:  # a run that starts in contact: checked by Scenario

@@ -13,7 +13,6 @@ import numpy as np
 
 from hybrid_force import _checks as checks
 from hybrid_force.control.constraint import Constraint, dependent_rows
-from hybrid_force.control.controller import check_same_joints
 from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
@@ -23,7 +22,7 @@ from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_on_surface
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.metrics import DEFAULT_SETTLE_TIME
-from hybrid_force.model.robot import Robot
+from hybrid_force.model.robot import Robot, check_same_joints
 from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
