@@ -562,7 +562,7 @@ def test_robot_package_dirs_are_relative_to_the_scenario_file(
 def test_robot_xacro_argument_values_become_texts(tmp_path: Path) -> None:
     """Strings stay; numbers and booleans are passed to xacro as their TOML text; a number
     that is not finite is refused."""
-    from hybrid_force.scenario._tables import xacro_argument_text
+    from hybrid_force.model.xacro_files import xacro_argument_text
 
     assert [xacro_argument_text(v) for v in ("a b", 0.7, 3, 1e-3, True, False)] == [
         "a b", "0.7", "3", "0.001", "true", "false",

@@ -52,10 +52,8 @@ from hybrid_force.scenario._tables import (
     _TABLES,
     _TOP,
     _apply_overrides,
-    _check_acting,
     _check_table,
     _Context,
-    _drop_never_acting,
     _fmt,
     _suggest,
     check_nesting,
@@ -63,6 +61,7 @@ from hybrid_force.scenario._tables import (
     read_settings,
     sim_keys,
 )
+from hybrid_force.sim.acting_keys import _check_acting, _drop_never_acting
 from hybrid_force.sim.prerun import (
     _check_contact_step,
     _check_control_rate,
