@@ -31,11 +31,8 @@ from hybrid_force.scenario._tables import (
     _fmt,
     _typed_table,
     _wrap,
-    read_settings,
 )
 from hybrid_force.schema import keys_of
-from hybrid_force.sim.contact import ContactSettings
-from hybrid_force.sim.settings import Scenario
 
 
 def resolve_robot_table(
@@ -165,17 +162,6 @@ def _surface_path(
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return path
-
-
-def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
-
-    contact = read_settings(ctx, "contact", ContactSettings, table)
-    if not contact.ideal:  # the rules across tables, named by the [sim] key they are about
-        try:
-            Scenario._check_contact_settings(contact, sim)
-        except BadInputError as exc:
-            raise ctx.error(str(exc.key), exc.value, " ".join(str(exc).split())) from None
-    return contact
 
 
 def _control_settings(

@@ -40,7 +40,6 @@ from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL
 from hybrid_force.model.scenario_robot import load_arm, load_controller_model
 from hybrid_force.scenario._builders import (
-    _contact_settings,
     _control_settings,
     _initial,
     _robot_table,
@@ -62,9 +61,9 @@ from hybrid_force.scenario._tables import (
     sim_keys,
 )
 from hybrid_force.sim.acting_keys import _check_acting, _drop_never_acting
+from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.prerun import (
     _check_contact_step,
-    _check_control_rate,
     _check_controller,
     _check_law_loops,
     _check_path_followable,
@@ -212,29 +211,19 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
     _drop_never_acting(doc, ctx)
     sensor = read_settings(ctx, "sensor", SensorSettings, doc.get("sensor", {}))
-    contact = _contact_settings(doc.get("contact", {}), sim, ctx)
+    contact = read_settings(ctx, "contact", ContactSettings, doc.get("contact", {}))
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
     controller_model = load_controller_model(control_values, robot, file, ctx, trust)
     tool = _tool_settings(doc.get("tool", {}), robot, ctx)
-    _check_control_rate(control, sim, control_values, ctx)
     if control.supervisor:  # a run that starts in contact: checked by Scenario
         try:
             check_path_on_surfaces(path, surfaces, sim.duration)
         except BadInputError as exc:
-            raise _refusal(exc, traj, surface_tables, None, control, sim, ctx) from None
+            raise _refusal(exc, doc, traj, surface_tables, None, control, sim, ctx) from None
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
-    fastest = max((abs(float(x)) for x in v0), default=0.0) if v0 is not None else 0.0
-    if fastest > sim.max_velocity:
-        # the first step would stop as a runaway: refused here, naming the key, not run
-        raise ctx.error(
-            "initial.v",
-            doc["initial"]["v"],
-            f"|v| = {fastest:.6g} is beyond sim.max_velocity = "
-            f"{sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
-        )
     if start_key == "initial.tip":
         q0 = start_at_tip(robot, tool, surfaces, path, q0, doc["initial"], ctx)
-    try:  # the start, the stacked rows (and the path of a run in contact): by Scenario
+    try:  # the start, v0, the rate, the stacked rows, the path of a run in contact: by Scenario
         scenario = Scenario(
             robot=robot,
             surfaces=surfaces,
@@ -253,7 +242,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         )
     except BadInputError as exc:
         start = (robot, q0, start_key, start_value)
-        raise _refusal(exc, traj, surface_tables, start, control, sim, ctx) from None
+        raise _refusal(exc, doc, traj, surface_tables, start, control, sim, ctx) from None
     own = controller_model if controller_model is not None else robot
     _check_controller(own, surfaces, path, q0, control, sim, control_values, ctx, tool)
     if tool.controlled:
@@ -270,6 +259,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 
 def _refusal(
     exc: BadInputError,
+    doc: Mapping[str, Any],
     traj: Mapping[str, Any],
     tables: list[tuple[str, dict[str, Any]]],
     start: tuple[Any, Any, str, object] | None,
@@ -279,8 +269,14 @@ def _refusal(
 ) -> ScenarioError:
     """Scenario's refusal of the path, the start or the stacked surfaces (its ``key`` and
     ``value``) as the file's: naming the file, the keys and their values. ``start``: (the
-    arm, q0, the start's key and its value as written)."""
+    arm, q0, the start's key and its value as written). Its refusals of a file's key
+    (``control.rate``, the ``[sim]`` keys a contact model needs) and of v0 name that key."""
     key, value = exc.key, exc.value
+    if key == "Scenario.v0":
+        problem = str(exc).removeprefix("Scenario.v0: ")
+        return ctx.error("initial.v", doc["initial"]["v"], problem)
+    if isinstance(key, str) and key.split(".")[0] in ("control", "sim"):
+        return ctx.error(key, value, " ".join(str(exc).split()))
     if key == "Scenario.path" and isinstance(value, tuple):
         i, report = value
         name, table = tables[i]

@@ -53,16 +53,6 @@ def _check_contact_step(
         )
 
 
-def _check_control_rate(
-    control: Any, sim: Any, control_values: Mapping[str, Any], ctx: _Context
-) -> None:
-
-    try:
-        control_steps(control, sim)
-    except BadInputError as exc:
-        raise ctx.error("control.rate", control_values.get("rate"), str(exc)) from None
-
-
 def _check_controller(
     robot: Any,
     surfaces: list[Any],

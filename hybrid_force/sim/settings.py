@@ -203,7 +203,9 @@ class Scenario:
                 if fastest > self.sim.max_velocity:  # the first step would be a runaway
                     raise Bad(
                         f"Scenario.v0: |v| = {fastest:.6g} is beyond sim.max_velocity = "
-                        f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway"
+                        f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
+                        key="Scenario.v0",
+                        value=fastest,
                     )
             array.setflags(write=False)
             set_(self, key, array)
@@ -236,8 +238,8 @@ class Scenario:
                 "Scenario.sensor must be a hybrid_force.sim.sensors.SensorSettings, "
                 f"got {checks.shown(self.sensor)}"
             )
-        control_steps(control, self.sim)
         self._check_contact()
+        control_steps(control, self.sim)
         if self.controller_model is not None:
             if not isinstance(self.controller_model, Robot):
                 raise Bad(
@@ -256,7 +258,7 @@ class Scenario:
     def _check_contact(self) -> None:
         """The contact settings against the simulation's: a compliant or frictional contact
         needs the explicit Euler step (its forces are evaluated once per step) and forces in
-        newtons (``sim.normalization = "tip"``)."""
+        newtons (``sim.normalization = "tip"``): ScenarioError whose key is the ``[sim]`` key."""
 
         contact = self.contact
         if not isinstance(contact, ContactSettings):
@@ -264,12 +266,7 @@ class Scenario:
                 "Scenario.contact must be a hybrid_force.sim.contact.ContactSettings, "
                 f"got {checks.shown(contact)}"
             )
-        self._check_contact_settings(contact, self.sim)
-
-    @staticmethod
-    def _check_contact_settings(contact: ContactSettings, sim: SimSettings) -> None:
-        """Raise ScenarioError (key: the ``[sim]`` key) where they do not fit."""
-
+        sim = self.sim
         if contact.ideal:
             return
         what = f'contact.model = "{contact.model}", contact.friction = {contact.friction:g}'
@@ -375,7 +372,8 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
     """Plant steps per control tick: 1/(rate·dt), which must be a whole number ≥ 1.
 
     Raises:
-        ScenarioError: naming control.rate and sim.dt, with the nearest rates that fit.
+        ScenarioError: naming control.rate and sim.dt, with the nearest rates that fit (its
+            key ``"control.rate"``).
     """
     if control.rate is None:
         return 1
@@ -385,7 +383,9 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
         if ratio > 1e15:  # a rate so low that no nearby whole number is a different float
             raise ScenarioError(
                 f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
-                f"sim.dt = {sim.dt:g} s: 1 / (rate · dt) = {ratio:.6g} is far beyond any run"
+                f"sim.dt = {sim.dt:g} s: 1 / (rate · dt) = {ratio:.6g} is far beyond any run",
+                key="control.rate",
+                value=control.rate,
             )
         fits = sorted({1.0 / (n * sim.dt) for n in (max(int(ratio), 1), int(ratio) + 1)})
         # printed so that the text copied into control.rate is accepted (1000/3 Hz: 333.3333...)
@@ -394,7 +394,9 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
             f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
             f"sim.dt = {sim.dt:g} s (1 / (rate · dt) = {ratio:.6g}); the controller ticks every "
             f"n plant steps: rates that fit nearby: {', '.join(f'{r} Hz' for r in shown)}"
-            + ("; it cannot be faster than the plant" if ratio < 1 else "")
+            + ("; it cannot be faster than the plant" if ratio < 1 else ""),
+            key="control.rate",
+            value=control.rate,
         )
     return steps
 
