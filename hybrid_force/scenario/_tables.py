@@ -1,6 +1,5 @@
 """The scenario file's vocabulary: the keys of each table, their kinds of value, and the
-checks and messages every table shares (:class:`_Context`, :func:`_check_table`, :func:`_wrap`),
-with ``--set`` overrides (:func:`parse_override`).
+checks and messages every table shares (:class:`_Context`, :func:`_check_table`, :func:`_wrap`).
 
 A message names the file, the ``table.key`` and the offending value, the format
 :mod:`hybrid_force.scenario.loader` documents.
@@ -10,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -144,63 +142,6 @@ def _suggest(word: str, choices: Iterable[str]) -> str:
         if o == low or (len(o) >= 3 and low.startswith(o)) or (len(low) >= 3 and o.startswith(low)):
             return f" (did you mean '{option}'?)"
     return ""
-
-
-# --- overrides -----------------------------------------------------------------------------------
-def parse_override(text: str) -> tuple[str, object]:
-    """Split ``"table.key=value"`` into ``("table.key", value)``.
-
-    The value is parsed as a TOML value (``tomllib.loads(f"v = {value}")``), so ``0.5``,
-    ``1e-3``, ``true``, ``[1, 2, 3]`` and ``"text"`` have their TOML types; anything that is
-    not valid TOML (``rk4``, ``__import__('os')``) stays the raw string. Nothing is evaluated.
-
-    Raises ScenarioError when there is no ``=`` or the key is empty.
-    """
-    if not isinstance(text, str) or "=" not in text:
-        raise ScenarioError(f"override {text!r} must look like table.key=value (e.g. sim.dt=1e-3)")
-    key, raw = text.split("=", 1)
-    key = key.strip()
-    if not key or any(not part for part in key.split(".")):
-        raise ScenarioError(f"override {text!r} has an empty key; use table.key=value")
-    raw = raw.strip()
-    try:
-        value: object = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
-    except RecursionError:
-        raise ScenarioError(f"override {key!r}: its value is nested too deeply") from None
-    return key, value
-
-
-def _apply_overrides(doc: dict[str, Any], overrides: Mapping[str, object], ctx: _Context) -> None:
-    """Set ``doc[table][key] = value`` for each ``"table.key"`` (in place).
-
-    ``"name"`` sets a top-level key; ``"surfaces.<i>.key"`` a key of the i-th [[surfaces]].
-    A missing table is created (validation then reports it if it is unknown).
-    """
-    for dotted, value in overrides.items():
-        parts = str(dotted).split(".")
-        node: Any = doc
-        where: list[str] = []
-        for part in parts[:-1]:
-            where.append(part)
-            if isinstance(node, list):
-                if not part.isdigit() or int(part) >= len(node):
-                    raise ctx.table_error(
-                        ".".join(where),
-                        f"override {dotted!r}: index {part!r} is not one of "
-                        f"0..{len(node) - 1} of this array of tables",
-                    )
-                node = node[int(part)]
-                continue
-            if not isinstance(node, dict):
-                raise ctx.table_error(
-                    ".".join(where[:-1]), f"override {dotted!r}: this is not a table"
-                )
-            node = node.setdefault(part, {})
-        if not isinstance(node, dict):
-            raise ctx.table_error(".".join(where), f"override {dotted!r}: this is not a table")
-        node[parts[-1]] = value
 
 
 # --- type checks ---------------------------------------------------------------------------------

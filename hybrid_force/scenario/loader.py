@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force.errors import BadInputError, ScenarioError
-from hybrid_force.geometry.on_surface import ON_SURFACE_TOL
+from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_path_on_surfaces
 from hybrid_force.model.scenario_robot import load_arm, load_controller_model
 from hybrid_force.scenario._builders import (
     _control_settings,
@@ -50,7 +50,6 @@ from hybrid_force.scenario._builders import (
 from hybrid_force.scenario._tables import (
     _TABLES,
     _TOP,
-    _apply_overrides,
     _check_table,
     _Context,
     _fmt,
@@ -62,6 +61,7 @@ from hybrid_force.scenario._tables import (
 )
 from hybrid_force.sim.acting_keys import _check_acting, _drop_never_acting
 from hybrid_force.sim.contact import ContactSettings
+from hybrid_force.sim.overrides import _apply_overrides
 from hybrid_force.sim.prerun import (
     _check_contact_step,
     _check_controller,
@@ -70,7 +70,7 @@ from hybrid_force.sim.prerun import (
     _check_pose_followable,
 )
 from hybrid_force.sim.sensors import SensorSettings
-from hybrid_force.sim.settings import Scenario, SimSettings, check_path_on_surfaces
+from hybrid_force.sim.settings import Scenario, SimSettings
 from hybrid_force.sim.start import start_at_tip
 
 __all__ = ["MAX_FILE_BYTES", "load_scenario", "read_scenario_document", "scenario_from_document"]
@@ -121,8 +121,9 @@ def load_scenario(
 
     Args:
         path: the TOML file (format: docs/scenarios.md).
-        overrides: ``{"table.key": value}`` (e.g. from :func:`parse_override`), applied to
-            the file's data before validation; they replace or add keys.
+        overrides: ``{"table.key": value}`` (e.g. from
+            :func:`~hybrid_force.sim.overrides.parse_override`), applied to the file's data
+            before validation; they replace or add keys.
 
     Returns:
         :class:`hybrid_force.sim.settings.Scenario` with ``source`` = the file's data with the

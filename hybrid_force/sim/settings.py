@@ -16,9 +16,9 @@ from hybrid_force.control.constraint import Constraint, dependent_rows
 from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
-from hybrid_force.errors import BadInputError, ScenarioError
+from hybrid_force.errors import ScenarioError
 from hybrid_force.errors import ScenarioError as Bad
-from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_on_surface
+from hybrid_force.geometry.on_surface import check_path_on_surfaces
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.metrics import DEFAULT_SETTLE_TIME
@@ -28,7 +28,7 @@ from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
 
-__all__ = ["Integrator", "Scenario", "SimSettings", "check_path_on_surfaces", "control_steps"]
+__all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
 
 Integrator = Literal["euler", "rk4"]
 
@@ -134,8 +134,8 @@ class Scenario:
       f_d's count against the surfaces;
     * a run that starts in contact (``control.supervisor`` False): the desired path within
       ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration]
-      (:func:`check_path_on_surfaces`) and the start tip p(q0) within ``control.contact_tol``
-      of every surface;
+      (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`) and the start tip
+      p(q0) within ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
       stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
@@ -290,8 +290,9 @@ class Scenario:
         path on every surface (class docstring): the one check of a run, a file's or one
         built by hand. Each refusal is a ScenarioError whose ``key`` names the field
         ("Scenario.path", "Scenario.q0", "Scenario.surfaces") and whose ``value`` holds what
-        the loader names: (surface index, OnSurfaceReport or None) (:func:`check_path_on_surfaces`),
-        (surface index, distance [m]), the row indices."""
+        the loader names: (surface index, OnSurfaceReport or None)
+        (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`), (surface index,
+        distance [m]), the row indices."""
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
         if k > 1 and control.supervisor:
@@ -339,33 +340,6 @@ class Scenario:
                     key="Scenario.surfaces",
                     value=tuple(found[0]),
                 )
-
-
-def check_path_on_surfaces(path: Path, surfaces: Sequence[Surface], duration: float) -> None:
-    """The desired path within ``ON_SURFACE_TOL`` of every surface for 0 ≤ t ≤ duration [s]:
-    ScenarioError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
-    None when the path cannot be checked against it)) otherwise."""
-
-    for i, surface in enumerate(surfaces):
-        try:
-            report = check_on_surface(path, surface, 0.0, duration)
-        except BadInputError as exc:  # e.g. Φ(p_d) not finite
-            raise Bad(
-                f"Scenario.path cannot be checked against surfaces[{i}] ({surface!r}): "
-                f"{' '.join(str(exc).split())}",
-                key="Scenario.path",
-                value=(i, None),
-            ) from None
-        if report.worst_distance > ON_SURFACE_TOL:
-            raise Bad(
-                f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
-                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
-                f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
-                f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
-                f"[0, sim.duration = {duration:g} s]",
-                key="Scenario.path",
-                value=(i, report),
-            )
 
 
 def control_steps(control: ControlSettings, sim: SimSettings) -> int:
