@@ -7,7 +7,7 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -144,6 +144,16 @@ class Scenario:
 
     NAME_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_.\-]*"
     NAME_MAX_LENGTH = 100
+    _TYPES: ClassVar = (
+        ("robot", Robot, "a hybrid_force.model.robot.Robot (e.g. load_robot('rtr'))"),
+        ("path", Path, "a hybrid_force.Path (Helix, Circle, FunctionPath)"),
+        ("control", ControlSettings, "a ControlSettings"),
+        ("sim", SimSettings, "a SimSettings"),
+        ("sensor", SensorSettings, "a hybrid_force.sim.sensors.SensorSettings"),
+        ("contact", ContactSettings, "a hybrid_force.sim.contact.ContactSettings"),
+        ("controller_model", Robot, "None or a hybrid_force.model.robot.Robot"),
+        ("tool", ToolSettings, "a hybrid_force.control.tool.ToolSettings"),
+    )  # the type of each field (the first check: the others read them)
 
     robot: Robot
     surfaces: Sequence[Surface]
@@ -164,12 +174,11 @@ class Scenario:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
 
         set_ = object.__setattr__
+        for key, kind, what in self._TYPES:
+            value = getattr(self, key)
+            if not isinstance(value, kind) and not (key == "controller_model" and value is None):
+                raise Bad(f"Scenario.{key} must be {what}, got {checks.shown(value)}")
         robot = self.robot
-        if not isinstance(robot, Robot):
-            raise Bad(
-                "Scenario.robot must be a hybrid_force.model.robot.Robot (e.g. load_robot('rtr')), "
-                f"got {checks.shown(robot)}"
-            )
         surfaces = self.surfaces
         if isinstance(surfaces, Surface):
             raise Bad(f"Scenario.surfaces must be a sequence of surfaces: wrap it, [{surfaces!r}]")
@@ -185,11 +194,6 @@ class Scenario:
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
         set_(self, "surfaces", tuple(surfaces))
-        if not isinstance(self.path, Path):
-            raise Bad(
-                "Scenario.path must be a hybrid_force.Path (Helix, Circle, FunctionPath), "
-                f"got {checks.shown(self.path)}"
-            )
         for key, size, optional in (("q0", robot.nq, False), ("v0", robot.nv, True)):
             value = getattr(self, key)
             if optional and value is None:
@@ -198,7 +202,7 @@ class Scenario:
             array = checks.array(value, f"Scenario.{key}", Bad, valid=valid)
             if array.shape != (size,):
                 raise Bad(f"Scenario.{key} must be {valid}, got shape {array.shape}")
-            if key == "v0" and isinstance(self.sim, SimSettings) and array.size:
+            if key == "v0" and array.size:
                 fastest = float(np.abs(array).max())
                 if fastest > self.sim.max_velocity:  # the first step would be a runaway
                     raise Bad(
@@ -209,10 +213,6 @@ class Scenario:
                     )
             array.setflags(write=False)
             set_(self, key, array)
-        for key, kind in (("control", ControlSettings), ("sim", SimSettings)):
-            value = getattr(self, key)
-            if not isinstance(value, kind):
-                raise Bad(f"Scenario.{key} must be a {kind.__name__}, got {checks.shown(value)}")
         name = self.name
         if not isinstance(name, str) or not (
             re.fullmatch(self.NAME_PATTERN, name) and len(name) <= self.NAME_MAX_LENGTH
@@ -233,25 +233,10 @@ class Scenario:
         if control.Kd is not None:
             check_damping_gain(control.Kd, robot.nv)
         control.f_d_for(len(self.surfaces))
-        if not isinstance(self.sensor, SensorSettings):
-            raise Bad(
-                "Scenario.sensor must be a hybrid_force.sim.sensors.SensorSettings, "
-                f"got {checks.shown(self.sensor)}"
-            )
         self._check_contact()
         control_steps(control, self.sim)
         if self.controller_model is not None:
-            if not isinstance(self.controller_model, Robot):
-                raise Bad(
-                    "Scenario.controller_model must be None or a hybrid_force.model.robot.Robot, "
-                    f"got {checks.shown(self.controller_model)}"
-                )
             check_same_joints(robot, self.controller_model)
-        if not isinstance(self.tool, ToolSettings):
-            raise Bad(
-                "Scenario.tool must be a hybrid_force.control.tool.ToolSettings, "
-                f"got {checks.shown(self.tool)}"
-            )
         self.tool.check_arm(robot)
         self._check_start_and_path()
 
@@ -260,13 +245,7 @@ class Scenario:
         needs the explicit Euler step (its forces are evaluated once per step) and forces in
         newtons (``sim.normalization = "tip"``): ScenarioError whose key is the ``[sim]`` key."""
 
-        contact = self.contact
-        if not isinstance(contact, ContactSettings):
-            raise ScenarioError(
-                "Scenario.contact must be a hybrid_force.sim.contact.ContactSettings, "
-                f"got {checks.shown(contact)}"
-            )
-        sim = self.sim
+        contact, sim = self.contact, self.sim
         if contact.ideal:
             return
         what = f'contact.model = "{contact.model}", contact.friction = {contact.friction:g}'
