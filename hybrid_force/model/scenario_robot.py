@@ -164,3 +164,60 @@ def load_controller_model(
     except BadInputError as exc:
         raise ctx.error("control.model", model, " ".join(str(exc).split())) from None
     return own
+
+
+def per_joint(robot: Robot, values: dict[str, Any], raw: Mapping[str, Any], ctx: _Context) -> None:
+    """``initial.seed``, ``initial.q`` and ``initial.v`` (checked ``values``, ``raw`` as
+    written) one number per joint of the arm; ``seed`` and ``q`` may also list every joint of
+    the model file, and then lose the locked ones (in place: :func:`load_arm` holds those)."""
+    nq, nv = robot.nq, robot.nv
+    names, locked = robot.file_joints, robot.locked_joints
+    moving = [i for i, name in enumerate(names) if name not in locked]
+    for key, size in (("seed", nq), ("q", nq), ("v", nv)):
+        if key not in values or len(values[key]) == size:
+            continue
+        if key != "v" and locked and len(values[key]) == len(names):
+            values[key] = [values[key][i] for i in moving]  # locked ones: held (load_arm)
+            continue
+        if key != "v" and locked:
+            held = ", ".join(f"{n} (held at {v:g})" for n, v in locked.items())
+            counts = (
+                f"{size} numbers (its moving joints) or {len(names)} (every joint of the model "
+                "file, in the file's order: the locked joints' values become their locked "
+                "positions)"
+            )
+            why = (
+                "robot.lock_off_chain locks the joints off the chain to the tip (true by "
+                "default for a model file; false keeps them moving), a registry arm's entry "
+                "names the ones it locks"
+            )
+            raise ctx.error(
+                f"initial.{key}",
+                raw[key],
+                f"must have {counts} for robot '{robot.name}', got {len(values[key])}; "
+                f"locked joints: {held}: {why}",
+            )
+        raise ctx.error(
+            f"initial.{key}",
+            raw[key],
+            f"must have {size} numbers for robot '{robot.name}', got {len(values[key])}",
+        )
+
+
+def resolve_control_model(
+    doc: Mapping[str, Any], path: str | Path, origin: str | None = None
+) -> tuple[str, Path, str] | None:
+    """``control.model`` when it names a model file: (the text as written, the file resolved
+    against the scenario's folder as the loader resolves it, its kind); None when there is no
+    ``control.model``, it names a registry arm, or it is not a text (the loader says why).
+
+    Raises:
+        ScenarioError: the file does not exist, with the loader's message.
+    """
+    control = doc.get("control")
+    model = control.get("model") if isinstance(control, Mapping) else None
+    if not isinstance(model, str):
+        return None
+    ctx = _Context(str(path) if origin is None else origin)
+    target, kind = model_target(model, "control.model", Path(path), ctx)
+    return None if kind == "name" else (model, Path(target), kind)

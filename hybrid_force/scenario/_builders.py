@@ -22,7 +22,7 @@ from hybrid_force.errors import BadInputError, RunWarning
 from hybrid_force.geometry.paths import path_parameters, path_types
 from hybrid_force.geometry.surface_base import surface_types
 from hybrid_force.geometry.surface_path import SurfacePath
-from hybrid_force.model.scenario_robot import RobotTable, model_target, robot_table
+from hybrid_force.model.scenario_robot import RobotTable, per_joint, robot_table
 from hybrid_force.scenario._tables import (
     _INITIAL,
     _ROBOT,
@@ -55,25 +55,6 @@ def resolve_robot_table(
     if "robot" not in doc:
         raise ctx.table_error("[robot]", "missing required table")
     return _robot_table(doc["robot"], Path(path), ctx)
-
-
-def resolve_control_model(
-    doc: Mapping[str, Any], path: str | Path, origin: str | None = None
-) -> tuple[str, Path, str] | None:
-    """``control.model`` when it names a model file: (the text as written, the file resolved
-    against the scenario's folder as the loader resolves it, its kind); None when there is no
-    ``control.model``, it names a registry arm, or it is not a text (the loader says why).
-
-    Raises:
-        ScenarioError: the file does not exist, with the loader's message.
-    """
-    control = doc.get("control")
-    model = control.get("model") if isinstance(control, Mapping) else None
-    if not isinstance(model, str):
-        return None
-    ctx = _Context(str(path) if origin is None else origin)
-    target, kind = model_target(model, "control.model", Path(path), ctx)
-    return None if kind == "name" else (model, Path(target), kind)
 
 
 def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
@@ -229,38 +210,7 @@ def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, o
         )
     if "seed" in values and "tip" not in values:
         raise ctx.error("initial.seed", raw["seed"], "a seed is only used with initial.tip")
-    nq, nv = robot.nq, robot.nv
-    names, locked = robot.file_joints, robot.locked_joints
-    moving = [i for i, name in enumerate(names) if name not in locked]
-    for key, size in (("seed", nq), ("q", nq), ("v", nv)):
-        if key not in values or len(values[key]) == size:
-            continue
-        if key != "v" and locked and len(values[key]) == len(names):
-            values[key] = [values[key][i] for i in moving]  # locked ones: held (_robot)
-            continue
-        if key != "v" and locked:
-            held = ", ".join(f"{n} (held at {v:g})" for n, v in locked.items())
-            counts = (
-                f"{size} numbers (its moving joints) or {len(names)} (every joint of the model "
-                "file, in the file's order: the locked joints' values become their locked "
-                "positions)"
-            )
-            why = (
-                "robot.lock_off_chain locks the joints off the chain to the tip (true by "
-                "default for a model file; false keeps them moving), a registry arm's entry "
-                "names the ones it locks"
-            )
-            raise ctx.error(
-                f"initial.{key}",
-                raw[key],
-                f"must have {counts} for robot '{robot.name}', got {len(values[key])}; "
-                f"locked joints: {held}: {why}",
-            )
-        raise ctx.error(
-            f"initial.{key}",
-            raw[key],
-            f"must have {size} numbers for robot '{robot.name}', got {len(values[key])}",
-        )
+    per_joint(robot, values, raw, ctx)
     v0 = np.array(values["v"]) if "v" in values else None
     if "q" in values:
         return np.array(values["q"]), v0, "initial.q", raw["q"]
