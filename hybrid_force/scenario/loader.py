@@ -133,12 +133,7 @@ def load_scenario(
         ScenarioError: any problem with the file; the message names the file, the
             ``table.key`` and the value.
     """
-    file = Path(path)
-    ctx = _Context(str(path))
-    doc = _read(file, ctx)
-    if overrides:
-        _apply_overrides(doc, overrides, ctx)
-    return _build(doc, file, ctx)
+    return _build(read_scenario_document(path, overrides), Path(path), _Context(str(path)))
 
 
 def read_scenario_document(
@@ -176,11 +171,6 @@ def scenario_from_document(
 
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     check_nesting(doc, ctx)  # overrides may nest too
-    return _build_checked(doc, file, ctx)
-
-
-def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:
             raise ctx.error(
