@@ -23,9 +23,9 @@ from oracles.run import oracle_run
 from oracles.terms import constraint_terms
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Desired, make_gains
+from hybrid_force.control.laws.arimoto import make_gains
 from hybrid_force.control.laws.arimoto_adaptive import AdaptiveArimotoWorkspace, make_adaptation
-from hybrid_force.control.laws.base import LawContext, LawInput, build_law
+from hybrid_force.control.laws.base import Desired, LawContext, LawInput, build_law
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
 from hybrid_force.model.robot import Robot

@@ -24,8 +24,8 @@ from oracles.control import arimoto_law, free_space_law
 from oracles.plant import kkt
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.arimoto import Desired, default_damping_gain, make_gains
-from hybrid_force.control.laws.base import ControlTrace, Gains
+from hybrid_force.control.laws.arimoto import default_damping_gain, make_gains
+from hybrid_force.control.laws.base import ControlTrace, Desired, Gains
 from hybrid_force.errors import ControlError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.surface_base import Surface

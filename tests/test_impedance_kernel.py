@@ -26,8 +26,7 @@ from oracles.terms import constraint_terms
 import hybrid_force.control.laws.impedance as impedance
 from hybrid_force import simulate
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Desired
-from hybrid_force.control.laws.base import Command, LawContext, LawInput
+from hybrid_force.control.laws.base import Command, Desired, LawContext, LawInput
 from hybrid_force.control.laws.impedance import ImpedanceGains, ImpedanceWorkspace
 from hybrid_force.errors import SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Plane, Sphere

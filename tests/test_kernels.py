@@ -47,8 +47,8 @@ from oracles.terms import constraint_terms, robot_terms
 
 from hybrid_force.control.clik import DesiredJointPath, inverse_kinematics
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.arimoto import Desired, LawWorkspace, make_gains
-from hybrid_force.control.laws.base import Command, ControlTrace, Gains, LawInput
+from hybrid_force.control.laws.arimoto import LawWorkspace, make_gains
+from hybrid_force.control.laws.base import Command, ControlTrace, Desired, Gains, LawInput
 from hybrid_force.control.supervisor import ControlSettings, HybridController
 from hybrid_force.errors import SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere

@@ -15,13 +15,13 @@ from oracles.laws import AdaptiveArimotoLaw
 from oracles.terms import robot_terms
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Desired, make_gains
+from hybrid_force.control.laws.arimoto import make_gains
 from hybrid_force.control.laws.arimoto_adaptive import (
     MASS_FLOOR,
     AdaptiveArimotoWorkspace,
     make_adaptation,
 )
-from hybrid_force.control.laws.base import LawInput
+from hybrid_force.control.laws.base import Desired, LawInput
 from hybrid_force.geometry.builtin_surfaces import Cylinder
 from hybrid_force.model.loading import load_robot
 from hybrid_force.model.regressor import (

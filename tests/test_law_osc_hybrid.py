@@ -26,8 +26,7 @@ from oracles.laws import OscHybridLaw, normal_directions, osc_hybrid_law
 from oracles.terms import constraint_terms, robot_terms
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Desired
-from hybrid_force.control.laws.base import LawInput
+from hybrid_force.control.laws.base import Desired, LawInput
 from hybrid_force.control.laws.osc_hybrid import OscOptions, check, osc_gains, task_space
 from hybrid_force.errors import ControlError, ScenarioError, SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere

@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Desired
-from hybrid_force.control.laws.base import LawInput
+from hybrid_force.control.laws.base import Desired, LawInput
 from hybrid_force.control.laws.raibert_craig import RaibertCraigWorkspace, selection_matrix
 from hybrid_force.control.supervisor import ControlSettings, HybridController
 from hybrid_force.errors import ControlError, RunFailedError

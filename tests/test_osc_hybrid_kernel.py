@@ -25,8 +25,7 @@ from oracles.terms import constraint_terms, robot_terms
 
 import hybrid_force.control.laws.osc_hybrid as osc
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.laws.arimoto import Desired
-from hybrid_force.control.laws.base import LawInput
+from hybrid_force.control.laws.base import Desired, LawInput
 from hybrid_force.control.laws.osc_hybrid import (
     OscHybridWorkspace,
     OscOptions,

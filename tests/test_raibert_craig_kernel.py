@@ -26,8 +26,7 @@ from oracles.terms import constraint_terms, robot_terms
 
 import hybrid_force.control.laws.raibert_craig as rc
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.arimoto import Desired
-from hybrid_force.control.laws.base import LawInput
+from hybrid_force.control.laws.base import Desired, LawInput
 from hybrid_force.control.laws.raibert_craig import RaibertCraigGains, RaibertCraigWorkspace
 from hybrid_force.geometry.builtin_surfaces import Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface

@@ -16,8 +16,8 @@ import pinocchio as pin
 from hybrid_force.control.clik import _COND_MAX, DesiredJointPath, _check_conditioning
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.controller import ControllerModel
-from hybrid_force.control.laws.arimoto import Desired, LawWorkspace
-from hybrid_force.control.laws.base import Command, ControlTrace, Gains, LawInput
+from hybrid_force.control.laws.arimoto import LawWorkspace
+from hybrid_force.control.laws.base import Command, ControlTrace, Desired, Gains, LawInput
 from hybrid_force.control.pose_clik import PoseJointPath, _orientation_error
 from hybrid_force.control.supervisor import HybridController
 from hybrid_force.control.tool import cross3

@@ -15,9 +15,9 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.arimoto import Desired, LawWorkspace
+from hybrid_force.control.laws.arimoto import LawWorkspace
 from hybrid_force.control.laws.arimoto_adaptive import Adaptation, AdaptiveArimotoWorkspace
-from hybrid_force.control.laws.base import Command, ControlTrace, Gains, Law, LawInput
+from hybrid_force.control.laws.base import Command, ControlTrace, Desired, Gains, Law, LawInput
 from hybrid_force.control.laws.impedance import (
     ImpedanceGains,
     ImpedanceWorkspace,
