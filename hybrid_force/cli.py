@@ -71,11 +71,11 @@ from hybrid_force.run_output import RunOutput
 from hybrid_force.scenario._tables import (
     json_schema,
     markdown_tables,
-    parse_override,
     with_generated_tables,
 )
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
+from hybrid_force.sim.overrides import parse_override
 
 __all__ = ["build_parser", "main"]
 

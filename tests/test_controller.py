@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hybrid_force import load_robot, simulate
-from hybrid_force.control.controller import ControllerModel, check_same_joints
+from hybrid_force.control.controller import ControllerModel
 from hybrid_force.errors import (
     BadInputError,
     ControlError,
@@ -19,6 +19,7 @@ from hybrid_force.errors import (
     RunWarning,
     ScenarioError,
 )
+from hybrid_force.model.robot import check_same_joints
 from hybrid_force.scenario.loader import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]

@@ -13,8 +13,8 @@ import pytest
 
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
-from hybrid_force.scenario._tables import parse_override
 from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.sim.overrides import parse_override
 from hybrid_force.sim.settings import Scenario
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -562,7 +562,7 @@ def test_robot_package_dirs_are_relative_to_the_scenario_file(
 def test_robot_xacro_argument_values_become_texts(tmp_path: Path) -> None:
     """Strings stay; numbers and booleans are passed to xacro as their TOML text; a number
     that is not finite is refused."""
-    from hybrid_force.scenario._tables import xacro_argument_text
+    from hybrid_force.model.xacro_files import xacro_argument_text
 
     assert [xacro_argument_text(v) for v in ("a b", 0.7, 3, 1e-3, True, False)] == [
         "a b", "0.7", "3", "0.001", "true", "false",
@@ -968,8 +968,8 @@ def test_shipped_scenarios_follow_their_whole_path(monkeypatch: pytest.MonkeyPat
     "normal"``) at every sample of [0, duration] (each load takes well under a second)."""
     import hybrid_force.control.clik as clik
     import hybrid_force.control.pose_clik as pose_clik
-    import hybrid_force.scenario._checks as scenario_checks
-    from hybrid_force.scenario._checks import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
+    import hybrid_force.sim.prerun as scenario_checks
+    from hybrid_force.sim.prerun import PATH_CHECK_SAMPLES, PATH_CHECK_STEP
 
     calls: list[int] = []
     # the solver where it is defined and where the path check calls it

@@ -17,8 +17,8 @@ import pytest
 from hybrid_force.errors import ReachError, RunWarning
 from hybrid_force.model.loading import load_robot
 from hybrid_force.model.robot import Robot
-from hybrid_force.scenario._builders import _start_in_limits, _start_solver, _wrapped_into_limits
 from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.sim.start import _start_in_limits, _start_solver, _wrapped_into_limits
 
 # The z1 from its neutral seed reaches this point of a sphere with joints 2 and 4 beyond
 # their limits (joint2 = 9.49 rad, limit 2.97; joint4 = −2.24, limit −1.52).

@@ -22,14 +22,13 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms, Normalization
-from hybrid_force.errors import ControlError, SurfaceError
+from hybrid_force.errors import SurfaceError
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot, RobotTerms
 
 __all__ = [
     "Controller",
     "ControllerModel",
-    "check_same_joints",
 ]
 
 
@@ -40,21 +39,6 @@ class Controller(Protocol):
     def command(self, t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray) -> np.ndarray:
         """Joint torques u (n,) [N·m or N] for the measurements at time t [s]."""
         ...
-
-
-def check_same_joints(plant: Robot, model: Robot, what: str = "control.model") -> None:
-    """The controller's model must move the same joints as the plant (names and order).
-
-    Raises:
-        ControlError: naming ``what``, both models and the joints that differ.
-    """
-    names = [str(n) for n in plant.model.names[1:]]
-    others = [str(n) for n in model.model.names[1:]]
-    if names != others or plant.nq != model.nq or plant.nv != model.nv:
-        raise ControlError(
-            f"{what} = {model.source!r} must have the plant's joints {names} "
-            f"(nq = {plant.nq}), got {others} (nq = {model.nq})"
-        )
 
 
 class ControllerModel:

@@ -7,18 +7,19 @@ builds) refuses a path farther than :data:`ON_SURFACE_TOL` from a surface.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import PathError, SurfaceError
+from hybrid_force.errors import BadInputError, PathError, ScenarioError, SurfaceError
 
 if TYPE_CHECKING:
     from hybrid_force.geometry.paths import Path
 
-__all__ = ["ON_SURFACE_TOL", "OnSurfaceReport", "check_on_surface"]
+__all__ = ["ON_SURFACE_TOL", "OnSurfaceReport", "check_on_surface", "check_path_on_surfaces"]
 
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 0.618...
 
@@ -156,3 +157,30 @@ def _golden_max(
             if f2 > best_d:
                 best_t, best_d, best_p = x2, f2, p2
     return best_t, best_d, best_p
+
+
+def check_path_on_surfaces(path: Path, surfaces: Sequence[Any], duration: float) -> None:
+    """The desired path within ``ON_SURFACE_TOL`` of every surface for 0 ≤ t ≤ duration [s]:
+    ScenarioError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
+    None when the path cannot be checked against it)) otherwise."""
+
+    for i, surface in enumerate(surfaces):
+        try:
+            report = check_on_surface(path, surface, 0.0, duration)
+        except BadInputError as exc:  # e.g. Φ(p_d) not finite
+            raise ScenarioError(
+                f"Scenario.path cannot be checked against surfaces[{i}] ({surface!r}): "
+                f"{' '.join(str(exc).split())}",
+                key="Scenario.path",
+                value=(i, None),
+            ) from None
+        if report.worst_distance > ON_SURFACE_TOL:
+            raise ScenarioError(
+                f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
+                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
+                f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
+                f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
+                f"[0, sim.duration = {duration:g} s]",
+                key="Scenario.path",
+                value=(i, report),
+            )

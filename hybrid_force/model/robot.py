@@ -42,11 +42,11 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.errors import BadInputError, RobotError
+from hybrid_force.errors import BadInputError, ControlError, RobotError
 from hybrid_force.model.urdf_check import check_mass_matrix
 from hybrid_force.model.urdf_text import urdf_text
 
-__all__ = ["LWA", "Robot", "RobotTerms", "default_tip_frame"]
+__all__ = ["LWA", "Robot", "RobotTerms", "check_same_joints", "default_tip_frame"]
 _K = LazyKernels("hybrid_force.model._kernels")
 
 
@@ -520,3 +520,18 @@ def _check_vector(x: object, size: int, what: str, robot: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise BadInputError(f"{what} for robot '{robot}' has non-finite values: {arr}")
     return arr
+
+
+def check_same_joints(plant: Robot, model: Robot, what: str = "control.model") -> None:
+    """The controller's model must move the same joints as the plant (names and order).
+
+    Raises:
+        ControlError: naming ``what``, both models and the joints that differ.
+    """
+    names = [str(n) for n in plant.model.names[1:]]
+    others = [str(n) for n in model.model.names[1:]]
+    if names != others or plant.nq != model.nq or plant.nv != model.nv:
+        raise ControlError(
+            f"{what} = {model.source!r} must have the plant's joints {names} "
+            f"(nq = {plant.nq}), got {others} (nq = {model.nq})"
+        )

@@ -18,7 +18,7 @@ from hybrid_force.errors import ModelWarning, RobotError
 from hybrid_force.model.urdf_check import check_urdf
 from hybrid_force.model.urdf_text import check_file_size, check_model_size
 
-__all__ = ["expand_xacro", "find_package"]
+__all__ = ["expand_xacro", "find_package", "xacro_argument_text"]
 
 _XACRO_LOCK = threading.Lock()  # xacro keeps its state in module globals
 
@@ -209,3 +209,17 @@ def _check_urdf_text(path: Path, xml: str, *, expanded: bool) -> None:
         if issubclass(w.category, ModelWarning):
             message = message.replace(str(path), shown, 1)
         warnings.warn(message, w.category, stacklevel=4)
+
+
+def xacro_argument_text(value: object) -> str:
+    """The text a ``robot.xacro_args`` value passes to xacro: a string as is, a boolean as
+    ``true``/``false``, an integer in decimal, a float as Python's shortest repr (``0.7``)."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    raise TypeError(f"a xacro argument must be a string, number or boolean, got {value!r}")

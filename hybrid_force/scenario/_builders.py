@@ -2,33 +2,27 @@
 ``[robot]``, the surfaces, the desired path, the start, and the control, sensor, contact and
 sim settings; each constructor's refusal named by its ``table.key``.
 
-The rules across tables, which need the model, are :mod:`hybrid_force.scenario._checks`.
+The rules across tables, which need the model, are :mod:`hybrid_force.sim.prerun`.
 """
 
 from __future__ import annotations
 
-import math
-import os
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from hybrid_force.control.clik import inverse_kinematics
-from hybrid_force.control.controller import check_same_joints
 from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.laws.base import law_names
-from hybrid_force.control.pose_clik import pose_inverse_kinematics
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.control.tool import ToolSettings, ToolTarget
-from hybrid_force.errors import BadInputError, ReachError, RobotError, RunWarning
+from hybrid_force.control.tool import ToolSettings
+from hybrid_force.errors import BadInputError, RunWarning
 from hybrid_force.geometry.paths import path_parameters, path_types
 from hybrid_force.geometry.surface_base import surface_types
 from hybrid_force.geometry.surface_path import SurfacePath
-from hybrid_force.model.loading import _is_path, load_robot, model_kind
+from hybrid_force.model.scenario_robot import RobotTable, per_joint, robot_table
 from hybrid_force.scenario._tables import (
     _INITIAL,
     _ROBOT,
@@ -37,37 +31,8 @@ from hybrid_force.scenario._tables import (
     _fmt,
     _typed_table,
     _wrap,
-    read_settings,
 )
 from hybrid_force.schema import keys_of
-from hybrid_force.sim.contact import ContactSettings
-from hybrid_force.sim.run_checks import joint_names, limit_slack
-from hybrid_force.sim.settings import Scenario
-
-if TYPE_CHECKING:  # annotations only: the builders import these where they build them
-    pass
-
-
-@dataclass(frozen=True)
-class RobotTable:
-    """A scenario's ``[robot]`` table, checked and resolved as the loader resolves it.
-
-    Attributes:
-        values: the checked values of the table (``xacro_args`` as texts).
-        model: ``robot.model`` as written.
-        target: the registry name, or the model file's path (relative ones joined to the
-            scenario file's folder; the file exists).
-        kind: ``"name"`` (a registry arm), ``"urdf"``, ``"xacro"`` or ``"mjcf"``.
-        package_dirs: ``robot.package_dirs`` as absolute folders (each exists).
-        xacro_args: ``robot.xacro_args`` as ``{name: text}``.
-    """
-
-    values: dict[str, Any]
-    model: str
-    target: str | Path
-    kind: str
-    package_dirs: tuple[str, ...]
-    xacro_args: dict[str, str]
 
 
 def resolve_robot_table(
@@ -92,121 +57,9 @@ def resolve_robot_table(
     return _robot_table(doc["robot"], Path(path), ctx)
 
 
-def resolve_control_model(
-    doc: Mapping[str, Any], path: str | Path, origin: str | None = None
-) -> tuple[str, Path, str] | None:
-    """``control.model`` when it names a model file: (the text as written, the file resolved
-    against the scenario's folder as the loader resolves it, its kind); None when there is no
-    ``control.model``, it names a registry arm, or it is not a text (the loader says why).
-
-    Raises:
-        ScenarioError: the file does not exist, with the loader's message.
-    """
-    control = doc.get("control")
-    model = control.get("model") if isinstance(control, Mapping) else None
-    if not isinstance(model, str):
-        return None
-    ctx = _Context(str(path) if origin is None else origin)
-    target, kind = _model_target(model, "control.model", Path(path), ctx)
-    return None if kind == "name" else (model, Path(target), kind)
-
-
-def _model_target(model: str, key: str, file: Path, ctx: _Context) -> tuple[str | Path, str]:
-    """A model reference of a scenario: (the registry name, "name") or (the model file,
-    resolved against the scenario's folder, its kind "urdf", "xacro" or "mjcf")."""
-
-    if not _is_path(model):
-        return model, "name"
-    candidate = Path(model)
-    target = candidate if candidate.is_absolute() else file.parent / candidate
-    kind = model_kind(target)
-    if not target.is_file():
-        label = {"urdf": "URDF", "xacro": "xacro", "mjcf": "MJCF"}[kind]
-        raise ctx.error(
-            key,
-            model,
-            f"{label} file not found (paths are relative to the scenario file): {target}",
-        )
-    return target, kind
-
-
 def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
-    values = _check_table(ctx, "robot", table, _ROBOT)
     raw = table if isinstance(table, dict) else {}
-    model: str = values["model"]
-    target, kind = _model_target(model, "robot.model", file, ctx)
-    dirs = []
-    for folder_text in values.get("package_dirs", []):
-        folder = Path(folder_text)
-        folder = folder if folder.is_absolute() else file.parent / folder
-        if not folder.is_dir():
-            raise ctx.error(
-                "robot.package_dirs",
-                raw.get("package_dirs"),
-                f"folder not found (paths are relative to the scenario file): {folder}",
-            )
-        dirs.append(os.path.abspath(folder))
-    args = values.get("xacro_args", {})
-    if args and kind != "xacro":
-        raise ctx.error(
-            "robot.xacro_args",
-            raw.get("xacro_args"),
-            f"robot.model = {_fmt(model)} is not a .xacro file: only a xacro model takes arguments",
-        )
-    return RobotTable(values, model, target, kind, tuple(dirs), dict(args))
-
-
-def _robot(table: object, file: Path, ctx: _Context, initial: object = None) -> Any:
-    """The scenario's arm. When ``initial.q`` or ``initial.seed`` (the ``initial`` table)
-    lists every joint of the model file and the loader locks some, it is loaded again with
-    the locked joints held at their values there (:func:`_full_start`)."""
-
-    resolved = _robot_table(table, file, ctx)
-    values = resolved.values
-    options: dict[str, Any] = {
-        "tip": values.get("tip"),
-        "package_dirs": resolved.package_dirs,
-        "xacro_args": resolved.xacro_args or None,
-        "lock_off_chain": values.get("lock_off_chain"),
-        "xacro_trust": values.get("xacro_trust", False),
-    }
-    try:
-        robot = load_robot(resolved.target, **options)
-        held = _full_start(robot, initial)
-        if held is not None:
-            key, numbers = held
-            try:
-                robot = load_robot(resolved.target, **options, locked_positions=numbers)
-            except RobotError as exc:
-                raw = initial.get(key) if isinstance(initial, dict) else None
-                raise ctx.error(f"initial.{key}", raw, " ".join(str(exc).split())) from None
-    except RobotError as exc:  # a frame error has key "tip"
-        key, value = (
-            ("robot.tip", values.get("tip"))
-            if exc.key == "tip"
-            else ("robot.model", resolved.model)
-        )
-        raise ctx.error(key, value, " ".join(str(exc).split())) from None
-    return robot
-
-
-def _full_start(robot: Any, initial: object) -> tuple[str, dict[str, float]] | None:
-    """(``"q"`` or ``"seed"``, {locked joint: its value}) when that key of the ``initial``
-    table lists one number per joint of the model file and the robot has locked joints;
-    None otherwise (a wrong count or type is refused later, by :func:`_initial`)."""
-    if not robot.locked_joints or not isinstance(initial, dict):
-        return None
-    names = robot.file_joints
-    for key in ("q", "seed"):
-        values = initial.get(key)
-        if (
-            isinstance(values, list)
-            and len(values) == len(names) != robot.nq
-            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
-        ):
-            locked = robot.locked_joints
-            return key, {n: float(v) for n, v in zip(names, values, strict=True) if n in locked}
-    return None
+    return robot_table(_check_table(ctx, "robot", table, _ROBOT), raw, file, ctx)
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
@@ -292,44 +145,6 @@ def _surface_path(
     return path
 
 
-def _controller_model(
-    control_values: Mapping[str, Any], robot: Any, file: Path, ctx: _Context, trust: bool = False
-) -> Any:
-    """``control.model``: the controller's own model of the arm (a name, or a model path
-    relative to the scenario file), with the plant's tip and joints; None when not given.
-    ``trust``: ``robot.xacro_trust``, which covers a xacro ``control.model`` too."""
-
-    if "model" not in control_values:
-        return None
-    model: str = control_values["model"]
-    target, _ = _model_target(model, "control.model", file, ctx)
-    try:
-        own = load_robot(target, xacro_trust=trust)
-        # held where the plant's are (initial.q listing every joint), when it locks them too
-        held = {k: v for k, v in robot.locked_joints.items() if k in own.locked_joints}
-        if held != {k: own.locked_joints[k] for k in held}:
-            own = load_robot(target, locked_positions=held, xacro_trust=trust)
-        check_same_joints(robot, own)
-        if own.tip != robot.tip:  # the same arm: the plant's tip frame
-            own = load_robot(
-                target, tip=robot.tip, locked_positions=held or None, xacro_trust=trust
-            )
-    except BadInputError as exc:
-        raise ctx.error("control.model", model, " ".join(str(exc).split())) from None
-    return own
-
-
-def _contact_settings(table: object, sim: Any, ctx: _Context) -> Any:
-
-    contact = read_settings(ctx, "contact", ContactSettings, table)
-    if not contact.ideal:  # the rules across tables, named by the [sim] key they are about
-        try:
-            Scenario._check_contact_settings(contact, sim)
-        except BadInputError as exc:
-            raise ctx.error(str(exc.key), exc.value, " ".join(str(exc).split())) from None
-    return contact
-
-
 def _control_settings(
     values: Mapping[str, Any],
     sim_values: Mapping[str, Any],
@@ -380,131 +195,9 @@ def _tool_settings(table: object, robot: Any, ctx: _Context) -> Any:
     return tool
 
 
-def _tool_start(
-    tool: Any, robot: Any, surfaces: list[Any], path: Any, q0: Any, raw: object, ctx: _Context
-) -> Any:
-    """The start of ``initial.tip`` with the tool along a_d(0) too (``orientation = "normal"``):
-    the pose inverse kinematics from the position-only solution q0."""
-
-    try:
-        target = ToolTarget(tool, surfaces[0], path)
-        tip = robot.tip_position(q0)
-        return pose_inverse_kinematics(robot, target, 0.0, q0, position=tip)
-    except ReachError as exc:
-        raise ctx.error(
-            "initial.tip",
-            raw,
-            "start out of reach with the tool along its desired direction (tool.orientation = "
-            f'"normal"): {" ".join(str(exc).split())}',
-        ) from None
-
-
-_START_SEEDS = 24
-"""Seeds (within the joint limits, fixed) tried when the start found from ``initial.seed``
-puts a joint outside its limits."""
-
-
-def _wrapped_into_limits(robot: Any, q: np.ndarray) -> np.ndarray:
-    """q with each revolute joint outside its limits turned by a multiple of 2π into them
-    where one fits (the same pose: only the joint's angle is renamed)."""
-    out = np.array(q, dtype=float)
-    outside = {int(i) for i in _outside_joints(robot, out)}
-    lower, upper = robot.position_limits
-    for joint in robot.model.joints[1:]:
-        i = joint.idx_q
-        if joint.nq != 1 or "R" not in joint.shortname().removeprefix("JointModel")[:1]:
-            continue  # prismatic or a continuous (cos, sin) joint
-        if i not in outside:
-            continue
-        k = math.ceil((lower[i] - out[i]) / (2.0 * math.pi))
-        if out[i] + 2.0 * math.pi * k <= upper[i]:
-            out[i] += 2.0 * math.pi * k
-    return out
-
-
-def _outside_limits(robot: Any, q: np.ndarray) -> list[str]:
-    """The joints of q (nq,) outside their position limits (:func:`_outside_joints`), as
-    'name = value (limits [lo, hi])'."""
-
-    lower, upper = robot.position_limits
-    names = joint_names(robot)
-    return [
-        f"{names[i]} = {q[i]:.4g} (limits [{lower[i]:.4g}, {upper[i]:.4g}])"
-        for i in _outside_joints(robot, q)
-    ]
-
-
-def _outside_joints(robot: Any, q: np.ndarray) -> np.ndarray:
-    """Indices into q (nq,) beyond their position limits by the run's rule (round-off on a
-    bound is no crossing: :func:`~hybrid_force.sim.run_checks.limit_slack`)."""
-
-    lower, upper = robot.position_limits
-    return np.flatnonzero((q < lower - limit_slack(lower)) | (q > upper + limit_slack(upper)))
-
-
-def _start_solver(tool: Any, robot: Any, surfaces: list[Any], path: Any, tip: object) -> Any:
-    """seed (nq,) → a start with the tip at ``tip`` (and the tool along a_d(0) when pointed),
-    as the loader finds it from ``initial.seed``; raises ReachError."""
-
-    position = np.array(tip, dtype=float)
-    target = ToolTarget(tool, surfaces[0], path) if tool.controlled else None
-
-    def solve(seed: np.ndarray) -> np.ndarray:
-        q = inverse_kinematics(robot, position, seed=seed)
-        if target is None:
-            return q
-        return pose_inverse_kinematics(robot, target, 0.0, q, position=position)
-
-    return solve
-
-
-def _start_in_limits(
-    robot: Any, q0: np.ndarray, solve: Any, seed: np.ndarray | None, key: str
-) -> np.ndarray:
-    """A start within the joint limits for ``initial.tip``.
-
-    The inverse kinematics of the start knows no joint limits: from ``initial.seed`` (or the
-    neutral configuration) it may land on a branch outside them. Then revolute angles are
-    first renamed by 2π, and if a joint is still out, ``solve`` (seed (nq,) → a start q for
-    the same tip, and tool direction when pointed; raises ReachError) is tried from fixed
-    seeds spread over the limits; the in-limits solution nearest to the seed is kept. When
-    none is found, q0 is kept with a RunWarning naming the joints (the run reports them too).
-    """
-    q = _wrapped_into_limits(robot, q0)
-    if not _outside_limits(robot, q):
-        return q
-    lower, upper = robot.position_limits
-    single = [j.idx_q for j in robot.model.joints[1:] if j.nq == 1]  # not (cos, sin) joints
-    lo = np.where(np.isfinite(lower), lower, -math.pi)[single]
-    hi = np.where(np.isfinite(upper), upper, math.pi)[single]
-    rng = np.random.default_rng(0)
-    ref = robot.neutral() if seed is None else np.asarray(seed, dtype=float)
-    best, best_distance = None, math.inf
-    for k in range(_START_SEEDS):
-        candidate = robot.neutral()
-        candidate[single] = 0.5 * (lo + hi) if k == 0 else rng.uniform(lo, hi)
-        try:
-            found = _wrapped_into_limits(robot, solve(candidate))
-        except ReachError:
-            continue
-        distance = float(np.linalg.norm(found - ref))
-        if not _outside_limits(robot, found) and distance < best_distance:
-            best, best_distance = found, distance
-    if best is not None:
-        return best
-    warnings.warn(
-        RunWarning(
-            f"{key}: the start found from the seed puts {', '.join(_outside_limits(robot, q))} "
-            f"outside the joint limits, and none of {_START_SEEDS} other seeds gave a start "
-            "within them; give initial.seed (or initial.q) on the branch you want"
-        ),
-        stacklevel=2,
-    )
-    return q
-
-
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:
-
+    """[initial] → (q0, or (the tip, the seed) for :func:`~hybrid_force.sim.start.start_at_tip`;
+    v0 or None; the start's key; its value as written)."""
     values = _check_table(ctx, "initial", table, _INITIAL)
     raw = table if isinstance(table, dict) else {}
     if "tip" in values and "q" in values:
@@ -517,47 +210,9 @@ def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, o
         )
     if "seed" in values and "tip" not in values:
         raise ctx.error("initial.seed", raw["seed"], "a seed is only used with initial.tip")
-    nq, nv = robot.nq, robot.nv
-    names, locked = robot.file_joints, robot.locked_joints
-    moving = [i for i, name in enumerate(names) if name not in locked]
-    for key, size in (("seed", nq), ("q", nq), ("v", nv)):
-        if key not in values or len(values[key]) == size:
-            continue
-        if key != "v" and locked and len(values[key]) == len(names):
-            values[key] = [values[key][i] for i in moving]  # locked ones: held (_robot)
-            continue
-        if key != "v" and locked:
-            held = ", ".join(f"{n} (held at {v:g})" for n, v in locked.items())
-            counts = (
-                f"{size} numbers (its moving joints) or {len(names)} (every joint of the model "
-                "file, in the file's order: the locked joints' values become their locked "
-                "positions)"
-            )
-            why = (
-                "robot.lock_off_chain locks the joints off the chain to the tip (true by "
-                "default for a model file; false keeps them moving), a registry arm's entry "
-                "names the ones it locks"
-            )
-            raise ctx.error(
-                f"initial.{key}",
-                raw[key],
-                f"must have {counts} for robot '{robot.name}', got {len(values[key])}; "
-                f"locked joints: {held}: {why}",
-            )
-        raise ctx.error(
-            f"initial.{key}",
-            raw[key],
-            f"must have {size} numbers for robot '{robot.name}', got {len(values[key])}",
-        )
+    per_joint(robot, values, raw, ctx)
     v0 = np.array(values["v"]) if "v" in values else None
     if "q" in values:
         return np.array(values["q"]), v0, "initial.q", raw["q"]
     seed = np.array(values["seed"]) if "seed" in values else None
-    try:
-        q0 = inverse_kinematics(robot, np.array(values["tip"]), seed=seed)
-    except ReachError as exc:
-        extra = f" (initial.seed = {_fmt(raw['seed'])})" if "seed" in values else ""
-        raise ctx.error(
-            "initial.tip", raw["tip"], f"start out of reach{extra}: {' '.join(str(exc).split())}"
-        ) from None
-    return q0, v0, "initial.tip", raw["tip"]
+    return (values["tip"], seed), v0, "initial.tip", raw["tip"]

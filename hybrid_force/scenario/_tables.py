@@ -1,6 +1,5 @@
 """The scenario file's vocabulary: the keys of each table, their kinds of value, and the
-checks and messages every table shares (:class:`_Context`, :func:`_check_table`, :func:`_wrap`),
-with ``--set`` overrides (:func:`parse_override`).
+checks and messages every table shares (:class:`_Context`, :func:`_check_table`, :func:`_wrap`).
 
 A message names the file, the ``table.key`` and the offending value, the format
 :mod:`hybrid_force.scenario.loader` documents.
@@ -9,22 +8,18 @@ A message names the file, the ``table.key`` and the offending value, the format
 from __future__ import annotations
 
 import dataclasses
-import functools
-import json
 import math
-import re
-import tomllib
-import warnings
-from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from collections.abc import Iterable, Mapping
 from typing import Any
 
-from hybrid_force.control.laws.base import LAWS, check_options, law_names, law_spec
+from hybrid_force._file_errors import _Context, _fmt, _wrap
+from hybrid_force.control.laws.base import check_options, law_names
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
-from hybrid_force.errors import BadInputError, RunWarning, ScenarioError, did_you_mean
+from hybrid_force.errors import BadInputError, ScenarioError, did_you_mean
 from hybrid_force.geometry.paths import path_parameters, path_types
 from hybrid_force.geometry.surface_base import surface_types
+from hybrid_force.model.xacro_files import xacro_argument_text
 from hybrid_force.schema import (
     Key,
     Param,
@@ -121,15 +116,6 @@ def check_nesting(doc: Mapping[str, Any], ctx: _Context) -> None:
 
 
 # --- messages ------------------------------------------------------------------------------------
-def _fmt(value: object) -> str:
-    """A value as it would be written in TOML (JSON is close enough), shortened."""
-    try:
-        text = json.dumps(value, ensure_ascii=False)
-    except (TypeError, ValueError, RecursionError):
-        text = repr(value) if not isinstance(value, dict | list) else "[...]"
-    return text if len(text) <= 100 else text[:97] + "..."
-
-
 def _type_name(value: object) -> str:
     if isinstance(value, bool):
         return "a boolean"
@@ -156,78 +142,6 @@ def _suggest(word: str, choices: Iterable[str]) -> str:
         if o == low or (len(o) >= 3 and low.startswith(o)) or (len(low) >= 3 and o.startswith(low)):
             return f" (did you mean '{option}'?)"
     return ""
-
-
-class _Context:
-    """Builds error messages for one file: ``<file>: <table.key> = <value>: <problem>``."""
-
-    def __init__(self, file: str) -> None:
-        self.file = file
-
-    def error(self, key: str, value: object, problem: str) -> ScenarioError:
-        return ScenarioError(
-            f"{self.file}: {key} = {_fmt(value)}: {problem}", key=key, value=value, file=self.file
-        )
-
-    def table_error(self, key: str, problem: str) -> ScenarioError:
-        return ScenarioError(f"{self.file}: {key}: {problem}", key=key, file=self.file)
-
-
-# --- overrides -----------------------------------------------------------------------------------
-def parse_override(text: str) -> tuple[str, object]:
-    """Split ``"table.key=value"`` into ``("table.key", value)``.
-
-    The value is parsed as a TOML value (``tomllib.loads(f"v = {value}")``), so ``0.5``,
-    ``1e-3``, ``true``, ``[1, 2, 3]`` and ``"text"`` have their TOML types; anything that is
-    not valid TOML (``rk4``, ``__import__('os')``) stays the raw string. Nothing is evaluated.
-
-    Raises ScenarioError when there is no ``=`` or the key is empty.
-    """
-    if not isinstance(text, str) or "=" not in text:
-        raise ScenarioError(f"override {text!r} must look like table.key=value (e.g. sim.dt=1e-3)")
-    key, raw = text.split("=", 1)
-    key = key.strip()
-    if not key or any(not part for part in key.split(".")):
-        raise ScenarioError(f"override {text!r} has an empty key; use table.key=value")
-    raw = raw.strip()
-    try:
-        value: object = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
-    except RecursionError:
-        raise ScenarioError(f"override {key!r}: its value is nested too deeply") from None
-    return key, value
-
-
-def _apply_overrides(doc: dict[str, Any], overrides: Mapping[str, object], ctx: _Context) -> None:
-    """Set ``doc[table][key] = value`` for each ``"table.key"`` (in place).
-
-    ``"name"`` sets a top-level key; ``"surfaces.<i>.key"`` a key of the i-th [[surfaces]].
-    A missing table is created (validation then reports it if it is unknown).
-    """
-    for dotted, value in overrides.items():
-        parts = str(dotted).split(".")
-        node: Any = doc
-        where: list[str] = []
-        for part in parts[:-1]:
-            where.append(part)
-            if isinstance(node, list):
-                if not part.isdigit() or int(part) >= len(node):
-                    raise ctx.table_error(
-                        ".".join(where),
-                        f"override {dotted!r}: index {part!r} is not one of "
-                        f"0..{len(node) - 1} of this array of tables",
-                    )
-                node = node[int(part)]
-                continue
-            if not isinstance(node, dict):
-                raise ctx.table_error(
-                    ".".join(where[:-1]), f"override {dotted!r}: this is not a table"
-                )
-            node = node.setdefault(part, {})
-        if not isinstance(node, dict):
-            raise ctx.table_error(".".join(where), f"override {dotted!r}: this is not a table")
-        node[parts[-1]] = value
 
 
 # --- type checks ---------------------------------------------------------------------------------
@@ -443,207 +357,6 @@ def _typed_table(
                 f"{', '.join(schema)}",
             )
     return kind, _check_table(ctx, name, rest, schema)
-
-
-def _wrap(
-    ctx: _Context, table: str, values: Mapping[str, Any], exc: BaseException
-) -> ScenarioError:
-    """Re-raise a constructor's BadInputError naming the file and the key it is about."""
-    message = " ".join(str(exc).split())
-    for key in sorted(values, key=len, reverse=True):
-        if re.search(rf"(?<![A-Za-z_]){re.escape(key)}(?![A-Za-z_])", message):
-            return ctx.error(f"{table}.{key}", values[key], message)
-    shown = ", ".join(f"{table}.{k} = {_fmt(v)}" for k, v in values.items())
-    return ScenarioError(f"{ctx.file}: {shown or table}: {message}")
-
-
-def xacro_argument_text(value: object) -> str:
-    """The text a ``robot.xacro_args`` value passes to xacro: a string as is, a boolean as
-    ``true``/``false``, an integer in decimal, a float as Python's shortest repr (``0.7``)."""
-    if isinstance(value, str):
-        return value
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        return repr(value)
-    raise TypeError(f"a xacro argument must be a string, number or boolean, got {value!r}")
-
-
-# --- keys that act only in some configurations ----------------------------------------------------
-def _parent(doc: Mapping[str, Any], dotted: str) -> tuple[Mapping[str, Any] | None, str]:
-    """The table holding the last key of ``"table.key"`` or ``"table.sub.key"`` (None when a
-    table on the way is absent or not a table), and that key."""
-    *tables, key = dotted.split(".")
-    node: object = doc
-    for name in tables:
-        node = node.get(name) if isinstance(node, Mapping) else None
-    return (node if isinstance(node, Mapping) else None), key
-
-
-def _value(doc: Mapping[str, Any], dotted: str, default: object = None) -> object:
-    """``doc[table][key]`` of a ``"table.key"`` (the default when a table or the key is
-    absent)."""
-    node, key = _parent(doc, dotted)
-    return node.get(key, default) if node is not None else default
-
-
-def _law(doc: Mapping[str, Any]) -> str:
-    law = _value(doc, "control.law", "arimoto")
-    return law if isinstance(law, str) and law in law_names() else "arimoto"
-
-
-def _supervised(doc: Mapping[str, Any]) -> bool:
-    return _value(doc, "control.supervisor", True) is not False
-
-
-def _law_is(name: str, doc: Mapping[str, Any]) -> bool:
-    return _law(doc) == name
-
-
-def _law_reads(gain: str, doc: Mapping[str, Any]) -> bool:
-    """The chosen law reads ``control.<gain>`` (its registry entry's ``gains``, not replaced by
-    a key of its table or of [control]); Λ is also the approach rate's default (supervised
-    runs without ``control.approach_rate``)."""
-
-    law = _law(doc)
-    spec = law_spec(law)
-    options = _value(doc, f"control.{law}", {})
-    given = {
-        *(options if isinstance(options, Mapping) else {}),
-        *(doc.get("control", {}) if isinstance(doc.get("control"), Mapping) else {}),
-    }
-    if gain == "Lambda" and _supervised(doc) and "approach_rate" not in given:
-        return True
-    return gain in spec.gains and (spec.gains[gain] is None or spec.gains[gain] not in given)
-
-
-def _gain_needs(gain: str) -> str:
-
-    readers = [name for name, spec in LAWS.items() if gain in spec.gains]
-    replaced = {str(spec.gains[gain]) for spec in LAWS.values() if spec.gains.get(gain)}
-    text = f"control.law = one of {readers}" if readers else "no law (none reads it)"
-    if replaced:
-        text += f", without the key that replaces it ({', '.join(sorted(replaced))})"
-    if gain == "Lambda":
-        text += ", or the supervisor's approach (control.supervisor = true, no approach_rate)"
-    return text
-
-
-@dataclass(frozen=True)
-class _ActsWhen:
-    """A key that has an effect only in some configurations of the run.
-
-    Attributes:
-        key: ``"table.key"`` (a law's table ``"control.<law>"`` as a whole).
-        acts: the document → True when the key has an effect.
-        needs: what would make it act, in words (for the message).
-    """
-
-    key: str
-    acts: Callable[[Mapping[str, Any]], bool]
-    needs: str
-
-
-def _compliant(doc: Mapping[str, Any]) -> bool:
-    return _value(doc, "contact.model", "rigid") == "compliant"
-
-
-def _rigid(doc: Mapping[str, Any]) -> bool:
-    return not _compliant(doc)
-
-
-def _force_tracking(doc: Mapping[str, Any]) -> bool:
-    return _value(doc, "control.impedance.force_tracking", True) is not False
-
-
-def _friction(doc: Mapping[str, Any]) -> bool:
-    mu = _value(doc, "contact.friction", 0.0)
-    return not isinstance(mu, (int, float)) or isinstance(mu, bool) or mu != 0
-
-
-def _oriented(doc: Mapping[str, Any]) -> bool:
-    return _value(doc, "tool.orientation", "free") == "normal"
-
-
-def _world_waypoints(doc: Mapping[str, Any]) -> bool:
-    return _value(doc, "trajectory.frame", "world") == "world"
-
-
-_ACTS_WHEN: tuple[_ActsWhen, ...] = (
-    *(
-        _ActsWhen(f"contact.{key}", _compliant, 'contact.model = "compliant"')
-        for key in ("stiffness", "damping", "exponent")
-    ),
-    _ActsWhen("contact.friction_velocity", _friction, "contact.friction > 0"),
-    *(
-        _ActsWhen(f"tool.{key}", _oriented, 'tool.orientation = "normal"')
-        for key in ("axis", "tilt", "tilt_axis", "roll")
-    ),
-    _ActsWhen("trajectory.projection_tol", _world_waypoints, 'trajectory.frame = "world"'),
-    *(
-        _ActsWhen(f"sim.{key}", _rigid, 'contact.model = "rigid" (the default)')
-        for key in ("baumgarte_alpha", "baumgarte_beta", "unilateral")
-    ),
-    _ActsWhen(
-        "control.impedance.force_rate", _force_tracking, "control.impedance.force_tracking = true"
-    ),
-    *(
-        _ActsWhen(f"control.{key}", _supervised, "control.supervisor = true")
-        for key in ("approach_rate", "max_dist")
-    ),
-    *(
-        _ActsWhen(f"control.{name}", functools.partial(_law_is, name), f'control.law = "{name}"')
-        for name in law_names()
-    ),
-    *(
-        _ActsWhen(f"control.{gain}", functools.partial(_law_reads, gain), _gain_needs(gain))
-        for gain in ("Kd", "kd_rate", "Lambda", "beta", "gamma")
-    ),
-)
-"""Every key that acts only in some configurations, and when (issue 27, class 6): the
-loader refuses one given where it has no effect (:func:`_check_acting`)."""
-
-_NEVER_ACTS: dict[str, str] = {
-    "control.P": (
-        "eq. 31's f_d = P·f is 0 before contact, where the measured force is 0: the near phase "
-        "uses the approach term instead (docs/scenarios.md, [control])"
-    ),
-}
-"""Keys the format keeps but no configuration reads: warned about and left out of the run."""
-
-
-def _check_acting(doc: Mapping[str, Any], ctx: _Context) -> None:
-    """Refuse a key of :data:`_ACTS_WHEN` given where it has no effect (naming the file, the
-    key, its value and what would make it act)."""
-    for rule in _ACTS_WHEN:
-        node, key = _parent(doc, rule.key)
-        if node is not None and key in node and not rule.acts(doc):
-            raise ctx.error(
-                rule.key,
-                node[key],
-                f"has no effect in this configuration; it acts only with {rule.needs}: remove "
-                "it, or set what makes it act",
-            )
-
-
-def _drop_never_acting(doc: dict[str, Any], ctx: _Context) -> None:
-    """Warn about a key of :data:`_NEVER_ACTS` (its value already checked) and drop it from
-    ``doc`` (in place): the run's recorded scenario then does not list it."""
-
-    for dotted, why in _NEVER_ACTS.items():
-        table, _, key = dotted.partition(".")
-        node = doc.get(table)
-        if isinstance(node, dict) and key in node:
-            value = node.pop(key)
-            warnings.warn(
-                RunWarning(
-                    f"{ctx.file}: {dotted} = {_fmt(value)} has no effect in any configuration "
-                    f"({why}); it is left out of the run's settings"
-                ),
-                stacklevel=3,
-            )
 
 
 # --- the reference: JSON Schema and docs tables, from the same keys ----------------------------

@@ -23,7 +23,7 @@ where a number is expected is an error, whatever it contains.
 
 This module reads the file and runs the steps in order; the steps live beside it: the keys
 and messages every table shares in ``_tables``, the settings of each table in ``_builders``,
-the rules across tables that run the model in ``_checks``.
+the rules across tables that run the model in :mod:`hybrid_force.sim.prerun`.
 """
 
 from __future__ import annotations
@@ -37,36 +37,21 @@ from pathlib import Path
 from typing import Any
 
 from hybrid_force.errors import BadInputError, ScenarioError
-from hybrid_force.geometry.on_surface import ON_SURFACE_TOL
+from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_path_on_surfaces
+from hybrid_force.model.scenario_robot import load_arm, load_controller_model
 from hybrid_force.scenario._builders import (
-    _contact_settings,
     _control_settings,
-    _controller_model,
     _initial,
-    _robot,
-    _start_in_limits,
-    _start_solver,
+    _robot_table,
     _surfaces,
     _tool_settings,
-    _tool_start,
     _trajectory,
-)
-from hybrid_force.scenario._checks import (
-    _check_contact_step,
-    _check_control_rate,
-    _check_controller,
-    _check_law_loops,
-    _check_path_followable,
-    _check_pose_followable,
 )
 from hybrid_force.scenario._tables import (
     _TABLES,
     _TOP,
-    _apply_overrides,
-    _check_acting,
     _check_table,
     _Context,
-    _drop_never_acting,
     _fmt,
     _suggest,
     check_nesting,
@@ -74,8 +59,19 @@ from hybrid_force.scenario._tables import (
     read_settings,
     sim_keys,
 )
+from hybrid_force.sim.acting_keys import _check_acting, _drop_never_acting
+from hybrid_force.sim.contact import ContactSettings
+from hybrid_force.sim.overrides import _apply_overrides
+from hybrid_force.sim.prerun import (
+    _check_contact_step,
+    _check_controller,
+    _check_law_loops,
+    _check_path_followable,
+    _check_pose_followable,
+)
 from hybrid_force.sim.sensors import SensorSettings
-from hybrid_force.sim.settings import Scenario, SimSettings, check_path_on_surfaces
+from hybrid_force.sim.settings import Scenario, SimSettings
+from hybrid_force.sim.start import start_at_tip
 
 __all__ = ["MAX_FILE_BYTES", "load_scenario", "read_scenario_document", "scenario_from_document"]
 
@@ -125,8 +121,9 @@ def load_scenario(
 
     Args:
         path: the TOML file (format: docs/scenarios.md).
-        overrides: ``{"table.key": value}`` (e.g. from :func:`parse_override`), applied to
-            the file's data before validation; they replace or add keys.
+        overrides: ``{"table.key": value}`` (e.g. from
+            :func:`~hybrid_force.sim.overrides.parse_override`), applied to the file's data
+            before validation; they replace or add keys.
 
     Returns:
         :class:`hybrid_force.sim.settings.Scenario` with ``source`` = the file's data with the
@@ -136,12 +133,7 @@ def load_scenario(
         ScenarioError: any problem with the file; the message names the file, the
             ``table.key`` and the value.
     """
-    file = Path(path)
-    ctx = _Context(str(path))
-    doc = _read(file, ctx)
-    if overrides:
-        _apply_overrides(doc, overrides, ctx)
-    return _build(doc, file, ctx)
+    return _build(read_scenario_document(path, overrides), Path(path), _Context(str(path)))
 
 
 def read_scenario_document(
@@ -179,11 +171,6 @@ def scenario_from_document(
 
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     check_nesting(doc, ctx)  # overrides may nest too
-    return _build_checked(doc, file, ctx)
-
-
-def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
-
     for key, value in doc.items():
         if key not in _TOP and key not in _TABLES:
             raise ctx.error(
@@ -205,7 +192,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         if table not in doc:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
-    robot = _robot(doc["robot"], file, ctx, doc["initial"])
+    robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
     surfaces, surface_tables = _surfaces(doc, ctx)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), control_keys())
@@ -215,34 +202,19 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
     _drop_never_acting(doc, ctx)
     sensor = read_settings(ctx, "sensor", SensorSettings, doc.get("sensor", {}))
-    contact = _contact_settings(doc.get("contact", {}), sim, ctx)
+    contact = read_settings(ctx, "contact", ContactSettings, doc.get("contact", {}))
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
-    controller_model = _controller_model(control_values, robot, file, ctx, trust)
+    controller_model = load_controller_model(control_values, robot, file, ctx, trust)
     tool = _tool_settings(doc.get("tool", {}), robot, ctx)
-    _check_control_rate(control, sim, control_values, ctx)
     if control.supervisor:  # a run that starts in contact: checked by Scenario
         try:
             check_path_on_surfaces(path, surfaces, sim.duration)
         except BadInputError as exc:
-            raise _refusal(exc, traj, surface_tables, None, control, sim, ctx) from None
+            raise _refusal(exc, doc, traj, surface_tables, None, control, sim, ctx) from None
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
-    fastest = max((abs(float(x)) for x in v0), default=0.0) if v0 is not None else 0.0
-    if fastest > sim.max_velocity:
-        # the first step would stop as a runaway: refused here, naming the key, not run
-        raise ctx.error(
-            "initial.v",
-            doc["initial"]["v"],
-            f"|v| = {fastest:.6g} is beyond sim.max_velocity = "
-            f"{sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
-        )
-    if tool.controlled and start_key == "initial.tip":
-        q0 = _tool_start(tool, robot, surfaces, path, q0, start_value, ctx)
     if start_key == "initial.tip":
-        q0 = _start_in_limits(
-            robot, q0, _start_solver(tool, robot, surfaces, path, doc["initial"]["tip"]),
-            doc["initial"].get("seed"), start_key,
-        )  # fmt: skip
-    try:  # the start, the stacked rows (and the path of a run in contact): by Scenario
+        q0 = start_at_tip(robot, tool, surfaces, path, q0, doc["initial"], ctx)
+    try:  # the start, v0, the rate, the stacked rows, the path of a run in contact: by Scenario
         scenario = Scenario(
             robot=robot,
             surfaces=surfaces,
@@ -261,7 +233,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         )
     except BadInputError as exc:
         start = (robot, q0, start_key, start_value)
-        raise _refusal(exc, traj, surface_tables, start, control, sim, ctx) from None
+        raise _refusal(exc, doc, traj, surface_tables, start, control, sim, ctx) from None
     own = controller_model if controller_model is not None else robot
     _check_controller(own, surfaces, path, q0, control, sim, control_values, ctx, tool)
     if tool.controlled:
@@ -278,6 +250,7 @@ def _build_checked(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
 
 def _refusal(
     exc: BadInputError,
+    doc: Mapping[str, Any],
     traj: Mapping[str, Any],
     tables: list[tuple[str, dict[str, Any]]],
     start: tuple[Any, Any, str, object] | None,
@@ -287,8 +260,14 @@ def _refusal(
 ) -> ScenarioError:
     """Scenario's refusal of the path, the start or the stacked surfaces (its ``key`` and
     ``value``) as the file's: naming the file, the keys and their values. ``start``: (the
-    arm, q0, the start's key and its value as written)."""
+    arm, q0, the start's key and its value as written). Its refusals of a file's key
+    (``control.rate``, the ``[sim]`` keys a contact model needs) and of v0 name that key."""
     key, value = exc.key, exc.value
+    if key == "Scenario.v0":
+        problem = str(exc).removeprefix("Scenario.v0: ")
+        return ctx.error("initial.v", doc["initial"]["v"], problem)
+    if isinstance(key, str) and key.split(".")[0] in ("control", "sim"):
+        return ctx.error(key, value, " ".join(str(exc).split()))
     if key == "Scenario.path" and isinstance(value, tuple):
         i, report = value
         name, table = tables[i]

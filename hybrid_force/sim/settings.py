@@ -7,29 +7,28 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
 from hybrid_force import _checks as checks
 from hybrid_force.control.constraint import Constraint, dependent_rows
-from hybrid_force.control.controller import check_same_joints
 from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
-from hybrid_force.errors import BadInputError, ScenarioError
+from hybrid_force.errors import ScenarioError
 from hybrid_force.errors import ScenarioError as Bad
-from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_on_surface
+from hybrid_force.geometry.on_surface import check_path_on_surfaces
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.metrics import DEFAULT_SETTLE_TIME
-from hybrid_force.model.robot import Robot
+from hybrid_force.model.robot import Robot, check_same_joints
 from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings
 
-__all__ = ["Integrator", "Scenario", "SimSettings", "check_path_on_surfaces", "control_steps"]
+__all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
 
 Integrator = Literal["euler", "rk4"]
 
@@ -135,8 +134,8 @@ class Scenario:
       f_d's count against the surfaces;
     * a run that starts in contact (``control.supervisor`` False): the desired path within
       ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration]
-      (:func:`check_path_on_surfaces`) and the start tip p(q0) within ``control.contact_tol``
-      of every surface;
+      (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`) and the start tip
+      p(q0) within ``control.contact_tol`` of every surface;
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
       stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
@@ -145,6 +144,16 @@ class Scenario:
 
     NAME_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_.\-]*"
     NAME_MAX_LENGTH = 100
+    _TYPES: ClassVar = (
+        ("robot", Robot, "a hybrid_force.model.robot.Robot (e.g. load_robot('rtr'))"),
+        ("path", Path, "a hybrid_force.Path (Helix, Circle, FunctionPath)"),
+        ("control", ControlSettings, "a ControlSettings"),
+        ("sim", SimSettings, "a SimSettings"),
+        ("sensor", SensorSettings, "a hybrid_force.sim.sensors.SensorSettings"),
+        ("contact", ContactSettings, "a hybrid_force.sim.contact.ContactSettings"),
+        ("controller_model", Robot, "None or a hybrid_force.model.robot.Robot"),
+        ("tool", ToolSettings, "a hybrid_force.control.tool.ToolSettings"),
+    )  # the type of each field (the first check: the others read them)
 
     robot: Robot
     surfaces: Sequence[Surface]
@@ -165,12 +174,11 @@ class Scenario:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
 
         set_ = object.__setattr__
+        for key, kind, what in self._TYPES:
+            value = getattr(self, key)
+            if not isinstance(value, kind) and not (key == "controller_model" and value is None):
+                raise Bad(f"Scenario.{key} must be {what}, got {checks.shown(value)}")
         robot = self.robot
-        if not isinstance(robot, Robot):
-            raise Bad(
-                "Scenario.robot must be a hybrid_force.model.robot.Robot (e.g. load_robot('rtr')), "
-                f"got {checks.shown(robot)}"
-            )
         surfaces = self.surfaces
         if isinstance(surfaces, Surface):
             raise Bad(f"Scenario.surfaces must be a sequence of surfaces: wrap it, [{surfaces!r}]")
@@ -186,11 +194,6 @@ class Scenario:
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
         set_(self, "surfaces", tuple(surfaces))
-        if not isinstance(self.path, Path):
-            raise Bad(
-                "Scenario.path must be a hybrid_force.Path (Helix, Circle, FunctionPath), "
-                f"got {checks.shown(self.path)}"
-            )
         for key, size, optional in (("q0", robot.nq, False), ("v0", robot.nv, True)):
             value = getattr(self, key)
             if optional and value is None:
@@ -199,19 +202,17 @@ class Scenario:
             array = checks.array(value, f"Scenario.{key}", Bad, valid=valid)
             if array.shape != (size,):
                 raise Bad(f"Scenario.{key} must be {valid}, got shape {array.shape}")
-            if key == "v0" and isinstance(self.sim, SimSettings) and array.size:
+            if key == "v0" and array.size:
                 fastest = float(np.abs(array).max())
                 if fastest > self.sim.max_velocity:  # the first step would be a runaway
                     raise Bad(
                         f"Scenario.v0: |v| = {fastest:.6g} is beyond sim.max_velocity = "
-                        f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway"
+                        f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
+                        key="Scenario.v0",
+                        value=fastest,
                     )
             array.setflags(write=False)
             set_(self, key, array)
-        for key, kind in (("control", ControlSettings), ("sim", SimSettings)):
-            value = getattr(self, key)
-            if not isinstance(value, kind):
-                raise Bad(f"Scenario.{key} must be a {kind.__name__}, got {checks.shown(value)}")
         name = self.name
         if not isinstance(name, str) or not (
             re.fullmatch(self.NAME_PATTERN, name) and len(name) <= self.NAME_MAX_LENGTH
@@ -232,45 +233,19 @@ class Scenario:
         if control.Kd is not None:
             check_damping_gain(control.Kd, robot.nv)
         control.f_d_for(len(self.surfaces))
-        if not isinstance(self.sensor, SensorSettings):
-            raise Bad(
-                "Scenario.sensor must be a hybrid_force.sim.sensors.SensorSettings, "
-                f"got {checks.shown(self.sensor)}"
-            )
-        control_steps(control, self.sim)
         self._check_contact()
+        control_steps(control, self.sim)
         if self.controller_model is not None:
-            if not isinstance(self.controller_model, Robot):
-                raise Bad(
-                    "Scenario.controller_model must be None or a hybrid_force.model.robot.Robot, "
-                    f"got {checks.shown(self.controller_model)}"
-                )
             check_same_joints(robot, self.controller_model)
-        if not isinstance(self.tool, ToolSettings):
-            raise Bad(
-                "Scenario.tool must be a hybrid_force.control.tool.ToolSettings, "
-                f"got {checks.shown(self.tool)}"
-            )
         self.tool.check_arm(robot)
         self._check_start_and_path()
 
     def _check_contact(self) -> None:
         """The contact settings against the simulation's: a compliant or frictional contact
         needs the explicit Euler step (its forces are evaluated once per step) and forces in
-        newtons (``sim.normalization = "tip"``)."""
+        newtons (``sim.normalization = "tip"``): ScenarioError whose key is the ``[sim]`` key."""
 
-        contact = self.contact
-        if not isinstance(contact, ContactSettings):
-            raise ScenarioError(
-                "Scenario.contact must be a hybrid_force.sim.contact.ContactSettings, "
-                f"got {checks.shown(contact)}"
-            )
-        self._check_contact_settings(contact, self.sim)
-
-    @staticmethod
-    def _check_contact_settings(contact: ContactSettings, sim: SimSettings) -> None:
-        """Raise ScenarioError (key: the ``[sim]`` key) where they do not fit."""
-
+        contact, sim = self.contact, self.sim
         if contact.ideal:
             return
         what = f'contact.model = "{contact.model}", contact.friction = {contact.friction:g}'
@@ -294,8 +269,9 @@ class Scenario:
         path on every surface (class docstring): the one check of a run, a file's or one
         built by hand. Each refusal is a ScenarioError whose ``key`` names the field
         ("Scenario.path", "Scenario.q0", "Scenario.surfaces") and whose ``value`` holds what
-        the loader names: (surface index, OnSurfaceReport or None) (:func:`check_path_on_surfaces`),
-        (surface index, distance [m]), the row indices."""
+        the loader names: (surface index, OnSurfaceReport or None)
+        (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`), (surface index,
+        distance [m]), the row indices."""
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
         if k > 1 and control.supervisor:
@@ -345,38 +321,12 @@ class Scenario:
                 )
 
 
-def check_path_on_surfaces(path: Path, surfaces: Sequence[Surface], duration: float) -> None:
-    """The desired path within ``ON_SURFACE_TOL`` of every surface for 0 ≤ t ≤ duration [s]:
-    ScenarioError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
-    None when the path cannot be checked against it)) otherwise."""
-
-    for i, surface in enumerate(surfaces):
-        try:
-            report = check_on_surface(path, surface, 0.0, duration)
-        except BadInputError as exc:  # e.g. Φ(p_d) not finite
-            raise Bad(
-                f"Scenario.path cannot be checked against surfaces[{i}] ({surface!r}): "
-                f"{' '.join(str(exc).split())}",
-                key="Scenario.path",
-                value=(i, None),
-            ) from None
-        if report.worst_distance > ON_SURFACE_TOL:
-            raise Bad(
-                f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
-                f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
-                f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
-                f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
-                f"[0, sim.duration = {duration:g} s]",
-                key="Scenario.path",
-                value=(i, report),
-            )
-
-
 def control_steps(control: ControlSettings, sim: SimSettings) -> int:
     """Plant steps per control tick: 1/(rate·dt), which must be a whole number ≥ 1.
 
     Raises:
-        ScenarioError: naming control.rate and sim.dt, with the nearest rates that fit.
+        ScenarioError: naming control.rate and sim.dt, with the nearest rates that fit (its
+            key ``"control.rate"``).
     """
     if control.rate is None:
         return 1
@@ -386,7 +336,9 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
         if ratio > 1e15:  # a rate so low that no nearby whole number is a different float
             raise ScenarioError(
                 f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
-                f"sim.dt = {sim.dt:g} s: 1 / (rate · dt) = {ratio:.6g} is far beyond any run"
+                f"sim.dt = {sim.dt:g} s: 1 / (rate · dt) = {ratio:.6g} is far beyond any run",
+                key="control.rate",
+                value=control.rate,
             )
         fits = sorted({1.0 / (n * sim.dt) for n in (max(int(ratio), 1), int(ratio) + 1)})
         # printed so that the text copied into control.rate is accepted (1000/3 Hz: 333.3333...)
@@ -395,7 +347,9 @@ def control_steps(control: ControlSettings, sim: SimSettings) -> int:
             f"control.rate = {control.rate:g} Hz is not a whole number of plant steps of "
             f"sim.dt = {sim.dt:g} s (1 / (rate · dt) = {ratio:.6g}); the controller ticks every "
             f"n plant steps: rates that fit nearby: {', '.join(f'{r} Hz' for r in shown)}"
-            + ("; it cannot be faster than the plant" if ratio < 1 else "")
+            + ("; it cannot be faster than the plant" if ratio < 1 else ""),
+            key="control.rate",
+            value=control.rate,
         )
     return steps
 

@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force.errors import BadInputError, ModelWarning, RobotError
-from hybrid_force.scenario._tables import xacro_argument_text
+from hybrid_force.model.xacro_files import xacro_argument_text
 
 __all__ = ["PLACEHOLDER_SIZE", "visual_geometry"]
 

@@ -1,4 +1,4 @@
-"""The rules of a scenario across its tables, checked by running the model before the run:
+"""The pre-run checks of a scenario file's run, by running the model before the run:
 the path on every surface, the start in reach and on the right side of the surface, the
 controller built once, the path followable by inverse kinematics, the sampled force loop
 stable, and sim.dt short enough for the contact model.
@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._file_errors import _Context, _fmt, _wrap
 from hybrid_force.control.clik import _COND_MAX, ClikSettings, newton_ik
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.control.laws.base import LoopContext, law_loop_bounds
@@ -21,7 +22,6 @@ from hybrid_force.control.supervisor import check_controller
 from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import BadInputError, ReachError, ScenarioError
 from hybrid_force.model.robot import LWA
-from hybrid_force.scenario._tables import _Context, _fmt, _wrap
 from hybrid_force.sim.contact import largest_stable_dt, step_text
 from hybrid_force.sim.settings import control_steps
 
@@ -51,16 +51,6 @@ def _check_contact_step(
             f"is too long for the [contact] model: the largest stable step along the path is "
             f"{step_text(dt_max)} s (docs/contact.md, time step)",
         )
-
-
-def _check_control_rate(
-    control: Any, sim: Any, control_values: Mapping[str, Any], ctx: _Context
-) -> None:
-
-    try:
-        control_steps(control, sim)
-    except BadInputError as exc:
-        raise ctx.error("control.rate", control_values.get("rate"), str(exc)) from None
 
 
 def _check_controller(
