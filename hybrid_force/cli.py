@@ -74,8 +74,8 @@ from hybrid_force.scenario._tables import (
     with_generated_tables,
 )
 from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.scenario.overrides import parse_override
 from hybrid_force.sim.loop import simulate
-from hybrid_force.sim.overrides import parse_override
 
 __all__ = ["build_parser", "main"]
 

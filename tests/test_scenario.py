@@ -14,7 +14,7 @@ import pytest
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.scenario.loader import load_scenario
-from hybrid_force.sim.overrides import parse_override
+from hybrid_force.scenario.overrides import parse_override
 from hybrid_force.sim.settings import Scenario
 
 REPO_ROOT = Path(__file__).resolve().parents[1]

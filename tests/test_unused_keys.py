@@ -145,8 +145,8 @@ def test_the_meta_records_only_what_the_run_used(
 @pytest.mark.parametrize("path", sorted((ROOT / "scenarios").glob("*.toml")), ids=lambda p: p.stem)
 def test_no_shipped_scenario_sets_an_inert_key(path: Path) -> None:
     from hybrid_force._file_errors import _Context
+    from hybrid_force.scenario.acting_keys import _ACTS_WHEN, _NEVER_ACTS
     from hybrid_force.scenario.loader import _read
-    from hybrid_force.sim.acting_keys import _ACTS_WHEN, _NEVER_ACTS
 
     doc = _read(path, _Context(str(path)))
     for rule in _ACTS_WHEN:

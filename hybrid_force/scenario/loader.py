@@ -59,9 +59,9 @@ from hybrid_force.scenario._tables import (
     read_settings,
     sim_keys,
 )
-from hybrid_force.sim.acting_keys import _check_acting, _drop_never_acting
+from hybrid_force.scenario.acting_keys import _check_acting, _drop_never_acting
+from hybrid_force.scenario.overrides import _apply_overrides
 from hybrid_force.sim.contact import ContactSettings
-from hybrid_force.sim.overrides import _apply_overrides
 from hybrid_force.sim.prerun import (
     _check_contact_step,
     _check_controller,
@@ -122,7 +122,7 @@ def load_scenario(
     Args:
         path: the TOML file (format: docs/scenarios.md).
         overrides: ``{"table.key": value}`` (e.g. from
-            :func:`~hybrid_force.sim.overrides.parse_override`), applied to the file's data
+            :func:`~hybrid_force.scenario.overrides.parse_override`), applied to the file's data
             before validation; they replace or add keys.
 
     Returns:

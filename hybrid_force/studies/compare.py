@@ -38,7 +38,7 @@ from hybrid_force.metrics import compute_tracking_metrics, force_error, path_err
 from hybrid_force.result import Result
 from hybrid_force.run_output import locked_folder
 from hybrid_force.scenario.loader import load_scenario
-from hybrid_force.sim.overrides import parse_override
+from hybrid_force.scenario.overrides import parse_override
 from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 from hybrid_force.studies.engines import StartMethod
 from hybrid_force.studies.progress import Progress, format_duration

@@ -18,7 +18,7 @@ import numpy as np
 
 from hybrid_force.errors import BadInputError
 from hybrid_force.scenario._tables import MAX_NESTING
-from hybrid_force.sim.overrides import parse_override
+from hybrid_force.scenario.overrides import parse_override
 
 __all__ = ["MAX_RUNS", "expand", "parse_grid", "parse_random", "run_id", "split_values"]
 
