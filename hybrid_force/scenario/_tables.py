@@ -350,10 +350,11 @@ def _typed_table(
     schema = types[kind]
     for key in rest:
         if key not in schema:
+            article = "an" if kind[0] in "aeiou" else "a"
             raise ctx.error(
                 f"{name}.{key}",
                 rest[key],
-                f"unknown key for a {kind}{_suggest(key, schema)}; valid keys: type, "
+                f"unknown key for {article} {kind}{_suggest(key, schema)}; valid keys: type, "
                 f"{', '.join(schema)}",
             )
     return kind, _check_table(ctx, name, rest, schema)
