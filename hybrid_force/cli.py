@@ -68,13 +68,9 @@ from hybrid_force.model.loading import load_robot
 from hybrid_force.model.registry import known_robots
 from hybrid_force.result import Result
 from hybrid_force.run_output import RunOutput
-from hybrid_force.scenario._tables import (
-    json_schema,
-    markdown_tables,
-    with_generated_tables,
-)
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.scenario.overrides import parse_override
+from hybrid_force.schema_docs import json_schema, markdown_tables, with_generated_tables
 from hybrid_force.sim.loop import simulate
 
 __all__ = ["build_parser", "main"]

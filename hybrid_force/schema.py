@@ -6,8 +6,8 @@ A settings dataclass declares each field once, with :func:`param`::
     class SimSettings:
         dt: float = param(1e-3, unit="s", minimum=0.0, strict=True, doc="time step")
 
-The TOML reader (:mod:`hybrid_force.scenario`), the ``__post_init__`` checks, the key tables
-of docs/scenarios.md and the JSON Schema (``hybrid-force schema``) all read this metadata
+The TOML reader (:mod:`hybrid_force.settings_reader`), the ``__post_init__`` checks, the key
+tables of docs/scenarios.md and the JSON Schema (:mod:`hybrid_force.schema_docs`) all read it
 (:func:`spec_of`, :func:`specs`): a default, unit or range is written here and nowhere else.
 """
 
@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
-import re
 import types
 import typing
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import MISSING, dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -66,6 +64,11 @@ class Param:
         choices: the values a text may take (empty: any).
         key: the TOML key, when it differs from the field name (e.g. ``baumgarte_alpha``).
         toml: False: the field is set from Python only (no TOML key).
+        acts_when: the key has an effect only when another key has a value: ``(key, value)``
+            or ``(key, ">", value)``; the other key is of the same table, or ``table.key``
+            (``("contact.model", "rigid")``); absent keys have their defaults.
+            A key given where its rule does not hold is refused by the reader.
+        inert: why no configuration reads the key (the reader warns and leaves it out).
     """
 
     doc: str = ""
@@ -76,6 +79,8 @@ class Param:
     choices: tuple[Any, ...] = ()
     key: str | None = None
     toml: bool = True
+    acts_when: tuple[Any, ...] = ()
+    inert: str = ""
 
 
 def param(
@@ -90,9 +95,12 @@ def param(
     choices: tuple[Any, ...] = (),
     key: str | None = None,
     toml: bool = True,
+    acts_when: tuple[Any, ...] = (),
+    inert: str = "",
 ) -> Any:
     """A dataclass field with its :class:`Param` metadata (``dataclasses.field`` otherwise)."""
-    meta = {_KEY: Param(doc, unit, minimum, maximum, strict, tuple(choices), key, toml)}
+    spec = Param(doc, unit, minimum, maximum, strict, tuple(choices), key, toml, acts_when, inert)
+    meta = {_KEY: spec}
     if default_factory is not MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -180,14 +188,13 @@ def check_fields(obj: Any, error: type[BadInputError], prefix: str) -> None:
         kind, choices = value_kind(cls, f)
         what = f"{prefix}{spec.key or f.name}"
         try:
-            value = _check_one(checks, kind, choices, spec, value, what, error)
+            value = _check_one(kind, choices, spec, value, what, error)
         except error as exc:
             raise error(str(exc), key=what, value=value) from None
         object.__setattr__(obj, f.name, value)
 
 
 def _check_one(
-    checks: Any,
     kind: str,
     choices: tuple[Any, ...],
     spec: Param,
@@ -202,182 +209,12 @@ def _check_one(
             value, what, error, minimum=low, strict=spec.strict, maximum=high, unit=spec.unit
         )
     if kind == "integer":
+        low = int(low if low is not None else -(2**63))
         return checks.integer(
-            value,
-            what,
-            error,
-            minimum=int(low if low is not None else -(2**63)),
-            maximum=None if high is None else int(high),
+            value, what, error, minimum=low, maximum=None if high is None else int(high)
         )
     if kind == "bool":
         return checks.flag(value, what, error)
     if kind == "choice" or spec.choices:
         return checks.one_of(value, what, error, [str(c) for c in spec.choices or choices])
     return value
-
-
-# --- a table's keys, read from the declarations --------------------------------------------------
-@dataclass(frozen=True)
-class Key:
-    """One key of a table: its kind of value and whether it is required.
-
-    kinds: "str", "number", "integer" (a whole number), "bool", "vec3" (3 numbers), "vector"
-    (a list of numbers),
-    "number_or_vector", "matrix" (a number, a list of numbers or a list of lists of numbers),
-    "points" (a list of lists of numbers),
-    "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
-    table of texts: strings, or numbers and booleans turned into their TOML text),
-    "law_table" (a control law's own settings, checked against the law's keys).
-    ``param``: the field's declaration, whose range a number is checked against.
-    """
-
-    kind: str
-    required: bool = False
-    choices: tuple[str, ...] = ()
-    param: Param | None = None
-    default: Any = MISSING_VALUE
-
-
-def keys_of(cls: type) -> dict[str, Key]:
-    """The keys of a table read into dataclass ``cls``: one per field declared with
-    :func:`~hybrid_force.schema.param` (its ``key`` or name), its kind from the field's type,
-    required when the field has no default; a nested settings dataclass's keys are the
-    table's own (``sim.baumgarte_alpha``)."""
-    out: dict[str, Key] = {}
-    for f, spec in specs(cls):
-        if declared(f) and spec.toml:
-            kind, choices = value_kind(cls, f)
-            if kind == "table":
-                out.update(keys_of(typing.get_type_hints(cls)[f.name]))
-                continue
-            default = default_of(f)
-            keyed = Key(
-                kind, default is MISSING_VALUE, tuple(spec.choices or choices), spec, default
-            )
-            out[spec.key or f.name] = keyed
-    return out
-
-
-def arguments(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
-    """The keyword arguments of ``cls`` from a table's checked ``values`` (by TOML key):
-    each given key under its field's name, a nested settings dataclass built from its own."""
-    out: dict[str, Any] = {}
-    for f, spec in specs(cls):
-        if not (declared(f) and spec.toml):
-            continue
-        if value_kind(cls, f)[0] == "table":
-            nested = typing.get_type_hints(cls)[f.name]
-            given = arguments(nested, values)
-            if given:
-                out[f.name] = nested(**given)
-        elif (spec.key or f.name) in values:
-            out[f.name] = values[spec.key or f.name]
-    return out
-
-
-# --- the reference: JSON Schema and Markdown tables of the same keys ----------------------------
-_NUMBERS = {"type": "array", "items": {"type": "number"}}
-_JSON: dict[str, dict[str, Any]] = {
-    "str": {"type": "string"},
-    "bool": {"type": "boolean"},
-    "number": {"type": "number"},
-    "integer": {"type": "integer"},
-    "vec3": {**_NUMBERS, "minItems": 3, "maxItems": 3},
-    "vector": _NUMBERS,
-    "points": {"type": "array", "items": _NUMBERS},
-    "number_or_vector": {"oneOf": [{"type": "number"}, _NUMBERS]},
-    "matrix": {"oneOf": [{"type": "number"}, _NUMBERS, {"type": "array", "items": _NUMBERS}]},
-    "str_list": {"type": "array", "items": {"type": "string", "minLength": 1}},
-    "str_table": {
-        "type": "object",
-        "additionalProperties": {"type": ["string", "number", "boolean"]},
-    },
-    "law_table": {"type": "object"},
-}
-
-
-def json_key(key: Key) -> dict[str, Any]:
-    out: dict[str, Any] = {"enum": list(key.choices)} if key.choices else dict(_JSON[key.kind])
-    spec = key.param
-    if spec is not None:
-        out["description"] = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
-        if spec.minimum is not None and key.kind == "number":
-            out["exclusiveMinimum" if spec.strict else "minimum"] = spec.minimum
-        if spec.maximum is not None and key.kind == "number":
-            out["exclusiveMaximum"] = spec.maximum
-    if key.default is not MISSING_VALUE and key.default is not None:
-        out["default"] = json.loads(json.dumps(key.default, default=list))
-    return out
-
-
-def json_table(keys: Mapping[str, Key], kind: str | None = None) -> dict[str, Any]:
-    properties = {name: json_key(key) for name, key in keys.items()}
-    required = [name for name, key in keys.items() if key.required]
-    if kind is not None:
-        properties = {"type": {"const": kind}, **properties}
-        required = ["type", *required]
-    return {
-        "type": "object",
-        "properties": properties,
-        "required": required,
-        "additionalProperties": False,
-    }
-
-
-_TYPE_TEXT = {
-    "str": "string",
-    "bool": "bool",
-    "number": "number",
-    "integer": "integer",
-    "vec3": "3 numbers",
-    "vector": "numbers",
-    "points": "array of points",
-    "number_or_vector": "number or numbers",
-    "matrix": "number, numbers or matrix",
-    "law_table": "table",
-}
-
-
-def _toml_text(value: object) -> str:
-    """A default as TOML writes it: ``20``, ``1e-05``, ``true``, ``"euler"``, ``[0, 0, 1]``."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return f"{value:g}"
-    if isinstance(value, (tuple, list)):
-        return "[" + ", ".join(_toml_text(x) for x in value) + "]"
-    if dataclasses.is_dataclass(value):
-        return ""
-    return json.dumps(value, ensure_ascii=False)
-
-
-def markdown_row(name: str, key: Key) -> str:
-    spec = key.param or Param()
-    if key.choices:
-        kind = " or ".join(f'`"{c}"`' for c in key.choices)
-    else:
-        kind = _TYPE_TEXT.get(key.kind, key.kind)
-    low, high = spec.minimum, spec.maximum
-    if low is not None and high is not None:
-        kind += f" in {'(' if spec.strict else '['}{low:g}, {high:g}{')' if spec.strict else ']'}"
-    elif low is not None:
-        kind += f" {'>' if spec.strict else '>='} {low:g}"
-    if key.required:
-        default = "required"
-    elif key.default is MISSING_VALUE:
-        default = ""
-    elif key.default is None:
-        default = "none"
-    else:
-        default = f"`{_toml_text(key.default)}`"
-    meaning = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
-    return f"| `{name}` | {kind} | {default} | {meaning} |"
-
-
-_MARKER = re.compile(r"(<!-- generated: (\S+) -->\n)(.*?)(\n<!-- end generated -->)", re.S)
-
-
-def with_tables(text: str, tables: dict[str, str]) -> str:
-    """``text`` with each block ``<!-- generated: NAME -->`` ... ``<!-- end generated -->``
-    holding ``tables[NAME]``."""
-    return _MARKER.sub(lambda m: m[1] + tables.get(m[2], f"(no table {m[2]})") + m[4], text)

@@ -14,20 +14,15 @@ from typing import Literal
 import jsonschema
 import pytest
 
+from hybrid_force._file_errors import _Context
 from hybrid_force.cli import main
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import BadInputError, ScenarioError
-from hybrid_force.scenario._tables import (
-    _Context,
-    json_schema,
-    markdown_tables,
-    read_settings,
-    settings_tables,
-    typed_tables,
-    with_generated_tables,
-)
+from hybrid_force.scenario._tables import settings_tables, typed_tables
 from hybrid_force.schema import check_fields, param, specs, value_kind
+from hybrid_force.schema_docs import json_schema, markdown_tables, with_generated_tables
+from hybrid_force.settings_reader import read_settings
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.sensors import SensorSettings

@@ -135,14 +135,20 @@ class ControlSettings:
         10.0, unit="N", doc="desired contact force: one, or one per surface (each >= 0)"
     )
     clik_gain: float = param(7.0, unit="1/s", minimum=0.0, strict=True, doc="CLIK γ (eq. 27)")
-    max_dist: float = param(0.05, unit="m", minimum=0.0, strict=True, doc="near-phase distance")
+    max_dist: float = param(
+        0.05, unit="m", minimum=0.0, strict=True, acts_when=("supervisor", True),
+        doc="near-phase distance",
+    )  # fmt: skip
     contact_tol: float = param(1e-5, unit="m", minimum=0.0, strict=True, doc="contact distance")
     P: float = param(
-        0.5, minimum=0.0, maximum=1.0, strict=True, doc="proportionality factor of eq. 31"
-    )
+        0.5, minimum=0.0, maximum=1.0, strict=True, doc="proportionality factor of eq. 31",
+        inert="eq. 31's f_d = P·f is 0 before contact, where the measured force is 0: the near "
+        "phase uses the approach term instead (docs/scenarios.md, [control])",
+    )  # fmt: skip
     approach_rate: float | None = param(
-        None, unit="1/s", minimum=0.0, strict=True, doc="λ_a of the approach (none: Λ)"
-    )
+        None, unit="1/s", minimum=0.0, strict=True, acts_when=("supervisor", True),
+        doc="λ_a of the approach (none: Λ)",
+    )  # fmt: skip
     supervisor: bool = param(True, doc="phases by distance (false: always the hybrid law)")
     mass_factor: float = param(
         1.0, minimum=0.0, strict=True, toml=False, doc="controller's link masses / plant's"

@@ -62,6 +62,7 @@ __all__ = [
 #: vectors, [m/s] for the travel speed across the axis or the normal).
 _MIN_NORM = 1e-6
 _HESSIAN_STEP = 1e-4  # [m] central difference of ∇²Φ along ṗ_d (non-quadric surfaces)
+_NORMAL = ("orientation", "normal")  # the keys that act only with a pointed tool
 
 
 @dataclass(frozen=True)
@@ -84,7 +85,7 @@ class ToolSettings:
     """
 
     axis: tuple[float, float, float] = param(
-        (0.0, 0.0, 1.0), doc="the tool axis in the tip frame (normalised)"
+        (0.0, 0.0, 1.0), acts_when=_NORMAL, doc="the tool axis in the tip frame (normalised)"
     )
     orientation: Literal["free", "normal"] = param(
         "free", doc="free: only the tip position; normal: the axis into the surface"
@@ -95,13 +96,16 @@ class ToolSettings:
         minimum=-math.pi / 2,
         maximum=math.pi / 2,
         strict=True,
+        acts_when=_NORMAL,
         doc="angle between the tool axis and the inward normal",
     )
     tilt_axis: tuple[float, float, float] | None = param(
-        None, doc="world direction to lean about (none: towards the travel)"
+        None, acts_when=_NORMAL, doc="world direction to lean about (none: towards the travel)"
     )
     roll: Literal["free", "held"] = param(
-        "free", doc="free: left to the posture; held: the whole orientation prescribed"
+        "free",
+        acts_when=_NORMAL,
+        doc="free: left to the posture; held: the whole orientation prescribed",
     )
 
     def __post_init__(self) -> None:

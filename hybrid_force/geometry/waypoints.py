@@ -75,6 +75,7 @@ class WaypointParameters:
         unit="m",
         minimum=0.0,
         strict=True,
+        acts_when=("frame", "world"),
         doc="a world point farther from the surface is projected with a warning",
     )
 

@@ -14,25 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_force.control.laws.arimoto import check_damping_gain
-from hybrid_force.control.laws.base import law_names
+from hybrid_force._file_errors import _Context, _fmt, _wrap
+from hybrid_force.control.laws.base import LAWS, PAPER_GAINS, law_names, law_spec
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import BadInputError, RunWarning
-from hybrid_force.geometry.paths import path_parameters, path_types
+from hybrid_force.geometry.paths import path_types
 from hybrid_force.geometry.surface_base import surface_types
 from hybrid_force.geometry.surface_path import SurfacePath
 from hybrid_force.model.scenario_robot import RobotTable, per_joint, robot_table
-from hybrid_force.scenario._tables import (
-    _INITIAL,
-    _ROBOT,
-    _check_table,
-    _Context,
-    _fmt,
-    _typed_table,
-    _wrap,
-)
-from hybrid_force.schema import keys_of
+from hybrid_force.scenario._tables import _INITIAL, _ROBOT, typed_tables
+from hybrid_force.settings_reader import check_table, no_effect, typed_table
 
 
 def resolve_robot_table(
@@ -59,7 +50,7 @@ def resolve_robot_table(
 
 def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
     raw = table if isinstance(table, dict) else {}
-    return robot_table(_check_table(ctx, "robot", table, _ROBOT), raw, file, ctx)
+    return robot_table(check_table(ctx, "robot", table, _ROBOT), raw, file, ctx)
 
 
 def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
@@ -83,8 +74,7 @@ def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tu
     checked: list[tuple[str, dict]] = []
     for name, table in tables:
         types = surface_types()
-        schema = {kind: keys_of(cls) for kind, cls in types.items()}
-        kind, values = _typed_table(ctx, name, table, schema)
+        kind, values = typed_table(ctx, name, table, typed_tables()["surface"])
         try:
             s = types[kind](**values)
         except BadInputError as exc:
@@ -100,8 +90,7 @@ def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any,
     :func:`_surface_path`."""
 
     types = path_types()
-    schema = {kind: keys_of(path_parameters(cls)) for kind, cls in types.items()}
-    kind, values = _typed_table(ctx, "trajectory", table, schema)
+    kind, values = typed_table(ctx, "trajectory", table, typed_tables()["trajectory"])
     cls = types[kind]
     if issubclass(cls, SurfacePath):
         raw = table if isinstance(table, dict) else {}
@@ -146,59 +135,58 @@ def _surface_path(
 
 
 def _control_settings(
-    values: Mapping[str, Any],
-    sim_values: Mapping[str, Any],
-    robot: Any,
-    k: int,
-    ctx: _Context,
-) -> Any:
-    """[control] (with [sim]'s model_mass_factor) → ControlSettings; K_d against the arm's
-    joints and f_d against the k surfaces, named by their keys."""
+    values: Mapping[str, dict[str, Any]], raw: Mapping[str, Any], ctx: _Context
+) -> ControlSettings:
+    """[control] (its laws' tables checked as ``values["control.<law>"]``, [sim]'s
+    model_mass_factor) → ControlSettings, once the paper's gains the law does not read are
+    refused (``raw``: [control] as written)."""
 
-    merged: dict[str, Any] = {
-        key: tuple(v) if key == "f_d" and isinstance(v, list) else v
-        for key, v in values.items()
-        if key != "model" and key not in law_names()
-    }
-    if "model_mass_factor" in sim_values:
-        merged["mass_factor"] = sim_values["model_mass_factor"]
-    merged["options"] = {law: values[law] for law in law_names() if law in values}
-    if "Kd" in values:
-        try:
-            check_damping_gain(values["Kd"], robot.nv)
-        except BadInputError as exc:
-            raise _wrap(ctx, "control", values, exc) from None
-    f_d = values.get("f_d")
-    if isinstance(f_d, list) and len(f_d) != k:
-        raise ctx.error("control.f_d", f_d, f"must be a number or {k} numbers (one per surface)")
+    control = values["control"]
+    _check_gains(control, values, raw, ctx)
+    given: dict[str, Any] = {k: v for k, v in control.items() if k != "model" and k not in LAWS}
+    if isinstance(given.get("f_d"), list):
+        given["f_d"] = tuple(given["f_d"])
+    if "model_mass_factor" in values["sim"]:
+        given["mass_factor"] = values["sim"]["model_mass_factor"]
+    given["options"] = {law: values[f"control.{law}"] for law in law_names() if law in control}
     try:
-        control = ControlSettings(**merged)
+        return ControlSettings(**given)
     except BadInputError as exc:
-        if "mass_factor" in str(exc):
-            raise ctx.error(
-                "sim.model_mass_factor", sim_values.get("model_mass_factor"), str(exc)
-            ) from None
-        raise _wrap(ctx, "control", values, exc) from None
-    return control
+        raise _wrap(ctx, "control", control, exc) from None
 
 
-def _tool_settings(table: object, robot: Any, ctx: _Context) -> Any:
-    """``[tool]``: the ToolSettings, refused for an arm with too few joints for its task."""
+def _check_gains(
+    control: Mapping[str, Any], values: Mapping[str, Any], raw: Mapping[str, Any], ctx: _Context
+) -> None:
+    """Refuse a gain of [control] the chosen law does not read (its registry entry's
+    ``gains``, unless the law's table replaces it); Λ also sets the supervisor's approach
+    rate when ``approach_rate`` is not given."""
 
-    values = _check_table(ctx, "tool", table, keys_of(ToolSettings))
-    try:
-        tool = ToolSettings(**values)
-        tool.check_arm(robot)
-    except BadInputError as exc:
-        key = str(exc.key or "tool")
-        raise ctx.error(key, values.get(key.removeprefix("tool.")), str(exc)) from None
-    return tool
+    law = control.get("law", ControlSettings.law)
+    given = dict.fromkeys([*control, *values.get(f"control.{law}", {})])
+    approach = (
+        control.get("supervisor", ControlSettings.supervisor) and "approach_rate" not in control
+    )
+    for gain in PAPER_GAINS:
+        if gain in control and not (
+            law_spec(law).reads(gain, given) or (gain == "Lambda" and approach)
+        ):
+            readers = [name for name, spec in LAWS.items() if gain in spec.gains]
+            needs = f"control.law = one of {readers}" if readers else "no law (none reads it)"
+            replaced = {str(spec.gains[gain]) for spec in LAWS.values() if spec.gains.get(gain)}
+            if replaced:
+                needs += f", without the key that replaces it ({', '.join(sorted(replaced))})"
+            if gain == "Lambda":
+                needs += (
+                    ", or the supervisor's approach (control.supervisor = true, no approach_rate)"
+                )
+            raise no_effect(ctx, f"control.{gain}", raw[gain], needs)
 
 
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:
     """[initial] → (q0, or (the tip, the seed) for :func:`~hybrid_force.sim.start.start_at_tip`;
     v0 or None; the start's key; its value as written)."""
-    values = _check_table(ctx, "initial", table, _INITIAL)
+    values = check_table(ctx, "initial", table, _INITIAL)
     raw = table if isinstance(table, dict) else {}
     if "tip" in values and "q" in values:
         raise ctx.table_error(

@@ -30,12 +30,13 @@ from __future__ import annotations
 
 import copy
 import json
-import re
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from hybrid_force._file_errors import _Context, _fmt, _wrap
+from hybrid_force.control.laws.base import law_names
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_path_on_surfaces
 from hybrid_force.model.scenario_robot import load_arm, load_controller_model
@@ -44,24 +45,19 @@ from hybrid_force.scenario._builders import (
     _initial,
     _robot_table,
     _surfaces,
-    _tool_settings,
     _trajectory,
 )
 from hybrid_force.scenario._tables import (
-    _TABLES,
-    _TOP,
-    _check_table,
-    _Context,
-    _fmt,
-    _suggest,
+    SETTINGS,
+    TABLES,
+    TOP,
     check_nesting,
-    control_keys,
-    read_settings,
-    sim_keys,
+    law_keys,
+    settings_tables,
+    typed_tables,
 )
-from hybrid_force.scenario.acting_keys import _check_acting, _drop_never_acting
 from hybrid_force.scenario.overrides import _apply_overrides
-from hybrid_force.sim.contact import ContactSettings
+from hybrid_force.settings_reader import check_acting, check_table, read_settings, suggest
 from hybrid_force.sim.prerun import (
     _check_contact_step,
     _check_controller,
@@ -69,8 +65,7 @@ from hybrid_force.sim.prerun import (
     _check_path_followable,
     _check_pose_followable,
 )
-from hybrid_force.sim.sensors import SensorSettings
-from hybrid_force.sim.settings import Scenario, SimSettings
+from hybrid_force.sim.settings import Scenario
 from hybrid_force.sim.start import start_at_tip
 
 __all__ = ["MAX_FILE_BYTES", "load_scenario", "read_scenario_document", "scenario_from_document"]
@@ -172,22 +167,14 @@ def scenario_from_document(
 def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     check_nesting(doc, ctx)  # overrides may nest too
     for key, value in doc.items():
-        if key not in _TOP and key not in _TABLES:
+        if key not in TOP and key not in TABLES:
             raise ctx.error(
                 key,
                 value,
-                f"unknown top-level key or table{_suggest(key, [*_TOP, *_TABLES])}; valid: "
-                f"{', '.join([*_TOP, *_TABLES])}",
+                f"unknown top-level key or table{suggest(key, [*TOP, *TABLES])}; valid: "
+                f"{', '.join([*TOP, *TABLES])}",
             )
-    top = _check_table(ctx, "", {k: v for k, v in doc.items() if k in _TOP}, _TOP)
-    name = top["name"]
-    if not (re.fullmatch(Scenario.NAME_PATTERN, name) and len(name) <= Scenario.NAME_MAX_LENGTH):
-        raise ctx.error(
-            "name",
-            name,
-            f"must be a simple name of 1 to {Scenario.NAME_MAX_LENGTH} letters, digits, '_', "
-            "'-', '.' (not starting with '.' or '-'): it names the output folder runs/<name>/",
-        )
+    top = check_table(ctx, "", {k: v for k, v in doc.items() if k in TOP}, TOP)
     for table in ("robot", "trajectory", "initial"):
         if table not in doc:
             raise ctx.table_error(f"[{table}]", "missing required table")
@@ -195,26 +182,30 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
     surfaces, surface_tables = _surfaces(doc, ctx)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
-    control_values = _check_table(ctx, "control", doc.get("control", {}), control_keys())
-    sim_values = _check_table(ctx, "sim", doc.get("sim", {}), sim_keys())
-    _check_acting(doc, ctx)  # a key with no effect here: refused (or warned about and dropped)
-    sim = read_settings(ctx, "sim", SimSettings, None, sim_values)
-    control = _control_settings(control_values, sim_values, robot, len(surfaces), ctx)
-    _drop_never_acting(doc, ctx)
-    sensor = read_settings(ctx, "sensor", SensorSettings, doc.get("sensor", {}))
-    contact = read_settings(ctx, "contact", ContactSettings, doc.get("contact", {}))
+    keys = {**settings_tables(), "trajectory": typed_tables()["trajectory"][traj["type"]]}
+    values = {t: check_table(ctx, t, doc.get(t, {}), keys[t]) for t in ("control", *SETTINGS)}
+    for law in (law for law in law_names() if law in values["control"]):
+        keys[f"control.{law}"] = law_keys(law)
+        table = values["control"][law]
+        values[f"control.{law}"] = check_table(ctx, f"control.{law}", table, keys[f"control.{law}"])
+    check_acting(ctx, doc, {**values, "trajectory": traj}, keys)
+    control = _control_settings(values, doc.get("control", {}), ctx)
+    sim, sensor, contact, tool = (
+        read_settings(ctx, t, cls, None, values[t]) for t, cls in SETTINGS.items()
+    )
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
-    controller_model = load_controller_model(control_values, robot, file, ctx, trust)
-    tool = _tool_settings(doc.get("tool", {}), robot, ctx)
+    controller_model = load_controller_model(values["control"], robot, file, ctx, trust)
     if control.supervisor:  # a run that starts in contact: checked by Scenario
         try:
             check_path_on_surfaces(path, surfaces, sim.duration)
         except BadInputError as exc:
-            raise _refusal(exc, doc, traj, surface_tables, None, control, sim, ctx) from None
+            raise _refusal(
+                exc, doc, traj, surface_tables, None, values, control, sim, ctx
+            ) from None
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     if start_key == "initial.tip":
         q0 = start_at_tip(robot, tool, surfaces, path, q0, doc["initial"], ctx)
-    try:  # the start, v0, the rate, the stacked rows, the path of a run in contact: by Scenario
+    try:  # every rule across the tables that needs no run of the model: by Scenario
         scenario = Scenario(
             robot=robot,
             surfaces=surfaces,
@@ -223,7 +214,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             v0=v0,
             control=control,
             sim=sim,
-            name=name,
+            name=top["name"],
             description=top.get("description", ""),
             source=json.loads(json.dumps(doc)),
             sensor=sensor,
@@ -233,16 +224,16 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         )
     except BadInputError as exc:
         start = (robot, q0, start_key, start_value)
-        raise _refusal(exc, doc, traj, surface_tables, start, control, sim, ctx) from None
+        raise _refusal(exc, doc, traj, surface_tables, start, values, control, sim, ctx) from None
     own = controller_model if controller_model is not None else robot
-    _check_controller(own, surfaces, path, q0, control, sim, control_values, ctx, tool)
+    _check_controller(own, surfaces, path, q0, control, sim, values["control"], ctx, tool)
     if tool.controlled:
         configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)
     else:
         configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
     _check_law_loops(
         robot, surfaces, configurations, q0, control, sim, sensor, controller_model,
-        control_values.get("model"), ctx,
+        values["control"].get("model"), ctx,
     )  # fmt: skip
     _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
     return scenario
@@ -254,20 +245,26 @@ def _refusal(
     traj: Mapping[str, Any],
     tables: list[tuple[str, dict[str, Any]]],
     start: tuple[Any, Any, str, object] | None,
+    values: Mapping[str, Any],
     control: Any,
     sim: Any,
     ctx: _Context,
 ) -> ScenarioError:
-    """Scenario's refusal of the path, the start or the stacked surfaces (its ``key`` and
-    ``value``) as the file's: naming the file, the keys and their values. ``start``: (the
-    arm, q0, the start's key and its value as written). Its refusals of a file's key
-    (``control.rate``, the ``[sim]`` keys a contact model needs) and of v0 name that key."""
+    """Scenario's refusal as the file's, naming the file, the keys and their values as
+    written: of a file's key (its ``key``: ``control.rate``, ``tool.orientation``, ``name``),
+    of K_d or f_d against the arm or the surfaces, of v0, and of the path, the start or the
+    stacked surfaces (their ``key`` and ``value``). ``start``: (the arm, q0, the start's key
+    and its value as written)."""
     key, value = exc.key, exc.value
+    message = " ".join(str(exc).split())
+    if key is None:
+        return _wrap(ctx, "control", values["control"], exc)
     if key == "Scenario.v0":
-        problem = str(exc).removeprefix("Scenario.v0: ")
-        return ctx.error("initial.v", doc["initial"]["v"], problem)
-    if isinstance(key, str) and key.split(".")[0] in ("control", "sim"):
-        return ctx.error(key, value, " ".join(str(exc).split()))
+        return ctx.error("initial.v", doc["initial"]["v"], message.removeprefix("Scenario.v0: "))
+    if key.split(".")[0] in (*TOP, *TABLES):
+        head, _, last = key.rpartition(".")
+        written = doc.get(head, {}).get(last, value) if head else doc.get(key, value)
+        return ctx.error(key, written, message.removeprefix(f"Scenario.{key} "))
     if key == "Scenario.path" and isinstance(value, tuple):
         i, report = value
         name, table = tables[i]

@@ -91,14 +91,20 @@ class ContactSettings:
 
     model: ContactModel = param("rigid", doc="rigid (Lagrange multiplier) or compliant")
     stiffness: float = param(
-        1e6, unit="N/m^n", minimum=0.0, strict=True, doc="k of the compliant law"
+        1e6, unit="N/m^n", minimum=0.0, strict=True, acts_when=("model", "compliant"),
+        doc="k of the compliant law",
+    )  # fmt: skip
+    damping: float = param(
+        0.0, unit="s/m", minimum=0.0, acts_when=("model", "compliant"), doc="c of the compliant law"
     )
-    damping: float = param(0.0, unit="s/m", minimum=0.0, doc="c of the compliant law")
-    exponent: float = param(1.0, minimum=1.0, doc="n of the compliant law")
+    exponent: float = param(
+        1.0, minimum=1.0, acts_when=("model", "compliant"), doc="n of the compliant law"
+    )
     friction: float = param(0.0, minimum=0.0, doc="Coulomb coefficient μ (0: frictionless)")
     friction_velocity: float = param(
-        1e-3, unit="m/s", minimum=0.0, strict=True, doc="regularisation velocity ε of friction"
-    )
+        1e-3, unit="m/s", minimum=0.0, strict=True, acts_when=("friction", ">", 0),
+        doc="regularisation velocity ε of friction",
+    )  # fmt: skip
 
     def __post_init__(self) -> None:
         check_fields(self, ScenarioError, "contact.")

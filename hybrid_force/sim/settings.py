@@ -43,8 +43,14 @@ class SimSettings:
     integrator: Integrator = param(
         "euler", doc="euler (semi-implicit) or rk4 (command held over the step)"
     )
-    baumgarte: Baumgarte = param(default_factory=Baumgarte, doc="stabilisation gains")
-    unilateral: bool = param(True, doc="release the contact where the surface would pull")
+    baumgarte: Baumgarte = param(
+        default_factory=Baumgarte, acts_when=("contact.model", "rigid"), doc="stabilisation gains"
+    )
+    unilateral: bool = param(
+        True,
+        acts_when=("contact.model", "rigid"),
+        doc="release the contact where the surface would pull",
+    )
     release_tol: float = param(
         1e-9, unit="N", minimum=0.0, strict=True, toml=False, doc="f below −release_tol releases"
     )
@@ -220,7 +226,9 @@ class Scenario:
             raise Bad(
                 f"Scenario.name must be a simple name of 1 to {self.NAME_MAX_LENGTH} letters, "
                 "digits, '_', '-', '.' (not starting with '.' or '-'): it names the output folder "
-                f"runs/<name>/; got {checks.shown(name)}"
+                f"runs/<name>/; got {checks.shown(name)}",
+                key="name",
+                value=name,
             )
         if not isinstance(self.description, str):
             raise Bad(f"Scenario.description must be a str, got {checks.shown(self.description)}")

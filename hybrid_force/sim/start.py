@@ -14,7 +14,7 @@ import numpy as np
 from hybrid_force._file_errors import _Context, _fmt
 from hybrid_force.control.clik import inverse_kinematics
 from hybrid_force.control.pose_clik import pose_inverse_kinematics
-from hybrid_force.control.tool import ToolTarget
+from hybrid_force.control.tool import ToolSettings, ToolTarget
 from hybrid_force.errors import ReachError, RunWarning
 from hybrid_force.sim.run_checks import joint_names, limit_slack
 
@@ -39,6 +39,8 @@ def start_at_tip(
         raise ctx.error(
             "initial.tip", raw["tip"], f"start out of reach{extra}: {' '.join(str(exc).split())}"
         ) from None
+    if tool.controlled and tool.task_size > robot.nv:  # Scenario refuses it (tool.check_arm)
+        tool = ToolSettings()
     if tool.controlled:
         q0 = _tool_start(tool, robot, surfaces, path, q0, raw["tip"], ctx)
     solve = _start_solver(tool, robot, surfaces, path, raw["tip"])

@@ -144,8 +144,9 @@ class ImpedanceGains(LawOptions):
         "plain impedance at the model's depth f_d/k_n",
     )
     force_rate: float = param(
-        10.0, unit="1/s", minimum=0.0, strict=True, doc="κ_f, rate of the force-tracking admittance"
-    )
+        10.0, unit="1/s", minimum=0.0, strict=True, acts_when=("force_tracking", True),
+        doc="κ_f, rate of the force-tracking admittance",
+    )  # fmt: skip
     feedforward: bool = param(
         True, doc="true: add M q̈_d + C q̇_d of the desired joint path (g is always added)"
     )
