@@ -322,7 +322,7 @@ def test_the_approach_lands_at_the_supervisors_speed() -> None:
 
 
 def test_options_are_checked() -> None:
-    with pytest.raises(ControlError, match="corrected, original"):
+    with pytest.raises(ControlError, match="one of 'corrected', 'original'"):
         ControlSettings(law="raibert_craig", options={"raibert_craig": {"form": "fixed"}})
     with pytest.raises(ControlError):
         ControlSettings(law="raibert_craig", options={"raibert_craig": {"kp": -0.1}})

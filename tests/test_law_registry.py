@@ -4,12 +4,13 @@ the command line lists them (hybrid_force.control.laws.base)."""
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import numpy as np
 import pytest
 
 from hybrid_force.cli import main
-from hybrid_force.control.laws.base import LAWS, LawOptions, check_options, check_value, law_names
+from hybrid_force.control.laws.base import LAWS, LawOptions, check_options, law_names
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import ControlError, ScenarioError
 from hybrid_force.scenario.loader import load_scenario
@@ -58,23 +59,25 @@ def test_options_are_checked_by_key_and_value() -> None:
 
 
 @dataclasses.dataclass(frozen=True)
-class _Table:
+class _Table(LawOptions):
+    law: ClassVar[str] = "x"
+
     k: float = param(1.0, unit="1/s", minimum=0.0, strict=True, doc="a gain")
     form: str = param("a", choices=("a", "b"), doc="form")
     flag: bool = param(True, doc="flag")
 
 
 def test_an_option_value_is_checked_against_its_kind() -> None:
-    fields = {f.name: (f, p) for f, p in specs(_Table)}
-    assert check_value("control.x.k", 2, *fields["k"]) == 2.0
+    assert _Table(k=2).k == 2.0 and isinstance(_Table(k=2).k, float)
     for bad in (0.0, -1.0, float("nan"), True, "2"):
-        with pytest.raises(ControlError):
-            check_value("control.x.k", bad, *fields["k"])
-    assert check_value("control.x.form", "b", *fields["form"]) == "b"
-    with pytest.raises(ControlError, match="valid: a, b"):
-        check_value("control.x.form", "c", *fields["form"])
+        with pytest.raises(ControlError) as info:
+            _Table(k=bad)  # type: ignore[arg-type]
+        assert info.value.key == "control.x.k"
+    assert _Table(form="b").form == "b"
+    with pytest.raises(ControlError, match="one of 'a', 'b'"):
+        _Table(form="c")
     with pytest.raises(ControlError):
-        check_value("control.x.flag", 1, *fields["flag"])
+        _Table(flag=1)  # type: ignore[arg-type]
 
 
 def test_a_law_settings_dataclass_checks_its_fields_and_names_the_key() -> None:

@@ -1,9 +1,6 @@
-"""The settings each table of a scenario file builds, one table at a time: the arm of
-``[robot]``, the surfaces, the desired path, the start, and the control, sensor, contact and
-sim settings; each constructor's refusal named by its ``table.key``.
-
-The rules across tables, which need the model, are :mod:`hybrid_force.sim.prerun`.
-"""
+"""What the tables of a scenario file build that is more than a settings dataclass: the arm
+of ``[robot]``, the surfaces, the desired path, the control settings and the start; each
+constructor's refusal named by its ``table.key``."""
 
 from __future__ import annotations
 
@@ -29,19 +26,9 @@ from hybrid_force.settings_reader import check_table, no_effect, typed_table
 def resolve_robot_table(
     doc: Mapping[str, Any], path: str | Path, origin: str | None = None
 ) -> RobotTable:
-    """Check a scenario's ``[robot]`` table and find the files it names, without loading
-    the arm (what a sweep sends to its workers).
-
-    Args:
-        doc: the scenario's data (as :func:`read_scenario_document` returns).
-        path: the scenario file (relative model paths and package folders join its folder).
-        origin: how messages name the scenario (default: ``path``).
-
-    Raises:
-        ScenarioError: as :func:`load_scenario` for the ``[robot]`` table: a missing table,
-            key, model file or package folder, a wrong type, xacro arguments for a model that
-            is not a .xacro file.
-    """
+    """The ``[robot]`` table of scenario data ``doc`` checked and the files it names found
+    (relative to the file ``path``) without loading the arm: what a sweep sends to its
+    workers. ScenarioError as :func:`load_scenario`'s, naming ``origin`` (default: ``path``)."""
     ctx = _Context(str(path) if origin is None else origin)
     if "robot" not in doc:
         raise ctx.table_error("[robot]", "missing required table")
@@ -138,11 +125,26 @@ def _control_settings(
     values: Mapping[str, dict[str, Any]], raw: Mapping[str, Any], ctx: _Context
 ) -> ControlSettings:
     """[control] (its laws' tables checked as ``values["control.<law>"]``, [sim]'s
-    model_mass_factor) → ControlSettings, once the paper's gains the law does not read are
-    refused (``raw``: [control] as written)."""
+    model_mass_factor) → ControlSettings. A paper's gain the chosen law does not read (its
+    registry entry's ``gains``, unless the law's table replaces it) is refused, naming its
+    value as written (``raw``); Λ is also the approach rate when ``approach_rate`` is not
+    given."""
 
     control = values["control"]
-    _check_gains(control, values, raw, ctx)
+    law = control.get("law", ControlSettings.law)
+    keys = dict.fromkeys([*control, *values.get(f"control.{law}", {})])
+    supervised = control.get("supervisor", ControlSettings.supervisor)
+    approach = supervised and "approach_rate" not in control
+    for gain in (g for g in PAPER_GAINS if g in control):
+        if not (law_spec(law).reads(gain, keys) or (gain == "Lambda" and approach)):
+            readers = [name for name, spec in LAWS.items() if gain in spec.gains]
+            replaced = sorted({str(s.gains[gain]) for s in LAWS.values() if s.gains.get(gain)})
+            needs = f"control.law = one of {readers}" + (
+                f", without the key that replaces it ({', '.join(replaced)})" if replaced else ""
+            )
+            if gain == "Lambda":
+                needs += f", or the supervisor's approach ({_APPROACH})"
+            raise no_effect(ctx, f"control.{gain}", raw[gain], needs)
     given: dict[str, Any] = {k: v for k, v in control.items() if k != "model" and k not in LAWS}
     if isinstance(given.get("f_d"), list):
         given["f_d"] = tuple(given["f_d"])
@@ -155,32 +157,7 @@ def _control_settings(
         raise _wrap(ctx, "control", control, exc) from None
 
 
-def _check_gains(
-    control: Mapping[str, Any], values: Mapping[str, Any], raw: Mapping[str, Any], ctx: _Context
-) -> None:
-    """Refuse a gain of [control] the chosen law does not read (its registry entry's
-    ``gains``, unless the law's table replaces it); Λ also sets the supervisor's approach
-    rate when ``approach_rate`` is not given."""
-
-    law = control.get("law", ControlSettings.law)
-    given = dict.fromkeys([*control, *values.get(f"control.{law}", {})])
-    approach = (
-        control.get("supervisor", ControlSettings.supervisor) and "approach_rate" not in control
-    )
-    for gain in PAPER_GAINS:
-        if gain in control and not (
-            law_spec(law).reads(gain, given) or (gain == "Lambda" and approach)
-        ):
-            readers = [name for name, spec in LAWS.items() if gain in spec.gains]
-            needs = f"control.law = one of {readers}" if readers else "no law (none reads it)"
-            replaced = {str(spec.gains[gain]) for spec in LAWS.values() if spec.gains.get(gain)}
-            if replaced:
-                needs += f", without the key that replaces it ({', '.join(sorted(replaced))})"
-            if gain == "Lambda":
-                needs += (
-                    ", or the supervisor's approach (control.supervisor = true, no approach_rate)"
-                )
-            raise no_effect(ctx, f"control.{gain}", raw[gain], needs)
+_APPROACH = "control.supervisor = true, no approach_rate"
 
 
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:

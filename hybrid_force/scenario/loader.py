@@ -1,29 +1,17 @@
 """Scenario files: one TOML file describes one run (robot, surfaces, path, start, gains, sim).
 
 :func:`load_scenario` reads a file, applies ``--set``-style overrides, validates every table
-and key, and returns the :class:`hybrid_force.sim.settings.Scenario` that
-:func:`hybrid_force.sim.loop.simulate` runs. The format is documented in docs/scenarios.md.
-
-Validation is done up front so a bad file fails in milliseconds, not after a long run. Every
-problem raises :class:`~hybrid_force.errors.ScenarioError` whose message names the file, the
-``table.key`` and the offending value, e.g.::
+and key up front (a bad file fails in milliseconds, not after a long run) and returns the
+:class:`~hybrid_force.sim.settings.Scenario` that :func:`hybrid_force.sim.loop.simulate` runs
+(format: docs/scenarios.md). Every problem raises :class:`~hybrid_force.errors.ScenarioError`
+naming the file, the ``table.key`` and the value as written, e.g.::
 
     scenarios/x.toml: surface.radius = "0.4": must be a number [m], got a string
 
-Checked: TOML syntax (with tomllib's line and column), unknown tables and keys (with a
-did-you-mean), missing required keys, types and shapes, parameter ranges (by the constructors
-of the surfaces, paths and settings), the desired path lying on every surface over
-[0, sim.duration] (within 1e-6 m), the start in reach (inverse kinematics), the start on the
-surface when the run starts in contact (``control.supervisor = false``), the gains, and with
-``[tool] orientation = "normal"`` the arm's joint count and the tool pose followable without a
-singular configuration.
-
-No Python code or expression is ever evaluated: values are plain TOML data, and a string
-where a number is expected is an error, whatever it contains.
-
-This module reads the file and runs the steps in order; the steps live beside it: the keys
-and messages every table shares in ``_tables``, the settings of each table in ``_builders``,
-the rules across tables that run the model in :mod:`hybrid_force.sim.prerun`.
+Values are plain TOML data: nothing is ever evaluated. The steps: each table read by its
+declarations (:mod:`hybrid_force.settings_reader`, the tables in ``_tables``, what each builds
+in ``_builders``), the rules across tables by ``Scenario``, the checks that run the model (the
+path followable, the gains, the loops, the contact step) by :mod:`hybrid_force.sim.prerun`.
 """
 
 from __future__ import annotations
@@ -111,34 +99,20 @@ def _parse_toml(text: str, where: str) -> dict[str, Any]:
 
 def load_scenario(
     path: str | Path, overrides: Mapping[str, object] | None = None
-) -> Any:  # -> hybrid_force.sim.settings.Scenario
-    """Read, override, validate a scenario file and return a ``Scenario`` ready to simulate.
-
-    Args:
-        path: the TOML file (format: docs/scenarios.md).
-        overrides: ``{"table.key": value}`` (e.g. from
-            :func:`~hybrid_force.scenario.overrides.parse_override`), applied to the file's data
-            before validation; they replace or add keys.
-
-    Returns:
-        :class:`hybrid_force.sim.settings.Scenario` with ``source`` = the file's data with the
-        overrides applied (JSON-able).
-
-    Raises:
-        ScenarioError: any problem with the file; the message names the file, the
-            ``table.key`` and the value.
-    """
+) -> Any:  # Scenario (Any: a sweep's check calls it for its refusals only)
+    """The ``Scenario`` of TOML file ``path`` (docs/scenarios.md), ready to simulate, with
+    ``overrides`` ``{"table.key": value}`` (:func:`~hybrid_force.scenario.overrides.parse_override`)
+    replacing or adding keys before validation; its ``source`` is that data (JSON-able).
+    ScenarioError for any problem, naming the file, the ``table.key`` and the value."""
     return _build(read_scenario_document(path, overrides), Path(path), _Context(str(path)))
 
 
 def read_scenario_document(
     path: str | Path, overrides: Mapping[str, object] | None = None
 ) -> dict[str, Any]:
-    """The TOML data of a scenario file with the overrides applied, not yet validated.
-
-    What :func:`scenario_from_document` takes: a sweep sends it to workers that may not see
-    the file. ScenarioError for an unreadable file, bad TOML or an override that does not fit.
-    """
+    """The TOML data of a scenario file with the overrides applied, not yet validated: what
+    :func:`scenario_from_document` takes (a sweep sends it to workers that may not see the
+    file). ScenarioError for an unreadable file, bad TOML or an override that does not fit."""
     ctx = _Context(str(path))
     doc = _read(Path(path), ctx)
     if overrides:
@@ -148,23 +122,16 @@ def read_scenario_document(
 
 def scenario_from_document(
     doc: Mapping[str, Any], *, origin: str = "<scenario>", base_dir: str | Path = "."
-) -> Any:  # -> hybrid_force.sim.settings.Scenario
-    """Validate scenario data (as :func:`read_scenario_document` returns) into a Scenario.
-
-    Args:
-        doc: the scenario's tables (a deep copy is taken; it is not modified).
-        origin: how error messages name the scenario (a file name).
-        base_dir: folder against which a relative ``robot.model`` path resolves.
-
-    Raises:
-        ScenarioError: as :func:`load_scenario`, naming ``origin``.
-    """
+) -> Scenario:
+    """The Scenario of scenario data ``doc`` (:func:`read_scenario_document`'s; a deep copy
+    is taken), named ``origin`` (a file name) in the messages, a relative ``robot.model``
+    resolved against ``base_dir``. ScenarioError as :func:`load_scenario`'s."""
     ctx = _Context(origin)
     check_nesting(doc, ctx)  # before deepcopy, which recurses per level
     return _build(copy.deepcopy(dict(doc)), Path(base_dir) / Path(origin).name, ctx)
 
 
-def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
+def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
     check_nesting(doc, ctx)  # overrides may nest too
     for key, value in doc.items():
         if key not in TOP and key not in TABLES:
@@ -199,9 +166,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         try:
             check_path_on_surfaces(path, surfaces, sim.duration)
         except BadInputError as exc:
-            raise _refusal(
-                exc, doc, traj, surface_tables, None, values, control, sim, ctx
-            ) from None
+            raise _refusal(exc, doc, traj, surface_tables, None, control, sim, ctx) from None
     q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
     if start_key == "initial.tip":
         q0 = start_at_tip(robot, tool, surfaces, path, q0, doc["initial"], ctx)
@@ -224,7 +189,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
         )
     except BadInputError as exc:
         start = (robot, q0, start_key, start_value)
-        raise _refusal(exc, doc, traj, surface_tables, start, values, control, sim, ctx) from None
+        raise _refusal(exc, doc, traj, surface_tables, start, control, sim, ctx) from None
     own = controller_model if controller_model is not None else robot
     _check_controller(own, surfaces, path, q0, control, sim, values["control"], ctx, tool)
     if tool.controlled:
@@ -245,7 +210,6 @@ def _refusal(
     traj: Mapping[str, Any],
     tables: list[tuple[str, dict[str, Any]]],
     start: tuple[Any, Any, str, object] | None,
-    values: Mapping[str, Any],
     control: Any,
     sim: Any,
     ctx: _Context,
@@ -258,7 +222,7 @@ def _refusal(
     key, value = exc.key, exc.value
     message = " ".join(str(exc).split())
     if key is None:
-        return _wrap(ctx, "control", values["control"], exc)
+        return _wrap(ctx, "control", doc.get("control", {}), exc)
     if key == "Scenario.v0":
         return ctx.error("initial.v", doc["initial"]["v"], message.removeprefix("Scenario.v0: "))
     if key.split(".")[0] in (*TOP, *TABLES):
@@ -271,7 +235,7 @@ def _refusal(
         shown = ", ".join(f"trajectory.{k} = {_fmt(v)}" for k, v in traj.items())
         where = ", ".join(f"{k} = {_fmt(v)}" for k, v in table.items())
         if report is None:  # e.g. Φ(p_d) not finite
-            problem = " ".join(str(exc).split()).split("): ", 1)[-1]
+            problem = message.split("): ", 1)[-1]
             return ScenarioError(
                 f"{ctx.file}: {shown}: the trajectory cannot be checked against [{name}] "
                 f"({where}): {problem}"
@@ -301,10 +265,10 @@ def _refusal(
         return ctx.error(start_key, start_value, problem)
     if key == "Scenario.surfaces" and isinstance(value, tuple):
         names = ", ".join(tables[i][0] for i in value)
-        detail = " ".join(str(exc).split()).split("at q0 ", 1)[-1]
+        detail = message.split("at q0 ", 1)[-1]
         return ctx.table_error(
             names,
             "the constraint rows n̂ᵀJ of these stacked surfaces are linearly dependent at the "
             f"start {detail}",
         )
-    return ScenarioError(f"{ctx.file}: {' '.join(str(exc).split())}")
+    return ScenarioError(f"{ctx.file}: {message}")

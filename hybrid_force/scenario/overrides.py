@@ -13,14 +13,10 @@ from hybrid_force.errors import ScenarioError
 
 
 def parse_override(text: str) -> tuple[str, object]:
-    """Split ``"table.key=value"`` into ``("table.key", value)``.
-
-    The value is parsed as a TOML value (``tomllib.loads(f"v = {value}")``), so ``0.5``,
-    ``1e-3``, ``true``, ``[1, 2, 3]`` and ``"text"`` have their TOML types; anything that is
-    not valid TOML (``rk4``, ``__import__('os')``) stays the raw string. Nothing is evaluated.
-
-    Raises ScenarioError when there is no ``=`` or the key is empty.
-    """
+    """Split ``"table.key=value"`` into ``("table.key", value)``, the value parsed as a TOML
+    value (``0.5``, ``true``, ``[1, 2, 3]``, ``"text"``); anything that is not valid TOML
+    (``rk4``, ``__import__('os')``) stays the raw string: nothing is evaluated. ScenarioError
+    when there is no ``=`` or the key is empty."""
     if not isinstance(text, str) or "=" not in text:
         raise ScenarioError(f"override {text!r} must look like table.key=value (e.g. sim.dt=1e-3)")
     key, raw = text.split("=", 1)

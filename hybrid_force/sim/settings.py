@@ -17,7 +17,6 @@ from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import ScenarioError
-from hybrid_force.errors import ScenarioError as Bad
 from hybrid_force.geometry.on_surface import check_path_on_surfaces
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
@@ -72,20 +71,13 @@ class SimSettings:
         "report", doc="a joint beyond its limits: report (an event) or stop the run"
     )
     joint_friction_velocity: float = param(
-        1e-3,
-        unit="rad/s or m/s",
-        minimum=0.0,
-        strict=True,
+        1e-3, unit="rad/s or m/s", minimum=0.0, strict=True,
         doc="regularisation velocity of the joints' Coulomb friction",
-    )
+    )  # fmt: skip
 
     def __post_init__(self) -> None:
-        """Check every field; numbers are stored as floats, flags as bools.
-
-        Raises ScenarioError (a BadInputError) naming the field as the scenario file's
-        ``[sim]`` key spells it (``sim.dt``) with the value and what is valid.
-        """
-
+        """Check every field (numbers stored as floats): ScenarioError naming its ``[sim]`` key
+        (``sim.dt``) with the value and what is valid."""
         check_fields(self, ScenarioError, "sim.")
         if self.dt > self.duration:
             raise ScenarioError(
@@ -108,36 +100,29 @@ class Scenario:
     """One run, described in Python (the TOML loader builds the same object).
 
     Attributes:
-        robot: the plant, a :class:`~hybrid_force.Robot` (the controller's model is the
-            same arm, masses × mass_factor).
-        surfaces: a non-empty sequence of :class:`~hybrid_force.Surface` touched by
-            the tip (stored as a tuple).
+        robot: the plant, a :class:`~hybrid_force.Robot`.
+        surfaces: a non-empty sequence of :class:`~hybrid_force.Surface` touched by the tip
+            (stored as a tuple).
         path: desired task-space path, a :class:`~hybrid_force.Path` (on the surface).
         q0: (nq,) start configuration. v0: None or (nv,) start velocity (None: 0). Both are
             stored as new read-only float64 arrays.
-        control: controller settings. sim: simulation settings.
-        sensor: what the controller measures (default: ideal sensing, the plant's state).
-        contact: how the surface pushes back (the ``[contact]`` table): rigid (default) or
-            compliant, with or without friction
-            (:class:`~hybrid_force.sim.contact.ContactSettings`).
+        control, sim, sensor, contact, tool: the settings of the ``[control]``, ``[sim]``,
+            ``[sensor]`` (default: ideal sensing), ``[contact]`` (default: rigid,
+            frictionless) and ``[tool]`` (default: free, the paper's position-only CLIK) tables.
         controller_model: the controller's own model of the arm (``control.model``): another
-            :class:`~hybrid_force.model.robot.Robot` with the plant's joints (a heavier link, say);
-            None: the plant's own model. ``control.mass_factor`` applies on top of it.
-        tool: which way the tool points (the ``[tool]`` table,
-            :class:`~hybrid_force.control.tool.ToolSettings`; default: free, the paper's
-            position-only CLIK). An arm with fewer joints than the tool task has rows is refused
-            (ControlError naming ``tool.orientation`` or ``tool.roll``).
-        name: a short name (used for output folders): letters, digits, '_', '-', '.', not
-            starting with '.' or '-', at most ``NAME_MAX_LENGTH`` = 100 characters (the
-            scenario file's rule, ``NAME_PATTERN``, matched in full). description: free text.
+            :class:`~hybrid_force.model.robot.Robot` with the plant's joints; None: the plant's.
+            ``control.mass_factor`` applies on top of it.
+        name: a short name (the output folder runs/<name>/): ``NAME_PATTERN`` matched in full,
+            at most ``NAME_MAX_LENGTH`` characters. description: free text.
         source: the scenario as loaded from a file (JSON-able dict), stored in the result.
 
-    Checked on construction, like a scenario file by its loader (ScenarioError, or the
-    ControlError of a K_d or f_d that does not fit the arm or the surfaces, naming the field):
+    Checked on construction, the one check of these rules for a file's run and one built by
+    hand (ScenarioError, or the ControlError of the settings' own rules, naming the field):
 
     * the types and shapes above, finite q0 and v0, every |v0_i| below ``sim.max_velocity``
-      (the run would stop as a runaway at once); K_d's size against the arm's joints and
-      f_d's count against the surfaces;
+      (the run would stop as a runaway at once); K_d's size against the arm's joints, f_d's
+      count against the surfaces, the tool task's rows against the joints
+      (:meth:`~hybrid_force.control.tool.ToolSettings.check_arm`);
     * a run that starts in contact (``control.supervisor`` False): the desired path within
       ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration]
       (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`) and the start tip
@@ -145,6 +130,7 @@ class Scenario:
     * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
       so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
       stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
+    * a compliant or frictional contact with the Euler step and forces in newtons;
     * the control rate (``control.rate``) a whole number of plant steps, not faster than them.
     """
 
@@ -157,8 +143,10 @@ class Scenario:
         ("sim", SimSettings, "a SimSettings"),
         ("sensor", SensorSettings, "a hybrid_force.sim.sensors.SensorSettings"),
         ("contact", ContactSettings, "a hybrid_force.sim.contact.ContactSettings"),
-        ("controller_model", Robot, "None or a hybrid_force.model.robot.Robot"),
+        ("controller_model", (Robot, type(None)), "None or a hybrid_force.model.robot.Robot"),
         ("tool", ToolSettings, "a hybrid_force.control.tool.ToolSettings"),
+        ("description", str, "a str"),
+        ("source", (Mapping, type(None)), "None or the scenario file's data (a dict)"),
     )  # the type of each field (the first check: the others read them)
 
     robot: Robot
@@ -179,68 +167,57 @@ class Scenario:
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
 
-        set_ = object.__setattr__
         for key, kind, what in self._TYPES:
-            value = getattr(self, key)
-            if not isinstance(value, kind) and not (key == "controller_model" and value is None):
-                raise Bad(f"Scenario.{key} must be {what}, got {checks.shown(value)}")
-        robot = self.robot
-        surfaces = self.surfaces
+            if not isinstance(value := getattr(self, key), kind):
+                raise ScenarioError(f"Scenario.{key} must be {what}, got {checks.shown(value)}")
+        robot, surfaces, control = self.robot, self.surfaces, self.control
         if isinstance(surfaces, Surface):
-            raise Bad(f"Scenario.surfaces must be a sequence of surfaces: wrap it, [{surfaces!r}]")
+            raise ScenarioError(
+                f"Scenario.surfaces must be a sequence of surfaces: wrap it, [{surfaces!r}]"
+            )
         if not isinstance(surfaces, Sequence) or isinstance(surfaces, str | bytes) or not surfaces:
-            raise Bad(
+            raise ScenarioError(
                 "Scenario.surfaces must be a non-empty sequence (list, tuple) of "
                 f"hybrid_force.geometry.surface_base.Surface, got {checks.shown(surfaces)}"
             )
         for i, surface in enumerate(surfaces):
             if not isinstance(surface, Surface):
-                raise Bad(
+                raise ScenarioError(
                     f"Scenario.surfaces[{i}] must be a hybrid_force.Surface (Cylinder, "
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
-        set_(self, "surfaces", tuple(surfaces))
-        for key, size, optional in (("q0", robot.nq, False), ("v0", robot.nv, True)):
-            value = getattr(self, key)
-            if optional and value is None:
+        object.__setattr__(self, "surfaces", tuple(surfaces))
+        for key, size in (("q0", robot.nq), ("v0", robot.nv)):
+            if getattr(self, key) is None and key == "v0":
                 continue
             valid = f"{size} finite real numbers (robot '{robot.name}' has {size})"
-            array = checks.array(value, f"Scenario.{key}", Bad, valid=valid)
+            array = checks.array(getattr(self, key), f"Scenario.{key}", ScenarioError, valid=valid)
             if array.shape != (size,):
-                raise Bad(f"Scenario.{key} must be {valid}, got shape {array.shape}")
-            if key == "v0" and array.size:
-                fastest = float(np.abs(array).max())
-                if fastest > self.sim.max_velocity:  # the first step would be a runaway
-                    raise Bad(
-                        f"Scenario.v0: |v| = {fastest:.6g} is beyond sim.max_velocity = "
-                        f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
-                        key="Scenario.v0",
-                        value=fastest,
-                    )
+                raise ScenarioError(f"Scenario.{key} must be {valid}, got shape {array.shape}")
+            fastest = float(np.abs(array).max()) if key == "v0" and array.size else 0.0
+            if fastest > self.sim.max_velocity:  # the first step would be a runaway
+                raise ScenarioError(
+                    f"Scenario.v0: |v| = {fastest:.6g} is beyond sim.max_velocity = "
+                    f"{self.sim.max_velocity:g} rad/s or m/s, where a run stops as a runaway",
+                    key="Scenario.v0",
+                    value=fastest,
+                )
             array.setflags(write=False)
-            set_(self, key, array)
+            object.__setattr__(self, key, array)
         name = self.name
         if not isinstance(name, str) or not (
             re.fullmatch(self.NAME_PATTERN, name) and len(name) <= self.NAME_MAX_LENGTH
         ):
-            raise Bad(
+            raise ScenarioError(
                 f"Scenario.name must be a simple name of 1 to {self.NAME_MAX_LENGTH} letters, "
                 "digits, '_', '-', '.' (not starting with '.' or '-'): it names the output folder "
                 f"runs/<name>/; got {checks.shown(name)}",
                 key="name",
                 value=name,
             )
-        if not isinstance(self.description, str):
-            raise Bad(f"Scenario.description must be a str, got {checks.shown(self.description)}")
-        if self.source is not None and not isinstance(self.source, Mapping):
-            raise Bad(
-                "Scenario.source must be None or the scenario file's data (a dict), "
-                f"got {checks.shown(self.source)}"
-            )
-        control = self.control
         if control.Kd is not None:
             check_damping_gain(control.Kd, robot.nv)
-        control.f_d_for(len(self.surfaces))
+        control.f_d_for(len(surfaces))
         self._check_contact()
         control_steps(control, self.sim)
         if self.controller_model is not None:
@@ -249,41 +226,32 @@ class Scenario:
         self._check_start_and_path()
 
     def _check_contact(self) -> None:
-        """The contact settings against the simulation's: a compliant or frictional contact
-        needs the explicit Euler step (its forces are evaluated once per step) and forces in
-        newtons (``sim.normalization = "tip"``): ScenarioError whose key is the ``[sim]`` key."""
+        """A compliant or frictional contact needs the explicit Euler step (its forces are
+        evaluated once per step) and forces in newtons: ScenarioError naming the [sim] key."""
 
         contact, sim = self.contact, self.sim
-        if contact.ideal:
-            return
         what = f'contact.model = "{contact.model}", contact.friction = {contact.friction:g}'
-        if sim.integrator != "euler":
-            raise ScenarioError(
-                f'{what} needs sim.integrator = "euler" (the contact forces are evaluated once '
-                f'per step), got "{sim.integrator}"',
-                key="sim.integrator",
-                value=sim.integrator,
-            )
-        if sim.normalization != "tip":
-            raise ScenarioError(
-                f'{what} needs sim.normalization = "tip" (forces in newtons), '
-                f'got "{sim.normalization}"',
-                key="sim.normalization",
-                value=sim.normalization,
-            )
+        once = "the contact forces are evaluated once per step"
+        for key, value, needed, why in (
+            ("integrator", sim.integrator, "euler", once),
+            ("normalization", sim.normalization, "tip", "forces in newtons"),
+        ):
+            if not contact.ideal and value != needed:
+                raise ScenarioError(
+                    f'{what} needs sim.{key} = "{needed}" ({why}), got "{value}"',
+                    key=f"sim.{key}",
+                    value=value,
+                )
 
     def _check_start_and_path(self) -> None:
-        """The contact conditions of the start and, for a run that starts in contact, the
-        path on every surface (class docstring): the one check of a run, a file's or one
-        built by hand. Each refusal is a ScenarioError whose ``key`` names the field
-        ("Scenario.path", "Scenario.q0", "Scenario.surfaces") and whose ``value`` holds what
-        the loader names: (surface index, OnSurfaceReport or None)
-        (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`), (surface index,
-        distance [m]), the row indices."""
+        """The start and, for a run that starts in contact, the path on every surface (class
+        docstring). ScenarioError with ``key`` "Scenario.path", "Scenario.q0" or
+        "Scenario.surfaces" and ``value`` what the loader names: (surface index,
+        OnSurfaceReport or None), (surface index, distance [m]), the row indices."""
 
         control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
         if k > 1 and control.supervisor:
-            raise Bad(
+            raise ScenarioError(
                 f"Scenario.surfaces: {k} stacked surfaces are supported only for a run that starts "
                 "in contact with all of them (control.supervisor = false, ControlSettings("
                 "supervisor=False)): contact with a subset of the surfaces, as an approach would "
@@ -295,7 +263,7 @@ class Scenario:
         if control.supervisor:
             i = int(np.argmin(distances))
             if distances[i] < -control.contact_tol:
-                raise Bad(
+                raise ScenarioError(
                     f"Scenario.q0: {tip} is {-distances[i]:.3g} m behind surfaces[{i}] "
                     f"({surfaces[i]!r}), inside the solid; start on the free side (distance "
                     f">= -control.contact_tol = {-control.contact_tol:g} m)",
@@ -306,7 +274,7 @@ class Scenario:
         check_path_on_surfaces(self.path, surfaces, self.sim.duration)
         i = int(np.argmax(np.abs(distances)))
         if abs(distances[i]) > control.contact_tol:
-            raise Bad(
+            raise ScenarioError(
                 f"Scenario.q0: the run starts in contact (control.supervisor = False) but "
                 f"{tip} is {distances[i]:.3g} m from surfaces[{i}] ({surfaces[i]!r}); it must be "
                 f"within control.contact_tol = {control.contact_tol:g} m of every surface",
@@ -318,7 +286,7 @@ class Scenario:
             found = dependent_rows(rows)
             if found is not None:
                 names = ", ".join(f"surfaces[{i}]" for i in found[0])
-                raise Bad(
+                raise ScenarioError(
                     f"Scenario.surfaces: the constraint rows n̂ᵀJ of {names} are linearly "
                     f"dependent at q0 (singular values "
                     f"{', '.join(f'{x:.3g}' for x in found[1])}; {k} rows for "
@@ -330,12 +298,8 @@ class Scenario:
 
 
 def control_steps(control: ControlSettings, sim: SimSettings) -> int:
-    """Plant steps per control tick: 1/(rate·dt), which must be a whole number ≥ 1.
-
-    Raises:
-        ScenarioError: naming control.rate and sim.dt, with the nearest rates that fit (its
-            key ``"control.rate"``).
-    """
+    """Plant steps per control tick: 1/(rate·dt), which must be a whole number ≥ 1
+    (ScenarioError, key ``"control.rate"``, naming sim.dt and the nearest rates that fit)."""
     if control.rate is None:
         return 1
     steps = _whole_steps(control.rate, sim.dt)

@@ -28,9 +28,7 @@ which :func:`check_options`, ``hybrid-force laws --options`` and the law's defau
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import numbers
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
@@ -39,7 +37,7 @@ import numpy as np
 
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.errors import ControlError, did_you_mean
-from hybrid_force.schema import Param, specs
+from hybrid_force.schema import check_fields, specs
 
 if TYPE_CHECKING:  # annotations only (the laws' modules import this one)
     from collections.abc import Sequence
@@ -67,7 +65,6 @@ __all__ = [
     "build_law",
     "check_law",
     "check_options",
-    "check_value",
     "law_log_names",
     "law_loop_bounds",
     "law_names",
@@ -513,11 +510,10 @@ def check_options(options: object) -> dict[str, dict[str, Any]]:
                 key=f"control.{law}",
                 value=table,
             )
-        fields = {} if spec.options is None else {f.name: (f, p) for f, p in specs(spec.options)}
-        checked: dict[str, Any] = {}
+        fields = {} if spec.options is None else {f.name for f, _ in specs(spec.options)}
         for key, value in table.items():
-            where = f"control.{law}.{key}"
             if key not in fields:
+                where = f"control.{law}.{key}"
                 valid = ", ".join(fields) or "(none: this law has no settings of its own)"
                 raise ControlError(
                     f"{where} is not a setting of law {law!r}{did_you_mean(str(key), fields)}"
@@ -525,49 +521,16 @@ def check_options(options: object) -> dict[str, dict[str, Any]]:
                     key=where,
                     value=value,
                 )
-            checked[key] = check_value(where, value, *fields[key])
-        out[law] = checked
+        checked = spec.options(**table) if spec.options is not None else None
+        out[law] = {key: getattr(checked, key) for key in table}
     return out
-
-
-def check_value(where: str, value: object, f: dataclasses.Field[Any], spec: Param) -> object:
-    """One value of a law's table for its field ``f`` (a bool, one of ``spec.choices``, or a
-    finite real number within ``spec``'s range, returned as a float); ``where`` names it in
-    the error (ControlError, or ControlError for a number)."""
-    if str(f.type).startswith("bool"):
-        if not isinstance(value, bool):
-            raise ControlError(
-                f"{where} must be true or false, got {value!r}", key=where, value=value
-            )
-        return value
-    if spec.choices:
-        if not isinstance(value, str) or value not in spec.choices:
-            hint = did_you_mean(value, spec.choices) if isinstance(value, str) else ""
-            raise ControlError(
-                f"{where} = {value!r} is not valid{hint}; valid: {', '.join(spec.choices)}",
-                key=where,
-                value=value,
-            )
-        return value
-    if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
-        raise ControlError(
-            f"{where} must be a finite real number, got {value!r}", key=where, value=value
-        )
-    number = float(value)
-    low = spec.minimum
-    if low is not None and (number < low or (spec.strict and number == low)):
-        relation = ">" if spec.strict else ">="
-        raise ControlError(
-            f"{where} = {number!r} must be {relation} {low:g}", key=where, value=value
-        )
-    return number
 
 
 @dataclass(frozen=True)
 class LawOptions:
     """Base of a law's settings dataclass (:attr:`LawSpec.options`): every field is checked
-    as the scenario's ``[control.<law>]`` table is (:func:`check_value`), numbers stored as
-    floats; a field whose default is None (derived from another setting) may stay None.
+    by its declaration (:func:`~hybrid_force.schema.check_fields`), numbers stored as floats;
+    a field whose default is None (derived from another setting) may stay None.
 
     Attributes:
         law: (class) the law's name, for the messages (``control.<law>.<key>``).
@@ -576,13 +539,8 @@ class LawOptions:
     law: ClassVar[str] = ""
 
     def __post_init__(self) -> None:
-        """Check each field (ControlError or ControlError naming ``control.<law>.<key>``)."""
-        for f, spec in specs(type(self)):
-            value = getattr(self, f.name)
-            if value is None and f.default is None:
-                continue
-            where = f"control.{self.law}.{f.name}"
-            object.__setattr__(self, f.name, check_value(where, value, f, spec))
+        """Check each field (ControlError naming ``control.<law>.<key>``)."""
+        check_fields(self, ControlError, f"control.{self.law}.")
 
 
 def check_law(context: LawContext) -> None:
