@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from hybrid_force._file_errors import _Context, _fmt, _wrap
+from hybrid_force._file_errors import _Context, _fmt
 from hybrid_force.control.laws.base import law_names
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_path_on_surfaces
@@ -215,17 +215,15 @@ def _refusal(
     ctx: _Context,
 ) -> ScenarioError:
     """Scenario's refusal as the file's, naming the file, the keys and their values as
-    written: of a file's key (its ``key``: ``control.rate``, ``tool.orientation``, ``name``),
-    of K_d or f_d against the arm or the surfaces, of v0, and of the path, the start or the
+    written: of a file's key (its ``key``: ``control.Kd``, ``control.rate``, ``name``,
+    ``tool.orientation``), of v0, and of the path, the start or the
     stacked surfaces (their ``key`` and ``value``). ``start``: (the arm, q0, the start's key
     and its value as written)."""
     key, value = exc.key, exc.value
     message = " ".join(str(exc).split())
-    if key is None:
-        return _wrap(ctx, "control", doc.get("control", {}), exc)
     if key == "Scenario.v0":
         return ctx.error("initial.v", doc["initial"]["v"], message.removeprefix("Scenario.v0: "))
-    if key.split(".")[0] in (*TOP, *TABLES):
+    if isinstance(key, str) and key.split(".")[0] in (*TOP, *TABLES):
         head, _, last = key.rpartition(".")
         written = doc.get(head, {}).get(last, value) if head else doc.get(key, value)
         return ctx.error(key, written, message.removeprefix(f"Scenario.{key} "))

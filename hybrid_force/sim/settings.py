@@ -16,7 +16,7 @@ from hybrid_force.control.constraint import Constraint, dependent_rows
 from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
-from hybrid_force.errors import ScenarioError
+from hybrid_force.errors import ControlError, ScenarioError
 from hybrid_force.geometry.on_surface import check_path_on_surfaces
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
@@ -215,9 +215,15 @@ class Scenario:
                 key="name",
                 value=name,
             )
-        if control.Kd is not None:
-            check_damping_gain(control.Kd, robot.nv)
-        control.f_d_for(len(surfaces))
+        for key, check in (
+            ("Kd", lambda: control.Kd is None or check_damping_gain(control.Kd, robot.nv)),
+            ("f_d", lambda: control.f_d_for(len(surfaces))),
+        ):  # the settings against the arm and the surfaces, named by their [control] keys
+            try:
+                check()
+            except ControlError as exc:
+                value = getattr(control, key)
+                raise ControlError(str(exc), key=f"control.{key}", value=value) from None
         self._check_contact()
         control_steps(control, self.sim)
         if self.controller_model is not None:
