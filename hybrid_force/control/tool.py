@@ -78,6 +78,10 @@ class ToolSettings:
             to turn the tool about (projected on the tangent plane).
         roll: ``"free"`` (the rotation about the axis is left to the null-space posture) or
             ``"held"`` (the tip frame's whole orientation is prescribed, module docstring).
+        radius: r [m] ≥ 0 of a ball-end tool or a rounded pad. The tip frame's origin is the
+            ball's centre: the run controls it on the offset surface at distance r from the
+            part (:mod:`hybrid_force.geometry.offset`), and the contact point lies r along −n̂
+            from it. 0 (default): a point tool.
 
     Raises ControlError (key ``tool.<field>``) for a bad value, and for a tilt, tilt axis or
     held roll with ``orientation = "free"``, which has no desired direction to apply them to.
@@ -102,6 +106,13 @@ class ToolSettings:
     )
     roll: Literal["free", "held"] = param(
         "free", doc="free: left to the posture; held: the whole orientation prescribed"
+    )
+    radius: float = param(
+        0.0,
+        unit="m",
+        minimum=0.0,
+        maximum=1e6,
+        doc="radius of a ball-end tool or rounded pad: the tip frame is its centre",
     )
 
     def __post_init__(self) -> None:
@@ -142,6 +153,7 @@ class ToolSettings:
             "tilt": self.tilt,
             "tilt_axis": None if self.tilt_axis is None else list(self.tilt_axis),
             "roll": self.roll,
+            **({"radius": self.radius} if self.radius else {}),
         }
 
     def check_arm(self, robot: Any) -> None:

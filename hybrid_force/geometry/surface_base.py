@@ -225,6 +225,34 @@ class Surface(abc.ABC):
     def closest_point(self, p: ArrayLike) -> np.ndarray:
         """Foot point on the surface nearest to p: (3,) [m]."""
 
+    #: What :meth:`distance` is, which decides how :meth:`offset` treats a tool of radius r:
+    #: ``"phi"``: Φ itself is the signed metric distance [m] (‖∇Φ‖ = 1), so Φ − r is the
+    #: offset; ``"exact"``: ``distance`` is the exact metric distance to an exact
+    #: ``closest_point`` (Φ is not), so the offset is d − r with the distance's own
+    #: derivatives; ``""``: not a metric distance (first order, or unknown): no offset.
+    metric_distance: ClassVar[str] = ""
+
+    def offset(self, radius: float) -> Surface:
+        """The offset surface Φ_r = 0 at metric distance ``radius`` [m] from this one on its
+        free side: the locus of the centre of a ball of that radius touching it (a ball-end
+        tool, ``tool.radius``). ``radius = 0``: this very surface.
+
+        The default is the generic offset of :mod:`hybrid_force.geometry.offset` by
+        :attr:`metric_distance`; it refuses (SurfaceError naming ``tool.radius`` and the value)
+        a surface whose distance is not a metric one. The built-in surfaces override it with
+        their exact offset of the same type.
+        """
+        from hybrid_force.geometry.offset import offset_surface  # offset imports this module
+
+        return offset_surface(self, radius)
+
+    def concave_radius(self) -> tuple[float, np.ndarray | None]:
+        """(the smallest radius of curvature [m] where the surface is concave seen from its
+        free side, a point (3,) [m] where it is that small or None when it is so everywhere);
+        (inf, None) when it is nowhere concave or not known. A ball tool of a larger radius
+        cannot reach the bottom there (:func:`~hybrid_force.geometry.offset.tool_surfaces`)."""
+        return math.inf, None
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-able description ``{"type": kind, ...parameters as floats / lists}`` (its
         declared parameters, :func:`surface_parameters`)."""

@@ -36,6 +36,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_path_on_surfaces
 from hybrid_force.model.scenario_robot import load_arm, load_controller_model
@@ -193,7 +194,10 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
     robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
-    surfaces, surface_tables = _surfaces(doc, ctx)
+    parts, surface_tables = _surfaces(doc, ctx)
+    # the path and every check below are the tool centre's: on the parts' offsets by
+    # tool.radius (the parts themselves for a point tool); the Scenario keeps the parts
+    surfaces = _tool_centre_surfaces(parts, doc.get("tool", {}), ctx)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), control_keys())
     sim_values = _check_table(ctx, "sim", doc.get("sim", {}), sim_keys())
@@ -217,7 +221,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     try:  # the start, v0, the rate, the stacked rows, the path of a run in contact: by Scenario
         scenario = Scenario(
             robot=robot,
-            surfaces=surfaces,
+            surfaces=parts,
             path=path,
             q0=q0,
             v0=v0,
@@ -246,6 +250,19 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     )  # fmt: skip
     _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
     return scenario
+
+
+def _tool_centre_surfaces(parts: list[Any], tool: object, ctx: _Context) -> list[Any]:
+    """The parts' offsets by ``tool.radius`` (the parts for none or 0), each refusal naming
+    the key and its value (the Scenario warns where the tool cannot reach a hollow)."""
+    radius = tool.get("radius", 0.0) if isinstance(tool, dict) else 0.0
+    if radius == 0.0 and not isinstance(radius, bool):
+        return parts
+    try:
+        ToolSettings(radius=radius)  # its own check first: a number ≥ 0 [m]
+        return [part.offset(radius) for part in parts]
+    except BadInputError as exc:
+        raise ctx.error("tool.radius", radius, " ".join(str(exc).split())) from None
 
 
 def _refusal(

@@ -18,6 +18,7 @@ from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import ScenarioError
 from hybrid_force.errors import ScenarioError as Bad
+from hybrid_force.geometry.offset import tool_surfaces as offset_surfaces
 from hybrid_force.geometry.on_surface import check_path_on_surfaces
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
@@ -117,6 +118,11 @@ class Scenario:
         controller_model: the controller's own model of the arm (``control.model``): another
             :class:`~hybrid_force.model.robot.Robot` with the plant's joints (a heavier link, say);
             None: the plant's own model. ``control.mass_factor`` applies on top of it.
+        tool_surfaces: derived, not given: the surfaces the tool centre (the tip frame's
+            origin) follows, which the plant and the controller use: ``surfaces`` themselves
+            for a point tool, their offsets by ``tool.radius`` for a ball end
+            (:func:`~hybrid_force.geometry.offset.tool_surfaces`; ``surfaces`` stay the part's,
+            which the result records and the drawings show). The path is the tool centre's.
         tool: which way the tool points (the ``[tool]`` table,
             :class:`~hybrid_force.control.tool.ToolSettings`; default: free, the paper's
             position-only CLIK). An arm with fewer joints than the tool task has rows is refused
@@ -169,6 +175,7 @@ class Scenario:
     controller_model: Robot | None = None
     contact: ContactSettings = field(default_factory=ContactSettings)
     tool: ToolSettings = field(default_factory=ToolSettings)
+    tool_surfaces: tuple[Surface, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -194,6 +201,9 @@ class Scenario:
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
         set_(self, "surfaces", tuple(surfaces))
+        # what the tool centre follows, chosen once here: the part's own surfaces for a point
+        # tool, their offsets by tool.radius for a ball end (warns where it cannot reach)
+        set_(self, "tool_surfaces", offset_surfaces(self.surfaces, self.tool.radius))
         for key, size, optional in (("q0", robot.nq, False), ("v0", robot.nv, True)):
             value = getattr(self, key)
             if optional and value is None:
@@ -232,7 +242,7 @@ class Scenario:
         control = self.control
         if control.Kd is not None:
             check_damping_gain(control.Kd, robot.nv)
-        control.f_d_for(len(self.surfaces))
+        control.f_d_for(len(self.tool_surfaces))
         self._check_contact()
         control_steps(control, self.sim)
         if self.controller_model is not None:
@@ -273,7 +283,7 @@ class Scenario:
         (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`), (surface index,
         distance [m]), the row indices."""
 
-        control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
+        control, surfaces, k = self.control, self.tool_surfaces, len(self.tool_surfaces)
         if k > 1 and control.supervisor:
             raise Bad(
                 f"Scenario.surfaces: {k} stacked surfaces are supported only for a run that starts "
