@@ -28,6 +28,7 @@ from hybrid_force.geometry.surface_base import (
     _xyz,
     plane_basis,
     register_surface,
+    tool_radius,
 )
 from hybrid_force.schema import param
 
@@ -129,9 +130,7 @@ class _RoundSurface(Surface):
     def _offset_radius(self, radius: float) -> float | None:
         """The offset's radius r ± ``radius`` [m], None for ``radius`` = 0; SurfaceError naming
         ``tool.radius`` when the inside is free and the ball does not fit (radius ≥ r)."""
-        from hybrid_force.geometry.offset import offset_radius  # offset imports this module
-
-        t = offset_radius(radius)
+        t = tool_radius(radius)
         if t == 0.0:
             return None
         if not self.inside:
@@ -337,9 +336,7 @@ class Plane(Surface):
 
     def offset(self, radius: float) -> Plane:
         """The exact offset by ``radius`` [m]: the parallel plane through point + ``radius`` n."""
-        from hybrid_force.geometry.offset import offset_radius  # offset imports this module
-
-        t = offset_radius(radius)
+        t = tool_radius(radius)
         if t == 0.0:
             return self
         (ox, oy, oz), (nx, ny, nz) = self.point, self.normal_vector

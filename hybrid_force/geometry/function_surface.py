@@ -14,7 +14,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force.errors import BadInputError, SurfaceError
-from hybrid_force.geometry.surface_base import Surface, _boolean, _fmt, _positive_float, _xyz
+from hybrid_force.geometry.surface_base import (
+    Surface,
+    _boolean,
+    _fmt,
+    _positive_float,
+    _xyz,
+    tool_radius,
+)
 
 __all__ = ["FunctionSurface"]
 
@@ -314,9 +321,7 @@ class FunctionSurface(Surface):
         derivatives when Φ is the metric distance, else d − r of the ``distance`` callable
         (derivatives by finite differences). SurfaceError naming ``tool.radius`` without
         ``metric=True``."""
-        from hybrid_force.geometry.offset import offset_radius  # offset imports this module
-
-        r = offset_radius(radius)
+        r = tool_radius(radius)
         if r == 0.0:
             return self
         if not self.metric:

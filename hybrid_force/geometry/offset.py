@@ -31,19 +31,16 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hybrid_force import _checks as checks
 from hybrid_force.errors import RunWarning, SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import SurfaceChart, chart_for, register_chart
-from hybrid_force.geometry.surface_base import MAX_LENGTH, Surface, Vec3, _xyz
+from hybrid_force.geometry.surface_base import Surface, Vec3, _xyz, register_offset, tool_radius
 
 __all__ = [
     "DistanceOffset",
     "OffsetChart",
     "PhiOffset",
     "contact_points",
-    "offset_radius",
-    "offset_surface",
     "tool_surfaces",
 ]
 
@@ -55,39 +52,6 @@ _FOCAL_TOL = 1e-9
 _HESSIAN_STEP = 1e-4
 
 
-def offset_radius(radius: object) -> float:
-    """``radius`` as a float [m], checked: a finite number in [0, MAX_LENGTH] (SurfaceError
-    naming ``tool.radius`` and the value)."""
-    r = checks.number(radius, "tool.radius", SurfaceError, minimum=0.0, unit="m")
-    if r > MAX_LENGTH:
-        raise SurfaceError(f"tool.radius = {radius!r} m must be at most {MAX_LENGTH:g} m")
-    return r
-
-
-def offset_surface(surface: Surface, radius: float) -> Surface:
-    """The generic offset of ``surface`` by ``radius`` [m] (module doc): ``surface`` itself for
-    0, a :class:`PhiOffset` or a :class:`DistanceOffset` by its ``metric_distance``.
-
-    Raises SurfaceError naming ``tool.radius`` and the value for a surface without a metric
-    distance."""
-    r = offset_radius(radius)
-    if r == 0.0:
-        return surface
-    kind = surface.metric_distance
-    if kind == "phi":
-        return PhiOffset(surface, r)
-    if kind == "exact":
-        return DistanceOffset(surface, r)
-    raise SurfaceError(
-        f"tool.radius = {radius!r} m needs a surface whose distance is a metric one (the tool "
-        f"centre follows the surface at distance r from the part); {surface!r} does not say "
-        "its distance is metric (a first-order Φ/‖∇Φ‖ is not): use tool.radius = 0, or a "
-        "surface that declares a metric distance (a FunctionSurface with metric=True)",
-        key="tool.radius",
-        value=radius,
-    )
-
-
 def tool_surfaces(surfaces: Sequence[Surface], radius: float) -> tuple[Surface, ...]:
     """The surfaces the tool centre follows: each surface's :meth:`~Surface.offset` by
     ``radius`` [m] (the surfaces themselves for 0).
@@ -96,7 +60,7 @@ def tool_surfaces(surfaces: Sequence[Surface], radius: float) -> tuple[Surface, 
     tool's (:meth:`~Surface.concave_radius`): the ball cannot reach the bottom there, the
     contact point found from the offset lies off the part by up to the difference. Raises
     SurfaceError (naming ``tool.radius``) where the offset does not exist."""
-    r = offset_radius(radius)
+    r = tool_radius(radius)
     if r == 0.0:
         return tuple(surfaces)
     out = []
@@ -146,7 +110,7 @@ class _Offset(Surface):
 
     def __init__(self, base: Surface, radius: float) -> None:
         self.base = base
-        self.radius = offset_radius(radius)
+        self.radius = tool_radius(radius)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.base!r}, radius={self.radius!r})"
@@ -174,7 +138,7 @@ class _Offset(Surface):
 
     def offset(self, radius: float) -> Surface:
         """The offset by r + ``radius`` of the part (offsets add along the normal)."""
-        r = offset_radius(radius)
+        r = tool_radius(radius)
         return self if r == 0.0 else type(self)(self.base, self.radius + r)
 
     def phi(self, p: ArrayLike) -> float:
@@ -212,6 +176,7 @@ class _Offset(Surface):
         return np.asarray((flat + self.radius * normals).reshape(grid.shape))
 
 
+@register_offset("phi")
 class PhiOffset(_Offset):
     """Φ_r = Φ − r of a part whose Φ is its signed metric distance [m] (``metric_distance =
     "phi"``, a mesh part's fitted field): the same derivatives."""
@@ -237,6 +202,7 @@ class PhiOffset(_Offset):
         return self.base.normal(p)
 
 
+@register_offset("exact")
 class DistanceOffset(_Offset):
     """Φ_r = d − r of a part with an exact metric distance and foot point (``metric_distance
     = "exact"``, the ellipsoid), with ∇d and ∇²d from the foot point (module doc)."""
