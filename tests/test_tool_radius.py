@@ -59,44 +59,68 @@ def _run(doc: dict[str, Any]) -> Result:
 
 # --- runs: a ball of radius r on R is a point on R + r ------------------------------------------
 @pytest.mark.parametrize(
-    ("name", "key", "r"),
+    ("name", "part", "r"),
     [
-        ("paper_contact", "radius", 0.025),  # cylinder 0.375 + 0.025 = 0.4
-        ("rtr_sphere", "radius", 0.125),  # sphere 0.375 + 0.125 = 0.5
-        ("rtr_plane", "point", 0.25),  # plane z = 4.75, shifted by 0.25 to z = 5
+        ("paper_contact", {"radius": 0.375}, 0.025),  # cylinder 0.375 + 0.025 = 0.4
+        ("rtr_sphere", {"radius": 0.375}, 0.125),  # sphere 0.375 + 0.125 = 0.5
+        ("rtr_plane", {"point": [0.0, 0.0, 4.75]}, 0.25),  # plane z = 4.75 shifted to z = 5
+        ("panda_pipe_tilt", {"radius": 0.18125}, 0.03125),  # pipe 0.18125 − 0.03125 = 0.15
+        ("ur5_sphere_normal", {"radius": 0.25}, 0.05),  # a raster on the sphere of 0.3
     ],
 )
-def test_ball_on_surface_runs_as_point_on_its_offset(name: str, key: str, r: float) -> None:
+def test_ball_on_surface_runs_as_point_on_its_offset(
+    name: str, part: dict[str, Any], r: float
+) -> None:
+    """The path (a helix, a circle, surface waypoints, a raster) is the tool centre's, written
+    for the point tool on the surface at R ± r; the ball on R follows it to the bit."""
     point = _doc(name, 1.5)
     ball = copy.deepcopy(point)
-    if key == "radius":
-        R = point["surface"]["radius"] - r
-        assert R + r == point["surface"]["radius"]  # the premise: exact in floats
-        ball["surface"]["radius"] = R
-    else:
-        z = point["surface"]["point"][2] - r
-        assert z + r == point["surface"]["point"][2]
-        ball["surface"]["point"] = [0.0, 0.0, z]
-    ball["tool"] = {"radius": r}
-    a, b = _run(point), _run(ball)
+    ball["surface"].update(part)
+    ball.setdefault("tool", {})["radius"] = r
+    sa = scenario_from_document(point, origin="point.toml", base_dir=SCENARIOS)
+    sb = scenario_from_document(ball, origin="ball.toml", base_dir=SCENARIOS)
+    # the premise: R ± r written by hand is the offset, exactly in floats
+    assert sb.tool_surfaces == sa.surfaces and sb.surfaces != sa.surfaces
+    a, b = simulate(sa), simulate(sb)
     assert b.status == a.status == "ok"
     for field in ("q", "v", "u", "f", "p", "phi", "phase"):
         assert np.array_equal(getattr(a, field), getattr(b, field)), field
     assert a.contact_point is None
     assert b.contact_point is not None and b.contact_point.shape == (b.n_samples, 3)
-    # the contact point is on the part where the ball touches it
+    # the tip's distance to the offset (the run's phi) is the contact point's to the part,
+    # the contact point r from the centre
     touching = b.phase == 2
     assert touching.sum() > 0.5 * b.n_samples
     c = b.contact_point[touching]
-    if name == "paper_contact":
-        part = np.hypot(c[:, 0], c[:, 1]) - R
-    elif name == "rtr_sphere":
-        part = np.linalg.norm(c - np.array([0.0, 0.0, 5.0]), axis=1) - R
-    else:
-        part = c[:, 2] - z
-    # the tip's distance to the offset (the run's phi) is the contact point's to the part
-    assert np.allclose(part, b.phi[touching], rtol=0.0, atol=1e-12)
+    to_part = np.array([sb.surfaces[0].distance(x) for x in c])
+    assert np.allclose(to_part, b.phi[touching], rtol=0.0, atol=1e-12)
     assert np.allclose(np.linalg.norm(b.p[touching] - c, axis=1), r, rtol=0.0, atol=1e-12)
+
+
+def test_ball_on_an_ellipsoid_follows_its_offset() -> None:
+    """The RTR arm with a ball on a spheroid (no offset of the same type: d − r): the tool
+    centre's circle, above the part's circle of parametric latitude φ, by hand."""
+    a_, c_, r, phi = 0.5, 0.4, 0.05, -0.6435011087932844  # φ of z = 4.7 on rtr_sphere's sphere
+    n = np.array([np.cos(phi) / a_, np.sin(phi) / c_])
+    n /= np.linalg.norm(n)
+    rho, z = a_ * np.cos(phi) + r * n[0], 5.0 + c_ * np.sin(phi) + r * n[1]
+    doc = _doc("rtr_sphere", 3.0)
+    doc["surface"] = {"type": "ellipsoid", "semi_axes": [a_, a_, c_], "center": [0.0, 0.0, 5.0]}
+    doc["tool"] = {"radius": r}
+    doc["trajectory"].update(center=[0.0, 0.0, z], radius=rho)
+    doc["initial"]["tip"] = [rho, 0.0, z]
+    sc = scenario_from_document(doc, origin="spheroid.toml", base_dir=SCENARIOS)
+    assert isinstance(sc.tool_surfaces[0], DistanceOffset)
+    result = simulate(sc)
+    assert result.status == "ok" and bool(np.all(result.phase == 2))
+    settled = result.t >= 1.0
+    assert np.abs(result.f[settled] - 10.0).max() < 1e-6
+    assert np.abs(result.phi).max() < 1e-8
+    assert result.contact_point is not None
+    part = sc.surfaces[0]
+    c = result.contact_point
+    assert max(abs(part.distance(x)) for x in c[::50]) < 1e-8
+    assert np.allclose(np.linalg.norm(result.p - c, axis=1), r, rtol=0.0, atol=1e-12)
 
 
 def test_contact_point_saved_and_absent_for_a_point_tool(tmp_path: Path) -> None:

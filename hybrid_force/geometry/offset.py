@@ -52,13 +52,15 @@ _FOCAL_TOL = 1e-9
 _HESSIAN_STEP = 1e-4
 
 
-def tool_surfaces(surfaces: Sequence[Surface], radius: float) -> tuple[Surface, ...]:
+def tool_surfaces(
+    surfaces: Sequence[Surface], radius: float, *, warn: bool = True
+) -> tuple[Surface, ...]:
     """The surfaces the tool centre follows: each surface's :meth:`~Surface.offset` by
     ``radius`` [m] (the surfaces themselves for 0).
 
-    Warns (RunWarning) where a part is concave with a smaller radius of curvature than the
-    tool's (:meth:`~Surface.concave_radius`): the ball cannot reach the bottom there, the
-    contact point found from the offset lies off the part by up to the difference. Raises
+    With ``warn``, warns (RunWarning) where a part is concave with a smaller radius of
+    curvature than the tool's (:meth:`~Surface.concave_radius`): the ball cannot reach the
+    bottom there, the contact point found from the offset lies off the part. Raises
     SurfaceError (naming ``tool.radius``) where the offset does not exist."""
     r = tool_radius(radius)
     if r == 0.0:
@@ -66,6 +68,8 @@ def tool_surfaces(surfaces: Sequence[Surface], radius: float) -> tuple[Surface, 
     out = []
     for i, surface in enumerate(surfaces):
         out.append(surface.offset(r))
+        if not warn:
+            continue
         smallest, where = surface.concave_radius()
         if smallest < r:
             at = "" if where is None else f" at {np.round(np.asarray(where), 6).tolist()} m"

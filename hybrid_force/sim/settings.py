@@ -118,11 +118,9 @@ class Scenario:
         controller_model: the controller's own model of the arm (``control.model``): another
             :class:`~hybrid_force.model.robot.Robot` with the plant's joints (a heavier link, say);
             None: the plant's own model. ``control.mass_factor`` applies on top of it.
-        tool_surfaces: derived, not given: the surfaces the tool centre (the tip frame's
-            origin) follows, which the plant and the controller use: ``surfaces`` themselves
-            for a point tool, their offsets by ``tool.radius`` for a ball end
-            (:func:`~hybrid_force.geometry.offset.tool_surfaces`; ``surfaces`` stay the part's,
-            which the result records and the drawings show). The path is the tool centre's.
+            With ``tool.radius`` > 0 (a ball-end tool) they are the part's surfaces, which
+            the result records and the drawings show; the plant and the controller follow
+            their offsets, :attr:`tool_surfaces`, and the path is the tool centre's.
         tool: which way the tool points (the ``[tool]`` table,
             :class:`~hybrid_force.control.tool.ToolSettings`; default: free, the paper's
             position-only CLIK). An arm with fewer joints than the tool task has rows is refused
@@ -175,7 +173,6 @@ class Scenario:
     controller_model: Robot | None = None
     contact: ContactSettings = field(default_factory=ContactSettings)
     tool: ToolSettings = field(default_factory=ToolSettings)
-    tool_surfaces: tuple[Surface, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -201,9 +198,9 @@ class Scenario:
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
         set_(self, "surfaces", tuple(surfaces))
-        # what the tool centre follows, chosen once here: the part's own surfaces for a point
-        # tool, their offsets by tool.radius for a ball end (warns where it cannot reach)
-        set_(self, "tool_surfaces", offset_surfaces(self.surfaces, self.tool.radius))
+        # the offsets the tool centre follows exist (else SurfaceError naming tool.radius);
+        # a warning where a hollow is tighter than the ball
+        offset_surfaces(self.surfaces, self.tool.radius)
         for key, size, optional in (("q0", robot.nq, False), ("v0", robot.nv, True)):
             value = getattr(self, key)
             if optional and value is None:
@@ -249,6 +246,15 @@ class Scenario:
             check_same_joints(robot, self.controller_model)
         self.tool.check_arm(robot)
         self._check_start_and_path()
+
+    @property
+    def tool_surfaces(self) -> tuple[Surface, ...]:
+        """The surfaces the tool centre (the tip frame's origin) follows, which the plant and
+        the controller use: ``surfaces`` themselves for a point tool, their offsets by
+        ``tool.radius`` for a ball end (:func:`~hybrid_force.geometry.offset.tool_surfaces`,
+        the same for the same surfaces and radius). A property, not a field, so that
+        ``Scenario(**other.__dict__)`` still copies a scenario."""
+        return offset_surfaces(self.surfaces, self.tool.radius, warn=False)
 
     def _check_contact(self) -> None:
         """The contact settings against the simulation's: a compliant or frictional contact
