@@ -24,6 +24,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 import pytest
+import trimesh
 from numpy.typing import ArrayLike
 
 from hybrid_force.errors import RunWarning, ScenarioError, SurfaceError
@@ -31,6 +32,7 @@ from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import chart_for
 from hybrid_force.geometry.ellipsoid import Ellipsoid
 from hybrid_force.geometry.function_surface import FunctionSurface
+from hybrid_force.geometry.mesh_surface import MeshSurface
 from hybrid_force.geometry.offset import (
     DistanceOffset,
     PhiOffset,
@@ -307,6 +309,34 @@ def test_phi_offset_of_a_metric_surface_is_the_larger_sphere() -> None:
         assert np.allclose(offset.normal(p), exact.normal(p), atol=1e-15)
         _fd_check(offset, p)
     assert isinstance(offset.offset(0.03), PhiOffset) and offset.offset(0.03).radius == 0.1
+
+
+# --- a mesh part: its Φ is its (fitted) metric distance ------------------------------------------
+def test_mesh_part_offset_is_phi_minus_r_and_warns_in_a_tight_hole(tmp_path: Path) -> None:
+    path = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=3, radius=0.1).export(path)
+    part = MeshSurface.from_file(path, resolution=0.01, cache=False)
+    offset = part.offset(0.02)
+    assert isinstance(offset, PhiOffset)
+    exact = Sphere(0.12)  # the offset of the sphere the mesh approximates
+    rng = np.random.default_rng(17)
+    for _ in range(20):
+        d = rng.normal(size=3)
+        p = d / np.linalg.norm(d) * rng.uniform(0.11, 0.13)
+        value, grad, hess = offset.evaluate(p)
+        base = part.evaluate(p)
+        assert value == base[0] - 0.02 and np.array_equal(grad, base[1])
+        assert np.array_equal(hess, base[2])
+        # the 642-vertex mesh lies within 0.4 mm of its sphere: so does the offset of its fit
+        assert abs(offset.distance(p) - exact.distance(p)) < 1e-3
+    torus = tmp_path / "torus.stl"
+    trimesh.creation.torus(
+        major_radius=0.2, minor_radius=0.05, major_sections=64, minor_sections=24
+    ).export(torus)
+    ring = MeshSurface.from_file(torus, cache=False)  # its hole: concave of radius ≈ 0.15 m
+    smallest = ring.smallest_concave_radius()
+    with pytest.warns(RunWarning, match=rf"tool\.radius = 0\.2 m exceeds .* {smallest:.6g} m"):
+        tool_surfaces([ring], 0.2)
 
 
 # --- user surfaces ---------------------------------------------------------------------------

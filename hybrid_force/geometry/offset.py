@@ -72,7 +72,11 @@ def tool_surfaces(
             continue
         smallest, where = surface.concave_radius()
         if smallest < r:
-            at = "" if where is None else f" at {np.round(np.asarray(where), 6).tolist()} m"
+            at = (
+                " (its smallest, found over the part)"
+                if where is None
+                else f" at {np.round(np.asarray(where), 6).tolist()} m"
+            )
             warnings.warn(
                 RunWarning(
                     f"tool.radius = {r:g} m exceeds the smallest concave radius of curvature of "
