@@ -107,7 +107,8 @@ class Result:
         p, p_d: (N, 3) actual / desired tip position [m].
         f, f_d: (N,) (or (N, k) for k > 1) contact force along the unit surface normal pointing to
             the free side, > 0 when the tool presses on the surface, 0 out of contact [N].
-        phi: (N,) (or (N, k)) signed metric distance of the tip to the surface, > 0 free side [m].
+        phi: (N,) (or (N, k)) signed metric distance of the tip to the surface, > 0 free side [m]
+            (for a ball-end tool, of its centre to the offset surface: the ball's gap to the part).
         V: (N,) Lyapunov function ½ sᵀ M s + ½ β e_F² of paper section 5.1 [J].
         phase: (N,) int64 phase code: 2 (contact) exactly when the tool is on the surface
             (the plant's contact state); otherwise the supervisor's approach phase, 0 free or

@@ -208,6 +208,13 @@ def test_pipe_refusal_names_the_key_in_a_scenario() -> None:
         scenario_from_document(doc, origin="pipe.toml", base_dir=SCENARIOS)
 
 
+def test_a_path_on_the_part_instead_of_the_offset_is_refused_with_a_hint() -> None:
+    doc = _doc("paper_contact", 1.0)
+    doc["tool"] = {"radius": 0.025}  # the helix of radius 0.4 is on the part, not 0.425
+    with pytest.raises(ScenarioError, match=r"0\.025 m away .*tool centre's"):
+        scenario_from_document(doc, origin="ball.toml", base_dir=SCENARIOS)
+
+
 def test_hollow_tighter_than_the_ball_warns_where_and_by_how_much() -> None:
     part = Ellipsoid((0.4, 0.2, 0.1), inside=True)  # smallest radius 0.1² / 0.4 = 0.025 m
     with pytest.warns(RunWarning, match=r"0\.025 m at \[0\.4, 0\.0, 0\.0\] m, by 0\.005 m"):

@@ -47,7 +47,7 @@ from hybrid_force import _checks as checks
 from hybrid_force.errors import ControlError, ReachError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import Path
-from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.geometry.surface_base import MAX_LENGTH, Surface
 from hybrid_force.schema import check_fields, param
 
 __all__ = [
@@ -111,7 +111,7 @@ class ToolSettings:
         0.0,
         unit="m",
         minimum=0.0,
-        maximum=1e6,
+        maximum=MAX_LENGTH,
         doc="radius of a ball-end tool or rounded pad: the tip frame is its centre",
     )
 

@@ -297,11 +297,19 @@ def _refusal(
                 f"({where}): {problem}"
             )
         p = [round(float(x), 6) for x in report.point_of_worst]
+        tool = doc.get("tool")
+        radius = tool.get("radius", 0) if isinstance(tool, dict) else 0
+        ball = (
+            f" (with tool.radius = {radius} m the path is the tool centre's: on the surface "
+            f"{radius} m off [{name}] along its normal)"
+            if radius
+            else ""
+        )
         return ScenarioError(
             f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "
             f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
             f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
-            f"[0, sim.duration = {sim.duration:g} s]"
+            f"[0, sim.duration = {sim.duration:g} s]{ball}"
         )
     if key == "Scenario.q0" and isinstance(value, tuple) and start is not None:
         robot, q0, start_key, start_value = start
