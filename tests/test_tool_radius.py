@@ -11,12 +11,15 @@ Independent references:
   parallel to n̂ (a geometric identity, on every surface type);
 - the chart of an offset: its points at distance r from the part, its derivatives against
   central differences of its points;
-- refusals and warnings: the messages name ``tool.radius`` and the value.
+- refusals and warnings: the messages name ``tool.radius`` and the value;
+- the replay: its tip marker is the ball, of the tool's radius, on the part's own surface.
 """
 
 from __future__ import annotations
 
+import base64
 import copy
+import re
 import tomllib
 import warnings
 from pathlib import Path
@@ -25,6 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pytest
 import trimesh
+import umsgpack
 from numpy.typing import ArrayLike
 
 from hybrid_force.errors import RunWarning, ScenarioError, SurfaceError
@@ -43,6 +47,7 @@ from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.result import Result
 from hybrid_force.scenario.loader import scenario_from_document
 from hybrid_force.sim.loop import simulate
+from hybrid_force.viz import replay
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO_ROOT / "scenarios"
@@ -139,6 +144,28 @@ def test_contact_point_saved_and_absent_for_a_point_tool(tmp_path: Path) -> None
     with np.load(tmp_path / "point.npz") as archive:
         assert "contact_point" not in archive.files
     assert Result.load(tmp_path / "point.npz").contact_point is None
+
+
+def test_replay_draws_the_ball_on_the_part() -> None:
+    def marker_radius(result: Result) -> float:
+        page = replay.html(result, fps=10)
+        block = page[page.index("var commands = [") :]
+        block = block[: block.index("];")]
+        for blob in re.findall(r'"([A-Za-z0-9+/=]+)"', block):
+            command = umsgpack.unpackb(base64.b64decode(blob))
+            if command.get("path") == "/meshcat/replay/tip/contact":
+                return float(command["object"]["geometries"][0]["radius"])
+        raise AssertionError("no tip marker")
+
+    doc = _doc("paper_contact", 0.05)
+    point = _run(doc)
+    doc["surface"]["radius"] = 0.375
+    doc["tool"] = {"radius": 0.025}
+    ball = _run(doc)
+    assert marker_radius(ball) == pytest.approx(0.025)
+    assert marker_radius(point) == pytest.approx(0.045)  # the marker's default size
+    # the part drawn is the part's own surface (radius 0.375), not the offset
+    assert ball.meta["surfaces"][0]["radius"] == 0.375
 
 
 # --- the built-ins' exact offsets ----------------------------------------------------------------
