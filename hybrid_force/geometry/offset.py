@@ -132,7 +132,7 @@ class _Offset(Surface):
         )
 
     def __hash__(self) -> int:
-        return hash((type(self).__name__, id(self.base), self.radius))
+        return hash((type(self).__name__, self.base, self.radius))
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type": "offset", "radius": r, "surface": the part's dict}`` (not a scenario
