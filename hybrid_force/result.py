@@ -107,7 +107,8 @@ class Result:
         p, p_d: (N, 3) actual / desired tip position [m].
         f, f_d: (N,) (or (N, k) for k > 1) contact force along the unit surface normal pointing to
             the free side, > 0 when the tool presses on the surface, 0 out of contact [N].
-        phi: (N,) (or (N, k)) signed metric distance of the tip to the surface, > 0 free side [m].
+        phi: (N,) (or (N, k)) signed metric distance of the tip to the surface, > 0 free side [m]
+            (for a ball-end tool, of its centre to the offset surface: the ball's gap to the part).
         V: (N,) Lyapunov function ½ sᵀ M s + ½ β e_F² of paper section 5.1 [J].
         phase: (N,) int64 phase code: 2 (contact) exactly when the tool is on the surface
             (the plant's contact state); otherwise the supervisor's approach phase, 0 free or
@@ -123,6 +124,10 @@ class Result:
         tool_angle: (N,) the angle [rad] between the actual tool axis and its desired direction
             a_d(t) (``[tool] orientation = "normal"``); None, and absent from the file, when
             the run did not control the tool's direction (``orientation = "free"``).
+        contact_point: (N, 3) (or (N, k, 3) for k > 1) where a ball-end tool touches the part
+            [m]: p − r n̂, r = ``tool.radius``, n̂ the unit normal at the tool centre p (the
+            ball's point nearest the part when it is off it; NaN where n̂ is undefined); None,
+            and absent from the file, for a point tool (``tool.radius = 0``).
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
             steps_per_second counts the loop from its second step on (the first steps load
@@ -149,6 +154,7 @@ class Result:
     u_cmd: np.ndarray | None = None
     law_log: np.ndarray | None = None
     tool_angle: np.ndarray | None = None
+    contact_point: np.ndarray | None = None
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
@@ -217,6 +223,11 @@ class Result:
             tool_angle = _as_float_array("tool_angle", self.tool_angle)
             _check_shape("tool_angle", tool_angle, (n_samples,))
             object.__setattr__(self, "tool_angle", tool_angle)
+        if self.contact_point is not None:
+            contact = _as_float_array("contact_point", self.contact_point)
+            k = 1 if len(constraint_shape) == 1 else constraint_shape[1]
+            _check_shape("contact_point", contact, (n_samples, 3) if k == 1 else (n_samples, k, 3))
+            object.__setattr__(self, "contact_point", contact)
         meta = self._normalise_meta(self.meta)
         law_log = check_law_log(self.law_log, n_samples, meta)
         for name, arr in arrays.items():
@@ -337,7 +348,7 @@ class Result:
         arrays = {
             name: getattr(self, name)
             for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
-            if getattr(self, name) is not None  # tool_angle: only when the run has one
+            if getattr(self, name) is not None  # tool_angle, contact_point: when the run has one
         }
         write_arrays(target, arrays, meta_to_json(self.meta))
         return target

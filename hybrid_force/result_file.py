@@ -60,7 +60,7 @@ ARRAY_NAMES: tuple[str, ...] = (
 )
 #: Arrays a result file may hold beyond :data:`ARRAY_NAMES` (older files lack them; see
 #: :class:`~hybrid_force.result.Result` for the value then).
-OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd", "law_log", "tool_angle")
+OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd", "law_log", "tool_angle", "contact_point")
 #: Name of the member holding the metadata's JSON text.
 META_KEY = "meta"
 #: Deepest nesting of lists and objects accepted in a loaded result's meta.

@@ -47,7 +47,7 @@ from hybrid_force import _checks as checks
 from hybrid_force.errors import ControlError, ReachError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import Path
-from hybrid_force.geometry.surface_base import Surface
+from hybrid_force.geometry.surface_base import MAX_LENGTH, Surface
 from hybrid_force.schema import check_fields, param
 
 __all__ = [
@@ -79,6 +79,10 @@ class ToolSettings:
             to turn the tool about (projected on the tangent plane).
         roll: ``"free"`` (the rotation about the axis is left to the null-space posture) or
             ``"held"`` (the tip frame's whole orientation is prescribed, module docstring).
+        radius: r [m] ≥ 0 of a ball-end tool or a rounded pad. The tip frame's origin is the
+            ball's centre: the run controls it on the offset surface at distance r from the
+            part (:mod:`hybrid_force.geometry.offset`), and the contact point lies r along −n̂
+            from it. 0 (default): a point tool.
 
     Raises ControlError (key ``tool.<field>``) for a bad value, and for a tilt, tilt axis or
     held roll with ``orientation = "free"``, which has no desired direction to apply them to.
@@ -106,6 +110,13 @@ class ToolSettings:
         "free",
         acts_when=_NORMAL,
         doc="free: left to the posture; held: the whole orientation prescribed",
+    )
+    radius: float = param(
+        0.0,
+        unit="m",
+        minimum=0.0,
+        maximum=MAX_LENGTH,
+        doc="radius of a ball-end tool or rounded pad: the tip frame is its centre",
     )
 
     def __post_init__(self) -> None:
@@ -146,6 +157,7 @@ class ToolSettings:
             "tilt": self.tilt,
             "tilt_axis": None if self.tilt_axis is None else list(self.tilt_axis),
             "roll": self.roll,
+            **({"radius": self.radius} if self.radius else {}),
         }
 
     def check_arm(self, robot: Any) -> None:

@@ -28,6 +28,7 @@ from hybrid_force.geometry.surface_base import (
     _xyz,
     plane_basis,
     register_surface,
+    tool_radius,
 )
 from hybrid_force.schema import param
 
@@ -48,10 +49,13 @@ class _RoundSurface(Surface):
     """
 
     radius: float
+    inside: bool
     _sign: float
     _r2: float
     _hess: np.ndarray
     _singular_where: ClassVar[str]
+    _centre_word: ClassVar[str]
+    metric_distance: ClassVar[str] = "exact"
 
     def _freeze(
         self, radius: float, center: Vec3, inside: bool, shape: np.ndarray, **extra: object
@@ -119,6 +123,30 @@ class _RoundSurface(Surface):
             )
         return (x, y, z), (wx / rho, wy / rho, wz / rho), rho
 
+    def concave_radius(self) -> tuple[float, np.ndarray | None]:
+        """(r, None) when the inside is free (concave everywhere, radius r), else (inf, None)."""
+        return (self.radius if self.inside else math.inf), None
+
+    def _offset_radius(self, radius: float) -> float | None:
+        """The offset's radius r ± ``radius`` [m], None for ``radius`` = 0; SurfaceError naming
+        ``tool.radius`` when the inside is free and the ball does not fit (radius ≥ r)."""
+        t = tool_radius(radius)
+        if t == 0.0:
+            return None
+        if not self.inside:
+            return self.radius + t
+        if t >= self.radius:
+            raise SurfaceError(
+                f"tool.radius = {radius!r} m is not smaller than the radius {self.radius:g} m of "
+                f"{self!r}, whose inside is free: the tool's ball does not fit in it (its centre "
+                f"cannot stay {t:g} m from the wall on the {self._centre_word}'s side), so there "
+                f"is no surface for the tool centre to follow; use a tool of radius below "
+                f"{self.radius:g} m",
+                key="tool.radius",
+                value=radius,
+            )
+        return self.radius - t
+
     def normal(self, p: ArrayLike) -> np.ndarray:
         """Unit normal ±w/ρ: (3,), to the free side (towards the centre or axis when ``inside``)."""
         _, (nx, ny, nz), _ = self._unit_offset(p, "normal")
@@ -153,6 +181,7 @@ class Cylinder(_RoundSurface):
 
     kind: ClassVar[str] = "cylinder"
     _singular_where: ClassVar[str] = "lies on the cylinder axis"
+    _centre_word: ClassVar[str] = "axis"
 
     radius: float = param(unit="m", minimum=0.0, strict=True, doc="radius")
     center: Vec3 = param(_ORIGIN, unit="m", doc="a point on the axis")
@@ -169,6 +198,15 @@ class Cylinder(_RoundSurface):
         side = _boolean("Cylinder", "inside", self.inside)
         aa = np.asarray(a)
         self._freeze(r, c, side, np.eye(3) - np.outer(aa, aa), axis=a)
+
+    def offset(self, radius: float) -> Cylinder:
+        """The exact offset by ``radius`` [m] (a ball-end tool's centre): the coaxial cylinder
+        of radius r + ``radius`` (outside free) or r − ``radius`` (inside free, a pipe;
+        SurfaceError naming ``tool.radius`` when the ball does not fit, ``radius`` ≥ r)."""
+        r = self._offset_radius(radius)
+        if r is None:
+            return self
+        return Cylinder(r, self.center, self.axis, self.inside)
 
     def _offset(self, x: float, y: float, z: float) -> Vec3:
         """w⊥ = (p − c) − ((p − c)·a) a: (3,) [m], the component of p − c across the axis."""
@@ -208,6 +246,7 @@ class Sphere(_RoundSurface):
 
     kind: ClassVar[str] = "sphere"
     _singular_where: ClassVar[str] = "is at the sphere's centre"
+    _centre_word: ClassVar[str] = "centre"
 
     radius: float = param(unit="m", minimum=0.0, strict=True, doc="radius")
     center: Vec3 = param(_ORIGIN, unit="m", doc="centre")
@@ -221,6 +260,15 @@ class Sphere(_RoundSurface):
         c = _point3("Sphere", "center", self.center)
         side = _boolean("Sphere", "inside", self.inside)
         self._freeze(r, c, side, np.eye(3))
+
+    def offset(self, radius: float) -> Sphere:
+        """The exact offset by ``radius`` [m]: the concentric sphere of radius r + ``radius``
+        (outside free) or r − ``radius`` (inside free; SurfaceError naming ``tool.radius`` when
+        the ball does not fit, ``radius`` ≥ r)."""
+        r = self._offset_radius(radius)
+        if r is None:
+            return self
+        return Sphere(r, self.center, self.inside)
 
     def _offset(self, x: float, y: float, z: float) -> Vec3:
         """w = p − c: (3,) [m]."""
@@ -264,6 +312,7 @@ class Plane(Surface):
     """
 
     kind: ClassVar[str] = "plane"
+    metric_distance: ClassVar[str] = "phi"
 
     point: Vec3 = param(unit="m", doc="a point of the plane")
     normal_vector: Vec3 = param(key="normal", doc="normal to the free side (normalised)")
@@ -284,6 +333,14 @@ class Plane(Surface):
 
     def __repr__(self) -> str:
         return f"Plane(point={self.point!r}, normal={self.normal_vector!r})"
+
+    def offset(self, radius: float) -> Plane:
+        """The exact offset by ``radius`` [m]: the parallel plane through point + ``radius`` n."""
+        t = tool_radius(radius)
+        if t == 0.0:
+            return self
+        (ox, oy, oz), (nx, ny, nz) = self.point, self.normal_vector
+        return Plane((ox + t * nx, oy + t * ny, oz + t * nz), self.normal_vector)
 
     def _phi(self, x: float, y: float, z: float) -> float:
         ox, oy, oz = self.point

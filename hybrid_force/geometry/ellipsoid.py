@@ -60,6 +60,8 @@ class Ellipsoid(Surface):
     """
 
     kind: ClassVar[str] = "ellipsoid"
+    # the exact foot point makes the distance exact: a ball tool follows d − r (geometry/offset)
+    metric_distance: ClassVar[str] = "exact"
 
     semi_axes: Vec3 = param(unit="m", minimum=0.0, strict=True, doc="semi-axes a, b, c")
     center: Vec3 = param(_ORIGIN, unit="m", doc="centre")
@@ -158,6 +160,18 @@ class Ellipsoid(Surface):
         """The foot point on the surface nearest to p: (3,) [m]."""
         foot, _ = self._foot_local(self._local(p, "closest_point"))
         return np.asarray(self.center + self._R @ foot)
+
+    def concave_radius(self) -> tuple[float, np.ndarray | None]:
+        """Inside free: (c²/a, the end of the longest axis) with a the longest and c the shortest
+        semi-axis, the smallest radius of curvature of the ellipsoid (in the plane of those two
+        axes, at the end of the longest); outside free: (inf, None), it is convex."""
+        if not self.inside:
+            return math.inf, None
+        axes = np.asarray(self.semi_axes)
+        longest = int(np.argmax(axes))
+        end = np.zeros(3)
+        end[longest] = axes[longest]
+        return float(axes.min() ** 2 / axes[longest]), np.asarray(self.center + self._R @ end)
 
     def patch(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """(19, 37, 3) [m]: the whole ellipsoid on a latitude-longitude grid."""

@@ -14,7 +14,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force.errors import BadInputError, SurfaceError
-from hybrid_force.geometry.surface_base import Surface, _fmt, _positive_float, _xyz
+from hybrid_force.geometry.surface_base import (
+    Surface,
+    _boolean,
+    _fmt,
+    _positive_float,
+    _xyz,
+    tool_radius,
+)
 
 __all__ = ["FunctionSurface"]
 
@@ -64,6 +71,12 @@ class FunctionSurface(Surface):
     ``to_dict`` gives ``{"type": "function"}`` only: a function surface cannot be rebuilt
     from a dict.
 
+    ``metric=True`` declares the distance an exact signed metric distance [m]: the ``distance``
+    callable's when given, else Φ itself (‖∇Φ‖ = 1, e.g. a plane n·p − c). Only then does
+    :meth:`offset` (a ball-end tool, ``tool.radius`` > 0) accept the surface: the tool centre
+    follows d − r = 0. The first-order Φ/‖∇Φ‖ is not a metric distance, so a surface that does
+    not declare one is refused a tool radius.
+
     Results of the callables are checked: a non-finite Φ raises SurfaceError, a gradient not
     of shape (3,) or a Hessian not of shape (3, 3) raises BadInputError, naming the callable.
     """
@@ -77,6 +90,7 @@ class FunctionSurface(Surface):
     step: float
     hessian_step: float
     singular_tol: float
+    metric: bool
 
     def __init__(
         self,
@@ -88,6 +102,7 @@ class FunctionSurface(Surface):
         step: float = _DEFAULT_STEP,
         hessian_step: float = _DEFAULT_HESSIAN_STEP,
         singular_tol: float = _DEFAULT_SINGULAR_TOL,
+        metric: bool = False,
     ) -> None:
         owner = "FunctionSurface"
         if not callable(phi):
@@ -113,6 +128,7 @@ class FunctionSurface(Surface):
             ("step", _positive_float(owner, "step", step)),
             ("hessian_step", _positive_float(owner, "hessian_step", hessian_step)),
             ("singular_tol", _positive_float(owner, "singular_tol", singular_tol, unit="∇Φ")),
+            ("metric", _boolean(owner, "metric", metric)),
         ):
             object.__setattr__(self, name, value)
 
@@ -132,6 +148,8 @@ class FunctionSurface(Surface):
             parts.append(f"distance={_callable_name(self.distance_function)}")
         else:
             parts.append("distance=<first order phi/|grad phi|>")
+        if self.metric:
+            parts.append("metric=True")
         return f"FunctionSurface({', '.join(parts)})"
 
     # -- calls of the user's functions, with their results checked --
@@ -296,6 +314,43 @@ class FunctionSurface(Surface):
         phi0 = self._call_phi(q)
         unit, norm = self._unit_gradient(q, "closest_point")
         return q - (phi0 / norm) * unit
+
+    def offset(self, radius: float) -> Surface:
+        """The offset by ``radius`` [m] (a ball-end tool's centre, module
+        :mod:`~hybrid_force.geometry.offset`), a FunctionSurface too: Φ − r with the user's
+        derivatives when Φ is the metric distance, else d − r of the ``distance`` callable
+        (derivatives by finite differences). SurfaceError naming ``tool.radius`` without
+        ``metric=True``."""
+        r = tool_radius(radius)
+        if r == 0.0:
+            return self
+        if not self.metric:
+            raise SurfaceError(
+                f"tool.radius = {radius!r} m needs a metric distance (the tool centre follows "
+                f"the surface at distance r from the part); {self!r} does not declare one (its "
+                "distance is first order): give FunctionSurface(..., metric=True) when Φ, or "
+                "the distance callable, is the exact signed distance [m], or use tool.radius = 0",
+                key="tool.radius",
+                value=radius,
+            )
+        given = self.distance_function
+        source = self.phi_function if given is None else given
+
+        def shifted(p: np.ndarray) -> float:
+            return self._call_scalar(source, "distance" if given else "phi", p) - r
+
+        shifted.__qualname__ = f"{_callable_name(source)} - {r!r}"
+        same = given is None  # Φ is the distance: its derivatives are the offset's
+        return FunctionSurface(
+            shifted,
+            self.gradient_function if same else None,
+            self.hessian_function if same else None,
+            shifted,
+            step=self.step,
+            hessian_step=self.hessian_step,
+            singular_tol=self.singular_tol,
+            metric=True,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type": "function"}``: not round-trippable (the callables are not serialised)."""

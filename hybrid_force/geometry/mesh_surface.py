@@ -35,6 +35,8 @@ class MeshSurface(Surface):
     """
 
     kind: ClassVar[str] = "mesh"
+    # Φ is the (fitted) signed distance: a ball tool of radius r follows Φ − r (geometry/offset)
+    metric_distance: ClassVar[str] = "phi"
     part: MeshPart
     field: DistanceField
     inside: bool = False
@@ -146,6 +148,10 @@ class MeshSurface(Surface):
             "inside": self.inside,
             "resolution": self.field.spacing,
         }
+
+    def concave_radius(self) -> tuple[float, np.ndarray | None]:
+        """(:meth:`smallest_concave_radius`, None): the hook a ball tool's check calls."""
+        return self.smallest_concave_radius(), None
 
     def smallest_concave_radius(self) -> float:
         """The smallest radius of curvature [m] of the part's concave regions, at its vertices.

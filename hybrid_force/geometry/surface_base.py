@@ -16,6 +16,7 @@ import dataclasses
 import importlib
 import math
 import pkgutil
+from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -30,9 +31,11 @@ __all__ = [
     "MAX_LENGTH",
     "Surface",
     "plane_basis",
+    "register_offset",
     "register_surface",
     "surface_parameters",
     "surface_types",
+    "tool_radius",
 ]
 
 MAX_LENGTH = 1e6
@@ -225,6 +228,48 @@ class Surface(abc.ABC):
     def closest_point(self, p: ArrayLike) -> np.ndarray:
         """Foot point on the surface nearest to p: (3,) [m]."""
 
+    #: What :meth:`distance` is, which decides how :meth:`offset` treats a tool of radius r:
+    #: ``"phi"``: Φ itself is the signed metric distance [m] (‖∇Φ‖ = 1), so Φ − r is the
+    #: offset; ``"exact"``: ``distance`` is the exact metric distance to an exact
+    #: ``closest_point`` (Φ is not), so the offset is d − r with the distance's own
+    #: derivatives; ``""``: not a metric distance (first order, or unknown): no offset.
+    metric_distance: ClassVar[str] = ""
+
+    def offset(self, radius: float) -> Surface:
+        """The offset surface Φ_r = 0 at metric distance ``radius`` [m] from this one on its
+        free side: the locus of the centre of a ball of that radius touching it (a ball-end
+        tool, ``tool.radius``). ``radius = 0``: this very surface.
+
+        The default is the generic offset registered for :attr:`metric_distance`
+        (:func:`register_offset`: Φ − r or d − r, :mod:`hybrid_force.geometry.offset`); it
+        refuses (SurfaceError naming ``tool.radius`` and the value) a surface whose distance
+        is not a metric one. The built-in surfaces override it with their exact offset of the
+        same type.
+        """
+        r = tool_radius(radius)
+        if r == 0.0:
+            return self
+        import_geometry()  # the generic offsets register themselves in their module
+        build = _OFFSETS.get(self.metric_distance)
+        if build is None:
+            raise SurfaceError(
+                f"tool.radius = {radius!r} m needs a surface whose distance is a metric one (the "
+                f"tool centre follows the surface at distance r from the part); {self!r} does "
+                "not declare its distance metric (a first-order Φ/‖∇Φ‖ is not): use "
+                "tool.radius = 0, or a surface that declares a metric distance (a "
+                "FunctionSurface with metric=True)",
+                key="tool.radius",
+                value=radius,
+            )
+        return build(self, r)
+
+    def concave_radius(self) -> tuple[float, np.ndarray | None]:
+        """(the smallest radius of curvature [m] where the surface is concave seen from its
+        free side, a point (3,) [m] where it is that small or None when it is so everywhere);
+        (inf, None) when it is nowhere concave or not known. A ball tool of a larger radius
+        cannot reach the bottom there (:func:`~hybrid_force.geometry.offset.tool_surfaces`)."""
+        return math.inf, None
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-able description ``{"type": kind, ...parameters as floats / lists}`` (its
         declared parameters, :func:`surface_parameters`)."""
@@ -238,10 +283,38 @@ class Surface(abc.ABC):
         return None
 
 
+def tool_radius(radius: object) -> float:
+    """A tool's radius [m] as a float, checked: a finite number in [0, MAX_LENGTH]
+    (SurfaceError naming ``tool.radius`` and the value)."""
+    r = checks.number(radius, "tool.radius", SurfaceError, minimum=0.0, unit="m")
+    if r > MAX_LENGTH:
+        raise SurfaceError(
+            f"tool.radius = {radius!r} m must be at most MAX_LENGTH = {MAX_LENGTH:g} m",
+            key="tool.radius",
+            value=radius,
+        )
+    return r
+
+
 # --- registry --------------------------------------------------------------------------------
+_OFFSETS: dict[str, Callable[[Surface, float], Surface]] = {}
+
+
+def register_offset(metric: str) -> Callable[[OffsetT], OffsetT]:
+    """Class decorator: the generic offset ``cls(surface, radius)`` of the surfaces whose
+    :attr:`Surface.metric_distance` is ``metric`` (the default :meth:`Surface.offset`)."""
+
+    def register(cls: OffsetT) -> OffsetT:
+        _OFFSETS[metric] = cls
+        return cls
+
+    return register
+
+
 _SURFACE_TYPES: dict[str, type[Surface]] = {}
 _found = False
 S = TypeVar("S", bound=type[Surface])
+OffsetT = TypeVar("OffsetT", bound=Callable[[Surface, float], Surface])
 
 
 def register_surface(cls: S) -> S:

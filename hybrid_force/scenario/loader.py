@@ -26,6 +26,7 @@ from typing import Any
 from hybrid_force._file_errors import _Context, _fmt
 from hybrid_force.control.laws.base import law_names
 from hybrid_force.errors import BadInputError, ScenarioError
+from hybrid_force.geometry.offset import tool_surfaces
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_path_on_surfaces
 from hybrid_force.model.scenario_robot import load_arm, load_controller_model
 from hybrid_force.scenario._builders import (
@@ -147,7 +148,14 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
     robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
-    surfaces, surface_tables = _surfaces(doc, ctx)
+    parts, surface_tables = _surfaces(doc, ctx)
+    # the path and every check below are the tool centre's: on the parts' offsets by
+    # tool.radius (the parts themselves for a point tool); the Scenario keeps the parts
+    radius = doc["tool"].get("radius", 0.0) if isinstance(doc.get("tool"), dict) else 0.0
+    try:  # a ball's warning (a hollow tighter than it) is the Scenario's
+        surfaces = list(tool_surfaces(parts, radius, warn=False))
+    except BadInputError as exc:
+        raise ctx.error("tool.radius", radius, " ".join(str(exc).split())) from None
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     keys = {**settings_tables(), "trajectory": typed_tables()["trajectory"][traj["type"]]}
     values = {t: check_table(ctx, t, doc.get(t, {}), keys[t]) for t in ("control", *SETTINGS)}
@@ -173,7 +181,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
     try:  # every rule across the tables that needs no run of the model: by Scenario
         scenario = Scenario(
             robot=robot,
-            surfaces=surfaces,
+            surfaces=parts,
             path=path,
             q0=q0,
             v0=v0,
@@ -239,11 +247,19 @@ def _refusal(
                 f"({where}): {problem}"
             )
         p = [round(float(x), 6) for x in report.point_of_worst]
+        tool = doc.get("tool")
+        radius = tool.get("radius", 0) if isinstance(tool, dict) else 0
+        ball = (
+            f" (with tool.radius = {radius} m the path is the tool centre's: on the surface "
+            f"{radius} m off [{name}] along its normal)"
+            if radius
+            else ""
+        )
         return ScenarioError(
             f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "
             f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
             f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
-            f"[0, sim.duration = {sim.duration:g} s]"
+            f"[0, sim.duration = {sim.duration:g} s]{ball}"
         )
     if key == "Scenario.q0" and isinstance(value, tuple) and start is not None:
         robot, q0, start_key, start_value = start

@@ -56,7 +56,7 @@ class ControlSide:
         self.law, self.user, self.own = law, user, own
         self.model_robot = model_robot
         self.period = period
-        self.f_meas = np.zeros(len(sc.surfaces))
+        self.f_meas = np.zeros(len(sc.tool_surfaces))
         self.max_dist = sc.control.max_dist
 
     @property
@@ -178,7 +178,7 @@ class ToolLog:
         self.probe = ToolAngleProbe(sc.robot, sc.tool)
         clik = law.clik if law is not None else None
         self.clik = clik if isinstance(clik, PoseJointPath) and not measured else None
-        self.target = ToolTarget(sc.tool, sc.surfaces[0], sc.path)
+        self.target = ToolTarget(sc.tool, sc.tool_surfaces[0], sc.path)
 
     def angle(self, t: float, q: np.ndarray) -> float:
         """[rad] at time t [s] and configuration q (nq,)."""
@@ -196,11 +196,11 @@ def build_control_side(sc: Scenario, user: Controller | None, q: np.ndarray) -> 
     model_robot = sc.controller_model if sc.controller_model is not None else sc.robot
     own = None
     if measured or model_robot is not sc.robot:
-        own = ControllerModel(model_robot, sc.surfaces, sim.normalization)
+        own = ControllerModel(model_robot, sc.tool_surfaces, sim.normalization)
     law = None
     if user is None:
         constraint = (
-            own.constraint if own is not None else Constraint(sc.surfaces, sim.normalization)
+            own.constraint if own is not None else Constraint(sc.tool_surfaces, sim.normalization)
         )
         law = HybridController(
             model_robot, constraint, sc.path, q, sc.control, dt=per_tick * sim.dt, tool=sc.tool

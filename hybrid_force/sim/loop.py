@@ -97,7 +97,7 @@ def simulate(
             f"controller must have a method command(t, q, v, f) -> u, got {controller!r}"
         )
     # Scenario has checked its fields (stacked surfaces only without the supervisor, ...)
-    constraint = Constraint(sc.surfaces, normalization=sim.normalization)
+    constraint = Constraint(sc.tool_surfaces, normalization=sim.normalization)
     k, nq, nv, dt = constraint.k, robot.nq, robot.nv, sim.dt
     N = round(sim.duration / dt) + 1
     q = robot.check_q(sc.q0, "initial q").copy()

@@ -14,6 +14,7 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.laws.base import Command, law_log_names
+from hybrid_force.geometry.offset import contact_points
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
@@ -40,7 +41,8 @@ class Record:
     The fields (t, q, v, q_d, u, p, p_d, f, f_d, phi, V, phase) are column views of the table,
     in that order (:func:`hybrid_force.sim._kernels.record_row` writes a row in the same
     order); ``f_meas`` (N, k) [N], ``u_cmd`` (N, n), ``law_log`` (N, m) and ``tool_angle``
-    (N,) [rad] are kept beside it when the run has them.
+    (N,) [rad] are kept beside it when the run has them; a ball-end tool's contact points
+    (``tool.radius`` > 0) are found from p when the result is made.
 
     Attributes:
         law_signals: the names of the law's own signals (``law_log``'s columns).
@@ -81,6 +83,8 @@ class Record:
         self.law_log: np.ndarray | None = np.zeros((N, m)) if m else None
         # the tool axis' angle from its desired direction (N,) [rad], when the run controls it
         self.tool_angle: np.ndarray | None = np.zeros(N) if self._tool is not None else None
+        # a ball-end tool: its contact points, found from the centres p after the run
+        self._ball = (sc.tool_surfaces, sc.tool.radius) if sc.tool.radius > 0.0 else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -169,4 +173,13 @@ class Record:
             u_cmd=None if self.u_cmd is None else own(self.u_cmd),
             law_log=None if self.law_log is None else own(self.law_log),
             tool_angle=None if self.tool_angle is None else own(self.tool_angle),
+            contact_point=None if self._ball is None else self._contact_points(own(self.p), k),
         )
+
+    def _contact_points(self, centres: np.ndarray, k: int) -> np.ndarray:
+        """The ball's contact points c = p − r n̂ at the tool centres (N, 3) [m]: (N, 3), or
+        (N, k, 3) for k stacked surfaces (one on each)."""
+        assert self._ball is not None
+        surfaces, radius = self._ball
+        each = [contact_points(s, radius, centres) for s in surfaces[:k]]
+        return each[0] if k == 1 else np.stack(each, axis=1)

@@ -355,7 +355,7 @@ def check_contact_step(sc: Scenario, q0: np.ndarray, f0: float) -> None:
     """Refuse a time step too long for the contact model (compliant stiffness, friction's
     regularisation) at the start configuration q0 (nq,); f0 [N]: the task's force."""
 
-    dt_max = largest_stable_dt(sc.contact, sc.robot, sc.surfaces, [q0], f0)
+    dt_max = largest_stable_dt(sc.contact, sc.robot, sc.tool_surfaces, [q0], f0)
     if sc.sim.dt > dt_max:
         raise ScenarioError(
             f"sim.dt = {sc.sim.dt:g} s is too long for the contact "

@@ -120,7 +120,9 @@ def run_meta(sc: Scenario, ctrl: ControlSide, k: int, nq: int) -> dict:
         ),
         "sensor": sc.sensor.to_dict(),
         "contact": _acting(sc.contact.to_dict(), _contact_inert(sc)),
-        "tool": sc.tool.to_dict() if sc.tool.controlled else {"orientation": "free"},
+        "tool": sc.tool.to_dict()
+        if sc.tool.controlled
+        else {"orientation": "free", **({"radius": sc.tool.radius} if sc.tool.radius else {})},
         "versions": _versions(),
     }
 

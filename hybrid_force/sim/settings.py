@@ -17,6 +17,7 @@ from hybrid_force.control.laws.arimoto import check_damping_gain
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import ControlError, ScenarioError
+from hybrid_force.geometry.offset import tool_surfaces as offset_surfaces
 from hybrid_force.geometry.on_surface import check_path_on_surfaces
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
@@ -102,7 +103,8 @@ class Scenario:
     Attributes:
         robot: the plant, a :class:`~hybrid_force.Robot`.
         surfaces: a non-empty sequence of :class:`~hybrid_force.Surface` touched by the tip
-            (stored as a tuple).
+            (stored as a tuple); with ``tool.radius`` > 0 the part's, which the result records;
+            the plant, the controller and the path follow their offsets, :attr:`tool_surfaces`.
         path: desired task-space path, a :class:`~hybrid_force.Path` (on the surface).
         q0: (nq,) start configuration. v0: None or (nv,) start velocity (None: 0). Both are
             stored as new read-only float64 arrays.
@@ -187,6 +189,9 @@ class Scenario:
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
         object.__setattr__(self, "surfaces", tuple(surfaces))
+        # the offsets the tool centre follows exist (else SurfaceError naming tool.radius);
+        # a warning where a hollow is tighter than the ball
+        offset_surfaces(self.surfaces, self.tool.radius)
         for key, size in (("q0", robot.nq), ("v0", robot.nv)):
             if getattr(self, key) is None and key == "v0":
                 continue
@@ -231,6 +236,15 @@ class Scenario:
         self.tool.check_arm(robot)
         self._check_start_and_path()
 
+    @property
+    def tool_surfaces(self) -> tuple[Surface, ...]:
+        """The surfaces the tool centre (the tip frame's origin) follows, which the plant and
+        the controller use: ``surfaces`` themselves for a point tool, their offsets by
+        ``tool.radius`` for a ball end (:func:`~hybrid_force.geometry.offset.tool_surfaces`,
+        the same for the same surfaces and radius). A property, not a field, so that
+        ``Scenario(**other.__dict__)`` still copies a scenario."""
+        return offset_surfaces(self.surfaces, self.tool.radius, warn=False)
+
     def _check_contact(self) -> None:
         """A compliant or frictional contact needs the explicit Euler step (its forces are
         evaluated once per step) and forces in newtons: ScenarioError naming the [sim] key."""
@@ -255,7 +269,7 @@ class Scenario:
         "Scenario.surfaces" and ``value`` what the loader names: (surface index,
         OnSurfaceReport or None), (surface index, distance [m]), the row indices."""
 
-        control, surfaces, k = self.control, self.surfaces, len(self.surfaces)
+        control, surfaces, k = self.control, self.tool_surfaces, len(self.tool_surfaces)
         if k > 1 and control.supervisor:
             raise ScenarioError(
                 f"Scenario.surfaces: {k} stacked surfaces are supported only for a run that starts "

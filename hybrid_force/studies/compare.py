@@ -269,7 +269,7 @@ def run_compare(
             with contextlib.suppress(OSError):
                 out.rmdir()
         raise
-    surfaces = list(loaded[0].surfaces)
+    surfaces = list(loaded[0].tool_surfaces)  # the tool centre p follows these: their normals at p
     _, runs = read_sweep_csv(table)
     by_id = {r["run_id"]: r for r in runs}
     rows: list[dict[str, Any]] = []

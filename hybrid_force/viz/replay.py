@@ -12,7 +12,7 @@ meshcat scene:
   tip path ``p`` (``/meshcat/replay/paths/actual``) as polylines, thinned to a bounded number of
   points;
 * the tip marker ``/meshcat/replay/tip`` whose visible child shows the phase
-  (``free`` grey, ``near`` orange, ``contact`` green);
+  (``free`` grey, ``near`` orange, ``contact`` green; a ball-end tool's is its ball);
 * one force arrow per surface, ``/meshcat/replay/force/arrow_<i>``: it ends at the tip and points
   along −n̂ (n̂ = unit surface normal to the free side), i.e. it shows the force the tool applies on
   the surface; its length is ``force_scale · |f|`` [m] capped at ``force_cap``; it is hidden when

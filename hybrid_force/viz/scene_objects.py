@@ -116,10 +116,14 @@ def draw_static(vis: Any, replay: ReplayView) -> None:
         root["paths"][name].set_object(
             mg.Line(mg.PointsGeometry(positions), mg.LineBasicMaterial(color=color))
         )
-    # tip marker: one sphere per phase, only the current phase visible
+    # tip marker: one sphere per phase, only the current phase visible; a ball-end tool's
+    # marker is its ball (the tip is its centre: the ball touches the drawn part)
+    tool = r.meta.get("tool")
+    ball = tool.get("radius", 0.0) if isinstance(tool, dict) else 0.0
+    size = float(ball) if isinstance(ball, int | float) and ball > 0 else s.tip_radius
     for phase, pname in enumerate(PHASE_NAMES):
         root["tip"][pname].set_object(
-            mg.Mesh(mg.Sphere(s.tip_radius), mg.MeshLambertMaterial(color=PHASE_COLORS[phase]))
+            mg.Mesh(mg.Sphere(size), mg.MeshLambertMaterial(color=PHASE_COLORS[phase]))
         )
     # force arrows: unit length along +y, head at the group's origin (the tip)
     head = 0.25
