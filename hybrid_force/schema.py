@@ -135,8 +135,15 @@ def value_kind(cls: type, f: dataclasses.Field[Any]) -> tuple[str, tuple[Any, ..
     "points" (a list of vectors),
     "number_or_vector" (``float | tuple[float, ...]``), "matrix" (``float | np.ndarray``: a
     number, a vector or a matrix), "table" (a nested settings dataclass, whose fields are keys
-    of the same table) or "any" (the table's own code reads it). ``X | None`` is read as X."""
+    of the same table), "typed_table" (a union of settings dataclasses each with a ``kind``: a
+    subtable ``[table.key]`` whose ``type`` is one of the kinds; the choices are the classes)
+    or "any" (the table's own code reads it). ``X | None`` is read as X."""
     return _kinds(cls)[f.name]
+
+
+def _kinded(hint: Any) -> bool:
+    """A settings dataclass with a ``kind`` (the ``type`` of its subtable)."""
+    return dataclasses.is_dataclass(hint) and isinstance(getattr(hint, "kind", None), str)
 
 
 def _kind(hint: Any) -> tuple[str, tuple[Any, ...]]:
@@ -149,6 +156,8 @@ def _kind(hint: Any) -> tuple[str, tuple[Any, ...]]:
             return "number_or_vector", ()
         if float in rest and any(getattr(a, "__name__", "") == "ndarray" for a in rest):
             return "matrix", ()
+        if all(_kinded(a) for a in rest):
+            return "typed_table", rest  # a subtable [table.key] whose ``type`` picks the class
         return "any", ()
     if typing.get_origin(hint) is Literal:
         return "choice", args
@@ -227,7 +236,8 @@ class Key:
     "points" (a list of lists of numbers),
     "choice" (one of ``choices``), "str_list" (a list of non-empty strings), "str_table" (a
     table of texts: strings, or numbers and booleans turned into their TOML text),
-    "law_table" (a control law's own settings, checked against the law's keys).
+    "law_table" (a control law's own settings, checked against the law's keys),
+    "typed_table" (a subtable with a ``type`` key choosing its keys, ``tables``).
     ``param``: the field's declaration, whose range a number is checked against.
     """
 
@@ -236,6 +246,8 @@ class Key:
     choices: tuple[str, ...] = ()
     param: Param | None = None
     default: Any = MISSING_VALUE
+    tables: Mapping[str, Mapping[str, Key]] | None = None
+    """A "typed_table" key's subtable keys, by its ``type``."""
 
 
 def keys_of(cls: type) -> dict[str, Key]:
@@ -251,6 +263,12 @@ def keys_of(cls: type) -> dict[str, Key]:
                 out.update(keys_of(typing.get_type_hints(cls)[f.name]))
                 continue
             default = default_of(f)
+            if kind == "typed_table":
+                tables = {c.kind: keys_of(c) for c in choices}
+                out[spec.key or f.name] = Key(
+                    kind, default is MISSING_VALUE, (), spec, default, tables
+                )
+                continue
             keyed = Key(
                 kind, default is MISSING_VALUE, tuple(spec.choices or choices), spec, default
             )
@@ -265,11 +283,16 @@ def arguments(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
     for f, spec in specs(cls):
         if not (declared(f) and spec.toml):
             continue
-        if value_kind(cls, f)[0] == "table":
+        kind, choices = value_kind(cls, f)
+        if kind == "table":
             nested = typing.get_type_hints(cls)[f.name]
             given = arguments(nested, values)
             if given:
                 out[f.name] = nested(**given)
+        elif kind == "typed_table" and isinstance(values.get(spec.key or f.name), Mapping):
+            sub = dict(values[spec.key or f.name])
+            chosen = next(c for c in choices if c.kind == sub.pop("type"))
+            out[f.name] = chosen(**arguments(chosen, sub))
         elif (spec.key or f.name) in values:
             out[f.name] = values[spec.key or f.name]
     return out
@@ -297,7 +320,10 @@ _JSON: dict[str, dict[str, Any]] = {
 
 
 def json_key(key: Key) -> dict[str, Any]:
-    out: dict[str, Any] = {"enum": list(key.choices)} if key.choices else dict(_JSON[key.kind])
+    if key.kind == "typed_table" and key.tables is not None:
+        out: dict[str, Any] = {"oneOf": [json_table(k, kind) for kind, k in key.tables.items()]}
+    else:
+        out = {"enum": list(key.choices)} if key.choices else dict(_JSON[key.kind])
     spec = key.param
     if spec is not None:
         out["description"] = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
@@ -335,6 +361,7 @@ _TYPE_TEXT = {
     "number_or_vector": "number or numbers",
     "matrix": "number, numbers or matrix",
     "law_table": "table",
+    "typed_table": "table",
 }
 
 

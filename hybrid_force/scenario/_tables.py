@@ -191,6 +191,9 @@ def _check_value(ctx: _Context, key: str, value: object, spec: Key) -> object:
             raise ScenarioError(
                 f"{ctx.file}: {exc}", key=exc.key, value=exc.value, file=ctx.file
             ) from None
+    if kind == "typed_table" and spec.tables is not None:
+        chosen, values = _typed_table(ctx, key, value, spec.tables)
+        return {"type": chosen, **values}
     if kind == "bool":
         if not isinstance(value, bool):
             raise ctx.error(key, value, f"must be true or false, got {_type_name(value)}")
@@ -420,6 +423,10 @@ def markdown_tables() -> dict[str, str]:
         for kind, keys in types.items():
             rows = [markdown_row(k, key) for k, key in keys.items()]
             out[f"{table}.{kind}"] = "\n".join([head, *rows])
+            for name, key in keys.items():  # a subtable [table.name] of its own types
+                for sub, sub_keys in (key.tables or {}).items():
+                    sub_rows = [markdown_row(k, x) for k, x in sub_keys.items()]
+                    out[f"{table}.{kind}.{name}.{sub}"] = "\n".join([head, *sub_rows])
     return out
 
 

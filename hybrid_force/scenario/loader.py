@@ -193,7 +193,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
     robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
-    surfaces, surface_tables = _surfaces(doc, ctx)
+    surfaces, surface_tables = _surfaces(doc, ctx, file.parent)
     path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
     control_values = _check_table(ctx, "control", doc.get("control", {}), control_keys())
     sim_values = _check_table(ctx, "sim", doc.get("sim", {}), sim_keys())
