@@ -199,6 +199,30 @@ def test_a_mesh_scenario_runs_with_a_projected_raster(folder: Path) -> None:
     result = simulate(scenario)
     assert np.all(np.isfinite(result.f))
     assert result.meta["surfaces"][0]["type"] == "mesh"
+    _draws_its_triangles(result, folder)
+
+
+def _draws_its_triangles(result: object, folder: Path) -> None:
+    """The figures and the replay draw the file's own triangles, placed."""
+    from hybrid_force.viz._wireframes import _surface_triangles
+    from hybrid_force.viz.scene_objects import _surface_geometry
+
+    meta = result.meta  # type: ignore[attr-defined]
+    mesh = trimesh.load(folder / "sphere.stl")
+    vertices, faces = _surface_triangles(meta["surfaces"][0], 0, result.p)  # type: ignore[attr-defined]
+    assert len(faces) == len(mesh.faces)
+    placed = np.asarray(mesh.vertices) + np.array([0.45, 0.1, 0.0])
+    np.testing.assert_allclose(np.sort(vertices, axis=0), np.sort(placed, axis=0), atol=1e-12)
+    (surface,) = load_scenario(folder / "raster_on_sphere.toml").surfaces
+    geometry, transform = _surface_geometry(surface, result.p, 0.05)  # type: ignore[attr-defined]
+    assert np.array_equal(transform, np.eye(4))
+    assert geometry.vertices.shape == vertices.shape and geometry.faces.shape == faces.shape
+    # a big mesh keeps the faces near the motion only, each with a vertex in the padded box
+    near_v, near_f = surface.triangles(result.p, 0.05, max_faces=100)  # type: ignore[attr-defined]
+    assert 0 < len(near_f) < len(faces)
+    low, high = result.p.min(axis=0) - 0.05, result.p.max(axis=0) + 0.05  # type: ignore[attr-defined]
+    inside = np.all((near_v >= low - 1e-12) & (near_v <= high + 1e-12), axis=1)
+    assert inside[near_f].any(axis=1).all()
 
 
 def test_world_waypoints_are_projected_onto_the_part(folder: Path) -> None:

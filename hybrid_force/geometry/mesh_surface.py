@@ -241,6 +241,24 @@ class MeshSurface(Surface):
             "chart": None if self.chart is None else self.chart.to_dict(),
         }
 
+    def triangles(
+        self, points: np.ndarray | None = None, margin: float = 0.0, max_faces: int = 200_000
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The part's own triangles for drawing: (vertices (V, 3) [m], faces (F, 3) indices).
+
+        All of them, or for a mesh of more than ``max_faces`` faces only those with a vertex
+        within ``margin`` [m] (at least 10 % of the motion's span) of the bounding box of
+        ``points`` (M, 3) [m], the motion (a replay's page stays small)."""
+        vertices, faces = self.part.vertices, self.part.faces
+        if points is None or len(faces) <= max_faces or len(points) == 0:
+            return vertices, faces
+        low, high = points.min(axis=0), points.max(axis=0)
+        pad = max(margin, 0.1 * float(np.linalg.norm(high - low)))
+        near = np.all((vertices >= low - pad) & (vertices <= high + pad), axis=1)
+        kept = faces[near[faces].any(axis=1)]
+        used, inverse = np.unique(kept, return_inverse=True)
+        return vertices[used], inverse.reshape(-1, 3)
+
     def smallest_concave_radius(self) -> float:
         """The smallest radius of curvature [m] of the part's concave regions, at its vertices.
 
