@@ -53,43 +53,56 @@ def field_eval(
     box's nearest point p_c: Φ(p_c) + ∇Φ(p_c)·(p − p_c), ∇Φ = ∇Φ(p_c), ∇²Φ = 0 (C⁰ and C¹
     along the box's normal; the box is sized so that the tool works well inside it).
     """
-    bx = np.empty(4)
-    dx = np.empty(4)
-    sx = np.empty(4)
-    by = np.empty(4)
-    dy = np.empty(4)
-    sy = np.empty(4)
-    bz = np.empty(4)
-    dz = np.empty(4)
-    sz = np.empty(4)
-    cell = np.empty(3, dtype=np.int64)
-    local = np.empty(3)
-    offset = np.zeros(3)
+    work = np.empty((9, 4))
+    return _field_eval_into(coef, origin, h, p, grad, hess, work)
+
+
+@_jit
+def _field_eval_into(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    work: np.ndarray,
+) -> float:
+    """:func:`field_eval` with its basis weights in ``work`` (9, 4), allocated by the caller
+    (once for the many evaluations of a chart's ray march)."""
+    bx, dx, sx = work[0], work[1], work[2]
+    by, dy, sy = work[3], work[4], work[5]
+    bz, dz, sz = work[6], work[7], work[8]
     outside = False
+    o0 = o1 = o2 = 0.0
+    i0 = j0 = k0 = 0
     for k in range(3):
         n = coef.shape[k] - 2
         u = (p[k] - origin[k]) / h
         top = float(n - 1)
+        off = 0.0
         if u < 0.0:
-            offset[k] = (u - 0.0) * h
+            off = (u - 0.0) * h
             u = 0.0
             outside = True
         elif u > top:
-            offset[k] = (u - top) * h
+            off = (u - top) * h
             u = top
             outside = True
         i = math.floor(u)
         if i > n - 2:
             i = n - 2
-        cell[k] = i
-        local[k] = u - i
-    _basis(local[0], bx, dx, sx)
-    _basis(local[1], by, dy, sy)
-    _basis(local[2], bz, dz, sz)
+        if k == 0:
+            i0, o0 = i, off
+            _basis(u - i, bx, dx, sx)
+        elif k == 1:
+            j0, o1 = i, off
+            _basis(u - i, by, dy, sy)
+        else:
+            k0, o2 = i, off
+            _basis(u - i, bz, dz, sz)
     value = 0.0
     gx = gy = gz = 0.0
     hxx = hyy = hzz = hxy = hxz = hyz = 0.0
-    i0, j0, k0 = cell[0], cell[1], cell[2]
     for a in range(4):
         for b in range(4):
             # the sums over z first: 4 numbers per (a, b) shared by every derivative
@@ -117,7 +130,7 @@ def field_eval(
     grad[1] = gy * inv_h
     grad[2] = gz * inv_h
     if outside:
-        value += grad[0] * offset[0] + grad[1] * offset[1] + grad[2] * offset[2]
+        value += grad[0] * o0 + grad[1] * o1 + grad[2] * o2
         for r in range(3):
             for c in range(3):
                 hess[r, c] = 0.0
@@ -138,8 +151,9 @@ def field_eval_many(
     """Φ at each row of points (m, 3) [m] into out (m,) (for checks and figures)."""
     grad = np.empty(3)
     hess = np.empty((3, 3))
+    work = np.empty((9, 4))
     for r in range(points.shape[0]):
-        out[r] = field_eval(coef, origin, h, points[r], grad, hess)
+        out[r] = _field_eval_into(coef, origin, h, points[r], grad, hess, work)
 
 
 @_jit
@@ -173,6 +187,20 @@ def _ray_frame(mode: int, frame: np.ndarray, u: float, v: float, rows: np.ndarra
 
 @_jit
 def ray_chart_eval(
+    coef: np.ndarray, params: np.ndarray, u: float, v: float, out: np.ndarray
+) -> float:
+    """:func:`ray_chart_of` with its settings packed in params (20,): origin (3) [m], h [m],
+    mode, s_start, s_end [m], frame (4, 3) row by row (five arguments: each costs the call
+    about 0.1 µs in Numba's dispatch, which is most of a chart evaluation's cost)."""
+    origin = params[0:3]
+    frame = params[8:20].reshape((4, 3))
+    return ray_chart_of(
+        coef, origin, params[3], int(params[4]), frame, u, v, params[5], params[6], out
+    )
+
+
+@_jit
+def ray_chart_of(
     coef: np.ndarray,
     origin: np.ndarray,
     h: float,
@@ -206,13 +234,14 @@ def ray_chart_eval(
     _ray_frame(mode, frame, u, v, rows)
     grad = np.empty(3)
     hess = np.empty((3, 3))
+    work = np.empty((9, 4))
     p = np.empty(3)
     direction = 1.0 if s_end >= s_start else -1.0
     span = abs(s_end - s_start)
     s = s_start
     for k in range(3):
         p[k] = rows[0, k] + s * rows[6, k]
-    phi = field_eval(coef, origin, h, p, grad, hess)
+    phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
     if not phi > 0.0:
         return math.nan
     lo = s
@@ -228,7 +257,7 @@ def ray_chart_eval(
         s_new = s_start + direction * travelled
         for k in range(3):
             p[k] = rows[0, k] + s_new * rows[6, k]
-        phi_new = field_eval(coef, origin, h, p, grad, hess)
+        phi_new = _field_eval_into(coef, origin, h, p, grad, hess, work)
         if phi_new <= 0.0:
             hi = s_new
             break
@@ -243,7 +272,7 @@ def ray_chart_eval(
     for _ in range(200):
         for k in range(3):
             p[k] = rows[0, k] + s * rows[6, k]
-        phi = field_eval(coef, origin, h, p, grad, hess)
+        phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
         if abs(phi) <= 1e-14:
             break
         if phi > 0.0:
@@ -258,7 +287,7 @@ def ray_chart_eval(
             break
     for k in range(3):
         p[k] = rows[0, k] + s * rows[6, k]
-    field_eval(coef, origin, h, p, grad, hess)
+    _field_eval_into(coef, origin, h, p, grad, hess, work)
     a = grad[0] * rows[6, 0] + grad[1] * rows[6, 1] + grad[2] * rows[6, 2]
     gnorm = math.sqrt(grad[0] ** 2 + grad[1] ** 2 + grad[2] ** 2)
     if not abs(a) >= 1e-3 * gnorm:

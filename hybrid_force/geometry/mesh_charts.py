@@ -179,15 +179,15 @@ class MeshChart(SurfaceChart):
             self.names, self.units = ("angle", "height"), ("rad", "m")
             self.periods = (2.0 * math.pi, 0.0)
         self._out = np.empty((6, 3))
+        self._params = np.concatenate(
+            [self._origin, [self._h, self._mode, self._start, self._end, 0.0], self._frame.ravel()]
+        )
         from hybrid_force.geometry import _field_kernels
 
         self._kernel = _field_kernels.ray_chart_eval
 
     def _evaluate(self, u: float, v: float) -> np.ndarray:
-        s = self._kernel(
-            self._coef, self._origin, self._h, self._mode, self._frame,
-            u, v, self._start, self._end, self._out,
-        )  # fmt: skip
+        s = self._kernel(self._coef, self._params, u, v, self._out)
         if s != s:  # NaN: no point of the part on this ray
             raise self._miss(u, v)
         return self._out
