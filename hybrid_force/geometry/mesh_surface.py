@@ -47,6 +47,7 @@ __all__ = ["MeshSurface", "PartReport", "check_part"]
 #: ‖∇Φ‖ below this: the normal is undefined (a distance field has ‖∇Φ‖ ≈ 1 near the surface).
 _SINGULAR_GRADIENT = 1e-6
 _ORIGIN: Vec3 = (0.0, 0.0, 0.0)
+_LARGEST = 1e150  # |coordinate| [m] of a point taken as it is (surface_base._MAX_POINT)
 
 
 @register_surface
@@ -184,6 +185,12 @@ class MeshSurface(Surface):
         return value, grad, hess, value
 
     def _checked(self, p: ArrayLike, method: str) -> np.ndarray:
+        """p as a float64 (3,) array (itself when it already is one, finite: the tool's
+        orientation asks for ∇²Φ off the path twice a step), else checked by _xyz."""
+        if type(p) is np.ndarray and p.shape == (3,) and p.dtype == np.float64:
+            x, y, z = p.tolist()
+            if abs(x) <= _LARGEST and abs(y) <= _LARGEST and abs(z) <= _LARGEST:
+                return p
         return np.array(_xyz(p, self, method))
 
     def phi(self, p: ArrayLike) -> float:
