@@ -385,3 +385,21 @@ def test_paper_contact_on_a_512_section_cylinder_mesh(folder: Path) -> None:
         # the helix lies on the vertices' circle, the mesh's faces up to the sagitta inside
         assert position <= 1e-5 and position <= 1.5 * sagitta, (resolution, position)
         assert force <= 1e-3, (resolution, force)
+
+
+def test_a_chart_without_a_path_on_the_surface_is_refused(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    shutil.copy(folder / "sphere.stl", tmp_path / "sphere.stl")
+    circle = """
+    [trajectory]
+    type = "circle"
+    center = [0.45, 0.1, 0.3]
+    radius = 0.01
+    normal = [0.0, 0.0, 1.0]
+    omega = 1.0
+    """
+    path = _scenario(tmp_path, _SURFACE, circle, "chart_unused")
+    path.write_text(path.read_text().replace("TIP", "[0.46, 0.1, 0.3]"))
+    err = _refusal(path, capsys, tmp_path / "out")
+    assert "surface.chart = " in err and "has no effect" in err and "raster" in err

@@ -116,6 +116,11 @@ def _world_waypoints(doc: Mapping[str, Any]) -> bool:
     return _value(doc, "trajectory.frame", "world") == "world"
 
 
+def _surface_path(doc: Mapping[str, Any]) -> bool:
+    """The path is laid in a surface's coordinates (a mesh part's ``[surface.chart]``)."""
+    return _value(doc, "trajectory.type") in ("waypoints", "raster")
+
+
 _ACTS_WHEN: tuple[_ActsWhen, ...] = (
     *(
         _ActsWhen(f"contact.{key}", _compliant, 'contact.model = "compliant"')
@@ -127,6 +132,7 @@ _ACTS_WHEN: tuple[_ActsWhen, ...] = (
         for key in ("axis", "tilt", "tilt_axis", "roll")
     ),
     _ActsWhen("trajectory.projection_tol", _world_waypoints, 'trajectory.frame = "world"'),
+    _ActsWhen("surface.chart", _surface_path, 'trajectory.type = "waypoints" or "raster"'),
     *(
         _ActsWhen(f"sim.{key}", _rigid, 'contact.model = "rigid" (the default)')
         for key in ("baumgarte_alpha", "baumgarte_beta", "unilateral")
