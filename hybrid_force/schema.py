@@ -65,8 +65,9 @@ class Param:
         key: the TOML key, when it differs from the field name (e.g. ``baumgarte_alpha``).
         toml: False: the field is set from Python only (no TOML key).
         acts_when: the key has an effect only when another key has a value: ``(key, value)``
-            or ``(key, ">", value)``; the other key is of the same table, or ``table.key``
-            (``("contact.model", "rigid")``); absent keys have their defaults.
+            or ``(key, ">", value)`` or ``(key, "in", values)``; the other key is of the same
+            table, or ``table.key`` (``("contact.model", "rigid")``); absent keys have their
+            defaults.
             A key given where its rule does not hold is refused by the reader.
         inert: why no configuration reads the key (the reader warns and leaves it out).
     """
@@ -143,8 +144,15 @@ def value_kind(cls: type, f: dataclasses.Field[Any]) -> tuple[str, tuple[Any, ..
     "points" (a list of vectors),
     "number_or_vector" (``float | tuple[float, ...]``), "matrix" (``float | np.ndarray``: a
     number, a vector or a matrix), "table" (a nested settings dataclass, whose fields are keys
-    of the same table) or "any" (the table's own code reads it). ``X | None`` is read as X."""
+    of the same table), "typed_table" (a union of settings dataclasses each with a ``kind``: a
+    subtable ``[table.key]`` whose ``type`` is one of the kinds; the choices are the classes)
+    or "any" (the table's own code reads it). ``X | None`` is read as X."""
     return _kinds(cls)[f.name]
+
+
+def _kinded(hint: Any) -> bool:
+    """A settings dataclass with a ``kind`` (the ``type`` of its subtable)."""
+    return dataclasses.is_dataclass(hint) and isinstance(getattr(hint, "kind", None), str)
 
 
 def _kind(hint: Any) -> tuple[str, tuple[Any, ...]]:
@@ -157,6 +165,8 @@ def _kind(hint: Any) -> tuple[str, tuple[Any, ...]]:
             return "number_or_vector", ()
         if float in rest and any(getattr(a, "__name__", "") == "ndarray" for a in rest):
             return "matrix", ()
+        if all(_kinded(a) for a in rest):
+            return "typed_table", rest  # a subtable [table.key] whose ``type`` picks the class
         return "any", ()
     if typing.get_origin(hint) is Literal:
         return "choice", args

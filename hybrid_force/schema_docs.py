@@ -42,11 +42,15 @@ _TYPE_TEXT = {
     "points": "array of points",
     "number_or_vector": "number or numbers",
     "matrix": "number, numbers or matrix",
+    "typed_table": "table",
 }
 
 
 def _json_key(key: Key) -> dict[str, Any]:
-    out: dict[str, Any] = {"enum": list(key.choices)} if key.choices else dict(_JSON[key.kind])
+    if key.kind == "typed_table" and key.tables is not None:
+        out: dict[str, Any] = {"oneOf": [_json_table(k, kind) for kind, k in key.tables.items()]}
+    else:
+        out = {"enum": list(key.choices)} if key.choices else dict(_JSON[key.kind])
     spec = key.param
     if spec is not None:
         out["description"] = spec.doc + (f" [{spec.unit}]" if spec.unit else "")
@@ -142,6 +146,10 @@ def markdown_tables() -> dict[str, str]:
         for kind, keys in types.items():
             rows = [_markdown_row(k, key) for k, key in keys.items()]
             out[f"{table}.{kind}"] = "\n".join([head, *rows])
+            for name, key in keys.items():  # a subtable [table.name] of its own types
+                for sub, sub_keys in (key.tables or {}).items():
+                    sub_rows = [_markdown_row(k, x) for k, x in sub_keys.items()]
+                    out[f"{table}.{kind}.{name}.{sub}"] = "\n".join([head, *sub_rows])
     return out
 
 

@@ -25,13 +25,15 @@ __all__ = ["Key", "check_acting", "check_table", "keys_of", "read_settings", "ty
 class Key:
     """One key of a table: its kind of value (:func:`~hybrid_force.schema.value_kind`'s, and
     "str_list": non-empty strings, "str_table": texts by name, "table": a sub-table read by
-    its own keys), whether it is required, its choices, declaration and default."""
+    its own keys, "typed_table": a sub-table whose ``type`` picks its keys, ``tables``), whether
+    it is required, its choices, declaration and default."""
 
     kind: str
     required: bool = False
     choices: tuple[str, ...] = ()
     param: Param | None = None
     default: Any = MISSING_VALUE
+    tables: Mapping[str, Mapping[str, Key]] | None = None
 
 
 def keys_of(cls: type) -> dict[str, Key]:
@@ -49,8 +51,10 @@ def keys_of(cls: type) -> dict[str, Key]:
                     out[name] = Key(key.kind, key.required, key.choices, inherited, key.default)
                 continue
             default = default_of(f)
-            choices = tuple(spec.choices or choices)
-            out[spec.key or f.name] = Key(kind, default is MISSING_VALUE, choices, spec, default)
+            tables = {c.kind: keys_of(c) for c in choices} if kind == "typed_table" else None
+            choices = () if tables else tuple(spec.choices or choices)
+            key = Key(kind, default is MISSING_VALUE, choices, spec, default, tables)
+            out[spec.key or f.name] = key
     return out
 
 
@@ -61,11 +65,16 @@ def arguments(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
     for f, spec in specs(cls):
         if not (declared(f) and spec.toml):
             continue
-        if value_kind(cls, f)[0] == "table":
+        kind, choices = value_kind(cls, f)
+        if kind == "table":
             nested = typing.get_type_hints(cls)[f.name]
             given = arguments(nested, values)
             if given:
                 out[f.name] = nested(**given)
+        elif kind == "typed_table" and isinstance(values.get(spec.key or f.name), Mapping):
+            sub = dict(values[spec.key or f.name])
+            chosen = next(c for c in choices if c.kind == sub.pop("type"))
+            out[f.name] = chosen(**arguments(chosen, sub))
         elif (spec.key or f.name) in values:
             out[f.name] = values[spec.key or f.name]
     return out
@@ -123,6 +132,9 @@ def check_value(ctx: _Context, key: str, value: Any, spec: Key) -> Any:
             hint = suggest(value, spec.choices) if isinstance(value, str) else ""
             raise ctx.error(key, value, f"must be one of {list(spec.choices)}{hint}")
         return value
+    if kind == "typed_table" and spec.tables is not None:
+        chosen, values = typed_table(ctx, key, value, spec.tables)
+        return {"type": chosen, **values}
     if kind == "table":
         if not isinstance(value, dict):
             raise ctx.error(key, value, f"must be a table [{key}], got {type_name(value)}")
@@ -334,7 +346,13 @@ def check_acting(
             elif spec is not None and spec.acts_when:
                 other, *op, wanted = spec.acts_when
                 where, _, name = other.rpartition(".") if "." in other else (table, "", other)
-                now = values.get(where, {}).get(name, tables[where][name].default)
-                if not (now > wanted if op == [">"] else now == wanted):
+                got = values.get(where, {})
+                now = got[name] if name in got else tables[where][name].default
+                if op == ["in"]:
+                    acts, shown = now in wanted, " or ".join(_fmt(w) for w in wanted)
+                    needs = f"{where}.{name} = {shown}"
+                else:
+                    acts = now > wanted if op == [">"] else now == wanted
                     needs = f"{where}.{name} {op[0] if op else '='} {_fmt(wanted)}"
+                if not acts:
                     raise no_effect(ctx, f"{table}.{key}", node[key], needs)

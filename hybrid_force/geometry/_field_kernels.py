@@ -53,43 +53,56 @@ def field_eval(
     box's nearest point p_c: Φ(p_c) + ∇Φ(p_c)·(p − p_c), ∇Φ = ∇Φ(p_c), ∇²Φ = 0 (C⁰ and C¹
     along the box's normal; the box is sized so that the tool works well inside it).
     """
-    bx = np.empty(4)
-    dx = np.empty(4)
-    sx = np.empty(4)
-    by = np.empty(4)
-    dy = np.empty(4)
-    sy = np.empty(4)
-    bz = np.empty(4)
-    dz = np.empty(4)
-    sz = np.empty(4)
-    cell = np.empty(3, dtype=np.int64)
-    local = np.empty(3)
-    offset = np.zeros(3)
+    work = np.empty((9, 4))
+    return _field_eval_into(coef, origin, h, p, grad, hess, work)
+
+
+@_jit
+def _field_eval_into(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    work: np.ndarray,
+) -> float:
+    """:func:`field_eval` with its basis weights in ``work`` (9, 4), allocated by the caller
+    (once for the many evaluations of a chart's ray march)."""
+    bx, dx, sx = work[0], work[1], work[2]
+    by, dy, sy = work[3], work[4], work[5]
+    bz, dz, sz = work[6], work[7], work[8]
     outside = False
+    o0 = o1 = o2 = 0.0
+    i0 = j0 = k0 = 0
     for k in range(3):
         n = coef.shape[k] - 2
         u = (p[k] - origin[k]) / h
         top = float(n - 1)
+        off = 0.0
         if u < 0.0:
-            offset[k] = (u - 0.0) * h
+            off = (u - 0.0) * h
             u = 0.0
             outside = True
         elif u > top:
-            offset[k] = (u - top) * h
+            off = (u - top) * h
             u = top
             outside = True
         i = math.floor(u)
         if i > n - 2:
             i = n - 2
-        cell[k] = i
-        local[k] = u - i
-    _basis(local[0], bx, dx, sx)
-    _basis(local[1], by, dy, sy)
-    _basis(local[2], bz, dz, sz)
+        if k == 0:
+            i0, o0 = i, off
+            _basis(u - i, bx, dx, sx)
+        elif k == 1:
+            j0, o1 = i, off
+            _basis(u - i, by, dy, sy)
+        else:
+            k0, o2 = i, off
+            _basis(u - i, bz, dz, sz)
     value = 0.0
     gx = gy = gz = 0.0
     hxx = hyy = hzz = hxy = hxz = hyz = 0.0
-    i0, j0, k0 = cell[0], cell[1], cell[2]
     for a in range(4):
         for b in range(4):
             # the sums over z first: 4 numbers per (a, b) shared by every derivative
@@ -117,7 +130,7 @@ def field_eval(
     grad[1] = gy * inv_h
     grad[2] = gz * inv_h
     if outside:
-        value += grad[0] * offset[0] + grad[1] * offset[1] + grad[2] * offset[2]
+        value += grad[0] * o0 + grad[1] * o1 + grad[2] * o2
         for r in range(3):
             for c in range(3):
                 hess[r, c] = 0.0
@@ -138,5 +151,177 @@ def field_eval_many(
     """Φ at each row of points (m, 3) [m] into out (m,) (for checks and figures)."""
     grad = np.empty(3)
     hess = np.empty((3, 3))
+    work = np.empty((9, 4))
     for r in range(points.shape[0]):
-        out[r] = field_eval(coef, origin, h, points[r], grad, hess)
+        out[r] = _field_eval_into(coef, origin, h, points[r], grad, hess, work)
+
+
+@_jit
+def _ray_frame(mode: int, frame: np.ndarray, u: float, v: float, rows: np.ndarray) -> None:
+    """The ray P(s) = B(u, v) + s·D(u, v) of a mesh chart and its derivatives in (u, v).
+
+    rows (12, 3): B, B_u, B_v, B_uu, B_uv, B_vv, D, D_u, D_v, D_uu, D_uv, D_vv.
+    mode 0 (projection), frame rows (o, e_u, e_v, n): B = o + u e_u + v e_v, D = n.
+    mode 1 (cylindrical), frame rows (c, e1, e2, a), (u, v) = (θ, h): B = c + h a,
+    D = cos θ e1 + sin θ e2 (the radial direction).
+    """
+    for r in range(12):
+        for k in range(3):
+            rows[r, k] = 0.0
+    if mode == 0:
+        for k in range(3):
+            rows[0, k] = frame[0, k] + u * frame[1, k] + v * frame[2, k]
+            rows[1, k] = frame[1, k]
+            rows[2, k] = frame[2, k]
+            rows[6, k] = frame[3, k]
+    else:
+        co = math.cos(u)
+        si = math.sin(u)
+        for k in range(3):
+            rows[0, k] = frame[0, k] + v * frame[3, k]
+            rows[2, k] = frame[3, k]
+            rows[6, k] = co * frame[1, k] + si * frame[2, k]
+            rows[7, k] = -si * frame[1, k] + co * frame[2, k]
+            rows[9, k] = -rows[6, k]
+
+
+@_jit
+def ray_chart_eval(
+    coef: np.ndarray, params: np.ndarray, u: float, v: float, out: np.ndarray
+) -> float:
+    """:func:`ray_chart_of` with its settings packed in params (20,): origin (3) [m], h [m],
+    mode, s_start, s_end [m], frame (4, 3) row by row (five arguments: each costs the call
+    about 0.1 µs in Numba's dispatch, which is most of a chart evaluation's cost)."""
+    origin = params[0:3]
+    frame = params[8:20].reshape((4, 3))
+    return ray_chart_of(
+        coef, origin, params[3], int(params[4]), frame, u, v, params[5], params[6], out
+    )
+
+
+@_jit
+def ray_chart_of(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    mode: int,
+    frame: np.ndarray,
+    u: float,
+    v: float,
+    s_start: float,
+    s_end: float,
+    out: np.ndarray,
+) -> float:
+    """S(u, v) of a mesh chart: the first point where the ray P(s) = B + s·D, marched from
+    s_start towards s_end (on the free side, Φ > 0, at s_start), meets Φ = 0; and its
+    derivatives in (u, v) by implicit differentiation of Φ(B + s(u, v) D) = 0.
+
+    With G = ∇Φ(S), H = ∇²Φ(S), a = G·D and x, y ∈ {u, v}:
+    s_x = −G·(B_x + s D_x)/a, S_x = B_x + s_x D + s D_x, and, from ∂_y(G·S_x) = 0,
+    s_xy = −(S_yᵀ H S_x + G·K_xy)/a with K_xy = B_xy + s_x D_y + s_y D_x + s D_xy,
+    S_xy = K_xy + s_xy D.
+
+    The march: steps of max(0.9 Φ, h/4) (Φ is a distance to within the fit, so a step of
+    0.9 Φ cannot cross the surface; h/4 bounds the count where the ray grazes it), then a
+    safeguarded Newton-bisection on the bracket to |Φ| ≤ 1e-14 m. Deterministic: the same
+    (u, v) gives the same bits whatever was evaluated before.
+
+    out (6, 3): S, S_u, S_v, S_uu, S_uv, S_vv [m per unit of u, v]. Returns s, or
+    NaN when the ray misses the part (no crossing before s_end), starts on the part's side
+    (Φ ≤ 0 at s_start) or grazes it (|G·D| < 1e-3 |G|: the chart is singular there).
+    """
+    rows = np.empty((12, 3))
+    _ray_frame(mode, frame, u, v, rows)
+    grad = np.empty(3)
+    hess = np.empty((3, 3))
+    work = np.empty((9, 4))
+    p = np.empty(3)
+    direction = 1.0 if s_end >= s_start else -1.0
+    span = abs(s_end - s_start)
+    s = s_start
+    for k in range(3):
+        p[k] = rows[0, k] + s * rows[6, k]
+    phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
+    if not phi > 0.0:
+        return math.nan
+    lo = s
+    hi = math.nan
+    travelled = 0.0
+    for _ in range(100000):
+        step = 0.9 * phi
+        if step < 0.25 * h:
+            step = 0.25 * h
+        travelled += step
+        if travelled > span:
+            travelled = span
+        s_new = s_start + direction * travelled
+        for k in range(3):
+            p[k] = rows[0, k] + s_new * rows[6, k]
+        phi_new = _field_eval_into(coef, origin, h, p, grad, hess, work)
+        if phi_new <= 0.0:
+            hi = s_new
+            break
+        lo = s_new
+        phi = phi_new
+        if travelled >= span:
+            break
+    if math.isnan(hi):
+        return math.nan
+    # the bracket [lo (Φ > 0), hi (Φ ≤ 0)] along the ray: Newton, bisection where it leaves it
+    s = hi
+    for _ in range(200):
+        for k in range(3):
+            p[k] = rows[0, k] + s * rows[6, k]
+        phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
+        if abs(phi) <= 1e-14:
+            break
+        if phi > 0.0:
+            lo = s
+        else:
+            hi = s
+        slope = grad[0] * rows[6, 0] + grad[1] * rows[6, 1] + grad[2] * rows[6, 2]
+        trial = s - phi / slope if slope != 0.0 else math.nan
+        inside = (trial - lo) * (trial - hi) < 0.0
+        s = trial if inside else 0.5 * (lo + hi)
+        if abs(hi - lo) <= 1e-15 * (1.0 + abs(s)):
+            break
+    for k in range(3):
+        p[k] = rows[0, k] + s * rows[6, k]
+    _field_eval_into(coef, origin, h, p, grad, hess, work)
+    a = grad[0] * rows[6, 0] + grad[1] * rows[6, 1] + grad[2] * rows[6, 2]
+    gnorm = math.sqrt(grad[0] ** 2 + grad[1] ** 2 + grad[2] ** 2)
+    if not abs(a) >= 1e-3 * gnorm:
+        return math.nan
+    sx = np.empty(2)
+    for x in range(2):  # B_x rows 1, 2; D_x rows 7, 8
+        dot = 0.0
+        for k in range(3):
+            dot += grad[k] * (rows[1 + x, k] + s * rows[7 + x, k])
+        sx[x] = -dot / a
+    for k in range(3):
+        out[0, k] = p[k]
+        for x in range(2):
+            out[1 + x, k] = rows[1 + x, k] + sx[x] * rows[6, k] + s * rows[7 + x, k]
+    pairs = ((0, 0), (0, 1), (1, 1))  # S_uu, S_uv, S_vv: rows 3, 4, 5 of B and 9, 10, 11 of D
+    known = np.empty(3)
+    for m in range(3):
+        x, y = pairs[m]
+        curvature = 0.0
+        for i in range(3):
+            row = 0.0
+            for j in range(3):
+                row += hess[i, j] * out[1 + x, j]
+            curvature += out[1 + y, i] * row
+        dot = 0.0
+        for k in range(3):
+            known[k] = (
+                rows[3 + m, k]
+                + sx[x] * rows[7 + y, k]
+                + sx[y] * rows[7 + x, k]
+                + s * rows[9 + m, k]
+            )
+            dot += grad[k] * known[k]
+        sxy = -(curvature + dot) / a
+        for k in range(3):
+            out[3 + m, k] = known[k] + sxy * rows[6, k]
+    return s

@@ -25,7 +25,7 @@ import io
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -177,6 +177,15 @@ class DistanceField:
     spacing: float
     build_seconds: float = 0.0
     cache_file: str = ""
+    _last: list = field(default_factory=list, init=False, repr=False, compare=False)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the last evaluation (a worker starts with none)."""
+        return {k: v for k, v in self.__dict__.items() if k != "_last"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        object.__setattr__(self, "_last", [])
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -185,14 +194,19 @@ class DistanceField:
         return (nx, ny, nz)
 
     def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """(Φ [m], ∇Φ: (3,), ∇²Φ: (3, 3) [1/m]) at p: (3,) float64 [m]."""
-        from hybrid_force.geometry import _field_kernels
+        """(Φ [m], ∇Φ: (3,), ∇²Φ: (3, 3) [1/m]) at p: (3,) float64 [m]; fresh arrays.
 
+        The last point's values are kept: a simulation step asks for Φ at the same tip
+        several times (the constraint, the tool's orientation, the contact), and a copy costs
+        a tenth of a kernel call. The same p gives the same bits either way."""
+        key = p.tobytes()
+        last = self._last
+        if last and last[0] == key:
+            return last[1], last[2].copy(), last[3].copy()
         grad = np.empty(3)
         hess = np.empty((3, 3))
-        value = _field_kernels.field_eval(
-            self.coefficients, self.origin, self.spacing, p, grad, hess
-        )
+        value = _kernel()(self.coefficients, self.origin, self.spacing, p, grad, hess)
+        self._last[:] = (key, value, grad.copy(), hess.copy())
         return value, grad, hess
 
     def values(self, points: np.ndarray) -> np.ndarray:
@@ -203,6 +217,19 @@ class DistanceField:
         out = np.empty(pts.shape[0])
         _field_kernels.field_eval_many(self.coefficients, self.origin, self.spacing, pts, out)
         return out
+
+
+_FIELD_EVAL = None
+
+
+def _kernel():  # type: ignore[no-untyped-def]
+    """The compiled field_eval, imported on first use (Numba is not imported before)."""
+    global _FIELD_EVAL
+    if _FIELD_EVAL is None:
+        from hybrid_force.geometry import _field_kernels
+
+        _FIELD_EVAL = _field_kernels.field_eval
+    return _FIELD_EVAL
 
 
 def _grid(part: MeshPart, h: float, key: str) -> tuple[np.ndarray, tuple[int, int, int]]:

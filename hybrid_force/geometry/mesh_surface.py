@@ -1,12 +1,18 @@
-"""A workpiece given as a triangle mesh (STL, OBJ, PLY): Φ is its smooth signed distance.
+"""A workpiece given as a triangle mesh (``[surface] type = "mesh"``: STL, OBJ, PLY).
 
 Φ(p) is the tricubic B-spline field of :mod:`.mesh_field` (a metric distance to within the
 fit error, Φ > 0 on the free side), so ``distance`` is Φ itself and a tool of radius r follows
 the offset surface Φ − r exactly (up to that fit). The mesh's triangles are kept for drawing.
+Paths in surface coordinates use the part's ``chart`` (:mod:`.mesh_charts`).
+
+A sweep builds the surface once on its own machine and sends it, field included, to its
+workers (:func:`hybrid_force.scenario._builders.file_surfaces`): a worker never reads the mesh
+file nor the cache folder.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -17,33 +23,93 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybrid_force.errors import ModelWarning, SurfaceError
+from hybrid_force.geometry.charts import register_chart
+from hybrid_force.geometry.mesh_charts import (
+    CylindricalChartSettings,
+    MeshChart,
+    ProjectionChartSettings,
+    chart_settings,
+)
 from hybrid_force.geometry.mesh_field import DistanceField, MeshPart, build_field, read_mesh
-from hybrid_force.geometry.surface_base import Surface, _xyz
+from hybrid_force.geometry.surface_base import (
+    Surface,
+    Vec3,
+    _boolean,
+    _point3,
+    _vector3,
+    _xyz,
+    register_surface,
+)
+from hybrid_force.schema import param
 
-__all__ = ["MeshSurface"]
+__all__ = ["MeshSurface", "PartReport", "check_part"]
 
 #: ‖∇Φ‖ below this: the normal is undefined (a distance field has ‖∇Φ‖ ≈ 1 near the surface).
 _SINGULAR_GRADIENT = 1e-6
+_ORIGIN: Vec3 = (0.0, 0.0, 0.0)
+_LARGEST = 1e150  # |coordinate| [m] of a point taken as it is (surface_base._MAX_POINT)
 
 
+@register_surface
 @dataclass(frozen=True, eq=False)
 class MeshSurface(Surface):
     """The surface of a mesh part: Φ(p) = ±d(p), the smoothed signed distance [m].
 
-    Build it with :meth:`from_file`. ``inside = False``: the tool works on the side the face
-    normals point to (outside a closed part exported the usual way).
+    ``MeshSurface(file, ...)`` reads, places and fits the part (the field cached on disk,
+    :func:`.mesh_field.build_field`); :meth:`from_file` also takes ``cache``. ``inside =
+    False``: the tool works on the side the face normals point to (outside a closed part
+    exported the usual way). Warns (ModelWarning) when the mesh is not watertight: the
+    winding-number sign of Φ is then trusted only near the surface.
     """
 
     kind: ClassVar[str] = "mesh"
     # Φ is the (fitted) signed distance: a ball tool of radius r follows Φ − r (geometry/offset)
     metric_distance: ClassVar[str] = "phi"
-    part: MeshPart
-    field: DistanceField
-    inside: bool = False
-    file: str = ""
-    scale: float = 1.0
-    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    file: str = param(doc="STL, OBJ or PLY file of the part (relative to the scenario file)")
+    scale: float = param(1.0, minimum=0.0, strict=True, doc="the file's units in metres")
+    position: Vec3 = param(_ORIGIN, unit="m", doc="where the file's origin is put in the world")
+    rpy: Vec3 = param(_ORIGIN, unit="rad", doc="roll, pitch, yaw of the part in the world")
+    inside: bool = param(False, doc="the free side is the one the face normals point away from")
+    resolution: float | None = param(
+        None,
+        unit="m",
+        minimum=0.0,
+        strict=True,
+        doc="grid spacing of the smooth distance field (default: twice the facets' size, "
+        "docs/mesh_parts.md)",
+    )
+    chart: ProjectionChartSettings | CylindricalChartSettings | None = param(
+        None,
+        doc="[surface.chart]: the (u, v) of paths in surface coordinates",
+        acts_when=("trajectory.type", "in", ("waypoints", "raster")),
+    )
+    part: MeshPart = dataclasses.field(default=None, repr=False)  # type: ignore[assignment]
+    field: DistanceField = dataclasses.field(default=None, repr=False)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        owner = "MeshSurface"
+        values = {
+            "position": _point3(owner, "position", self.position),
+            "rpy": _vector3(owner, "rpy", self.rpy),
+            "inside": _boolean(owner, "inside", self.inside),
+            "chart": chart_settings(self.chart),
+            "file": str(self.file),
+        }
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+        if self.part is None or self.field is None:
+            part, fitted = _fit(
+                self.file, self.scale, self.position, self.rpy, self.inside, self.resolution
+            )
+            object.__setattr__(self, "part", part)
+            object.__setattr__(self, "field", fitted)
+        object.__setattr__(self, "scale", float(self.scale))
+        tri = self.part.vertices[self.part.faces]
+        edges = 0.5 * (tri + np.roll(tri, 1, axis=1))  # (F, 3, 3): the 3 edges' midpoints
+        mids = np.concatenate([tri.mean(axis=1), edges.reshape(-1, 3)])
+        e_v = float(np.abs(self.field.values(self.part.vertices)).max())
+        e_c = float(np.abs(self.field.values(mids)).max())
+        object.__setattr__(self, "path_tolerance", e_v + e_c)
 
     @classmethod
     def from_file(
@@ -55,30 +121,59 @@ class MeshSurface(Surface):
         rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
         inside: bool = False,
         resolution: float | None = None,
+        chart: Any = None,
         cache: bool = True,
     ) -> MeshSurface:
-        """Read, place and fit the mesh in ``file`` (cached field: :func:`.build_field`).
-
-        Warns (ModelWarning) when the mesh is not watertight: the winding-number sign of Φ is
-        then trusted only near the surface.
-        """
-        part = read_mesh(file, scale=scale, position=position, rpy=rpy)
-        if not part.watertight:
-            warnings.warn(
-                f"surface.file = '{file}': the mesh is not watertight (some edges are not shared "
-                "by exactly two faces); the sign of Φ is trusted only near the surface",
-                ModelWarning,
-                stacklevel=2,
-            )
-        fitted = build_field(part, resolution, inside=inside, cache=cache)
+        """Read, place and fit the mesh in ``file`` (``cache``: read and write the field's
+        cache file, :func:`.build_field`)."""
+        part, fitted = _fit(file, scale, position, rpy, inside, resolution, cache=cache)
         return cls(
+            file=str(file),
+            scale=scale,
+            position=position,
+            rpy=rpy,
+            inside=inside,
+            resolution=resolution,
+            chart=chart,
             part=part,
             field=fitted,
-            inside=bool(inside),
-            file=str(file),
-            scale=float(scale),
-            position=tuple(float(x) for x in position),  # type: ignore[arg-type]
-            rpy=tuple(float(x) for x in rpy),  # type: ignore[arg-type]
+        )
+
+    @classmethod
+    def from_table(cls, values: dict[str, Any], folder: Path, table: str) -> MeshSurface:
+        """The surface of a scenario's checked ``[surface]`` table ``values`` (its TOML keys),
+        ``file`` relative to the scenario's ``folder``; refusals name ``table.key``."""
+        file = Path(values["file"])
+        target = file if file.is_absolute() else folder / file
+        scale = values.get("scale", 1.0)
+        position = tuple(values.get("position", _ORIGIN))
+        rpy = tuple(values.get("rpy", _ORIGIN))
+        inside = values.get("inside", False)
+        resolution = values.get("resolution")
+        part = read_mesh(
+            target,
+            scale=scale,
+            position=position,
+            rpy=rpy,
+            key=f"{table}.file",
+        )
+        _warn_open(part, f"{table}.file", values["file"])
+        fitted = build_field(part, resolution, inside=inside, key=f"{table}.resolution")
+        try:
+            chart = chart_settings(values.get("chart"))
+        except SurfaceError as exc:
+            message = str(exc).replace("surface.chart", f"{table}.chart", 1)
+            raise SurfaceError(message, key=f"{table}.chart", value=values.get("chart")) from None
+        return cls(
+            file=str(target),
+            scale=scale,
+            position=position,
+            rpy=rpy,
+            inside=inside,
+            resolution=resolution,
+            chart=chart,
+            part=part,
+            field=fitted,
         )
 
     def __repr__(self) -> str:
@@ -94,6 +189,12 @@ class MeshSurface(Surface):
         return value, grad, hess, value
 
     def _checked(self, p: ArrayLike, method: str) -> np.ndarray:
+        """p as a float64 (3,) array (itself when it already is one, finite: the tool's
+        orientation asks for ∇²Φ off the path twice a step), else checked by _xyz."""
+        if type(p) is np.ndarray and p.shape == (3,) and p.dtype == np.float64:
+            x, y, z = p.tolist()
+            if abs(x) <= _LARGEST and abs(y) <= _LARGEST and abs(z) <= _LARGEST:
+                return p
         return np.array(_xyz(p, self, method))
 
     def phi(self, p: ArrayLike) -> float:
@@ -138,7 +239,8 @@ class MeshSurface(Surface):
         return x
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"type": "mesh", "file", "scale", "position", "rpy", "inside", "resolution"}``."""
+        """``{"type": "mesh", "file", "scale", "position", "rpy", "inside", "resolution",
+        "chart"}`` (``resolution``: the spacing used; ``chart``: None or its settings)."""
         return {
             "type": self.kind,
             "file": self.file,
@@ -147,11 +249,30 @@ class MeshSurface(Surface):
             "rpy": list(self.rpy),
             "inside": self.inside,
             "resolution": self.field.spacing,
+            "chart": None if self.chart is None else self.chart.to_dict(),
         }
 
     def concave_radius(self) -> tuple[float, np.ndarray | None]:
         """(:meth:`smallest_concave_radius`, None): the hook a ball tool's check calls."""
         return self.smallest_concave_radius(), None
+
+    def triangles(
+        self, points: np.ndarray | None = None, margin: float = 0.0, max_faces: int = 200_000
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The part's own triangles for drawing: (vertices (V, 3) [m], faces (F, 3) indices).
+
+        All of them, or for a mesh of more than ``max_faces`` faces only those with a vertex
+        within ``margin`` [m] (at least 10 % of the motion's span) of the bounding box of
+        ``points`` (M, 3) [m], the motion (a replay's page stays small)."""
+        vertices, faces = self.part.vertices, self.part.faces
+        if points is None or len(faces) <= max_faces or len(points) == 0:
+            return vertices, faces
+        low, high = points.min(axis=0), points.max(axis=0)
+        pad = max(margin, 0.1 * float(np.linalg.norm(high - low)))
+        near = np.all((vertices >= low - pad) & (vertices <= high + pad), axis=1)
+        kept = faces[near[faces].any(axis=1)]
+        used, inverse = np.unique(kept, return_inverse=True)
+        return vertices[used], inverse.reshape(-1, 3)
 
     def smallest_concave_radius(self) -> float:
         """The smallest radius of curvature [m] of the part's concave regions, at its vertices.
@@ -178,3 +299,151 @@ class MeshSurface(Surface):
             if most < 0:
                 smallest = min(smallest, 1.0 / -most)
         return smallest
+
+
+def _warn_open(part: MeshPart, key: str, file: object) -> None:
+    if not part.watertight:
+        warnings.warn(
+            f"{key} = '{file}': the mesh is not watertight (some edges are not shared by "
+            "exactly two faces); the sign of Φ is trusted only near the surface",
+            ModelWarning,
+            stacklevel=3,
+        )
+
+
+def _fit(
+    file: str | Path,
+    scale: float,
+    position: tuple[float, ...],
+    rpy: tuple[float, ...],
+    inside: bool,
+    resolution: float | None,
+    *,
+    cache: bool = True,
+) -> tuple[MeshPart, DistanceField]:
+    part = read_mesh(file, scale=scale, position=position, rpy=rpy)  # type: ignore[arg-type]
+    _warn_open(part, "surface.file", file)
+    return part, build_field(part, resolution, inside=bool(inside), cache=cache)
+
+
+register_chart(MeshSurface)(MeshChart)
+
+
+@dataclass(frozen=True)
+class PartReport:
+    """What ``hybrid-force part --check`` prints about a mesh part and its fitted field.
+
+    Lengths in metres; ``fit_*``: max |Φ − d| against the mesh's exact signed distance d
+    (libigl) at its vertices, at its face centres (d = 0 at both) and at ``band_points``
+    random points within 2 h of the surface; ``gradient_norm``: (min, max) of ‖∇Φ‖ there.
+    """
+
+    file: str
+    faces: int
+    vertices: int
+    watertight: bool
+    bounds: tuple[tuple[float, float, float], tuple[float, float, float]]
+    resolution: float
+    default_resolution: bool
+    grid: tuple[int, int, int]
+    memory_bytes: int
+    fit_vertices: float
+    fit_face_centres: float
+    fit_band: float
+    band_points: int
+    gradient_norm: tuple[float, float]
+    smallest_concave_radius: float
+    build_seconds: float
+    cache_file: str
+
+    def lines(self) -> list[str]:
+        """The report as text lines."""
+        (x0, y0, z0), (x1, y1, z1) = self.bounds
+        nx, ny, nz = self.grid
+        concave = self.smallest_concave_radius
+        return [
+            f"file: {self.file}",
+            f"faces: {self.faces:,} ({self.vertices:,} vertices), "
+            + (
+                "watertight"
+                if self.watertight
+                else "NOT watertight: the sign of Φ is trusted only near the surface"
+            ),
+            f"bounding box [m]: [{x0:.6g}, {y0:.6g}, {z0:.6g}] to [{x1:.6g}, {y1:.6g}, {z1:.6g}] "
+            f"({x1 - x0:.4g} x {y1 - y0:.4g} x {z1 - z0:.4g})",
+            f"resolution: {self.resolution:.4g} m"
+            + (" (default: twice the facets' size, clamped)" if self.default_resolution else ""),
+            f"grid: {nx} x {ny} x {nz} = {nx * ny * nz:,} nodes, "
+            f"{self.memory_bytes / 1e6:.3g} MB of coefficients",
+            f"fit error max |Φ − d_mesh| [m]: vertices {self.fit_vertices:.3g}, face centres "
+            f"{self.fit_face_centres:.3g}, band ±{2 * self.resolution:.3g} m "
+            f"({self.band_points} points) {self.fit_band:.3g}",
+            f"‖∇Φ‖ in the band: {self.gradient_norm[0]:.4f} to {self.gradient_norm[1]:.4f}",
+            "smallest concave radius of curvature: "
+            + (f"{concave:.4g} m" if math.isfinite(concave) else "none (no concave region)"),
+            f"build time: {self.build_seconds:.3g} s"
+            + (" (read from the cache)" if self.build_seconds == 0.0 else ""),
+            f"cache file: {self.cache_file or '(none)'}",
+        ]
+
+
+def check_part(
+    file: str | Path,
+    *,
+    resolution: float | None = None,
+    scale: float = 1.0,
+    band_points: int = 2000,
+    seed: int = 0,
+) -> PartReport:
+    """Read and fit the part in ``file`` and measure the fit (:class:`PartReport`).
+
+    The band's points: random face points (uniform in the barycentric square, folded) moved
+    along the face normal by a uniform offset in [−2h, 2h]; their exact signed distance is
+    libigl's (the same library the field's samples come from, but at points off the grid).
+    """
+    import igl
+
+    surface = MeshSurface.from_file(file, scale=scale, resolution=resolution)
+    part, field = surface.part, surface.field
+    tri = part.vertices[part.faces]
+    centres = tri.mean(axis=1)
+    rng = np.random.default_rng(seed)
+    a, b = rng.uniform(size=(2, band_points))
+    fold = a + b > 1.0
+    a[fold], b[fold] = 1.0 - a[fold], 1.0 - b[fold]
+    pick = rng.integers(0, len(part.faces), band_points)
+    t = tri[pick]
+    on_face = t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
+    normals = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    lengths = np.linalg.norm(normals, axis=1)
+    keep = lengths > 0
+    normals = normals[keep] / lengths[keep, None]
+    offsets = rng.uniform(-2.0, 2.0, int(keep.sum())) * field.spacing
+    band = on_face[keep] + offsets[:, None] * normals
+    sign = -1.0 if surface.inside else 1.0
+    exact, *_ = igl.signed_distance(band, part.vertices, part.faces)
+    fit_band = float(np.abs(field.values(band) - sign * np.asarray(exact)).max())
+    norms = np.array([np.linalg.norm(field.evaluate(np.ascontiguousarray(p))[1]) for p in band])
+    nx, ny, nz = field.shape
+    return PartReport(
+        file=str(file),
+        faces=len(part.faces),
+        vertices=len(part.vertices),
+        watertight=part.watertight,
+        bounds=(
+            tuple(float(x) for x in part.vertices.min(axis=0)),  # type: ignore[arg-type]
+            tuple(float(x) for x in part.vertices.max(axis=0)),
+        ),
+        resolution=field.spacing,
+        default_resolution=resolution is None,
+        grid=(nx, ny, nz),
+        memory_bytes=int(field.coefficients.nbytes),
+        fit_vertices=float(np.abs(field.values(part.vertices)).max()),
+        fit_face_centres=float(np.abs(field.values(centres)).max()),
+        fit_band=fit_band,
+        band_points=len(band),
+        gradient_norm=(float(norms.min()), float(norms.max())),
+        smallest_concave_radius=surface.smallest_concave_radius(),
+        build_seconds=field.build_seconds,
+        cache_file=field.cache_file,
+    )

@@ -160,11 +160,14 @@ def _golden_max(
 
 
 def check_path_on_surfaces(path: Path, surfaces: Sequence[Any], duration: float) -> None:
-    """The desired path within ``ON_SURFACE_TOL`` of every surface for 0 ≤ t ≤ duration [s]:
+    """The desired path within ``ON_SURFACE_TOL`` of every surface for 0 ≤ t ≤ duration [s]
+    (or within a surface's own ``path_tolerance`` [m] when larger: a mesh part's fit):
     ScenarioError (key "Scenario.path", value (surface index, its OnSurfaceReport, or
     None when the path cannot be checked against it)) otherwise."""
 
     for i, surface in enumerate(surfaces):
+        # a surface known only to within a fit (a mesh part) says how far (path_tolerance)
+        tol = max(ON_SURFACE_TOL, float(getattr(surface, "path_tolerance", 0.0)))
         try:
             report = check_on_surface(path, surface, 0.0, duration)
         except BadInputError as exc:  # e.g. Φ(p_d) not finite
@@ -174,12 +177,13 @@ def check_path_on_surfaces(path: Path, surfaces: Sequence[Any], duration: float)
                 key="Scenario.path",
                 value=(i, None),
             ) from None
-        if report.worst_distance > ON_SURFACE_TOL:
+        if report.worst_distance > tol:
             raise ScenarioError(
                 f"Scenario.path is not on surfaces[{i}] ({surface!r}): "
                 f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
                 f"(p_d = {np.round(report.point_of_worst, 6).tolist()}); it must stay "
-                f"within ON_SURFACE_TOL = {ON_SURFACE_TOL:g} m of every surface over "
+                f"within {tol:g} m of every surface (ON_SURFACE_TOL, or a fitted surface's "
+                f"path_tolerance) over "
                 f"[0, sim.duration = {duration:g} s]",
                 key="Scenario.path",
                 value=(i, report),

@@ -4,8 +4,10 @@ constructor's refusal named by its ``table.key``."""
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +16,7 @@ import numpy as np
 from hybrid_force._file_errors import _Context, _fmt, _wrap
 from hybrid_force.control.laws.base import LAWS, PAPER_GAINS, law_names, law_spec
 from hybrid_force.control.supervisor import ControlSettings
-from hybrid_force.errors import BadInputError, RunWarning
+from hybrid_force.errors import BadInputError, RunWarning, ScenarioError
 from hybrid_force.geometry.paths import path_types
 from hybrid_force.geometry.surface_base import surface_types
 from hybrid_force.geometry.surface_path import SurfacePath
@@ -40,35 +42,97 @@ def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
     return robot_table(check_table(ctx, "robot", table, _ROBOT), raw, file, ctx)
 
 
-def _surfaces(doc: Mapping[str, Any], ctx: _Context) -> tuple[list[Any], list[tuple[str, dict]]]:
-    """The surfaces of [surface] or [[surfaces]], each built from its registered type's
-    declared parameters (:func:`~hybrid_force.geometry.surface_base.surface_types`)."""
+_PREBUILT: contextvars.ContextVar[Mapping[str, tuple[dict[str, Any], Any]] | None] = (
+    contextvars.ContextVar("prebuilt_surfaces", default=None)
+)
 
+
+@contextlib.contextmanager
+def prebuilt_surfaces(built: Mapping[str, tuple[dict[str, Any], Any]]) -> Iterator[None]:
+    """While open, a surface table named in ``built`` (as :func:`file_surfaces` returns) whose
+    checked values are the same is not built again: its surface is taken from there (a sweep's
+    worker, which may not see the files the surface was built from)."""
+    token = _PREBUILT.set(built)
+    try:
+        yield
+    finally:
+        _PREBUILT.reset(token)
+
+
+def _surface_tables(doc: Mapping[str, Any], ctx: _Context) -> list[tuple[str, Any]]:
     if "surface" in doc and "surfaces" in doc:
         raise ctx.table_error(
             "surface, surfaces", "give either one [surface] table or [[surfaces]], not both"
         )
     if "surface" in doc:
-        tables = [("surface", doc["surface"])]
-    elif "surfaces" in doc:
+        return [("surface", doc["surface"])]
+    if "surfaces" in doc:
         items = doc["surfaces"]
         if not isinstance(items, list) or not items:
             raise ctx.error("surfaces", items, "must be a non-empty array of tables [[surfaces]]")
-        tables = [(f"surfaces.{i}", t) for i, t in enumerate(items)]
-    else:
-        raise ctx.table_error("[surface]", "missing required table ([surface] or [[surfaces]])")
+        return [(f"surfaces.{i}", t) for i, t in enumerate(items)]
+    raise ctx.table_error("[surface]", "missing required table ([surface] or [[surfaces]])")
+
+
+def _build_surface(
+    cls: Any, name: str, values: dict[str, Any], folder: Path | None, ctx: _Context
+) -> Any:
+    """One surface: ``cls(**values)``, or ``cls.from_table(values, folder, name)`` for a type
+    built from a file (a mesh part), whose refusals name their own ``name.key``."""
+    try:
+        if not hasattr(cls, "from_table"):
+            return cls(**values)
+        given = (_PREBUILT.get() or {}).get(name)
+        if given is not None and given[0] == values:
+            return given[1]
+        return cls.from_table(values, Path(".") if folder is None else folder, name)
+    except BadInputError as exc:
+        key = str(exc.key or "")
+        if key.startswith(f"{name}."):
+            message = " ".join(str(exc).split())
+            raise ScenarioError(
+                f"{ctx.file}: {message}", key=key, value=exc.value, file=ctx.file
+            ) from None
+        raise _wrap(ctx, name, values, exc) from None
+
+
+def _surfaces(
+    doc: Mapping[str, Any], ctx: _Context, folder: Path | None = None
+) -> tuple[list[Any], list[tuple[str, dict]]]:
+    """The surfaces of [surface] or [[surfaces]], each built from its registered type's
+    declared parameters (:func:`~hybrid_force.geometry.surface_base.surface_types`); a file
+    a type reads (a mesh part's) is relative to ``folder``, the scenario file's."""
+
     surfaces: list[Any] = []
     checked: list[tuple[str, dict]] = []
-    for name, table in tables:
+    for name, table in _surface_tables(doc, ctx):
         types = surface_types()
         kind, values = typed_table(ctx, name, table, typed_tables()["surface"])
-        try:
-            s = types[kind](**values)
-        except BadInputError as exc:
-            raise _wrap(ctx, name, values, exc) from None
-        surfaces.append(s)
+        surfaces.append(_build_surface(types[kind], name, values, folder, ctx))
         checked.append((name, {"type": kind, **values}))
     return surfaces, checked
+
+
+def file_surfaces(
+    doc: Mapping[str, Any], path: str | Path, origin: str | None = None
+) -> dict[str, tuple[dict[str, Any], Any]]:
+    """The surfaces of a scenario that their type builds from files (``from_table``: a mesh
+    part and its fitted field), built here: {table name: (its checked values, the surface)},
+    what :func:`prebuilt_surfaces` takes in a process that may not see the files.
+
+    Raises:
+        ScenarioError: as :func:`load_scenario` for those tables.
+    """
+    ctx = _Context(str(path) if origin is None else origin)
+    types = surface_types()
+    out: dict[str, tuple[dict[str, Any], Any]] = {}
+    for name, table in _surface_tables(doc, ctx):
+        kind = table.get("type") if isinstance(table, dict) else None
+        if not (isinstance(kind, str) and hasattr(types.get(kind), "from_table")):
+            continue
+        _, values = typed_table(ctx, name, table, typed_tables()["surface"])
+        out[name] = (values, _build_surface(types[kind], name, values, Path(path).parent, ctx))
+    return out
 
 
 def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any, dict[str, Any]]:

@@ -148,7 +148,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
     robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
-    parts, surface_tables = _surfaces(doc, ctx)
+    parts, surface_tables = _surfaces(doc, ctx, file.parent)
     # the path and every check below are the tool centre's: on the parts' offsets by
     # tool.radius (the parts themselves for a point tool); the Scenario keeps the parts
     radius = doc["tool"].get("radius", 0.0) if isinstance(doc.get("tool"), dict) else 0.0
@@ -163,6 +163,9 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
         keys[f"control.{law}"] = law_keys(law)
         table = values["control"][law]
         values[f"control.{law}"] = check_table(ctx, f"control.{law}", table, keys[f"control.{law}"])
+    for table_name, given in surface_tables[:1] if "surface" in doc else ():  # [surface]'s
+        keys[table_name] = typed_tables()["surface"][given["type"]]
+        values[table_name] = {k: v for k, v in given.items() if k != "type"}
     check_acting(ctx, doc, {**values, "trajectory": traj}, keys)
     control = _control_settings(values, doc.get("control", {}), ctx)
     sim, sensor, contact, tool = (

@@ -38,7 +38,11 @@ from hybrid_force.errors import (
 from hybrid_force.model.loading import _is_path
 from hybrid_force.model.scenario_robot import resolve_control_model
 from hybrid_force.model.xacro_files import expand_xacro
-from hybrid_force.scenario._builders import resolve_robot_table
+from hybrid_force.scenario._builders import (
+    file_surfaces,
+    prebuilt_surfaces,
+    resolve_robot_table,
+)
 from hybrid_force.scenario.loader import read_scenario_document, scenario_from_document
 from hybrid_force.sim.loop import simulate
 from hybrid_force.studies.table import METRIC_COLUMNS, TIMING_COLUMNS
@@ -115,6 +119,7 @@ class _Task:
     scratch: str | None = None
     robot_meta: dict[str, Any] | None = None
     control: _Urdf | None = None
+    surfaces: dict[str, tuple[dict[str, Any], Any]] | None = None
 
 
 _Outcome = tuple[dict[str, Any], bytes | None]
@@ -148,6 +153,7 @@ class _Source:
         except OSError as exc:
             raise BadInputError(f"cannot read scenario file '{path}': {exc}") from exc
         self._urdfs: dict[str, _Urdf | str] = {}  # model and options → file, or why not
+        self._built: dict[str, dict[str, tuple[dict[str, Any], Any]]] = {}  # surface tables
         # every file the tasks made so far read, absolute path → {"key", "sha256"} (None: the
         # file was missing): a resumed sweep reuses rows only if each is unchanged
         self.inputs: dict[str, dict[str, str | None]] = {}
@@ -169,6 +175,7 @@ class _Source:
             self._note_missing(doc)  # a bad-input row depends on a missing file too
             urdf, robot_meta = self._urdf(doc)
             control = self._control(doc)
+            surfaces = self._file_surfaces(doc)
         except BadInputError as exc:
             self._check_inputs()  # a file changed during the sweep: no verdict on the variant
             row = _new_row(rid, params)
@@ -178,8 +185,23 @@ class _Source:
             return row
         self._check_inputs()
         return _Task(
-            rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta, control
-        )
+            rid, dict(params), doc, self.origin, urdf, keep, self.scratch, robot_meta, control,
+            surfaces or None,
+        )  # fmt: skip
+
+    def _file_surfaces(self, doc: Mapping[str, Any]) -> dict[str, tuple[dict[str, Any], Any]]:
+        """The variant's surfaces built from files (mesh parts), built here once per set of
+        table values (variants that share them share the surface); each file read is recorded
+        in :attr:`inputs` (key ``<table>.file``)."""
+        tables = {k: doc[k] for k in ("surface", "surfaces") if k in doc}
+        cache = json.dumps(tables, sort_keys=True, default=str)
+        if cache not in self._built:
+            built = file_surfaces(doc, self.path, origin=self.origin)
+            for name, (_, surface) in built.items():
+                source = Path(str(getattr(surface, "file", "")))
+                self._record(f"{name}.file", str(source), _sha256_or_none(source))
+            self._built[cache] = built
+        return self._built[cache]
 
     def _record(self, key: str, path: str, digest: str | None) -> None:
         """Note that a task read the file ``path`` (for ``key``) with this sha256; a file read
@@ -473,7 +495,8 @@ def _simulate_into(
         doc["control"] = {**control, "model": _write_model(tmp / "control", task.control, renames)}
     result: Any = None
     try:
-        scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
+        with prebuilt_surfaces(task.surfaces or {}):
+            scenario = scenario_from_document(doc, origin=task.origin, base_dir=tmp)
         result = simulate(scenario)
     except RunFailedError as exc:
         if exc.reason == "interrupted":

@@ -32,6 +32,16 @@ def _drawable(s: Mapping[str, Any], i: int) -> Surface | None:
         raise BadInputError(f"result meta['surfaces'][{i}] cannot be drawn: {exc}") from exc
 
 
+def _surface_triangles(
+    s: Mapping[str, Any], i: int, pts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """A mesh part's own triangles (vertices (V, 3) [m], faces (F, 3)) near the motion pts, or
+    None for a surface that draws a patch instead."""
+    surface = _drawable(s, i)
+    draw = getattr(surface, "triangles", None)
+    return draw(pts) if callable(draw) else None
+
+
 def _finite_points(*arrays: np.ndarray) -> np.ndarray:
     pts = np.concatenate([a for a in arrays], axis=0)
     return pts[np.all(np.isfinite(pts), axis=1)]

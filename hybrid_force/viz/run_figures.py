@@ -45,7 +45,12 @@ from hybrid_force.viz._run_data import (
     _zoom_end,
 )
 from hybrid_force.viz._style import _legend_right, _new_figure, _note, _out_dir, _save_atomic
-from hybrid_force.viz._wireframes import _finite_points, _projection, _surface_mesh
+from hybrid_force.viz._wireframes import (
+    _finite_points,
+    _projection,
+    _surface_mesh,
+    _surface_triangles,
+)
 from hybrid_force.viz.figure_names import FIGURE_NAMES, LAW_LOG_FIGURE
 from hybrid_force.viz.law_log_figure import law_log_figure
 
@@ -145,6 +150,14 @@ def _fig_path3d(run: _Run) -> Figure:
     pts = _finite_points(run.p, run.p_d)
     skipped: list[str] = []
     for i, s in enumerate(run.surfaces):
+        triangles = _surface_triangles(s, i, pts)
+        if triangles is not None:  # a mesh part: its own triangles
+            (x, y, z), faces = triangles[0].T, triangles[1]
+            ax.plot_trisurf(
+                x, y, z, triangles=faces, color="0.7", linewidth=0.2, edgecolor="0.45",
+                alpha=0.35, label="surface" if i == 0 else None,
+            )  # fmt: skip
+            continue
         mesh = _surface_mesh(s, i, pts)
         if mesh is None:
             skipped.append(str(s.get("type")))

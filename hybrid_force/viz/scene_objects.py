@@ -150,9 +150,18 @@ def draw_static(vis: Any, replay: ReplayView) -> None:
 def _surface_geometry(surface: Any, pts: np.ndarray, margin: float) -> tuple[Any, np.ndarray]:
     """(meshcat geometry, 4×4 placement) of a surface patch sized around the motion's points
     pts (M, 3), at least ``margin`` [m] beyond them: the surface's own grid
-    (``Surface.patch``) as a triangle mesh."""
+    (``Surface.patch``) as a triangle mesh, or a mesh part's own triangles."""
     import meshcat.geometry as mg
 
+    if callable(getattr(surface, "triangles", None)):  # a mesh part draws its own triangles
+        vertices, triangles = surface.triangles(pts, margin)
+        return (
+            mg.TriangularMeshGeometry(
+                np.ascontiguousarray(vertices, dtype=np.float32),
+                np.ascontiguousarray(triangles, dtype=np.uint32),
+            ),
+            np.eye(4),
+        )
     grid = surface.patch(pts, margin)
     if grid is None:
         raise BadInputError(f"cannot draw surface {surface!r}: it gives no patch (Surface.patch)")
