@@ -49,6 +49,7 @@ from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.schema import check_fields, param
+from hybrid_force.sim.removal import PAD_TYPES, Pad
 
 __all__ = [
     "ToolAngleProbe",
@@ -78,6 +79,10 @@ class ToolSettings:
             to turn the tool about (projected on the tangent plane).
         roll: ``"free"`` (the rotation about the axis is left to the null-space posture) or
             ``"held"`` (the tip frame's whole orientation is prescribed, module docstring).
+        pad: None or the tool's contact pad (the ``[tool.pad]`` table, a
+            :class:`~hybrid_force.sim.removal.HertzPad` or
+            :class:`~hybrid_force.sim.removal.FlatPad`): its pressure patch, which the
+            ``[removal]`` table needs (docs/removal.md).
 
     Raises ControlError (key ``tool.<field>``) for a bad value, and for a tilt, tilt axis or
     held roll with ``orientation = "free"``, which has no desired direction to apply them to.
@@ -103,6 +108,8 @@ class ToolSettings:
     roll: Literal["free", "held"] = param(
         "free", doc="free: left to the posture; held: the whole orientation prescribed"
     )
+    # read from its own typed table [tool.pad] (scenario/_builders.py), not a key of [tool]
+    pad: Pad | None = param(None, toml=False, doc="the contact pad ([tool.pad])")
 
     def __post_init__(self) -> None:
         """Check every field (module conventions) and store the axes as unit float tuples."""
@@ -111,6 +118,13 @@ class ToolSettings:
         check_fields(self, ControlError, "tool.")
         if self.tilt_axis is not None:
             set_(self, "tilt_axis", _unit_tuple(self.tilt_axis, "tool.tilt_axis"))
+        if self.pad is not None and not isinstance(self.pad, tuple(PAD_TYPES.values())):
+            raise ControlError(
+                "tool.pad must be None or a HertzPad or FlatPad (hybrid_force.sim.removal), "
+                f"got {checks.shown(self.pad)}",
+                key="tool.pad",
+                value=self.pad,
+            )
         if self.orientation == "free":
             for name, default in (("tilt", 0.0), ("tilt_axis", None), ("roll", "free")):
                 value = getattr(self, name)
@@ -142,6 +156,8 @@ class ToolSettings:
             "tilt": self.tilt,
             "tilt_axis": None if self.tilt_axis is None else list(self.tilt_axis),
             "roll": self.roll,
+            # only with a pad: the dict of a run without one is as before pads existed
+            **({} if self.pad is None else {"pad": {"type": self.pad.TYPE, **vars(self.pad)}}),
         }
 
     def check_arm(self, robot: Any) -> None:

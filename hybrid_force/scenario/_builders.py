@@ -33,6 +33,7 @@ from hybrid_force.scenario._tables import (
     _wrap,
 )
 from hybrid_force.schema import keys_of
+from hybrid_force.sim.removal import PAD_TYPES
 
 
 def resolve_robot_table(
@@ -185,7 +186,15 @@ def _control_settings(
 def _tool_settings(table: object, robot: Any, ctx: _Context) -> Any:
     """``[tool]``: the ToolSettings, refused for an arm with too few joints for its task."""
 
-    values = _check_table(ctx, "tool", table, keys_of(ToolSettings))
+    rest = {k: v for k, v in table.items() if k != "pad"} if isinstance(table, dict) else table
+    values = _check_table(ctx, "tool", rest, keys_of(ToolSettings))
+    if isinstance(table, dict) and "pad" in table:  # [tool.pad]: its own typed table
+        schema = {kind: keys_of(cls) for kind, cls in PAD_TYPES.items()}
+        kind, pad_values = _typed_table(ctx, "tool.pad", table["pad"], schema)
+        try:
+            values["pad"] = PAD_TYPES[kind](**pad_values)
+        except BadInputError as exc:
+            raise _wrap(ctx, "tool.pad", pad_values, exc) from None
     try:
         tool = ToolSettings(**values)
         tool.check_arm(robot)

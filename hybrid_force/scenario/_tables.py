@@ -33,6 +33,7 @@ from hybrid_force.schema import (
     with_tables,
 )
 from hybrid_force.sim.contact import ContactSettings
+from hybrid_force.sim.removal import PAD_TYPES, RemovalSettings
 from hybrid_force.sim.sensors import SensorSettings
 from hybrid_force.sim.settings import SimSettings
 
@@ -40,7 +41,7 @@ from hybrid_force.sim.settings import SimSettings
 _TOP: dict[str, Key] = {"name": Key("str", True), "description": Key("str")}
 _TABLES = (
     "robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "contact", "sim",
-    "tool",
+    "tool", "removal",
 )  # fmt: skip
 
 _ROBOT: dict[str, Key] = {
@@ -372,6 +373,7 @@ def settings_tables() -> dict[str, dict[str, Key]]:
         "sim": sim_keys(),
         "sensor": keys_of(SensorSettings),
         "contact": keys_of(ContactSettings),
+        "removal": keys_of(RemovalSettings),
     }
 
 
@@ -381,6 +383,7 @@ def typed_tables() -> dict[str, dict[str, dict[str, Key]]]:
     return {
         "surface": {kind: keys_of(cls) for kind, cls in surface_types().items()},
         "trajectory": {kind: keys_of(path_parameters(cls)) for kind, cls in path_types().items()},
+        "tool.pad": {kind: keys_of(cls) for kind, cls in PAD_TYPES.items()},
     }
 
 
@@ -392,6 +395,7 @@ def json_schema() -> dict[str, Any]:
         for name, types in typed_tables().items()
     }
     tables = {name: json_table(keys) for name, keys in settings_tables().items()}
+    tables["tool"]["properties"]["pad"] = typed["tool.pad"]  # [tool.pad], a typed sub-table
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "hybrid_force scenario file (docs/scenarios.md)",

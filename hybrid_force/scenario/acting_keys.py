@@ -126,6 +126,7 @@ _ACTS_WHEN: tuple[_ActsWhen, ...] = (
         _ActsWhen(f"tool.{key}", _oriented, 'tool.orientation = "normal"')
         for key in ("axis", "tilt", "tilt_axis", "roll")
     ),
+    _ActsWhen("tool.pad", lambda doc: "removal" in doc, "a [removal] table (Preston's removal)"),
     _ActsWhen("trajectory.projection_tol", _world_waypoints, 'trajectory.frame = "world"'),
     *(
         _ActsWhen(f"sim.{key}", _rigid, 'contact.model = "rigid" (the default)')

@@ -69,6 +69,7 @@ from hybrid_force.sim.prerun import (
     _check_path_followable,
     _check_pose_followable,
 )
+from hybrid_force.sim.removal import RemovalSettings
 from hybrid_force.sim.sensors import SensorSettings
 from hybrid_force.sim.settings import Scenario, SimSettings
 from hybrid_force.sim.start import start_at_tip
@@ -206,6 +207,14 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
     controller_model = load_controller_model(control_values, robot, file, ctx, trust)
     tool = _tool_settings(doc.get("tool", {}), robot, ctx)
+    removal = (
+        read_settings(ctx, "removal", RemovalSettings, doc["removal"]) if "removal" in doc else None
+    )
+    if removal is not None and tool.pad is None:  # (a pad without [removal]: _check_acting)
+        raise ctx.table_error(
+            "removal", "Preston's removal needs the tool's contact pad: add a [tool.pad] table "
+            '(type = "hertz" with radius and modulus, or type = "flat" with radius)',
+        )  # fmt: skip
     if control.supervisor:  # a run that starts in contact: checked by Scenario
         try:
             check_path_on_surfaces(path, surfaces, sim.duration)
@@ -230,6 +239,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Any:
             controller_model=controller_model,
             contact=contact,
             tool=tool,
+            removal=removal,
         )
     except BadInputError as exc:
         start = (robot, q0, start_key, start_value)

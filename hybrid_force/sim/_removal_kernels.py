@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.geometry._kernels import surface_eval as _surface_eval
 
 HERTZ = 0
 FLAT = 1
@@ -120,3 +121,150 @@ def deposit(
         speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
         depth[nearest] += factor * force / areas[nearest] * speed
     return 0
+
+
+@_jit
+def patch_on_part(
+    grad: np.ndarray,
+    hess: np.ndarray,
+    shape: int,
+    radius: float,
+    modulus: float,
+    force: float,
+    normal: np.ndarray,
+) -> float:
+    """The patch radius a [m] under ``force`` [N] where the part has gradient ∇Φ (3,) and
+    Hessian ∇²Φ (3, 3); writes the unit normal (3,) ∇Φ/‖∇Φ‖. −1 where the part is concave
+    with 1/R + κ ≤ 0 (Hertz does not apply), 0 for no force.
+
+    The principal curvatures κ₁, κ₂ (> 0 convex) are the eigenvalues of the level set's
+    shape operator Tᵀ ∇²Φ T / ‖∇Φ‖ (T: an orthonormal tangent basis); a HERTZ pad of radius R
+    and modulus E* gives a = (3 F R_eff / 4E*)^(1/3), R_eff = 1/√((1/R + κ₁)(1/R + κ₂))
+    (:class:`hybrid_force.sim.removal.HertzPad`); a FLAT pad a = R.
+    """
+    g = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+    for k in range(3):
+        normal[k] = grad[k] / g
+    if force <= 0.0:
+        return 0.0
+    if shape == FLAT:
+        return radius
+    n0, n1, n2 = normal[0], normal[1], normal[2]
+    # t1 ⟂ n from the world axis least along n, t2 = n × t1
+    if abs(n0) <= abs(n1) and abs(n0) <= abs(n2):
+        e0, e1, e2 = 1.0, 0.0, 0.0
+    elif abs(n1) <= abs(n2):
+        e0, e1, e2 = 0.0, 1.0, 0.0
+    else:
+        e0, e1, e2 = 0.0, 0.0, 1.0
+    a0, a1, a2 = n1 * e2 - n2 * e1, n2 * e0 - n0 * e2, n0 * e1 - n1 * e0
+    s = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    a0, a1, a2 = a0 / s, a1 / s, a2 / s
+    b0, b1, b2 = n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0
+    m00 = m01 = m11 = 0.0
+    for r in range(3):
+        ha = hess[r, 0] * a0 + hess[r, 1] * a1 + hess[r, 2] * a2
+        hb = hess[r, 0] * b0 + hess[r, 1] * b1 + hess[r, 2] * b2
+        ar = a0 if r == 0 else a1 if r == 1 else a2
+        br = b0 if r == 0 else b1 if r == 1 else b2
+        m00 += ar * ha
+        m01 += ar * hb
+        m11 += br * hb
+    m00, m01, m11 = m00 / g, m01 / g, m11 / g
+    mean = 0.5 * (m00 + m11)
+    half = math.sqrt(0.25 * (m00 - m11) ** 2 + m01 * m01)
+    inv1 = 1.0 / radius + mean + half
+    inv2 = 1.0 / radius + mean - half
+    if not (inv1 > 0.0 and inv2 > 0.0):
+        return -1.0
+    r_eff = 1.0 / math.sqrt(inv1 * inv2)
+    return (3.0 * force * r_eff / (4.0 * modulus)) ** (1.0 / 3.0)
+
+
+@_jit
+def observe(
+    desc: np.ndarray,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    distance: float,
+    velocity: np.ndarray,
+    force: float,
+    shape: int,
+    radius: float,
+    modulus: float,
+    omega: float,
+    factor: float,
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    depth: np.ndarray,
+    work: np.ndarray,
+) -> float:
+    """One run step's removal: the patch at the tip p (3,) [m] with velocity (3,) [m/s]
+    pressed with ``force`` [N], deposited on the grid (:func:`deposit`).
+
+    desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
+    distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
+    caller's. The patch is centred at the tip's foot p − d n on the surface. work (6,):
+    scratch. Returns the patch radius a [m] (0: no force; −1: Hertz does not apply, the part
+    conforms; nothing is deposited then).
+    """
+    if force <= 0.0:
+        return 0.0
+    if desc.shape[0] > 0:
+        _, distance = _surface_eval(desc, p, grad, hess)
+    normal = work[0:3]
+    a = patch_on_part(grad, hess, shape, radius, modulus, force, normal)
+    if a <= 0.0:
+        return a
+    centre = work[3:6]
+    for k in range(3):
+        centre[k] = p[k] - distance * normal[k]
+    deposit(
+        points, areas, order, starts, box, dims, depth, centre, normal, velocity, omega, a,
+        shape, force, factor,
+    )  # fmt: skip
+    return a
+
+
+@_jit
+def mark_near(
+    points: np.ndarray,
+    order: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    samples: np.ndarray,
+    reach: float,
+    out: np.ndarray,
+) -> None:
+    """out[i] = True for each cell i (points (M, 3) [m], bucketed as in :func:`deposit`)
+    within ``reach`` [m] of one of the samples (S, 3) [m]; out (M,) bool, written."""
+    size = box[3]
+    r2 = reach * reach
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    for s in range(samples.shape[0]):
+        empty = False
+        for k in range(3):
+            lo[k] = max(0, math.floor((samples[s, k] - reach - box[k]) / size))
+            hi[k] = min(dims[k] - 1, math.floor((samples[s, k] + reach - box[k]) / size))
+            if lo[k] > hi[k]:
+                empty = True
+        if empty:
+            continue
+        for bx in range(lo[0], hi[0] + 1):
+            for by in range(lo[1], hi[1] + 1):
+                for bz in range(lo[2], hi[2] + 1):
+                    bucket = (bx * dims[1] + by) * dims[2] + bz
+                    for j in range(starts[bucket], starts[bucket + 1]):
+                        i = order[j]
+                        d0 = points[i, 0] - samples[s, 0]
+                        d1 = points[i, 1] - samples[s, 1]
+                        d2 = points[i, 2] - samples[s, 2]
+                        if d0 * d0 + d1 * d1 + d2 * d2 < r2:
+                            out[i] = True

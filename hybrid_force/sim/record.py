@@ -19,6 +19,7 @@ from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
 from hybrid_force.sim.control_side import ControlSide, ToolLog
 from hybrid_force.sim.plant import Plant
+from hybrid_force.sim.removal_run import RemovalObserver
 from hybrid_force.sim.run_checks import check_log_memory
 from hybrid_force.sim.settings import Scenario
 
@@ -81,6 +82,8 @@ class Record:
         self.law_log: np.ndarray | None = np.zeros((N, m)) if m else None
         # the tool axis' angle from its desired direction (N,) [rad], when the run controls it
         self.tool_angle: np.ndarray | None = np.zeros(N) if self._tool is not None else None
+        # Preston's removal on the part, when the run has [removal] (None: nothing is done)
+        self.removal = RemovalObserver(sc, N) if sc.removal is not None else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -139,6 +142,8 @@ class Record:
         if self._tool is not None:
             assert self.tool_angle is not None
             self.tool_angle[i] = self._tool.angle(t, q)
+        if self.removal is not None:  # the tip, its velocity J v and the contact force
+            self.removal.observe(i, terms.p, terms.pdot, f)
         self.filled = i + 1
         return bool(ok)
 
@@ -150,6 +155,10 @@ class Record:
 
         def col(a: np.ndarray) -> np.ndarray:
             return own(a[:, 0] if k == 1 else a)
+
+        removal = self.removal
+        if removal is not None:
+            meta = {**meta, "removal": removal.summary()}
 
         return Result(
             t=own(self.t),
@@ -169,4 +178,7 @@ class Record:
             u_cmd=None if self.u_cmd is None else own(self.u_cmd),
             law_log=None if self.law_log is None else own(self.law_log),
             tool_angle=None if self.tool_angle is None else own(self.tool_angle),
+            removal_points=None if removal is None else removal.grid.points,
+            removal_depth=None if removal is None else removal.grid.depth,
+            removal_target=None if removal is None else removal.target.astype(np.float64),
         )

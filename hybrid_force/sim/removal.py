@@ -22,16 +22,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import ScenarioError
+from hybrid_force.schema import check_fields, param
 
 __all__ = [
+    "PAD_TYPES",
     "FlatPad",
     "HertzPad",
+    "Pad",
     "RemovalGrid",
+    "RemovalSettings",
     "flat_profile",
     "hertz_profile",
 ]
@@ -42,17 +47,17 @@ _HERTZ, _FLAT = 0, 1
 
 @dataclass(frozen=True)
 class HertzPad:
-    """An elastic pad: ``radius`` R [m] of curvature, ``modulus`` E* [Pa] (effective)."""
+    """An elastic pad (``[tool.pad] type = "hertz"``): ``radius`` R [m] of curvature,
+    ``modulus`` E* [Pa] (effective: E* = 1 / ((1 − ν₁²)/E₁ + (1 − ν₂²)/E₂))."""
 
-    radius: float
-    modulus: float
+    TYPE: ClassVar[str] = "hertz"
+    radius: float = param(unit="m", minimum=0.0, strict=True, doc="the pad's radius of curvature")
+    modulus: float = param(
+        unit="Pa", minimum=0.0, strict=True, doc="effective modulus E* of the pad on the part"
+    )
 
     def __post_init__(self) -> None:
-        for key, value in (("tool.pad.radius", self.radius), ("tool.pad.modulus", self.modulus)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ScenarioError(
-                    f"{key} must be a finite number > 0, got {value!r}", key=key, value=value
-                )
+        check_fields(self, ScenarioError, "tool.pad.")
 
     def patch(self, force: float, kappa1: float = 0.0, kappa2: float = 0.0) -> tuple[float, float]:
         """(a [m], p₀ [Pa]) of the patch under ``force`` [N] on a part of principal curvatures
@@ -75,24 +80,55 @@ class HertzPad:
 
 @dataclass(frozen=True)
 class FlatPad:
-    """A flat pad of ``radius`` a [m]: uniform pressure F / (πa²)."""
+    """A flat pad (``[tool.pad] type = "flat"``) of ``radius`` a [m]: uniform pressure
+    F / (πa²)."""
 
-    radius: float
+    TYPE: ClassVar[str] = "flat"
+    radius: float = param(
+        unit="m", minimum=0.0, strict=True, doc="the flat pad's radius a (the contact radius)"
+    )
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius)) or not (
-            self.radius > 0
-        ):
-            raise ScenarioError(
-                f"tool.pad.radius must be a finite number > 0, got {self.radius!r}",
-                key="tool.pad.radius",
-                value=self.radius,
-            )
+        check_fields(self, ScenarioError, "tool.pad.")
 
     def patch(self, force: float, kappa1: float = 0.0, kappa2: float = 0.0) -> tuple[float, float]:
         """(a [m], p [Pa]): the pad's radius and F / (πa²)."""
         a = self.radius
         return a, max(force, 0.0) / (math.pi * a * a)
+
+
+Pad = HertzPad | FlatPad
+"""The contact pads (``ToolSettings.pad``)."""
+
+PAD_TYPES: dict[str, type[HertzPad] | type[FlatPad]] = {"hertz": HertzPad, "flat": FlatPad}
+"""The ``[tool.pad]`` types, by their ``type`` key."""
+
+
+@dataclass(frozen=True)
+class RemovalSettings:
+    """The ``[removal]`` table: Preston's law on a grid laid on the part (docs/removal.md).
+
+    Needs a pad (``[tool.pad]``, :attr:`~hybrid_force.control.tool.ToolSettings.pad`).
+    """
+
+    k_p: float = param(unit="m²/N", minimum=0.0, strict=True, doc="Preston's coefficient")
+    resolution: float = param(
+        unit="m", minimum=0.0, strict=True, doc="cell size of the removal grid on the surface"
+    )
+    spindle_speed: float = param(
+        0.0,
+        unit="rpm",
+        minimum=0.0,
+        doc="the pad's rotation about the surface normal (0: a non-rotating tool)",
+    )
+
+    def __post_init__(self) -> None:
+        check_fields(self, ScenarioError, "removal.")
+
+    @property
+    def omega(self) -> float:
+        """The spindle's rate [rad/s]."""
+        return self.spindle_speed * 2.0 * math.pi / 60.0
 
 
 def hertz_profile(y: np.ndarray, a: float, p0: float, k_p: float) -> np.ndarray:
@@ -170,6 +206,12 @@ class RemovalGrid:
         areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         edge = float(np.sqrt(np.median(areas)))
         return cls(tri.mean(axis=1), areas, bucket=4.0 * max(edge, 1e-6))
+
+    def subset(self, keep: np.ndarray) -> RemovalGrid:
+        """A grid of the cells ``keep`` (M,) bool of this one (their depth zero)."""
+        grid = RemovalGrid(self.points[keep], self.areas[keep], bucket=float(self.box[3]))
+        grid.uv = None if self.uv is None else self.uv[keep]
+        return grid
 
     def add(
         self,

@@ -26,6 +26,7 @@ from hybrid_force.model.robot import Robot, check_same_joints
 from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
+from hybrid_force.sim.removal import RemovalSettings
 from hybrid_force.sim.sensors import SensorSettings
 
 __all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
@@ -121,6 +122,10 @@ class Scenario:
             :class:`~hybrid_force.control.tool.ToolSettings`; default: free, the paper's
             position-only CLIK). An arm with fewer joints than the tool task has rows is refused
             (ControlError naming ``tool.orientation`` or ``tool.roll``).
+        removal: None or Preston's removal on the part (the ``[removal]`` table,
+            :class:`~hybrid_force.sim.removal.RemovalSettings`; docs/removal.md): it needs
+            ``tool.pad``, and a pad without it is refused (ScenarioError naming ``removal`` or
+            ``tool.pad``).
         name: a short name (used for output folders): letters, digits, '_', '-', '.', not
             starting with '.' or '-', at most ``NAME_MAX_LENGTH`` = 100 characters (the
             scenario file's rule, ``NAME_PATTERN``, matched in full). description: free text.
@@ -169,6 +174,7 @@ class Scenario:
     controller_model: Robot | None = None
     contact: ContactSettings = field(default_factory=ContactSettings)
     tool: ToolSettings = field(default_factory=ToolSettings)
+    removal: RemovalSettings | None = None
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -238,7 +244,34 @@ class Scenario:
         if self.controller_model is not None:
             check_same_joints(robot, self.controller_model)
         self.tool.check_arm(robot)
+        self._check_removal()
         self._check_start_and_path()
+
+    def _check_removal(self) -> None:
+        """``removal`` with ``tool.pad``, each without the other refused (it would have no
+        effect), on a surface the removal grid can be laid on."""
+        removal, pad = self.removal, self.tool.pad
+        if removal is not None and not isinstance(removal, RemovalSettings):
+            raise Bad(
+                "Scenario.removal must be None or a hybrid_force.sim.removal.RemovalSettings, "
+                f"got {checks.shown(removal)}"
+            )
+        if removal is not None and pad is None:
+            raise Bad(
+                "removal: Preston's removal needs the tool's contact pad (tool.pad, the "
+                "[tool.pad] table: a hertz or flat pad)",
+                key="removal",
+            )
+        if removal is None and pad is not None:
+            raise Bad(
+                "tool.pad has no effect without removal (the [removal] table): add it, or "
+                "remove the pad",
+                key="tool.pad",
+            )
+        if removal is not None:
+            from hybrid_force.sim.removal_run import check_removal_surface
+
+            check_removal_surface(self)
 
     def _check_contact(self) -> None:
         """The contact settings against the simulation's: a compliant or frictional contact
