@@ -296,3 +296,30 @@ def test_the_json_schema_takes_the_pad_and_removal() -> None:
     assert math.isclose(
         schema["properties"]["removal"]["properties"]["k_p"]["exclusiveMinimum"], 0.0
     )
+
+
+def test_the_removal_map_is_drawn_on_the_unrolled_surface(tmp_path: Path) -> None:
+    """``removal.png`` in --plot's figures; the cylinder is unrolled by arc length: two cells
+    0.1 rad apart at one height are r · 0.1 apart on the map."""
+    pytest.importorskip("matplotlib")
+    from hybrid_force.viz.removal_figure import unrolled
+    from hybrid_force.viz.run_figures import plot_result
+
+    sc, r = _run(
+        "paper_contact.toml",
+        {
+            "sim.duration": 0.3,
+            "initial.tip": [0.4, 0.0, 10.0],
+            "tool.pad": FLAT,
+            "removal": {"k_p": K_P, "resolution": 1e-3},
+        },
+    )
+    written = plot_result(r, tmp_path)
+    assert tmp_path / "removal.png" in written and (tmp_path / "removal.png").stat().st_size > 0
+    assert r.removal_points is not None
+    unroll, _, _ = unrolled(r.removal_points, r.meta)
+    radius = sc.surfaces[0].radius
+    two = np.array([[radius, 0.0, 10.0], [radius * math.cos(0.1), radius * math.sin(0.1), 10.0]])
+    xy = unroll(two)
+    assert abs(xy[1, 0] - xy[0, 0]) == pytest.approx(radius * 0.1, rel=1e-12)
+    assert xy[1, 1] == pytest.approx(xy[0, 1], abs=1e-12)
