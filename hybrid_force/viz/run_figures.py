@@ -462,8 +462,8 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     ``desired_force.png``, ``lyapunov.png``, then ``law_log.png`` when the law logged signals
     of its own, ``tool_angle.png`` for a run with a ``tool_angle`` and ``removal.png`` for a
     run with removal arrays (see the module docstring). Existing files are replaced
-    atomically. Raises :class:`BadInputError` on a missing attribute or wrong shape, :class:`~hybrid_force.errors.MissingExtraError` without matplotlib
-    (the ``plots`` extra).
+    atomically. Raises :class:`BadInputError` on a missing attribute or wrong shape,
+    :class:`~hybrid_force.errors.MissingExtraError` without matplotlib (the ``plots`` extra).
     """
     require_extra("plots", "figures")
     if os.sep in prefix or (os.altsep and os.altsep in prefix):
