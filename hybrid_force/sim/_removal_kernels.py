@@ -35,10 +35,18 @@ def _sliding_speed(
 
 
 @_jit
+def _bucket(keys: np.ndarray, key: int) -> int:
+    """The position of bucket id ``key`` in the sorted ``keys`` (B,), or −1 (no cell there)."""
+    b = int(np.searchsorted(keys, key))
+    return b if b < keys.shape[0] and keys[b] == key else -1
+
+
+@_jit
 def deposit(
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
+    keys: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
@@ -51,15 +59,20 @@ def deposit(
     shape: int,
     force: float,
     factor: float,
+    index: np.ndarray,
+    weight: np.ndarray,
 ) -> int:
     """Add one step's Preston depth k_p · p · |v| · dt to the cells under the patch.
 
-    points (M, 3) [m], areas (M,) [m²]: the cells; order (M,), starts (B + 1,): the cells
-    sorted by bucket (CSR), box = [origin (3), size] of the buckets, dims (3,) their counts;
+    points (M, 3) [m], areas (M,) [m²]: the cells; order (M,), keys (B,), starts (B + 1,):
+    the cells sorted by bucket, the sorted ids (bx · dims₁ + by) · dims₂ + bz of the B buckets
+    holding cells and where each one's cells start in ``order``; box = [origin (3), size] of
+    the buckets, dims (3,) their counts per axis;
     depth (M,) [m], written. centre (3,) [m] and unit normal (3,) of the patch, velocity (3,)
     [m/s] of the contact point (its tangential part slides), omega [rad/s] the spindle's rate
     about the normal, a [m] the patch radius, shape HERTZ (p ∝ √(1 − ρ²/a²)) or FLAT
-    (uniform), force [N], factor = k_p · dt [m²/N · s].
+    (uniform), force [N], factor = k_p · dt [m²/N · s]; index (M,) int64 and weight (M,):
+    scratch (the cells inside the patch and their p · |v| up to the scale).
 
     The cells' pressures follow the profile and are scaled so that Σ p_i A_i = F exactly (the
     discrete form of ∫p dA = F); a patch with no cell centre inside it puts F on the nearest
@@ -72,6 +85,7 @@ def deposit(
     vt0 = velocity[0] - vn * normal[0]
     vt1 = velocity[1] - vn * normal[1]
     vt2 = velocity[2] - vn * normal[2]
+    feed = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2)  # the slip without a spindle
     size = box[3]
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
@@ -85,33 +99,37 @@ def deposit(
     inside = 0
     nearest = -1
     nearest_d2 = math.inf
-    for pass_ in range(2):
-        scale = 0.0 if pass_ == 0 else force / total if total > 0.0 else 0.0
-        if pass_ == 1 and total <= 0.0:
-            break
-        for bx in range(lo[0], hi[0] + 1):
-            for by in range(lo[1], hi[1] + 1):
-                for bz in range(lo[2], hi[2] + 1):
-                    bucket = (bx * dims[1] + by) * dims[2] + bz
-                    for s in range(starts[bucket], starts[bucket + 1]):
-                        i = order[s]
-                        r0 = points[i, 0] - centre[0]
-                        r1 = points[i, 1] - centre[1]
-                        r2 = points[i, 2] - centre[2]
-                        d2 = r0 * r0 + r1 * r1 + r2 * r2
-                        if pass_ == 0 and d2 < nearest_d2:
-                            nearest_d2 = d2
-                            nearest = i
-                        if d2 >= a2:
-                            continue
-                        w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
-                        if pass_ == 0:
-                            total += w * areas[i]
-                            inside += 1
-                            continue
-                        speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
-                        depth[i] += factor * scale * w * speed
+    # one scan of the buckets: the cells inside, their profile w and w · slip
+    for bx in range(lo[0], hi[0] + 1):
+        for by in range(lo[1], hi[1] + 1):
+            for bz in range(lo[2], hi[2] + 1):
+                b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
+                if b < 0:
+                    continue
+                for s in range(starts[b], starts[b + 1]):
+                    i = order[s]
+                    r0 = points[i, 0] - centre[0]
+                    r1 = points[i, 1] - centre[1]
+                    r2 = points[i, 2] - centre[2]
+                    d2 = r0 * r0 + r1 * r1 + r2 * r2
+                    if d2 < nearest_d2:
+                        nearest_d2 = d2
+                        nearest = i
+                    if d2 >= a2:
+                        continue
+                    w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
+                    total += w * areas[i]
+                    if omega != 0.0:
+                        w *= _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
+                    else:
+                        w *= feed
+                    index[inside] = i
+                    weight[inside] = w
+                    inside += 1
     if total > 0.0:
+        scale = factor * force / total
+        for c in range(inside):
+            depth[index[c]] += scale * weight[c]
         return inside
     if nearest >= 0:
         # the patch falls between cell centres: all of F on the nearest cell
@@ -198,20 +216,23 @@ def observe(
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
+    keys: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
     depth: np.ndarray,
     work: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
 ) -> float:
     """One run step's removal: the patch at the tip p (3,) [m] with velocity (3,) [m/s]
     pressed with ``force`` [N], deposited on the grid (:func:`deposit`).
 
     desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
     distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
-    caller's. The patch is centred at the tip's foot p − d n on the surface. work (6,):
-    scratch. Returns the patch radius a [m] (0: no force; −1: Hertz does not apply, the part
-    conforms; nothing is deposited then).
+    caller's. The patch is centred at the tip's foot p − d n on the surface. work (6,),
+    index (M,) int64 and weight (M,): scratch. Returns the patch radius a [m] (0: no force;
+    −1: Hertz does not apply, the part conforms; nothing is deposited then).
     """
     if force <= 0.0:
         return 0.0
@@ -225,8 +246,8 @@ def observe(
     for k in range(3):
         centre[k] = p[k] - distance * normal[k]
     deposit(
-        points, areas, order, starts, box, dims, depth, centre, normal, velocity, omega, a,
-        shape, force, factor,
+        points, areas, order, keys, starts, box, dims, depth, centre, normal, velocity, omega, a,
+        shape, force, factor, index, weight,
     )  # fmt: skip
     return a
 
@@ -235,6 +256,7 @@ def observe(
 def mark_near(
     points: np.ndarray,
     order: np.ndarray,
+    keys: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
@@ -260,8 +282,10 @@ def mark_near(
         for bx in range(lo[0], hi[0] + 1):
             for by in range(lo[1], hi[1] + 1):
                 for bz in range(lo[2], hi[2] + 1):
-                    bucket = (bx * dims[1] + by) * dims[2] + bz
-                    for j in range(starts[bucket], starts[bucket + 1]):
+                    b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
+                    if b < 0:
+                        continue
+                    for j in range(starts[b], starts[b + 1]):
                         i = order[j]
                         d0 = points[i, 0] - samples[s, 0]
                         d1 = points[i, 1] - samples[s, 1]

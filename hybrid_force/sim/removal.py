@@ -150,7 +150,8 @@ class RemovalGrid:
     """Cells on the surface: centres (M, 3) [m], areas (M,) [m²], and the depth (M,) [m].
 
     The cells are sorted into cubic buckets of side ``bucket`` [m] so that a step visits only
-    the buckets its patch overlaps.
+    the buckets its patch overlaps; only the buckets holding cells are kept (``keys``, sorted,
+    looked up by bisection): a helix's box is mostly empty.
     """
 
     def __init__(self, points: np.ndarray, areas: np.ndarray, bucket: float) -> None:
@@ -159,6 +160,9 @@ class RemovalGrid:
         if self.points.shape[0] != self.areas.shape[0] or self.points.shape[0] == 0:
             raise ValueError("RemovalGrid: points (M, 3) and areas (M,) with M > 0")
         self.depth = np.zeros(self.points.shape[0])
+        # the deposit's scratch: the cells under the patch and their weights
+        self.index = np.zeros(self.points.shape[0], dtype=np.int64)
+        self.weight = np.zeros(self.points.shape[0])
         #: the cells' chart coordinates (M, 2), for a grid laid on a chart
         self.uv: np.ndarray | None = None
         origin = self.points.min(axis=0) - 1e-9
@@ -166,7 +170,8 @@ class RemovalGrid:
         index = np.floor((self.points - origin) / bucket).astype(np.int64)
         flat = (index[:, 0] * dims[1] + index[:, 1]) * dims[2] + index[:, 2]
         self.order = np.argsort(flat, kind="stable").astype(np.int64)
-        counts = np.bincount(flat, minlength=int(np.prod(dims)))
+        self.keys, counts = np.unique(flat, return_counts=True)
+        self.keys = self.keys.astype(np.int64)
         self.starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.box = np.array([*origin, bucket])
         self.dims = dims
@@ -196,6 +201,64 @@ class RemovalGrid:
         d = derivatives(uu, vv)
         areas = np.linalg.norm(np.cross(d[1], d[2]), axis=1) * du * dv
         grid = cls(d[0], areas, bucket=4.0 * resolution)
+        grid.uv = np.column_stack([uu, vv])
+        return grid
+
+    @classmethod
+    def on_chart_near(
+        cls,
+        chart: object,
+        u_range: tuple[float, float],
+        v_range: tuple[float, float],
+        resolution: float,
+        uv: np.ndarray,
+        reach: tuple[float, float],
+        wrap_u: bool = False,
+        bucket: float | None = None,
+    ) -> RemovalGrid:
+        """The cells of :meth:`on_chart` within ``reach`` (in u, in v) of the chart points uv
+        (S, 2), without building the others (a helix's box is mostly far from it).
+
+        ``wrap_u``: u_range is one whole period (a cell's neighbour across its end is the
+        first cell). ``bucket`` [m]: the buckets' side (default 4 × resolution).
+        """
+        derivatives = chart.derivatives  # type: ignore[attr-defined]
+        mid_u, mid_v = 0.5 * sum(u_range), 0.5 * sum(v_range)
+        _, su, sv = derivatives(mid_u, mid_v)[:3, 0]
+        nu = max(1, math.ceil((u_range[1] - u_range[0]) * np.linalg.norm(su) / resolution))
+        nv = max(1, math.ceil((v_range[1] - v_range[0]) * np.linalg.norm(sv) / resolution))
+        du, dv = (u_range[1] - u_range[0]) / nu, (v_range[1] - v_range[0]) / nv
+        iu = np.floor((np.asarray(uv[:, 0]) - u_range[0]) / du).astype(np.int64)
+        iv = np.floor((np.asarray(uv[:, 1]) - v_range[0]) / dv).astype(np.int64)
+        mu, mv = math.ceil(reach[0] / du), math.ceil(reach[1] / dv)
+        # the points thinned to about half a reach apart, the reach grown by as much
+        hu, hv = max(1, mu // 2), max(1, mv // 2)
+        kept = [0]
+        for k in range(1, iu.shape[0]):
+            last = kept[-1]
+            if abs(iu[k] - iu[last]) >= hu or abs(iv[k] - iv[last]) >= hv:
+                kept.append(k)
+        kept.append(iu.shape[0] - 1)
+        centres = np.unique(np.column_stack([iu[kept], iv[kept]]), axis=0)
+        mu, mv = mu + hu, mv + hv
+        ou, ov = np.meshgrid(np.arange(-mu, mu + 1), np.arange(-mv, mv + 1), indexing="ij")
+        offsets = np.column_stack([ou.ravel(), ov.ravel()])
+        chosen: list[np.ndarray] = []
+        chunk = max(1, 4_000_000 // offsets.shape[0])
+        for start in range(0, centres.shape[0], chunk):
+            cells = (centres[start : start + chunk, None, :] + offsets[None]).reshape(-1, 2)
+            if wrap_u:
+                cells[:, 0] %= nu
+            ok = (cells[:, 0] >= 0) & (cells[:, 0] < nu) & (cells[:, 1] >= 0) & (cells[:, 1] < nv)
+            chosen.append(np.unique(cells[ok, 0] * nv + cells[ok, 1]))
+        flat = np.unique(np.concatenate(chosen)) if chosen else np.zeros(0, dtype=np.int64)
+        if flat.size == 0:
+            raise ValueError("RemovalGrid.on_chart_near: no cell within reach of the points")
+        uu = u_range[0] + du * (flat // nv + 0.5)
+        vv = v_range[0] + dv * (flat % nv + 0.5)
+        d = derivatives(uu, vv)
+        areas = np.linalg.norm(np.cross(d[1], d[2]), axis=1) * du * dv
+        grid = cls(d[0], areas, bucket=4.0 * resolution if bucket is None else bucket)
         grid.uv = np.column_stack([uu, vv])
         return grid
 
@@ -233,6 +296,7 @@ class RemovalGrid:
                 self.points,
                 self.areas,
                 self.order,
+                self.keys,
                 self.starts,
                 self.box,
                 self.dims,
@@ -245,6 +309,8 @@ class RemovalGrid:
                 shape,
                 float(force),
                 float(k_p) * float(dt),
+                self.index,
+                self.weight,
             )
         )
 

@@ -136,16 +136,18 @@ def _path_samples(sc: Any, spacing: float) -> np.ndarray:
 
 def _chart_box(
     chart: SurfaceChart, samples: np.ndarray, margin: float
-) -> tuple[tuple[float, float], tuple[float, float]]:
+) -> tuple[tuple[float, float], tuple[float, float], np.ndarray, tuple[float, float], bool]:
     """The (u, v) box of the path samples (S, 3) [m] on ``chart`` (periodic coordinates
     unwrapped along the path), grown by ``margin`` [m] on the surface; a periodic coordinate
-    covers at most one period, a latitude at most [−π/2, π/2]."""
+    covers at most one period, a latitude at most [−π/2, π/2]. Also: the samples' (u, v)
+    (S, 2) (in the box: wrapped into it when u spans a period), the margin in (u, v), and
+    whether u spans one whole period."""
     uv = np.empty((samples.shape[0], 2))
     uv[0] = chart.coordinates(samples[0])
     for k in range(1, samples.shape[0]):
         uv[k] = chart.unwrap(chart.coordinates(samples[k]), (uv[k - 1, 0], uv[k - 1, 1]))
     d = chart.derivatives(uv[:, 0], uv[:, 1])
-    out = []
+    out, reach, wrap = [], [], False
     for c in range(2):
         # the smallest metric along the path: the widest margin in coordinates
         metric = max(float(np.linalg.norm(d[1 + c], axis=1).min()), 1e-9)
@@ -153,17 +155,20 @@ def _chart_box(
         period = chart.periods[c]
         if period and hi - lo >= period:
             lo, hi = float(uv[:, c].min()), float(uv[:, c].min()) + period
+            uv[:, c] = lo + np.mod(uv[:, c] - lo, period)
+            wrap = wrap or c == 0
         if chart.names[c] == "latitude":
             lo, hi = max(lo, -math.pi / 2), min(hi, math.pi / 2)
         out.append((lo, hi))
-    return out[0], out[1]
+        reach.append(margin / metric)
+    return out[0], out[1], uv, (reach[0], reach[1]), wrap
 
 
 def _near(grid: RemovalGrid, samples: np.ndarray, reach: float) -> np.ndarray:
     """(M,) bool: the grid's cells within ``reach`` [m] of a path sample (S, 3)."""
     out = np.zeros(grid.points.shape[0], dtype=bool)
     g = grid
-    _K.mark_near(g.points, g.order, g.starts, g.box, g.dims, samples, float(reach), out)
+    _K.mark_near(g.points, g.order, g.keys, g.starts, g.box, g.dims, samples, float(reach), out)
     return out
 
 
@@ -243,10 +248,14 @@ class RemovalObserver:
         else:
             chart = self.chart = _chart(sc, surface)
             assert chart is not None  # check_removal_surface
-            u_range, v_range = _chart_box(chart, samples, margin)
-            self._check_cells(chart, u_range, v_range)
-            box = RemovalGrid.on_chart(chart, u_range, v_range, removal.resolution)
-            # only the cells the patch can reach: a circle's box is mostly out of its reach
+            u_range, v_range, uv, reach, wrap = _chart_box(chart, samples, margin)
+            self._check_cells(chart, u_range, v_range, reach, uv)
+            # buckets about half a patch wide: a step looks up a few dozen of them
+            bucket = max(0.5 * a0, 2.0 * removal.resolution)
+            box = RemovalGrid.on_chart_near(
+                chart, u_range, v_range, removal.resolution, uv, reach, wrap_u=wrap, bucket=bucket
+            )
+            # only the cells the patch can reach (on the surface, not in coordinates)
             self.grid = box.subset(_near(box, samples, margin))
         self.target = self._target(sc)
         self.target_kind = "rectangle" if isinstance(sc.path, RasterPath) else "band"
@@ -262,17 +271,27 @@ class RemovalObserver:
         self.conforming = 0  # samples where the part conformed to a Hertz pad (none deposited)
 
     def _check_cells(
-        self, chart: SurfaceChart, u_range: tuple[float, float], v_range: tuple[float, float]
+        self,
+        chart: SurfaceChart,
+        u_range: tuple[float, float],
+        v_range: tuple[float, float],
+        reach: tuple[float, float],
+        uv: np.ndarray,
     ) -> None:
-        d = chart.derivatives(0.5 * sum(u_range), 0.5 * sum(v_range))
+        """Refuse a resolution that would make more than :data:`MAX_CELLS` cells along the
+        path (its length times the band's width, over the cell's area)."""
+        d = chart.derivatives(uv[:, 0], uv[:, 1])
+        step = np.diff(uv, axis=0)
+        tangent = d[1, 1:] * step[:, :1] + d[2, 1:] * step[:, 1:]
+        length = float(np.linalg.norm(tangent, axis=1).sum())
+        width = 2.0 * max(reach[0] * float(np.linalg.norm(d[1], axis=1).max()),
+                          reach[1] * float(np.linalg.norm(d[2], axis=1).max()))  # fmt: skip
         res = self.settings.resolution
-        cells = 1.0
-        for c, (lo, hi) in enumerate((u_range, v_range)):
-            cells *= max(1.0, math.ceil((hi - lo) * float(np.linalg.norm(d[1 + c, 0])) / res))
+        cells = (length + width) * width / (res * res)
         if cells > MAX_CELLS:
             raise ScenarioError(
-                f"removal.resolution = {res:g} m makes {cells:.3g} cells over the path's "
-                f"region, more than {MAX_CELLS}: use a coarser resolution",
+                f"removal.resolution = {res:g} m makes about {cells:.3g} cells along the "
+                f"path, more than {MAX_CELLS}: use a coarser resolution",
                 key="removal.resolution",
                 value=res,
             )
@@ -309,7 +328,8 @@ class RemovalObserver:
         a = _K.observe(
             self._desc, p, grad, hess, distance, pdot, force, self._shape, self.pad.radius,
             self._modulus, self.settings.omega, self._factor, grid.points, grid.areas,
-            grid.order, grid.starts, grid.box, grid.dims, grid.depth, self._work,
+            grid.order, grid.keys, grid.starts, grid.box, grid.dims, grid.depth, self._work,
+            grid.index, grid.weight,
         )  # fmt: skip
         if a < 0.0:
             self.conforming += 1

@@ -115,7 +115,8 @@ def removal_figure(result: Any, name: str = "") -> Figure | None:
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     # bins at least a cell wide (a finer bin would fall between cells' centres), at most 400
     width = np.maximum((hi - lo) / (_MAX_BINS - 1), cell if cell > 0 else 1e-12)
-    bins = tuple(int(max(2, min(_MAX_BINS, math.floor(s) + 1))) for s in (hi - lo) / width)
+    nx, ny = (int(max(2, min(_MAX_BINS, math.floor(s) + 1))) for s in (hi - lo) / width)
+    bins = (nx, ny)
     lo, hi = lo - 0.5 * width, lo - 0.5 * width + np.array(bins) * width
     span = hi - lo
     extent = np.array([[lo[0], hi[0]], [lo[1], hi[1]]])
