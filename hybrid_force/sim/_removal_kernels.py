@@ -292,3 +292,51 @@ def mark_near(
                         d2 = points[i, 2] - samples[s, 2]
                         if d0 * d0 + d1 * d1 + d2 * d2 < r2:
                             out[i] = True
+
+
+@_jit
+def observe_batch(
+    desc: np.ndarray,
+    tips: np.ndarray,
+    forces: np.ndarray,
+    column: int,
+    velocities: np.ndarray,
+    first: int,
+    count: int,
+    shape: int,
+    radius: float,
+    modulus: float,
+    omega: float,
+    factor: float,
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    depth: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
+    tally: np.ndarray,
+) -> None:
+    """:func:`observe` for samples first … first + count − 1 of a run on a built-in surface
+    (``desc``): tips (N, 3) [m] and forces (N, k) [N] the run's recorded columns (the force of
+    surface ``column``), velocities (count, 3) [m/s] their J v. tally (2,): the samples that
+    deposited and those where the part conformed, incremented."""
+    grad = np.zeros(3)
+    hess = np.zeros((3, 3))
+    work = np.zeros(6)
+    for s in range(count):
+        i = first + s
+        force = forces[i, column]
+        if not force > 0.0:
+            continue
+        a = observe(
+            desc, tips[i], grad, hess, 0.0, velocities[s], force, shape, radius, modulus, omega,
+            factor, points, areas, order, keys, starts, box, dims, depth, work, index, weight,
+        )  # fmt: skip
+        if a < 0.0:
+            tally[1] += 1
+        else:
+            tally[0] += 1

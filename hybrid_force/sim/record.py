@@ -95,6 +95,8 @@ class Record:
          phase) = views  # fmt: skip
         self.t, self.V, self.phase = t[:, 0], V[:, 0], phase[:, 0]
         self.filled = 0
+        if self.removal is not None:  # it reads the recorded tip and force in batches
+            self.removal.attach(self.p, self.f)
 
     def record(
         self,
@@ -158,6 +160,7 @@ class Record:
 
         removal = self.removal
         if removal is not None:
+            removal.finish(min(n, self.filled))
             meta = {**meta, "removal": removal.summary()}
 
         return Result(

@@ -241,19 +241,36 @@ class RemovalGrid:
         kept.append(iu.shape[0] - 1)
         centres = np.unique(np.column_stack([iu[kept], iv[kept]]), axis=0)
         mu, mv = mu + hu, mv + hv
-        ou, ov = np.meshgrid(np.arange(-mu, mu + 1), np.arange(-mv, mv + 1), indexing="ij")
-        offsets = np.column_stack([ou.ravel(), ov.ravel()])
-        chosen: list[np.ndarray] = []
-        chunk = max(1, 4_000_000 // offsets.shape[0])
-        for start in range(0, centres.shape[0], chunk):
-            cells = (centres[start : start + chunk, None, :] + offsets[None]).reshape(-1, 2)
-            if wrap_u:
-                cells[:, 0] %= nu
-            ok = (cells[:, 0] >= 0) & (cells[:, 0] < nu) & (cells[:, 1] >= 0) & (cells[:, 1] < nv)
-            chosen.append(np.unique(cells[ok, 0] * nv + cells[ok, 1]))
-        flat = np.unique(np.concatenate(chosen)) if chosen else np.zeros(0, dtype=np.int64)
-        if flat.size == 0:
-            raise ValueError("RemovalGrid.on_chart_near: no cell within reach of the points")
+        if nu * nv <= 100_000_000:  # a mask of the lattice, a rectangle set per point
+            mask = np.zeros((nu, nv), dtype=bool)
+            for cu, cv in centres.tolist():
+                v0, v1 = max(0, cv - mv), min(nv, cv + mv + 1)
+                if v0 >= v1:
+                    continue
+                if wrap_u:
+                    lo_u, hi_u = cu - mu, cu + mu + 1
+                    if hi_u - lo_u >= nu:
+                        mask[:, v0:v1] = True
+                        continue
+                    for start in range(lo_u - lo_u % nu, hi_u, nu):  # the whole periods spanned
+                        a, b = max(lo_u, start) - start, min(hi_u, start + nu) - start
+                        mask[a:b, v0:v1] = True
+                else:
+                    mask[max(0, cu - mu) : min(nu, cu + mu + 1), v0:v1] = True
+            flat = np.flatnonzero(mask)
+        else:
+            offsets = np.column_stack([a.ravel() for a in np.meshgrid(
+                np.arange(-mu, mu + 1), np.arange(-mv, mv + 1), indexing="ij")])  # fmt: skip
+            chosen: list[np.ndarray] = []
+            chunk = max(1, 4_000_000 // offsets.shape[0])
+            for start in range(0, centres.shape[0], chunk):
+                cells = (centres[start : start + chunk, None, :] + offsets[None]).reshape(-1, 2)
+                if wrap_u:
+                    cells[:, 0] %= nu
+                inside = (cells[:, 0] >= 0) & (cells[:, 0] < nu)
+                inside &= (cells[:, 1] >= 0) & (cells[:, 1] < nv)
+                chosen.append(np.unique(cells[inside, 0] * nv + cells[inside, 1]))
+            flat = np.unique(np.concatenate(chosen)) if chosen else np.zeros(0, dtype=np.int64)
         uu = u_range[0] + du * (flat // nv + 0.5)
         vv = v_range[0] + dv * (flat % nv + 0.5)
         d = derivatives(uu, vv)

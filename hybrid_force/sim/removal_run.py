@@ -49,6 +49,8 @@ _K = LazyKernels("hybrid_force.sim._removal_kernels")
 _HERTZ, _FLAT = 0, 1
 MAX_CELLS = 4_000_000
 """The most cells a removal grid may have (about 200 MB of arrays)."""
+BATCH = 256
+"""Samples deposited by one compiled call on a built-in surface (RemovalObserver.observe)."""
 _CHECK_SAMPLES = 64  # path samples at which a Hertz pad's contact is checked before the run
 
 
@@ -164,8 +166,24 @@ def _chart_box(
     return out[0], out[1], uv, (reach[0], reach[1]), wrap
 
 
-def _near(grid: RemovalGrid, samples: np.ndarray, reach: float) -> np.ndarray:
-    """(M,) bool: the grid's cells within ``reach`` [m] of a path sample (S, 3)."""
+def _thinned(samples: np.ndarray, spacing: float) -> np.ndarray:
+    """The samples (S, 3) [m] of a path kept about ``spacing`` [m] apart along it (the last
+    kept too)."""
+    step = np.linalg.norm(np.diff(samples, axis=0), axis=1)
+    along = np.concatenate([[0.0], np.cumsum(step)])
+    keep = np.unique(np.searchsorted(along, np.arange(0.0, along[-1], spacing)))
+    return samples[np.append(keep, samples.shape[0] - 1)]
+
+
+def _near(grid: RemovalGrid, samples: np.ndarray, reach: float, exact: bool = False) -> np.ndarray:
+    """(M,) bool: the grid's cells within ``reach`` [m] of the path through the samples
+    (S, 3): of a sample, the samples thinned to reach / 2 apart and the reach grown by
+    reach / 32 (a point within r of the path between two samples δ apart is within
+    √(r² + δ²/4) ≤ r + δ²/(8r) of one of them); ``exact``: the samples as given, within
+    ``reach`` of one of them."""
+    if not exact:
+        samples = _thinned(samples, 0.5 * reach)
+        reach *= 1.0 + 1.0 / 32.0
     out = np.zeros(grid.points.shape[0], dtype=bool)
     g = grid
     _K.mark_near(g.points, g.order, g.keys, g.starts, g.box, g.dims, samples, float(reach), out)
@@ -267,6 +285,11 @@ class RemovalObserver:
         self._modulus = pad.modulus if isinstance(pad, HertzPad) else 0.0
         self._factor = removal.k_p * sc.sim.dt
         self._last = N - 1
+        # the batched deposit (:meth:`observe`): J v of the samples since ``_first``
+        self._tips: np.ndarray | None = None
+        self._forces: np.ndarray | None = None
+        self._velocities = np.zeros((BATCH, 3))
+        self._first = 0
         self.steps = 0  # samples that deposited
         self.conforming = 0  # samples where the part conformed to a Hertz pad (none deposited)
 
@@ -312,11 +335,27 @@ class RemovalObserver:
         # the band swept by the nominal patch along the desired path (on the surface)
         d = np.array([abs(self.surface.distance(p)) for p in self.samples])
         on = self.samples[d <= max(1e-6, 0.1 * self.contact_radius)]
-        return _near(grid, on, self.contact_radius)
+        return _near(grid, on, self.contact_radius, exact=True)
+
+    def attach(self, tips: np.ndarray, forces: np.ndarray) -> None:
+        """The run's record of the tip (N, 3) [m] and the forces (N, k) [N], which a run on a
+        built-in surface reads in batches (:meth:`observe`)."""
+        self._tips, self._forces = tips, forces
 
     def observe(self, i: int, p: np.ndarray, pdot: np.ndarray, f: np.ndarray) -> None:
         """Sample i's deposit: tip p (3,) [m], its velocity J v (3,) [m/s], the contact
-        forces f (k,) [N] (module docstring)."""
+        forces f (k,) [N] (module docstring).
+
+        On a built-in surface (∇Φ, ∇²Φ compiled) with :meth:`attach`-ed records, only J v is
+        kept here, and every ``BATCH`` samples one compiled call deposits them all from the
+        records (one call's fixed cost for many samples); :meth:`finish` deposits the rest.
+        """
+        if self._tips is not None and not self._python:
+            s = i - self._first
+            self._velocities[s] = pdot
+            if s == BATCH - 1:
+                self._flush(i + 1)
+            return
         force = float(f[self.surface_index])
         if i >= self._last or not force > 0.0:
             return
@@ -335,6 +374,28 @@ class RemovalObserver:
             self.conforming += 1
         else:
             self.steps += 1
+
+    def _flush(self, stop: int) -> None:
+        """Deposit the kept samples first … stop − 1 (not the run's last: left rectangles)."""
+        first = self._first
+        count = min(stop, self._last) - first
+        if count > 0 and self._tips is not None and self._forces is not None:
+            g, tally = self.grid, np.zeros(2, dtype=np.int64)
+            _K.observe_batch(
+                self._desc, self._tips, self._forces, self.surface_index, self._velocities,
+                first, count, self._shape, self.pad.radius, self._modulus, self.settings.omega,
+                self._factor, g.points, g.areas, g.order, g.keys, g.starts, g.box, g.dims,
+                g.depth, g.index, g.weight, tally,
+            )  # fmt: skip
+            self.steps += int(tally[0])
+            self.conforming += int(tally[1])
+        self._first = stop
+
+    def finish(self, filled: int) -> None:
+        """Deposit the samples kept and not yet deposited, up to the ``filled`` recorded
+        (the end of the run, or where it stopped)."""
+        if self._tips is not None and not self._python and filled > self._first:
+            self._flush(filled)
 
     def summary(self) -> dict[str, Any]:
         """The removal metrics (docs/removal.md) and what they were measured on (JSON-able):
