@@ -323,3 +323,50 @@ def test_the_removal_map_is_drawn_on_the_unrolled_surface(tmp_path: Path) -> Non
     xy = unroll(two)
     assert abs(xy[1, 0] - xy[0, 0]) == pytest.approx(radius * 0.1, rel=1e-12)
     assert xy[1, 1] == pytest.approx(xy[0, 1], abs=1e-12)
+
+
+def test_spindle_dwell_gives_the_rotating_hertz_profile() -> None:
+    """A tool at rest on the plane, spinning at ω: a point at r from the patch centre slides
+    at ω r, so the depth grows as k_p p₀ √(1 − r²/a²) ω r per second (Preston, Hertz). The
+    difference of two runs that end 0.5 s apart during the same dwell, within 2 % of its
+    peak (k_p p₀ ω a / 2 at r = a/√2)."""
+    rpm = 600.0
+    omega = rpm * 2 * math.pi / 60
+
+    def dwell(duration: float) -> Result:
+        return _run(
+            "rtr_plane.toml",
+            {
+                "trajectory": {
+                    "type": "waypoints",
+                    "frame": "surface",
+                    "points": [[0.6, 0.0], [0.6, 0.002]],
+                    "speed": 0.01,
+                    "ramp": 0.1,
+                },
+                "initial.tip": [0.6, 0.0, 5.0],
+                "control.supervisor": False,
+                "sim.duration": duration,
+                "tool.pad": HERTZ,
+                "removal": {"k_p": K_P, "resolution": 1e-4, "spindle_speed": rpm},
+            },
+        )[1]
+
+    short, long = dwell(1.5), dwell(2.0)
+    points, grown = long.removal_points, long.removal_depth - short.removal_depth
+    assert points is not None and short.removal_points is not None
+    assert np.array_equal(points, short.removal_points)  # the same grid (the same path)
+    rest = long.t >= 1.5
+    force = float(np.mean(long.f[rest]))
+    centre = np.mean(long.p[rest], axis=0)
+    assert float(np.max(np.abs(long.p[rest] - centre))) < 1e-6  # at rest
+    a, p0 = HertzPad(HERTZ["radius"], HERTZ["modulus"]).patch(force)
+    r = np.linalg.norm(points[:, :2] - centre[:2], axis=1)
+    # samples 1500 … 1999 of the longer run deposit (the last one stands for nothing)
+    seconds = 500 * 1e-3
+    expected = np.where(r < a, K_P * p0 * np.sqrt(np.clip(1 - (r / a) ** 2, 0, 1)) * omega * r, 0)
+    expected *= seconds
+    peak = K_P * p0 * omega * a / 2 * seconds
+    assert float(expected.max()) == pytest.approx(peak, rel=1e-3)
+    error = float(np.abs(grown - expected).max())
+    assert error < 0.02 * peak, error / peak
