@@ -249,6 +249,11 @@ def test_removal_without_pad_and_pad_without_removal_are_refused(tmp_path: Path)
         (HERTZ, {"k_p": -1.0, "resolution": 1e-3}, r"removal\.k_p = -1\.0: .*> 0"),
         (HERTZ, {"k_p": K_P}, r"removal\.resolution: missing required key"),
         (HERTZ, {"k_p": K_P, "resolution": 1e-3, "rpm": 1.0}, r"removal\.rpm = 1\.0: unknown"),
+        (
+            HERTZ,
+            {"k_p": K_P, "resolution": 1e-3, "spindle_schedule": "feed"},
+            r'removal\.spindle_schedule = "feed": .*spindle_speed > 0',
+        ),
         ({"type": "hertz", "radius": 0.02}, {"k_p": K_P, "resolution": 1e-3}, r"modulus"),
         ({"type": "round", "radius": 0.02}, {"k_p": K_P, "resolution": 1e-3}, r"tool\.pad\.type"),
         (
@@ -370,3 +375,53 @@ def test_spindle_dwell_gives_the_rotating_hertz_profile() -> None:
     assert float(expected.max()) == pytest.approx(peak, rel=1e-3)
     error = float(np.abs(grown - expected).max())
     assert error < 0.02 * peak, error / peak
+
+
+def _spun_pass(speed: float, rpm: float, schedule: str, dwell: float = 0.0) -> Result:
+    """A straight pass on the plane at ``speed`` [m/s] with a spindle at ``rpm``, then
+    ``dwell`` [s] at rest."""
+    removal = {"k_p": K_P, "resolution": 2e-4, "spindle_speed": rpm}
+    return _run(
+        "rtr_plane.toml",
+        {
+            "trajectory": {
+                "type": "waypoints",
+                "frame": "surface",
+                "points": [[0.6, -0.02], [0.6, 0.02]],
+                "speed": speed,
+                "ramp": 0.2,
+            },
+            "initial.tip": [0.6, -0.02, 5.0],
+            "control.supervisor": False,
+            "sim.duration": round(0.04 / speed + 0.25 + dwell, 3),
+            "tool.pad": HERTZ,
+            "removal": {**removal, "spindle_schedule": schedule},
+        },
+    )[1]
+
+
+def test_the_feed_schedule_keeps_the_removal_per_unit_length() -> None:
+    """With ω = ω₀ |v_t| / v_ref the slip is |v_t + ω n × ρ| = |v_t| |ê + (ω₀/v_ref) n × ρ|, so
+    the depth k_p ∫ p · slip dt = k_p ∫ p |ê + (ω₀/v_ref) n × ρ| dℓ depends on the path and
+    ω₀/v_ref only, not on how fast the tool goes where (ramps, a dwell):
+
+    * a pass at 0.05 m/s and 600 rpm and the same pass at 0.02 m/s and 240 rpm (the same
+      ω₀/v_ref, v_ref each run's cruise speed) remove the same depth, to 1 % of its peak,
+      ramps included (with a constant spindle the slower pass removes about 3 × more);
+    * a dwell of 0.5 s at the end adds nothing (the tool at rest, the spindle stopped), where a
+      constant spindle digs a hole: its deepest point more than doubles.
+    """
+    fast, slow = _spun_pass(0.05, 600.0, "feed"), _spun_pass(0.02, 240.0, "feed")
+    assert fast.meta["removal"]["v_ref"] == pytest.approx(0.05, rel=1e-3)
+    assert fast.removal_depth is not None and slow.removal_depth is not None
+    peak = float(fast.removal_depth.max())
+    assert float(np.abs(fast.removal_depth - slow.removal_depth).max()) < 0.01 * peak
+    constant = _spun_pass(0.02, 600.0, "constant").removal_depth
+    assert constant is not None and float(constant.max()) > 1.8 * peak
+    dwelt = _spun_pass(0.05, 600.0, "feed", dwell=0.5).removal_depth
+    assert dwelt is not None
+    assert float(np.abs(dwelt - fast.removal_depth).max()) < 5e-3 * peak  # (0.16 %: settling)
+    held = _spun_pass(0.05, 600.0, "constant", dwell=0.5).removal_depth
+    moving = _spun_pass(0.05, 600.0, "constant").removal_depth
+    assert held is not None and moving is not None
+    assert float(held.max()) > 2.0 * float(moving.max())

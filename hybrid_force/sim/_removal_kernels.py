@@ -212,6 +212,7 @@ def observe(
     radius: float,
     modulus: float,
     omega: float,
+    v_ref: float,
     factor: float,
     points: np.ndarray,
     areas: np.ndarray,
@@ -230,7 +231,9 @@ def observe(
 
     desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
     distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
-    caller's. The patch is centred at the tip's foot p − d n on the surface. work (6,),
+    caller's. The patch is centred at the tip's foot p − d n on the surface. v_ref > 0
+    [m/s]: the spindle's schedule ω |v_t| / v_ref (the removal per unit length of a feed
+    |v_t| is then that of the feed v_ref at ω); 0: ω throughout. work (6,),
     index (M,) int64 and weight (M,): scratch. Returns the patch radius a [m] (0: no force;
     −1: Hertz does not apply, the part conforms; nothing is deposited then).
     """
@@ -245,6 +248,13 @@ def observe(
     centre = work[3:6]
     for k in range(3):
         centre[k] = p[k] - distance * normal[k]
+    if v_ref > 0.0:  # the spindle slows with the feed
+        vn = velocity[0] * normal[0] + velocity[1] * normal[1] + velocity[2] * normal[2]
+        s2 = 0.0
+        for k in range(3):
+            vt = velocity[k] - vn * normal[k]
+            s2 += vt * vt
+        omega = omega * math.sqrt(s2) / v_ref
     deposit(
         points, areas, order, keys, starts, box, dims, depth, centre, normal, velocity, omega, a,
         shape, force, factor, index, weight,
@@ -307,6 +317,7 @@ def observe_batch(
     radius: float,
     modulus: float,
     omega: float,
+    v_ref: float,
     factor: float,
     points: np.ndarray,
     areas: np.ndarray,
@@ -334,7 +345,8 @@ def observe_batch(
             continue
         a = observe(
             desc, tips[i], grad, hess, 0.0, velocities[s], force, shape, radius, modulus, omega,
-            factor, points, areas, order, keys, starts, box, dims, depth, work, index, weight,
+            v_ref, factor, points, areas, order, keys, starts, box, dims, depth, work, index,
+            weight,
         )  # fmt: skip
         if a < 0.0:
             tally[1] += 1

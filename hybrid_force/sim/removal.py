@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -121,9 +121,21 @@ class RemovalSettings:
         minimum=0.0,
         doc="the pad's rotation about the surface normal (0: a non-rotating tool)",
     )
+    spindle_schedule: Literal["constant", "feed"] = param(
+        "constant",
+        doc="constant: the spindle_speed throughout; feed: scaled by the feed / the path's "
+        "top speed (constant removal per unit length)",
+    )
 
     def __post_init__(self) -> None:
         check_fields(self, ScenarioError, "removal.")
+        if self.spindle_schedule != "constant" and self.spindle_speed == 0.0:
+            raise ScenarioError(
+                f'removal.spindle_schedule = "{self.spindle_schedule}" needs a spinning tool '
+                "(removal.spindle_speed > 0): without one it has no effect",
+                key="removal.spindle_schedule",
+                value=self.spindle_schedule,
+            )
 
     @property
     def omega(self) -> float:

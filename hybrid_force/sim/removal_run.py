@@ -166,6 +166,22 @@ def _chart_box(
     return out[0], out[1], uv, (reach[0], reach[1]), wrap
 
 
+def _top_speed(sc: Any) -> float:
+    """The desired path's largest speed ‖ṗ_d‖ [m/s] over [0, sim.duration] (sampled)."""
+    top = max(
+        float(np.linalg.norm(sc.path.evaluate(float(t))[1]))
+        for t in np.linspace(0.0, sc.sim.duration, 2001)
+    )
+    if not top > 0.0:
+        raise ScenarioError(
+            'removal.spindle_schedule = "feed" scales the spindle by the feed over the '
+            "path's top speed, and the desired path does not move",
+            key="removal.spindle_schedule",
+            value="feed",
+        )
+    return top
+
+
 def _thinned(samples: np.ndarray, spacing: float) -> np.ndarray:
     """The samples (S, 3) [m] of a path kept about ``spacing`` [m] apart along it (the last
     kept too)."""
@@ -284,6 +300,10 @@ class RemovalObserver:
         self._shape = _HERTZ if isinstance(pad, HertzPad) else _FLAT
         self._modulus = pad.modulus if isinstance(pad, HertzPad) else 0.0
         self._factor = removal.k_p * sc.sim.dt
+        # the spindle's schedule "feed": ω |v_t| / v_ref, v_ref the desired path's top speed
+        self.v_ref = 0.0
+        if removal.spindle_schedule == "feed":
+            self.v_ref = _top_speed(sc)
         self._last = N - 1
         # the batched deposit (:meth:`observe`): J v of the samples since ``_first``
         self._tips: np.ndarray | None = None
@@ -366,7 +386,7 @@ class RemovalObserver:
             hess[:] = h
         a = _K.observe(
             self._desc, p, grad, hess, distance, pdot, force, self._shape, self.pad.radius,
-            self._modulus, self.settings.omega, self._factor, grid.points, grid.areas,
+            self._modulus, self.settings.omega, self.v_ref, self._factor, grid.points, grid.areas,
             grid.order, grid.keys, grid.starts, grid.box, grid.dims, grid.depth, self._work,
             grid.index, grid.weight,
         )  # fmt: skip
@@ -384,8 +404,8 @@ class RemovalObserver:
             _K.observe_batch(
                 self._desc, self._tips, self._forces, self.surface_index, self._velocities,
                 first, count, self._shape, self.pad.radius, self._modulus, self.settings.omega,
-                self._factor, g.points, g.areas, g.order, g.keys, g.starts, g.box, g.dims,
-                g.depth, g.index, g.weight, tally,
+                self.v_ref, self._factor, g.points, g.areas, g.order, g.keys, g.starts, g.box,
+                g.dims, g.depth, g.index, g.weight, tally,
             )  # fmt: skip
             self.steps += int(tally[0])
             self.conforming += int(tally[1])
@@ -434,6 +454,8 @@ class RemovalObserver:
             conforming_steps=self.conforming,
             k_p=self.settings.k_p,
             spindle_speed=self.settings.spindle_speed,
+            spindle_schedule=self.settings.spindle_schedule,
+            v_ref=self.v_ref,
             resolution=self.settings.resolution,
             pad={"type": self.pad.TYPE, **vars(self.pad)},
         )
