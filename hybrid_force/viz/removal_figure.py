@@ -5,8 +5,9 @@ Drawn by :func:`~hybrid_force.viz.run_figures.plot_result` when the result has t
 arrays (``Result.removal_points``, ``removal_depth``, ``removal_target``; docs/removal.md).
 The surface is unrolled by its chart (:func:`~hybrid_force.geometry.charts.chart_for`, with
 the path's ``u_axis`` on a plane), each coordinate scaled by the chart's metric at the middle
-of the grid: lengths on the surface for a plane and a cylinder (developable: exact), the
-equirectangular map of a sphere or an ellipsoid about the grid's middle. A mesh part's cells
+of the grid (a plane's u and v as they are, a cylinder's angle times its radius): lengths on
+the surface for a plane and a cylinder (developable: exact), the equirectangular map of a
+sphere or an ellipsoid about the grid's middle. A mesh part's cells
 are projected on their best-fit plane (principal axes). The cells are averaged into at most
 400 × 400 bins.
 """
@@ -77,7 +78,7 @@ def unrolled(points: np.ndarray, meta: dict[str, Any]) -> tuple[Any, str, str]:
         for c, period in enumerate(chart.periods):
             if period:
                 q[:, c] += period * np.round((mid[c] - q[:, c]) / period)
-        out: np.ndarray = (q - np.array(mid)) * np.array(scale)
+        out: np.ndarray = q * np.array(scale)  # the chart's own coordinates, scaled
         return out
 
     labels = [f"{name} × {s:.3g} m/{unit} [m]" for name, s, unit in
