@@ -425,3 +425,28 @@ def test_the_feed_schedule_keeps_the_removal_per_unit_length() -> None:
     moving = _spun_pass(0.05, 600.0, "constant").removal_depth
     assert held is not None and moving is not None
     assert float(held.max()) > 2.0 * float(moving.max())
+
+
+def test_a_mesh_grid_splits_the_triangles_near_the_path() -> None:
+    """On a mesh the cells are the triangles near the path split into s² equal ones: their
+    areas add up to the triangles' (a square of 2 × 2 cm in two triangles), their centres lie
+    on them, and a patch deposits F · v · dt · k_p of volume on them (∫ p dA = F)."""
+    from types import SimpleNamespace
+
+    from hybrid_force.sim.removal_run import _mesh_grid
+
+    side = 0.02
+    part = SimpleNamespace(
+        vertices=np.array([[0, 0, 0], [side, 0, 0], [side, side, 0], [0, side, 0]], float),
+        faces=np.array([[0, 1, 2], [0, 2, 3]]),
+    )
+    path = np.column_stack([np.linspace(0.005, 0.015, 50), np.full(50, 0.01), np.zeros(50)])
+    grid = _mesh_grid(part, path, margin=0.004, resolution=5e-4)
+    s = math.ceil(side / 5e-4)  # the median of the six edges (four sides, two diagonals)
+    assert grid.points.shape[0] == 2 * s * s
+    assert float(grid.areas.sum()) == pytest.approx(side * side, rel=1e-12)
+    assert np.all(grid.points[:, 2] == 0.0)
+    pad = HertzPad(HERTZ["radius"], HERTZ["modulus"])
+    grid.add(pad, K_P, 1e-3, np.array([0.01, 0.01, 0.0]), np.array([0, 0, 1.0]),
+             np.array([0.05, 0, 0]), 10.0)  # fmt: skip
+    assert grid.volume == pytest.approx(K_P * 10.0 * 0.05 * 1e-3, rel=1e-12)
