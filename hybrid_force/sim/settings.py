@@ -27,6 +27,7 @@ from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.removal import RemovalSettings
+from hybrid_force.sim.removal_run import check_removal_surface
 from hybrid_force.sim.sensors import SensorSettings
 
 __all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
@@ -269,8 +270,6 @@ class Scenario:
                 key="tool.pad",
             )
         if removal is not None:
-            from hybrid_force.sim.removal_run import check_removal_surface
-
             check_removal_surface(self)
 
     def _check_contact(self) -> None:

@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hybrid_force.geometry.charts import chart_for
+from hybrid_force.geometry.surfaces import surface_from_dict
 from hybrid_force.viz._style import _new_figure, _note
 
 if TYPE_CHECKING:
@@ -33,9 +35,6 @@ _MAX_BINS = 400
 def _chart(meta: dict[str, Any]) -> Any:
     """The chart the removal grid was laid on, rebuilt from the run's meta (None for a mesh
     or a surface without one)."""
-    from hybrid_force.geometry.charts import chart_for
-    from hybrid_force.geometry.surfaces import surface_from_dict
-
     removal = meta.get("removal") or {}
     surfaces = meta.get("surfaces") or []
     j = int(removal.get("surface", 0))

@@ -39,6 +39,7 @@ import numpy as np
 from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import BadInputError
 from hybrid_force.phases import NEAR
+from hybrid_force.result import Result
 from hybrid_force.viz._run_data import (
     _intervals,
     _load_run,
@@ -471,8 +472,6 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
             f"prefix {prefix!r} must be a file-name prefix, not contain a path separator"
         )
     if isinstance(result, str | os.PathLike):  # loaded once: the removal map reads it too
-        from hybrid_force.result import Result
-
         result = Result.load(result)
     run = _load_run(result)
     out = _out_dir(out_dir)
