@@ -63,8 +63,8 @@ def summarise(result: SummarisedRun, settle_time: float | None = None) -> dict[s
     tolerance; None without contact or f_d; :func:`hybrid_force.sim.run_checks.run_behaviour`),
     then the metrics
     (:class:`~hybrid_force.metrics.Metrics`, with ``settle_time`` [s] as in
-    :meth:`~hybrid_force.result.Result.metrics`), then, for a run with ``[removal]`` only, the
-    :data:`REMOVAL_KEYS`. Keys whose value the run did not record (older results) are None or
+    :meth:`~hybrid_force.result.Result.metrics`), then the :data:`REMOVAL_KEYS` (None without
+    ``[removal]``). Keys whose value the run did not record (older results) are None or
     empty.
     """
     meta = result.meta
@@ -99,6 +99,6 @@ def summarise(result: SummarisedRun, settle_time: float | None = None) -> dict[s
     }
     out.update(result.metrics(settle_time).to_dict())
     removal = meta.get("removal")
-    if isinstance(removal, dict):  # only a run with [removal]: other summaries are unchanged
-        out.update({key: removal.get(key) for key in REMOVAL_KEYS})
+    removal = removal if isinstance(removal, dict) else {}  # None without [removal]
+    out.update({key: removal.get(key) for key in REMOVAL_KEYS})
     return out
