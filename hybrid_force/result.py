@@ -34,6 +34,7 @@ from hybrid_force.phases import Phase
 from hybrid_force.result_file import (
     ARRAY_NAMES,
     OPTIONAL_ARRAYS,
+    REMOVAL_ARRAYS,
     meta_to_json,
     read_arrays,
     write_arrays,
@@ -128,6 +129,11 @@ class Result:
             [m]: p − r n̂, r = ``tool.radius``, n̂ the unit normal at the tool centre p (the
             ball's point nearest the part when it is off it; NaN where n̂ is undefined); None,
             and absent from the file, for a point tool (``tool.radius = 0``).
+        removal_points, removal_depth, removal_target: the removal grid of a run with
+            ``[removal]`` (docs/removal.md): the cells' centres (M, 3) [m] on the surface, the
+            depth removed (M,) [m], and (M,) 1.0 for a cell of the target region, else 0.0
+            (the metrics' region, ``meta["removal"]``); None, and absent from the file,
+            without removal. Per cell, not per sample: :meth:`truncated` keeps them whole.
         meta: JSON-able dict (name, scenario, robot, surfaces, path, gains, settings, events,
             status, error, versions, steps_per_second, wall_time); stored as a normalised copy.
             steps_per_second counts the loop from its second step on (the first steps load
@@ -155,6 +161,9 @@ class Result:
     law_log: np.ndarray | None = None
     tool_angle: np.ndarray | None = None
     contact_point: np.ndarray | None = None
+    removal_points: np.ndarray | None = None
+    removal_depth: np.ndarray | None = None
+    removal_target: np.ndarray | None = None
 
     # ------------------------------------------------------------------ validation
     def __post_init__(self) -> None:
@@ -228,6 +237,7 @@ class Result:
             k = 1 if len(constraint_shape) == 1 else constraint_shape[1]
             _check_shape("contact_point", contact, (n_samples, 3) if k == 1 else (n_samples, k, 3))
             object.__setattr__(self, "contact_point", contact)
+        self._check_removal()
         meta = self._normalise_meta(self.meta)
         law_log = check_law_log(self.law_log, n_samples, meta)
         for name, arr in arrays.items():
@@ -236,6 +246,29 @@ class Result:
         object.__setattr__(self, "u_cmd", u_cmd)
         object.__setattr__(self, "law_log", law_log)
         object.__setattr__(self, "meta", meta)
+
+    def _check_removal(self) -> None:
+        """The removal arrays: all three or none, (M, 3), (M,), (M,) of one M."""
+        given = [getattr(self, name) is not None for name in REMOVAL_ARRAYS]
+        if not any(given):
+            return
+        if not all(given):
+            only = [n for n in REMOVAL_ARRAYS if getattr(self, n) is not None]
+            raise BadInputError(
+                f"Result arrays {', '.join(REMOVAL_ARRAYS)} come together (a run with "
+                f"[removal]); got only {', '.join(only)}"
+            )
+        points = _as_float_array("removal_points", self.removal_points)
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise BadInputError(
+                f"Result array 'removal_points' must have shape (M, 3), got {points.shape}"
+            )
+        m = points.shape[0]
+        object.__setattr__(self, "removal_points", points)
+        for name in REMOVAL_ARRAYS[1:]:
+            arr = _as_float_array(name, getattr(self, name))
+            _check_shape(name, arr, (m,))
+            object.__setattr__(self, name, arr)
 
     @staticmethod
     def _normalise_meta(meta: Any) -> dict[str, Any]:
@@ -322,7 +355,8 @@ class Result:
             for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
             if getattr(self, name) is not None
         }
-        return Result(**arrays, meta=self.meta)
+        whole = {name: getattr(self, name) for name in REMOVAL_ARRAYS}  # per cell: kept
+        return Result(**arrays, **whole, meta=self.meta)
 
     def slice(self, stop: int) -> Result:
         """Return a new Result with the first ``stop`` samples (same as :meth:`truncated`)."""
@@ -347,7 +381,7 @@ class Result:
         target = Path(path)
         arrays = {
             name: getattr(self, name)
-            for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS)
+            for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS, *REMOVAL_ARRAYS)
             if getattr(self, name) is not None  # tool_angle, contact_point: when the run has one
         }
         write_arrays(target, arrays, meta_to_json(self.meta))

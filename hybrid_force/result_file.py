@@ -38,6 +38,7 @@ __all__ = [
     "MAX_META_DEPTH",
     "META_KEY",
     "OPTIONAL_ARRAYS",
+    "REMOVAL_ARRAYS",
     "meta_to_json",
     "read_arrays",
     "write_arrays",
@@ -61,6 +62,10 @@ ARRAY_NAMES: tuple[str, ...] = (
 #: Arrays a result file may hold beyond :data:`ARRAY_NAMES` (older files lack them; see
 #: :class:`~hybrid_force.result.Result` for the value then).
 OPTIONAL_ARRAYS: tuple[str, ...] = ("f_meas", "u_cmd", "law_log", "tool_angle", "contact_point")
+#: The removal grid's arrays of a run with ``[removal]`` (per cell, not per sample: a
+#: truncated result keeps them whole): removal_points (M, 3) [m], removal_depth (M,) [m],
+#: removal_target (M,) 1 for a cell of the target region, else 0 (docs/removal.md).
+REMOVAL_ARRAYS: tuple[str, ...] = ("removal_points", "removal_depth", "removal_target")
 #: Name of the member holding the metadata's JSON text.
 META_KEY = "meta"
 #: Deepest nesting of lists and objects accepted in a loaded result's meta.
@@ -225,7 +230,7 @@ def read_arrays(src: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
                         f"result file '{src}' is not a complete hybrid_force result: "
                         f"missing array(s) {', '.join(missing)} (found: {found})"
                     )
-                for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS, META_KEY):
+                for name in (*ARRAY_NAMES, *OPTIONAL_ARRAYS, *REMOVAL_ARRAYS, META_KEY):
                     if name in names:
                         data[name] = npz[name]
     except BadInputError:

@@ -11,7 +11,20 @@ from typing import Any, Protocol
 
 from hybrid_force.metrics import Metrics
 
-__all__ = ["SummarisedRun", "summarise"]
+__all__ = ["REMOVAL_KEYS", "SummarisedRun", "summarise"]
+
+REMOVAL_KEYS: tuple[str, ...] = (
+    "removal_volume",
+    "removal_depth_mean",
+    "removal_depth_std",
+    "removal_depth_min",
+    "removal_depth_max",
+    "removal_uniformity",
+    "removal_coverage",
+)
+"""The removal metrics of a run with ``[removal]`` (docs/removal.md): the volume removed
+[m³] (the whole grid), over the target region the area-weighted depth mean, std, min, max [m],
+the uniformity 1 − std/mean and the coverage (area fraction with depth ≥ mean / 2)."""
 
 
 class SummarisedRun(Protocol):
@@ -50,8 +63,9 @@ def summarise(result: SummarisedRun, settle_time: float | None = None) -> dict[s
     tolerance; None without contact or f_d; :func:`hybrid_force.sim.run_checks.run_behaviour`),
     then the metrics
     (:class:`~hybrid_force.metrics.Metrics`, with ``settle_time`` [s] as in
-    :meth:`~hybrid_force.result.Result.metrics`). Keys whose value the run did not record
-    (older results) are None or empty.
+    :meth:`~hybrid_force.result.Result.metrics`), then the :data:`REMOVAL_KEYS` (None without
+    ``[removal]``). Keys whose value the run did not record (older results) are None or
+    empty.
     """
     meta = result.meta
     limits = meta.get("limits") or {}
@@ -84,4 +98,7 @@ def summarise(result: SummarisedRun, settle_time: float | None = None) -> dict[s
         "force_settled": behaviour.get("force_settled"),
     }
     out.update(result.metrics(settle_time).to_dict())
+    removal = meta.get("removal")
+    removal = removal if isinstance(removal, dict) else {}  # None without [removal]
+    out.update({key: removal.get(key) for key in REMOVAL_KEYS})
     return out

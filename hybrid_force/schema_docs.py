@@ -135,21 +135,21 @@ def _markdown_row(name: str, key: Key) -> str:
 
 def markdown_tables() -> dict[str, str]:
     """The key tables of docs/scenarios.md, by the name of their marker
-    (``<!-- generated: NAME -->`` ... ``<!-- end generated -->``)."""
+    (``<!-- generated: NAME -->`` ... ``<!-- end generated -->``): ``table``, ``table.type``
+    and a typed subtable's ``table[.type].key.subtype``."""
     head = "| key | type | default | meaning |\n|---|---|---|---|"
-    out = {
-        name: "\n".join([head, *(_markdown_row(k, key) for k, key in keys.items())])
-        for name, keys in settings_tables().items()
-        if name not in ("robot", "initial")
+    named = {
+        name: keys for name, keys in settings_tables().items() if name not in ("robot", "initial")
     }
     for table, types in typed_tables().items():
-        for kind, keys in types.items():
-            rows = [_markdown_row(k, key) for k, key in keys.items()]
-            out[f"{table}.{kind}"] = "\n".join([head, *rows])
-            for name, key in keys.items():  # a subtable [table.name] of its own types
-                for sub, sub_keys in (key.tables or {}).items():
-                    sub_rows = [_markdown_row(k, x) for k, x in sub_keys.items()]
-                    out[f"{table}.{kind}.{name}.{sub}"] = "\n".join([head, *sub_rows])
+        named.update({f"{table}.{kind}": keys for kind, keys in types.items()})
+    out: dict[str, str] = {}
+    for name, keys in named.items():
+        out[name] = "\n".join([head, *(_markdown_row(k, key) for k, key in keys.items())])
+        for key_name, key in keys.items():  # a typed subtable [name.key] of its own types
+            for sub, sub_keys in (key.tables or {}).items():
+                rows = [_markdown_row(k, x) for k, x in sub_keys.items()]
+                out[f"{name}.{key_name}.{sub}"] = "\n".join([head, *rows])
     return out
 
 

@@ -73,7 +73,8 @@ def arguments(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
                 out[f.name] = nested(**given)
         elif kind == "typed_table" and isinstance(values.get(spec.key or f.name), Mapping):
             sub = dict(values[spec.key or f.name])
-            chosen = next(c for c in choices if c.kind == sub.pop("type"))
+            kind = sub.pop("type")
+            chosen = next(c for c in choices if c.kind == kind)
             out[f.name] = chosen(**arguments(chosen, sub))
         elif (spec.key or f.name) in values:
             out[f.name] = values[spec.key or f.name]

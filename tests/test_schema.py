@@ -164,7 +164,9 @@ def test_the_docs_key_tables_are_the_generated_ones(
 
 def test_every_table_of_the_reader_is_in_the_reference() -> None:
     tables = settings_tables()
-    assert {"robot", "initial", "control", "tool", "sim", "sensor", "contact"} == set(tables)
+    assert {
+        "robot", "initial", "control", "tool", "sim", "sensor", "contact", "removal"
+    } == set(tables)  # fmt: skip
     assert "baumgarte_alpha" in tables["sim"] and "model_mass_factor" in tables["sim"]
     typed = typed_tables()
     assert {"helix", "circle", "waypoints", "raster"} <= set(typed["trajectory"])

@@ -49,6 +49,7 @@ from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import MAX_LENGTH, Surface
 from hybrid_force.schema import check_fields, param
+from hybrid_force.sim.removal import PAD_TYPES, Pad
 
 __all__ = [
     "ToolAngleProbe",
@@ -83,6 +84,10 @@ class ToolSettings:
             ball's centre: the run controls it on the offset surface at distance r from the
             part (:mod:`hybrid_force.geometry.offset`), and the contact point lies r along −n̂
             from it. 0 (default): a point tool.
+        pad: None or the tool's contact pad (the ``[tool.pad]`` table, a
+            :class:`~hybrid_force.sim.removal.HertzPad` or
+            :class:`~hybrid_force.sim.removal.FlatPad`): its pressure patch, which the
+            ``[removal]`` table needs (docs/removal.md).
 
     Raises ControlError (key ``tool.<field>``) for a bad value, and for a tilt, tilt axis or
     held roll with ``orientation = "free"``, which has no desired direction to apply them to.
@@ -118,6 +123,7 @@ class ToolSettings:
         maximum=MAX_LENGTH,
         doc="radius of a ball-end tool or rounded pad: the tip frame is its centre",
     )
+    pad: Pad | None = param(None, doc="[tool.pad]: the contact pad, which [removal] needs")
 
     def __post_init__(self) -> None:
         """Check every field (module conventions) and store the axes as unit float tuples."""
@@ -126,6 +132,13 @@ class ToolSettings:
         check_fields(self, ControlError, "tool.")
         if self.tilt_axis is not None:
             set_(self, "tilt_axis", _unit_tuple(self.tilt_axis, "tool.tilt_axis"))
+        if self.pad is not None and not isinstance(self.pad, tuple(PAD_TYPES.values())):
+            raise ControlError(
+                "tool.pad must be None or a HertzPad or FlatPad (hybrid_force.sim.removal), "
+                f"got {checks.shown(self.pad)}",
+                key="tool.pad",
+                value=self.pad,
+            )
         if self.orientation == "free":
             for name, default in (("tilt", 0.0), ("tilt_axis", None), ("roll", "free")):
                 value = getattr(self, name)
@@ -158,6 +171,8 @@ class ToolSettings:
             "tilt_axis": None if self.tilt_axis is None else list(self.tilt_axis),
             "roll": self.roll,
             **({"radius": self.radius} if self.radius else {}),
+            # only with a pad: the dict of a run without one is as before pads existed
+            **({} if self.pad is None else {"pad": {"type": self.pad.kind, **vars(self.pad)}}),
         }
 
     def check_arm(self, robot: Any) -> None:

@@ -18,13 +18,14 @@ from hybrid_force.geometry.surface_base import surface_types
 from hybrid_force.schema import Param, default_of, specs
 from hybrid_force.settings_reader import Key, keys_of
 from hybrid_force.sim.contact import ContactSettings
+from hybrid_force.sim.removal import RemovalSettings
 from hybrid_force.sim.sensors import SensorSettings
 from hybrid_force.sim.settings import SimSettings
 
 TOP: dict[str, Key] = {"name": Key("str", True), "description": Key("str")}
 TABLES = (
     "robot", "surface", "surfaces", "trajectory", "initial", "control", "sensor", "contact", "sim",
-    "tool",
+    "tool", "removal",
 )  # fmt: skip
 SETTINGS: dict[str, type] = {
     "sim": SimSettings, "sensor": SensorSettings, "contact": ContactSettings, "tool": ToolSettings,
@@ -81,6 +82,7 @@ def settings_tables() -> dict[str, dict[str, Key]]:
         "control": control_keys(),
         "sim": sim_keys(),
         **own,
+        "removal": keys_of(RemovalSettings),
     }
 
 

@@ -54,6 +54,7 @@ from hybrid_force.sim.prerun import (
     _check_path_followable,
     _check_pose_followable,
 )
+from hybrid_force.sim.removal import RemovalSettings
 from hybrid_force.sim.settings import Scenario
 from hybrid_force.sim.start import start_at_tip
 
@@ -171,6 +172,9 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
     sim, sensor, contact, tool = (
         read_settings(ctx, t, cls, None, values[t]) for t, cls in SETTINGS.items()
     )
+    removal = None  # [removal] is optional (docs/removal.md)
+    if "removal" in doc:
+        removal = read_settings(ctx, "removal", RemovalSettings, doc["removal"])
     trust = isinstance(doc["robot"], dict) and doc["robot"].get("xacro_trust") is True
     controller_model = load_controller_model(values["control"], robot, file, ctx, trust)
     if control.supervisor:  # a run that starts in contact: checked by Scenario
@@ -197,6 +201,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
             controller_model=controller_model,
             contact=contact,
             tool=tool,
+            removal=removal,
         )
     except BadInputError as exc:
         start = (robot, q0, start_key, start_value)

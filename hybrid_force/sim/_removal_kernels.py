@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.geometry._kernels import surface_eval as _surface_eval
 
 HERTZ = 0
 FLAT = 1
@@ -34,10 +35,18 @@ def _sliding_speed(
 
 
 @_jit
+def _bucket(keys: np.ndarray, key: int) -> int:
+    """The position of bucket id ``key`` in the sorted ``keys`` (B,), or −1 (no cell there)."""
+    b = int(np.searchsorted(keys, key))
+    return b if b < keys.shape[0] and keys[b] == key else -1
+
+
+@_jit
 def deposit(
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
+    keys: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
@@ -50,15 +59,20 @@ def deposit(
     shape: int,
     force: float,
     factor: float,
+    index: np.ndarray,
+    weight: np.ndarray,
 ) -> int:
     """Add one step's Preston depth k_p · p · |v| · dt to the cells under the patch.
 
-    points (M, 3) [m], areas (M,) [m²]: the cells; order (M,), starts (B + 1,): the cells
-    sorted by bucket (CSR), box = [origin (3), size] of the buckets, dims (3,) their counts;
+    points (M, 3) [m], areas (M,) [m²]: the cells; order (M,), keys (B,), starts (B + 1,):
+    the cells sorted by bucket, the sorted ids (bx · dims₁ + by) · dims₂ + bz of the B buckets
+    holding cells and where each one's cells start in ``order``; box = [origin (3), size] of
+    the buckets, dims (3,) their counts per axis;
     depth (M,) [m], written. centre (3,) [m] and unit normal (3,) of the patch, velocity (3,)
     [m/s] of the contact point (its tangential part slides), omega [rad/s] the spindle's rate
     about the normal, a [m] the patch radius, shape HERTZ (p ∝ √(1 − ρ²/a²)) or FLAT
-    (uniform), force [N], factor = k_p · dt [m²/N · s].
+    (uniform), force [N], factor = k_p · dt [m²/N · s]; index (M,) int64 and weight (M,):
+    scratch (the cells inside the patch and their p · |v| up to the scale).
 
     The cells' pressures follow the profile and are scaled so that Σ p_i A_i = F exactly (the
     discrete form of ∫p dA = F); a patch with no cell centre inside it puts F on the nearest
@@ -71,6 +85,7 @@ def deposit(
     vt0 = velocity[0] - vn * normal[0]
     vt1 = velocity[1] - vn * normal[1]
     vt2 = velocity[2] - vn * normal[2]
+    feed = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2)  # the slip without a spindle
     size = box[3]
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
@@ -84,33 +99,37 @@ def deposit(
     inside = 0
     nearest = -1
     nearest_d2 = math.inf
-    for pass_ in range(2):
-        scale = 0.0 if pass_ == 0 else force / total if total > 0.0 else 0.0
-        if pass_ == 1 and total <= 0.0:
-            break
-        for bx in range(lo[0], hi[0] + 1):
-            for by in range(lo[1], hi[1] + 1):
-                for bz in range(lo[2], hi[2] + 1):
-                    bucket = (bx * dims[1] + by) * dims[2] + bz
-                    for s in range(starts[bucket], starts[bucket + 1]):
-                        i = order[s]
-                        r0 = points[i, 0] - centre[0]
-                        r1 = points[i, 1] - centre[1]
-                        r2 = points[i, 2] - centre[2]
-                        d2 = r0 * r0 + r1 * r1 + r2 * r2
-                        if pass_ == 0 and d2 < nearest_d2:
-                            nearest_d2 = d2
-                            nearest = i
-                        if d2 >= a2:
-                            continue
-                        w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
-                        if pass_ == 0:
-                            total += w * areas[i]
-                            inside += 1
-                            continue
-                        speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
-                        depth[i] += factor * scale * w * speed
+    # one scan of the buckets: the cells inside, their profile w and w · slip
+    for bx in range(lo[0], hi[0] + 1):
+        for by in range(lo[1], hi[1] + 1):
+            for bz in range(lo[2], hi[2] + 1):
+                b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
+                if b < 0:
+                    continue
+                for s in range(starts[b], starts[b + 1]):
+                    i = order[s]
+                    r0 = points[i, 0] - centre[0]
+                    r1 = points[i, 1] - centre[1]
+                    r2 = points[i, 2] - centre[2]
+                    d2 = r0 * r0 + r1 * r1 + r2 * r2
+                    if d2 < nearest_d2:
+                        nearest_d2 = d2
+                        nearest = i
+                    if d2 >= a2:
+                        continue
+                    w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
+                    total += w * areas[i]
+                    if omega != 0.0:
+                        w *= _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
+                    else:
+                        w *= feed
+                    index[inside] = i
+                    weight[inside] = w
+                    inside += 1
     if total > 0.0:
+        scale = factor * force / total
+        for c in range(inside):
+            depth[index[c]] += scale * weight[c]
         return inside
     if nearest >= 0:
         # the patch falls between cell centres: all of F on the nearest cell
@@ -120,3 +139,216 @@ def deposit(
         speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
         depth[nearest] += factor * force / areas[nearest] * speed
     return 0
+
+
+@_jit
+def patch_on_part(
+    grad: np.ndarray,
+    hess: np.ndarray,
+    shape: int,
+    radius: float,
+    modulus: float,
+    force: float,
+    normal: np.ndarray,
+) -> float:
+    """The patch radius a [m] under ``force`` [N] where the part has gradient ∇Φ (3,) and
+    Hessian ∇²Φ (3, 3); writes the unit normal (3,) ∇Φ/‖∇Φ‖. −1 where the part is concave
+    with 1/R + κ ≤ 0 (Hertz does not apply), 0 for no force.
+
+    The principal curvatures κ₁, κ₂ (> 0 convex) are the eigenvalues of the level set's
+    shape operator Tᵀ ∇²Φ T / ‖∇Φ‖ (T: an orthonormal tangent basis); a HERTZ pad of radius R
+    and modulus E* gives a = (3 F R_eff / 4E*)^(1/3), R_eff = 1/√((1/R + κ₁)(1/R + κ₂))
+    (:class:`hybrid_force.sim.removal.HertzPad`); a FLAT pad a = R.
+    """
+    g = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+    for k in range(3):
+        normal[k] = grad[k] / g
+    if force <= 0.0:
+        return 0.0
+    if shape == FLAT:
+        return radius
+    n0, n1, n2 = normal[0], normal[1], normal[2]
+    # t1 ⟂ n from the world axis least along n, t2 = n × t1
+    if abs(n0) <= abs(n1) and abs(n0) <= abs(n2):
+        e0, e1, e2 = 1.0, 0.0, 0.0
+    elif abs(n1) <= abs(n2):
+        e0, e1, e2 = 0.0, 1.0, 0.0
+    else:
+        e0, e1, e2 = 0.0, 0.0, 1.0
+    a0, a1, a2 = n1 * e2 - n2 * e1, n2 * e0 - n0 * e2, n0 * e1 - n1 * e0
+    s = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    a0, a1, a2 = a0 / s, a1 / s, a2 / s
+    b0, b1, b2 = n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0
+    m00 = m01 = m11 = 0.0
+    for r in range(3):
+        ha = hess[r, 0] * a0 + hess[r, 1] * a1 + hess[r, 2] * a2
+        hb = hess[r, 0] * b0 + hess[r, 1] * b1 + hess[r, 2] * b2
+        ar = a0 if r == 0 else a1 if r == 1 else a2
+        br = b0 if r == 0 else b1 if r == 1 else b2
+        m00 += ar * ha
+        m01 += ar * hb
+        m11 += br * hb
+    m00, m01, m11 = m00 / g, m01 / g, m11 / g
+    mean = 0.5 * (m00 + m11)
+    half = math.sqrt(0.25 * (m00 - m11) ** 2 + m01 * m01)
+    inv1 = 1.0 / radius + mean + half
+    inv2 = 1.0 / radius + mean - half
+    if not (inv1 > 0.0 and inv2 > 0.0):
+        return -1.0
+    r_eff = 1.0 / math.sqrt(inv1 * inv2)
+    return (3.0 * force * r_eff / (4.0 * modulus)) ** (1.0 / 3.0)
+
+
+@_jit
+def observe(
+    desc: np.ndarray,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    distance: float,
+    velocity: np.ndarray,
+    force: float,
+    shape: int,
+    radius: float,
+    modulus: float,
+    omega: float,
+    v_ref: float,
+    factor: float,
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    depth: np.ndarray,
+    work: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
+) -> float:
+    """One run step's removal: the patch at the tip p (3,) [m] with velocity (3,) [m/s]
+    pressed with ``force`` [N], deposited on the grid (:func:`deposit`).
+
+    desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
+    distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
+    caller's. The patch is centred at the tip's foot p − d n on the surface. v_ref > 0
+    [m/s]: the spindle's schedule ω |v_t| / v_ref (the removal per unit length of a feed
+    |v_t| is then that of the feed v_ref at ω); 0: ω throughout. work (6,),
+    index (M,) int64 and weight (M,): scratch. Returns the patch radius a [m] (0: no force;
+    −1: Hertz does not apply, the part conforms; nothing is deposited then).
+    """
+    if force <= 0.0:
+        return 0.0
+    if desc.shape[0] > 0:
+        _, distance = _surface_eval(desc, p, grad, hess)
+    normal = work[0:3]
+    a = patch_on_part(grad, hess, shape, radius, modulus, force, normal)
+    if a <= 0.0:
+        return a
+    centre = work[3:6]
+    for k in range(3):
+        centre[k] = p[k] - distance * normal[k]
+    if v_ref > 0.0:  # the spindle slows with the feed
+        vn = velocity[0] * normal[0] + velocity[1] * normal[1] + velocity[2] * normal[2]
+        s2 = 0.0
+        for k in range(3):
+            vt = velocity[k] - vn * normal[k]
+            s2 += vt * vt
+        omega = omega * math.sqrt(s2) / v_ref
+    deposit(
+        points, areas, order, keys, starts, box, dims, depth, centre, normal, velocity, omega, a,
+        shape, force, factor, index, weight,
+    )  # fmt: skip
+    return a
+
+
+@_jit
+def mark_near(
+    points: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    samples: np.ndarray,
+    reach: float,
+    out: np.ndarray,
+) -> None:
+    """out[i] = True for each cell i (points (M, 3) [m], bucketed as in :func:`deposit`)
+    within ``reach`` [m] of one of the samples (S, 3) [m]; out (M,) bool, written."""
+    size = box[3]
+    r2 = reach * reach
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    for s in range(samples.shape[0]):
+        empty = False
+        for k in range(3):
+            lo[k] = max(0, math.floor((samples[s, k] - reach - box[k]) / size))
+            hi[k] = min(dims[k] - 1, math.floor((samples[s, k] + reach - box[k]) / size))
+            if lo[k] > hi[k]:
+                empty = True
+        if empty:
+            continue
+        for bx in range(lo[0], hi[0] + 1):
+            for by in range(lo[1], hi[1] + 1):
+                for bz in range(lo[2], hi[2] + 1):
+                    b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
+                    if b < 0:
+                        continue
+                    for j in range(starts[b], starts[b + 1]):
+                        i = order[j]
+                        d0 = points[i, 0] - samples[s, 0]
+                        d1 = points[i, 1] - samples[s, 1]
+                        d2 = points[i, 2] - samples[s, 2]
+                        if d0 * d0 + d1 * d1 + d2 * d2 < r2:
+                            out[i] = True
+
+
+@_jit
+def observe_batch(
+    desc: np.ndarray,
+    tips: np.ndarray,
+    forces: np.ndarray,
+    column: int,
+    velocities: np.ndarray,
+    first: int,
+    count: int,
+    shape: int,
+    radius: float,
+    modulus: float,
+    omega: float,
+    v_ref: float,
+    factor: float,
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    depth: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
+    tally: np.ndarray,
+) -> None:
+    """:func:`observe` for samples first … first + count − 1 of a run on a built-in surface
+    (``desc``): tips (N, 3) [m] and forces (N, k) [N] the run's recorded columns (the force of
+    surface ``column``), velocities (count, 3) [m/s] their J v. tally (2,): the samples that
+    deposited and those where the part conformed, incremented."""
+    grad = np.zeros(3)
+    hess = np.zeros((3, 3))
+    work = np.zeros(6)
+    for s in range(count):
+        i = first + s
+        force = forces[i, column]
+        if not force > 0.0:
+            continue
+        a = observe(
+            desc, tips[i], grad, hess, 0.0, velocities[s], force, shape, radius, modulus, omega,
+            v_ref, factor, points, areas, order, keys, starts, box, dims, depth, work, index,
+            weight,
+        )  # fmt: skip
+        if a < 0.0:
+            tally[1] += 1
+        else:
+            tally[0] += 1

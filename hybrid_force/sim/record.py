@@ -20,6 +20,7 @@ from hybrid_force.phases import CONTACT
 from hybrid_force.result import Result
 from hybrid_force.sim.control_side import ControlSide, ToolLog
 from hybrid_force.sim.plant import Plant
+from hybrid_force.sim.removal_run import RemovalObserver
 from hybrid_force.sim.run_checks import check_log_memory
 from hybrid_force.sim.settings import Scenario
 
@@ -85,6 +86,8 @@ class Record:
         self.tool_angle: np.ndarray | None = np.zeros(N) if self._tool is not None else None
         # a ball-end tool: its contact points, found from the centres p after the run
         self._ball = (sc.tool_surfaces, sc.tool.radius) if sc.tool.radius > 0.0 else None
+        # Preston's removal on the part, when the run has [removal] (None: nothing is done)
+        self.removal = RemovalObserver(sc, N) if sc.removal is not None else None
         widths = self.widths(nq, nv, k)
         self.table = np.zeros((N, sum(widths)))
         views = []
@@ -96,6 +99,8 @@ class Record:
          phase) = views  # fmt: skip
         self.t, self.V, self.phase = t[:, 0], V[:, 0], phase[:, 0]
         self.filled = 0
+        if self.removal is not None:  # it reads the recorded tip and force in batches
+            self.removal.attach(self.p, self.f)
 
     def record(
         self,
@@ -143,6 +148,8 @@ class Record:
         if self._tool is not None:
             assert self.tool_angle is not None
             self.tool_angle[i] = self._tool.angle(t, q)
+        if self.removal is not None:  # the tip, its velocity J v and the contact force
+            self.removal.observe(i, terms.p, terms.pdot, f)
         self.filled = i + 1
         return bool(ok)
 
@@ -154,6 +161,11 @@ class Record:
 
         def col(a: np.ndarray) -> np.ndarray:
             return own(a[:, 0] if k == 1 else a)
+
+        removal = self.removal
+        if removal is not None:
+            removal.finish(min(n, self.filled))
+            meta = {**meta, "removal": removal.summary()}
 
         return Result(
             t=own(self.t),
@@ -174,6 +186,9 @@ class Record:
             law_log=None if self.law_log is None else own(self.law_log),
             tool_angle=None if self.tool_angle is None else own(self.tool_angle),
             contact_point=None if self._ball is None else self._contact_points(own(self.p), k),
+            removal_points=None if removal is None else removal.grid.points,
+            removal_depth=None if removal is None else removal.grid.depth,
+            removal_target=None if removal is None else removal.target.astype(np.float64),
         )
 
     def _contact_points(self, centres: np.ndarray, k: int) -> np.ndarray:

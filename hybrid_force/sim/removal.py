@@ -22,16 +22,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar, Literal
 
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import ScenarioError
+from hybrid_force.schema import check_fields, param
 
 __all__ = [
+    "PAD_TYPES",
     "FlatPad",
     "HertzPad",
+    "Pad",
     "RemovalGrid",
+    "RemovalSettings",
     "flat_profile",
     "hertz_profile",
 ]
@@ -42,17 +47,17 @@ _HERTZ, _FLAT = 0, 1
 
 @dataclass(frozen=True)
 class HertzPad:
-    """An elastic pad: ``radius`` R [m] of curvature, ``modulus`` E* [Pa] (effective)."""
+    """An elastic pad (``[tool.pad] type = "hertz"``): ``radius`` R [m] of curvature,
+    ``modulus`` E* [Pa] (effective: E* = 1 / ((1 − ν₁²)/E₁ + (1 − ν₂²)/E₂))."""
 
-    radius: float
-    modulus: float
+    kind: ClassVar[str] = "hertz"
+    radius: float = param(unit="m", minimum=0.0, strict=True, doc="the pad's radius of curvature")
+    modulus: float = param(
+        unit="Pa", minimum=0.0, strict=True, doc="effective modulus E* of the pad on the part"
+    )
 
     def __post_init__(self) -> None:
-        for key, value in (("tool.pad.radius", self.radius), ("tool.pad.modulus", self.modulus)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ScenarioError(
-                    f"{key} must be a finite number > 0, got {value!r}", key=key, value=value
-                )
+        check_fields(self, ScenarioError, "tool.pad.")
 
     def patch(self, force: float, kappa1: float = 0.0, kappa2: float = 0.0) -> tuple[float, float]:
         """(a [m], p₀ [Pa]) of the patch under ``force`` [N] on a part of principal curvatures
@@ -75,24 +80,67 @@ class HertzPad:
 
 @dataclass(frozen=True)
 class FlatPad:
-    """A flat pad of ``radius`` a [m]: uniform pressure F / (πa²)."""
+    """A flat pad (``[tool.pad] type = "flat"``) of ``radius`` a [m]: uniform pressure
+    F / (πa²)."""
 
-    radius: float
+    kind: ClassVar[str] = "flat"
+    radius: float = param(
+        unit="m", minimum=0.0, strict=True, doc="the flat pad's radius a (the contact radius)"
+    )
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius)) or not (
-            self.radius > 0
-        ):
-            raise ScenarioError(
-                f"tool.pad.radius must be a finite number > 0, got {self.radius!r}",
-                key="tool.pad.radius",
-                value=self.radius,
-            )
+        check_fields(self, ScenarioError, "tool.pad.")
 
     def patch(self, force: float, kappa1: float = 0.0, kappa2: float = 0.0) -> tuple[float, float]:
         """(a [m], p [Pa]): the pad's radius and F / (πa²)."""
         a = self.radius
         return a, max(force, 0.0) / (math.pi * a * a)
+
+
+Pad = HertzPad | FlatPad
+"""The contact pads (``ToolSettings.pad``)."""
+
+PAD_TYPES: dict[str, type[HertzPad] | type[FlatPad]] = {"hertz": HertzPad, "flat": FlatPad}
+"""The ``[tool.pad]`` types, by their ``type`` key."""
+
+
+@dataclass(frozen=True)
+class RemovalSettings:
+    """The ``[removal]`` table: Preston's law on a grid laid on the part (docs/removal.md).
+
+    Needs a pad (``[tool.pad]``, :attr:`~hybrid_force.control.tool.ToolSettings.pad`).
+    """
+
+    k_p: float = param(unit="m²/N", minimum=0.0, strict=True, doc="Preston's coefficient")
+    resolution: float = param(
+        unit="m", minimum=0.0, strict=True, doc="cell size of the removal grid on the surface"
+    )
+    spindle_speed: float = param(
+        0.0,
+        unit="rpm",
+        minimum=0.0,
+        doc="the pad's rotation about the surface normal (0: a non-rotating tool)",
+    )
+    spindle_schedule: Literal["constant", "feed"] = param(
+        "constant",
+        doc="constant: the spindle_speed throughout; feed: scaled by the feed / the path's "
+        "top speed (constant removal per unit length)",
+    )
+
+    def __post_init__(self) -> None:
+        check_fields(self, ScenarioError, "removal.")
+        if self.spindle_schedule != "constant" and self.spindle_speed == 0.0:
+            raise ScenarioError(
+                f'removal.spindle_schedule = "{self.spindle_schedule}" needs a spinning tool '
+                "(removal.spindle_speed > 0): without one it has no effect",
+                key="removal.spindle_schedule",
+                value=self.spindle_schedule,
+            )
+
+    @property
+    def omega(self) -> float:
+        """The spindle's rate [rad/s]."""
+        return self.spindle_speed * 2.0 * math.pi / 60.0
 
 
 def hertz_profile(y: np.ndarray, a: float, p0: float, k_p: float) -> np.ndarray:
@@ -114,7 +162,8 @@ class RemovalGrid:
     """Cells on the surface: centres (M, 3) [m], areas (M,) [m²], and the depth (M,) [m].
 
     The cells are sorted into cubic buckets of side ``bucket`` [m] so that a step visits only
-    the buckets its patch overlaps.
+    the buckets its patch overlaps; only the buckets holding cells are kept (``keys``, sorted,
+    looked up by bisection): a helix's box is mostly empty.
     """
 
     def __init__(self, points: np.ndarray, areas: np.ndarray, bucket: float) -> None:
@@ -123,6 +172,9 @@ class RemovalGrid:
         if self.points.shape[0] != self.areas.shape[0] or self.points.shape[0] == 0:
             raise ValueError("RemovalGrid: points (M, 3) and areas (M,) with M > 0")
         self.depth = np.zeros(self.points.shape[0])
+        # the deposit's scratch: the cells under the patch and their weights
+        self.index = np.zeros(self.points.shape[0], dtype=np.int64)
+        self.weight = np.zeros(self.points.shape[0])
         #: the cells' chart coordinates (M, 2), for a grid laid on a chart
         self.uv: np.ndarray | None = None
         origin = self.points.min(axis=0) - 1e-9
@@ -130,7 +182,8 @@ class RemovalGrid:
         index = np.floor((self.points - origin) / bucket).astype(np.int64)
         flat = (index[:, 0] * dims[1] + index[:, 1]) * dims[2] + index[:, 2]
         self.order = np.argsort(flat, kind="stable").astype(np.int64)
-        counts = np.bincount(flat, minlength=int(np.prod(dims)))
+        self.keys, counts = np.unique(flat, return_counts=True)
+        self.keys = self.keys.astype(np.int64)
         self.starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.box = np.array([*origin, bucket])
         self.dims = dims
@@ -164,12 +217,93 @@ class RemovalGrid:
         return grid
 
     @classmethod
+    def on_chart_near(
+        cls,
+        chart: object,
+        u_range: tuple[float, float],
+        v_range: tuple[float, float],
+        resolution: float,
+        uv: np.ndarray,
+        reach: tuple[float, float],
+        wrap_u: bool = False,
+        bucket: float | None = None,
+    ) -> RemovalGrid:
+        """The cells of :meth:`on_chart` within ``reach`` (in u, in v) of the chart points uv
+        (S, 2), without building the others (a helix's box is mostly far from it).
+
+        ``wrap_u``: u_range is one whole period (a cell's neighbour across its end is the
+        first cell). ``bucket`` [m]: the buckets' side (default 4 × resolution).
+        """
+        derivatives = chart.derivatives  # type: ignore[attr-defined]
+        mid_u, mid_v = 0.5 * sum(u_range), 0.5 * sum(v_range)
+        _, su, sv = derivatives(mid_u, mid_v)[:3, 0]
+        nu = max(1, math.ceil((u_range[1] - u_range[0]) * np.linalg.norm(su) / resolution))
+        nv = max(1, math.ceil((v_range[1] - v_range[0]) * np.linalg.norm(sv) / resolution))
+        du, dv = (u_range[1] - u_range[0]) / nu, (v_range[1] - v_range[0]) / nv
+        iu = np.floor((np.asarray(uv[:, 0]) - u_range[0]) / du).astype(np.int64)
+        iv = np.floor((np.asarray(uv[:, 1]) - v_range[0]) / dv).astype(np.int64)
+        mu, mv = math.ceil(reach[0] / du), math.ceil(reach[1] / dv)
+        # the points thinned to about half a reach apart, the reach grown by as much
+        hu, hv = max(1, mu // 2), max(1, mv // 2)
+        kept = [0]
+        for k in range(1, iu.shape[0]):
+            last = kept[-1]
+            if abs(iu[k] - iu[last]) >= hu or abs(iv[k] - iv[last]) >= hv:
+                kept.append(k)
+        kept.append(iu.shape[0] - 1)
+        centres = np.unique(np.column_stack([iu[kept], iv[kept]]), axis=0)
+        mu, mv = mu + hu, mv + hv
+        if nu * nv <= 100_000_000:  # a mask of the lattice, a rectangle set per point
+            mask = np.zeros((nu, nv), dtype=bool)
+            for cu, cv in centres.tolist():
+                v0, v1 = max(0, cv - mv), min(nv, cv + mv + 1)
+                if v0 >= v1:
+                    continue
+                if wrap_u:
+                    lo_u, hi_u = cu - mu, cu + mu + 1
+                    if hi_u - lo_u >= nu:
+                        mask[:, v0:v1] = True
+                        continue
+                    for start in range(lo_u - lo_u % nu, hi_u, nu):  # the whole periods spanned
+                        a, b = max(lo_u, start) - start, min(hi_u, start + nu) - start
+                        mask[a:b, v0:v1] = True
+                else:
+                    mask[max(0, cu - mu) : min(nu, cu + mu + 1), v0:v1] = True
+            flat = np.flatnonzero(mask)
+        else:
+            offsets = np.column_stack([a.ravel() for a in np.meshgrid(
+                np.arange(-mu, mu + 1), np.arange(-mv, mv + 1), indexing="ij")])  # fmt: skip
+            chosen: list[np.ndarray] = []
+            chunk = max(1, 4_000_000 // offsets.shape[0])
+            for start in range(0, centres.shape[0], chunk):
+                cells = (centres[start : start + chunk, None, :] + offsets[None]).reshape(-1, 2)
+                if wrap_u:
+                    cells[:, 0] %= nu
+                inside = (cells[:, 0] >= 0) & (cells[:, 0] < nu)
+                inside &= (cells[:, 1] >= 0) & (cells[:, 1] < nv)
+                chosen.append(np.unique(cells[inside, 0] * nv + cells[inside, 1]))
+            flat = np.unique(np.concatenate(chosen)) if chosen else np.zeros(0, dtype=np.int64)
+        uu = u_range[0] + du * (flat // nv + 0.5)
+        vv = v_range[0] + dv * (flat % nv + 0.5)
+        d = derivatives(uu, vv)
+        areas = np.linalg.norm(np.cross(d[1], d[2]), axis=1) * du * dv
+        grid = cls(d[0], areas, bucket=4.0 * resolution if bucket is None else bucket)
+        grid.uv = np.column_stack([uu, vv])
+        return grid
+
+    @classmethod
     def on_mesh(cls, vertices: np.ndarray, faces: np.ndarray) -> RemovalGrid:
         """One cell per triangle: its centroid and area."""
         tri = np.asarray(vertices, dtype=float)[np.asarray(faces)]
         areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         edge = float(np.sqrt(np.median(areas)))
         return cls(tri.mean(axis=1), areas, bucket=4.0 * max(edge, 1e-6))
+
+    def subset(self, keep: np.ndarray) -> RemovalGrid:
+        """A grid of the cells ``keep`` (M,) bool of this one (their depth zero)."""
+        grid = RemovalGrid(self.points[keep], self.areas[keep], bucket=float(self.box[3]))
+        grid.uv = None if self.uv is None else self.uv[keep]
+        return grid
 
     def add(
         self,
@@ -191,6 +325,7 @@ class RemovalGrid:
                 self.points,
                 self.areas,
                 self.order,
+                self.keys,
                 self.starts,
                 self.box,
                 self.dims,
@@ -203,6 +338,8 @@ class RemovalGrid:
                 shape,
                 float(force),
                 float(k_p) * float(dt),
+                self.index,
+                self.weight,
             )
         )
 

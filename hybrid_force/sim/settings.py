@@ -26,6 +26,8 @@ from hybrid_force.model.robot import Robot, check_same_joints
 from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
+from hybrid_force.sim.removal import RemovalSettings
+from hybrid_force.sim.removal_run import check_removal_surface
 from hybrid_force.sim.sensors import SensorSettings
 
 __all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
@@ -116,6 +118,8 @@ class Scenario:
             ``control.mass_factor`` applies on top of it.
         name: a short name (the output folder runs/<name>/): ``NAME_PATTERN`` matched in full,
             at most ``NAME_MAX_LENGTH`` characters. description: free text.
+        removal: None or Preston's removal (``[removal]``,
+            :class:`~hybrid_force.sim.removal.RemovalSettings`), with ``tool.pad`` and only with it.
         source: the scenario as loaded from a file (JSON-able dict), stored in the result.
 
     Checked on construction, the one check of these rules for a file's run and one built by
@@ -165,6 +169,7 @@ class Scenario:
     controller_model: Robot | None = None
     contact: ContactSettings = field(default_factory=ContactSettings)
     tool: ToolSettings = field(default_factory=ToolSettings)
+    removal: RemovalSettings | None = None
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
@@ -234,6 +239,7 @@ class Scenario:
         if self.controller_model is not None:
             check_same_joints(robot, self.controller_model)
         self.tool.check_arm(robot)
+        self._check_removal()
         self._check_start_and_path()
 
     @property
@@ -244,6 +250,30 @@ class Scenario:
         the same for the same surfaces and radius). A property, not a field, so that
         ``Scenario(**other.__dict__)`` still copies a scenario."""
         return offset_surfaces(self.surfaces, self.tool.radius, warn=False)
+
+    def _check_removal(self) -> None:
+        """``removal`` with ``tool.pad``, each without the other refused (it would have no
+        effect), on a surface the removal grid can be laid on."""
+        removal, pad = self.removal, self.tool.pad
+        if removal is not None and not isinstance(removal, RemovalSettings):
+            raise ScenarioError(
+                "Scenario.removal must be None or a hybrid_force.sim.removal.RemovalSettings, "
+                f"got {checks.shown(removal)}"
+            )
+        if removal is not None and pad is None:
+            raise ScenarioError(
+                "removal (Preston's) needs the tool's contact pad (tool.pad, the "
+                "[tool.pad] table: a hertz or flat pad)",
+                key="removal",
+            )
+        if removal is None and pad is not None:
+            raise ScenarioError(
+                "tool.pad has no effect without removal (the [removal] table): add it, or "
+                "remove the pad",
+                key="tool.pad",
+            )
+        if removal is not None:
+            check_removal_surface(self)
 
     def _check_contact(self) -> None:
         """A compliant or frictional contact needs the explicit Euler step (its forces are

@@ -36,6 +36,7 @@ from hybrid_force.control.laws.base import law_names, law_spec
 from hybrid_force.errors import BadInputError, did_you_mean
 from hybrid_force.metrics import compute_tracking_metrics, force_error, path_error
 from hybrid_force.result import Result
+from hybrid_force.result_summary import REMOVAL_KEYS
 from hybrid_force.run_output import locked_folder
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.scenario.overrides import parse_override
@@ -85,12 +86,15 @@ COMPARE_COLUMNS: tuple[str, ...] = (
     "status",
     "error",
     *METRIC_UNITS,
+    *REMOVAL_KEYS,
     "wall_time",
     "result",
 )
 """Columns of ``compare.csv``: the law, the run's status (the sweep's: ok, diverged, failed,
 bad input, error) and error message, the metrics (:data:`METRIC_UNITS`; empty unless the status
-is ok), the run's wall time [s] and its result file (relative to DIR)."""
+is ok), the removal metrics of a scenario with ``[removal]``
+(:data:`~hybrid_force.result_summary.REMOVAL_KEYS`, docs/removal.md; empty without it), the
+run's wall time [s] and its result file (relative to DIR)."""
 
 
 def check_laws(laws: Sequence[str] | None) -> tuple[str, ...]:
@@ -184,6 +188,7 @@ def compare_row(
 
     row: dict[str, Any] = {"law": law, "status": run["status"], "error": run["error"] or None}
     row.update(dict.fromkeys(METRIC_UNITS))
+    row.update(dict.fromkeys(REMOVAL_KEYS))
     wall = run.get("wall_time") or ""
     row["wall_time"] = float(wall) if wall else None
     if row["status"] == "ok":
@@ -193,6 +198,9 @@ def compare_row(
         else:
             metrics = compute_tracking_metrics(result, surfaces, path_errors=path_errors).to_dict()
             row.update({name: metrics[name] for name in METRIC_UNITS})
+            removal = result.meta.get("removal")
+            if isinstance(removal, dict):  # a scenario with [removal]
+                row.update({name: removal.get(name) for name in REMOVAL_KEYS})
     return row
 
 

@@ -18,6 +18,7 @@ from typing import Any
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import BadInputError
+from hybrid_force.result_summary import REMOVAL_KEYS
 from hybrid_force.studies.variants import _canonical, run_id
 
 __all__ = ["METRIC_COLUMNS", "STATUSES", "TIMING_COLUMNS", "read_sweep_csv", "read_table"]
@@ -48,6 +49,7 @@ METRIC_COLUMNS: tuple[str, ...] = (
     "touched",
     "chatter",
     "force_settled",
+    *REMOVAL_KEYS,
 )
 """Deterministic metric columns: identical for the same variant on any engine.
 
@@ -58,7 +60,10 @@ time_to_converge [s] (first time after which ‖e‖ < 1 mm for good), n_warning
 the run's summary.json warnings: filter on ``n_warnings == 0`` for the runs that did what
 they were asked), touched, chatter (releases and re-touches after the force settled) and
 force_settled (the final force error within tolerance), as
-:func:`hybrid_force.sim.run_checks.run_behaviour` measures them. Empty cell: not defined
+:func:`hybrid_force.sim.run_checks.run_behaviour` measures them; for a scenario with
+``[removal]``, the removal metrics (:data:`~hybrid_force.result_summary.REMOVAL_KEYS`:
+removal_volume [m³], removal_depth_mean, _std, _min, _max [m], removal_uniformity,
+removal_coverage; docs/removal.md), empty without it. Empty cell: not defined
 (e.g. no contact, or the run did not start).
 """
 

@@ -23,5 +23,6 @@ FIGURE_NAMES: tuple[str, ...] = (
     "lyapunov",
 )
 #: Files ``plot_result`` writes after those only when the run has what they show (the law's
-#: own signals; ``tool_angle``: a run that controlled the tool's direction).
-OPTIONAL_FIGURE_NAMES: tuple[str, ...] = (LAW_LOG_FIGURE, "tool_angle")
+#: own signals; ``tool_angle``: a run that controlled the tool's direction; ``removal``: a run
+#: with ``[removal]``, :mod:`hybrid_force.viz.removal_figure`).
+OPTIONAL_FIGURE_NAMES: tuple[str, ...] = (LAW_LOG_FIGURE, "tool_angle", "removal")

@@ -18,6 +18,9 @@ file                  content (paper figure)
                       relative to its start, e.g. θ̂/θ_model (:mod:`.law_log_figure`)
 ``tool_angle.png``    only for a run with ``[tool] orientation = "normal"``: the angle between the
                       tool axis and its desired direction, on a log scale, settling time marked
+``removal.png``       only for a run with ``[removal]``: the depth removed [µm] on the unrolled
+                      surface, the tip's path and the target region drawn over it
+                      (:mod:`.removal_figure`)
 ===================== ===========================================================================
 
 Each figure is drawn on its own Agg canvas and written atomically (see :mod:`._style`).
@@ -36,6 +39,7 @@ import numpy as np
 from hybrid_force._extras import require as require_extra
 from hybrid_force.errors import BadInputError
 from hybrid_force.phases import NEAR
+from hybrid_force.result import Result
 from hybrid_force.viz._run_data import (
     _intervals,
     _load_run,
@@ -53,6 +57,7 @@ from hybrid_force.viz._wireframes import (
 )
 from hybrid_force.viz.figure_names import FIGURE_NAMES, LAW_LOG_FIGURE
 from hybrid_force.viz.law_log_figure import law_log_figure
+from hybrid_force.viz.removal_figure import REMOVAL_FIGURE, removal_figure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -469,16 +474,18 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     path of a saved result. out_dir is created if needed. Files, in order:
     ``{prefix}path3d.png``, ``projection.png``, ``position_errors.png``, ``force_error.png``,
     ``desired_force.png``, ``lyapunov.png``, then ``law_log.png`` when the law logged signals
-    of its own and ``tool_angle.png`` for a run with a ``tool_angle`` (see the module
-    docstring). Existing files are replaced atomically. Raises :class:`BadInputError` on a missing
-    attribute or wrong shape, :class:`~hybrid_force.errors.MissingExtraError` without matplotlib
-    (the ``plots`` extra).
+    of its own, ``tool_angle.png`` for a run with a ``tool_angle`` and ``removal.png`` for a
+    run with removal arrays (see the module docstring). Existing files are replaced
+    atomically. Raises :class:`BadInputError` on a missing attribute or wrong shape,
+    :class:`~hybrid_force.errors.MissingExtraError` without matplotlib (the ``plots`` extra).
     """
     require_extra("plots", "figures")
     if os.sep in prefix or (os.altsep and os.altsep in prefix):
         raise BadInputError(
             f"prefix {prefix!r} must be a file-name prefix, not contain a path separator"
         )
+    if isinstance(result, str | os.PathLike):  # loaded once: the removal map reads it too
+        result = Result.load(result)
     run = _load_run(result)
     out = _out_dir(out_dir)
     written: list[Path] = []
@@ -492,5 +499,10 @@ def plot_result(result: object, out_dir: str | os.PathLike[str], *, prefix: str 
     if law_fig is not None:
         path = out / f"{prefix}{LAW_LOG_FIGURE}.png"
         _save_atomic(law_fig, path)
+        written.append(path)
+    removal_fig = removal_figure(result, run.name)
+    if removal_fig is not None:
+        path = out / f"{prefix}{REMOVAL_FIGURE}.png"
+        _save_atomic(removal_fig, path)
         written.append(path)
     return written

@@ -1,0 +1,122 @@
+"""Benchmark: the cost of Preston removal ([tool.pad] + [removal], docs/removal.md) in a run.
+
+Run from the repository root:
+
+    python benchmarks/bench_removal.py [--repeats N] [--json PATH]
+
+For each setup, the same scenario runs with removal off and on, alternating (off, on, off,
+on, ...) so that a change of the machine's load hits both alike; each run's loop is timed by
+its ``meta["wall_time"]`` (the stepping loop: it starts once the record and its removal grid
+are built; the last < 256 samples' deposit, after the loop, is left out: 16 of 10,000 here),
+and the grid's set-up is timed alone (CPU seconds). Reported: the median over the pairs of
+(loop time on) / (loop time off), the ratio of the best of each, and the set-up. Setups:
+
+* ``rtr_plane_pass``: the RTR arm (3 joints, the cheapest step, so the worst ratio) on
+  rtr_plane's plane, a straight pass of 0.1 m at 0.01 m/s in contact (10 s), Hertz pad
+  (a = 3.1 mm at 10 N), 0.3 mm cells (a / 10: about 340 cells under the patch);
+* ``rtr_plane_fine``: the same with 0.1 mm cells (a / 31: about 3,000 cells under the patch,
+  the resolution of the profile tests);
+* ``rtr_cylinder``: paper_contact's helix on the cylinder for 10 s (quadric: the compiled surface),
+  Hertz pad, 0.3 mm cells;
+* ``ur5_plane``: the UR5 circle on a plane (6 joints) for 10 s, Hertz pad, 0.3 mm cells.
+
+Not part of the test suite; timings depend on the machine's load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from hybrid_force.scenario.loader import load_scenario  # noqa: E402
+from hybrid_force.sim.loop import simulate  # noqa: E402
+from hybrid_force.sim.removal_run import RemovalObserver  # noqa: E402
+
+PAD = {"type": "hertz", "radius": 0.02, "modulus": 5e6}
+PASS = {
+    "trajectory": {
+        "type": "waypoints",
+        "frame": "surface",
+        "points": [[0.6, -0.05], [0.6, 0.05]],
+        "speed": 0.01,
+        "ramp": 0.2,
+    },
+    "initial.tip": [0.6, -0.05, 5.0],
+    "control.supervisor": False,
+    "sim.duration": 10.0,
+}
+SETUPS: dict[str, tuple[str, dict[str, Any], float]] = {
+    "rtr_plane_pass": ("rtr_plane.toml", PASS, 3e-4),
+    "rtr_plane_fine": ("rtr_plane.toml", PASS, 1e-4),
+    "rtr_cylinder": (
+        "paper_contact.toml",
+        {"sim.duration": 10.0, "initial.tip": [0.4, 0.0, 10.0]},
+        3e-4,
+    ),
+    "ur5_plane": ("ur5_plane.toml", {"sim.duration": 10.0}, 3e-4),
+}
+
+
+def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float]:
+    """(the loop's wall time [s], ``meta["wall_time"]``: it starts after the run's record and
+    its removal grid are built; the grid's set-up alone, in CPU seconds (0 without
+    removal))."""
+    sc = load_scenario(REPO / "scenarios" / file, overrides)
+    setup = 0.0
+    if sc.removal is not None:
+        start = time.process_time()
+        RemovalObserver(sc, round(sc.sim.duration / sc.sim.dt) + 1)
+        setup = time.process_time() - start
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = simulate(sc)
+    return float(result.meta["wall_time"]), setup
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args()
+    report: dict[str, Any] = {}
+    for name, (file, overrides, resolution) in SETUPS.items():
+        on = {**overrides, "tool.pad": PAD, "removal": {"k_p": 1e-13, "resolution": resolution}}
+        _run(file, {**on, "sim.duration": 0.05})  # compile and load the kernels once
+        _run(file, {**overrides, "sim.duration": 0.05})
+        offs, ons, setups = [], [], []
+        for _ in range(args.repeats):
+            offs.append(_run(file, overrides)[0])
+            loop, setup = _run(file, on)
+            ons.append(loop)
+            setups.append(setup)
+        pairs = [b / a for a, b in zip(offs, ons, strict=True)]
+        report[name] = {
+            "ratio_median": statistics.median(pairs),
+            "ratio_best": min(ons) / min(offs),
+            "ratios": pairs,
+            "off_loop_seconds": offs,
+            "on_loop_seconds": ons,
+            "setup_cpu_seconds_median": statistics.median(setups),
+        }
+        r = report[name]
+        print(
+            f"{name:16s} on/off loop time: median {r['ratio_median']:.3f} (best on / best off "
+            f"{r['ratio_best']:.3f}, {args.repeats} pairs); loop off {min(offs):.2f} s; grid "
+            f"set-up {r['setup_cpu_seconds_median']:.2f} s (before the loop)"
+        )
+    if args.json is not None:
+        args.json.write_text(json.dumps(report, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
