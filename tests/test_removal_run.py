@@ -17,8 +17,8 @@ import pytest
 from hybrid_force.errors import ScenarioError
 from hybrid_force.result import Result
 from hybrid_force.result_summary import REMOVAL_KEYS
-from hybrid_force.schema_docs import json_schema
 from hybrid_force.scenario.loader import load_scenario
+from hybrid_force.schema_docs import json_schema
 from hybrid_force.sim.loop import simulate
 from hybrid_force.sim.removal import FlatPad, HertzPad, flat_profile, hertz_profile
 
@@ -237,7 +237,8 @@ def _write(tmp_path: Path, doc: dict[str, Any]) -> Path:
 def test_removal_without_pad_and_pad_without_removal_are_refused(tmp_path: Path) -> None:
     removal = {"k_p": K_P, "resolution": 1e-3}
     path = _write(tmp_path, _doc(removal=removal))
-    with pytest.raises(ScenarioError, match=r"s\.toml: removal = .*needs the tool's contact pad.*\[tool\.pad\]"):
+    needs_pad = r"s\.toml: removal = .*needs the tool's contact pad.*\[tool\.pad\]"
+    with pytest.raises(ScenarioError, match=needs_pad):
         load_scenario(path)
     path = _write(tmp_path, _doc(tool={"pad": HERTZ}))
     with pytest.raises(ScenarioError, match=r"s\.toml: tool\.pad = .*no effect.*\[removal\]"):
