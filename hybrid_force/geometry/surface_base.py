@@ -12,11 +12,14 @@ and the value) and points p (BadInputError or SurfaceError naming the surface an
 from __future__ import annotations
 
 import abc
+import contextlib
+import contextvars
 import dataclasses
 import importlib
 import math
 import pkgutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -355,3 +358,35 @@ def parameters_dict(surface: Surface) -> dict[str, Any]:
         value = getattr(surface, f.name)
         out[key] = list(value) if isinstance(value, tuple) else value
     return out
+
+
+_PREBUILT: contextvars.ContextVar[Mapping[str, tuple[dict[str, Any], Surface]] | None] = (
+    contextvars.ContextVar("prebuilt_surfaces", default=None)
+)
+
+
+@contextlib.contextmanager
+def prebuilt_surfaces(built: Mapping[str, tuple[dict[str, Any], Surface]]) -> Iterator[None]:
+    """While open, :func:`surface_from_table` takes a surface table named in ``built``
+    ({table name: (its checked values, the surface)}) from there when its values are the
+    same: a sweep's worker, which may not see the files a mesh part was built from."""
+    token = _PREBUILT.set(built)
+    try:
+        yield
+    finally:
+        _PREBUILT.reset(token)
+
+
+def surface_from_table(
+    cls: type[Surface], name: str, values: dict[str, Any], folder: Path
+) -> Surface:
+    """Surface type ``cls`` from table ``name``'s checked ``values``: ``cls(**values)``, or
+    ``cls.from_table(values, folder, name)`` for a type built from a file relative to
+    ``folder`` (a mesh part), unless :func:`prebuilt_surfaces` holds it."""
+    from_table = getattr(cls, "from_table", None)
+    if from_table is None:
+        return cls(**values)
+    given = (_PREBUILT.get() or {}).get(name)
+    if given is not None and given[0] == values:
+        return given[1]
+    return from_table(values, folder, name)

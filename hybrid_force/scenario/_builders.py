@@ -4,10 +4,8 @@ constructor's refusal named by its ``table.key``."""
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +16,7 @@ from hybrid_force.control.laws.base import LAWS, PAPER_GAINS, law_names, law_spe
 from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.errors import BadInputError, RunWarning, ScenarioError
 from hybrid_force.geometry.paths import path_types
-from hybrid_force.geometry.surface_base import surface_types
+from hybrid_force.geometry.surface_base import surface_from_table, surface_types
 from hybrid_force.geometry.surface_path import SurfacePath
 from hybrid_force.model.scenario_robot import RobotTable, per_joint, robot_table
 from hybrid_force.scenario._tables import _INITIAL, _ROBOT, typed_tables
@@ -42,23 +40,6 @@ def _robot_table(table: object, file: Path, ctx: _Context) -> RobotTable:
     return robot_table(check_table(ctx, "robot", table, _ROBOT), raw, file, ctx)
 
 
-_PREBUILT: contextvars.ContextVar[Mapping[str, tuple[dict[str, Any], Any]] | None] = (
-    contextvars.ContextVar("prebuilt_surfaces", default=None)
-)
-
-
-@contextlib.contextmanager
-def prebuilt_surfaces(built: Mapping[str, tuple[dict[str, Any], Any]]) -> Iterator[None]:
-    """While open, a surface table named in ``built`` (as :func:`file_surfaces` returns) whose
-    checked values are the same is not built again: its surface is taken from there (a sweep's
-    worker, which may not see the files the surface was built from)."""
-    token = _PREBUILT.set(built)
-    try:
-        yield
-    finally:
-        _PREBUILT.reset(token)
-
-
 def _surface_tables(doc: Mapping[str, Any], ctx: _Context) -> list[tuple[str, Any]]:
     if "surface" in doc and "surfaces" in doc:
         raise ctx.table_error(
@@ -74,30 +55,21 @@ def _surface_tables(doc: Mapping[str, Any], ctx: _Context) -> list[tuple[str, An
     raise ctx.table_error("[surface]", "missing required table ([surface] or [[surfaces]])")
 
 
-def _build_surface(
-    cls: Any, name: str, values: dict[str, Any], folder: Path | None, ctx: _Context
-) -> Any:
-    """One surface: ``cls(**values)``, or ``cls.from_table(values, folder, name)`` for a type
-    built from a file (a mesh part), whose refusals name their own ``name.key``."""
+def _build_surface(cls: Any, name: str, values: dict[str, Any], folder: Path, ctx: _Context) -> Any:
+    """One surface (:func:`~hybrid_force.geometry.surface_base.surface_from_table`); a refusal
+    of a type built from a file (a mesh part) names its own ``name.key`` in its message."""
     try:
-        if not hasattr(cls, "from_table"):
-            return cls(**values)
-        given = (_PREBUILT.get() or {}).get(name)
-        if given is not None and given[0] == values:
-            return given[1]
-        return cls.from_table(values, Path(".") if folder is None else folder, name)
+        return surface_from_table(cls, name, values, folder)
     except BadInputError as exc:
-        key = str(exc.key or "")
+        key, message = str(exc.key or ""), " ".join(str(exc).split())
         if key.startswith(f"{name}."):
-            message = " ".join(str(exc).split())
-            raise ScenarioError(
-                f"{ctx.file}: {message}", key=key, value=exc.value, file=ctx.file
-            ) from None
+            error = ScenarioError(f"{ctx.file}: {message}", key=key, value=exc.value, file=ctx.file)
+            raise error from None
         raise _wrap(ctx, name, values, exc) from None
 
 
 def _surfaces(
-    doc: Mapping[str, Any], ctx: _Context, folder: Path | None = None
+    doc: Mapping[str, Any], ctx: _Context, folder: Path = Path(".")
 ) -> tuple[list[Any], list[tuple[str, dict]]]:
     """The surfaces of [surface] or [[surfaces]], each built from its registered type's
     declared parameters (:func:`~hybrid_force.geometry.surface_base.surface_types`); a file
@@ -116,23 +88,17 @@ def _surfaces(
 def file_surfaces(
     doc: Mapping[str, Any], path: str | Path, origin: str | None = None
 ) -> dict[str, tuple[dict[str, Any], Any]]:
-    """The surfaces of a scenario that their type builds from files (``from_table``: a mesh
-    part and its fitted field), built here: {table name: (its checked values, the surface)},
-    what :func:`prebuilt_surfaces` takes in a process that may not see the files.
-
-    Raises:
-        ScenarioError: as :func:`load_scenario` for those tables.
-    """
+    """The surfaces of a scenario file ``path`` that their type builds from files (a mesh part
+    and its field): {table name: (its checked values, the surface)}, what
+    :func:`~hybrid_force.geometry.surface_base.prebuilt_surfaces` takes in a process that may
+    not see the files. ScenarioError as :func:`load_scenario` for the surface tables."""
     ctx = _Context(str(path) if origin is None else origin)
-    types = surface_types()
-    out: dict[str, tuple[dict[str, Any], Any]] = {}
-    for name, table in _surface_tables(doc, ctx):
-        kind = table.get("type") if isinstance(table, dict) else None
-        if not (isinstance(kind, str) and hasattr(types.get(kind), "from_table")):
-            continue
-        _, values = typed_table(ctx, name, table, typed_tables()["surface"])
-        out[name] = (values, _build_surface(types[kind], name, values, Path(path).parent, ctx))
-    return out
+    surfaces, checked = _surfaces(doc, ctx, Path(path).parent)
+    return {
+        name: ({k: v for k, v in values.items() if k != "type"}, surface)
+        for (name, values), surface in zip(checked, surfaces, strict=True)
+        if hasattr(type(surface), "from_table")
+    }
 
 
 def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any, dict[str, Any]]:

@@ -40,7 +40,7 @@ from hybrid_force.sim.removal import HertzPad, Pad, RemovalGrid, RemovalSettings
 
 __all__ = [
     "RemovalObserver",
-    "check_removal_surface",
+    "check_removal",
     "principal_curvatures",
     "removal_surface_index",
 ]
@@ -95,10 +95,32 @@ def _chart(sc: Any, surface: Any) -> SurfaceChart | None:
         return None
 
 
-def check_removal_surface(sc: Any) -> None:
-    """Refuse (ScenarioError) a removal the run cannot record: a surface with neither a chart
-    nor a mesh, and a Hertz pad on a part concave enough to conform (1/R + κ ≤ 0 somewhere
-    on the desired path: Hertz contact does not apply)."""
+def check_removal(sc: Any) -> None:
+    """A Scenario's ``removal`` and ``tool.pad``, the one check of both (ScenarioError naming
+    ``removal`` or ``tool.pad``): each given only with the other (alone it has no effect); no
+    removal the run cannot record: a surface with neither a chart nor a mesh, and a Hertz pad
+    on a part concave enough to conform (1/R + κ ≤ 0 somewhere on the desired path: Hertz
+    contact does not apply)."""
+    removal, pad = sc.removal, sc.tool.pad
+    if removal is not None and not isinstance(removal, RemovalSettings):
+        raise ScenarioError(
+            "Scenario.removal must be None or a hybrid_force.sim.removal.RemovalSettings, "
+            f"got {type(removal).__name__}"
+        )
+    if removal is not None and pad is None:
+        raise ScenarioError(
+            "removal (Preston's) needs the tool's contact pad (tool.pad, the [tool.pad] table: "
+            "a hertz or flat pad)",
+            key="removal",
+        )
+    if removal is None and pad is not None:
+        raise ScenarioError(
+            "tool.pad has no effect without removal (the [removal] table): add it, or remove "
+            "the pad",
+            key="tool.pad",
+        )
+    if removal is None:
+        return
     surface = sc.surfaces[removal_surface_index(sc)]
     if _mesh_part(surface) is None and _chart(sc, surface) is None:
         raise ScenarioError(
@@ -107,7 +129,6 @@ def check_removal_surface(sc: Any) -> None:
             "surfaces do)",
             key="removal",
         )
-    pad = sc.tool.pad
     if not isinstance(pad, HertzPad):
         return
     for t in np.linspace(0.0, sc.sim.duration, _CHECK_SAMPLES):
@@ -281,7 +302,7 @@ class RemovalObserver:
             self.grid = _mesh_grid(part, samples, margin, removal.resolution)
         else:
             chart = self.chart = _chart(sc, surface)
-            assert chart is not None  # check_removal_surface
+            assert chart is not None  # check_removal
             u_range, v_range, uv, reach, wrap = _chart_box(chart, samples, margin)
             self._check_cells(chart, u_range, v_range, reach, uv)
             # buckets about half a patch wide: a step looks up a few dozen of them

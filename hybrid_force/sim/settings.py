@@ -27,7 +27,7 @@ from hybrid_force.schema import check_fields, param
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.dynamics import Baumgarte
 from hybrid_force.sim.removal import RemovalSettings
-from hybrid_force.sim.removal_run import check_removal_surface
+from hybrid_force.sim.removal_run import check_removal
 from hybrid_force.sim.sensors import SensorSettings
 
 __all__ = ["Integrator", "Scenario", "SimSettings", "control_steps"]
@@ -239,7 +239,7 @@ class Scenario:
         if self.controller_model is not None:
             check_same_joints(robot, self.controller_model)
         self.tool.check_arm(robot)
-        self._check_removal()
+        check_removal(self)  # with tool.pad, each only with the other; a grid it can lay
         self._check_start_and_path()
 
     @property
@@ -250,30 +250,6 @@ class Scenario:
         the same for the same surfaces and radius). A property, not a field, so that
         ``Scenario(**other.__dict__)`` still copies a scenario."""
         return offset_surfaces(self.surfaces, self.tool.radius, warn=False)
-
-    def _check_removal(self) -> None:
-        """``removal`` with ``tool.pad``, each without the other refused (it would have no
-        effect), on a surface the removal grid can be laid on."""
-        removal, pad = self.removal, self.tool.pad
-        if removal is not None and not isinstance(removal, RemovalSettings):
-            raise ScenarioError(
-                "Scenario.removal must be None or a hybrid_force.sim.removal.RemovalSettings, "
-                f"got {checks.shown(removal)}"
-            )
-        if removal is not None and pad is None:
-            raise ScenarioError(
-                "removal (Preston's) needs the tool's contact pad (tool.pad, the "
-                "[tool.pad] table: a hertz or flat pad)",
-                key="removal",
-            )
-        if removal is None and pad is not None:
-            raise ScenarioError(
-                "tool.pad has no effect without removal (the [removal] table): add it, or "
-                "remove the pad",
-                key="tool.pad",
-            )
-        if removal is not None:
-            check_removal_surface(self)
 
     def _check_contact(self) -> None:
         """A compliant or frictional contact needs the explicit Euler step (its forces are

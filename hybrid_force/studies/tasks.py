@@ -35,14 +35,11 @@ from hybrid_force.errors import (
     RunFailedError,
     ScenarioError,
 )
+from hybrid_force.geometry.surface_base import prebuilt_surfaces
 from hybrid_force.model.loading import _is_path
 from hybrid_force.model.scenario_robot import resolve_control_model
 from hybrid_force.model.xacro_files import expand_xacro
-from hybrid_force.scenario._builders import (
-    file_surfaces,
-    prebuilt_surfaces,
-    resolve_robot_table,
-)
+from hybrid_force.scenario._builders import file_surfaces, resolve_robot_table
 from hybrid_force.scenario.loader import read_scenario_document, scenario_from_document
 from hybrid_force.sim.loop import simulate
 from hybrid_force.studies.table import METRIC_COLUMNS, TIMING_COLUMNS
