@@ -1,6 +1,5 @@
-"""What the tables of a scenario file build that is more than a settings dataclass: the arm
-of ``[robot]``, the surfaces, the desired path, the control settings and the start; each
-constructor's refusal named by its ``table.key``."""
+"""What the tables of a scenario file build beyond a settings dataclass (the arm, surfaces,
+path, control settings, start), each constructor's refusal named by its ``table.key``."""
 
 from __future__ import annotations
 
@@ -26,9 +25,8 @@ from hybrid_force.settings_reader import check_table, no_effect, typed_table
 def resolve_robot_table(
     doc: Mapping[str, Any], path: str | Path, origin: str | None = None
 ) -> RobotTable:
-    """The ``[robot]`` table of scenario data ``doc`` checked and the files it names found
-    (relative to the file ``path``) without loading the arm: what a sweep sends to its
-    workers. ScenarioError as :func:`load_scenario`'s, naming ``origin`` (default: ``path``)."""
+    """The ``[robot]`` table of scenario data ``doc`` checked, its files found (relative to
+    ``path``) and the arm not loaded: what a sweep sends to its workers."""
     ctx = _Context(str(path) if origin is None else origin)
     if "robot" not in doc:
         raise ctx.table_error("[robot]", "missing required table")
@@ -55,32 +53,25 @@ def _surface_tables(doc: Mapping[str, Any], ctx: _Context) -> list[tuple[str, An
     raise ctx.table_error("[surface]", "missing required table ([surface] or [[surfaces]])")
 
 
-def _build_surface(cls: Any, name: str, values: dict[str, Any], folder: Path, ctx: _Context) -> Any:
-    """One surface (:func:`~hybrid_force.geometry.surface_base.surface_from_table`); a refusal
-    of a type built from a file (a mesh part) names its own ``name.key`` in its message."""
-    try:
-        return surface_from_table(cls, name, values, folder)
-    except BadInputError as exc:
-        key, message = str(exc.key or ""), " ".join(str(exc).split())
-        if key.startswith(f"{name}."):
-            error = ScenarioError(f"{ctx.file}: {message}", key=key, value=exc.value, file=ctx.file)
-            raise error from None
-        raise _wrap(ctx, name, values, exc) from None
-
-
 def _surfaces(
     doc: Mapping[str, Any], ctx: _Context, folder: Path = Path(".")
 ) -> tuple[list[Any], list[tuple[str, dict]]]:
-    """The surfaces of [surface] or [[surfaces]], each built from its registered type's
-    declared parameters (:func:`~hybrid_force.geometry.surface_base.surface_types`); a file
-    a type reads (a mesh part's) is relative to ``folder``, the scenario file's."""
-
+    """The surfaces of [surface] or [[surfaces]] and their checked tables; a file a type reads
+    (a mesh part's) is relative to ``folder``. A refusal of a type built from a file names its
+    own ``name.key`` in its message."""
     surfaces: list[Any] = []
     checked: list[tuple[str, dict]] = []
     for name, table in _surface_tables(doc, ctx):
-        types = surface_types()
         kind, values = typed_table(ctx, name, table, typed_tables()["surface"])
-        surfaces.append(_build_surface(types[kind], name, values, folder, ctx))
+        try:
+            surfaces.append(surface_from_table(surface_types()[kind], name, values, folder))
+        except BadInputError as exc:
+            key, message = str(exc.key or ""), " ".join(str(exc).split())
+            if not key.startswith(f"{name}."):
+                raise _wrap(ctx, name, values, exc) from None
+            raise ScenarioError(
+                f"{ctx.file}: {message}", key=key, value=exc.value, file=ctx.file
+            ) from None
         checked.append((name, {"type": kind, **values}))
     return surfaces, checked
 
@@ -88,10 +79,8 @@ def _surfaces(
 def file_surfaces(
     doc: Mapping[str, Any], path: str | Path, origin: str | None = None
 ) -> dict[str, tuple[dict[str, Any], Any]]:
-    """The surfaces of a scenario file ``path`` that their type builds from files (a mesh part
-    and its field): {table name: (its checked values, the surface)}, what
-    :func:`~hybrid_force.geometry.surface_base.prebuilt_surfaces` takes in a process that may
-    not see the files. ScenarioError as :func:`load_scenario` for the surface tables."""
+    """The surfaces of scenario file ``path`` built from files (mesh parts): {table name: (its
+    checked values, the surface)}, the ``prebuilt_surfaces`` of a process without the files."""
     ctx = _Context(str(path) if origin is None else origin)
     surfaces, checked = _surfaces(doc, ctx, Path(path).parent)
     return {
@@ -102,13 +91,9 @@ def file_surfaces(
 
 
 def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any, dict[str, Any]]:
-    """[trajectory]: its registered path type built from its declared parameters
-    (:func:`~hybrid_force.geometry.paths.path_types`); a path on a surface by
-    :func:`_surface_path`."""
-
-    types = path_types()
+    """[trajectory]: its registered path type built, and its checked table."""
     kind, values = typed_table(ctx, "trajectory", table, typed_tables()["trajectory"])
-    cls = types[kind]
+    cls = path_types()[kind]
     if issubclass(cls, SurfacePath):
         raw = table if isinstance(table, dict) else {}
         return _surface_path(cls, values, raw, surfaces, ctx), {"type": kind, **values}
@@ -121,9 +106,8 @@ def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any,
 def _surface_path(
     cls: Any, values: dict[str, Any], raw: Mapping[str, Any], surfaces: list[Any], ctx: _Context
 ) -> Any:
-    """A waypoints or raster path on surface ``trajectory.surface`` (default 0); its refusals
-    name the key and the value as written (``raw``), its PathWarnings the file and the key."""
-
+    """A path on surface ``trajectory.surface`` (default 0); its refusals name the key and
+    the value as written (``raw``), its PathWarnings the file and the key."""
     index = values.get("surface", 0)
     params = {k: v for k, v in values.items() if k != "surface"}
     if not 0 <= index < len(surfaces):
@@ -154,12 +138,9 @@ def _surface_path(
 def _control_settings(
     values: Mapping[str, dict[str, Any]], raw: Mapping[str, Any], ctx: _Context
 ) -> ControlSettings:
-    """[control] (its laws' tables checked as ``values["control.<law>"]``, [sim]'s
-    model_mass_factor) → ControlSettings. A paper's gain the chosen law does not read (its
-    registry entry's ``gains``, unless the law's table replaces it) is refused, naming its
-    value as written (``raw``); Λ is also the approach rate when ``approach_rate`` is not
-    given."""
-
+    """[control] (with ``values["control.<law>"]``, [sim]'s model_mass_factor) →
+    ControlSettings; a paper's gain the chosen law does not read is refused (Λ is also the
+    supervisor's approach rate without ``approach_rate``)."""
     control = values["control"]
     law = control.get("law", ControlSettings.law)
     keys = dict.fromkeys([*control, *values.get(f"control.{law}", {})])
@@ -173,7 +154,9 @@ def _control_settings(
                 f", without the key that replaces it ({', '.join(replaced)})" if replaced else ""
             )
             if gain == "Lambda":
-                needs += f", or the supervisor's approach ({_APPROACH})"
+                needs += (
+                    ", or the supervisor's approach (control.supervisor = true, no approach_rate)"
+                )
             raise no_effect(ctx, f"control.{gain}", raw[gain], needs)
     given: dict[str, Any] = {k: v for k, v in control.items() if k != "model" and k not in LAWS}
     if isinstance(given.get("f_d"), list):
@@ -185,9 +168,6 @@ def _control_settings(
         return ControlSettings(**given)
     except BadInputError as exc:
         raise _wrap(ctx, "control", control, exc) from None
-
-
-_APPROACH = "control.supervisor = true, no approach_rate"
 
 
 def _initial(table: object, robot: Any, ctx: _Context) -> tuple[Any, Any, str, object]:

@@ -44,10 +44,7 @@ _INITIAL = {"tip": Key("vec3"), "seed": Key("vector"), "q": Key("vector"), "v": 
 
 
 def control_keys() -> dict[str, Key]:
-    """The keys of [control]: ControlSettings' declared fields, ``law`` one of the registered
-    laws, ``model`` (the controller's own model) and each law's table ``[control.<law>]``,
-    which acts only with its law."""
-
+    """The keys of [control]: ControlSettings' fields, ``model`` and each law's table."""
     keys = keys_of(ControlSettings)
     keys["law"] = dataclasses.replace(keys["law"], kind="choice", choices=law_names())
     keys["model"] = Key("str", param=Param("the controller's own model of the arm (the plant's)"))
@@ -63,9 +60,7 @@ def law_keys(law: str) -> dict[str, Key]:
 
 
 def sim_keys() -> dict[str, Key]:
-    """The keys of [sim]: SimSettings' declared fields (Baumgarte's flattened in) and the
-    controller's ``model_mass_factor`` (ControlSettings.mass_factor), which [sim] holds."""
-
+    """The keys of [sim]: SimSettings' and ``model_mass_factor`` (ControlSettings.mass_factor)."""
     f, spec = next((f, spec) for f, spec in specs(ControlSettings) if f.name == "mass_factor")
     return {
         **keys_of(SimSettings),
@@ -75,15 +70,9 @@ def sim_keys() -> dict[str, Key]:
 
 def settings_tables() -> dict[str, dict[str, Key]]:
     """The keys of every table with a fixed set of keys, by table name."""
-    own = {name: keys_of(cls) for name, cls in SETTINGS.items() if name != "sim"}
-    return {
-        "robot": _ROBOT,
-        "initial": _INITIAL,
-        "control": control_keys(),
-        "sim": sim_keys(),
-        **own,
-        "removal": keys_of(RemovalSettings),
-    }
+    own = {name: keys_of(cls) for name, cls in SETTINGS.items()}
+    own |= {"sim": sim_keys(), "removal": keys_of(RemovalSettings)}
+    return {"robot": _ROBOT, "initial": _INITIAL, "control": control_keys(), **own}
 
 
 def typed_tables() -> dict[str, dict[str, dict[str, Key]]]:
@@ -95,10 +84,8 @@ def typed_tables() -> dict[str, dict[str, dict[str, Key]]]:
 
 
 MAX_NESTING = 100
-"""The deepest a scenario's tables and arrays may nest (docs/scenarios.md): a scenario needs
-3 (``[[surfaces]]``, a table in it, an array in that). Shallower absurd data is refused by
-its key's own check; deeper data here, before anything copies, formats or serialises it
-(each of which recurses once per level, up to Python's limit of about 1,000)."""
+"""The deepest a scenario's tables and arrays may nest (a scenario needs 3): deeper data is
+refused before anything copies, formats or serialises it (each recurses once per level)."""
 
 
 _SHOWN_KEYS = 8  # how much of a too deep dotted key a message shows

@@ -1,18 +1,8 @@
-"""Scenario files: one TOML file describes one run (robot, surfaces, path, start, gains, sim).
-
-:func:`load_scenario` reads a file, applies ``--set``-style overrides, validates every table
-and key up front (a bad file fails in milliseconds, not after a long run) and returns the
-:class:`~hybrid_force.sim.settings.Scenario` that :func:`hybrid_force.sim.loop.simulate` runs
-(format: docs/scenarios.md). Every problem raises :class:`~hybrid_force.errors.ScenarioError`
-naming the file, the ``table.key`` and the value as written, e.g.::
-
-    scenarios/x.toml: surface.radius = "0.4": must be a number [m], got a string
-
-Values are plain TOML data: nothing is ever evaluated. The steps: each table read by its
-declarations (:mod:`hybrid_force.settings_reader`, the tables in ``_tables``, what each builds
-in ``_builders``), the rules across tables by ``Scenario``, the checks that run the model (the
-path followable, the gains, the loops, the contact step) by :mod:`hybrid_force.sim.prerun`.
-"""
+"""Scenario files (docs/scenarios.md): one TOML file, plain data never evaluated, checked up
+front into the :class:`~hybrid_force.sim.settings.Scenario` of one run; every problem a
+ScenarioError naming the file, the ``table.key`` and the value as written. Each table is read
+by its declarations (``_tables``, built by ``_builders``), the rules across tables checked by
+``Scenario``, those that run the model by :mod:`hybrid_force.sim.prerun`."""
 
 from __future__ import annotations
 
@@ -29,13 +19,7 @@ from hybrid_force.errors import BadInputError, ScenarioError
 from hybrid_force.geometry.offset import tool_surfaces
 from hybrid_force.geometry.on_surface import ON_SURFACE_TOL, check_path_on_surfaces
 from hybrid_force.model.scenario_robot import load_arm, load_controller_model
-from hybrid_force.scenario._builders import (
-    _control_settings,
-    _initial,
-    _robot_table,
-    _surfaces,
-    _trajectory,
-)
+from hybrid_force.scenario import _builders as build
 from hybrid_force.scenario._tables import (
     SETTINGS,
     TABLES,
@@ -47,13 +31,7 @@ from hybrid_force.scenario._tables import (
 )
 from hybrid_force.scenario.overrides import _apply_overrides
 from hybrid_force.settings_reader import check_acting, check_table, read_settings, suggest
-from hybrid_force.sim.prerun import (
-    _check_contact_step,
-    _check_controller,
-    _check_law_loops,
-    _check_path_followable,
-    _check_pose_followable,
-)
+from hybrid_force.sim import prerun
 from hybrid_force.sim.removal import RemovalSettings
 from hybrid_force.sim.settings import Scenario
 from hybrid_force.sim.start import start_at_tip
@@ -64,7 +42,6 @@ MAX_FILE_BYTES = 1 << 20
 """Largest scenario file read [bytes]: a scenario is a page of text, never megabytes."""
 
 
-# --- the loader ----------------------------------------------------------------------------------
 def _read(path: Path, ctx: _Context) -> dict[str, Any]:
     try:
         with path.open("rb") as fh:
@@ -81,40 +58,32 @@ def _read(path: Path, ctx: _Context) -> dict[str, Any]:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(f"{ctx.file}: not UTF-8 text ({exc})") from None
-    doc = _parse_toml(text, ctx.file)
-    check_nesting(doc, ctx)  # dotted table headers nest without any recursion in tomllib
-    return doc
-
-
-def _parse_toml(text: str, where: str) -> dict[str, Any]:
-    """tomllib.loads with its failures as one-line ScenarioErrors (syntax, absurd nesting)."""
     try:
-        return tomllib.loads(text)
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{where}: TOML syntax error: {exc}") from None
+        raise ScenarioError(f"{ctx.file}: TOML syntax error: {exc}") from None
     except RecursionError:  # tomllib parses nested arrays and inline tables recursively
         raise ScenarioError(
-            f"{where}: arrays or tables nested too deeply (hundreds of levels); "
+            f"{ctx.file}: arrays or tables nested too deeply (hundreds of levels); "
             "a scenario needs at most three"
         ) from None
+    check_nesting(doc, ctx)  # dotted table headers nest without any recursion in tomllib
+    return doc
 
 
 def load_scenario(
     path: str | Path, overrides: Mapping[str, object] | None = None
 ) -> Any:  # Scenario (Any: a sweep's check calls it for its refusals only)
-    """The ``Scenario`` of TOML file ``path`` (docs/scenarios.md), ready to simulate, with
-    ``overrides`` ``{"table.key": value}`` (:func:`~hybrid_force.scenario.overrides.parse_override`)
-    replacing or adding keys before validation; its ``source`` is that data (JSON-able).
-    ScenarioError for any problem, naming the file, the ``table.key`` and the value."""
+    """The ``Scenario`` of TOML file ``path``, ready to simulate, with ``overrides``
+    ``{"table.key": value}`` set before validation; its ``source`` is that data (JSON-able)."""
     return _build(read_scenario_document(path, overrides), Path(path), _Context(str(path)))
 
 
 def read_scenario_document(
     path: str | Path, overrides: Mapping[str, object] | None = None
 ) -> dict[str, Any]:
-    """The TOML data of a scenario file with the overrides applied, not yet validated: what
-    :func:`scenario_from_document` takes (a sweep sends it to workers that may not see the
-    file). ScenarioError for an unreadable file, bad TOML or an override that does not fit."""
+    """The TOML data of a scenario file with the overrides set, not yet validated: what
+    :func:`scenario_from_document` takes (in a sweep's workers, which may not see the file)."""
     ctx = _Context(str(path))
     doc = _read(Path(path), ctx)
     if overrides:
@@ -125,9 +94,8 @@ def read_scenario_document(
 def scenario_from_document(
     doc: Mapping[str, Any], *, origin: str = "<scenario>", base_dir: str | Path = "."
 ) -> Scenario:
-    """The Scenario of scenario data ``doc`` (:func:`read_scenario_document`'s; a deep copy
-    is taken), named ``origin`` (a file name) in the messages, a relative ``robot.model``
-    resolved against ``base_dir``. ScenarioError as :func:`load_scenario`'s."""
+    """The Scenario of scenario data ``doc`` (copied), named ``origin`` in the messages, a
+    relative ``robot.model`` resolved against ``base_dir``."""
     ctx = _Context(origin)
     check_nesting(doc, ctx)  # before deepcopy, which recurses per level
     return _build(copy.deepcopy(dict(doc)), Path(base_dir) / Path(origin).name, ctx)
@@ -148,8 +116,8 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
         if table not in doc:
             raise ctx.table_error(f"[{table}]", "missing required table")
 
-    robot = load_arm(_robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
-    parts, surface_tables = _surfaces(doc, ctx, file.parent)
+    robot = load_arm(build._robot_table(doc["robot"], file, ctx), ctx, doc["initial"])
+    parts, surface_tables = build._surfaces(doc, ctx, file.parent)
     # the path and every check below are the tool centre's: on the parts' offsets by
     # tool.radius (the parts themselves for a point tool); the Scenario keeps the parts
     radius = doc["tool"].get("radius", 0.0) if isinstance(doc.get("tool"), dict) else 0.0
@@ -157,7 +125,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
         surfaces = list(tool_surfaces(parts, radius, warn=False))
     except BadInputError as exc:
         raise ctx.error("tool.radius", radius, " ".join(str(exc).split())) from None
-    path, traj = _trajectory(doc["trajectory"], surfaces, ctx)
+    path, traj = build._trajectory(doc["trajectory"], surfaces, ctx)
     keys = {**settings_tables(), "trajectory": typed_tables()["trajectory"][traj["type"]]}
     values = {t: check_table(ctx, t, doc.get(t, {}), keys[t]) for t in ("control", *SETTINGS)}
     for law in (law for law in law_names() if law in values["control"]):
@@ -168,7 +136,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
         keys[table_name] = typed_tables()["surface"][given["type"]]
         values[table_name] = {k: v for k, v in given.items() if k != "type"}
     check_acting(ctx, doc, {**values, "trajectory": traj}, keys)
-    control = _control_settings(values, doc.get("control", {}), ctx)
+    control = build._control_settings(values, doc.get("control", {}), ctx)
     sim, sensor, contact, tool = (
         read_settings(ctx, t, cls, None, values[t]) for t, cls in SETTINGS.items()
     )
@@ -182,7 +150,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
             check_path_on_surfaces(path, surfaces, sim.duration)
         except BadInputError as exc:
             raise _refusal(exc, doc, traj, surface_tables, None, control, sim, ctx) from None
-    q0, v0, start_key, start_value = _initial(doc["initial"], robot, ctx)
+    q0, v0, start_key, start_value = build._initial(doc["initial"], robot, ctx)
     if start_key == "initial.tip":
         q0 = start_at_tip(robot, tool, surfaces, path, q0, doc["initial"], ctx)
     try:  # every rule across the tables that needs no run of the model: by Scenario
@@ -207,16 +175,18 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
         start = (robot, q0, start_key, start_value)
         raise _refusal(exc, doc, traj, surface_tables, start, control, sim, ctx) from None
     own = controller_model if controller_model is not None else robot
-    _check_controller(own, surfaces, path, q0, control, sim, values["control"], ctx, tool)
+    prerun._check_controller(own, surfaces, path, q0, control, sim, values["control"], ctx, tool)
     if tool.controlled:
-        configurations = _check_pose_followable(robot, surfaces, path, tool, q0, sim.duration, ctx)
+        configurations = prerun._check_pose_followable(
+            robot, surfaces, path, tool, q0, sim.duration, ctx
+        )
     else:
-        configurations = _check_path_followable(robot, path, traj, q0, sim.duration, ctx)
-    _check_law_loops(
+        configurations = prerun._check_path_followable(robot, path, traj, q0, sim.duration, ctx)
+    prerun._check_law_loops(
         robot, surfaces, configurations, q0, control, sim, sensor, controller_model,
         values["control"].get("model"), ctx,
     )  # fmt: skip
-    _check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
+    prerun._check_contact_step(robot, surfaces, [q0, *configurations], control, sim, contact, ctx)
     return scenario
 
 
@@ -230,11 +200,8 @@ def _refusal(
     sim: Any,
     ctx: _Context,
 ) -> ScenarioError:
-    """Scenario's refusal as the file's, naming the file, the keys and their values as
-    written: of a file's key (its ``key``: ``control.Kd``, ``control.rate``, ``name``,
-    ``tool.orientation``), of v0, and of the path, the start or the
-    stacked surfaces (their ``key`` and ``value``). ``start``: (the arm, q0, the start's key
-    and its value as written)."""
+    """Scenario's refusal ``exc`` as the file's, naming the keys and their values as written.
+    ``start``: (the arm, q0, the start's key, its value as written)."""
     key, value = exc.key, exc.value
     message = " ".join(str(exc).split())
     if key == "Scenario.v0":
@@ -255,19 +222,16 @@ def _refusal(
                 f"({where}): {problem}"
             )
         p = [round(float(x), 6) for x in report.point_of_worst]
-        tool = doc.get("tool")
-        radius = tool.get("radius", 0) if isinstance(tool, dict) else 0
-        ball = (
+        radius = doc["tool"].get("radius", 0) if isinstance(doc.get("tool"), dict) else 0
+        ball = radius and (
             f" (with tool.radius = {radius} m the path is the tool centre's: on the surface "
             f"{radius} m off [{name}] along its normal)"
-            if radius
-            else ""
         )
         return ScenarioError(
             f"{ctx.file}: {shown}: the trajectory is not on [{name}] ({where}): "
             f"{report.worst_distance:.3g} m away at t = {report.time_of_worst:.4g} s "
             f"(p_d = {p}); it must stay within {ON_SURFACE_TOL:g} m over "
-            f"[0, sim.duration = {sim.duration:g} s]{ball}"
+            f"[0, sim.duration = {sim.duration:g} s]{ball or ''}"
         )
     if key == "Scenario.q0" and isinstance(value, tuple) and start is not None:
         robot, q0, start_key, start_value = start

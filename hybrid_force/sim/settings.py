@@ -37,8 +37,7 @@ Integrator = Literal["euler", "rk4"]
 
 @dataclass(frozen=True)
 class SimSettings:
-    """Settings of the simulation: each field's unit, range and meaning are its
-    :func:`~hybrid_force.schema.param` (the ``[sim]`` table of docs/scenarios.md)."""
+    """Settings of the simulation (``[sim]``): each field's unit, range and meaning its param."""
 
     duration: float = param(20.0, unit="s", minimum=0.0, strict=True, doc="simulated time")
     dt: float = param(1e-3, unit="s", minimum=0.0, strict=True, doc="time step")
@@ -79,8 +78,7 @@ class SimSettings:
     )  # fmt: skip
 
     def __post_init__(self) -> None:
-        """Check every field (numbers stored as floats): ScenarioError naming its ``[sim]`` key
-        (``sim.dt``) with the value and what is valid."""
+        """Check every field (numbers stored as floats), naming its key (``sim.dt``)."""
         check_fields(self, ScenarioError, "sim.")
         if self.dt > self.duration:
             raise ScenarioError(
@@ -103,41 +101,27 @@ class Scenario:
     """One run, described in Python (the TOML loader builds the same object).
 
     Attributes:
-        robot: the plant, a :class:`~hybrid_force.Robot`.
-        surfaces: a non-empty sequence of :class:`~hybrid_force.Surface` touched by the tip
-            (stored as a tuple); with ``tool.radius`` > 0 the part's, which the result records;
-            the plant, the controller and the path follow their offsets, :attr:`tool_surfaces`.
-        path: desired task-space path, a :class:`~hybrid_force.Path` (on the surface).
-        q0: (nq,) start configuration. v0: None or (nv,) start velocity (None: 0). Both are
-            stored as new read-only float64 arrays.
-        control, sim, sensor, contact, tool: the settings of the ``[control]``, ``[sim]``,
-            ``[sensor]`` (default: ideal sensing), ``[contact]`` (default: rigid,
-            frictionless) and ``[tool]`` (default: free, the paper's position-only CLIK) tables.
-        controller_model: the controller's own model of the arm (``control.model``): another
-            :class:`~hybrid_force.model.robot.Robot` with the plant's joints; None: the plant's.
-            ``control.mass_factor`` applies on top of it.
-        name: a short name (the output folder runs/<name>/): ``NAME_PATTERN`` matched in full,
-            at most ``NAME_MAX_LENGTH`` characters. description: free text.
-        removal: None or Preston's removal (``[removal]``,
-            :class:`~hybrid_force.sim.removal.RemovalSettings`), with ``tool.pad`` and only with it.
-        source: the scenario as loaded from a file (JSON-able dict), stored in the result.
+        robot: the plant. surfaces: a non-empty sequence of Surface touched by the tip (stored
+            as a tuple); with ``tool.radius`` > 0 the part's, whose offsets
+            (:attr:`tool_surfaces`) the plant, the controller and the path follow.
+        path: desired task-space path (on the surface). q0: (nq,) start configuration [rad or
+            m]; v0: None (0) or (nv,) start velocity; both stored as new read-only arrays.
+        control, sim, sensor, contact, tool: the settings of their tables (defaults: ideal
+            sensing, rigid frictionless contact, a free tool). removal: None or ``[removal]``,
+            with ``tool.pad`` and only with it. controller_model: None (the plant's) or the
+            controller's own model of the arm, with the plant's joints (``control.model``).
+        name: the output folder runs/<name>/ (``NAME_PATTERN``, ``NAME_MAX_LENGTH``);
+            description: free text; source: the scenario file's data (JSON-able), if any.
 
-    Checked on construction, the one check of these rules for a file's run and one built by
-    hand (ScenarioError, or the ControlError of the settings' own rules, naming the field):
-
-    * the types and shapes above, finite q0 and v0, every |v0_i| below ``sim.max_velocity``
-      (the run would stop as a runaway at once); K_d's size against the arm's joints, f_d's
-      count against the surfaces, the tool task's rows against the joints
-      (:meth:`~hybrid_force.control.tool.ToolSettings.check_arm`);
-    * a run that starts in contact (``control.supervisor`` False): the desired path within
-      ``ON_SURFACE_TOL`` (1e-6 m) of every surface over [0, sim.duration]
-      (:func:`~hybrid_force.geometry.on_surface.check_path_on_surfaces`) and the start tip
-      p(q0) within ``control.contact_tol`` of every surface;
-    * with the supervisor: a start inside the solid (distance < −contact_tol) is refused, and
-      so are stacked surfaces (k > 1), whose approach would touch a subset first; without it,
-      stacked surfaces whose constraint rows n̂ᵀJ are dependent at q0 (two parallel planes);
-    * a compliant or frictional contact with the Euler step and forces in newtons;
-    * the control rate (``control.rate``) a whole number of plant steps, not faster than them.
+    Checked on construction, the one check for a file's run and one built by hand
+    (ScenarioError, or ControlError naming the field): the types and shapes above, finite
+    q0 and v0 with |v0| ≤ ``sim.max_velocity``, K_d, f_d and the tool task against the arm
+    and the surfaces; a run that starts in contact (no supervisor): the path within
+    ``ON_SURFACE_TOL`` of every surface over [0, sim.duration], the start tip within
+    ``control.contact_tol`` of each, stacked surfaces with independent rows n̂ᵀJ at q0; with
+    the supervisor: one surface, the start not inside the solid; a compliant or frictional
+    contact with the Euler step and forces in newtons; ``control.rate`` a whole number of
+    plant steps.
     """
 
     NAME_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_.\-]*"
@@ -173,7 +157,6 @@ class Scenario:
 
     def __post_init__(self) -> None:
         """Validate the fields (see the class docstring); q0, v0, surfaces are stored anew."""
-
         for key, kind, what in self._TYPES:
             if not isinstance(value := getattr(self, key), kind):
                 raise ScenarioError(f"Scenario.{key} must be {what}, got {checks.shown(value)}")
@@ -244,17 +227,12 @@ class Scenario:
 
     @property
     def tool_surfaces(self) -> tuple[Surface, ...]:
-        """The surfaces the tool centre (the tip frame's origin) follows, which the plant and
-        the controller use: ``surfaces`` themselves for a point tool, their offsets by
-        ``tool.radius`` for a ball end (:func:`~hybrid_force.geometry.offset.tool_surfaces`,
-        the same for the same surfaces and radius). A property, not a field, so that
-        ``Scenario(**other.__dict__)`` still copies a scenario."""
+        """The surfaces the tool centre follows (plant, controller): ``surfaces`` offset by
+        ``tool.radius``; a property so that ``Scenario(**other.__dict__)`` still copies."""
         return offset_surfaces(self.surfaces, self.tool.radius, warn=False)
 
     def _check_contact(self) -> None:
-        """A compliant or frictional contact needs the explicit Euler step (its forces are
-        evaluated once per step) and forces in newtons: ScenarioError naming the [sim] key."""
-
+        """A compliant or frictional contact needs the Euler step and forces in newtons."""
         contact, sim = self.contact, self.sim
         what = f'contact.model = "{contact.model}", contact.friction = {contact.friction:g}'
         once = "the contact forces are evaluated once per step"
@@ -270,11 +248,8 @@ class Scenario:
                 )
 
     def _check_start_and_path(self) -> None:
-        """The start and, for a run that starts in contact, the path on every surface (class
-        docstring). ScenarioError with ``key`` "Scenario.path", "Scenario.q0" or
-        "Scenario.surfaces" and ``value`` what the loader names: (surface index,
-        OnSurfaceReport or None), (surface index, distance [m]), the row indices."""
-
+        """The start and the path (class docstring); ``value`` for the loader: (surface
+        index, OnSurfaceReport or None), (surface index, distance [m]) or the row indices."""
         control, surfaces, k = self.control, self.tool_surfaces, len(self.tool_surfaces)
         if k > 1 and control.supervisor:
             raise ScenarioError(
