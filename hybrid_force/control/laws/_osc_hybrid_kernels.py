@@ -2,9 +2,9 @@
 
 Its oracle, the readable numpy version, is ``osc_hybrid_law`` of ``tests/oracles/laws.py``;
 ``tests/test_osc_hybrid_kernel.py`` checks the kernel against it. The small dense solves are
-written here: a Cholesky factor of M for M⁻¹Jᵀ (an LU factorisation when M has none), an LU
-factorisation with partial pivoting (as numpy's ``solve`` and ``inv``) for
-Λ = (J M⁻¹ Jᵀ)⁻¹ (3 × 3) and for (WᵀW)⁻¹Wᵀ (k × k).
+those of :mod:`hybrid_force.control._linalg_kernels`: a Cholesky factor of M for M⁻¹Jᵀ (an LU
+factorisation when M has none), an LU factorisation with partial pivoting (as numpy's
+``solve`` and ``inv``) for Λ = (J M⁻¹ Jᵀ)⁻¹ (3 × 3) and for (WᵀW)⁻¹Wᵀ (k × k).
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """
@@ -16,7 +16,12 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._linalg_kernels import cholesky, cholesky_solve_column
+from hybrid_force.control._linalg_kernels import (
+    cholesky,
+    cholesky_solve_column,
+    lu_factor,
+    lu_solve,
+)
 from hybrid_force.geometry._kernels import surface_eval
 
 # the modes of osc_hybrid (module docstring of osc_hybrid: eq. 3 and 4)
@@ -36,44 +41,14 @@ def _lu_solve(a: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> bool:
     Returns False when a pivot is exactly zero (a singular: numpy's LinAlgError).
     """
     m = a.shape[0]
-    r = rhs.shape[1]
     lu = a.copy()
+    piv = np.empty(m, np.int64)
+    if not lu_factor(lu, piv):
+        return False
     for i in range(m):
-        for j in range(r):
+        for j in range(rhs.shape[1]):
             out[i, j] = rhs[i, j]
-    for col in range(m):
-        piv = col
-        big = abs(lu[col, col])
-        for i in range(col + 1, m):
-            if abs(lu[i, col]) > big:
-                big = abs(lu[i, col])
-                piv = i
-        if big == 0.0:
-            return False
-        if piv != col:
-            for j in range(m):
-                t = lu[col, j]
-                lu[col, j] = lu[piv, j]
-                lu[piv, j] = t
-            for j in range(r):
-                t = out[col, j]
-                out[col, j] = out[piv, j]
-                out[piv, j] = t
-        d = lu[col, col]
-        for i in range(col + 1, m):
-            f = lu[i, col] / d
-            lu[i, col] = f
-            for j in range(col + 1, m):
-                lu[i, j] -= f * lu[col, j]
-            for j in range(r):
-                out[i, j] -= f * out[col, j]
-    for i in range(m - 1, -1, -1):
-        d = lu[i, i]
-        for j in range(r):
-            acc = out[i, j]
-            for c in range(i + 1, m):
-                acc -= lu[i, c] * out[c, j]
-            out[i, j] = acc / d
+    lu_solve(lu, piv, out)
     return True
 
 

@@ -9,10 +9,10 @@ from the surfaces' unit normals at the tip, J⁺ = Jᵀ (J Jᵀ)⁻¹, the posit
 the feed-forward, the redundant directions' hold (I − J⁺J)(…) (applied as x − J⁺(J x), the
 matrix is not formed), the near phase's normal torque and in contact the projection P, the
 normal damper D_n and the force terms. Every solve is an LU factorisation with partial
-pivoting (as ``np.linalg.solve``); the products by inverses of the oracle
-((J Jᵀ)⁻¹, D_n = (ω_p + ω_d) H⁻¹) are solves here, equal to round-off. At a singularity
-(J Jᵀ with a zero pivot) J⁺ is the SVD's pseudo-inverse; any other zero pivot makes the
-kernel return SINGULAR_OTHER without finishing, and the caller raises numpy's error.
+pivoting (:func:`~hybrid_force.control._linalg_kernels.lu_factor`); the products by inverses
+of the oracle ((J Jᵀ)⁻¹, D_n = (ω_p + ω_d) H⁻¹) are solves here, equal to round-off. At a
+singularity (J Jᵀ with a zero pivot) J⁺ is the SVD's pseudo-inverse; any other zero pivot makes
+the kernel return SINGULAR_OTHER without finishing, and the caller raises numpy's error.
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions
 (outputs preallocated and passed last, no fastmath).
@@ -25,68 +25,11 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._linalg_kernels import lu_factor, lu_solve
 from hybrid_force.geometry._kernels import surface_eval
 
 OK = 0
 SINGULAR_OTHER = 2  # M, A M⁻¹ Aᵀ, NᵀN or Nᵀ J M⁻¹ Jᵀ N has a zero pivot (numpy's LinAlgError)
-
-
-@_jit
-def lu_factor(a: np.ndarray, piv: np.ndarray) -> bool:
-    """a (m, m) ← its LU factors in place (partial pivoting, row swaps in piv (m,)).
-
-    Returns False at a zero pivot (a singular matrix; a is then partly factored).
-    """
-    m = a.shape[0]
-    for c in range(m):
-        p = c
-        big = abs(a[c, c])
-        for r in range(c + 1, m):
-            x = abs(a[r, c])
-            if x > big:
-                big = x
-                p = r
-        piv[c] = p
-        if big == 0.0:
-            return False
-        if p != c:
-            for j in range(m):
-                t = a[c, j]
-                a[c, j] = a[p, j]
-                a[p, j] = t
-        inv = 1.0 / a[c, c]
-        for r in range(c + 1, m):
-            f = a[r, c] * inv
-            a[r, c] = f
-            if f != 0.0:
-                for j in range(c + 1, m):
-                    a[r, j] -= f * a[c, j]
-    return True
-
-
-@_jit
-def lu_solve(lu: np.ndarray, piv: np.ndarray, b: np.ndarray) -> None:
-    """b (m, r) ← a⁻¹ b in place, from the factors of :func:`lu_factor`."""
-    m = lu.shape[0]
-    cols = b.shape[1]
-    for c in range(m):
-        p = piv[c]
-        if p != c:
-            for j in range(cols):
-                t = b[c, j]
-                b[c, j] = b[p, j]
-                b[p, j] = t
-    for j in range(cols):
-        for r in range(1, m):
-            acc = b[r, j]
-            for c in range(r):
-                acc -= lu[r, c] * b[c, j]
-            b[r, j] = acc
-        for r in range(m - 1, -1, -1):
-            acc = b[r, j]
-            for c in range(r + 1, m):
-                acc -= lu[r, c] * b[c, j]
-            b[r, j] = acc / lu[r, r]
 
 
 @_jit

@@ -152,6 +152,20 @@ def make_gains(
     return Gains(Kd=K, Lambda=lam, beta=b, gamma=g)
 
 
+KernelRows = tuple[ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""What one call of the paper's law reads besides its input, in the kernel's order: the
+constraint terms, e_F, f_d, the approach speeds (k,) and the matrices it writes (2, n, k) (B,
+q̈_r,f); k = 0 in free space (:func:`free_space_rows`)."""
+
+
+def free_space_rows(n: int) -> ConstraintTerms:
+    """The constraint terms of the free-space law, the hybrid law with no rows: Q = I (n, n),
+    Q̇ = 0 (eq. 29–30 are eq. 4, 8 with k = 0)."""
+    rows = ConstraintTerms.zeros(0, n)
+    rows.Q[:] = np.eye(n)
+    return rows
+
+
 class LawWorkspace(Law):
     """The paper's laws (module docstring: eq. 4, 8, 11 near and on the surface, eq. 29–30
     away from it) as one compiled call each, writing into arrays preallocated here (hot path).
@@ -178,10 +192,8 @@ class LawWorkspace(Law):
         self.V = 0.0
         self.in_contact_law = False
         self._zeros_k = np.zeros(k)
-        self._no_force = np.zeros(0)
-        # the free-space law is the hybrid law with no constraint rows: Q = I, Q̇ = 0
-        self._free_space = ConstraintTerms.zeros(0, n)
-        self._free_space.Q[:] = np.eye(n)
+        none = np.zeros(0)
+        self._free_rows: KernelRows = (free_space_rows(n), none, none, none, self._free_matrices)
         self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
         self._free = Command(u0=self.u0, B=None)
 
@@ -189,14 +201,13 @@ class LawWorkspace(Law):
         """Eq. 4, 8, 11 with the loop in f kept explicit (module docstring), plus A⁺·approach
         in q̇_r (and Ȧ⁺·approach in q̈_r) in the near phase."""
         approach = self._zeros_k if inp.approach is None else inp.approach
-        self._run(inp, inp.rows, inp.e_F, inp.f_d, approach, self._matrices)
+        self._run(inp, (inp.rows, inp.e_F, inp.f_d, approach, self._matrices))
         self.in_contact_law = True
         return self._hybrid
 
     def free_space(self, inp: LawInput) -> Command:
         """Eq. 29–30: q̇_r = q̇_d − Λ e_q, s = q̇ − q̇_r, u = M q̈_r + C q̇_r + g − K_d s."""
-        none = self._no_force
-        self._run(inp, self._free_space, none, none, none, self._free_matrices)
+        self._run(inp, self._free_rows)
         self.in_contact_law = False
         return self._free
 
@@ -205,15 +216,8 @@ class LawWorkspace(Law):
         g = self.gains
         return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
 
-    def _run(
-        self,
-        inp: LawInput,
-        cons: ConstraintTerms,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray,
-        matrices: np.ndarray,
-    ) -> None:
+    def _run(self, inp: LawInput, rows: KernelRows) -> None:
+        cons, e_F, f_d, approach, matrices = rows
         g, robot, desired = self.gains, inp.robot, inp.desired
         self.V = _K.arimoto(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,

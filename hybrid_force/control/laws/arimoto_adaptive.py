@@ -75,7 +75,7 @@ import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.laws.arimoto import loop_bounds
+from hybrid_force.control.laws.arimoto import free_space_rows, loop_bounds
 from hybrid_force.control.laws.base import (
     PAPER_GAINS,
     Command,
@@ -117,6 +117,15 @@ DEFAULT_ADAPTATION_RATE = 5.0
 MASS_FLOOR = 0.01
 _MASS = PARAMETER_LABELS.index("m")
 _SIGMA = 5  # σ's place in the compiled law's parameters (_arimoto_adaptive_kernels.SIGMA)
+
+
+_AdaptiveRows = tuple[
+    ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+    np.ndarray,
+]  # fmt: skip
+"""What one call of the law reads besides its input: the constraint terms, e_F, f_d, the
+approach speeds (k,), and the buffers it writes: matrices (2, n, k), Y_A (k, n, p), B (n, k),
+gradients (1 + k, p); k = 0 in free space."""
 
 
 @dataclass(frozen=True)
@@ -245,8 +254,10 @@ class AdaptiveArimotoWorkspace(Law):
         )  # fmt: skip
         self._zeros_k = np.zeros(k)
         self._no_force = np.zeros(0)
-        self._free_space = ConstraintTerms.zeros(0, n)
-        self._free_space.Q[:] = np.eye(n)
+        self._free_rows: _AdaptiveRows = (
+            free_space_rows(n), self._no_force, self._no_force, self._no_force,
+            self._free_matrices, self._free_Y_A, self._free_B, self._free_gradients,
+        )  # fmt: skip
         self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
         self._free = Command(u0=self.u0, B=None)
         self.in_contact_law = False
@@ -258,7 +269,6 @@ class AdaptiveArimotoWorkspace(Law):
             regressor.zeros, self._vectors[6], self._vectors[7],
         )  # fmt: skip
         self._Gamma, self._floor = adaptation.Gamma, adaptation.floor
-        self._one_row = k == 1 and gains.beta > 0
 
     @property
     def sigma(self) -> float:
@@ -267,61 +277,24 @@ class AdaptiveArimotoWorkspace(Law):
 
     def free_space(self, inp: LawInput) -> Command:
         """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
-        none = self._no_force
-        self.V = self._run(
-            inp, self._free_space, none, none, none, self._free_matrices, self._free_Y_A,
-            self._free_B, self._free_gradients,
-        )  # fmt: skip
+        self.V = self._run(inp, self._free_rows)
         self.in_contact_law = False
         return self._free
 
     def hybrid(self, inp: LawInput) -> Command:
         """Eq. 4, 8, 11 adapted (module docstring): q̇_r, q̈_r (at f = 0) and s are the paper's
-        law's own. The hot path: the steps of :meth:`_run` (which :meth:`free_space` calls)
-        written out, one Python call less."""
-        robot, cons, desired, v, e_q = inp.robot, inp.rows, inp.desired, inp.v, inp.e_q
-        e_F, f_d = inp.e_F, inp.f_d
+        law's own."""
         approach = self._zeros_k if inp.approach is None else inp.approach
-        g, q, vectors, params = self.gains, self._q, self._vectors, self._params
-        if not self._euclidean:
-            q[:] = pin.integrate(self._model, desired.q, e_q)
-        _K.reference_velocities(
-            robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
-            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, params,
-            vectors, self._matrices, q,
+        self.V = self._run(
+            inp, (inp.rows, inp.e_F, inp.f_d, approach, self._matrices, self._Y_A, self.B,
+                  self._gradients),
         )  # fmt: skip
-        model, data, model0, regress, zeros, w_plus, w_minus = self._pin_args
-        Y_plus = regress(model, data, q, w_plus, self._qddot_r0)
-        Y_minus = regress(model0, data, q, w_minus, zeros)
-        Y_A = self._Y_A
-        if self._one_row:  # the pass's own array, seen as (1, n, p): no copy
-            Y_A = regress(model0, data, q, zeros, cons.A_pinv[:, 0])[None]
-        elif g.beta > 0:
-            Ap = cons.A_pinv
-            for j in range(Y_A.shape[0]):
-                Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
-        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, self._s)
-        self._called = self.in_contact_law = True
-        self.V = _K.adaptive_command(
-            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, desired.qd, e_F,
-            f_d, params, vectors, self.B, self._gradients,
-        )  # fmt: skip
+        self.in_contact_law = True
         return self._hybrid
 
-    def _run(
-        self,
-        inp: LawInput,
-        cons: ConstraintTerms,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray,
-        matrices: np.ndarray,
-        Y_A: np.ndarray,
-        B: np.ndarray,
-        gradients: np.ndarray,
-    ) -> float:
-        """One call of the law into the given buffers, returning V: what :meth:`free_space`
-        runs (k = 0); :meth:`hybrid` is the same steps written out."""
+    def _run(self, inp: LawInput, rows: _AdaptiveRows) -> float:
+        """One call of the law into the given buffers, returning V (k = 0: :meth:`free_space`)."""
+        cons, e_F, f_d, approach, matrices, Y_A, B, gradients = rows
         robot, desired, v, e_q = inp.robot, inp.desired, inp.v, inp.e_q
         g, q, vectors, params = self.gains, self._q, self._vectors, self._params
         if not self._euclidean:
