@@ -16,6 +16,14 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._linalg_kernels import (
+    add_matvec_scaled,
+    dot,
+    mul_into,
+    mul_nt_into,
+    quad_form,
+    rows3_dot,
+)
 from hybrid_force.geometry._kernels import path_sample, surface_eval
 
 
@@ -201,16 +209,7 @@ def arimoto(
             for j in range(n):
                 b += M[i, j] * Ap[j, m]
             B[i, m] = beta * b
-    V = 0.0
-    for i in range(n):
-        ms = 0.0
-        for j in range(n):
-            ms += M[i, j] * s[j]
-        V += s[i] * ms
-    eF2 = 0.0
-    for m in range(k):
-        eF2 += e_F[m] * e_F[m]
-    return 0.5 * V + 0.5 * beta * eF2
+    return 0.5 * quad_form(M, s) + 0.5 * beta * dot(e_F, e_F)
 
 
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------
@@ -272,12 +271,10 @@ def clik_velocity(
         cond = cond * cond
     else:
         JJt = np.empty((3, 3))
+        mul_nt_into(J6, J6, JJt)
         for r in range(3):
             for c in range(3):
-                acc = 0.0
-                for j in range(n):
-                    acc += J6[r, j] * J6[c, j]
-                JJt[r, c] = acc + (damping2 if r == c else 0.0)
+                JJt[r, c] = JJt[r, c] + (damping2 if r == c else 0.0)
         if _inv3_into(JJt, W) == 0.0:
             return np.inf
         cond = np.abs(JJt).max() * np.abs(W).max()
@@ -292,11 +289,7 @@ def clik_velocity(
                 N[i, j] = (1.0 if i == j else 0.0) - (
                     Jp[i, 0] * J6[0, j] + Jp[i, 1] * J6[1, j] + Jp[i, 2] * J6[2, j]
                 )
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += N[i, j] * (-posture_gain * dq_post[j])
-            qd[i] += acc
+        add_matvec_scaled(N, dq_post, -posture_gain, qd)
     return cond
 
 
@@ -350,11 +343,9 @@ def _clik_qdd(
 ) -> None:
     n = qd.shape[0]
     xdot = np.empty(3)
+    pdot = rows3_dot(J6, 0, qd)
     for r in range(3):
-        acc = 0.0
-        for j in range(n):
-            acc += J6[r, j] * qd[j]
-        xdot[r] = pddot_d[r] - gamma * (acc - pdot_d[r])
+        xdot[r] = pddot_d[r] - gamma * (pdot[r] - pdot_d[r])
     if not redundant:
         y = np.empty(3)
         for r in range(3):
@@ -374,18 +365,13 @@ def _clik_qdd(
                 acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
             S[r, c] = acc
     # (explicit loops: numba's matmul would need SciPy's BLAS, which is not a dependency)
-    WS = np.zeros((3, 3))
+    WS = np.empty((3, 3))
+    mul_into(W, S, WS)
+    Wdot = np.empty((3, 3))
+    mul_into(WS, W, Wdot)
     for r in range(3):
         for c in range(3):
-            for m in range(3):
-                WS[r, c] += W[r, m] * S[m, c]
-    Wdot = np.zeros((3, 3))
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for m in range(3):
-                acc += WS[r, m] * W[m, c]
-            Wdot[r, c] = -acc
+            Wdot[r, c] = -Wdot[r, c]
     Jpd = np.empty((n, 3))
     for j in range(n):
         for c in range(3):

@@ -114,3 +114,115 @@ def lu_solve(lu: np.ndarray, piv: np.ndarray, b: np.ndarray) -> None:
             for c in range(r + 1, m):
                 acc -= lu[r, c] * b[c, j]
             b[r, j] = acc / lu[r, r]
+
+
+@_jit
+def lu_solve_into(a: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> bool:
+    """out = a⁻¹ rhs for a (m, m), rhs (m, r) by :func:`lu_factor` (a, rhs unchanged).
+
+    Returns False when a pivot is exactly zero (a singular: numpy's LinAlgError).
+    """
+    m = a.shape[0]
+    lu = a.copy()
+    piv = np.empty(m, np.int64)
+    if not lu_factor(lu, piv):
+        return False
+    for i in range(m):
+        for j in range(rhs.shape[1]):
+            out[i, j] = rhs[i, j]
+    lu_solve(lu, piv, out)
+    return True
+
+
+# --- products: each entry summed from 0.0 in the order of the inner index (no BLAS, no FMA,
+# so a kernel that calls these computes what its loops written out computed, bit for bit) ----
+@_jit
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """Σ_i a[i] b[i] over b's length (a may be longer)."""
+    acc = 0.0
+    for i in range(b.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@_jit
+def rows3_dot(A: np.ndarray, r0: int, x: np.ndarray) -> tuple[float, float, float]:
+    """(A[r0] · x, A[r0 + 1] · x, A[r0 + 2] · x): three rows of A x, A (≥ r0 + 3, n), x (n,)
+    (the position or the angular rows of a Jacobian times a joint velocity)."""
+    y0 = 0.0
+    y1 = 0.0
+    y2 = 0.0
+    for j in range(x.shape[0]):
+        y0 += A[r0, j] * x[j]
+        y1 += A[r0 + 1, j] * x[j]
+        y2 += A[r0 + 2, j] * x[j]
+    return y0, y1, y2
+
+
+@_jit
+def matvec_into(A: np.ndarray, x: np.ndarray, out: np.ndarray) -> None:
+    """out (r,) = A x over the first r rows of A (≥ r, n), x (n,)."""
+    for i in range(out.shape[0]):
+        acc = 0.0
+        for j in range(x.shape[0]):
+            acc += A[i, j] * x[j]
+        out[i] = acc
+
+
+@_jit
+def add_matvec_scaled(A: np.ndarray, x: np.ndarray, scale: float, out: np.ndarray) -> None:
+    """out (r,) += A (scale x), each product A[i, j] · (scale · x[j]) (a posture's −k_n N Δq)."""
+    for i in range(out.shape[0]):
+        acc = 0.0
+        for j in range(x.shape[0]):
+            acc += A[i, j] * (scale * x[j])
+        out[i] += acc
+
+
+@_jit
+def quad_form(A: np.ndarray, x: np.ndarray) -> float:
+    """xᵀ A x = Σ_i x[i] (Σ_j A[i, j] x[j]) for A (n, n), x (n,) (a kinetic energy's 2T)."""
+    n = x.shape[0]
+    acc = 0.0
+    for i in range(n):
+        row = 0.0
+        for j in range(n):
+            row += A[i, j] * x[j]
+        acc += x[i] * row
+    return acc
+
+
+@_jit
+def mul_into(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
+    """out (r, c) = A B over the first r rows of A (≥ r, n) and c columns of B (n, ≥ c)."""
+    n = B.shape[0]
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            acc = 0.0
+            for m in range(n):
+                acc += A[i, m] * B[m, j]
+            out[i, j] = acc
+
+
+@_jit
+def mul_nt_into(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
+    """out (r, c) = A Bᵀ over the first r rows of A (≥ r, n) and c rows of B (≥ c, n)."""
+    n = A.shape[1]
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            acc = 0.0
+            for m in range(n):
+                acc += A[i, m] * B[j, m]
+            out[i, j] = acc
+
+
+@_jit
+def mul_tn_into(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
+    """out (r, c) = Aᵀ B over the first r columns of A (n, ≥ r) and c of B (n, ≥ c)."""
+    n = A.shape[0]
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            acc = 0.0
+            for m in range(n):
+                acc += A[m, i] * B[m, j]
+            out[i, j] = acc

@@ -19,8 +19,10 @@ from hybrid_force._jit import jit as _jit
 from hybrid_force.control._linalg_kernels import (
     cholesky,
     cholesky_solve_column,
-    lu_factor,
-    lu_solve,
+    lu_solve_into,
+    matvec_into,
+    mul_into,
+    rows3_dot,
 )
 from hybrid_force.geometry._kernels import surface_eval
 
@@ -32,24 +34,6 @@ CONTACT = 2
 # singular (numpy's "Singular matrix")
 SINGULAR_MASS = -1.0
 SINGULAR_NORMALS = -2.0
-
-
-@_jit
-def _lu_solve(a: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> bool:
-    """out = a⁻¹ rhs for a (m, m), rhs (m, r) by LU with partial pivoting (a, rhs unchanged).
-
-    Returns False when a pivot is exactly zero (a singular: numpy's LinAlgError).
-    """
-    m = a.shape[0]
-    lu = a.copy()
-    piv = np.empty(m, np.int64)
-    if not lu_factor(lu, piv):
-        return False
-    for i in range(m):
-        for j in range(rhs.shape[1]):
-            out[i, j] = rhs[i, j]
-    lu_solve(lu, piv, out)
-    return True
 
 
 @_jit
@@ -121,22 +105,19 @@ def osc_hybrid(
     if cholesky(M, L):
         for r in range(3):
             cholesky_solve_column(L, J[r], X, r)
-    elif not _lu_solve(M, J.T.copy(), X):  # M not positive definite: LU, as numpy's solve
+    elif not lu_solve_into(M, J.T.copy(), X):  # M not positive definite: LU, as numpy's solve
         return SINGULAR_MASS
     # --- Λ = S⁻¹, S = J M⁻¹ Jᵀ, and the estimate of cond(S)
     S = np.empty((3, 3))
+    mul_into(J, X, S)
     s_sq = 0.0
     for r in range(3):
         for c in range(3):
-            s = 0.0
-            for i in range(n):
-                s += J[r, i] * X[i, c]
-            S[r, c] = s
-            s_sq += s * s
+            s_sq += S[r, c] * S[r, c]
     eye = np.zeros((3, 3))
     for r in range(3):
         eye[r, r] = 1.0
-    if not _lu_solve(S, eye, Lambda):
+    if not lu_solve_into(S, eye, Lambda):
         return math.inf
     l_sq = 0.0
     for r in range(3):
@@ -174,7 +155,7 @@ def osc_hybrid(
                     Wt[m, r] = W[r, m]
                 for c in range(k):
                     WtW[m, c] = W[0, m] * W[0, c] + W[1, m] * W[1, c] + W[2, m] * W[2, c]
-            if not _lu_solve(WtW, Wt, P):
+            if not lu_solve_into(WtW, Wt, P):
                 return SINGULAR_NORMALS
         Pa = np.empty(k)
         cx = np.empty(k)
@@ -213,21 +194,11 @@ def osc_hybrid(
         y = np.empty(n)
         for i in range(n):
             y[i] = qdd[i] - null_kp * e_q[i] - null_kd * (v[i] - qd[i])
-        Jy0 = 0.0
-        Jy1 = 0.0
-        Jy2 = 0.0
-        for i in range(n):
-            Jy0 += J[0, i] * y[i]
-            Jy1 += J[1, i] * y[i]
-            Jy2 += J[2, i] * y[i]
+        Jy0, Jy1, Jy2 = rows3_dot(J, 0, y)
         z = np.empty(n)
         for i in range(n):
             z[i] = y[i] - (Jbar[i, 0] * Jy0 + Jbar[i, 1] * Jy1 + Jbar[i, 2] * Jy2)
-        for i in range(n):
-            s = 0.0
-            for j in range(n):
-                s += M[i, j] * z[j]
-            null_torque[i] = s
+        matvec_into(M, z, null_torque)
     # --- u0 = Jᵀ F + C q̇ + g + Nᵀτ₀
     for i in range(n):
         u0[i] = (J[0, i] * F[0] + J[1, i] * F[1] + J[2, i] * F[2]) + nle[i] + null_torque[i]

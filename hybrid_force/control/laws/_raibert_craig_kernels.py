@@ -25,7 +25,14 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._linalg_kernels import lu_factor, lu_solve
+from hybrid_force.control._linalg_kernels import (
+    lu_factor,
+    lu_solve,
+    mul_into,
+    mul_nt_into,
+    mul_tn_into,
+    rows3_dot,
+)
 from hybrid_force.geometry._kernels import surface_eval
 
 OK = 0
@@ -36,13 +43,7 @@ SINGULAR_OTHER = 2  # M, A M⁻¹ Aᵀ, NᵀN or Nᵀ J M⁻¹ Jᵀ N has a zero
 def _null_apply(J: np.ndarray, Jp: np.ndarray, x: np.ndarray) -> None:
     """x (n,) ← (I − J⁺J) x = x − J⁺ (J x), J (3, n), J⁺ (n, 3)."""
     n = x.shape[0]
-    y0 = 0.0
-    y1 = 0.0
-    y2 = 0.0
-    for j in range(n):
-        y0 += J[0, j] * x[j]
-        y1 += J[1, j] * x[j]
-        y2 += J[2, j] * x[j]
+    y0, y1, y2 = rows3_dot(J, 0, x)
     for i in range(n):
         x[i] -= Jp[i, 0] * y0 + Jp[i, 1] * y1 + Jp[i, 2] * y2
 
@@ -164,24 +165,18 @@ def hybrid(
     else:
         NtN = np.empty((k, k))
         Y = np.empty((k, 3))
+        mul_tn_into(N, N, NtN)
         for a in range(k):
-            for b in range(k):
-                acc = 0.0
-                for r in range(3):
-                    acc += N[r, a] * N[r, b]
-                NtN[a, b] = acc
             for r in range(3):
                 Y[a, r] = N[r, a]
         piv_k = np.empty(k, dtype=np.int64)
         if not lu_factor(NtN, piv_k):
             return SINGULAR_OTHER
         lu_solve(NtN, piv_k, Y)
+        mul_into(N, Y, S)
         for r in range(3):
             for c in range(3):
-                acc = 0.0
-                for a in range(k):
-                    acc += N[r, a] * Y[a, c]
-                S[r, c] = (1.0 if r == c else 0.0) - acc
+                S[r, c] = (1.0 if r == c else 0.0) - S[r, c]
     e = np.empty(3)
     e_dot = np.empty(3)
     for r in range(3):
@@ -195,12 +190,7 @@ def hybrid(
 
     # J⁺ = Jᵀ (J Jᵀ)⁻¹ (n, 3): the transpose of (J Jᵀ)⁻¹ J
     JJt = np.empty((3, 3))
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for j in range(n):
-                acc += J[r, j] * J[c, j]
-            JJt[r, c] = acc
+    mul_nt_into(J, J, JJt)
     X = np.empty((3, n))
     for r in range(3):
         for j in range(n):
@@ -307,12 +297,7 @@ def hybrid(
             for a in range(k):
                 MinvAT[j, a] = A[a, j]
         lu_solve(LU, piv, MinvAT)
-        for a in range(k):
-            for b in range(k):
-                acc = 0.0
-                for j in range(n):
-                    acc += A[a, j] * MinvAT[j, b]
-                G[a, b] = acc
+        mul_into(A, MinvAT, G)
         if not lu_factor(G, piv_k):
             return SINGULAR_OTHER
 
@@ -369,12 +354,7 @@ def hybrid(
             MinvJN[j, a] = JN[j, a]
     lu_solve(LU, piv, MinvJN)
     H = np.empty((k, k))
-    for a in range(k):
-        for b in range(k):
-            acc = 0.0
-            for j in range(n):
-                acc += JN[j, a] * MinvJN[j, b]
-            H[a, b] = acc
+    mul_tn_into(JN, MinvJN, H)
     if not lu_factor(H, piv_k):
         return SINGULAR_OTHER
     d = np.empty((k, 1))

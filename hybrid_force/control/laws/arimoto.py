@@ -50,6 +50,7 @@ from hybrid_force.control.laws.base import (
     LoopContext,
     below,
     register,
+    velocity_loop_bound,
 )
 from hybrid_force.errors import ControlError
 
@@ -298,17 +299,7 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
         key, value = context.named("control.kd_rate", s.kd_rate)
     else:
         key, value = context.named("control.Kd", np.asarray(s.Kd).tolist())
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            f"the sampled velocity loop q̇ ← (I − T M⁻¹(K_d + Λ M_c)) q̇ (M the plant's, M_c "
-            f"the controller's; {context.where}) diverges unless T·λ_max(M⁻¹(K_d + Λ M_c)) < 2; "
-            f"here it reaches {number:.4g} along the path",
-        )
-    ]
+    bounds = [velocity_loop_bound(key, value, number, "(K_d + Λ M_c)", context.where)]
     # the force integral: f ∋ −b e_F, b = γ ρ(W⁻¹ A M⁻¹ Aᵀ) + β ρ(W⁻¹ A M⁻¹ K_d A⁺), and the
     # proportional a = β ρ(W⁻¹ A M⁻¹ M_c A⁺) per unit β
     b, per_beta, least_per_beta = 0.0, 0.0, math.inf

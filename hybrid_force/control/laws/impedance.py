@@ -99,6 +99,7 @@ from hybrid_force.control.laws.base import (
     LoopContext,
     below,
     register,
+    velocity_loop_bound,
 )
 from hybrid_force.control.laws.osc_hybrid import task_space
 from hybrid_force.errors import ControlError, SurfaceError
@@ -337,17 +338,8 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
             number, velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period)
         )
     key, value = context.named("control.impedance.omega", gains.omega)
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            "the sampled velocity loop q̇ ← (I − T M⁻¹ G) q̇, G = 2ζω (Jᵀ Λ_c J + M_c N) (M the "
-            f"plant's, M_c the controller's; {context.where}) diverges unless "
-            f"T·λ_max(M⁻¹ G) < 2; here it reaches {number:.4g} along the path",
-        )
-    ]
+    gain = ", G = 2ζω (Jᵀ Λ_c J + M_c N)"
+    bounds = [velocity_loop_bound(key, value, number, " G", context.where, gain)]
     if context.sampled and gains.force_tracking:
         rho = max(
             force_feedthrough(

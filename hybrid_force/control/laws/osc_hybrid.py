@@ -104,6 +104,7 @@ from hybrid_force.control.laws.base import (
     LoopContext,
     below,
     register,
+    velocity_loop_bound,
 )
 from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.schema import param
@@ -536,17 +537,8 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
             number, velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period)
         )
     key, value = context.named(f"control.{_NAME}.omega", options.omega)
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            "the sampled velocity loop q̇ ← (I − T M⁻¹ G) q̇, G = max(K_v, K_n) Jᵀ Λ_c J + d_n M_c N "
-            f"(M the plant's, M_c the controller's; {context.where}) diverges unless "
-            f"T·λ_max(M⁻¹ G) < 2; here it reaches {number:.4g} along the path",
-        )
-    ]
+    gain = ", G = max(K_v, K_n) Jᵀ Λ_c J + d_n M_c N"
+    bounds = [velocity_loop_bound(key, value, number, " G", context.where, gain)]
     return bounds + force_gain_bounds(
         context, _NAME, "force_p", gains.force_p, "force_i", gains.force_i
     )

@@ -116,6 +116,7 @@ from hybrid_force.control.laws.base import (
     LoopBound,
     LoopContext,
     register,
+    velocity_loop_bound,
 )
 from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
 from hybrid_force.errors import ControlError
@@ -421,17 +422,8 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     number = max(velocity_loop_number(context.plant_mass(q), Dq, context.period) for q in qs)
     given = opts.damping_rate is not None
     key, value = context.named(f"control.{_NAME}.damping_rate" if given else "control.kd_rate", wd)
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            "the sampled velocity loop q̇ ← (I − T M⁻¹ K_D) q̇, K_D = (ω_p + ω_d) M_c(q₀) (M the "
-            f"plant's, M_c the controller's; {context.where}) diverges unless "
-            f"T·λ_max(M⁻¹ K_D) < 2; here it reaches {number:.4g} along the path",
-        )
-    ]
+    gain = ", K_D = (ω_p + ω_d) M_c(q₀)"
+    bounds = [velocity_loop_bound(key, value, number, " K_D", context.where, gain)]
     return bounds + force_gain_bounds(context, _NAME, "kp", kp, "ki", ki)
 
 
