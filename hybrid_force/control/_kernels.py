@@ -19,8 +19,8 @@ from hybrid_force._jit import jit as _jit
 from hybrid_force.control._linalg_kernels import (
     add_matvec_scaled,
     dot,
+    eye_minus,
     mul_into,
-    mul_nt_into,
     quad_form,
     rows3_dot,
 )
@@ -271,7 +271,7 @@ def clik_velocity(
         cond = cond * cond
     else:
         JJt = np.empty((3, 3))
-        mul_nt_into(J6, J6, JJt)
+        mul_into(J6, J6.T, JJt)
         for r in range(3):
             for c in range(3):
                 JJt[r, c] = JJt[r, c] + (damping2 if r == c else 0.0)
@@ -284,11 +284,8 @@ def clik_velocity(
     for j in range(n):
         qd[j] = Jp[j, 0] * x[0] + Jp[j, 1] * x[1] + Jp[j, 2] * x[2]
     if redundant and posture_gain > 0.0:
-        for i in range(n):
-            for j in range(n):
-                N[i, j] = (1.0 if i == j else 0.0) - (
-                    Jp[i, 0] * J6[0, j] + Jp[i, 1] * J6[1, j] + Jp[i, 2] * J6[2, j]
-                )
+        mul_into(Jp, J6[:3], N)
+        eye_minus(N)
         add_matvec_scaled(N, dq_post, -posture_gain, qd)
     return cond
 
@@ -318,29 +315,6 @@ def clik_acceleration(
     """
     pdot_d, pddot_d = sample[1], sample[2]
     gamma, redundant, posture_gain = cfg[0], cfg[2] != 0.0, cfg[3]
-    _clik_qdd(J6, Jd6, Jp, W, N, x, qd, pdot_d, pddot_d, gamma, redundant, posture_gain,
-              dq_post, qdd)  # fmt: skip
-    if dt_pred > 0.0:
-        taylor_step(q, qd, qdd, dt_pred, q_pred)
-
-
-@_jit
-def _clik_qdd(
-    J6: np.ndarray,
-    Jd6: np.ndarray,
-    Jp: np.ndarray,
-    W: np.ndarray,
-    N: np.ndarray,
-    x: np.ndarray,
-    qd: np.ndarray,
-    pdot_d: np.ndarray,
-    pddot_d: np.ndarray,
-    gamma: float,
-    redundant: np.ndarray,
-    posture_gain: np.ndarray,
-    dq_post: np.ndarray,
-    qdd: np.ndarray,
-) -> None:
     n = qd.shape[0]
     xdot = np.empty(3)
     pdot = rows3_dot(J6, 0, qd)
@@ -355,54 +329,55 @@ def _clik_qdd(
             y[r] = acc
         for j in range(n):
             qdd[j] = Jp[j, 0] * y[0] + Jp[j, 1] * y[1] + Jp[j, 2] * y[2]
-        return
-    # Ẇ = −W (J̇Jᵀ + JJ̇ᵀ) W;  J̇⁺ = J̇ᵀW + JᵀẆ
-    S = np.empty((3, 3))
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for j in range(n):
-                acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
-            S[r, c] = acc
-    # (explicit loops: numba's matmul would need SciPy's BLAS, which is not a dependency)
-    WS = np.empty((3, 3))
-    mul_into(W, S, WS)
-    Wdot = np.empty((3, 3))
-    mul_into(WS, W, Wdot)
-    for r in range(3):
-        for c in range(3):
-            Wdot[r, c] = -Wdot[r, c]
-    Jpd = np.empty((n, 3))
-    for j in range(n):
-        for c in range(3):
-            acc = 0.0
-            for r in range(3):
-                acc += Jd6[r, j] * W[r, c] + J6[r, j] * Wdot[r, c]
-            Jpd[j, c] = acc
-    for j in range(n):
-        qdd[j] = (
-            Jpd[j, 0] * x[0]
-            + Jpd[j, 1] * x[1]
-            + Jpd[j, 2] * x[2]
-            + Jp[j, 0] * xdot[0]
-            + Jp[j, 1] * xdot[1]
-            + Jp[j, 2] * xdot[2]
-        )
-    if posture_gain > 0.0:
-        # Ṅ = −(J̇⁺J + J⁺J̇);  q̈_d += Ṅ z + N (−k_n q̇_d),  z = −k_n dq_post
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                nd = -(
-                    Jpd[i, 0] * J6[0, j]
-                    + Jpd[i, 1] * J6[1, j]
-                    + Jpd[i, 2] * J6[2, j]
-                    + Jp[i, 0] * Jd6[0, j]
-                    + Jp[i, 1] * Jd6[1, j]
-                    + Jp[i, 2] * Jd6[2, j]
-                )
-                acc += nd * (-posture_gain * dq_post[j]) + N[i, j] * (-posture_gain * qd[j])
-            qdd[i] += acc
+    else:
+        # Ẇ = −W (J̇Jᵀ + JJ̇ᵀ) W;  J̇⁺ = J̇ᵀW + JᵀẆ
+        S = np.empty((3, 3))
+        for r in range(3):
+            for c in range(3):
+                acc = 0.0
+                for j in range(n):
+                    acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
+                S[r, c] = acc
+        WS = np.empty((3, 3))
+        mul_into(W, S, WS)
+        Wdot = np.empty((3, 3))
+        mul_into(WS, W, Wdot)
+        for r in range(3):
+            for c in range(3):
+                Wdot[r, c] = -Wdot[r, c]
+        Jpd = np.empty((n, 3))
+        for j in range(n):
+            for c in range(3):
+                acc = 0.0
+                for r in range(3):
+                    acc += Jd6[r, j] * W[r, c] + J6[r, j] * Wdot[r, c]
+                Jpd[j, c] = acc
+        for j in range(n):
+            qdd[j] = (
+                Jpd[j, 0] * x[0]
+                + Jpd[j, 1] * x[1]
+                + Jpd[j, 2] * x[2]
+                + Jp[j, 0] * xdot[0]
+                + Jp[j, 1] * xdot[1]
+                + Jp[j, 2] * xdot[2]
+            )
+        if posture_gain > 0.0:
+            # Ṅ = −(J̇⁺J + J⁺J̇);  q̈_d += Ṅ z + N (−k_n q̇_d),  z = −k_n dq_post
+            for i in range(n):
+                acc = 0.0
+                for j in range(n):
+                    nd = -(
+                        Jpd[i, 0] * J6[0, j]
+                        + Jpd[i, 1] * J6[1, j]
+                        + Jpd[i, 2] * J6[2, j]
+                        + Jp[i, 0] * Jd6[0, j]
+                        + Jp[i, 1] * Jd6[1, j]
+                        + Jp[i, 2] * Jd6[2, j]
+                    )
+                    acc += nd * (-posture_gain * dq_post[j]) + N[i, j] * (-posture_gain * qd[j])
+                qdd[i] += acc
+    if dt_pred > 0.0:
+        taylor_step(q, qd, qdd, dt_pred, q_pred)
 
 
 @_jit

@@ -194,7 +194,9 @@ def quad_form(A: np.ndarray, x: np.ndarray) -> float:
 
 @_jit
 def mul_into(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
-    """out (r, c) = A B over the first r rows of A (≥ r, n) and c columns of B (n, ≥ c)."""
+    """out (r, c) = A B over the first r rows of A (≥ r, n) and c columns of B (n, ≥ c);
+    A Bᵀ and Aᵀ B as ``mul_into(A, B.T, out)``, ``mul_into(A.T, B, out)`` (views, the same
+    sums)."""
     n = B.shape[0]
     for i in range(out.shape[0]):
         for j in range(out.shape[1]):
@@ -205,24 +207,9 @@ def mul_into(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
 
 
 @_jit
-def mul_nt_into(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
-    """out (r, c) = A Bᵀ over the first r rows of A (≥ r, n) and c rows of B (≥ c, n)."""
-    n = A.shape[1]
-    for i in range(out.shape[0]):
-        for j in range(out.shape[1]):
-            acc = 0.0
-            for m in range(n):
-                acc += A[i, m] * B[j, m]
-            out[i, j] = acc
-
-
-@_jit
-def mul_tn_into(A: np.ndarray, B: np.ndarray, out: np.ndarray) -> None:
-    """out (r, c) = Aᵀ B over the first r columns of A (n, ≥ r) and c of B (n, ≥ c)."""
-    n = A.shape[0]
-    for i in range(out.shape[0]):
-        for j in range(out.shape[1]):
-            acc = 0.0
-            for m in range(n):
-                acc += A[m, i] * B[m, j]
-            out[i, j] = acc
+def eye_minus(A: np.ndarray) -> None:
+    """A (m, m) ← I − A in place (a projector's complement: N = I − J⁺J, S = I − N (NᵀN)⁻¹Nᵀ)."""
+    m = A.shape[0]
+    for i in range(m):
+        for j in range(m):
+            A[i, j] = (1.0 if i == j else 0.0) - A[i, j]

@@ -30,13 +30,13 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._kernels import taylor_step
 from hybrid_force.control._linalg_kernels import (
     add_matvec_scaled,
     cholesky,
+    eye_minus,
     matvec_into,
     mul_into,
-    mul_nt_into,
-    mul_tn_into,
     rows3_dot,
 )
 from hybrid_force.geometry._kernels import surface_eval
@@ -162,7 +162,7 @@ def pose_velocity(
         for i in range(ms):
             A[3 + i, j] = S[i, 0] * J6[3, j] + S[i, 1] * J6[4, j] + S[i, 2] * J6[5, j]
     G = np.empty((m, m))
-    mul_nt_into(A, A, G)
+    mul_into(A, A.T, G)
     gmax = 0.0
     for r in range(m):
         G[r, r] += damping2
@@ -178,7 +178,7 @@ def pose_velocity(
                 if abs(W[r, c]) > wmax:
                     wmax = abs(W[r, c])
         cond = m * m * gmax * wmax
-        mul_tn_into(A, W, Ap)
+        mul_into(A.T, W, Ap)
     else:
         W[:, :] = 0.0
         Ap[:, :] = 0.0
@@ -194,9 +194,7 @@ def pose_velocity(
     matvec_into(Ap, y, qd)
     if posture:
         mul_into(Ap, A, N)
-        for i in range(n):
-            for j in range(n):
-                N[i, j] = (1.0 if i == j else 0.0) - N[i, j]
+        eye_minus(N)
         add_matvec_scaled(N, dq_post, -gain, qd)
     return cond
 
@@ -336,9 +334,7 @@ def pose_acceleration(
                 acc += -nd * (-gain * dq_post[j]) + N[i, j] * (-gain * qd[j])
             qdd[i] += acc
     if dt_pred > 0.0:
-        h = 0.5 * dt_pred * dt_pred
-        for i in range(q.shape[0]):
-            q_pred[i] = q[i] + (qd[i] * dt_pred + qdd[i] * h)
+        taylor_step(q, qd, qdd, dt_pred, q_pred)
 
 
 @_jit

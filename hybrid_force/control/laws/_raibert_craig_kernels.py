@@ -26,11 +26,10 @@ import numpy as np
 
 from hybrid_force._jit import jit as _jit
 from hybrid_force.control._linalg_kernels import (
+    eye_minus,
     lu_factor,
     lu_solve,
     mul_into,
-    mul_nt_into,
-    mul_tn_into,
     rows3_dot,
 )
 from hybrid_force.geometry._kernels import surface_eval
@@ -46,6 +45,22 @@ def _null_apply(J: np.ndarray, Jp: np.ndarray, x: np.ndarray) -> None:
     y0, y1, y2 = rows3_dot(J, 0, x)
     for i in range(n):
         x[i] -= Jp[i, 0] * y0 + Jp[i, 1] * y1 + Jp[i, 2] * y2
+
+
+@_jit
+def _joint_feedback(
+    Kq: np.ndarray, Dq: np.ndarray, e_q: np.ndarray, v: np.ndarray, qd: np.ndarray, out: np.ndarray
+) -> None:
+    """out (n,) = −K_P e_q − K_D (q̇ − q̇_d): the joint PD of the free space and of the
+    redundant directions."""
+    n = v.shape[0]
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for j in range(n):
+            a += Kq[i, j] * e_q[j]
+            b += Dq[i, j] * (v[j] - qd[j])
+        out[i] = -a - b
 
 
 @_jit
@@ -70,13 +85,7 @@ def free_space(
     Kq, Dq = gains[0], gains[1]
     u0, u_pos = vectors[0], vectors[1]
     n = v.shape[0]
-    for i in range(n):
-        a = 0.0
-        b = 0.0
-        for j in range(n):
-            a += Kq[i, j] * e_q[j]
-            b += Dq[i, j] * (v[j] - qd[j])
-        u_pos[i] = -a - b
+    _joint_feedback(Kq, Dq, e_q, v, qd, u_pos)
     for i in range(n):
         ff = g[i]
         if model_feedforward:
@@ -165,7 +174,7 @@ def hybrid(
     else:
         NtN = np.empty((k, k))
         Y = np.empty((k, 3))
-        mul_tn_into(N, N, NtN)
+        mul_into(N.T, N, NtN)
         for a in range(k):
             for r in range(3):
                 Y[a, r] = N[r, a]
@@ -174,9 +183,7 @@ def hybrid(
             return SINGULAR_OTHER
         lu_solve(NtN, piv_k, Y)
         mul_into(N, Y, S)
-        for r in range(3):
-            for c in range(3):
-                S[r, c] = (1.0 if r == c else 0.0) - S[r, c]
+        eye_minus(S)
     e = np.empty(3)
     e_dot = np.empty(3)
     for r in range(3):
@@ -190,7 +197,7 @@ def hybrid(
 
     # J⁺ = Jᵀ (J Jᵀ)⁻¹ (n, 3): the transpose of (J Jᵀ)⁻¹ J
     JJt = np.empty((3, 3))
-    mul_nt_into(J, J, JJt)
+    mul_into(J, J.T, JJt)
     X = np.empty((3, n))
     for r in range(3):
         for j in range(n):
@@ -260,13 +267,7 @@ def hybrid(
     # the redundant directions follow q_d: (I − J⁺J) x = x − J⁺ (J x)
     if n > 3:
         h = np.empty(n)
-        for i in range(n):
-            xa = 0.0
-            xb = 0.0
-            for j in range(n):
-                xa += Kq[i, j] * e_q[j]
-                xb += Dq[i, j] * (v[j] - qd[j])
-            h[i] = -xa - xb
+        _joint_feedback(Kq, Dq, e_q, v, qd, h)
         _null_apply(J, Jp, h)
         for i in range(n):
             u_fb[i] += h[i]
@@ -354,7 +355,7 @@ def hybrid(
             MinvJN[j, a] = JN[j, a]
     lu_solve(LU, piv, MinvJN)
     H = np.empty((k, k))
-    mul_tn_into(JN, MinvJN, H)
+    mul_into(JN.T, MinvJN, H)
     if not lu_factor(H, piv_k):
         return SINGULAR_OTHER
     d = np.empty((k, 1))
