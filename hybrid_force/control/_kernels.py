@@ -284,10 +284,19 @@ def clik_velocity(
     for j in range(n):
         qd[j] = Jp[j, 0] * x[0] + Jp[j, 1] * x[1] + Jp[j, 2] * x[2]
     if redundant and posture_gain > 0.0:
-        mul_into(Jp, J6[:3], N)
-        eye_minus(N)
-        add_matvec_scaled(N, dq_post, -posture_gain, qd)
+        add_posture(Jp, J6[:3], dq_post, posture_gain, N, qd)
     return cond
+
+
+@_jit
+def add_posture(
+    Jp: np.ndarray, A: np.ndarray, dq_post: np.ndarray, gain: float, N: np.ndarray, qd: np.ndarray
+) -> None:
+    """q̇_d += N z, z = −k_n (q_d ⊖ posture): the posture in the null space of the task rows
+    A (m, n), N = I − A⁺A (n, n) written, A⁺ = Jp (n, m); dq_post, qd (n,)."""
+    mul_into(Jp, A, N)
+    eye_minus(N)
+    add_matvec_scaled(N, dq_post, -gain, qd)
 
 
 @_jit

@@ -170,6 +170,21 @@ def matvec_into(A: np.ndarray, x: np.ndarray, out: np.ndarray) -> None:
 
 
 @_jit
+def matvec2_into(
+    A: np.ndarray, x: np.ndarray, B: np.ndarray, y: np.ndarray, out: np.ndarray
+) -> None:
+    """out (r,) = A x + B y, each row's two sums formed apart then added (a PD's K e + D ė,
+    a feed-forward's M q̈ + C q̇); A, B (≥ r, n), x, y (n,)."""
+    for i in range(out.shape[0]):
+        a = 0.0
+        b = 0.0
+        for j in range(x.shape[0]):
+            a += A[i, j] * x[j]
+            b += B[i, j] * y[j]
+        out[i] = a + b
+
+
+@_jit
 def add_matvec_scaled(A: np.ndarray, x: np.ndarray, scale: float, out: np.ndarray) -> None:
     """out (r,) += A (scale x), each product A[i, j] · (scale · x[j]) (a posture's −k_n N Δq)."""
     for i in range(out.shape[0]):

@@ -30,11 +30,9 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._kernels import taylor_step
+from hybrid_force.control._kernels import add_posture, taylor_step
 from hybrid_force.control._linalg_kernels import (
-    add_matvec_scaled,
     cholesky,
-    eye_minus,
     matvec_into,
     mul_into,
     rows3_dot,
@@ -193,9 +191,7 @@ def pose_velocity(
         y[3 + i] = S[i, 0] * w[0] + S[i, 1] * w[1] + S[i, 2] * w[2]
     matvec_into(Ap, y, qd)
     if posture:
-        mul_into(Ap, A, N)
-        eye_minus(N)
-        add_matvec_scaled(N, dq_post, -gain, qd)
+        add_posture(Ap, A, dq_post, gain, N, qd)
     return cond
 
 

@@ -29,6 +29,7 @@ from hybrid_force.control._linalg_kernels import (
     eye_minus,
     lu_factor,
     lu_solve,
+    matvec2_into,
     mul_into,
     rows3_dot,
 )
@@ -86,16 +87,13 @@ def free_space(
     u0, u_pos = vectors[0], vectors[1]
     n = v.shape[0]
     _joint_feedback(Kq, Dq, e_q, v, qd, u_pos)
-    for i in range(n):
-        ff = g[i]
-        if model_feedforward:
-            ff = 0.0
-            cv = 0.0
-            for j in range(n):
-                ff += M[i, j] * qdd[j]
-                cv += C[i, j] * v[j]
-            ff = ff + cv + g[i]
-        u0[i] = u_pos[i] + ff
+    if model_feedforward:
+        matvec2_into(M, qdd, C, v, u0)  # M q̈_d + C q̇, then + g
+        for i in range(n):
+            u0[i] = u_pos[i] + (u0[i] + g[i])
+    else:
+        for i in range(n):
+            u0[i] = u_pos[i] + g[i]
 
 
 @_jit
@@ -220,22 +218,10 @@ def hybrid(
         for j in range(n):
             a3[j] = Jp[j, 0] * e[0] + Jp[j, 1] * e[1] + Jp[j, 2] * e[2]
             b3[j] = Jp[j, 0] * e_dot[0] + Jp[j, 1] * e_dot[1] + Jp[j, 2] * e_dot[2]
-        for i in range(n):
-            xa = 0.0
-            xb = 0.0
-            for j in range(n):
-                xa += Kq[i, j] * a3[j]
-                xb += Dq[i, j] * b3[j]
-            u_fb[i] = xa + xb
+        matvec2_into(Kq, a3, Dq, b3, u_fb)
     else:
         w = np.empty(3)
-        for r in range(3):
-            xa = 0.0
-            xb = 0.0
-            for c in range(3):
-                xa += Kx[r, c] * e[c]
-                xb += Dx[r, c] * e_dot[c]
-            w[r] = xa + xb
+        matvec2_into(Kx, e, Dx, e_dot, w)
         sw = np.empty(3)
         for r in range(3):
             sw[r] = S[r, 0] * w[0] + S[r, 1] * w[1] + S[r, 2] * w[2]
@@ -253,13 +239,9 @@ def hybrid(
         qacc = np.empty(n)
         for j in range(n):
             qacc[j] = Jp[j, 0] * y[0] + Jp[j, 1] * y[1] + Jp[j, 2] * y[2]
+        matvec2_into(M, qacc, C, v, u_ff)
         for i in range(n):
-            xa = 0.0
-            xb = 0.0
-            for j in range(n):
-                xa += M[i, j] * qacc[j]
-                xb += C[i, j] * v[j]
-            u_ff[i] = xa + xb + g[i]
+            u_ff[i] = u_ff[i] + g[i]
     else:
         for i in range(n):
             u_ff[i] = g[i]

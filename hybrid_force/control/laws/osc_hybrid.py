@@ -294,6 +294,14 @@ def _check_desired(desired: Desired) -> None:
 _FREE_SPACE, _NEAR, _CONTACT = 0, 1, 2
 
 
+_KernelRows = tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
+]  # fmt: skip
+"""What one kernel call reads of the constraint and the force loop, in its order: the rows'
+scale, rate A q̇ and drift (k,), A (k, n), e_F, f_d and the approach speeds (k,); zeros in
+free space (the kernel reads none of them there)."""
+
+
 class OscHybridWorkspace(Law):
     """The law (module docstring, eq. 1, 3–6) as one compiled call per step, writing into
     arrays preallocated here (hot path).
@@ -355,7 +363,8 @@ class OscHybridWorkspace(Law):
         self.phi = np.zeros(k)
         self.B = np.zeros((n, k))
         self._zeros_k = np.zeros(k)
-        self._zero_rows = np.zeros((k, n))
+        z = self._zeros_k
+        self._free_rows: _KernelRows = (z, z, z, np.zeros((k, n)), z, z, z)
         self._free = Command(u0=self.u0, B=None)
         self._near = Command(u0=self.u0, B=None)
         self._contact = Command(u0=self.u0, B=self.B if gains.force_p > 0 else None)
@@ -364,8 +373,7 @@ class OscHybridWorkspace(Law):
 
     def free_space(self, inp: LawInput) -> Command:
         """Full-task motion control (eq. 3) with the null-space posture (eq. 6)."""
-        z = self._zeros_k
-        self._run(inp, z, z, z, self._zero_rows, z, z, z, _FREE_SPACE)
+        self._run(inp, self._free_rows, _FREE_SPACE)
         return self._free
 
     def hybrid(self, inp: LawInput) -> Command:
@@ -379,22 +387,13 @@ class OscHybridWorkspace(Law):
         if self._python_surfaces:
             for i, surface in self._python_surfaces:
                 self._grads[:, i] = surface.evaluate(robot.p)[1]
-        self._run(inp, cons.scale, cons.rate, cons.drift, cons.A, inp.e_F, inp.f_d, approach, mode)
+        rows = (cons.scale, cons.rate, cons.drift, cons.A, inp.e_F, inp.f_d, approach)
+        self._run(inp, rows, mode)
         return command
 
-    def _run(
-        self,
-        inp: LawInput,
-        scale: np.ndarray,
-        rate: np.ndarray,
-        drift: np.ndarray,
-        A: np.ndarray,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray,
-        mode: int,
-    ) -> None:
+    def _run(self, inp: LawInput, rows: _KernelRows, mode: int) -> None:
         """One kernel call; raises where it cannot finish (see the class docstring)."""
+        scale, rate, drift, A, e_F, f_d, approach = rows
         robot, desired, v, e_q = inp.robot, inp.desired, inp.v, inp.e_q
         p_d, pd_d, pdd_d = desired.p, desired.pd, desired.pdd
         if p_d is None or pd_d is None or pdd_d is None:
