@@ -75,19 +75,8 @@ import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
+from hybrid_force.control.laws import base
 from hybrid_force.control.laws.arimoto import free_space_rows, loop_bounds
-from hybrid_force.control.laws.base import (
-    PAPER_GAINS,
-    Command,
-    ControlTrace,
-    Gains,
-    Law,
-    LawContext,
-    LawInput,
-    LawOptions,
-    LawSpec,
-    register,
-)
 from hybrid_force.model.regressor import (
     PARAMETER_LABELS,
     SlotineLiRegressor,
@@ -152,7 +141,7 @@ class Adaptation:
 
 
 def make_adaptation(
-    robot: Robot, q0: np.ndarray, M0: np.ndarray, gains: Gains, mass_factor: float, rate: float
+    robot: Robot, q0: np.ndarray, M0: np.ndarray, gains: base.Gains, mass_factor: float, rate: float
 ) -> Adaptation:
     """The adaptation of ``robot`` (the controller's model) started at q0 (module docstring).
 
@@ -185,7 +174,7 @@ def make_adaptation(
 
 
 @dataclass(frozen=True)
-class AdaptiveArimotoOptions(LawOptions):
+class AdaptiveArimotoOptions(base.LawOptions):
     """The ``[control.arimoto_adaptive]`` table."""
 
     law: ClassVar[str] = "arimoto_adaptive"
@@ -197,7 +186,7 @@ class AdaptiveArimotoOptions(LawOptions):
     )  # fmt: skip
 
 
-class AdaptiveArimotoWorkspace(Law):
+class AdaptiveArimotoWorkspace(base.Law):
     """The adaptive law as the supervisor runs it compiled: per step the four Pinocchio passes
     the law needs (three in free space) between two compiled calls, and one compiled update,
     all writing into arrays preallocated here.
@@ -223,7 +212,7 @@ class AdaptiveArimotoWorkspace(Law):
         u0: (n,), B: (n, k) of the last command. in_contact_law: True after :meth:`hybrid`.
     """
 
-    def __init__(self, robot: Robot, k: int, gains: Gains, adaptation: Adaptation) -> None:
+    def __init__(self, robot: Robot, k: int, gains: base.Gains, adaptation: Adaptation) -> None:
         self.gains = gains
         self.adaptation = adaptation
         self.regressor = regressor = SlotineLiRegressor(robot.model)
@@ -258,8 +247,8 @@ class AdaptiveArimotoWorkspace(Law):
             free_space_rows(n), self._no_force, self._no_force, self._no_force,
             self._free_matrices, self._free_Y_A, self._free_B, self._free_gradients,
         )  # fmt: skip
-        self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
-        self._free = Command(u0=self.u0, B=None)
+        self._hybrid = base.Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
+        self._free = base.Command(u0=self.u0, B=None)
         self.in_contact_law = False
         self._called = False
         # one Data for all the passes (the model with gravity and its copy without have the
@@ -275,13 +264,13 @@ class AdaptiveArimotoWorkspace(Law):
         """σ of the gain schedule Γ = σ Γ₀ at the last call (non-decreasing, ≤ 1)."""
         return float(self._params[_SIGMA])
 
-    def free_space(self, inp: LawInput) -> Command:
+    def free_space(self, inp: base.LawInput) -> base.Command:
         """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
         self.V = self._run(inp, self._free_rows)
         self.in_contact_law = False
         return self._free
 
-    def hybrid(self, inp: LawInput) -> Command:
+    def hybrid(self, inp: base.LawInput) -> base.Command:
         """Eq. 4, 8, 11 adapted (module docstring): q̇_r, q̈_r (at f = 0) and s are the paper's
         law's own."""
         approach = self._zeros_k if inp.approach is None else inp.approach
@@ -292,7 +281,7 @@ class AdaptiveArimotoWorkspace(Law):
         self.in_contact_law = True
         return self._hybrid
 
-    def _run(self, inp: LawInput, rows: _AdaptiveRows) -> float:
+    def _run(self, inp: base.LawInput, rows: _AdaptiveRows) -> float:
         """One call of the law into the given buffers, returning V (k = 0: :meth:`free_space`)."""
         cons, e_F, f_d, approach, matrices, Y_A, B, gradients = rows
         robot, desired, v, e_q = inp.robot, inp.desired, inp.v, inp.e_q
@@ -334,12 +323,12 @@ class AdaptiveArimotoWorkspace(Law):
             gradients, f = self._free_gradients, self._no_force
         _K.adaptive_update(gradients, f, dt, self._params, self._Gamma, self._floor, self.theta)
 
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> base.ControlTrace:
         """The :class:`ControlTrace` of the last call (copies of the buffers), V = ½ sᵀ M̂ s
         + ½ β e_Fᵀ e_F without the parameter term."""
         contact = self.in_contact_law
         _, s, s0, s1, qdot_r, qddot_r0 = self._vectors[:6]
-        return ControlTrace(
+        return base.ControlTrace(
             e_q=e_q.copy(),
             s=s.copy(),
             s0=s0.copy(),
@@ -376,7 +365,7 @@ class AdaptiveArimotoWorkspace(Law):
         out[:] = self.theta[self._adapted]
 
 
-def build(context: LawContext) -> AdaptiveArimotoWorkspace:
+def build(context: base.LawContext) -> AdaptiveArimotoWorkspace:
     """The registry's factory of ``control.law = "arimoto_adaptive"``."""
     rate = AdaptiveArimotoOptions(**context.options).adaptation_rate
     adaptation = make_adaptation(
@@ -385,14 +374,14 @@ def build(context: LawContext) -> AdaptiveArimotoWorkspace:
     return AdaptiveArimotoWorkspace(context.robot, context.constraint.k, context.gains, adaptation)
 
 
-register(
-    LawSpec(
+base.register(
+    base.LawSpec(
         "arimoto_adaptive",
         "the paper's law with Slotine-Li adaptation of its model terms (Slotine & Li, IJRR "
         "6(3) 1987; paper section 7)",
         build,
         AdaptiveArimotoOptions,
-        gains=PAPER_GAINS,
+        gains=base.PAPER_GAINS,
         loop_bounds=loop_bounds,
     )
 )
