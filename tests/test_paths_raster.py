@@ -237,6 +237,22 @@ def test_a_triaxial_raster_keeps_the_spacing(triaxial: RasterPath) -> None:
             assert 0.9 * metric < nearest <= metric + 1e-9
 
 
+def test_a_wide_turn_where_the_speed_changes_fast_across_it() -> None:
+    # two passes along latitude 1.14 rad of longitude apart on a turned triaxial ellipsoid: the
+    # turn swings far, where the passes' speed changes as fast as the swing grows (the
+    # fixed point L ← L·ratio oscillated there); the turn is still found, and the path is C²
+    # and at its speed
+    turned = Ellipsoid(tuple(AXES), center=tuple(CENTER), rpy=(0.3, 0.2, -0.4))
+    path = RasterPath(turned, (-0.48, 1.97), (0.39, 1.14), 1.14, 0.05, ramp=0.3)
+    assert path.passes == 2 and 0.0 < path.turn_lengths[0] < 1.875 * 0.3 * 1.14
+    h = 1e-4
+    for t in np.linspace(0.3 + h, path.duration - 0.3 - h, 400):
+        assert abs(turned.distance(path.position(t))) < 1e-12
+        difference = (path.position(t + h) - path.position(t - h)) / (2.0 * h)
+        assert np.linalg.norm(difference) == pytest.approx(0.05, rel=1e-6)
+    assert_continuous_at(path, path_breaks(path))
+
+
 # --- scenario files --------------------------------------------------------------------------
 SPHERE_RASTER = {  # on rtr_sphere's sphere, from its start [0.4, 0, 4.7]: latitude asin(−0.6)
     "type": "raster",

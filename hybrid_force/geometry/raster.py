@@ -311,28 +311,52 @@ def _metric_turn(
     ‖S_along(γ(½))‖ (|d0| + |d1|) / 2: on a plane that is the bound of :func:`_turn`
     (L = 1.875 w, the blend's speed peaking half way), and it stays defined where the speed
     along the passes grows beyond their ends, where no L keeps ‖dS/dσ‖ ≤ 1 (the speed at the
-    ends is fixed, and beside them it is the pass's own, larger one). The fixed point of
-    L ← L · ‖dS/dσ‖ / reference is iterated from the chord: the across part of the speed
-    falls as 1/L, the rest (|d0| ≠ |d1|, a skew chart) is below the reference, so it
-    contracts.
+    ends is fixed, and beside them it is the pass's own, larger one). The root of
+    ρ(L) = ‖dS/dσ‖ / reference − 1 is bracketed from the chord by doubling or halving L (the
+    across part of the speed falls as 1/L), then found by regula falsi (Illinois) in log L:
+    the fixed point L ← L (ρ + 1) alone can oscillate where the reference changes as fast
+    as the swing grows.
 
     Raises:
-        PathError: no such L within ``_MAX_ITERATIONS`` (a chart degenerate about the turn).
+        PathError: no bracket or no root within ``_MAX_ITERATIONS`` (a chart degenerate
+            about the turn).
     """
-    length = _chord_length(chart, p0, p1)
     mean = 0.5 * (float(np.linalg.norm(d0)) + float(np.linalg.norm(d1)))
     half = np.array([0.5])
-    for _ in range(_MAX_ITERATIONS):
+
+    def excess(x: float) -> float:
+        """ρ(L) at L = e^x."""
+        length = math.exp(x)
         curve = PiecewiseCurve.join([length], [blend_piece(p0, d0, p1, d1, length)])
         g = curve.sample_piece(0, half * length)[0]
-        s_along = chart.derivatives(g[:, 0], g[:, 1])[1 + along, 0]
-        reference = float(np.linalg.norm(s_along)) * mean
-        ratio = float(surface_speeds(chart, curve, 0, half * length)[0]) / reference
-        if not (math.isfinite(ratio) and ratio > 0.0):
+        reference = float(np.linalg.norm(chart.derivatives(g[:, 0], g[:, 1])[1 + along, 0]))
+        return float(surface_speeds(chart, curve, 0, half * length)[0]) / (reference * mean) - 1
+
+    x0 = math.log(_chord_length(chart, p0, p1))
+    f0 = excess(x0)
+    step = math.log(2.0) if f0 > 0.0 else -math.log(2.0)
+    x1, f1 = x0, f0
+    for _ in range(_MAX_ITERATIONS):  # the bracket: ρ changes sign between x0 and x1
+        if not math.isfinite(f1) or f1 == 0.0 or (f1 > 0.0) != (f0 > 0.0):
             break
-        length *= ratio
-        if abs(ratio - 1.0) <= _TURN_RTOL:
+        x0, f0 = x1, f1
+        x1 = x0 + step
+        f1 = excess(x1)
+    for _ in range(_MAX_ITERATIONS):
+        if not (math.isfinite(f0) and math.isfinite(f1)):
+            break
+        if abs(f1) <= _TURN_RTOL or f1 == 0.0:
+            length = math.exp(x1)
             return length, blend_piece(p0, d0, p1, d1, length)
+        if (f0 > 0.0) == (f1 > 0.0):
+            break
+        x = x1 - f1 * (x1 - x0) / (f1 - f0)
+        f = excess(x)
+        if (f > 0.0) == (f1 > 0.0):
+            f0 *= 0.5  # Illinois: the end kept is weighted down
+        else:
+            x0, f0 = x1, f1
+        x1, f1 = x, f
     raise PathError(
         f"RasterPath: the turn from {chart.names[0]}, {chart.names[1]} = {p0.tolist()} found "
         "no length on this chart (the surface speed about it degenerates): move the "
