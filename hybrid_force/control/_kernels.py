@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _inline
 from hybrid_force.control._linalg_kernels import (
     add_matvec_scaled,
     dot,
@@ -271,7 +272,7 @@ def clik_velocity(
         cond = cond * cond
     else:
         JJt = np.empty((3, 3))
-        mul_into(J6, J6.T, JJt)
+        mul_into(J6, J6, JJt, False, True)
         for r in range(3):
             for c in range(3):
                 JJt[r, c] = JJt[r, c] + (damping2 if r == c else 0.0)
@@ -284,17 +285,17 @@ def clik_velocity(
     for j in range(n):
         qd[j] = Jp[j, 0] * x[0] + Jp[j, 1] * x[1] + Jp[j, 2] * x[2]
     if redundant and posture_gain > 0.0:
-        add_posture(Jp, J6[:3], dq_post, posture_gain, N, qd)
+        add_posture(Jp, J6, dq_post, posture_gain, N, qd)
     return cond
 
 
-@_jit
+@_inline
 def add_posture(
     Jp: np.ndarray, A: np.ndarray, dq_post: np.ndarray, gain: float, N: np.ndarray, qd: np.ndarray
 ) -> None:
     """q̇_d += N z, z = −k_n (q_d ⊖ posture): the posture in the null space of the task rows
-    A (m, n), N = I − A⁺A (n, n) written, A⁺ = Jp (n, m); dq_post, qd (n,)."""
-    mul_into(Jp, A, N)
+    A (≥ m, n) (its first m), N = I − A⁺A (n, n) written, A⁺ = Jp (n, m); dq_post, qd (n,)."""
+    mul_into(Jp, A, N, False, False)
     eye_minus(N)
     add_matvec_scaled(N, dq_post, -gain, qd)
 
@@ -348,9 +349,9 @@ def clik_acceleration(
                     acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
                 S[r, c] = acc
         WS = np.empty((3, 3))
-        mul_into(W, S, WS)
+        mul_into(W, S, WS, False, False)
         Wdot = np.empty((3, 3))
-        mul_into(WS, W, Wdot)
+        mul_into(WS, W, Wdot, False, False)
         for r in range(3):
             for c in range(3):
                 Wdot[r, c] = -Wdot[r, c]

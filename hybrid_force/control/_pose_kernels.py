@@ -160,7 +160,7 @@ def pose_velocity(
         for i in range(ms):
             A[3 + i, j] = S[i, 0] * J6[3, j] + S[i, 1] * J6[4, j] + S[i, 2] * J6[5, j]
     G = np.empty((m, m))
-    mul_into(A, A.T, G)
+    mul_into(A, A, G, False, True)
     gmax = 0.0
     for r in range(m):
         G[r, r] += damping2
@@ -176,7 +176,7 @@ def pose_velocity(
                 if abs(W[r, c]) > wmax:
                     wmax = abs(W[r, c])
         cond = m * m * gmax * wmax
-        mul_into(A.T, W, Ap)
+        mul_into(A, W, Ap, True, False)
     else:
         W[:, :] = 0.0
         Ap[:, :] = 0.0
@@ -301,9 +301,9 @@ def pose_acceleration(
                 acc += Adot[r, j] * A[c, j] + A[r, j] * Adot[c, j]
             T[r, c] = acc
     WT = np.empty((m, m))
-    mul_into(W, T, WT)
+    mul_into(W, T, WT, False, False)
     Wdot = np.empty((m, m))
-    mul_into(WT, W, Wdot)
+    mul_into(WT, W, Wdot, False, False)
     for r in range(m):
         for c in range(m):
             Wdot[r, c] = -Wdot[r, c]

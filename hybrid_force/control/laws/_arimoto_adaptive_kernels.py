@@ -24,8 +24,9 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _inline
 from hybrid_force.control._kernels import arimoto
-from hybrid_force.control._linalg_kernels import dot, quad_form
+from hybrid_force.control._linalg_kernels import dot
 
 #: Layout of the law's parameter vector ``params`` (7,): the gains, whether q = q_d + e_q, Z_ref,
 #: and the gain schedule's state σ and min_{τ≤t} Z, which :func:`adaptive_command` updates.
@@ -82,19 +83,20 @@ def reference_velocities(
             q[i] = q_d[i] + e_q[i]
 
 
-@_jit
+@_inline
 def _regress_into(
     Y: np.ndarray,
     Y_minus: np.ndarray,
+    minus: bool,
     theta: np.ndarray,
     s: np.ndarray,
     out: np.ndarray,
     gradient: np.ndarray,
 ) -> None:
     """out (n,) = Y θ̂ and gradient (p,) = Yᵀ s for a regressor Y (n, p), less Y_minus (n, p)
-    when it has rows (the two passes' difference, formed entry by entry)."""
+    when ``minus`` (the two passes' difference, formed entry by entry; a constant at each
+    call, so the inlined loop has no test)."""
     n, p = Y.shape
-    minus = Y_minus.shape[0] > 0
     for j in range(p):
         gradient[j] = 0.0
     for i in range(n):
@@ -140,7 +142,7 @@ def adaptive_command(
     beta, gamma, energy = params[BETA], params[GAMMA], params[ENERGY]
     n, p = Y_plus.shape
     k = e_F.shape[0]
-    _regress_into(Y_plus, Y_minus, theta, s, u0, gradients[0])  # Y = Y_plus − Y_minus
+    _regress_into(Y_plus, Y_minus, True, theta, s, u0, gradients[0])  # Y = Y_plus − Y_minus
     for i in range(n):
         kd = 0.0
         for j in range(n):
@@ -149,18 +151,19 @@ def adaptive_command(
         for m in range(k):
             force += A[m, i] * (f_d[m] - gamma * e_F[m])
         u0[i] = u0[i] - kd - force
-    no_minus = np.empty((0, 0))
     for m in range(k):
         gradient_f = gradients[1 + m]
-        _regress_into(Y_A[m], no_minus, theta, s, B[:, m], gradient_f)
+        _regress_into(Y_A[m], Y_plus, False, theta, s, B[:, m], gradient_f)
         for i in range(n):
             B[i, m] = beta * B[i, m]
         for j in range(p):
             gradient_f[j] *= beta
-    w = np.empty(n)
+    z = 0.0  # ½ wᵀ M w, w = q̇_r − q̇_d formed in the loop (quad_form would need it stored)
     for i in range(n):
-        w[i] = qdot_r[i] - qd[i]
-    z = quad_form(M, w)
+        mw = 0.0
+        for j in range(n):
+            mw += M[i, j] * (qdot_r[j] - qd[j])
+        z += (qdot_r[i] - qd[i]) * mw
     z *= 0.5
     if z < params[Z_MIN]:
         params[Z_MIN] = z

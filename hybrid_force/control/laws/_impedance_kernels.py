@@ -20,7 +20,8 @@ from hybrid_force._jit import jit as _jit
 from hybrid_force.control._linalg_kernels import (
     cholesky,
     cholesky_solve_column,
-    lu_solve_into,
+    lu_factor,
+    lu_solve,
     mul_into,
     rows3_dot,
 )
@@ -89,14 +90,16 @@ def impedance(
     for c in range(ncol):
         cholesky_solve_column(L, J[c] if c < 3 else A[c - 3], X, c)
     # --- Λ = (J M⁻¹ Jᵀ)⁻¹ by LU, symmetrised ------------------------------------------
-    S = np.empty((3, 3))
-    mul_into(J, X, S)
-    eye = np.zeros((3, 3))
-    for i in range(3):
-        eye[i, i] = 1.0
+    S = np.empty((3, 3))  # J M⁻¹ Jᵀ, then its LU factors in place
+    mul_into(J, X, S, False, False)
     Lam, K, D = gains[0], gains[1], gains[2]
-    if not lu_solve_into(S, eye, Lam):
+    piv = np.empty(3, np.int64)
+    if not lu_factor(S, piv):
         return SINGULAR
+    for i in range(3):
+        for j in range(3):
+            Lam[i, j] = 1.0 if i == j else 0.0
+    lu_solve(S, piv, Lam)
     for i in range(3):
         for j in range(3):
             if not math.isfinite(Lam[i, j]):  # an overflow in M⁻¹ or J: no inertia

@@ -109,7 +109,7 @@ def osc_hybrid(
         return SINGULAR_MASS
     # --- Λ = S⁻¹, S = J M⁻¹ Jᵀ, and the estimate of cond(S)
     S = np.empty((3, 3))
-    mul_into(J, X, S)
+    mul_into(J, X, S, False, False)
     s_sq = 0.0
     for r in range(3):
         for c in range(3):

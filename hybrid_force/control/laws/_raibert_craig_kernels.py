@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _inline
 from hybrid_force.control._linalg_kernels import (
     eye_minus,
     lu_factor,
@@ -48,7 +49,7 @@ def _null_apply(J: np.ndarray, Jp: np.ndarray, x: np.ndarray) -> None:
         x[i] -= Jp[i, 0] * y0 + Jp[i, 1] * y1 + Jp[i, 2] * y2
 
 
-@_jit
+@_inline
 def _joint_feedback(
     Kq: np.ndarray, Dq: np.ndarray, e_q: np.ndarray, v: np.ndarray, qd: np.ndarray, out: np.ndarray
 ) -> None:
@@ -172,7 +173,7 @@ def hybrid(
     else:
         NtN = np.empty((k, k))
         Y = np.empty((k, 3))
-        mul_into(N.T, N, NtN)
+        mul_into(N, N, NtN, True, False)
         for a in range(k):
             for r in range(3):
                 Y[a, r] = N[r, a]
@@ -180,7 +181,7 @@ def hybrid(
         if not lu_factor(NtN, piv_k):
             return SINGULAR_OTHER
         lu_solve(NtN, piv_k, Y)
-        mul_into(N, Y, S)
+        mul_into(N, Y, S, False, False)
         eye_minus(S)
     e = np.empty(3)
     e_dot = np.empty(3)
@@ -195,7 +196,7 @@ def hybrid(
 
     # J⁺ = Jᵀ (J Jᵀ)⁻¹ (n, 3): the transpose of (J Jᵀ)⁻¹ J
     JJt = np.empty((3, 3))
-    mul_into(J, J.T, JJt)
+    mul_into(J, J, JJt, False, True)
     X = np.empty((3, n))
     for r in range(3):
         for j in range(n):
@@ -280,7 +281,7 @@ def hybrid(
             for a in range(k):
                 MinvAT[j, a] = A[a, j]
         lu_solve(LU, piv, MinvAT)
-        mul_into(A, MinvAT, G)
+        mul_into(A, MinvAT, G, False, False)
         if not lu_factor(G, piv_k):
             return SINGULAR_OTHER
 
@@ -337,7 +338,7 @@ def hybrid(
             MinvJN[j, a] = JN[j, a]
     lu_solve(LU, piv, MinvJN)
     H = np.empty((k, k))
-    mul_into(JN.T, MinvJN, H)
+    mul_into(JN, MinvJN, H, True, False)
     if not lu_factor(H, piv_k):
         return SINGULAR_OTHER
     d = np.empty((k, 1))
