@@ -153,8 +153,8 @@ def test_every_path_type_lies_on_it() -> None:
     np.testing.assert_allclose(world.projection_distances, 5e-4, rtol=1e-9)
     for path in (waypoints, world):
         assert check_on_surface(path, TILTED, 0.0, 5.0).worst_distance < 1e-9
-    # a raster's passes keep a constant speed along a coordinate line: along the longitude of
-    # a spheroid (a = b), turned by rpy
+    # a raster along the longitude of a spheroid (a = b, its passes' speed constant), turned
+    # by rpy (a triaxial one, whose passes' speed varies: tests/test_paths_raster.py)
     turned = Ellipsoid((0.5, 0.5, 0.2), center=(0.1, -0.2, 0.3), rpy=(0.4, -0.3, 0.7))
     raster = RasterPath(turned, [-0.3, -0.2], [0.6, 0.4], 0.2, 0.05, direction="v")
     assert check_on_surface(raster, turned, 0.0, 5.0).worst_distance < 1e-9

@@ -16,6 +16,15 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _inline
+from hybrid_force.control._linalg_kernels import (
+    add_matvec_scaled,
+    dot,
+    eye_minus,
+    mul_into,
+    quad_form,
+    rows3_dot,
+)
 from hybrid_force.geometry._kernels import path_sample, surface_eval
 
 
@@ -201,16 +210,7 @@ def arimoto(
             for j in range(n):
                 b += M[i, j] * Ap[j, m]
             B[i, m] = beta * b
-    V = 0.0
-    for i in range(n):
-        ms = 0.0
-        for j in range(n):
-            ms += M[i, j] * s[j]
-        V += s[i] * ms
-    eF2 = 0.0
-    for m in range(k):
-        eF2 += e_F[m] * e_F[m]
-    return 0.5 * V + 0.5 * beta * eF2
+    return 0.5 * quad_form(M, s) + 0.5 * beta * dot(e_F, e_F)
 
 
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------
@@ -272,12 +272,10 @@ def clik_velocity(
         cond = cond * cond
     else:
         JJt = np.empty((3, 3))
+        mul_into(J6, J6, JJt, False, True)
         for r in range(3):
             for c in range(3):
-                acc = 0.0
-                for j in range(n):
-                    acc += J6[r, j] * J6[c, j]
-                JJt[r, c] = acc + (damping2 if r == c else 0.0)
+                JJt[r, c] = JJt[r, c] + (damping2 if r == c else 0.0)
         if _inv3_into(JJt, W) == 0.0:
             return np.inf
         cond = np.abs(JJt).max() * np.abs(W).max()
@@ -287,17 +285,19 @@ def clik_velocity(
     for j in range(n):
         qd[j] = Jp[j, 0] * x[0] + Jp[j, 1] * x[1] + Jp[j, 2] * x[2]
     if redundant and posture_gain > 0.0:
-        for i in range(n):
-            for j in range(n):
-                N[i, j] = (1.0 if i == j else 0.0) - (
-                    Jp[i, 0] * J6[0, j] + Jp[i, 1] * J6[1, j] + Jp[i, 2] * J6[2, j]
-                )
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += N[i, j] * (-posture_gain * dq_post[j])
-            qd[i] += acc
+        add_posture(Jp, J6, dq_post, posture_gain, N, qd)
     return cond
+
+
+@_inline
+def add_posture(
+    Jp: np.ndarray, A: np.ndarray, dq_post: np.ndarray, gain: float, N: np.ndarray, qd: np.ndarray
+) -> None:
+    """q̇_d += N z, z = −k_n (q_d ⊖ posture): the posture in the null space of the task rows
+    A (≥ m, n) (its first m), N = I − A⁺A (n, n) written, A⁺ = Jp (n, m); dq_post, qd (n,)."""
+    mul_into(Jp, A, N, False, False)
+    eye_minus(N)
+    add_matvec_scaled(N, dq_post, -gain, qd)
 
 
 @_jit
@@ -325,36 +325,11 @@ def clik_acceleration(
     """
     pdot_d, pddot_d = sample[1], sample[2]
     gamma, redundant, posture_gain = cfg[0], cfg[2] != 0.0, cfg[3]
-    _clik_qdd(J6, Jd6, Jp, W, N, x, qd, pdot_d, pddot_d, gamma, redundant, posture_gain,
-              dq_post, qdd)  # fmt: skip
-    if dt_pred > 0.0:
-        taylor_step(q, qd, qdd, dt_pred, q_pred)
-
-
-@_jit
-def _clik_qdd(
-    J6: np.ndarray,
-    Jd6: np.ndarray,
-    Jp: np.ndarray,
-    W: np.ndarray,
-    N: np.ndarray,
-    x: np.ndarray,
-    qd: np.ndarray,
-    pdot_d: np.ndarray,
-    pddot_d: np.ndarray,
-    gamma: float,
-    redundant: np.ndarray,
-    posture_gain: np.ndarray,
-    dq_post: np.ndarray,
-    qdd: np.ndarray,
-) -> None:
     n = qd.shape[0]
     xdot = np.empty(3)
+    pdot = rows3_dot(J6, 0, qd)
     for r in range(3):
-        acc = 0.0
-        for j in range(n):
-            acc += J6[r, j] * qd[j]
-        xdot[r] = pddot_d[r] - gamma * (acc - pdot_d[r])
+        xdot[r] = pddot_d[r] - gamma * (pdot[r] - pdot_d[r])
     if not redundant:
         y = np.empty(3)
         for r in range(3):
@@ -364,59 +339,55 @@ def _clik_qdd(
             y[r] = acc
         for j in range(n):
             qdd[j] = Jp[j, 0] * y[0] + Jp[j, 1] * y[1] + Jp[j, 2] * y[2]
-        return
-    # Ẇ = −W (J̇Jᵀ + JJ̇ᵀ) W;  J̇⁺ = J̇ᵀW + JᵀẆ
-    S = np.empty((3, 3))
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for j in range(n):
-                acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
-            S[r, c] = acc
-    # (explicit loops: numba's matmul would need SciPy's BLAS, which is not a dependency)
-    WS = np.zeros((3, 3))
-    for r in range(3):
-        for c in range(3):
-            for m in range(3):
-                WS[r, c] += W[r, m] * S[m, c]
-    Wdot = np.zeros((3, 3))
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for m in range(3):
-                acc += WS[r, m] * W[m, c]
-            Wdot[r, c] = -acc
-    Jpd = np.empty((n, 3))
-    for j in range(n):
-        for c in range(3):
-            acc = 0.0
-            for r in range(3):
-                acc += Jd6[r, j] * W[r, c] + J6[r, j] * Wdot[r, c]
-            Jpd[j, c] = acc
-    for j in range(n):
-        qdd[j] = (
-            Jpd[j, 0] * x[0]
-            + Jpd[j, 1] * x[1]
-            + Jpd[j, 2] * x[2]
-            + Jp[j, 0] * xdot[0]
-            + Jp[j, 1] * xdot[1]
-            + Jp[j, 2] * xdot[2]
-        )
-    if posture_gain > 0.0:
-        # Ṅ = −(J̇⁺J + J⁺J̇);  q̈_d += Ṅ z + N (−k_n q̇_d),  z = −k_n dq_post
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                nd = -(
-                    Jpd[i, 0] * J6[0, j]
-                    + Jpd[i, 1] * J6[1, j]
-                    + Jpd[i, 2] * J6[2, j]
-                    + Jp[i, 0] * Jd6[0, j]
-                    + Jp[i, 1] * Jd6[1, j]
-                    + Jp[i, 2] * Jd6[2, j]
-                )
-                acc += nd * (-posture_gain * dq_post[j]) + N[i, j] * (-posture_gain * qd[j])
-            qdd[i] += acc
+    else:
+        # Ẇ = −W (J̇Jᵀ + JJ̇ᵀ) W;  J̇⁺ = J̇ᵀW + JᵀẆ
+        S = np.empty((3, 3))
+        for r in range(3):
+            for c in range(3):
+                acc = 0.0
+                for j in range(n):
+                    acc += Jd6[r, j] * J6[c, j] + J6[r, j] * Jd6[c, j]
+                S[r, c] = acc
+        WS = np.empty((3, 3))
+        mul_into(W, S, WS, False, False)
+        Wdot = np.empty((3, 3))
+        mul_into(WS, W, Wdot, False, False)
+        for r in range(3):
+            for c in range(3):
+                Wdot[r, c] = -Wdot[r, c]
+        Jpd = np.empty((n, 3))
+        for j in range(n):
+            for c in range(3):
+                acc = 0.0
+                for r in range(3):
+                    acc += Jd6[r, j] * W[r, c] + J6[r, j] * Wdot[r, c]
+                Jpd[j, c] = acc
+        for j in range(n):
+            qdd[j] = (
+                Jpd[j, 0] * x[0]
+                + Jpd[j, 1] * x[1]
+                + Jpd[j, 2] * x[2]
+                + Jp[j, 0] * xdot[0]
+                + Jp[j, 1] * xdot[1]
+                + Jp[j, 2] * xdot[2]
+            )
+        if posture_gain > 0.0:
+            # Ṅ = −(J̇⁺J + J⁺J̇);  q̈_d += Ṅ z + N (−k_n q̇_d),  z = −k_n dq_post
+            for i in range(n):
+                acc = 0.0
+                for j in range(n):
+                    nd = -(
+                        Jpd[i, 0] * J6[0, j]
+                        + Jpd[i, 1] * J6[1, j]
+                        + Jpd[i, 2] * J6[2, j]
+                        + Jp[i, 0] * Jd6[0, j]
+                        + Jp[i, 1] * Jd6[1, j]
+                        + Jp[i, 2] * Jd6[2, j]
+                    )
+                    acc += nd * (-posture_gain * dq_post[j]) + N[i, j] * (-posture_gain * qd[j])
+                qdd[i] += acc
+    if dt_pred > 0.0:
+        taylor_step(q, qd, qdd, dt_pred, q_pred)
 
 
 @_jit

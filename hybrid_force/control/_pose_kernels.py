@@ -30,7 +30,13 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._linalg_kernels import cholesky
+from hybrid_force.control._kernels import add_posture, taylor_step
+from hybrid_force.control._linalg_kernels import (
+    cholesky,
+    matvec_into,
+    mul_into,
+    rows3_dot,
+)
 from hybrid_force.geometry._kernels import surface_eval
 
 _MIN_NORM = 1e-6  # tool._MIN_NORM: a direction built from a shorter vector is undefined
@@ -154,17 +160,13 @@ def pose_velocity(
         for i in range(ms):
             A[3 + i, j] = S[i, 0] * J6[3, j] + S[i, 1] * J6[4, j] + S[i, 2] * J6[5, j]
     G = np.empty((m, m))
+    mul_into(A, A, G, False, True)
     gmax = 0.0
     for r in range(m):
+        G[r, r] += damping2
         for c in range(m):
-            acc = 0.0
-            for j in range(n):
-                acc += A[r, j] * A[c, j]
-            if r == c:
-                acc += damping2
-            G[r, c] = acc
-            if abs(acc) > gmax:
-                gmax = abs(acc)
+            if abs(G[r, c]) > gmax:
+                gmax = abs(G[r, c])
     ok = _spd_inverse(G, W)
     cond = np.inf
     if ok:
@@ -174,12 +176,7 @@ def pose_velocity(
                 if abs(W[r, c]) > wmax:
                     wmax = abs(W[r, c])
         cond = m * m * gmax * wmax
-        for j in range(n):
-            for c in range(m):
-                acc = 0.0
-                for r in range(m):
-                    acc += A[r, j] * W[r, c]
-                Ap[j, c] = acc
+        mul_into(A, W, Ap, True, False)
     else:
         W[:, :] = 0.0
         Ap[:, :] = 0.0
@@ -192,23 +189,9 @@ def pose_velocity(
         y[r] = pdot_d[r] - gamma * (p[r] - p_d[r])
     for i in range(ms):
         y[3 + i] = S[i, 0] * w[0] + S[i, 1] * w[1] + S[i, 2] * w[2]
-    for j in range(n):
-        acc = 0.0
-        for r in range(m):
-            acc += Ap[j, r] * y[r]
-        qd[j] = acc
+    matvec_into(Ap, y, qd)
     if posture:
-        for i in range(n):
-            for j in range(n):
-                acc = 0.0
-                for r in range(m):
-                    acc += Ap[i, r] * A[r, j]
-                N[i, j] = (1.0 if i == j else 0.0) - acc
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += N[i, j] * (-gain * dq_post[j])
-            qd[i] += acc
+        add_posture(Ap, A, dq_post, gain, N, qd)
     return cond
 
 
@@ -248,13 +231,7 @@ def pose_acceleration(
     ms = m - 3
     pdot_d, pddot_d = sample[1], sample[2]
     # ω = J_ω q̇_d
-    o0 = 0.0
-    o1 = 0.0
-    o2 = 0.0
-    for j in range(n):
-        o0 += J6[3, j] * qd[j]
-        o1 += J6[4, j] * qd[j]
-        o2 += J6[5, j] * qd[j]
+    o0, o1, o2 = rows3_dot(J6, 3, qd)
     # Sw = S [ω]× (roll free), 0 (roll held)
     Sw = np.zeros((3, 3))
     if not held:
@@ -308,11 +285,9 @@ def pose_acceleration(
                 Sw[i, 0] * J6[3, j] + Sw[i, 1] * J6[4, j] + Sw[i, 2] * J6[5, j]
             )
     ydot = np.empty(m)
+    pdot = rows3_dot(J6, 0, qd)
     for r in range(3):
-        acc = 0.0
-        for j in range(n):
-            acc += J6[r, j] * qd[j]
-        ydot[r] = pddot_d[r] - gamma * (acc - pdot_d[r])
+        ydot[r] = pddot_d[r] - gamma * (pdot[r] - pdot_d[r])
     for i in range(ms):
         ydot[3 + i] = (S[i, 0] * w_dot[0] + S[i, 1] * w_dot[1] + S[i, 2] * w_dot[2]) - (
             Sw[i, 0] * w[0] + Sw[i, 1] * w[1] + Sw[i, 2] * w[2]
@@ -326,19 +301,12 @@ def pose_acceleration(
                 acc += Adot[r, j] * A[c, j] + A[r, j] * Adot[c, j]
             T[r, c] = acc
     WT = np.empty((m, m))
-    for r in range(m):
-        for c in range(m):
-            acc = 0.0
-            for k in range(m):
-                acc += W[r, k] * T[k, c]
-            WT[r, c] = acc
+    mul_into(W, T, WT, False, False)
     Wdot = np.empty((m, m))
+    mul_into(WT, W, Wdot, False, False)
     for r in range(m):
         for c in range(m):
-            acc = 0.0
-            for k in range(m):
-                acc += WT[r, k] * W[k, c]
-            Wdot[r, c] = -acc
+            Wdot[r, c] = -Wdot[r, c]
     Apd = np.empty((n, m))
     for j in range(n):
         for c in range(m):
@@ -362,9 +330,7 @@ def pose_acceleration(
                 acc += -nd * (-gain * dq_post[j]) + N[i, j] * (-gain * qd[j])
             qdd[i] += acc
     if dt_pred > 0.0:
-        h = 0.5 * dt_pred * dt_pred
-        for i in range(q.shape[0]):
-            q_pred[i] = q[i] + (qd[i] * dt_pred + qdd[i] * h)
+        taylor_step(q, qd, qdd, dt_pred, q_pred)
 
 
 @_jit

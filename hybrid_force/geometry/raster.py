@@ -20,6 +20,13 @@ Construction (:class:`RasterPath`), in the surface coordinates (u, v) of :mod:`.
   swings out farther, a shorter one turns more sharply. On a plane, by hand, L = 1.875 × the
   pass spacing w (the blend's speed peaks at 1.875 w / L half way) and the turn swings
   0.3125 L = 0.586 w beyond the edge.
+* That bound needs the passes' surface speed constant along them, as on the built-in charts'
+  coordinate lines (checked on every pass, :func:`_uniform_along`). Where it varies (an
+  ellipsoid's meridians, a triaxial ellipsoid's parallels, a projection over a curved part)
+  the speed at a pass's end is no longer 1 and, where the speed grows beyond the edge, no L
+  keeps the blend below it; there the turn's L makes its speed half way equal to the speed a
+  pass would have at that point (:func:`_metric_turn`: on a plane the same L). The passes
+  stay coordinate lines, and the path C² and at ``speed`` (the arc-length map).
 * Traversed by arc length (:mod:`.arc_length`) under the time law
   (:class:`.surface_path.TimeLaw`): rest at t = 0 at the origin, ramp up, cruise at ``speed``
   over passes and turns alike, ramp down, rest at the end of the last pass, held after.
@@ -59,6 +66,10 @@ _TURN_RTOL = 1e-12
 _MAX_ITERATIONS = 200
 _SINGULAR_RTOL = 1e-9
 """A pass whose ‖S_along‖ is below this times the largest pass's is degenerate (a pole)."""
+_UNIFORM_SAMPLES = 65
+"""Points of each pass at which the constancy of ‖S_along‖ is checked (:func:`_uniform_along`)."""
+_UNIFORM_RTOL = 1e-12
+"""‖S_along‖ varying less than this, relative, along every pass: the passes' speed is constant."""
 
 
 @dataclass(frozen=True)
@@ -222,20 +233,41 @@ def _raster_curve(
                 key="size",
                 value=given,
             )
+    uniform = _uniform_along(chart, starts, slopes, size[along], along)
     lengths, pieces, turns = [], [], []
     for k in range(passes):
-        slope = slopes[k] / scales[k]  # unit speed on the surface along the pass
+        slope = slopes[k] / scales[k]  # unit speed on the surface at the pass's start
         lengths.append(scales[k] * size[along])
         pieces.append(line_piece(starts[k], slope))
         if k + 1 < passes:
             end = starts[k] + slopes[k] * size[along]
-            turn_length, turn = _turn(
-                chart, end, slope, starts[k + 1], slopes[k + 1] / scales[k + 1]
-            )
+            d1 = slopes[k + 1] / scales[k + 1]
+            if uniform:
+                turn_length, turn = _turn(chart, end, slope, starts[k + 1], d1)
+            else:
+                turn_length, turn = _metric_turn(chart, end, slope, starts[k + 1], d1, along)
             lengths.append(turn_length)
             pieces.append(turn)
             turns.append(turn_length)
     return PiecewiseCurve.join(lengths, pieces), np.array(turns)
+
+
+def _uniform_along(
+    chart: SurfaceChart, starts: list[np.ndarray], slopes: list[np.ndarray], size: float, along: int
+) -> bool:
+    """Whether ‖S_along‖ is constant along every pass (to :data:`_UNIFORM_RTOL`): the built-in
+    charts' coordinate lines (plane, cylinder, sphere, a spheroid's parallels). Then σ moves
+    at unit surface speed all along a pass, and a turn is bounded by that speed
+    (:func:`_turn`); otherwise by the speed of the passes where it goes (:func:`_metric_turn`).
+    """
+    x = np.linspace(0.0, size, _UNIFORM_SAMPLES)[:, None]
+    points = np.concatenate(
+        [start + slope * x for start, slope in zip(starts, slopes, strict=True)]
+    )
+    speeds = np.linalg.norm(chart.derivatives(points[:, 0], points[:, 1])[1 + along], axis=1)
+    per_pass = speeds.reshape(len(starts), _UNIFORM_SAMPLES)
+    spread = per_pass.max(axis=1) - per_pass.min(axis=1)
+    return bool(np.all(spread <= _UNIFORM_RTOL * per_pass.max(axis=1)))
 
 
 def _turn(
@@ -246,8 +278,7 @@ def _turn(
     Iterates L ← L · max‖dS/dσ‖ from the straight chord in (u, v): the speed at both ends is 1
     and a longer blend is slower in its middle, so L only grows, to where the maximum is 1.
     """
-    chord = PiecewiseCurve.join([1.0], [line_piece(p0, p1 - p0)])
-    length = float(piece_lengths(chart, chord)[0])
+    length = _chord_length(chart, p0, p1)
     s = np.linspace(0.0, 1.0, _TURN_SAMPLES)
     for _ in range(_MAX_ITERATIONS):
         piece = blend_piece(p0, d0, p1, d1, length)
@@ -263,3 +294,79 @@ def _turn(
             break
         length *= fastest / target if target != 1.0 else fastest
     return length, blend_piece(p0, d0, p1, d1, length)
+
+
+def _chord_length(chart: SurfaceChart, p0: np.ndarray, p1: np.ndarray) -> float:
+    """The surface length [m] of the straight chord from p0 to p1 in (u, v)."""
+    chord = PiecewiseCurve.join([1.0], [line_piece(p0, p1 - p0)])
+    return float(piece_lengths(chart, chord)[0])
+
+
+def _metric_turn(
+    chart: SurfaceChart,
+    p0: np.ndarray,
+    d0: np.ndarray,
+    p1: np.ndarray,
+    d1: np.ndarray,
+    along: int,
+) -> tuple[float, np.ndarray]:
+    """The blend from (p0, d0) to (p1, d1) where the surface speed of the passes varies:
+    (σ-length, piece).
+
+    Its length L makes ‖dS/dσ‖ half way equal to the speed a pass would have there,
+    ‖S_along(γ(½))‖ (|d0| + |d1|) / 2: on a plane that is the bound of :func:`_turn`
+    (L = 1.875 w, the blend's speed peaking half way), and it stays defined where the speed
+    along the passes grows beyond their ends, where no L keeps ‖dS/dσ‖ ≤ 1 (the speed at the
+    ends is fixed, and beside them it is the pass's own, larger one). The root of
+    ρ(L) = ‖dS/dσ‖ / reference − 1 is bracketed from the chord by doubling or halving L (the
+    across part of the speed falls as 1/L), then found by regula falsi (Illinois) in log L:
+    the fixed point L ← L (ρ + 1) alone can oscillate where the reference changes as fast
+    as the swing grows.
+
+    Raises:
+        PathError: no bracket or no root within ``_MAX_ITERATIONS`` (a chart degenerate
+            about the turn).
+    """
+    mean = 0.5 * (float(np.linalg.norm(d0)) + float(np.linalg.norm(d1)))
+    half = np.array([0.5])
+
+    def excess(x: float) -> float:
+        """ρ(L) at L = e^x."""
+        length = math.exp(x)
+        curve = PiecewiseCurve.join([length], [blend_piece(p0, d0, p1, d1, length)])
+        g = curve.sample_piece(0, half * length)[0]
+        reference = float(np.linalg.norm(chart.derivatives(g[:, 0], g[:, 1])[1 + along, 0]))
+        return float(surface_speeds(chart, curve, 0, half * length)[0]) / (reference * mean) - 1
+
+    x0 = math.log(_chord_length(chart, p0, p1))
+    f0 = excess(x0)
+    step = math.log(2.0) if f0 > 0.0 else -math.log(2.0)
+    x1, f1 = x0, f0
+    for _ in range(_MAX_ITERATIONS):  # the bracket: ρ changes sign between x0 and x1
+        if not math.isfinite(f1) or f1 == 0.0 or (f1 > 0.0) != (f0 > 0.0):
+            break
+        x0, f0 = x1, f1
+        x1 = x0 + step
+        f1 = excess(x1)
+    for _ in range(_MAX_ITERATIONS):
+        if not (math.isfinite(f0) and math.isfinite(f1)):
+            break
+        if abs(f1) <= _TURN_RTOL or f1 == 0.0:
+            length = math.exp(x1)
+            return length, blend_piece(p0, d0, p1, d1, length)
+        if (f0 > 0.0) == (f1 > 0.0):
+            break
+        x = x1 - f1 * (x1 - x0) / (f1 - f0)
+        f = excess(x)
+        if (f > 0.0) == (f1 > 0.0):
+            f0 *= 0.5  # Illinois: the end kept is weighted down
+        else:
+            x0, f0 = x1, f1
+        x1, f1 = x, f
+    raise PathError(
+        f"RasterPath: the turn from {chart.names[0]}, {chart.names[1]} = {p0.tolist()} found "
+        "no length on this chart (the surface speed about it degenerates): move the "
+        "rectangle or change its spacing",
+        key="spacing",
+        value=float(np.max(np.abs(p1 - p0))),
+    )

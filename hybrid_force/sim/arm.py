@@ -10,6 +10,8 @@ torque applied when the effort limits acted and the energies dissipated so far. 
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 import pinocchio as pin
 
@@ -23,7 +25,12 @@ from hybrid_force.sim.contact import ContactSettings, friction_matrix, joint_dis
 from hybrid_force.sim.dynamics import constrained_acceleration, free_acceleration
 from hybrid_force.sim.settings import SimSettings
 
-__all__ = ["Arm"]
+__all__ = ["Arm", "State", "SurfaceContact", "Vector"]
+
+Vector = np.ndarray
+"""A float64 (n,) or (k,) array of the step."""
+State = tuple[np.ndarray, np.ndarray]
+"""(q, v) of the arm, or (q̈ (n,), f (k,)) of a step."""
 
 
 class Arm:
@@ -307,6 +314,42 @@ class Arm:
         Returns a new array.
         """
         return pin.impulseDynamics(self.robot.model, self._imp, q, v, A, 0.0, 0.0).copy()
+
+
+class SurfaceContact(ABC):
+    """How the surfaces act on the arm: the contact strategy a plant holds, chosen once
+    (:class:`~hybrid_force.sim.rigid_contact.RigidContact`,
+    :class:`~hybrid_force.sim.compliant_contact.CompliantContact`), whose three methods the
+    plant binds as its own (:class:`~hybrid_force.sim.plant.Plant`). It sets the arm's contact
+    state, its events, :attr:`Arm.applied` and the power dissipated.
+
+    Args:
+        arm: the plant's arm, whose contact state this contact sets.
+    """
+
+    def __init__(self, arm: Arm) -> None:
+        self.arm = arm
+
+    @abstractmethod
+    def accelerate(
+        self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
+    ) -> State:
+        """q̈ (n,) and the contact force f (k,) [N] of the step at t [s] under the applied
+        torque sat(u0 + B f), from the arm's terms and the constraint rows (None off the
+        surface, where they are undefined); a touch or a release is an event at t.
+        :attr:`Arm.applied` is then the saturated torque when a limit acted, else None."""
+
+    @abstractmethod
+    def advance(
+        self, q: Vector, v: Vector, ddq: Vector, cmd: Command, t: float, dt: float, distance: Vector
+    ) -> State:
+        """(q, v) at t + dt [s] from q̈ (n,) at t, the step's dissipation accounted first
+        (:meth:`Arm.account`); ``distance`` (k,) [m]: the tip's distances at t. The arrays
+        returned may be the contact's own buffers: the next call may reuse them."""
+
+    @abstractmethod
+    def touch(self, q: Vector, v: Vector, t: float) -> State:
+        """(q, v) with the tip placed on the surface at t [s]."""
 
 
 def _joint_of(model: pin.Model, iv: int) -> str:

@@ -21,7 +21,7 @@ from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws.base import Command
 from hybrid_force.events import Release, Touch
 from hybrid_force.model.robot import RobotTerms
-from hybrid_force.sim.arm import Arm
+from hybrid_force.sim.arm import State, SurfaceContact, Vector
 from hybrid_force.sim.contact import compliant_force, friction_power
 from hybrid_force.sim.dynamics import free_acceleration
 
@@ -31,21 +31,15 @@ __all__ = ["GEOMETRIC_TOL", "CompliantContact"]
 GEOMETRIC_TOL = 1e-12
 
 
-class CompliantContact:
-    """The compliant contact of one arm (module docstring).
-
-    Args:
-        arm: the plant's arm, whose contact state this contact sets.
-    """
-
-    def __init__(self, arm: Arm) -> None:
-        self.arm = arm
+class CompliantContact(SurfaceContact):
+    """The compliant contact of one arm (module docstring; its argument: the base's)."""
 
     def accelerate(
         self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """q̈ (n,) and the Hunt–Crossley force f (k,) [N]; touch and release events at t [s]."""
+    ) -> State:
+        """The Hunt–Crossley force f of the penetration, with the free arm's q̈."""
         arm = self.arm
+        arm.applied = None
         if cons is None:  # rows undefined off the surface (evaluate() raised if in contact)
             return arm.free(terms, cmd.u0), arm._zeros_k
         penetration, rate = -cons.distance, -cons.rate  # "tip" rows: A v = ḋ [m/s]
@@ -72,20 +66,14 @@ class CompliantContact:
         return free_acceleration(arm._M(terms), arm._nle(terms), tau), f
 
     def advance(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        ddq: np.ndarray,
-        cmd: Command,
-        t: float,
-        dt: float,
-        distance: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(q, v) at t + dt: semi-implicit Euler of the free arm (the force is in q̈)."""
+        self, q: Vector, v: Vector, ddq: Vector, cmd: Command, t: float, dt: float, distance: Vector
+    ) -> State:
+        """Semi-implicit Euler of the free arm (the force is in q̈)."""
+        self.arm.account(v, ddq, dt)
         return self.arm.euler(q, v, ddq, dt)
 
-    def touch(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Place the tip on the surface, v unchanged: its force does the rest."""
+    def touch(self, q: Vector, v: Vector, t: float) -> State:
+        """v unchanged: the force does the rest."""
         arm = self.arm
         q, _ = arm.project(q, np.zeros_like(v), iterations=3)
         arm.in_contact = arm.ever_in_contact = True

@@ -5,61 +5,26 @@ its sensors' readings, and the plant only a command u = u0 + B f. One step of th
 
 1. :meth:`Plant.evaluate`: the arm's terms at (q, v) (:meth:`Robot.terms`) and, where they are
    defined, the constraint rows of its surfaces (:class:`~hybrid_force.sim.arm.Arm`);
-2. :meth:`Plant.accelerate`: q̈ and the contact force f under the applied torque
+2. ``Plant.accelerate``: q̈ and the contact force f under the applied torque
    sat(u0 + B f), from the contact: :class:`~hybrid_force.sim.rigid_contact.RigidContact`
    (the paper's: free, constrained, saturated or released) or
    :class:`~hybrid_force.sim.compliant_contact.CompliantContact` (Hunt–Crossley);
-3. :meth:`Plant.advance`: the step's dissipation accounted, then the contact's integration
+3. ``Plant.advance``: the step's dissipation accounted, then the contact's integration
    to t + dt (rigid: the arm's integrator, projection onto the surface in contact, touch and
    impact out of it; compliant: semi-implicit Euler of the free arm).
 """
 
 from __future__ import annotations
 
-from typing import Protocol
-
-import numpy as np
-
-from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.laws.base import Command
-from hybrid_force.model.robot import Robot, RobotTerms
-from hybrid_force.sim.arm import Arm
+from hybrid_force.control.constraint import Constraint
+from hybrid_force.model.robot import Robot
+from hybrid_force.sim.arm import Arm, SurfaceContact
 from hybrid_force.sim.compliant_contact import CompliantContact
 from hybrid_force.sim.contact import ContactSettings
 from hybrid_force.sim.rigid_contact import RigidContact
 from hybrid_force.sim.settings import SimSettings
 
-__all__ = ["Plant", "SurfaceContact"]
-
-
-class SurfaceContact(Protocol):
-    """How the surfaces act on the arm: the contact strategy a plant holds, chosen once
-    (:class:`~hybrid_force.sim.rigid_contact.RigidContact`,
-    :class:`~hybrid_force.sim.compliant_contact.CompliantContact`); it sets the arm's contact
-    state, events, applied torque and dissipated power."""
-
-    def accelerate(
-        self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """q̈ (n,) and the contact force f (k,) [N] of the step at t [s] under the command
-        u = u0 + B f, from the arm's terms and the constraint rows (None off the surface
-        where they are undefined)."""
-
-    def advance(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        ddq: np.ndarray,
-        cmd: Command,
-        t: float,
-        dt: float,
-        distance: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(q, v) at t + dt [s] from q̈ (n,) at t; ``distance`` (k,) [m]: the tip's distances
-        at t."""
-
-    def touch(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(q, v) with the tip placed on the surface at t [s]."""
+__all__ = ["Plant"]
 
 
 class Plant(Arm):
@@ -78,9 +43,12 @@ class Plant(Arm):
             frictionless contact.
 
     Attributes:
-        surface_contact: the contact strategy of the run (:class:`SurfaceContact`), chosen
-            here once; the contact state, its events, the applied torque and the energies
-            dissipated are the :class:`~hybrid_force.sim.arm.Arm`'s attributes.
+        surface_contact: the contact strategy of the run
+            (:class:`~hybrid_force.sim.arm.SurfaceContact`), chosen here once; the contact
+            state, its events, the applied torque and the energies dissipated are the
+            :class:`~hybrid_force.sim.arm.Arm`'s attributes.
+        accelerate, advance, touch: the strategy's methods (their contract:
+            :class:`~hybrid_force.sim.arm.SurfaceContact`).
     """
 
     #: the rigid contact's class (a test oracle swaps it for its readable form)
@@ -96,38 +64,13 @@ class Plant(Arm):
     ) -> None:
         contact = contact if contact is not None else ContactSettings()
         super().__init__(robot, constraint, sim, contact)
-        self.surface_contact: SurfaceContact = (
+        strategy: SurfaceContact = (
             CompliantContact(self)
             if contact.compliant
             else self.rigid_contact(self, sim, touch_tol)
         )
-
-    def accelerate(
-        self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """q̈ (n,) and the contact force f (k,) [N] under the applied torque sat(u0 + B f);
-        a touch or a release is an event at t [s]. :attr:`applied` is the saturated torque
-        when a limit acted, else None."""
-        self.applied = None
-        return self.surface_contact.accelerate(terms, cons, cmd, t)
-
-    def advance(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        ddq: np.ndarray,
-        cmd: Command,
-        t: float,
-        dt: float,
-        distance: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(q, v) at t + dt from q̈ at t; ``distance`` (k,) [m]: the tip's distances at t.
-
-        The arrays returned may be the plant's own buffers: the next call may reuse them.
-        """
-        self.account(v, ddq, dt)
-        return self.surface_contact.advance(q, v, ddq, cmd, t, dt, distance)
-
-    def touch(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Place the tip on the surface at time t [s]; the contact decides what v does."""
-        return self.surface_contact.touch(q, v, t)
+        self.surface_contact = strategy
+        # the strategy's methods are the plant's own: one Python call per step, not two
+        self.accelerate = strategy.accelerate
+        self.advance = strategy.advance
+        self.touch = strategy.touch

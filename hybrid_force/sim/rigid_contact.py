@@ -38,7 +38,7 @@ from hybrid_force.control.laws.base import Command
 from hybrid_force.events import Impact, Release
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import RobotTerms
-from hybrid_force.sim.arm import Arm
+from hybrid_force.sim.arm import Arm, State, SurfaceContact, Vector
 from hybrid_force.sim.contact import friction_power
 from hybrid_force.sim.dynamics import ConstrainedDynamics, plastic_impact
 from hybrid_force.sim.saturation import held_set
@@ -49,7 +49,7 @@ _K = LazyKernels("hybrid_force.sim._kernels")
 __all__ = ["RigidContact"]
 
 
-class RigidContact:
+class RigidContact(SurfaceContact):
     """The rigid contact of one arm (module docstring: its paths).
 
     Args:
@@ -64,7 +64,7 @@ class RigidContact:
     compiles = True
 
     def __init__(self, arm: Arm, sim: SimSettings, touch_tol: float) -> None:
-        self.arm = arm
+        super().__init__(arm)
         self.unilateral, self.release_tol = sim.unilateral, sim.release_tol
         self.touch_tol = touch_tol
         robot, k, n = arm.robot, arm.constraint.k, arm.robot.nv
@@ -83,10 +83,10 @@ class RigidContact:
     # ------------------------------------------------------------------ accelerate
     def accelerate(
         self, terms: RobotTerms, cons: ConstraintTerms | None, cmd: Command, t: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """q̈ (n,) and f (k,) [N] of this step: free, constrained, saturated or released
-        (module docstring); a release is an event at t [s]."""
+    ) -> State:
+        """Free, constrained, saturated or released (module docstring)."""
         arm = self.arm
+        arm.applied = None
         self._friction = None
         if not arm.in_contact:  # 1. free
             return arm.free(terms, cmd.u0), arm._zeros_k
@@ -170,18 +170,12 @@ class RigidContact:
 
     # ------------------------------------------------------------------ advance
     def advance(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        ddq: np.ndarray,
-        cmd: Command,
-        t: float,
-        dt: float,
-        distance: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(q, v) at t + dt from q̈ at t; ``distance`` (k,) [m]: the tip's distances at t
-        (module docstring). The arrays returned may be the contact's own buffers."""
+        self, q: Vector, v: Vector, ddq: Vector, cmd: Command, t: float, dt: float, distance: Vector
+    ) -> State:
+        """The arm's integrator, then on the surface the projection, off it a touch
+        (module docstring)."""
         arm = self.arm
+        arm.account(v, ddq, dt)
         if arm.in_contact and self._compiled_step:
             return self._contact_step(q, v, ddq, dt)
         if arm.applied is not None:  # RK4's stages hold the torque applied at t
@@ -221,9 +215,8 @@ class RigidContact:
         v_out[:] = pin.impulseDynamics(model, arm._imp, q_out, v_tmp, row, 0.0, 0.0)
         return q_out, v_out
 
-    def touch(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Place the tip on the surface and apply a plastic impact if it moves into it (an
-        "impact" event at t [s])."""
+    def touch(self, q: Vector, v: Vector, t: float) -> State:
+        """A plastic impact if the tip moves into the surface (an "impact" event)."""
         arm = self.arm
         q, _ = arm.project(q, np.zeros_like(v), iterations=3)
         A, _ = arm._rows(q)

@@ -24,7 +24,9 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _inline
 from hybrid_force.control._kernels import arimoto
+from hybrid_force.control._linalg_kernels import dot
 
 #: Layout of the law's parameter vector ``params`` (7,): the gains, whether q = q_d + e_q, Z_ref,
 #: and the gain schedule's state σ and min_{τ≤t} Z, which :func:`adaptive_command` updates.
@@ -81,6 +83,32 @@ def reference_velocities(
             q[i] = q_d[i] + e_q[i]
 
 
+@_inline
+def _regress_into(
+    Y: np.ndarray,
+    Y_minus: np.ndarray,
+    minus: bool,
+    theta: np.ndarray,
+    s: np.ndarray,
+    out: np.ndarray,
+    gradient: np.ndarray,
+) -> None:
+    """out (n,) = Y θ̂ and gradient (p,) = Yᵀ s for a regressor Y (n, p), less Y_minus (n, p)
+    when ``minus`` (the two passes' difference, formed entry by entry; a constant at each
+    call, so the inlined loop has no test)."""
+    n, p = Y.shape
+    for j in range(p):
+        gradient[j] = 0.0
+    for i in range(n):
+        acc = 0.0
+        si = s[i]
+        for j in range(p):
+            y = Y[i, j] - Y_minus[i, j] if minus else Y[i, j]
+            acc += y * theta[j]
+            gradient[j] += y * si
+        out[i] = acc
+
+
 @_jit
 def adaptive_command(
     Y_plus: np.ndarray,
@@ -114,39 +142,23 @@ def adaptive_command(
     beta, gamma, energy = params[BETA], params[GAMMA], params[ENERGY]
     n, p = Y_plus.shape
     k = e_F.shape[0]
-    gradient = gradients[0]
-    for j in range(p):
-        gradient[j] = 0.0
+    _regress_into(Y_plus, Y_minus, True, theta, s, u0, gradients[0])  # Y = Y_plus − Y_minus
     for i in range(n):
-        acc = 0.0
-        si = s[i]
-        for j in range(p):
-            y = Y_plus[i, j] - Y_minus[i, j]
-            acc += y * theta[j]
-            gradient[j] += y * si
         kd = 0.0
         for j in range(n):
             kd += Kd[i, j] * s[j]
         force = 0.0
         for m in range(k):
             force += A[m, i] * (f_d[m] - gamma * e_F[m])
-        u0[i] = acc - kd - force
+        u0[i] = u0[i] - kd - force
     for m in range(k):
-        Ym = Y_A[m]
         gradient_f = gradients[1 + m]
-        for j in range(p):
-            gradient_f[j] = 0.0
+        _regress_into(Y_A[m], Y_plus, False, theta, s, B[:, m], gradient_f)
         for i in range(n):
-            acc = 0.0
-            si = s[i]
-            for j in range(p):
-                y = Ym[i, j]
-                acc += y * theta[j]
-                gradient_f[j] += y * si
-            B[i, m] = beta * acc
+            B[i, m] = beta * B[i, m]
         for j in range(p):
             gradient_f[j] *= beta
-    z = 0.0
+    z = 0.0  # ½ wᵀ M w, w = q̇_r − q̇_d formed in the loop (quad_form would need it stored)
     for i in range(n):
         mw = 0.0
         for j in range(n):
@@ -156,13 +168,7 @@ def adaptive_command(
     if z < params[Z_MIN]:
         params[Z_MIN] = z
         params[SIGMA] = 1.0 if z <= energy else energy / z
-    V = 0.0
-    for j in range(p):
-        V += kinetic[j] * theta[j]
-    eF2 = 0.0
-    for m in range(k):
-        eF2 += e_F[m] * e_F[m]
-    return V + 0.5 * beta * eF2
+    return dot(kinetic, theta) + 0.5 * beta * dot(e_F, e_F)
 
 
 @_jit

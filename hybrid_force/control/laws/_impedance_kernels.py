@@ -2,10 +2,10 @@
 :mod:`hybrid_force.control.laws.impedance` in one call.
 
 Its oracle, the readable numpy version, is ``ImpedanceLaw`` of tests/oracles/laws.py;
-``tests/test_impedance_kernel.py`` checks this kernel against it. The dense solves are written out:
-a Cholesky factorisation of M (n, n), the solves M X = [Jᵀ, Aᵀ], and the inverse of the 3×3 J M⁻¹ Jᵀ
-by Gaussian elimination with partial pivoting (as LAPACK's getrf/getri, which numpy's ``inv``
-calls).
+``tests/test_impedance_kernel.py`` checks this kernel against it. The dense solves are those of
+:mod:`hybrid_force.control._linalg_kernels`: a Cholesky factorisation of M (n, n), the solves
+M X = [Jᵀ, Aᵀ], and the inverse of the 3×3 J M⁻¹ Jᵀ by LU with partial pivoting (as LAPACK's
+getrf/getri, which numpy's ``inv`` calls).
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """
@@ -17,7 +17,14 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._linalg_kernels import cholesky, cholesky_solve_column
+from hybrid_force.control._linalg_kernels import (
+    cholesky,
+    cholesky_solve_column,
+    lu_factor,
+    lu_solve,
+    mul_into,
+    rows3_dot,
+)
 
 #: the phases the kernel computes (``mode``)
 FREE, NEAR, CONTACT = 0, 1, 2
@@ -82,35 +89,21 @@ def impedance(
     ncol = 3 + k if mode == CONTACT else 3
     for c in range(ncol):
         cholesky_solve_column(L, J[c] if c < 3 else A[c - 3], X, c)
-    # --- Λ = (J M⁻¹ Jᵀ)⁻¹, symmetrised --------------------------------------------------
-    S = np.empty((3, 6))  # [J M⁻¹ Jᵀ | I], reduced to [I | its inverse]
-    for i in range(3):
-        for j in range(3):
-            s = 0.0
-            for m in range(n):
-                s += J[i, m] * X[m, j]
-            S[i, j] = s
-            S[i, 3 + j] = 1.0 if i == j else 0.0
-    for c in range(3):
-        piv = c
-        big = abs(S[c, c])
-        for r in range(c + 1, 3):
-            if abs(S[r, c]) > big:
-                piv, big = r, abs(S[r, c])
-        if big == 0.0 or not math.isfinite(big):
-            return SINGULAR
-        if piv != c:
-            for j in range(6):
-                S[c, j], S[piv, j] = S[piv, j], S[c, j]
-        for r in range(3):
-            if r != c:
-                f = S[r, c] / S[c, c]
-                for j in range(c, 6):
-                    S[r, j] -= f * S[c, j]
+    # --- Λ = (J M⁻¹ Jᵀ)⁻¹ by LU, symmetrised ------------------------------------------
+    S = np.empty((3, 3))  # J M⁻¹ Jᵀ, then its LU factors in place
+    mul_into(J, X, S, False, False)
     Lam, K, D = gains[0], gains[1], gains[2]
+    piv = np.empty(3, np.int64)
+    if not lu_factor(S, piv):
+        return SINGULAR
     for i in range(3):
         for j in range(3):
-            Lam[i, j] = S[i, 3 + j] / S[i, i]
+            Lam[i, j] = 1.0 if i == j else 0.0
+    lu_solve(S, piv, Lam)
+    for i in range(3):
+        for j in range(3):
+            if not math.isfinite(Lam[i, j]):  # an overflow in M⁻¹ or J: no inertia
+                return SINGULAR
     for i in range(3):
         for j in range(i + 1, 3):
             sym = 0.5 * (Lam[i, j] + Lam[j, i])
@@ -160,10 +153,8 @@ def impedance(
     y = np.empty(n)
     for i in range(n):
         y[i] = w2 * e_q[i] + w_d * (v[i] - qd[i])
-    Jy = np.zeros(3)
-    for i in range(3):
-        for m in range(n):
-            Jy[i] += J[i, m] * y[m]
+    Jy = np.empty(3)
+    Jy[0], Jy[1], Jy[2] = rows3_dot(J, 0, y)
     for i in range(3):
         s = 0.0
         for j in range(3):

@@ -2,9 +2,9 @@
 
 Its oracle, the readable numpy version, is ``osc_hybrid_law`` of ``tests/oracles/laws.py``;
 ``tests/test_osc_hybrid_kernel.py`` checks the kernel against it. The small dense solves are
-written here: a Cholesky factor of M for M⁻¹Jᵀ (an LU factorisation when M has none), an LU
-factorisation with partial pivoting (as numpy's ``solve`` and ``inv``) for
-Λ = (J M⁻¹ Jᵀ)⁻¹ (3 × 3) and for (WᵀW)⁻¹Wᵀ (k × k).
+those of :mod:`hybrid_force.control._linalg_kernels`: a Cholesky factor of M for M⁻¹Jᵀ (an LU
+factorisation when M has none), an LU factorisation with partial pivoting (as numpy's
+``solve`` and ``inv``) for Λ = (J M⁻¹ Jᵀ)⁻¹ (3 × 3) and for (WᵀW)⁻¹Wᵀ (k × k).
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions.
 """
@@ -16,7 +16,14 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._linalg_kernels import cholesky, cholesky_solve_column
+from hybrid_force.control._linalg_kernels import (
+    cholesky,
+    cholesky_solve_column,
+    lu_solve_into,
+    matvec_into,
+    mul_into,
+    rows3_dot,
+)
 from hybrid_force.geometry._kernels import surface_eval
 
 # the modes of osc_hybrid (module docstring of osc_hybrid: eq. 3 and 4)
@@ -27,54 +34,6 @@ CONTACT = 2
 # singular (numpy's "Singular matrix")
 SINGULAR_MASS = -1.0
 SINGULAR_NORMALS = -2.0
-
-
-@_jit
-def _lu_solve(a: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> bool:
-    """out = a⁻¹ rhs for a (m, m), rhs (m, r) by LU with partial pivoting (a, rhs unchanged).
-
-    Returns False when a pivot is exactly zero (a singular: numpy's LinAlgError).
-    """
-    m = a.shape[0]
-    r = rhs.shape[1]
-    lu = a.copy()
-    for i in range(m):
-        for j in range(r):
-            out[i, j] = rhs[i, j]
-    for col in range(m):
-        piv = col
-        big = abs(lu[col, col])
-        for i in range(col + 1, m):
-            if abs(lu[i, col]) > big:
-                big = abs(lu[i, col])
-                piv = i
-        if big == 0.0:
-            return False
-        if piv != col:
-            for j in range(m):
-                t = lu[col, j]
-                lu[col, j] = lu[piv, j]
-                lu[piv, j] = t
-            for j in range(r):
-                t = out[col, j]
-                out[col, j] = out[piv, j]
-                out[piv, j] = t
-        d = lu[col, col]
-        for i in range(col + 1, m):
-            f = lu[i, col] / d
-            lu[i, col] = f
-            for j in range(col + 1, m):
-                lu[i, j] -= f * lu[col, j]
-            for j in range(r):
-                out[i, j] -= f * out[col, j]
-    for i in range(m - 1, -1, -1):
-        d = lu[i, i]
-        for j in range(r):
-            acc = out[i, j]
-            for c in range(i + 1, m):
-                acc -= lu[i, c] * out[c, j]
-            out[i, j] = acc / d
-    return True
 
 
 @_jit
@@ -146,22 +105,19 @@ def osc_hybrid(
     if cholesky(M, L):
         for r in range(3):
             cholesky_solve_column(L, J[r], X, r)
-    elif not _lu_solve(M, J.T.copy(), X):  # M not positive definite: LU, as numpy's solve
+    elif not lu_solve_into(M, J.T.copy(), X):  # M not positive definite: LU, as numpy's solve
         return SINGULAR_MASS
     # --- Λ = S⁻¹, S = J M⁻¹ Jᵀ, and the estimate of cond(S)
     S = np.empty((3, 3))
+    mul_into(J, X, S, False, False)
     s_sq = 0.0
     for r in range(3):
         for c in range(3):
-            s = 0.0
-            for i in range(n):
-                s += J[r, i] * X[i, c]
-            S[r, c] = s
-            s_sq += s * s
+            s_sq += S[r, c] * S[r, c]
     eye = np.zeros((3, 3))
     for r in range(3):
         eye[r, r] = 1.0
-    if not _lu_solve(S, eye, Lambda):
+    if not lu_solve_into(S, eye, Lambda):
         return math.inf
     l_sq = 0.0
     for r in range(3):
@@ -199,7 +155,7 @@ def osc_hybrid(
                     Wt[m, r] = W[r, m]
                 for c in range(k):
                     WtW[m, c] = W[0, m] * W[0, c] + W[1, m] * W[1, c] + W[2, m] * W[2, c]
-            if not _lu_solve(WtW, Wt, P):
+            if not lu_solve_into(WtW, Wt, P):
                 return SINGULAR_NORMALS
         Pa = np.empty(k)
         cx = np.empty(k)
@@ -238,21 +194,11 @@ def osc_hybrid(
         y = np.empty(n)
         for i in range(n):
             y[i] = qdd[i] - null_kp * e_q[i] - null_kd * (v[i] - qd[i])
-        Jy0 = 0.0
-        Jy1 = 0.0
-        Jy2 = 0.0
-        for i in range(n):
-            Jy0 += J[0, i] * y[i]
-            Jy1 += J[1, i] * y[i]
-            Jy2 += J[2, i] * y[i]
+        Jy0, Jy1, Jy2 = rows3_dot(J, 0, y)
         z = np.empty(n)
         for i in range(n):
             z[i] = y[i] - (Jbar[i, 0] * Jy0 + Jbar[i, 1] * Jy1 + Jbar[i, 2] * Jy2)
-        for i in range(n):
-            s = 0.0
-            for j in range(n):
-                s += M[i, j] * z[j]
-            null_torque[i] = s
+        matvec_into(M, z, null_torque)
     # --- u0 = Jᵀ F + C q̇ + g + Nᵀτ₀
     for i in range(n):
         u0[i] = (J[0, i] * F[0] + J[1, i] * F[1] + J[2, i] * F[2]) + nle[i] + null_torque[i]

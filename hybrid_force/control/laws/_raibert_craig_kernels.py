@@ -9,10 +9,10 @@ from the surfaces' unit normals at the tip, J⁺ = Jᵀ (J Jᵀ)⁻¹, the posit
 the feed-forward, the redundant directions' hold (I − J⁺J)(…) (applied as x − J⁺(J x), the
 matrix is not formed), the near phase's normal torque and in contact the projection P, the
 normal damper D_n and the force terms. Every solve is an LU factorisation with partial
-pivoting (as ``np.linalg.solve``); the products by inverses of the oracle
-((J Jᵀ)⁻¹, D_n = (ω_p + ω_d) H⁻¹) are solves here, equal to round-off. At a singularity
-(J Jᵀ with a zero pivot) J⁺ is the SVD's pseudo-inverse; any other zero pivot makes the
-kernel return SINGULAR_OTHER without finishing, and the caller raises numpy's error.
+pivoting (:func:`~hybrid_force.control._linalg_kernels.lu_factor`); the products by inverses
+of the oracle ((J Jᵀ)⁻¹, D_n = (ω_p + ω_d) H⁻¹) are solves here, equal to round-off. At a
+singularity (J Jᵀ with a zero pivot) J⁺ is the SVD's pseudo-inverse; any other zero pivot makes
+the kernel return SINGULAR_OTHER without finishing, and the caller raises numpy's error.
 
 Compiled with :data:`hybrid_force._jit.jit`, whose module says why and by which conventions
 (outputs preallocated and passed last, no fastmath).
@@ -25,6 +25,15 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _inline
+from hybrid_force.control._linalg_kernels import (
+    eye_minus,
+    lu_factor,
+    lu_solve,
+    matvec2_into,
+    mul_into,
+    rows3_dot,
+)
 from hybrid_force.geometry._kernels import surface_eval
 
 OK = 0
@@ -32,76 +41,28 @@ SINGULAR_OTHER = 2  # M, A M⁻¹ Aᵀ, NᵀN or Nᵀ J M⁻¹ Jᵀ N has a zero
 
 
 @_jit
-def lu_factor(a: np.ndarray, piv: np.ndarray) -> bool:
-    """a (m, m) ← its LU factors in place (partial pivoting, row swaps in piv (m,)).
-
-    Returns False at a zero pivot (a singular matrix; a is then partly factored).
-    """
-    m = a.shape[0]
-    for c in range(m):
-        p = c
-        big = abs(a[c, c])
-        for r in range(c + 1, m):
-            x = abs(a[r, c])
-            if x > big:
-                big = x
-                p = r
-        piv[c] = p
-        if big == 0.0:
-            return False
-        if p != c:
-            for j in range(m):
-                t = a[c, j]
-                a[c, j] = a[p, j]
-                a[p, j] = t
-        inv = 1.0 / a[c, c]
-        for r in range(c + 1, m):
-            f = a[r, c] * inv
-            a[r, c] = f
-            if f != 0.0:
-                for j in range(c + 1, m):
-                    a[r, j] -= f * a[c, j]
-    return True
-
-
-@_jit
-def lu_solve(lu: np.ndarray, piv: np.ndarray, b: np.ndarray) -> None:
-    """b (m, r) ← a⁻¹ b in place, from the factors of :func:`lu_factor`."""
-    m = lu.shape[0]
-    cols = b.shape[1]
-    for c in range(m):
-        p = piv[c]
-        if p != c:
-            for j in range(cols):
-                t = b[c, j]
-                b[c, j] = b[p, j]
-                b[p, j] = t
-    for j in range(cols):
-        for r in range(1, m):
-            acc = b[r, j]
-            for c in range(r):
-                acc -= lu[r, c] * b[c, j]
-            b[r, j] = acc
-        for r in range(m - 1, -1, -1):
-            acc = b[r, j]
-            for c in range(r + 1, m):
-                acc -= lu[r, c] * b[c, j]
-            b[r, j] = acc / lu[r, r]
-
-
-@_jit
 def _null_apply(J: np.ndarray, Jp: np.ndarray, x: np.ndarray) -> None:
     """x (n,) ← (I − J⁺J) x = x − J⁺ (J x), J (3, n), J⁺ (n, 3)."""
     n = x.shape[0]
-    y0 = 0.0
-    y1 = 0.0
-    y2 = 0.0
-    for j in range(n):
-        y0 += J[0, j] * x[j]
-        y1 += J[1, j] * x[j]
-        y2 += J[2, j] * x[j]
+    y0, y1, y2 = rows3_dot(J, 0, x)
     for i in range(n):
         x[i] -= Jp[i, 0] * y0 + Jp[i, 1] * y1 + Jp[i, 2] * y2
+
+
+@_inline
+def _joint_feedback(
+    Kq: np.ndarray, Dq: np.ndarray, e_q: np.ndarray, v: np.ndarray, qd: np.ndarray, out: np.ndarray
+) -> None:
+    """out (n,) = −K_P e_q − K_D (q̇ − q̇_d): the joint PD of the free space and of the
+    redundant directions."""
+    n = v.shape[0]
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for j in range(n):
+            a += Kq[i, j] * e_q[j]
+            b += Dq[i, j] * (v[j] - qd[j])
+        out[i] = -a - b
 
 
 @_jit
@@ -126,23 +87,14 @@ def free_space(
     Kq, Dq = gains[0], gains[1]
     u0, u_pos = vectors[0], vectors[1]
     n = v.shape[0]
-    for i in range(n):
-        a = 0.0
-        b = 0.0
-        for j in range(n):
-            a += Kq[i, j] * e_q[j]
-            b += Dq[i, j] * (v[j] - qd[j])
-        u_pos[i] = -a - b
-    for i in range(n):
-        ff = g[i]
-        if model_feedforward:
-            ff = 0.0
-            cv = 0.0
-            for j in range(n):
-                ff += M[i, j] * qdd[j]
-                cv += C[i, j] * v[j]
-            ff = ff + cv + g[i]
-        u0[i] = u_pos[i] + ff
+    _joint_feedback(Kq, Dq, e_q, v, qd, u_pos)
+    if model_feedforward:
+        matvec2_into(M, qdd, C, v, u0)  # M q̈_d + C q̇, then + g
+        for i in range(n):
+            u0[i] = u_pos[i] + (u0[i] + g[i])
+    else:
+        for i in range(n):
+            u0[i] = u_pos[i] + g[i]
 
 
 @_jit
@@ -221,24 +173,16 @@ def hybrid(
     else:
         NtN = np.empty((k, k))
         Y = np.empty((k, 3))
+        mul_into(N, N, NtN, True, False)
         for a in range(k):
-            for b in range(k):
-                acc = 0.0
-                for r in range(3):
-                    acc += N[r, a] * N[r, b]
-                NtN[a, b] = acc
             for r in range(3):
                 Y[a, r] = N[r, a]
         piv_k = np.empty(k, dtype=np.int64)
         if not lu_factor(NtN, piv_k):
             return SINGULAR_OTHER
         lu_solve(NtN, piv_k, Y)
-        for r in range(3):
-            for c in range(3):
-                acc = 0.0
-                for a in range(k):
-                    acc += N[r, a] * Y[a, c]
-                S[r, c] = (1.0 if r == c else 0.0) - acc
+        mul_into(N, Y, S, False, False)
+        eye_minus(S)
     e = np.empty(3)
     e_dot = np.empty(3)
     for r in range(3):
@@ -252,12 +196,7 @@ def hybrid(
 
     # J⁺ = Jᵀ (J Jᵀ)⁻¹ (n, 3): the transpose of (J Jᵀ)⁻¹ J
     JJt = np.empty((3, 3))
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for j in range(n):
-                acc += J[r, j] * J[c, j]
-            JJt[r, c] = acc
+    mul_into(J, J, JJt, False, True)
     X = np.empty((3, n))
     for r in range(3):
         for j in range(n):
@@ -280,22 +219,10 @@ def hybrid(
         for j in range(n):
             a3[j] = Jp[j, 0] * e[0] + Jp[j, 1] * e[1] + Jp[j, 2] * e[2]
             b3[j] = Jp[j, 0] * e_dot[0] + Jp[j, 1] * e_dot[1] + Jp[j, 2] * e_dot[2]
-        for i in range(n):
-            xa = 0.0
-            xb = 0.0
-            for j in range(n):
-                xa += Kq[i, j] * a3[j]
-                xb += Dq[i, j] * b3[j]
-            u_fb[i] = xa + xb
+        matvec2_into(Kq, a3, Dq, b3, u_fb)
     else:
         w = np.empty(3)
-        for r in range(3):
-            xa = 0.0
-            xb = 0.0
-            for c in range(3):
-                xa += Kx[r, c] * e[c]
-                xb += Dx[r, c] * e_dot[c]
-            w[r] = xa + xb
+        matvec2_into(Kx, e, Dx, e_dot, w)
         sw = np.empty(3)
         for r in range(3):
             sw[r] = S[r, 0] * w[0] + S[r, 1] * w[1] + S[r, 2] * w[2]
@@ -313,13 +240,9 @@ def hybrid(
         qacc = np.empty(n)
         for j in range(n):
             qacc[j] = Jp[j, 0] * y[0] + Jp[j, 1] * y[1] + Jp[j, 2] * y[2]
+        matvec2_into(M, qacc, C, v, u_ff)
         for i in range(n):
-            xa = 0.0
-            xb = 0.0
-            for j in range(n):
-                xa += M[i, j] * qacc[j]
-                xb += C[i, j] * v[j]
-            u_ff[i] = xa + xb + g[i]
+            u_ff[i] = u_ff[i] + g[i]
     else:
         for i in range(n):
             u_ff[i] = g[i]
@@ -327,13 +250,7 @@ def hybrid(
     # the redundant directions follow q_d: (I − J⁺J) x = x − J⁺ (J x)
     if n > 3:
         h = np.empty(n)
-        for i in range(n):
-            xa = 0.0
-            xb = 0.0
-            for j in range(n):
-                xa += Kq[i, j] * e_q[j]
-                xb += Dq[i, j] * (v[j] - qd[j])
-            h[i] = -xa - xb
+        _joint_feedback(Kq, Dq, e_q, v, qd, h)
         _null_apply(J, Jp, h)
         for i in range(n):
             u_fb[i] += h[i]
@@ -364,12 +281,7 @@ def hybrid(
             for a in range(k):
                 MinvAT[j, a] = A[a, j]
         lu_solve(LU, piv, MinvAT)
-        for a in range(k):
-            for b in range(k):
-                acc = 0.0
-                for j in range(n):
-                    acc += A[a, j] * MinvAT[j, b]
-                G[a, b] = acc
+        mul_into(A, MinvAT, G, False, False)
         if not lu_factor(G, piv_k):
             return SINGULAR_OTHER
 
@@ -426,12 +338,7 @@ def hybrid(
             MinvJN[j, a] = JN[j, a]
     lu_solve(LU, piv, MinvJN)
     H = np.empty((k, k))
-    for a in range(k):
-        for b in range(k):
-            acc = 0.0
-            for j in range(n):
-                acc += JN[j, a] * MinvJN[j, b]
-            H[a, b] = acc
+    mul_into(JN, MinvJN, H, True, False)
     if not lu_factor(H, piv_k):
         return SINGULAR_OTHER
     d = np.empty((k, 1))

@@ -30,27 +30,9 @@ import numpy as np
 
 from hybrid_force import _checks as checks
 from hybrid_force._lazy import LazyKernels
+from hybrid_force.control import force_loop
 from hybrid_force.control.constraint import ConstraintTerms
-from hybrid_force.control.force_loop import (
-    force_feedthrough,
-    largest_integral_step,
-    max_stable_gain,
-    velocity_loop_number,
-)
-from hybrid_force.control.laws.base import (
-    PAPER_GAINS,
-    Command,
-    ControlTrace,
-    Gains,
-    Law,
-    LawContext,
-    LawInput,
-    LawSpec,
-    LoopBound,
-    LoopContext,
-    below,
-    register,
-)
+from hybrid_force.control.laws import base
 from hybrid_force.errors import ControlError
 
 _K = LazyKernels("hybrid_force.control._kernels")
@@ -127,7 +109,7 @@ def make_gains(
     beta: float,
     gamma: float,
     n: int,
-) -> Gains:
+) -> base.Gains:
     """Validate the gains against the paper's assumptions and return :class:`Gains`.
 
     Args:
@@ -149,10 +131,24 @@ def make_gains(
     lam = checks.number(Lambda, "Lambda (paper eq. 4, 29)", ControlError, minimum=0, strict=True)
     b = checks.number(beta, "beta (paper eq. 4)", ControlError, minimum=0)
     g = checks.number(gamma, "gamma (paper eq. 11)", ControlError, minimum=0, strict=True)
-    return Gains(Kd=K, Lambda=lam, beta=b, gamma=g)
+    return base.Gains(Kd=K, Lambda=lam, beta=b, gamma=g)
 
 
-class LawWorkspace(Law):
+KernelRows = tuple[ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""What one call of the paper's law reads besides its input, in the kernel's order: the
+constraint terms, e_F, f_d, the approach speeds (k,) and the matrices it writes (2, n, k) (B,
+q̈_r,f); k = 0 in free space (:func:`free_space_rows`)."""
+
+
+def free_space_rows(n: int) -> ConstraintTerms:
+    """The constraint terms of the free-space law, the hybrid law with no rows: Q = I (n, n),
+    Q̇ = 0 (eq. 29–30 are eq. 4, 8 with k = 0)."""
+    rows = ConstraintTerms.zeros(0, n)
+    rows.Q[:] = np.eye(n)
+    return rows
+
+
+class LawWorkspace(base.Law):
     """The paper's laws (module docstring: eq. 4, 8, 11 near and on the surface, eq. 29–30
     away from it) as one compiled call each, writing into arrays preallocated here (hot path).
 
@@ -167,7 +163,7 @@ class LawWorkspace(Law):
         in_contact_law: True when the last call was the hybrid law.
     """
 
-    def __init__(self, n: int, k: int, gains: Gains) -> None:
+    def __init__(self, n: int, k: int, gains: base.Gains) -> None:
         self.gains = gains
         # the outputs as rows of two arrays, so the kernel takes two arguments, not eight
         self._vectors = np.zeros((6, n))
@@ -178,25 +174,22 @@ class LawWorkspace(Law):
         self.V = 0.0
         self.in_contact_law = False
         self._zeros_k = np.zeros(k)
-        self._no_force = np.zeros(0)
-        # the free-space law is the hybrid law with no constraint rows: Q = I, Q̇ = 0
-        self._free_space = ConstraintTerms.zeros(0, n)
-        self._free_space.Q[:] = np.eye(n)
-        self._hybrid = Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
-        self._free = Command(u0=self.u0, B=None)
+        none = np.zeros(0)
+        self._free_rows: KernelRows = (free_space_rows(n), none, none, none, self._free_matrices)
+        self._hybrid = base.Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
+        self._free = base.Command(u0=self.u0, B=None)
 
-    def hybrid(self, inp: LawInput) -> Command:
+    def hybrid(self, inp: base.LawInput) -> base.Command:
         """Eq. 4, 8, 11 with the loop in f kept explicit (module docstring), plus A⁺·approach
         in q̇_r (and Ȧ⁺·approach in q̈_r) in the near phase."""
         approach = self._zeros_k if inp.approach is None else inp.approach
-        self._run(inp, inp.rows, inp.e_F, inp.f_d, approach, self._matrices)
+        self._run(inp, (inp.rows, inp.e_F, inp.f_d, approach, self._matrices))
         self.in_contact_law = True
         return self._hybrid
 
-    def free_space(self, inp: LawInput) -> Command:
+    def free_space(self, inp: base.LawInput) -> base.Command:
         """Eq. 29–30: q̇_r = q̇_d − Λ e_q, s = q̇ − q̇_r, u = M q̈_r + C q̇_r + g − K_d s."""
-        none = self._no_force
-        self._run(inp, self._free_space, none, none, none, self._free_matrices)
+        self._run(inp, self._free_rows)
         self.in_contact_law = False
         return self._free
 
@@ -205,15 +198,8 @@ class LawWorkspace(Law):
         g = self.gains
         return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
 
-    def _run(
-        self,
-        inp: LawInput,
-        cons: ConstraintTerms,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray,
-        matrices: np.ndarray,
-    ) -> None:
+    def _run(self, inp: base.LawInput, rows: KernelRows) -> None:
+        cons, e_F, f_d, approach, matrices = rows
         g, robot, desired = self.gains, inp.robot, inp.desired
         self.V = _K.arimoto(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
@@ -221,9 +207,9 @@ class LawWorkspace(Law):
             g.beta, g.gamma, self._vectors, matrices,
         )  # fmt: skip
 
-    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> ControlTrace:
+    def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> base.ControlTrace:
         """A :class:`ControlTrace` of the last call (copies of the buffers)."""
-        return ControlTrace(
+        return base.ControlTrace(
             e_q=e_q.copy(),
             s=self.s.copy(),
             s0=self.s0.copy(),
@@ -237,7 +223,7 @@ class LawWorkspace(Law):
         )
 
 
-def build(context: LawContext) -> LawWorkspace:
+def build(context: base.LawContext) -> LawWorkspace:
     """The registry's factory of ``control.law = "arimoto"`` (the paper's gains, no options)."""
     return LawWorkspace(context.robot.nv, context.constraint.k, context.gains)
 
@@ -252,7 +238,7 @@ def damping_matrix(Kd: object, kd_rate: float, M0: np.ndarray) -> np.ndarray:
     return K * np.eye(n) if K.ndim == 0 else (np.diag(K) if K.ndim == 1 else K)
 
 
-def loop_bounds(context: LoopContext) -> list[LoopBound]:
+def loop_bounds(context: base.LoopContext) -> list[base.LoopBound]:
     """The paper's laws' pre-run checks (``arimoto`` and ``arimoto_adaptive``): the velocity
     loop, and in a sampled run the force loop through β.
 
@@ -285,26 +271,16 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     kd_part = lambda_part = number = 0.0
     for q in qs:
         M, M_c = context.plant_mass(q), context.model_mass(q)
-        number = max(number, velocity_loop_number(M, Kd + s.Lambda * M_c, T))
-        kd_part = max(kd_part, velocity_loop_number(M, Kd, T))
-        lambda_part = max(lambda_part, velocity_loop_number(M, s.Lambda * M_c, T))
+        number = max(number, force_loop.velocity_loop_number(M, Kd + s.Lambda * M_c, T))
+        kd_part = max(kd_part, force_loop.velocity_loop_number(M, Kd, T))
+        lambda_part = max(lambda_part, force_loop.velocity_loop_number(M, s.Lambda * M_c, T))
     if lambda_part > kd_part:  # Λ M_c carries most of the loop
         key, value = context.named("control.Lambda", s.Lambda)
     elif s.Kd is None:
         key, value = context.named("control.kd_rate", s.kd_rate)
     else:
         key, value = context.named("control.Kd", np.asarray(s.Kd).tolist())
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            f"the sampled velocity loop q̇ ← (I − T M⁻¹(K_d + Λ M_c)) q̇ (M the plant's, M_c "
-            f"the controller's; {context.where}) diverges unless T·λ_max(M⁻¹(K_d + Λ M_c)) < 2; "
-            f"here it reaches {number:.4g} along the path",
-        )
-    ]
+    bounds = [base.velocity_loop_bound(key, value, number, "(K_d + Λ M_c)", context.where)]
     # the force integral: f ∋ −b e_F, b = γ ρ(W⁻¹ A M⁻¹ Aᵀ) + β ρ(W⁻¹ A M⁻¹ K_d A⁺), and the
     # proportional a = β ρ(W⁻¹ A M⁻¹ M_c A⁺) per unit β
     b, per_beta, least_per_beta = 0.0, 0.0, math.inf
@@ -313,35 +289,35 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
         A_pinv = np.linalg.pinv(A_c)
         b = max(
             b,
-            s.gamma * force_feedthrough(M, A, A_c.T)
-            + s.beta * force_feedthrough(M, A, Kd @ A_pinv),
+            s.gamma * force_loop.force_feedthrough(M, A, A_c.T)
+            + s.beta * force_loop.force_feedthrough(M, A, Kd @ A_pinv),
         )
-        a_q = force_feedthrough(M, A, context.model_mass(q) @ A_pinv)
+        a_q = force_loop.force_feedthrough(M, A, context.model_mass(q) @ A_pinv)
         per_beta, least_per_beta = max(per_beta, a_q), min(least_per_beta, a_q)
     # the proportional loop is checked first: a β too large also inflates b (its K_d β A⁺
     # part), and the integral's message would then blame γ for it
     if context.sampled and s.beta > 0:
-        a_star = max_stable_gain(context.alpha, context.delay)
+        a_star = force_loop.max_stable_gain(context.alpha, context.delay)
         bound = a_star / per_beta
         bounds.append(
-            LoopBound(
+            base.LoopBound(
                 "control.beta",
                 s.beta,
                 s.beta,
                 bound,
                 "the sampled force loop f_k = c − a f̃_k, a = β·ρ(W⁻¹ A M⁻¹ M_c A⁺) "
                 f"({context.where}) oscillates and grows for a >= {a_star:.4g}: "
-                f"beta must stay below {below(bound)} (any beta below is stable, e.g. "
-                f"{below(0.99 * bound)}) (ρ(W⁻¹ A M⁻¹ M_c A⁺) up to {per_beta:.4g} along the "
+                f"beta must stay below {base.below(bound)} (any beta below is stable, e.g. "
+                f"{base.below(0.99 * bound)}) (ρ(W⁻¹ A M⁻¹ M_c A⁺) up to {per_beta:.4g} along the "
                 "path; docs/scenarios.md, [sensor])",
             )
         )
     if context.sampled:
-        step = largest_integral_step(context.alpha, context.delay)
+        step = force_loop.largest_integral_step(context.alpha, context.delay)
     else:  # exact: (1 + a) f = c − b E, E_(k+1) = (1 − bT/(1 + a)) E_k
         step = 2.0 * (1.0 + s.beta * least_per_beta)
     bounds.append(
-        LoopBound(
+        base.LoopBound(
             "control.gamma",
             s.gamma,
             b * T,
@@ -349,18 +325,18 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
             f"the force integral E_(k+1) = E_k + T (f − f_d) with f ∋ −b E, b = γ ρ(W⁻¹ A M⁻¹ Aᵀ) "
             f"+ β ρ(W⁻¹ A M⁻¹ K_d A⁺) = {b:.4g} 1/s ({context.where}) oscillates and grows "
             f"unless b·T < {step:.4g}; here b·T = {b * T:.4g}: gamma must stay below about "
-            f"{below(s.gamma * step / (b * T))} 1/s",
+            f"{base.below(s.gamma * step / (b * T))} 1/s",
         )
     )
     return bounds
 
 
-register(
-    LawSpec(
+base.register(
+    base.LawSpec(
         "arimoto",
         "the paper's modified Arimoto hybrid law with its phase supervisor (eq. 4, 11, 29-31)",
         build,
-        gains=PAPER_GAINS,
+        gains=base.PAPER_GAINS,
         loop_bounds=loop_bounds,
     )
 )

@@ -70,6 +70,7 @@ __all__ = [
     "law_names",
     "law_spec",
     "register",
+    "velocity_loop_bound",
 ]
 
 
@@ -353,6 +354,27 @@ class LoopBound:
     def stable(self) -> bool:
         """number < limit."""
         return bool(self.number < self.limit)
+
+
+def velocity_loop_bound(
+    key: str, value: object, number: float, gain: str, where: str, defined: str = ""
+) -> LoopBound:
+    """The bound of a law's sampled velocity loop q̇ ← (I − T M⁻¹ G) q̇ (M the plant's, G the
+    law's damping from the controller's model M_c): stable iff T·λ_max(M⁻¹ G) < 2
+    (:func:`~hybrid_force.control.force_loop.velocity_loop_number`, ``number`` along the path).
+
+    ``gain`` is G as the message writes it after M⁻¹ (" G", "(K_d + Λ M_c)"), ``defined`` what
+    it is (", G = 2ζω (Jᵀ Λ_c J + M_c N)") and ``where`` :attr:`LoopContext.where`.
+    """
+    return LoopBound(
+        key,
+        value,
+        number,
+        2.0,
+        f"the sampled velocity loop q̇ ← (I − T M⁻¹{gain}) q̇{defined} (M the plant's, M_c the "
+        f"controller's; {where}) diverges unless T·λ_max(M⁻¹{gain}) < 2; here it reaches "
+        f"{number:.4g} along the path",
+    )
 
 
 @dataclass(frozen=True)

@@ -81,25 +81,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
+from hybrid_force.control import force_loop
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
-from hybrid_force.control.force_loop import (
-    force_feedthrough,
-    largest_integral_step,
-    velocity_loop_number,
-)
-from hybrid_force.control.laws.base import (
-    Command,
-    Desired,
-    Law,
-    LawContext,
-    LawInput,
-    LawOptions,
-    LawSpec,
-    LoopBound,
-    LoopContext,
-    below,
-    register,
-)
+from hybrid_force.control.laws import base
 from hybrid_force.control.laws.osc_hybrid import task_space
 from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.model.robot import RobotTerms
@@ -120,7 +104,7 @@ _MAX_RATE_STEP = 0.5  # ω·dt and κ_f·dt must stay below this (explicit step,
 
 
 @dataclass(frozen=True)
-class ImpedanceGains(LawOptions):
+class ImpedanceGains(base.LawOptions):
     """Settings of the impedance law (the ``[control.impedance]`` table).
 
     Raises:
@@ -164,7 +148,7 @@ def _singular(robot: RobotTerms) -> SurfaceError:
     )
 
 
-class ImpedanceWorkspace(Law):
+class ImpedanceWorkspace(base.Law):
     """The impedance law (module docstring) as one compiled call per step, into arrays
     preallocated here (:func:`hybrid_force.control.laws._impedance_kernels.impedance`: the
     Cholesky factorisation of M and the small solves written out); a
@@ -196,17 +180,17 @@ class ImpedanceWorkspace(Law):
         self._no_rows: np.ndarray | None = None  # (0, n), made at the first call
         self._none = np.zeros(0)
         self._u: np.ndarray | None = None
-        self._command: Command | None = None
+        self._command: base.Command | None = None
         self._work: np.ndarray | None = None
 
     V = math.nan
 
-    def free_space(self, inp: LawInput) -> Command:
+    def free_space(self, inp: base.LawInput) -> base.Command:
         """Eq. (1) with p_r = p_d, ṗ_r = ṗ_d (module docstring)."""
         self._in_contact = False
         return self._run(inp, None, _FREE)
 
-    def hybrid(self, inp: LawInput) -> Command:
+    def hybrid(self, inp: base.LawInput) -> base.Command:
         """Eq. (1) near the surface (approach given) and in contact (eq. 2); e_F is unused."""
         cons, f_d = inp.rows, inp.f_d
         if inp.approach is not None:
@@ -233,12 +217,12 @@ class ImpedanceWorkspace(Law):
 
     def _run(
         self,
-        inp: LawInput,
+        inp: base.LawInput,
         cons: ConstraintTerms | None,
         mode: int,
         approach: np.ndarray | None = None,
         along_given: bool = False,
-    ) -> Command:
+    ) -> base.Command:
         robot, desired = inp.robot, inp.desired
         packs = robot.packed()._packs
         assert packs is not None  # packed() always returns terms with their packs
@@ -246,7 +230,7 @@ class ImpedanceWorkspace(Law):
         if self._u is None or self._u.shape[0] != mats.shape[1]:
             n, k = mats.shape[1], self.preload.shape[0]
             self._u = np.zeros(n)
-            self._command = Command(self._u, None)
+            self._command = base.Command(self._u, None)
             self._work = np.zeros((n, n + 3 + k))
             self._no_rows = np.zeros((0, n))
         assert self._command is not None and self._work is not None
@@ -282,13 +266,13 @@ class ImpedanceWorkspace(Law):
 _FREE, _NEAR, _CONTACT = 0, 1, 2  # the kernel's modes (_impedance_kernels.FREE, NEAR, CONTACT)
 
 
-def _task(desired: Desired) -> tuple[np.ndarray, np.ndarray]:
+def _task(desired: base.Desired) -> tuple[np.ndarray, np.ndarray]:
     """p_d, ṗ_d (3,) of the desired sample (the supervisor always gives them)."""
     assert desired.p is not None and desired.pd is not None
     return desired.p, desired.pd
 
 
-def check(context: LawContext) -> None:
+def check(context: base.LawContext) -> None:
     """The registry's check of ``control.law = "impedance"``.
 
     Raises:
@@ -307,13 +291,13 @@ def check(context: LawContext) -> None:
             )
 
 
-def build(context: LawContext) -> ImpedanceWorkspace:
+def build(context: base.LawContext) -> ImpedanceWorkspace:
     """The registry's factory of ``control.law = "impedance"`` (:func:`check` passed)."""
     gains = ImpedanceGains(**context.options)
     return ImpedanceWorkspace(gains, context.constraint, context.constraint.k)
 
 
-def loop_bounds(context: LoopContext) -> list[LoopBound]:
+def loop_bounds(context: base.LoopContext) -> list[base.LoopBound]:
     """The law's pre-run checks: the velocity loop and, sampled, the admittance's force loop.
 
     **Velocity loop.** Eq. 1 holds −Jᵀ D J q̇ − Nᵀ M_c 2ζω q̇ with D = 2ζω Λ_c (Λ_c, N of the
@@ -335,45 +319,37 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
         task = task_space(M_c, context.model.jacobian(q))
         G = rate * (task.J.T @ task.Lambda @ task.J + M_c @ task.N)
         number = max(
-            number, velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period)
+            number,
+            force_loop.velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period),
         )
     key, value = context.named("control.impedance.omega", gains.omega)
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            "the sampled velocity loop q̇ ← (I − T M⁻¹ G) q̇, G = 2ζω (Jᵀ Λ_c J + M_c N) (M the "
-            f"plant's, M_c the controller's; {context.where}) diverges unless "
-            f"T·λ_max(M⁻¹ G) < 2; here it reaches {number:.4g} along the path",
-        )
-    ]
+    gain = ", G = 2ζω (Jᵀ Λ_c J + M_c N)"
+    bounds = [base.velocity_loop_bound(key, value, number, " G", context.where, gain)]
     if context.sampled and gains.force_tracking:
         rho = max(
-            force_feedthrough(
+            force_loop.force_feedthrough(
                 context.plant_mass(q), context.rows(q), context.rows(q, context.model).T
             )
             for q in qs
         )
-        step = largest_integral_step(context.alpha, context.delay)
+        step = force_loop.largest_integral_step(context.alpha, context.delay)
         limit = step / (rho * context.period)
         bounds.append(
-            LoopBound(
+            base.LoopBound(
                 "control.impedance.force_rate",
                 gains.force_rate,
                 gains.force_rate,
                 limit,
                 f"the sampled admittance φ_k = φ_(k−1) + T κ_f (f_d − f̃_(k−1)) ({context.where}) "
                 f"oscillates and grows unless κ_f·ρ·T < {step:.4g}: force_rate must stay below "
-                f"{below(limit)} 1/s (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g})",
+                f"{base.below(limit)} 1/s (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g})",
             )
         )
     return bounds
 
 
-register(
-    LawSpec(
+base.register(
+    base.LawSpec(
         "impedance",
         "Cartesian impedance, K = ω²Λ(q) (Hogan 1985), with force tracking along the "
         "normal (Seraji & Colbaugh 1997)",

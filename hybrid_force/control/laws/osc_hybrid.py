@@ -85,26 +85,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
+from hybrid_force.control import force_loop
 from hybrid_force.control.constraint import Constraint
-from hybrid_force.control.force_loop import (
-    force_feedthrough,
-    largest_integral_step,
-    max_stable_loop_gain,
-    velocity_loop_number,
-)
-from hybrid_force.control.laws.base import (
-    Command,
-    Desired,
-    Law,
-    LawContext,
-    LawInput,
-    LawOptions,
-    LawSpec,
-    LoopBound,
-    LoopContext,
-    below,
-    register,
-)
+from hybrid_force.control.laws import base
 from hybrid_force.errors import ControlError, SurfaceError
 from hybrid_force.schema import param
 
@@ -150,7 +133,7 @@ class OscGains:
 
 
 @dataclass(frozen=True)
-class OscOptions(LawOptions):
+class OscOptions(base.LawOptions):
     """The ``[control.osc_hybrid]`` table. Its defaults are rates, which the law multiplies by
     Λ (or M), so they serve every arm."""
 
@@ -279,7 +262,7 @@ class OscTrace:
     task: TaskSpace
 
 
-def _check_desired(desired: Desired) -> None:
+def _check_desired(desired: base.Desired) -> None:
     """Refuse a Desired without the task-space path (ControlError)."""
     if desired.p is None or desired.pd is None or desired.pdd is None:
         raise ControlError(
@@ -293,7 +276,15 @@ def _check_desired(desired: Desired) -> None:
 _FREE_SPACE, _NEAR, _CONTACT = 0, 1, 2
 
 
-class OscHybridWorkspace(Law):
+_KernelRows = tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
+]  # fmt: skip
+"""What one kernel call reads of the constraint and the force loop, in its order: the rows'
+scale, rate A q̇ and drift (k,), A (k, n), e_F, f_d and the approach speeds (k,); zeros in
+free space (the kernel reads none of them there)."""
+
+
+class OscHybridWorkspace(base.Law):
     """The law (module docstring, eq. 1, 3–6) as one compiled call per step, writing into
     arrays preallocated here (hot path).
 
@@ -354,20 +345,20 @@ class OscHybridWorkspace(Law):
         self.phi = np.zeros(k)
         self.B = np.zeros((n, k))
         self._zeros_k = np.zeros(k)
-        self._zero_rows = np.zeros((k, n))
-        self._free = Command(u0=self.u0, B=None)
-        self._near = Command(u0=self.u0, B=None)
-        self._contact = Command(u0=self.u0, B=self.B if gains.force_p > 0 else None)
+        z = self._zeros_k
+        self._free_rows: _KernelRows = (z, z, z, np.zeros((k, n)), z, z, z)
+        self._free = base.Command(u0=self.u0, B=None)
+        self._near = base.Command(u0=self.u0, B=None)
+        self._contact = base.Command(u0=self.u0, B=self.B if gains.force_p > 0 else None)
         self._mode: int | None = None  # of the last call (None before the first)
         self._J: np.ndarray | None = None  # the J of the last call
 
-    def free_space(self, inp: LawInput) -> Command:
+    def free_space(self, inp: base.LawInput) -> base.Command:
         """Full-task motion control (eq. 3) with the null-space posture (eq. 6)."""
-        z = self._zeros_k
-        self._run(inp, z, z, z, self._zero_rows, z, z, z, _FREE_SPACE)
+        self._run(inp, self._free_rows, _FREE_SPACE)
         return self._free
 
-    def hybrid(self, inp: LawInput) -> Command:
+    def hybrid(self, inp: base.LawInput) -> base.Command:
         """Motion along the surface, force (contact) or approach speed (near) across it
         (eq. 4–6)."""
         cons, robot = inp.rows, inp.robot
@@ -378,22 +369,13 @@ class OscHybridWorkspace(Law):
         if self._python_surfaces:
             for i, surface in self._python_surfaces:
                 self._grads[:, i] = surface.evaluate(robot.p)[1]
-        self._run(inp, cons.scale, cons.rate, cons.drift, cons.A, inp.e_F, inp.f_d, approach, mode)
+        rows = (cons.scale, cons.rate, cons.drift, cons.A, inp.e_F, inp.f_d, approach)
+        self._run(inp, rows, mode)
         return command
 
-    def _run(
-        self,
-        inp: LawInput,
-        scale: np.ndarray,
-        rate: np.ndarray,
-        drift: np.ndarray,
-        A: np.ndarray,
-        e_F: np.ndarray,
-        f_d: np.ndarray,
-        approach: np.ndarray,
-        mode: int,
-    ) -> None:
+    def _run(self, inp: base.LawInput, rows: _KernelRows, mode: int) -> None:
         """One kernel call; raises where it cannot finish (see the class docstring)."""
+        scale, rate, drift, A, e_F, f_d, approach = rows
         robot, desired, v, e_q = inp.robot, inp.desired, inp.v, inp.e_q
         p_d, pd_d, pdd_d = desired.p, desired.pd, desired.pdd
         if p_d is None or pd_d is None or pdd_d is None:
@@ -437,7 +419,7 @@ class OscHybridWorkspace(Law):
         return {"law": _NAME, **vars(self.gains)}
 
 
-def check(context: LawContext) -> None:
+def check(context: base.LawContext) -> None:
     """The registry's check of ``control.law = "osc_hybrid"``.
 
     Raises:
@@ -453,7 +435,7 @@ def check(context: LawContext) -> None:
         )
 
 
-def build(context: LawContext) -> OscHybridWorkspace:
+def build(context: base.LawContext) -> OscHybridWorkspace:
     """The registry's factory of ``control.law = "osc_hybrid"`` (:func:`check` passed)."""
     n = context.robot.nv
     s = context.settings
@@ -463,8 +445,8 @@ def build(context: LawContext) -> OscHybridWorkspace:
 
 
 def force_gain_bounds(
-    context: LoopContext, law: str, p_key: str, p_gain: float, i_key: str, i_gain: float
-) -> list[LoopBound]:
+    context: base.LoopContext, law: str, p_key: str, p_gain: float, i_key: str, i_gain: float
+) -> list[base.LoopBound]:
     """The sampled force loop of a law whose torque holds Aᵀ(k_P f̃ + k_I e_F) (this law's
     eq. 5, Raibert–Craig's eq. 1): B = k_P A_cᵀ (A_c the controller's rows), so by
     :mod:`hybrid_force.control.force_loop` f_k = c − a f̃_k − b E_k with a = k_P ρ and
@@ -478,40 +460,43 @@ def force_gain_bounds(
         return []
     qs = [context.q0, *context.configurations]
     rho = max(
-        force_feedthrough(context.plant_mass(q), context.rows(q), context.rows(q, context.model).T)
+        force_loop.force_feedthrough(
+            context.plant_mass(q), context.rows(q), context.rows(q, context.model).T
+        )
         for q in qs
     )
     T = context.period
-    i_limit = largest_integral_step(context.alpha, context.delay) / (rho * T)
+    i_limit = force_loop.largest_integral_step(context.alpha, context.delay) / (rho * T)
     if not i_gain < i_limit:
         return [
-            LoopBound(
+            base.LoopBound(
                 f"control.{law}.{i_key}",
                 i_gain,
                 i_gain,
                 i_limit,
                 f"the sampled force integral E_k = E_(k−1) + T f̃_(k−1) ({context.where}) "
                 f"oscillates and grows for {i_key}·ρ·T >= "
-                f"{largest_integral_step(context.alpha, context.delay):.4g}: {i_key} must stay "
-                f"below {below(i_limit)} 1/s (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g})",
+                f"{force_loop.largest_integral_step(context.alpha, context.delay):.4g}: "
+                f"{i_key} must stay below {base.below(i_limit)} 1/s "
+                f"(ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g})",
             )
         ]
-    p_limit = max_stable_loop_gain(i_gain * rho * T, context.alpha, context.delay) / rho
+    p_limit = force_loop.max_stable_loop_gain(i_gain * rho * T, context.alpha, context.delay) / rho
     return [
-        LoopBound(
+        base.LoopBound(
             f"control.{law}.{p_key}",
             p_gain,
             p_gain,
             p_limit,
             f"the sampled force loop f_k = c − {p_key}·ρ f̃_k − {i_key}·ρ E_k ({context.where}) "
             f"oscillates and grows, and the tool bounces off the surface, unless {p_key} < "
-            f"{below(p_limit)} (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g} along the path, {i_key} = "
+            f"{base.below(p_limit)} (ρ = ρ(W⁻¹ A M⁻¹ A_cᵀ) = {rho:.4g} along the path, {i_key} = "
             f"{i_gain:g}; docs/laws.md)",
         )
     ]
 
 
-def loop_bounds(context: LoopContext) -> list[LoopBound]:
+def loop_bounds(context: base.LoopContext) -> list[base.LoopBound]:
     """The law's pre-run checks: the velocity loop and, sampled, the force loop.
 
     **Velocity loop.** From eq. 1, 3, 4, 6 the torque holds −Jᵀ Λ_c (K_v Ω + K_n Ω̃) J q̇
@@ -533,27 +518,19 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
         task = task_space(M_c, context.model.jacobian(q))
         G = rate * task.J.T @ task.Lambda @ task.J + gains.null_kd * (M_c @ task.N)
         number = max(
-            number, velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period)
+            number,
+            force_loop.velocity_loop_number(context.plant_mass(q), 0.5 * (G + G.T), context.period),
         )
     key, value = context.named(f"control.{_NAME}.omega", options.omega)
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            "the sampled velocity loop q̇ ← (I − T M⁻¹ G) q̇, G = max(K_v, K_n) Jᵀ Λ_c J + d_n M_c N "
-            f"(M the plant's, M_c the controller's; {context.where}) diverges unless "
-            f"T·λ_max(M⁻¹ G) < 2; here it reaches {number:.4g} along the path",
-        )
-    ]
+    gain = ", G = max(K_v, K_n) Jᵀ Λ_c J + d_n M_c N"
+    bounds = [base.velocity_loop_bound(key, value, number, " G", context.where, gain)]
     return bounds + force_gain_bounds(
         context, _NAME, "force_p", gains.force_p, "force_i", gains.force_i
     )
 
 
-register(
-    LawSpec(
+base.register(
+    base.LawSpec(
         _NAME,
         "operational-space hybrid motion/force control, dynamically consistent, with a "
         "null-space posture (Khatib 1987, IEEE J. Robot. Autom. 3(1))",

@@ -105,18 +105,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.force_loop import velocity_loop_number
-from hybrid_force.control.laws.base import (
-    Command,
-    Law,
-    LawContext,
-    LawInput,
-    LawOptions,
-    LawSpec,
-    LoopBound,
-    LoopContext,
-    register,
-)
+from hybrid_force.control import force_loop
+from hybrid_force.control.laws import base
 from hybrid_force.control.laws.osc_hybrid import force_gain_bounds
 from hybrid_force.errors import ControlError
 from hybrid_force.geometry.surface_base import Surface
@@ -217,7 +207,7 @@ class RaibertCraigGains:
 
 
 @dataclass(frozen=True)
-class RaibertCraigOptions(LawOptions):
+class RaibertCraigOptions(base.LawOptions):
     """The ``[control.raibert_craig]`` table (defaults in the module docstring)."""
 
     law: ClassVar[str] = _NAME
@@ -261,7 +251,7 @@ class RaibertCraigOptions(LawOptions):
         return wp, wd, self.kp, ki
 
 
-def make_gains(context: LawContext) -> RaibertCraigGains:
+def make_gains(context: base.LawContext) -> RaibertCraigGains:
     """The gains from the ``[control.raibert_craig]`` table and the arm at q₀
     (:meth:`RaibertCraigOptions.rates`)."""
     opts = RaibertCraigOptions(**context.options)
@@ -286,7 +276,7 @@ def make_gains(context: LawContext) -> RaibertCraigGains:
     )
 
 
-class RaibertCraigWorkspace(Law):
+class RaibertCraigWorkspace(base.Law):
     """The law of the module docstring (both forms) as one compiled call per step
     (:mod:`hybrid_force.control.laws._raibert_craig_kernels`), writing into arrays preallocated
     here (hot path), with no numpy call and no new array returned. The command returned and
@@ -333,12 +323,12 @@ class RaibertCraigWorkspace(Law):
         self.last_u_pos = self._u_pos
         self._B = np.zeros((n, k))
         self._zeros_k = np.zeros(k)
-        self._plain = Command(u0=self._u0, B=None)
-        self._contact = Command(u0=self._u0, B=self._B if gains.kp > 0 else None)
+        self._plain = base.Command(u0=self._u0, B=None)
+        self._contact = base.Command(u0=self._u0, B=self._B if gains.kp > 0 else None)
 
     V = math.nan
 
-    def free_space(self, inp: LawInput) -> Command:
+    def free_space(self, inp: base.LawInput) -> base.Command:
         """S = I: both forms servo every axis, J⁺(p_d − p) ≈ q_d − q; the joint path q_d
         itself is servoed (module docstring), u = u_ff − K_P e_q − K_D (q̇ − q̇_d)."""
         robot, desired = inp.robot, inp.desired
@@ -350,7 +340,7 @@ class RaibertCraigWorkspace(Law):
         )  # fmt: skip
         return self._plain
 
-    def hybrid(self, inp: LawInput) -> Command:
+    def hybrid(self, inp: base.LawInput) -> base.Command:
         """Near (approach given): position along the surface, v_a across it. Contact: eq. 1–3."""
         robot, cons, desired, approach = inp.robot, inp.rows, inp.desired, inp.approach
         assert desired.p is not None and desired.pd is not None and desired.pdd is not None
@@ -388,14 +378,14 @@ class RaibertCraigWorkspace(Law):
         }
 
 
-def build(context: LawContext) -> RaibertCraigWorkspace:
+def build(context: base.LawContext) -> RaibertCraigWorkspace:
     """The registry's factory of ``control.law = "raibert_craig"``."""
     s = context.settings
     approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
     return RaibertCraigWorkspace(make_gains(context), context.constraint.surfaces, approach_rate)
 
 
-def loop_bounds(context: LoopContext) -> list[LoopBound]:
+def loop_bounds(context: base.LoopContext) -> list[base.LoopBound]:
     """The law's pre-run checks: the velocity loop and, sampled, the force loop.
 
     **Velocity loop.** In free space u = u_ff − K_P e_q − K_D (q̇ − q̇_d) with
@@ -418,25 +408,18 @@ def loop_bounds(context: LoopContext) -> list[LoopBound]:
     M0 = context.model_mass(context.q0)
     Dq = (wp + wd) * 0.5 * (M0 + M0.T)
     qs = [context.q0, *context.configurations]
-    number = max(velocity_loop_number(context.plant_mass(q), Dq, context.period) for q in qs)
+    number = max(
+        force_loop.velocity_loop_number(context.plant_mass(q), Dq, context.period) for q in qs
+    )
     given = opts.damping_rate is not None
     key, value = context.named(f"control.{_NAME}.damping_rate" if given else "control.kd_rate", wd)
-    bounds = [
-        LoopBound(
-            key,
-            value,
-            number,
-            2.0,
-            "the sampled velocity loop q̇ ← (I − T M⁻¹ K_D) q̇, K_D = (ω_p + ω_d) M_c(q₀) (M the "
-            f"plant's, M_c the controller's; {context.where}) diverges unless "
-            f"T·λ_max(M⁻¹ K_D) < 2; here it reaches {number:.4g} along the path",
-        )
-    ]
+    gain = ", K_D = (ω_p + ω_d) M_c(q₀)"
+    bounds = [base.velocity_loop_bound(key, value, number, " K_D", context.where, gain)]
     return bounds + force_gain_bounds(context, _NAME, "kp", kp, "ki", ki)
 
 
-register(
-    LawSpec(
+base.register(
+    base.LawSpec(
         _NAME,
         "task-space selection-matrix hybrid control with a PI force loop (Raibert & Craig "
         "1981; corrected form: Fisher & Mujtaba 1992)",
