@@ -283,16 +283,10 @@ def _turn(
     for _ in range(_MAX_ITERATIONS):
         piece = blend_piece(p0, d0, p1, d1, length)
         curve = PiecewiseCurve.join([length], [piece])
-        speeds = surface_speeds(chart, curve, 0, s * length)
-        fastest = float(np.max(speeds))
-        # On a chart whose scale varies along a pass (a mesh part's projection chart), the
-        # pass arrives faster than 1 and the blend's ends keep that speed whatever L is: the
-        # bound is then the faster end's (the built-in charts' ends are at 1, as before).
-        ends = max(float(speeds[0]), float(speeds[-1]))
-        target = ends if ends > 1.0 + _TURN_RTOL else 1.0
-        if fastest <= target * (1.0 + _TURN_RTOL):
+        fastest = float(np.max(surface_speeds(chart, curve, 0, s * length)))
+        if fastest <= 1.0 + _TURN_RTOL:
             break
-        length *= fastest / target if target != 1.0 else fastest
+        length *= fastest
     return length, blend_piece(p0, d0, p1, d1, length)
 
 
