@@ -50,12 +50,25 @@ __all__ = [
 ]
 
 
-class RunArrays(Protocol):
-    """What the metrics read of a run: a :class:`~hybrid_force.result.Result` (whose module
-    imports this one), or anything with the same arrays."""
+class RunRecord(Protocol):
+    """What every reader of a run finds in it (:class:`RunArrays`,
+    :class:`~hybrid_force.result_summary.SummarisedRun`): the sample times t (N,) [s], the
+    run's meta, its sample count N and its events."""
 
     @property
     def t(self) -> np.ndarray: ...
+    @property
+    def meta(self) -> dict[str, Any]: ...
+    @property
+    def n_samples(self) -> int: ...
+    @property
+    def events(self) -> list[dict[str, Any]]: ...
+
+
+class RunArrays(RunRecord, Protocol):
+    """What the metrics read of a run: a :class:`~hybrid_force.result.Result` (whose module
+    imports this one), or anything with the same arrays."""
+
     @property
     def p(self) -> np.ndarray: ...
     @property
@@ -70,12 +83,6 @@ class RunArrays(Protocol):
     def phase(self) -> np.ndarray: ...
     @property
     def u(self) -> np.ndarray: ...
-    @property
-    def meta(self) -> dict[str, Any]: ...
-    @property
-    def n_samples(self) -> int: ...
-    @property
-    def events(self) -> list[dict[str, Any]]: ...
 
 
 #: Settling time [s] used by :func:`compute_metrics` when ``meta["settings"]`` has none.

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
-from hybrid_force.metrics import Metrics
+from hybrid_force.metrics import Metrics, RunRecord
 
 __all__ = ["REMOVAL_KEYS", "SummarisedRun", "summarise"]
 
@@ -27,18 +27,10 @@ REMOVAL_KEYS: tuple[str, ...] = (
 the uniformity 1 − std/mean and the coverage (area fraction with depth ≥ mean / 2)."""
 
 
-class SummarisedRun(Protocol):
+class SummarisedRun(RunRecord, Protocol):
     """What the summary reads of a run: a :class:`~hybrid_force.result.Result` (whose module
     imports this one)."""
 
-    @property
-    def t(self) -> Any: ...
-    @property
-    def meta(self) -> dict[str, Any]: ...
-    @property
-    def n_samples(self) -> int: ...
-    @property
-    def events(self) -> list[dict[str, Any]]: ...
     @property
     def status(self) -> str: ...
     def metrics(self, settle_time: float | None = None) -> Metrics: ...

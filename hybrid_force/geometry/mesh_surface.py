@@ -127,6 +127,22 @@ class MeshSurface(Surface):
         """Read, place and fit the mesh in ``file`` (``cache``: read and write the field's
         cache file, :func:`.build_field`)."""
         part, fitted = _fit(file, scale, position, rpy, inside, resolution, cache=cache)
+        return cls._of_part(file, scale, position, rpy, inside, resolution, chart, part, fitted)
+
+    @classmethod
+    def _of_part(
+        cls,
+        file: str | Path,
+        scale: float,
+        position: Vec3,
+        rpy: Vec3,
+        inside: bool,
+        resolution: float | None,
+        chart: Any,
+        part: MeshPart,
+        fitted: DistanceField,
+    ) -> MeshSurface:
+        """The surface of the settings and the part read and fitted from them (no refit)."""
         return cls(
             file=str(file),
             scale=scale,
@@ -164,17 +180,7 @@ class MeshSurface(Surface):
         except SurfaceError as exc:
             message = str(exc).replace("surface.chart", f"{table}.chart", 1)
             raise SurfaceError(message, key=f"{table}.chart", value=values.get("chart")) from None
-        return cls(
-            file=str(target),
-            scale=scale,
-            position=position,
-            rpy=rpy,
-            inside=inside,
-            resolution=resolution,
-            chart=chart,
-            part=part,
-            field=fitted,
-        )
+        return cls._of_part(target, scale, position, rpy, inside, resolution, chart, part, fitted)
 
     def __repr__(self) -> str:
         return f"MeshSurface('{self.file}', h={self.field.spacing:.4g} m)"

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _jit_inline
 from hybrid_force.geometry._kernels import surface_eval as _surface_eval
 
 HERTZ = 0
@@ -39,6 +40,52 @@ def _bucket(keys: np.ndarray, key: int) -> int:
     """The position of bucket id ``key`` in the sorted ``keys`` (B,), or −1 (no cell there)."""
     b = int(np.searchsorted(keys, key))
     return b if b < keys.shape[0] and keys[b] == key else -1
+
+
+@_jit_inline
+def _tangential(velocity: np.ndarray, normal: np.ndarray) -> tuple[float, float, float]:
+    """v − (v · n) n: the part of velocity (3,) [m/s] along the surface of unit normal (3,)."""
+    vn = velocity[0] * normal[0] + velocity[1] * normal[1] + velocity[2] * normal[2]
+    return velocity[0] - vn * normal[0], velocity[1] - vn * normal[1], velocity[2] - vn * normal[2]
+
+
+@_jit_inline
+def _offset(points: np.ndarray, i: int, centre: np.ndarray) -> tuple[float, float, float]:
+    """points[i] − centre [m]: cell i's place from centre (3,)."""
+    return points[i, 0] - centre[0], points[i, 1] - centre[1], points[i, 2] - centre[2]
+
+
+@_jit_inline
+def _bucket_box(
+    box: np.ndarray,
+    dims: np.ndarray,
+    centre: np.ndarray,
+    reach: float,
+    lo: np.ndarray,
+    hi: np.ndarray,
+) -> int:
+    """The buckets (box, dims as in :func:`deposit`) of the cube of half-side ``reach`` [m]
+    about centre (3,) [m]: their first and last index per axis lo, hi (3,) int64, written.
+    Returns how many there are (0: the cube misses the grid; lo, hi are then partly set)."""
+    size = box[3]
+    for k in range(3):
+        lo[k] = max(0, math.floor((centre[k] - reach - box[k]) / size))
+        hi[k] = min(dims[k] - 1, math.floor((centre[k] + reach - box[k]) / size))
+        if lo[k] > hi[k]:
+            return 0
+    return (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1)
+
+
+@_jit_inline
+def _box_bucket(keys: np.ndarray, dims: np.ndarray, lo: np.ndarray, hi: np.ndarray, n: int) -> int:
+    """The position in ``keys`` of the n-th bucket of the box lo … hi (:func:`_bucket_box`;
+    z fastest, then y, then x), or −1 (no cell there)."""
+    nz = hi[2] - lo[2] + 1
+    ny = hi[1] - lo[1] + 1
+    bz = lo[2] + n % nz
+    by = lo[1] + (n // nz) % ny
+    bx = lo[0] + n // (nz * ny)
+    return _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
 
 
 @_jit
@@ -81,51 +128,41 @@ def deposit(
     """
     if force <= 0.0 or a <= 0.0:
         return 0
-    vn = velocity[0] * normal[0] + velocity[1] * normal[1] + velocity[2] * normal[2]
-    vt0 = velocity[0] - vn * normal[0]
-    vt1 = velocity[1] - vn * normal[1]
-    vt2 = velocity[2] - vn * normal[2]
+    vt0, vt1, vt2 = _tangential(velocity, normal)
     feed = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2)  # the slip without a spindle
-    size = box[3]
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
-    for k in range(3):
-        lo[k] = max(0, math.floor((centre[k] - a - box[k]) / size))
-        hi[k] = min(dims[k] - 1, math.floor((centre[k] + a - box[k]) / size))
-        if lo[k] > hi[k]:
-            return 0
+    buckets = _bucket_box(box, dims, centre, a, lo, hi)
+    if buckets == 0:
+        return 0
     a2 = a * a
     total = 0.0
     inside = 0
     nearest = -1
     nearest_d2 = math.inf
     # one scan of the buckets: the cells inside, their profile w and w · slip
-    for bx in range(lo[0], hi[0] + 1):
-        for by in range(lo[1], hi[1] + 1):
-            for bz in range(lo[2], hi[2] + 1):
-                b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
-                if b < 0:
-                    continue
-                for s in range(starts[b], starts[b + 1]):
-                    i = order[s]
-                    r0 = points[i, 0] - centre[0]
-                    r1 = points[i, 1] - centre[1]
-                    r2 = points[i, 2] - centre[2]
-                    d2 = r0 * r0 + r1 * r1 + r2 * r2
-                    if d2 < nearest_d2:
-                        nearest_d2 = d2
-                        nearest = i
-                    if d2 >= a2:
-                        continue
-                    w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
-                    total += w * areas[i]
-                    if omega != 0.0:
-                        w *= _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
-                    else:
-                        w *= feed
-                    index[inside] = i
-                    weight[inside] = w
-                    inside += 1
+    for n in range(buckets):
+        b = _box_bucket(keys, dims, lo, hi, n)
+        if b < 0:
+            continue
+        for s in range(starts[b], starts[b + 1]):
+            i = order[s]
+            r0, r1, r2 = _offset(points, i, centre)
+            d2 = r0 * r0 + r1 * r1 + r2 * r2
+            if d2 < nearest_d2:
+                nearest_d2 = d2
+                nearest = i
+            if d2 >= a2:
+                continue
+            w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
+            total += w * areas[i]
+            if omega != 0.0:
+                w *= _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
+            else:
+                w *= feed
+            index[inside] = i
+            weight[inside] = w
+            inside += 1
     if total > 0.0:
         scale = factor * force / total
         for c in range(inside):
@@ -133,9 +170,7 @@ def deposit(
         return inside
     if nearest >= 0:
         # the patch falls between cell centres: all of F on the nearest cell
-        r0 = points[nearest, 0] - centre[0]
-        r1 = points[nearest, 1] - centre[1]
-        r2 = points[nearest, 2] - centre[2]
+        r0, r1, r2 = _offset(points, nearest, centre)
         speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
         depth[nearest] += factor * force / areas[nearest] * speed
     return 0
@@ -249,12 +284,8 @@ def observe(
     for k in range(3):
         centre[k] = p[k] - distance * normal[k]
     if v_ref > 0.0:  # the spindle slows with the feed
-        vn = velocity[0] * normal[0] + velocity[1] * normal[1] + velocity[2] * normal[2]
-        s2 = 0.0
-        for k in range(3):
-            vt = velocity[k] - vn * normal[k]
-            s2 += vt * vt
-        omega = omega * math.sqrt(s2) / v_ref
+        vt0, vt1, vt2 = _tangential(velocity, normal)
+        omega = omega * math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2) / v_ref
     deposit(
         points, areas, order, keys, starts, box, dims, depth, centre, normal, velocity, omega, a,
         shape, force, factor, index, weight,
@@ -276,32 +307,20 @@ def mark_near(
 ) -> None:
     """out[i] = True for each cell i (points (M, 3) [m], bucketed as in :func:`deposit`)
     within ``reach`` [m] of one of the samples (S, 3) [m]; out (M,) bool, written."""
-    size = box[3]
     r2 = reach * reach
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
     for s in range(samples.shape[0]):
-        empty = False
-        for k in range(3):
-            lo[k] = max(0, math.floor((samples[s, k] - reach - box[k]) / size))
-            hi[k] = min(dims[k] - 1, math.floor((samples[s, k] + reach - box[k]) / size))
-            if lo[k] > hi[k]:
-                empty = True
-        if empty:
-            continue
-        for bx in range(lo[0], hi[0] + 1):
-            for by in range(lo[1], hi[1] + 1):
-                for bz in range(lo[2], hi[2] + 1):
-                    b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
-                    if b < 0:
-                        continue
-                    for j in range(starts[b], starts[b + 1]):
-                        i = order[j]
-                        d0 = points[i, 0] - samples[s, 0]
-                        d1 = points[i, 1] - samples[s, 1]
-                        d2 = points[i, 2] - samples[s, 2]
-                        if d0 * d0 + d1 * d1 + d2 * d2 < r2:
-                            out[i] = True
+        sample = samples[s]
+        for n in range(_bucket_box(box, dims, sample, reach, lo, hi)):
+            b = _box_bucket(keys, dims, lo, hi, n)
+            if b < 0:
+                continue
+            for j in range(starts[b], starts[b + 1]):
+                i = order[j]
+                d0, d1, d2 = _offset(points, i, sample)
+                if d0 * d0 + d1 * d1 + d2 * d2 < r2:
+                    out[i] = True
 
 
 @_jit

@@ -158,6 +158,19 @@ def flat_profile(y: np.ndarray, a: float, p: float, k_p: float) -> np.ndarray:
     return np.where(np.abs(y) < a, 2.0 * k_p * p * np.sqrt(np.maximum(a * a - y * y, 0.0)), 0.0)
 
 
+def _chart_lattice(
+    chart: object, u_range: tuple[float, float], v_range: tuple[float, float], resolution: float
+) -> tuple[int, int, float, float]:
+    """The cell counts nu, nv over the (u, v) box of a chart and the cells' sides du, dv (in
+    u, in v): cells about ``resolution`` [m] wide on the surface, by |S_u|, |S_v| at the
+    box's middle."""
+    mid_u, mid_v = 0.5 * sum(u_range), 0.5 * sum(v_range)
+    _, su, sv = chart.derivatives(mid_u, mid_v)[:3, 0]  # type: ignore[attr-defined]
+    nu = max(1, math.ceil((u_range[1] - u_range[0]) * np.linalg.norm(su) / resolution))
+    nv = max(1, math.ceil((v_range[1] - v_range[0]) * np.linalg.norm(sv) / resolution))
+    return nu, nv, (u_range[1] - u_range[0]) / nu, (v_range[1] - v_range[0]) / nv
+
+
 class RemovalGrid:
     """Cells on the surface: centres (M, 3) [m], areas (M,) [m²], and the depth (M,) [m].
 
@@ -201,20 +214,11 @@ class RemovalGrid:
         The cell counts give cells about ``resolution`` [m] wide on the surface; each cell's
         area is |S_u × S_v| du dv at its centre (midpoint rule).
         """
-        derivatives = chart.derivatives  # type: ignore[attr-defined]
-        mid_u, mid_v = 0.5 * sum(u_range), 0.5 * sum(v_range)
-        _, su, sv = derivatives(mid_u, mid_v)[:3, 0]
-        nu = max(1, math.ceil((u_range[1] - u_range[0]) * np.linalg.norm(su) / resolution))
-        nv = max(1, math.ceil((v_range[1] - v_range[0]) * np.linalg.norm(sv) / resolution))
-        du, dv = (u_range[1] - u_range[0]) / nu, (v_range[1] - v_range[0]) / nv
+        nu, nv, du, dv = _chart_lattice(chart, u_range, v_range, resolution)
         u = u_range[0] + du * (np.arange(nu) + 0.5)
         v = v_range[0] + dv * (np.arange(nv) + 0.5)
         uu, vv = (x.ravel() for x in np.meshgrid(u, v, indexing="ij"))
-        d = derivatives(uu, vv)
-        areas = np.linalg.norm(np.cross(d[1], d[2]), axis=1) * du * dv
-        grid = cls(d[0], areas, bucket=4.0 * resolution)
-        grid.uv = np.column_stack([uu, vv])
-        return grid
+        return cls._of_chart_cells(chart, uu, vv, du, dv, 4.0 * resolution)
 
     @classmethod
     def on_chart_near(
@@ -234,12 +238,7 @@ class RemovalGrid:
         ``wrap_u``: u_range is one whole period (a cell's neighbour across its end is the
         first cell). ``bucket`` [m]: the buckets' side (default 4 × resolution).
         """
-        derivatives = chart.derivatives  # type: ignore[attr-defined]
-        mid_u, mid_v = 0.5 * sum(u_range), 0.5 * sum(v_range)
-        _, su, sv = derivatives(mid_u, mid_v)[:3, 0]
-        nu = max(1, math.ceil((u_range[1] - u_range[0]) * np.linalg.norm(su) / resolution))
-        nv = max(1, math.ceil((v_range[1] - v_range[0]) * np.linalg.norm(sv) / resolution))
-        du, dv = (u_range[1] - u_range[0]) / nu, (v_range[1] - v_range[0]) / nv
+        nu, nv, du, dv = _chart_lattice(chart, u_range, v_range, resolution)
         iu = np.floor((np.asarray(uv[:, 0]) - u_range[0]) / du).astype(np.int64)
         iv = np.floor((np.asarray(uv[:, 1]) - v_range[0]) / dv).astype(np.int64)
         mu, mv = math.ceil(reach[0] / du), math.ceil(reach[1] / dv)
@@ -285,9 +284,25 @@ class RemovalGrid:
             flat = np.unique(np.concatenate(chosen)) if chosen else np.zeros(0, dtype=np.int64)
         uu = u_range[0] + du * (flat // nv + 0.5)
         vv = v_range[0] + dv * (flat % nv + 0.5)
-        d = derivatives(uu, vv)
+        return cls._of_chart_cells(
+            chart, uu, vv, du, dv, 4.0 * resolution if bucket is None else bucket
+        )
+
+    @classmethod
+    def _of_chart_cells(
+        cls,
+        chart: object,
+        uu: np.ndarray,
+        vv: np.ndarray,
+        du: float,
+        dv: float,
+        bucket: float,
+    ) -> RemovalGrid:
+        """The grid of the chart cells centred at (uu, vv) (M,) each, du × dv wide: the cell's
+        area |S_u × S_v| du dv at its centre [m²] (midpoint rule), buckets ``bucket`` [m]."""
+        d = chart.derivatives(uu, vv)  # type: ignore[attr-defined]
         areas = np.linalg.norm(np.cross(d[1], d[2]), axis=1) * du * dv
-        grid = cls(d[0], areas, bucket=4.0 * resolution if bucket is None else bucket)
+        grid = cls(d[0], areas, bucket=bucket)
         grid.uv = np.column_stack([uu, vv])
         return grid
 

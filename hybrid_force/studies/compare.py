@@ -43,7 +43,7 @@ from hybrid_force.scenario.overrides import parse_override
 from hybrid_force.studies.command_line import add_engine_arguments, run_stoppable
 from hybrid_force.studies.engines import StartMethod
 from hybrid_force.studies.progress import Progress, format_duration
-from hybrid_force.studies.sweep import run_sweep
+from hybrid_force.studies.sweep import add_trust_xacro_argument, run_sweep
 from hybrid_force.studies.table import (
     _CSV_NAME,
     _cell,
@@ -326,12 +326,7 @@ def add_compare_arguments(parser: argparse.ArgumentParser) -> None:
         help="override a key of the file for every law (TOML value), e.g. --set "
         "sim.duration=5; repeatable; not control.law",
     )
-    parser.add_argument(
-        "--trust-xacro",
-        action="store_true",
-        help="let xacro run the .xacro model's Python expressions (as robot.xacro_trust = "
-        "true; trusted files only, docs/robots.md)",
-    )
+    add_trust_xacro_argument(parser)
     add_engine_arguments(parser)
 
 

@@ -102,7 +102,7 @@ from hybrid_force.studies.variants import (
     run_id,
 )
 
-__all__ = ["add_sweep_arguments", "run_sweep", "sweep_command"]
+__all__ = ["add_sweep_arguments", "add_trust_xacro_argument", "run_sweep", "sweep_command"]
 
 
 def run_sweep(
@@ -416,13 +416,19 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="save every run's result to DIR/results/<run_id>.npz",
     )
+    add_trust_xacro_argument(parser)
+    add_engine_arguments(parser)
+
+
+def add_trust_xacro_argument(parser: argparse.ArgumentParser) -> None:
+    """Define ``--trust-xacro`` (as ``robot.xacro_trust = true`` for every run): shared by
+    ``sweep`` and ``compare``."""
     parser.add_argument(
         "--trust-xacro",
         action="store_true",
         help="let xacro run the .xacro model's Python expressions (as robot.xacro_trust = "
         "true; trusted files only, docs/robots.md)",
     )
-    add_engine_arguments(parser)
 
 
 _EXIT_STATUS_HELP = f"""\
