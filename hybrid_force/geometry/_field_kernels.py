@@ -44,7 +44,6 @@ def field_eval(
     p: np.ndarray,
     grad: np.ndarray,
     hess: np.ndarray,
-    work: np.ndarray | None = None,
 ) -> float:
     """Φ(p) of the tricubic B-spline with coefficients ``coef`` and its ∇Φ, ∇²Φ in closed form.
 
@@ -53,12 +52,23 @@ def field_eval(
     and hess (3, 3) [Φ/m²]. Outside the grid's box the field is continued linearly from the
     box's nearest point p_c: Φ(p_c) + ∇Φ(p_c)·(p − p_c), ∇Φ = ∇Φ(p_c), ∇²Φ = 0 (C⁰ and C¹
     along the box's normal; the box is sized so that the tool works well inside it).
-
-    work: (9, 4) scratch for the basis weights, allocated by the caller (once for the many
-    evaluations of a chart's ray march), or None: allocated here.
     """
-    if work is None:
-        work = np.empty((9, 4))
+    work = np.empty((9, 4))
+    return _field_eval_into(coef, origin, h, p, grad, hess, work)
+
+
+@_jit
+def _field_eval_into(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    work: np.ndarray,
+) -> float:
+    """:func:`field_eval` with its basis weights in ``work`` (9, 4), allocated by the caller
+    (once for the many evaluations of a chart's ray march)."""
     bx, dx, sx = work[0], work[1], work[2]
     by, dy, sy = work[3], work[4], work[5]
     bz, dz, sz = work[6], work[7], work[8]
@@ -143,7 +153,7 @@ def field_eval_many(
     hess = np.empty((3, 3))
     work = np.empty((9, 4))
     for r in range(points.shape[0]):
-        out[r] = field_eval(coef, origin, h, points[r], grad, hess, work)
+        out[r] = _field_eval_into(coef, origin, h, points[r], grad, hess, work)
 
 
 @_jit
@@ -231,7 +241,7 @@ def ray_chart_of(
     s = s_start
     for k in range(3):
         p[k] = rows[0, k] + s * rows[6, k]
-    phi = field_eval(coef, origin, h, p, grad, hess, work)
+    phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
     if not phi > 0.0:
         return math.nan
     lo = s
@@ -247,7 +257,7 @@ def ray_chart_of(
         s_new = s_start + direction * travelled
         for k in range(3):
             p[k] = rows[0, k] + s_new * rows[6, k]
-        phi_new = field_eval(coef, origin, h, p, grad, hess, work)
+        phi_new = _field_eval_into(coef, origin, h, p, grad, hess, work)
         if phi_new <= 0.0:
             hi = s_new
             break
@@ -262,7 +272,7 @@ def ray_chart_of(
     for _ in range(200):
         for k in range(3):
             p[k] = rows[0, k] + s * rows[6, k]
-        phi = field_eval(coef, origin, h, p, grad, hess, work)
+        phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
         if abs(phi) <= 1e-14:
             break
         if phi > 0.0:
@@ -277,7 +287,7 @@ def ray_chart_of(
             break
     for k in range(3):
         p[k] = rows[0, k] + s * rows[6, k]
-    field_eval(coef, origin, h, p, grad, hess, work)
+    _field_eval_into(coef, origin, h, p, grad, hess, work)
     a = grad[0] * rows[6, 0] + grad[1] * rows[6, 1] + grad[2] * rows[6, 2]
     gnorm = math.sqrt(grad[0] ** 2 + grad[1] ** 2 + grad[2] ** 2)
     if not abs(a) >= 1e-3 * gnorm:

@@ -77,15 +77,34 @@ def _bucket_box(
 
 
 @_jit_inline
-def _box_bucket(keys: np.ndarray, dims: np.ndarray, lo: np.ndarray, hi: np.ndarray, n: int) -> int:
-    """The position in ``keys`` of the n-th bucket of the box lo … hi (:func:`_bucket_box`;
-    z fastest, then y, then x), or −1 (no cell there)."""
-    nz = hi[2] - lo[2] + 1
-    ny = hi[1] - lo[1] + 1
-    bz = lo[2] + n % nz
-    by = lo[1] + (n // nz) % ny
-    bx = lo[0] + n // (nz * ny)
-    return _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
+def _cells_in_box(
+    order: np.ndarray,
+    keys: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    centre: np.ndarray,
+    reach: float,
+    out: np.ndarray,
+) -> int:
+    """The cells (bucketed as in :func:`deposit`) of the buckets that the cube of half-side
+    ``reach`` [m] about centre (3,) [m] covers, bucket by bucket (x slowest, z fastest), in
+    out (M,) int64; returns their count (each cell is in one bucket: at most M)."""
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    count = 0
+    if _bucket_box(box, dims, centre, reach, lo, hi) == 0:
+        return count
+    for bx in range(lo[0], hi[0] + 1):
+        for by in range(lo[1], hi[1] + 1):
+            for bz in range(lo[2], hi[2] + 1):
+                b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
+                if b < 0:
+                    continue
+                for s in range(starts[b], starts[b + 1]):
+                    out[count] = order[s]
+                    count += 1
+    return count
 
 
 @_jit
@@ -130,39 +149,32 @@ def deposit(
         return 0
     vt0, vt1, vt2 = _tangential(velocity, normal)
     feed = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2)  # the slip without a spindle
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
-    buckets = _bucket_box(box, dims, centre, a, lo, hi)
-    if buckets == 0:
-        return 0
+    # the candidates in ``index``, compacted in place to the cells inside (inside ≤ c)
+    candidates = _cells_in_box(order, keys, starts, box, dims, centre, a, index)
     a2 = a * a
     total = 0.0
     inside = 0
     nearest = -1
     nearest_d2 = math.inf
     # one scan of the buckets: the cells inside, their profile w and w · slip
-    for n in range(buckets):
-        b = _box_bucket(keys, dims, lo, hi, n)
-        if b < 0:
+    for c in range(candidates):
+        i = index[c]
+        r0, r1, r2 = _offset(points, i, centre)
+        d2 = r0 * r0 + r1 * r1 + r2 * r2
+        if d2 < nearest_d2:
+            nearest_d2 = d2
+            nearest = i
+        if d2 >= a2:
             continue
-        for s in range(starts[b], starts[b + 1]):
-            i = order[s]
-            r0, r1, r2 = _offset(points, i, centre)
-            d2 = r0 * r0 + r1 * r1 + r2 * r2
-            if d2 < nearest_d2:
-                nearest_d2 = d2
-                nearest = i
-            if d2 >= a2:
-                continue
-            w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
-            total += w * areas[i]
-            if omega != 0.0:
-                w *= _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
-            else:
-                w *= feed
-            index[inside] = i
-            weight[inside] = w
-            inside += 1
+        w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
+        total += w * areas[i]
+        if omega != 0.0:
+            w *= _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
+        else:
+            w *= feed
+        index[inside] = i
+        weight[inside] = w
+        inside += 1
     if total > 0.0:
         scale = factor * force / total
         for c in range(inside):
@@ -308,19 +320,13 @@ def mark_near(
     """out[i] = True for each cell i (points (M, 3) [m], bucketed as in :func:`deposit`)
     within ``reach`` [m] of one of the samples (S, 3) [m]; out (M,) bool, written."""
     r2 = reach * reach
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
+    cells = np.empty(points.shape[0], dtype=np.int64)
     for s in range(samples.shape[0]):
         sample = samples[s]
-        for n in range(_bucket_box(box, dims, sample, reach, lo, hi)):
-            b = _box_bucket(keys, dims, lo, hi, n)
-            if b < 0:
-                continue
-            for j in range(starts[b], starts[b + 1]):
-                i = order[j]
-                d0, d1, d2 = _offset(points, i, sample)
-                if d0 * d0 + d1 * d1 + d2 * d2 < r2:
-                    out[i] = True
+        for c in range(_cells_in_box(order, keys, starts, box, dims, sample, reach, cells)):
+            d0, d1, d2 = _offset(points, cells[c], sample)
+            if d0 * d0 + d1 * d1 + d2 * d2 < r2:
+                out[cells[c]] = True
 
 
 @_jit
