@@ -417,12 +417,18 @@ def _fig_lyapunov(run: _Run) -> Figure:
     """V = ½sᵀMs + ½βe_F² [J] (section 5.1) against time, contact phase shaded."""
     fig = _new_figure(8.5, 4.5)
     ax = fig.add_subplot()
-    if not _semilog(ax, run.t, run.V, color="k", lw=1.0, label="V"):
-        ax.plot(run.t, run.V, color="k", lw=1.0, label="V")
-        _note(ax, "V has no positive finite value: linear scale")
+    _semilog_or_linear(ax, run.t, run.V, "V", "V")
     _shade(ax, run.t, run.phase == NEAR, "tab:orange", "near phase")
     ylabel = r"$V = \frac{1}{2}s^T M s + \frac{1}{2}\beta e_F^2$ [J]"
     return _time_panel(fig, ax, run, ylabel, "Lyapunov function")
+
+
+def _semilog_or_linear(ax: Axes, t: np.ndarray, y: np.ndarray, label: str, what: str) -> None:
+    """y (N,) against t (N,) [s] as a black line on a log scale, or on a linear one with a note
+    naming ``what`` when y has no positive finite value (a log axis could not show it)."""
+    if not _semilog(ax, t, y, color="k", lw=1.0, label=label):
+        ax.plot(t, y, color="k", lw=1.0, label=label)
+        _note(ax, f"{what} has no positive finite value: linear scale")
 
 
 def _time_panel(fig: Figure, ax: Axes, run: _Run, ylabel: str, title: str) -> Figure:
@@ -444,9 +450,8 @@ def _fig_tool_angle(run: _Run) -> Figure:
     angle = run.tool_angle
     if angle is None:
         _note(ax, 'no tool angle: the run did not control the tool\'s direction ("free")')
-    elif not _semilog(ax, run.t, angle, color="k", lw=1.0, label="tool angle"):
-        ax.plot(run.t, angle, color="k", lw=1.0, label="tool angle")
-        _note(ax, "the angle has no positive finite value: linear scale")
+    else:
+        _semilog_or_linear(ax, run.t, angle, "tool angle", "the angle")
     if run.settle_time is not None and run.t[0] <= run.settle_time <= run.t[-1]:
         ax.axvline(run.settle_time, color="tab:blue", ls="--", lw=1.0, label="settle time")
     if angle is not None:
