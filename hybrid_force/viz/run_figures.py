@@ -404,13 +404,8 @@ def _fig_desired_force(run: _Run) -> Figure:
                 color=_KIND_COLOURS.get(kinds[0], "tab:gray"),
                 bbox={"facecolor": "white", "alpha": 0.75, "edgecolor": "none", "pad": 1.0},
             )
-    ax.set_xlim(run.t[0], t_end)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("force along the surface normal [N]")
-    ax.grid(True, alpha=0.3)
-    _legend_right(ax)
-    ax.set_title(f"{run.name}: desired force, first {t_end - run.t[0]:.3g} s")
-    return fig
+    title = f"desired force, first {t_end - run.t[0]:.3g} s"
+    return _finish_time_axes(fig, ax, run, t_end, "force along the surface normal [N]", title)
 
 
 def _fig_lyapunov(run: _Run) -> Figure:
@@ -434,7 +429,15 @@ def _semilog_or_linear(ax: Axes, t: np.ndarray, y: np.ndarray, label: str, what:
 def _time_panel(fig: Figure, ax: Axes, run: _Run, ylabel: str, title: str) -> Figure:
     """Finish a one-panel figure over the run's time: contact shaded, labels, legend, title."""
     _shade(ax, run.t, run.contact, "tab:green", "contact phase")
-    ax.set_xlim(run.t[0], run.t[-1])
+    return _finish_time_axes(fig, ax, run, run.t[-1], ylabel, title)
+
+
+def _finish_time_axes(
+    fig: Figure, ax: Axes, run: _Run, t_end: float, ylabel: str, title: str
+) -> Figure:
+    """Finish a one-panel figure over the run's time from its start to t_end [s]: labels,
+    grid (its minor lines too on a log axis; a linear one has none), legend, title."""
+    ax.set_xlim(run.t[0], t_end)
     ax.set_xlabel("t [s]")
     ax.set_ylabel(ylabel)
     ax.grid(True, which="both", alpha=0.3)
