@@ -350,32 +350,17 @@ def _fig_desired_force(run: _Run) -> Figure:
     ax = fig.add_subplot()
     t_end = _window_end(run.t)
     sel = run.t <= t_end
+
+    def column(y: np.ndarray, j: int, label: str, **style: Any) -> None:
+        """Column j of y (N, k) [N] over the window, its label naming the surface if k > 1."""
+        ax.plot(run.t[sel], y[sel, j], label=_column_label(label, j, run.k), **style)
+
+    true = "true $f$" if run.f_meas is not None else "$f$"
     for j in range(run.k):
-        ax.plot(
-            run.t[sel],
-            run.f[sel, j],
-            color=f"C{j}",
-            lw=1.0,
-            alpha=0.8,
-            label=_column_label("true $f$" if run.f_meas is not None else "$f$", j, run.k),
-        )
+        column(run.f, j, true, color=f"C{j}", lw=1.0, alpha=0.8)
         if run.f_meas is not None:
-            ax.plot(
-                run.t[sel],
-                run.f_meas[sel, j],
-                color=f"C{j + 3}",
-                lw=0.8,
-                alpha=0.7,
-                label=_column_label("measured $\\tilde f$", j, run.k),
-            )
-        ax.plot(
-            run.t[sel],
-            run.f_d[sel, j],
-            color="k" if run.k == 1 else f"C{j}",
-            lw=1.6,
-            ls="--",
-            label=_column_label("desired $f_d$", j, run.k),
-        )
+            column(run.f_meas, j, "measured $\\tilde f$", color=f"C{j + 3}", lw=0.8, alpha=0.7)
+        column(run.f_d, j, "desired $f_d$", color="k" if run.k == 1 else f"C{j}", lw=1.6, ls="--")
     switches = [(te, kind) for te, kind in _switches(run) if run.t[0] <= te <= t_end]
     seen: set[str] = set()
     for te, kind in switches[:200]:
