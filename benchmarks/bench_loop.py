@@ -69,7 +69,7 @@ _ROOT = Path(__file__).resolve().parents[1]
 #   Robot.terms: crba, computeGeneralizedGravity, computeCoriolisMatrix (also fills J, J̇ and
 #                the placements), updateFramePlacement, getFrameJacobian,
 #                getFrameJacobianTimeVariation
-#   constrained_acceleration: forwardDynamics × 1 (the algebraic loop u = u0 + B f is resolved
+#   ConstrainedDynamics.solve: forwardDynamics × 1 (the algebraic loop u = u0 + B f is resolved
 #                with the factorisation it leaves in data.U, data.D)
 #   DesiredJointPath.advance: forwardKinematics(q) + updateFramePlacement (Newton residual),
 #                computeJointJacobians + updateFramePlacement + getFrameJacobian (q̇_d),

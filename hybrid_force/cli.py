@@ -454,19 +454,17 @@ def build_parser(
     robots.add_argument(
         "--tip", metavar="FRAME", default=None, help="with --check: the tip frame to load with"
     )
-    robots.add_argument(
+    _repeatable(
+        robots,
         "--package-dir",
-        metavar="DIR",
-        action="append",
-        default=[],
-        help="with --check: a folder holding package://NAME/... as NAME/... (repeatable)",
+        "DIR",
+        "with --check: a folder holding package://NAME/... as NAME/... (repeatable)",
     )
-    robots.add_argument(
+    _repeatable(
+        robots,
         "--xacro-arg",
-        metavar="NAME=VALUE",
-        action="append",
-        default=[],
-        help="with --check: an argument of a .xacro model (repeatable)",
+        "NAME=VALUE",
+        "with --check: an argument of a .xacro model (repeatable)",
     )
     robots.add_argument(
         "--keep-off-chain",
@@ -543,6 +541,11 @@ def build_parser(
     return parser
 
 
+def _repeatable(parser: argparse.ArgumentParser, flag: str, metavar: str, help: str) -> None:
+    """A repeatable option of ``parser``: each use appends its value to a list, empty if unused."""
+    parser.add_argument(flag, metavar=metavar, action="append", default=[], help=help)
+
+
 def _add_run(sub: Any) -> None:
     run = sub.add_parser(
         "run",
@@ -558,12 +561,11 @@ def _add_run(sub: Any) -> None:
     run.add_argument(
         "--out", metavar="DIR", default=None, help="output folder (default: runs/<name>/)"
     )
-    run.add_argument(
+    _repeatable(
+        run,
         "--set",
-        metavar="TABLE.KEY=VALUE",
-        action="append",
-        default=[],
-        help="override a key of the file (TOML value), e.g. --set sim.duration=2; repeatable",
+        "TABLE.KEY=VALUE",
+        "override a key of the file (TOML value), e.g. --set sim.duration=2; repeatable",
     )
     run.add_argument("--plot", action="store_true", help="also write the figures (PNG) into DIR")
     run.add_argument("--html", metavar="FILE", default=None, help="write a 3D replay (HTML)")

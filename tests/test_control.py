@@ -30,7 +30,7 @@ from hybrid_force.errors import ControlError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
-from hybrid_force.sim.dynamics import Baumgarte, constrained_acceleration
+from hybrid_force.sim.dynamics import Baumgarte, ConstrainedDynamics
 
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 NORMALIZATIONS = ("tip", "joint")
@@ -316,8 +316,8 @@ def test_loop_resolved_force_and_closed_loop(rtr: Robot, normalization: str, bet
             gamma = baum.gamma(ct.drift, ct.rate, ct.phi / ct.scale)
             data = rtr.new_data()
             pin.crba(rtr.model, data, q)
-            ddq, f = constrained_acceleration(
-                rtr.model, data, terms.nle, cmd.u0, cmd.B, ct.A, gamma
+            ddq, f = ConstrainedDynamics(rtr.model, data, ct.A.shape[0]).solve(
+                terms.nle, cmd.u0, cmd.B, ct.A, gamma
             )
             ddq_k, f_k = kkt(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
             ddq_s, f_s = _schur_solve(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
@@ -369,7 +369,9 @@ def test_loop_resolved_force_two_surfaces(ur5: Robot) -> None:
         gamma = Baumgarte().gamma(ct.drift, ct.rate, ct.phi / ct.scale)
         data = ur5.new_data()
         pin.crba(ur5.model, data, q)
-        ddq, f = constrained_acceleration(ur5.model, data, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
+        ddq, f = ConstrainedDynamics(ur5.model, data, ct.A.shape[0]).solve(
+            terms.nle, cmd.u0, cmd.B, ct.A, gamma
+        )
         ddq_s, f_s = _schur_solve(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
         ddq_k, f_k = kkt(terms.M, terms.nle, cmd.u0, cmd.B, ct.A, gamma)
         np.testing.assert_allclose(f, f_s, rtol=1e-8, atol=1e-8)

@@ -25,7 +25,7 @@ from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.model.robot import Robot
 from hybrid_force.sim.dynamics import (
     Baumgarte,
-    constrained_acceleration,
+    ConstrainedDynamics,
     free_acceleration,
     plastic_impact,
 )
@@ -62,7 +62,7 @@ def _cases(rtr: Robot, ur5: Robot) -> list[tuple[Robot, list[Surface], np.ndarra
 
 
 @pytest.mark.parametrize("normalization", ["tip", "joint"])
-def test_constrained_acceleration_matches_pinocchio_and_kkt(
+def test_constrained_dynamics_matches_pinocchio_and_kkt(
     rtr: Robot, ur5: Robot, normalization: str
 ) -> None:
     rng = np.random.default_rng(32)
@@ -74,7 +74,9 @@ def test_constrained_acceleration_matches_pinocchio_and_kkt(
         gamma = baum.gamma(ct.drift, ct.rate, ct.phi / ct.scale)
         data = robot.new_data()
         pin.crba(robot.model, data, q)
-        ddq, f = constrained_acceleration(robot.model, data, terms.nle, u, None, ct.A, gamma)
+        ddq, f = ConstrainedDynamics(robot.model, data, ct.A.shape[0]).solve(
+            terms.nle, u, None, ct.A, gamma
+        )
         # Pinocchio's (q, v) form computes M and nle itself
         data_ref = robot.new_data()
         ddq_pin = pin.forwardDynamics(robot.model, data_ref, q, v, u, ct.A, gamma).copy()
@@ -104,7 +106,9 @@ def test_drift_only_keeps_phi_ddot_zero(rtr: Robot, ur5: Robot, normalization: s
         u = terms.g + rng.uniform(-5, 5, robot.nv)
         data = robot.new_data()
         pin.crba(robot.model, data, q)
-        ddq, _ = constrained_acceleration(robot.model, data, terms.nle, u, None, ct.A, ct.drift)
+        ddq, _ = ConstrainedDynamics(robot.model, data, ct.A.shape[0]).solve(
+            terms.nle, u, None, ct.A, ct.drift
+        )
 
         def phi(t: float, q=q, v=v, ddq=ddq, robot=robot, surfaces=surfaces) -> np.ndarray:
             p = robot.tip_position(q + v * t + 0.5 * ddq * t * t)
@@ -194,7 +198,9 @@ def test_baumgarte_closes_on_the_surface(rtr: Robot) -> None:
     data = rtr.new_data()
     pin.crba(rtr.model, data, q)
     gamma = b.gamma(ct.drift, ct.rate, ct.phi / ct.scale)
-    ddq, _ = constrained_acceleration(rtr.model, data, terms.nle, terms.g, None, ct.A, gamma)
+    ddq, _ = ConstrainedDynamics(rtr.model, data, ct.A.shape[0]).solve(
+        terms.nle, terms.g, None, ct.A, gamma
+    )
     h = 1e-4
 
     def z(t: float) -> float:
@@ -232,7 +238,9 @@ def test_pressing_tool_gets_positive_force_in_newtons(
         pin.crba(rtr.model, data, q)
         # a 10 N Cartesian push into the surface (along −n̂), gravity compensated
         u = g + J.T @ (-10.0 * n_hat)
-        ddq, f = constrained_acceleration(rtr.model, data, terms.nle, u, None, ct.A, gamma)
+        ddq, f = ConstrainedDynamics(rtr.model, data, ct.A.shape[0]).solve(
+            terms.nle, u, None, ct.A, gamma
+        )
         if normalization == "tip":
             np.testing.assert_allclose(f, [10.0], rtol=1e-10)
             # u = g − Aᵀ·10 is the same command
@@ -256,5 +264,7 @@ def test_pulling_tool_gets_negative_force(rtr: Robot) -> None:
     data = rtr.new_data()
     pin.crba(rtr.model, data, q)
     u = terms.g + ct.A[0] * 4.0
-    _, f = constrained_acceleration(rtr.model, data, terms.nle, u, None, ct.A, np.zeros(1))
+    _, f = ConstrainedDynamics(rtr.model, data, ct.A.shape[0]).solve(
+        terms.nle, u, None, ct.A, np.zeros(1)
+    )
     np.testing.assert_allclose(f, [-4.0], rtol=1e-10)

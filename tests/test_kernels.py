@@ -19,7 +19,7 @@ signature, and compared with its readable numpy definition (the controller's in 
     factorisation) against a dense KKT solve and the defining equations, k = 1, 2, 3;
     ``Baumgarte.gamma_into`` against the formula; the run table's row layout and limits.
 
-(constrained_acceleration with k = 1 and B given is already checked against the dense KKT solve in
+(ConstrainedDynamics.solve with k = 1 and B given is already checked against the dense KKT solve in
 tests/test_control.py::test_loop_resolved_force_and_closed_loop.)
 
 Both sides are the same formulas in a different order, so they must agree to round-off: the

@@ -182,13 +182,20 @@ def _check_links(path: Path, root: ET.Element) -> set[str]:
     if not elements:
         raise RobotError(f"not a URDF: {path}: <robot> has no <link> element")
     for i, link in enumerate(elements):
-        name = link.get("name")
-        if not name:
-            raise RobotError(f"malformed URDF {path}: <link> number {i + 1} has no name")
-        if name in names:
-            raise RobotError(f"malformed URDF {path}: duplicate link name {name!r}")
-        names.add(name)
+        _new_name(path, link, i, names)
     return names
+
+
+def _new_name(path: Path, element: ET.Element, i: int, seen: set[str]) -> str:
+    """The name of ``element``, the (i+1)-th of its tag (link or joint), added to ``seen``;
+    it must be non-empty and not in ``seen`` yet."""
+    name = element.get("name")
+    if not name:
+        raise RobotError(f"malformed URDF {path}: <{element.tag}> number {i + 1} has no name")
+    if name in seen:
+        raise RobotError(f"malformed URDF {path}: duplicate {element.tag} name {name!r}")
+    seen.add(name)
+    return name
 
 
 def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
@@ -209,12 +216,7 @@ def _check_joints(path: Path, root: ET.Element, links: set[str]) -> set[str]:
     welded_to: dict[str, list[str]] = {}  # link: the links fixed joints attach to it
     moving = 0
     for i, joint in enumerate(root.findall("joint")):
-        name = joint.get("name")
-        if not name:
-            raise RobotError(f"malformed URDF {path}: <joint> number {i + 1} has no name")
-        if name in joint_names:
-            raise RobotError(f"malformed URDF {path}: duplicate joint name {name!r}")
-        joint_names.add(name)
+        name = _new_name(path, joint, i, joint_names)
         jtype = joint.get("type")
         if jtype not in _JOINT_TYPES:
             raise RobotError(

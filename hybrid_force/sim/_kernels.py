@@ -19,7 +19,7 @@ from hybrid_force._jit import jit as _jit
 from hybrid_force.geometry._kernels import surface_eval
 
 
-# --- dynamics (hybrid_force.sim.dynamics.constrained_acceleration) --------------------------------
+# --- dynamics (hybrid_force.sim.dynamics.ConstrainedDynamics) --------------------------------
 @_jit
 def baumgarte(
     drift: np.ndarray,

@@ -22,7 +22,7 @@ from hybrid_force.events import Event
 from hybrid_force.model.robot import LWA as _LWA
 from hybrid_force.model.robot import Robot, RobotTerms
 from hybrid_force.sim.contact import ContactSettings, friction_matrix, joint_dissipation
-from hybrid_force.sim.dynamics import constrained_acceleration, free_acceleration
+from hybrid_force.sim.dynamics import ConstrainedDynamics, free_acceleration
 from hybrid_force.sim.settings import SimSettings
 
 __all__ = ["Arm", "State", "SurfaceContact", "Vector"]
@@ -250,8 +250,9 @@ class Arm:
                 return free_acceleration(terms.M, nle, cmd.u0)
             cons = self.constraint.evaluate(terms, vs)
             gamma = self.baumgarte.gamma(cons.drift, cons.rate, cons.phi / cons.scale)
-            ddq, _ = constrained_acceleration(model, data, nle, cmd.u0, cmd.B, cons.A, gamma)
-            return ddq
+            # a new solver per stage: the stages' accelerations are kept until the sum
+            dyn = ConstrainedDynamics(model, data, cons.A.shape[0])
+            return dyn.solve(nle, cmd.u0, cmd.B, cons.A, gamma)[0]
 
         k1v, k1a = v, a1
         k2v = v + k1a * (dt / 2)

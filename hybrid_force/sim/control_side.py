@@ -75,7 +75,21 @@ class ControlSide:
         f: np.ndarray,
     ) -> Command:
         """The command at plant step i (time t [s]) at the plant's state (q, v) with its terms
-        and rows there; f (k,) [N] is the plant's last force."""
+        and rows there; f (k,) [N] is the plant's last force.
+
+        Exact (:class:`ExactControl`): the law evaluates its model at the plant's state; when
+        that model is the plant's own model file (``own`` None), the plant's terms at that
+        state are the same numbers and are passed instead of being computed twice. Sampled:
+        :meth:`_tick`'s held torque."""
+        if self.measured:
+            return self._tick(i, t, q, v, f)
+        assert self.law is not None
+        if self.own is None:
+            return self.law.command(t, q, v, terms, cons)
+        return self.law.command(t, q, v, *self.own.evaluate(q, v))
+
+    def _tick(self, i: int, t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray) -> Command:
+        """A measured controller's command at plant step i (:class:`SampledControl`)."""
         raise NotImplementedError
 
     def update(self, dt: float, f: np.ndarray) -> None:
@@ -92,26 +106,10 @@ class ControlSide:
 
 class ExactControl(ControlSide):
     """Ideal sensing at the plant's rate: the law's command is affine in the force the plant
-    will produce (u = u0 + B f) and the plant resolves that loop exactly (the paper's runs).
-    The law evaluates its model at the plant's state; when that model is the plant's own
-    model file (``own`` None), the plant's terms at that state are the same numbers and are
-    passed instead of being computed twice."""
+    will produce (u = u0 + B f) and the plant resolves that loop exactly (the paper's runs;
+    :meth:`ControlSide.command`)."""
 
     law: HybridController
-
-    def command(
-        self,
-        i: int,
-        t: float,
-        q: np.ndarray,
-        v: np.ndarray,
-        terms: RobotTerms,
-        cons: ConstraintTerms | None,
-        f: np.ndarray,
-    ) -> Command:
-        if self.own is None:
-            return self.law.command(t, q, v, terms, cons)
-        return self.law.command(t, q, v, *self.own.evaluate(q, v))
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """The supervisor's integrators over one plant step with the plant's force f (k,)."""
@@ -141,16 +139,7 @@ class SampledControl(ControlSide):
         self.nv = sc.robot.nv
         self._held: Command | None = None
 
-    def command(
-        self,
-        i: int,
-        t: float,
-        q: np.ndarray,
-        v: np.ndarray,
-        terms: RobotTerms,
-        cons: ConstraintTerms | None,
-        f: np.ndarray,
-    ) -> Command:
+    def _tick(self, i: int, t: float, q: np.ndarray, v: np.ndarray, f: np.ndarray) -> Command:
         if i % self.per_tick == 0:  # a tick: sense, then control; the torque is held
             law = self.law
             if law is not None and i:  # the law's integrators and CLIK over the period

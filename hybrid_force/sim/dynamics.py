@@ -42,7 +42,6 @@ _K = LazyKernels("hybrid_force.sim._kernels")
 __all__ = [
     "Baumgarte",
     "ConstrainedDynamics",
-    "constrained_acceleration",
     "free_acceleration",
     "plastic_impact",
 ]
@@ -94,36 +93,13 @@ def free_acceleration(M: np.ndarray, nle: np.ndarray, u: np.ndarray) -> np.ndarr
     return np.linalg.solve(M, u - nle)
 
 
-def constrained_acceleration(
-    model: pin.Model,
-    data: pin.Data,
-    nle: np.ndarray,
-    u0: np.ndarray,
-    B: np.ndarray | None,
-    A: np.ndarray,
-    gamma: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Solve the constrained dynamics with the command u = u0 + B f.
-
-    Requires ``data.M`` to hold the mass matrix at the current q (``pin.crba`` was run on
-    ``data``); ``data.nle`` is set here from ``nle``.
-
-    Args:
-        nle: (n,) C q̇ + g. u0: (n,). B: (n, k) or None. A: (k, n) constraint rows.
-        gamma: (k,) γ with A q̈ + γ = 0.
-
-    Returns:
-        q̈ (n,) and f (k,) [N].
-    """
-    return ConstrainedDynamics(model, data, A.shape[0]).solve(nle, u0, B, A, gamma)
-
-
 class ConstrainedDynamics:
-    """:func:`constrained_acceleration` for one (model, data) pair, called every step.
+    """The constrained dynamics with the command u = u0 + B f, for one (model, data) pair.
 
-    The same computation, with the views of ``data``'s arrays (nle, U, D) taken once and the
-    outputs preallocated: the arrays returned by :meth:`solve` are overwritten by the next
-    call. The multiplier ``data.lambda_c`` is read at every call (forwardDynamics resizes it).
+    The views of ``data``'s arrays (nle, U, D) are taken once and the outputs preallocated:
+    the arrays returned by :meth:`solve` are overwritten by the next call (a caller that
+    keeps them across calls builds one instance per call). The multiplier ``data.lambda_c``
+    is read at every call (forwardDynamics resizes it).
 
     Args:
         model, data: the Pinocchio model and the data that ``pin.crba`` fills each step.
@@ -144,7 +120,18 @@ class ConstrainedDynamics:
         A: np.ndarray,
         gamma: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """q̈ (n,) and f (k,) [N] for u = u0 + B f; arguments as :func:`constrained_acceleration`."""
+        """Solve the constrained dynamics with the command u = u0 + B f.
+
+        Requires ``data.M`` to hold the mass matrix at the current q (``pin.crba`` was run on
+        ``data``); ``data.nle`` is set here from ``nle``.
+
+        Args:
+            nle: (n,) C q̇ + g. u0: (n,). B: (n, k) or None. A: (k, n) constraint rows.
+            gamma: (k,) γ with A q̈ + γ = 0.
+
+        Returns:
+            q̈ (n,) and f (k,) [N].
+        """
         self._nle[:] = nle
         ddq0 = pin.forwardDynamics(self.model, self.data, u0, A, gamma)
         f0 = self.data.lambda_c

@@ -350,32 +350,17 @@ def _fig_desired_force(run: _Run) -> Figure:
     ax = fig.add_subplot()
     t_end = _window_end(run.t)
     sel = run.t <= t_end
+
+    def column(y: np.ndarray, j: int, label: str, **style: Any) -> None:
+        """Column j of y (N, k) [N] over the window, its label naming the surface if k > 1."""
+        ax.plot(run.t[sel], y[sel, j], label=_column_label(label, j, run.k), **style)
+
+    true = "true $f$" if run.f_meas is not None else "$f$"
     for j in range(run.k):
-        ax.plot(
-            run.t[sel],
-            run.f[sel, j],
-            color=f"C{j}",
-            lw=1.0,
-            alpha=0.8,
-            label=_column_label("true $f$" if run.f_meas is not None else "$f$", j, run.k),
-        )
+        column(run.f, j, true, color=f"C{j}", lw=1.0, alpha=0.8)
         if run.f_meas is not None:
-            ax.plot(
-                run.t[sel],
-                run.f_meas[sel, j],
-                color=f"C{j + 3}",
-                lw=0.8,
-                alpha=0.7,
-                label=_column_label("measured $\\tilde f$", j, run.k),
-            )
-        ax.plot(
-            run.t[sel],
-            run.f_d[sel, j],
-            color="k" if run.k == 1 else f"C{j}",
-            lw=1.6,
-            ls="--",
-            label=_column_label("desired $f_d$", j, run.k),
-        )
+            column(run.f_meas, j, "measured $\\tilde f$", color=f"C{j + 3}", lw=0.8, alpha=0.7)
+        column(run.f_d, j, "desired $f_d$", color="k" if run.k == 1 else f"C{j}", lw=1.6, ls="--")
     switches = [(te, kind) for te, kind in _switches(run) if run.t[0] <= te <= t_end]
     seen: set[str] = set()
     for te, kind in switches[:200]:
@@ -404,31 +389,40 @@ def _fig_desired_force(run: _Run) -> Figure:
                 color=_KIND_COLOURS.get(kinds[0], "tab:gray"),
                 bbox={"facecolor": "white", "alpha": 0.75, "edgecolor": "none", "pad": 1.0},
             )
-    ax.set_xlim(run.t[0], t_end)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("force along the surface normal [N]")
-    ax.grid(True, alpha=0.3)
-    _legend_right(ax)
-    ax.set_title(f"{run.name}: desired force, first {t_end - run.t[0]:.3g} s")
-    return fig
+    title = f"desired force, first {t_end - run.t[0]:.3g} s"
+    return _finish_time_axes(fig, ax, run, t_end, "force along the surface normal [N]", title)
 
 
 def _fig_lyapunov(run: _Run) -> Figure:
     """V = ½sᵀMs + ½βe_F² [J] (section 5.1) against time, contact phase shaded."""
     fig = _new_figure(8.5, 4.5)
     ax = fig.add_subplot()
-    if not _semilog(ax, run.t, run.V, color="k", lw=1.0, label="V"):
-        ax.plot(run.t, run.V, color="k", lw=1.0, label="V")
-        _note(ax, "V has no positive finite value: linear scale")
+    _semilog_or_linear(ax, run.t, run.V, "V", "V")
     _shade(ax, run.t, run.phase == NEAR, "tab:orange", "near phase")
     ylabel = r"$V = \frac{1}{2}s^T M s + \frac{1}{2}\beta e_F^2$ [J]"
     return _time_panel(fig, ax, run, ylabel, "Lyapunov function")
 
 
+def _semilog_or_linear(ax: Axes, t: np.ndarray, y: np.ndarray, label: str, what: str) -> None:
+    """y (N,) against t (N,) [s] as a black line on a log scale, or on a linear one with a note
+    naming ``what`` when y has no positive finite value (a log axis could not show it)."""
+    if not _semilog(ax, t, y, color="k", lw=1.0, label=label):
+        ax.plot(t, y, color="k", lw=1.0, label=label)
+        _note(ax, f"{what} has no positive finite value: linear scale")
+
+
 def _time_panel(fig: Figure, ax: Axes, run: _Run, ylabel: str, title: str) -> Figure:
     """Finish a one-panel figure over the run's time: contact shaded, labels, legend, title."""
     _shade(ax, run.t, run.contact, "tab:green", "contact phase")
-    ax.set_xlim(run.t[0], run.t[-1])
+    return _finish_time_axes(fig, ax, run, run.t[-1], ylabel, title)
+
+
+def _finish_time_axes(
+    fig: Figure, ax: Axes, run: _Run, t_end: float, ylabel: str, title: str
+) -> Figure:
+    """Finish a one-panel figure over the run's time from its start to t_end [s]: labels,
+    grid (its minor lines too on a log axis; a linear one has none), legend, title."""
+    ax.set_xlim(run.t[0], t_end)
     ax.set_xlabel("t [s]")
     ax.set_ylabel(ylabel)
     ax.grid(True, which="both", alpha=0.3)
@@ -444,9 +438,8 @@ def _fig_tool_angle(run: _Run) -> Figure:
     angle = run.tool_angle
     if angle is None:
         _note(ax, 'no tool angle: the run did not control the tool\'s direction ("free")')
-    elif not _semilog(ax, run.t, angle, color="k", lw=1.0, label="tool angle"):
-        ax.plot(run.t, angle, color="k", lw=1.0, label="tool angle")
-        _note(ax, "the angle has no positive finite value: linear scale")
+    else:
+        _semilog_or_linear(ax, run.t, angle, "tool angle", "the angle")
     if run.settle_time is not None and run.t[0] <= run.settle_time <= run.t[-1]:
         ax.axvline(run.settle_time, color="tab:blue", ls="--", lw=1.0, label="settle time")
     if angle is not None:
