@@ -74,6 +74,74 @@ def test_removed_volume_is_preston_integral_of_force_times_speed(
     assert r.meta["removal"]["conforming_steps"] == 0
 
 
+# a sphere of radius 0.5 m as a 20,480-face mesh where rtr_sphere.toml has its sphere
+MESH_CENTRE = np.array([0.0, 0.0, 5.0])
+MESH_NORMAL = np.array([0.8, 0.0, -0.6])  # the sphere's outward normal at rtr_sphere's start
+MESH_PATHS = {
+    "circle": {"type": "circle", "center": [0.0, 0.0, 4.7], "radius": 0.4,
+               "normal": [0.0, 0.0, 1.0], "omega": 0.5, "phase": 0.0},
+    "raster": {"type": "raster", "origin": [-0.01, -0.01], "size": [0.02, 0.02],
+               "spacing": 0.005, "speed": 0.05, "ramp": 0.1},
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("path", sorted(MESH_PATHS))
+def test_removed_volume_is_preston_integral_on_a_mesh_part(
+    path: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The same identity on a mesh part (removal cells on its triangles, ∇Φ from its smooth
+    field): a circle of latitude (world frame) and a raster in a projection chart on an
+    icosphere, to 0.5 %; the cells lie on the mesh's triangles (trimesh's closest point) and
+    the depth only within the patch radius of the tip's track."""
+    import trimesh
+
+    from hybrid_force.geometry.mesh_surface import MeshSurface
+    from hybrid_force.scenario._builders import _trajectory
+    from hybrid_force.scenario._tables import _Context
+
+    monkeypatch.setenv("HYBRID_FORCE_CACHE", str(tmp_path / "cache"))
+    mesh = trimesh.creation.icosphere(subdivisions=5, radius=0.5)
+    mesh.export(tmp_path / "sphere.stl")
+    start = np.array([0.4, 0.0, 4.7])
+    chart = {"type": "projection", "origin": (start + 0.1 * MESH_NORMAL).tolist(),
+             "normal": (-MESH_NORMAL).tolist(), "u_axis": [0.0, 1.0, 0.0]}  # fmt: skip
+    table = {"type": "mesh", "file": str(tmp_path / "sphere.stl"), "resolution": 0.0175,
+             "position": MESH_CENTRE.tolist()}  # fmt: skip
+    if path == "raster":  # (a chart acts only with a path laid in (u, v))
+        table["chart"] = chart
+    # the run starts in contact: at the path's start, on the field's Φ = 0
+    surface = MeshSurface.from_table(table, tmp_path, "surface")
+    trajectory = MESH_PATHS[path]
+    tip = _trajectory(trajectory, [surface], _Context("x"))[0].position(0.0)
+    tip = surface.closest_point(tip)
+    removal = {"k_p": K_P, "resolution": 5e-4}
+    overrides = {"surface": table, "trajectory": trajectory, "initial.tip": tip.tolist()}
+    sc, r = _run(
+        "rtr_sphere.toml", {**overrides, "sim.duration": 1.5, "tool.pad": HERTZ, "removal": removal}
+    )
+    assert isinstance(sc.surfaces[0], MeshSurface) and r.meta["removal"]["grid"] == "mesh"
+    expected = _preston_volume(sc, r)
+    assert expected > 0
+    assert r.summary()["removal_volume"] == pytest.approx(expected, rel=5e-3)
+    assert r.meta["removal"]["conforming_steps"] == 0
+    points, depth = r.removal_points, r.removal_depth
+    assert points is not None and depth is not None
+    worn = points[depth > 0]
+    rng = np.random.default_rng(31)
+    some = worn[rng.choice(worn.shape[0], size=min(500, worn.shape[0]), replace=False)]
+    placed = trimesh.load(tmp_path / "sphere.stl")  # (the file's float32 vertices)
+    placed.apply_translation(MESH_CENTRE)
+    _, gap, _ = trimesh.proximity.closest_point(placed, some)
+    assert float(gap.max()) < 1e-9
+    # the patch never reaches beyond a (at the largest force; R_eff = the pad's radius, larger
+    # than on this convex part) + one cell (the 16 mm facets split 32 times) of the track
+    forces = np.atleast_1d(r.f).reshape(r.n_samples, -1)[:, 0]
+    track = r.p[forces > 0]
+    a_max = HertzPad(HERTZ["radius"], HERTZ["modulus"]).patch(float(forces.max()))[0]
+    reach = max(float(np.linalg.norm(track - w, axis=1).min()) for w in worn)
+    assert reach < a_max + 5e-4, (reach, a_max)
+
+
 def _straight_pass(pad: dict[str, Any], tmp_path: Path) -> tuple[Any, Result]:
     """A straight pass along y at x = 0.6 on rtr_plane's plane z = 5, starting in contact."""
     return _run(
