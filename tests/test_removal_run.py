@@ -134,7 +134,7 @@ def test_removed_volume_is_preston_integral_on_a_mesh_part(
     _, gap, _ = trimesh.proximity.closest_point(placed, some)
     assert float(gap.max()) < 1e-9
     # the patch never reaches beyond a (at the largest force; R_eff = the pad's radius, larger
-    # than on this convex part) + one cell (the 16 mm facets split 32 times) of the track
+    # than on this convex part) + one cell (the ~19 mm facets split 38 times) of the track
     forces = np.atleast_1d(r.f).reshape(r.n_samples, -1)[:, 0]
     track = r.p[forces > 0]
     a_max = HertzPad(HERTZ["radius"], HERTZ["modulus"]).patch(float(forces.max()))[0]
