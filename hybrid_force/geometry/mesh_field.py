@@ -209,6 +209,16 @@ class DistanceField:
         self._last[:] = (key, value, grad.copy(), hess.copy())
         return value, grad, hess
 
+    def hessian(self, p: np.ndarray) -> np.ndarray:
+        """∇²Φ at p: (3,) float64 [m], a fresh (3, 3) [1/m] (the same bits as ``evaluate(p)[2]``).
+
+        Not through the last point's values: the tool's orientation asks for ∇²Φ at points
+        off the tip, which never hit them, and keeping them costs two copies a call."""
+        grad = np.empty(3)
+        hess = np.empty((3, 3))
+        _kernel()(self.coefficients, self.origin, self.spacing, p, grad, hess)
+        return hess
+
     def values(self, points: np.ndarray) -> np.ndarray:
         """Φ at points (m, 3) [m]: (m,)."""
         from hybrid_force.geometry import _field_kernels

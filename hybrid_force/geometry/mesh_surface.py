@@ -213,7 +213,7 @@ class MeshSurface(Surface):
 
     def hessian(self, p: ArrayLike) -> np.ndarray:
         """∇²Φ(p): (3, 3) [1/m]."""
-        return self.field.evaluate(self._checked(p, "hessian"))[2]
+        return self.field.hessian(self._checked(p, "hessian"))
 
     def distance(self, p: ArrayLike) -> float:
         """d = Φ [m] (the field is a signed distance)."""
