@@ -209,15 +209,17 @@ class DistanceField:
         self._last[:] = (key, value, grad.copy(), hess.copy())
         return value, grad, hess
 
-    def hessian(self, p: np.ndarray) -> np.ndarray:
-        """∇²Φ at p: (3,) float64 [m], a fresh (3, 3) [1/m] (the same bits as ``evaluate(p)[2]``).
+    def hessian(self, p: np.ndarray) -> np.ndarray | None:
+        """∇²Φ at p: (3,) float64 [m], a fresh (3, 3) [1/m] (the same bits as ``evaluate(p)[2]``),
+        or None when a coordinate of p is not finite or exceeds 1e150 m.
 
         Not through the last point's values: the tool's orientation asks for ∇²Φ at points
-        off the tip, which never hit them, and keeping them costs two copies a call."""
-        grad = np.empty(3)
+        off the tip, which never hit them, and keeping them costs two copies a call. ∇Φ goes
+        to a scratch array shared by all fields: it is never read, so nothing can race."""
         hess = np.empty((3, 3))
-        _kernel()(self.coefficients, self.origin, self.spacing, p, grad, hess)
-        return hess
+        if _hessian_kernel()(self.coefficients, self.origin, self.spacing, p, _UNREAD, hess):
+            return hess
+        return None
 
     def values(self, points: np.ndarray) -> np.ndarray:
         """Φ at points (m, 3) [m]: (m,)."""
@@ -240,6 +242,20 @@ def _kernel():  # type: ignore[no-untyped-def]
 
         _FIELD_EVAL = _field_kernels.field_eval
     return _FIELD_EVAL
+
+
+_FIELD_HESSIAN = None
+_UNREAD = np.empty(3)  # the ∇Φ DistanceField.hessian does not return
+
+
+def _hessian_kernel():  # type: ignore[no-untyped-def]
+    """The compiled field_hessian, imported on first use (as :func:`_kernel`)."""
+    global _FIELD_HESSIAN
+    if _FIELD_HESSIAN is None:
+        from hybrid_force.geometry import _field_kernels
+
+        _FIELD_HESSIAN = _field_kernels.field_hessian
+    return _FIELD_HESSIAN
 
 
 def _grid(part: MeshPart, h: float, key: str) -> tuple[np.ndarray, tuple[int, int, int]]:

@@ -213,7 +213,12 @@ class MeshSurface(Surface):
 
     def hessian(self, p: ArrayLike) -> np.ndarray:
         """∇²Φ(p): (3, 3) [1/m]."""
-        return self.field.hessian(self._checked(p, "hessian"))
+        if type(p) is np.ndarray and p.shape == (3,) and p.dtype == np.float64:
+            # the hot path (the tool's orientation, twice a step): the kernel checks p is finite
+            hess = self.field.hessian(p)
+            if hess is not None:
+                return hess
+        return self.field.evaluate(self._checked(p, "hessian"))[2]
 
     def distance(self, p: ArrayLike) -> float:
         """d = Φ [m] (the field is a signed distance)."""
