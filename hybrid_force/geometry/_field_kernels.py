@@ -333,14 +333,14 @@ def _ray_frame(mode: int, frame: np.ndarray, u: float, v: float, rows: np.ndarra
 
 
 @_jit
-def ray_chart_eval(
-    coef: np.ndarray, params: np.ndarray, u: float, v: float, out: np.ndarray
-) -> float:
-    """:func:`ray_chart_of` with its settings packed in params (20,): origin (3) [m], h [m],
-    mode, s_start, s_end [m], frame (4, 3) row by row (five arguments: each costs the call
-    about 0.1 µs in Numba's dispatch, which is most of a chart evaluation's cost)."""
+def ray_chart_eval(coef: np.ndarray, params: np.ndarray, u: float, v: float) -> float:
+    """:func:`ray_chart_of` with its settings and its output packed in params (38,): origin
+    (3) [m], h [m], mode, s_start, s_end [m], an unused slot, frame (4, 3) row by row, then
+    out (6, 3) row by row, written here (four arguments: each array costs the call about
+    0.1 µs in Numba's dispatch, a tenth of a chart evaluation)."""
     origin = params[0:3]
     frame = params[8:20].reshape((4, 3))
+    out = params[20:38].reshape((6, 3))
     return ray_chart_of(
         coef, origin, params[3], int(params[4]), frame, u, v, params[5], params[6], out
     )
