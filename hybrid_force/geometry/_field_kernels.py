@@ -78,6 +78,54 @@ def field_hessian(
 
 
 @_jit
+def orientation_terms(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    step: float,
+    sample: np.ndarray,
+    out: np.ndarray,
+) -> bool:
+    """What a pointed tool's orientation needs of Φ at a path sample (3, 3) rows p_d [m],
+    ṗ_d [m/s], p̈_d: out (5, 3) rows ∇Φ(p_d), ∇²Φ(p_d) (3 rows), and (d/dt ∇²Φ) ṗ_d by the
+    central difference (∇²Φ(p_d + δ ṗ_d) − ∇²Φ(p_d − δ ṗ_d)) / (2δ) · ṗ_d, δ = step / ‖ṗ_d‖
+    (zero when ṗ_d = 0): the arithmetic of ``control.tool.ToolTarget.surface_terms`` in one
+    call. False, nothing written, when p_d or ṗ_d is not finite (the caller's own path then
+    says why)."""
+    for r in range(2):
+        for k in range(3):
+            if not abs(sample[r, k]) <= 1e150:
+                return False
+    grad = np.empty(3)
+    hess = np.empty((3, 3))
+    work = np.empty((9, 4))
+    _field_eval_into(coef, origin, h, sample[0], grad, hess, work)
+    for k in range(3):
+        out[0, k] = grad[k]
+        out[4, k] = 0.0
+        for c in range(3):
+            out[1 + k, c] = hess[k, c]
+    speed2 = sample[1, 0] * sample[1, 0] + sample[1, 1] * sample[1, 1] + sample[1, 2] * sample[1, 2]
+    if not speed2 > 0.0:
+        return True
+    delta = step / math.sqrt(speed2)
+    q = np.empty(3)
+    ahead = np.empty((3, 3))
+    for k in range(3):
+        q[k] = sample[0, k] + delta * sample[1, k]
+    _field_eval_into(coef, origin, h, q, grad, ahead, work)
+    for k in range(3):
+        q[k] = sample[0, k] - delta * sample[1, k]
+    _field_eval_into(coef, origin, h, q, grad, hess, work)
+    for i in range(3):
+        total = 0.0
+        for j in range(3):
+            total += (ahead[i, j] - hess[i, j]) / (2.0 * delta) * sample[1, j]
+        out[4, i] = total
+    return True
+
+
+@_jit
 def _field_eval_into(
     coef: np.ndarray,
     origin: np.ndarray,

@@ -207,6 +207,18 @@ class DistanceField:
             return hess
         return None
 
+    def orientation_terms(
+        self, sample: np.ndarray, step: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """(∇Φ (3,), ∇²Φ (3, 3) [1/m], (d/dt ∇²Φ) ṗ_d (3,) [1/s]) at a path sample (3, 3) rows
+        p_d [m], ṗ_d [m/s], p̈_d, the last by a central difference of ∇²Φ over ±``step`` [m]
+        along ṗ_d (:func:`._field_kernels.orientation_terms`); None when p_d or ṗ_d is not
+        finite. Views of one fresh (5, 3) array."""
+        out = np.empty((5, 3))
+        if _orientation_kernel()(self.coefficients, self.origin, self.spacing, step, sample, out):
+            return out[0], out[1:4], out[4]
+        return None
+
     def values(self, points: np.ndarray) -> np.ndarray:
         """Φ at points (m, 3) [m]: (m,)."""
         from hybrid_force.geometry import _field_kernels
@@ -231,6 +243,7 @@ def _kernel():  # type: ignore[no-untyped-def]
 
 
 _FIELD_HESSIAN = None
+_ORIENTATION = None
 _UNREAD = np.empty(3)  # the ∇Φ DistanceField.hessian does not return
 
 
@@ -242,6 +255,16 @@ def _hessian_kernel():  # type: ignore[no-untyped-def]
 
         _FIELD_HESSIAN = _field_kernels.field_hessian
     return _FIELD_HESSIAN
+
+
+def _orientation_kernel():  # type: ignore[no-untyped-def]
+    """The compiled orientation_terms, imported on first use (as :func:`_kernel`)."""
+    global _ORIENTATION
+    if _ORIENTATION is None:
+        from hybrid_force.geometry import _field_kernels
+
+        _ORIENTATION = _field_kernels.orientation_terms
+    return _ORIENTATION
 
 
 def _grid(part: MeshPart, h: float, key: str) -> tuple[np.ndarray, tuple[int, int, int]]:
