@@ -284,3 +284,29 @@ def test_concave_radius_of_a_torus_hole(tmp_path: Path) -> None:
     assert 0.7 * 0.15 <= surface.smallest_concave_radius() <= 1.02 * 0.15
     convex = MeshSurface.from_file(_sphere(path.parent), cache=False)
     assert convex.smallest_concave_radius() == math.inf
+
+
+def test_orientation_terms_match_the_hessian_difference(sphere: MeshSurface) -> None:
+    """MeshSurface.orientation_terms (one compiled call) against its definition through the
+    checked methods it replaces in the tool's orientation: ∇Φ, ∇²Φ at p (the same bits) and
+    (∇²Φ(p + δṗ) − ∇²Φ(p − δṗ)) / 2δ · ṗ, δ = step/‖ṗ‖ (to round-off)."""
+    rng = np.random.default_rng(5)
+    step = 1e-4
+    for _ in range(20):
+        d = rng.normal(size=3)
+        p = d / np.linalg.norm(d) * 0.3
+        sample = np.array([p, rng.normal(size=3) * 0.2, rng.normal(size=3)])
+        terms = sphere.orientation_terms(sample, step)
+        assert terms is not None
+        g, H, third = terms
+        _, g0, H0 = sphere.evaluate(p)
+        assert np.array_equal(g, g0) and np.array_equal(H, H0)
+        pd = sample[1]
+        delta = step / np.linalg.norm(pd)
+        difference = (sphere.hessian(p + delta * pd) - sphere.hessian(p - delta * pd)) / (2 * delta)
+        np.testing.assert_allclose(third, difference @ pd, rtol=1e-9, atol=1e-12)
+    still = np.array([[0.3, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    terms = sphere.orientation_terms(still, step)
+    assert terms is not None and not terms[2].any()  # at rest: no rate of ∇²Φ
+    assert sphere.orientation_terms(np.full((3, 3), np.nan), step) is None
+    assert sphere.orientation_terms([[0.3, 0.0, 0.0]] * 3, step) is None  # type: ignore[arg-type]

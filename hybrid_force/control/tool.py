@@ -282,6 +282,8 @@ class ToolTarget:
         self.surface = surface
         self.path = path
         self._quadric = isinstance(surface, Cylinder | Sphere | Plane)  # ∇³Φ = 0
+        # MeshSurface.orientation_terms: surface_terms compiled (None for other surfaces)
+        self._compiled_terms = getattr(surface, "orientation_terms", None)
         self._cos, self._sin = math.cos(settings.tilt), math.sin(settings.tilt)
         k = settings.tilt_axis
         self._k = None if k is None else np.array([k, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
@@ -302,6 +304,10 @@ class ToolTarget:
     def surface_terms(self, sample: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(∇Φ (3,), ∇²Φ (3, 3), (d/dt ∇²Φ) ṗ_d (3,)) at the path sample (3, 3) rows p_d, ṗ_d,
         p̈_d: the surface's part of :meth:`normal` (the last zero on a quadric)."""
+        if self._compiled_terms is not None:  # a mesh part: the same terms in one call
+            terms = self._compiled_terms(sample, _HESSIAN_STEP)
+            if terms is not None:
+                return terms
         p, pd, _ = sample
         _, g, H = self.surface.evaluate(p)
         third = np.zeros(3)

@@ -58,6 +58,74 @@ def field_eval(
 
 
 @_jit
+def field_hessian(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+) -> bool:
+    """:func:`field_eval` into grad (3,) and hess (3, 3) when every coordinate of p is finite
+    and within 1e150 m (True), else nothing written (False: the caller checks p itself and
+    says why). Checked here, not in Python: a ∇²Φ off the tip is asked for twice a step."""
+    for k in range(3):
+        if not abs(p[k]) <= 1e150:
+            return False
+    work = np.empty((9, 4))
+    _field_eval_into(coef, origin, h, p, grad, hess, work)
+    return True
+
+
+@_jit
+def orientation_terms(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    step: float,
+    sample: np.ndarray,
+    out: np.ndarray,
+) -> bool:
+    """What a pointed tool's orientation needs of Φ at a path sample (3, 3) rows p_d [m],
+    ṗ_d [m/s], p̈_d: out (5, 3) rows ∇Φ(p_d), ∇²Φ(p_d) (3 rows), and (d/dt ∇²Φ) ṗ_d by the
+    central difference (∇²Φ(p_d + δ ṗ_d) − ∇²Φ(p_d − δ ṗ_d)) / (2δ) · ṗ_d, δ = step / ‖ṗ_d‖
+    (zero when ṗ_d = 0): the arithmetic of ``control.tool.ToolTarget.surface_terms`` in one
+    call. False, nothing written, when p_d or ṗ_d is not finite (the caller's own path then
+    says why)."""
+    for r in range(2):
+        for k in range(3):
+            if not abs(sample[r, k]) <= 1e150:
+                return False
+    grad = np.empty(3)
+    hess = np.empty((3, 3))
+    work = np.empty((9, 4))
+    _field_eval_into(coef, origin, h, sample[0], grad, hess, work)
+    for k in range(3):
+        out[0, k] = grad[k]
+        out[4, k] = 0.0
+        for c in range(3):
+            out[1 + k, c] = hess[k, c]
+    speed2 = sample[1, 0] * sample[1, 0] + sample[1, 1] * sample[1, 1] + sample[1, 2] * sample[1, 2]
+    if not speed2 > 0.0:
+        return True
+    delta = step / math.sqrt(speed2)
+    q = np.empty(3)
+    ahead = np.empty((3, 3))
+    for k in range(3):
+        q[k] = sample[0, k] + delta * sample[1, k]
+    _field_eval_into(coef, origin, h, q, grad, ahead, work)
+    for k in range(3):
+        q[k] = sample[0, k] - delta * sample[1, k]
+    _field_eval_into(coef, origin, h, q, grad, hess, work)
+    for i in range(3):
+        total = 0.0
+        for j in range(3):
+            total += (ahead[i, j] - hess[i, j]) / (2.0 * delta) * sample[1, j]
+        out[4, i] = total
+    return True
+
+
+@_jit
 def _field_eval_into(
     coef: np.ndarray,
     origin: np.ndarray,
@@ -145,6 +213,133 @@ def _field_eval_into(
 
 
 @_jit
+def _field_value_grad_into(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    grad: np.ndarray,
+    work: np.ndarray,
+) -> float:
+    """Φ(p) and ∇Φ(p) into grad, by the same operations in the same order as
+    :func:`_field_eval_into` (the same bits) without the six Hessian sums: the Newton steps of
+    a chart's ray need only Φ and its slope along the ray."""
+    bx, dx, sx = work[0], work[1], work[2]
+    by, dy, sy = work[3], work[4], work[5]
+    bz, dz, sz = work[6], work[7], work[8]
+    outside = False
+    o0 = o1 = o2 = 0.0
+    i0 = j0 = k0 = 0
+    for k in range(3):
+        n = coef.shape[k] - 2
+        u = (p[k] - origin[k]) / h
+        top = float(n - 1)
+        off = 0.0
+        if u < 0.0:
+            off = (u - 0.0) * h
+            u = 0.0
+            outside = True
+        elif u > top:
+            off = (u - top) * h
+            u = top
+            outside = True
+        i = math.floor(u)
+        if i > n - 2:
+            i = n - 2
+        if k == 0:
+            i0, o0 = i, off
+            _basis(u - i, bx, dx, sx)
+        elif k == 1:
+            j0, o1 = i, off
+            _basis(u - i, by, dy, sy)
+        else:
+            k0, o2 = i, off
+            _basis(u - i, bz, dz, sz)
+    value = 0.0
+    gx = gy = gz = 0.0
+    for a in range(4):
+        for b in range(4):
+            # the sums over z first: 4 numbers per (a, b) shared by every derivative
+            c0 = coef[i0 + a, j0 + b, k0]
+            c1 = coef[i0 + a, j0 + b, k0 + 1]
+            c2 = coef[i0 + a, j0 + b, k0 + 2]
+            c3 = coef[i0 + a, j0 + b, k0 + 3]
+            zb = c0 * bz[0] + c1 * bz[1] + c2 * bz[2] + c3 * bz[3]
+            zd = c0 * dz[0] + c1 * dz[1] + c2 * dz[2] + c3 * dz[3]
+            wbb = bx[a] * by[b]
+            value += wbb * zb
+            gx += dx[a] * by[b] * zb
+            gy += bx[a] * dy[b] * zb
+            gz += wbb * zd
+    inv_h = 1.0 / h
+    grad[0] = gx * inv_h
+    grad[1] = gy * inv_h
+    grad[2] = gz * inv_h
+    if outside:
+        value += grad[0] * o0 + grad[1] * o1 + grad[2] * o2
+    return value
+
+
+@_jit
+def _field_value_into(
+    coef: np.ndarray, origin: np.ndarray, h: float, p: np.ndarray, work: np.ndarray
+) -> float:
+    """Φ(p) alone, by the same operations in the same order as :func:`_field_eval_into` (the
+    same bits): the ray march of a chart needs only the sign and size of Φ, and skipping the
+    nine derivative sums saves most of an evaluation."""
+    bx, dx, sx = work[0], work[1], work[2]
+    by, dy, sy = work[3], work[4], work[5]
+    bz, dz, sz = work[6], work[7], work[8]
+    outside = False
+    o0 = o1 = o2 = 0.0
+    i0 = j0 = k0 = 0
+    for k in range(3):
+        n = coef.shape[k] - 2
+        u = (p[k] - origin[k]) / h
+        top = float(n - 1)
+        off = 0.0
+        if u < 0.0:
+            off = (u - 0.0) * h
+            u = 0.0
+            outside = True
+        elif u > top:
+            off = (u - top) * h
+            u = top
+            outside = True
+        i = math.floor(u)
+        if i > n - 2:
+            i = n - 2
+        if k == 0:
+            i0, o0 = i, off
+            _basis(u - i, bx, dx, sx)
+        elif k == 1:
+            j0, o1 = i, off
+            _basis(u - i, by, dy, sy)
+        else:
+            k0, o2 = i, off
+            _basis(u - i, bz, dz, sz)
+    value = 0.0
+    gx = gy = gz = 0.0
+    for a in range(4):
+        for b in range(4):
+            c0 = coef[i0 + a, j0 + b, k0]
+            c1 = coef[i0 + a, j0 + b, k0 + 1]
+            c2 = coef[i0 + a, j0 + b, k0 + 2]
+            c3 = coef[i0 + a, j0 + b, k0 + 3]
+            zb = c0 * bz[0] + c1 * bz[1] + c2 * bz[2] + c3 * bz[3]
+            value += bx[a] * by[b] * zb
+            if outside:  # the linear continuation needs ∇Φ at the box's nearest point
+                zd = c0 * dz[0] + c1 * dz[1] + c2 * dz[2] + c3 * dz[3]
+                gx += dx[a] * by[b] * zb
+                gy += bx[a] * dy[b] * zb
+                gz += bx[a] * by[b] * zd
+    if outside:
+        inv_h = 1.0 / h
+        value += gx * inv_h * o0 + gy * inv_h * o1 + gz * inv_h * o2
+    return value
+
+
+@_jit
 def field_eval_many(
     coef: np.ndarray, origin: np.ndarray, h: float, points: np.ndarray, out: np.ndarray
 ) -> None:
@@ -186,14 +381,14 @@ def _ray_frame(mode: int, frame: np.ndarray, u: float, v: float, rows: np.ndarra
 
 
 @_jit
-def ray_chart_eval(
-    coef: np.ndarray, params: np.ndarray, u: float, v: float, out: np.ndarray
-) -> float:
-    """:func:`ray_chart_of` with its settings packed in params (20,): origin (3) [m], h [m],
-    mode, s_start, s_end [m], frame (4, 3) row by row (five arguments: each costs the call
-    about 0.1 µs in Numba's dispatch, which is most of a chart evaluation's cost)."""
+def ray_chart_eval(coef: np.ndarray, params: np.ndarray, u: float, v: float) -> float:
+    """:func:`ray_chart_of` with its settings and its output packed in params (38,): origin
+    (3) [m], h [m], mode, s_start, s_end [m], an unused slot, frame (4, 3) row by row, then
+    out (6, 3) row by row, written here (four arguments: each array costs the call about
+    0.1 µs in Numba's dispatch, a tenth of a chart evaluation)."""
     origin = params[0:3]
     frame = params[8:20].reshape((4, 3))
+    out = params[20:38].reshape((6, 3))
     return ray_chart_of(
         coef, origin, params[3], int(params[4]), frame, u, v, params[5], params[6], out
     )
@@ -241,7 +436,7 @@ def ray_chart_of(
     s = s_start
     for k in range(3):
         p[k] = rows[0, k] + s * rows[6, k]
-    phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
+    phi = _field_value_into(coef, origin, h, p, work)
     if not phi > 0.0:
         return math.nan
     lo = s
@@ -257,7 +452,7 @@ def ray_chart_of(
         s_new = s_start + direction * travelled
         for k in range(3):
             p[k] = rows[0, k] + s_new * rows[6, k]
-        phi_new = _field_eval_into(coef, origin, h, p, grad, hess, work)
+        phi_new = _field_value_into(coef, origin, h, p, work)
         if phi_new <= 0.0:
             hi = s_new
             break
@@ -272,7 +467,7 @@ def ray_chart_of(
     for _ in range(200):
         for k in range(3):
             p[k] = rows[0, k] + s * rows[6, k]
-        phi = _field_eval_into(coef, origin, h, p, grad, hess, work)
+        phi = _field_value_grad_into(coef, origin, h, p, grad, work)
         if abs(phi) <= 1e-14:
             break
         if phi > 0.0:

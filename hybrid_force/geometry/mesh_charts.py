@@ -41,6 +41,7 @@ __all__ = ["CylindricalChartSettings", "MeshChart", "ProjectionChartSettings"]
 _ORIGIN: Vec3 = (0.0, 0.0, 0.0)
 _Z: Vec3 = (0.0, 0.0, 1.0)
 _PARALLEL_TOL = 1e-6
+_RECENT = 8  # (u, v) points derivatives_at remembers (then forgets them all)
 
 
 @dataclass(frozen=True)
@@ -178,16 +179,35 @@ class MeshChart(SurfaceChart):
             self._start, self._end = (0.0, far) if surface.inside else (far, 0.0)
             self.names, self.units = ("angle", "height"), ("rad", "m")
             self.periods = (2.0 * math.pi, 0.0)
-        self._out = np.empty((6, 3))
+        # the kernel's settings, then its output S, S_u, S_v, S_uu, S_uv, S_vv (ray_chart_eval)
         self._params = np.concatenate(
-            [self._origin, [self._h, self._mode, self._start, self._end, 0.0], self._frame.ravel()]
+            [
+                self._origin,
+                [self._h, self._mode, self._start, self._end, 0.0],
+                self._frame.ravel(),
+                np.zeros(18),
+            ]
         )
+        self._flat = self._params[20:]  # a view: the output as 18 numbers
+        self._out = self._flat.reshape((6, 3))  # a view: the output's rows
+        self._recent: dict[tuple[float, float], tuple[Vec3, Vec3, Vec3, Vec3, Vec3, Vec3]] = {}
         from hybrid_force.geometry import _field_kernels
 
         self._kernel = _field_kernels.ray_chart_eval
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the output's views (a copy would no longer see the kernel's
+        writes) and the remembered points."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("_flat", "_out", "_recent")}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._flat = self._params[20:]
+        self._out = self._flat.reshape((6, 3))
+        self._recent = {}
+
     def _evaluate(self, u: float, v: float) -> np.ndarray:
-        s = self._kernel(self._coef, self._params, u, v, self._out)
+        s = self._kernel(self._coef, self._params, u, v)
         if s != s:  # NaN: no point of the part on this ray
             raise self._miss(u, v)
         return self._out
@@ -228,10 +248,25 @@ class MeshChart(SurfaceChart):
         return out
 
     def derivatives_at(self, u: float, v: float) -> tuple[Vec3, Vec3, Vec3, Vec3, Vec3, Vec3]:
-        """:meth:`derivatives` at one (u, v), as tuples (the hot path)."""
-        rows = self._evaluate(u, v).tolist()
-        s, su, sv, suu, suv, svv = (tuple(r) for r in rows)
-        return s, su, sv, suu, suv, svv
+        """:meth:`derivatives` at one (u, v), as tuples (the hot path).
+
+        The last few (u, v) are remembered: a path at rest (its start, its end) asks for the
+        same point three times a step, every step, and the ray march gives the same bits for
+        the same (u, v) whatever was evaluated before, so a remembered answer is the answer."""
+        key = (u, v)
+        known = self._recent.get(key)
+        if known is not None:
+            return known
+        s = self._kernel(self._coef, self._params, u, v)
+        if s != s:  # NaN: no point of the part on this ray
+            raise self._miss(u, v)
+        # one flat list unpacked into tuples: a third of the cost of six rows' tuple()
+        x, y, z, xu, yu, zu, xv, yv, zv, a, b, c, d, e, f, g, h, k = self._flat.tolist()
+        result = ((x, y, z), (xu, yu, zu), (xv, yv, zv), (a, b, c), (d, e, f), (g, h, k))
+        if len(self._recent) >= _RECENT:
+            self._recent.clear()
+        self._recent[key] = result
+        return result
 
     def coordinates(self, p: ArrayLike) -> tuple[float, float]:
         """(u, v) of a point p (3,) [m]: its coordinates in the plane, or (θ, h) about the axis."""

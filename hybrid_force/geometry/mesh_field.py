@@ -25,7 +25,7 @@ import io
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -177,15 +177,6 @@ class DistanceField:
     spacing: float
     build_seconds: float = 0.0
     cache_file: str = ""
-    _last: list = field(default_factory=list, init=False, repr=False, compare=False)
-
-    def __getstate__(self) -> dict:
-        """Pickled without the last evaluation (a worker starts with none)."""
-        return {k: v for k, v in self.__dict__.items() if k != "_last"}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-        object.__setattr__(self, "_last", [])
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -196,18 +187,37 @@ class DistanceField:
     def evaluate(self, p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
         """(Φ [m], ∇Φ: (3,), ∇²Φ: (3, 3) [1/m]) at p: (3,) float64 [m]; fresh arrays.
 
-        The last point's values are kept: a simulation step asks for Φ at the same tip
-        several times (the constraint, the tool's orientation, the contact), and a copy costs
-        a tenth of a kernel call. The same p gives the same bits either way."""
-        key = p.tobytes()
-        last = self._last
-        if last and last[0] == key:
-            return last[1], last[2].copy(), last[3].copy()
+        No memory of the last point: in a run the contact, the constraint and the tool's
+        orientation ask at three different points a step (measured: 1 % hits on
+        panda_pipe_tilt's mesh twin, ur5_mesh_forearm, panda_mesh_wrap), so keeping it cost
+        more than it saved."""
         grad = np.empty(3)
         hess = np.empty((3, 3))
         value = _kernel()(self.coefficients, self.origin, self.spacing, p, grad, hess)
-        self._last[:] = (key, value, grad.copy(), hess.copy())
         return value, grad, hess
+
+    def hessian(self, p: np.ndarray) -> np.ndarray | None:
+        """∇²Φ at p: (3,) float64 [m], a fresh (3, 3) [1/m] (the same bits as ``evaluate(p)[2]``),
+        or None when a coordinate of p is not finite or exceeds 1e150 m.
+
+        ∇Φ goes to a scratch array shared by all fields: it is never read, so nothing can
+        race on it."""
+        hess = np.empty((3, 3))
+        if _hessian_kernel()(self.coefficients, self.origin, self.spacing, p, _UNREAD, hess):
+            return hess
+        return None
+
+    def orientation_terms(
+        self, sample: np.ndarray, step: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """(∇Φ (3,), ∇²Φ (3, 3) [1/m], (d/dt ∇²Φ) ṗ_d (3,) [1/s]) at a path sample (3, 3) rows
+        p_d [m], ṗ_d [m/s], p̈_d, the last by a central difference of ∇²Φ over ±``step`` [m]
+        along ṗ_d (:func:`._field_kernels.orientation_terms`); None when p_d or ṗ_d is not
+        finite. Views of one fresh (5, 3) array."""
+        out = np.empty((5, 3))
+        if _orientation_kernel()(self.coefficients, self.origin, self.spacing, step, sample, out):
+            return out[0], out[1:4], out[4]
+        return None
 
     def values(self, points: np.ndarray) -> np.ndarray:
         """Φ at points (m, 3) [m]: (m,)."""
@@ -230,6 +240,31 @@ def _kernel():  # type: ignore[no-untyped-def]
 
         _FIELD_EVAL = _field_kernels.field_eval
     return _FIELD_EVAL
+
+
+_FIELD_HESSIAN = None
+_ORIENTATION = None
+_UNREAD = np.empty(3)  # the ∇Φ DistanceField.hessian does not return
+
+
+def _hessian_kernel():  # type: ignore[no-untyped-def]
+    """The compiled field_hessian, imported on first use (as :func:`_kernel`)."""
+    global _FIELD_HESSIAN
+    if _FIELD_HESSIAN is None:
+        from hybrid_force.geometry import _field_kernels
+
+        _FIELD_HESSIAN = _field_kernels.field_hessian
+    return _FIELD_HESSIAN
+
+
+def _orientation_kernel():  # type: ignore[no-untyped-def]
+    """The compiled orientation_terms, imported on first use (as :func:`_kernel`)."""
+    global _ORIENTATION
+    if _ORIENTATION is None:
+        from hybrid_force.geometry import _field_kernels
+
+        _ORIENTATION = _field_kernels.orientation_terms
+    return _ORIENTATION
 
 
 def _grid(part: MeshPart, h: float, key: str) -> tuple[np.ndarray, tuple[int, int, int]]:

@@ -213,7 +213,24 @@ class MeshSurface(Surface):
 
     def hessian(self, p: ArrayLike) -> np.ndarray:
         """∇²Φ(p): (3, 3) [1/m]."""
+        if type(p) is np.ndarray and p.shape == (3,) and p.dtype == np.float64:
+            # the hot path (the tool's orientation, twice a step): the kernel checks p is finite
+            hess = self.field.hessian(p)
+            if hess is not None:
+                return hess
         return self.field.evaluate(self._checked(p, "hessian"))[2]
+
+    def orientation_terms(
+        self, sample: np.ndarray, step: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """What a pointed tool's orientation needs at a path sample (3, 3) rows p_d, ṗ_d, p̈_d:
+        (∇Φ, ∇²Φ, (d/dt ∇²Φ) ṗ_d by a central difference over ±``step`` [m] along ṗ_d), in one
+        compiled call (:meth:`.DistanceField.orientation_terms`; ``control.tool`` asks for it
+        every step). None when the sample is not a finite float64 (3, 3) array: the caller
+        then computes the terms itself, through the checked methods."""
+        if type(sample) is np.ndarray and sample.shape == (3, 3) and sample.dtype == np.float64:
+            return self.field.orientation_terms(sample, step)
+        return None
 
     def distance(self, p: ArrayLike) -> float:
         """d = Φ [m] (the field is a signed distance)."""
