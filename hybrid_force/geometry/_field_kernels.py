@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline
 
 
 @_jit
@@ -125,18 +126,14 @@ def orientation_terms(
     return True
 
 
-@_jit
-def _field_eval_into(
-    coef: np.ndarray,
-    origin: np.ndarray,
-    h: float,
-    p: np.ndarray,
-    grad: np.ndarray,
-    hess: np.ndarray,
-    work: np.ndarray,
-) -> float:
-    """:func:`field_eval` with its basis weights in ``work`` (9, 4), allocated by the caller
-    (once for the many evaluations of a chart's ray march)."""
+@jit_inline
+def _cell(
+    coef: np.ndarray, origin: np.ndarray, h: float, p: np.ndarray, work: np.ndarray
+) -> tuple[bool, int, int, int, float, float, float]:
+    """The grid cell of p and its B-spline weights: (outside the box, i0, j0, k0, and the
+    offsets o [m] of p from the box's nearest point per axis), with the basis of each axis k
+    and its first and second derivatives written into ``work[3k : 3k + 3]`` (:func:`_basis`).
+    Outside the box Φ continues linearly from its nearest point (its callers add ∇Φ · o)."""
     bx, dx, sx = work[0], work[1], work[2]
     by, dy, sy = work[3], work[4], work[5]
     bz, dz, sz = work[6], work[7], work[8]
@@ -168,6 +165,25 @@ def _field_eval_into(
         else:
             k0, o2 = i, off
             _basis(u - i, bz, dz, sz)
+    return outside, i0, j0, k0, o0, o1, o2
+
+
+@_jit
+def _field_eval_into(
+    coef: np.ndarray,
+    origin: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    work: np.ndarray,
+) -> float:
+    """:func:`field_eval` with its basis weights in ``work`` (9, 4), allocated by the caller
+    (once for the many evaluations of a chart's ray march)."""
+    bx, dx, sx = work[0], work[1], work[2]
+    by, dy, sy = work[3], work[4], work[5]
+    bz, dz, sz = work[6], work[7], work[8]
+    outside, i0, j0, k0, o0, o1, o2 = _cell(coef, origin, h, p, work)
     value = 0.0
     gx = gy = gz = 0.0
     hxx = hyy = hzz = hxy = hxz = hyz = 0.0
@@ -224,37 +240,8 @@ def _field_value_grad_into(
     """Φ(p) and ∇Φ(p) into grad, by the same operations in the same order as
     :func:`_field_eval_into` (the same bits) without the six Hessian sums: the Newton steps of
     a chart's ray need only Φ and its slope along the ray."""
-    bx, dx, sx = work[0], work[1], work[2]
-    by, dy, sy = work[3], work[4], work[5]
-    bz, dz, sz = work[6], work[7], work[8]
-    outside = False
-    o0 = o1 = o2 = 0.0
-    i0 = j0 = k0 = 0
-    for k in range(3):
-        n = coef.shape[k] - 2
-        u = (p[k] - origin[k]) / h
-        top = float(n - 1)
-        off = 0.0
-        if u < 0.0:
-            off = (u - 0.0) * h
-            u = 0.0
-            outside = True
-        elif u > top:
-            off = (u - top) * h
-            u = top
-            outside = True
-        i = math.floor(u)
-        if i > n - 2:
-            i = n - 2
-        if k == 0:
-            i0, o0 = i, off
-            _basis(u - i, bx, dx, sx)
-        elif k == 1:
-            j0, o1 = i, off
-            _basis(u - i, by, dy, sy)
-        else:
-            k0, o2 = i, off
-            _basis(u - i, bz, dz, sz)
+    bx, dx, by, dy, bz, dz = work[0], work[1], work[3], work[4], work[6], work[7]
+    outside, i0, j0, k0, o0, o1, o2 = _cell(coef, origin, h, p, work)
     value = 0.0
     gx = gy = gz = 0.0
     for a in range(4):
@@ -287,37 +274,8 @@ def _field_value_into(
     """Φ(p) alone, by the same operations in the same order as :func:`_field_eval_into` (the
     same bits): the ray march of a chart needs only the sign and size of Φ, and skipping the
     nine derivative sums saves most of an evaluation."""
-    bx, dx, sx = work[0], work[1], work[2]
-    by, dy, sy = work[3], work[4], work[5]
-    bz, dz, sz = work[6], work[7], work[8]
-    outside = False
-    o0 = o1 = o2 = 0.0
-    i0 = j0 = k0 = 0
-    for k in range(3):
-        n = coef.shape[k] - 2
-        u = (p[k] - origin[k]) / h
-        top = float(n - 1)
-        off = 0.0
-        if u < 0.0:
-            off = (u - 0.0) * h
-            u = 0.0
-            outside = True
-        elif u > top:
-            off = (u - top) * h
-            u = top
-            outside = True
-        i = math.floor(u)
-        if i > n - 2:
-            i = n - 2
-        if k == 0:
-            i0, o0 = i, off
-            _basis(u - i, bx, dx, sx)
-        elif k == 1:
-            j0, o1 = i, off
-            _basis(u - i, by, dy, sy)
-        else:
-            k0, o2 = i, off
-            _basis(u - i, bz, dz, sz)
+    bx, dx, by, dy, bz, dz = work[0], work[1], work[3], work[4], work[6], work[7]
+    outside, i0, j0, k0, o0, o1, o2 = _cell(coef, origin, h, p, work)
     value = 0.0
     gx = gy = gz = 0.0
     for a in range(4):
