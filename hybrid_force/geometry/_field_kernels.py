@@ -168,6 +168,47 @@ def _cell(
     return outside, i0, j0, k0, o0, o1, o2
 
 
+@jit_inline
+def _sums(
+    coef: np.ndarray, i0: int, j0: int, k0: int, work: np.ndarray, order: int
+) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+    """The tricubic sums over the 4 × 4 × 4 coefficients of a cell, in grid units: Φ, then for
+    ``order`` ≥ 1 ∇Φ (x, y, z) and for ``order`` 2 the Hessian (xx, yy, zz, xy, xz, yz), the
+    others 0; ``work``: the weights of :func:`_cell`. One order of operations for every
+    evaluation, so each gives the same bits as the full one (an inlined constant ``order``
+    drops the sums it does not need)."""
+    bx, dx, sx = work[0], work[1], work[2]
+    by, dy, sy = work[3], work[4], work[5]
+    bz, dz, sz = work[6], work[7], work[8]
+    value = 0.0
+    gx = gy = gz = 0.0
+    hxx = hyy = hzz = hxy = hxz = hyz = 0.0
+    for a in range(4):
+        for b in range(4):
+            # the sums over z first: 4 numbers per (a, b) shared by every derivative
+            c0 = coef[i0 + a, j0 + b, k0]
+            c1 = coef[i0 + a, j0 + b, k0 + 1]
+            c2 = coef[i0 + a, j0 + b, k0 + 2]
+            c3 = coef[i0 + a, j0 + b, k0 + 3]
+            zb = c0 * bz[0] + c1 * bz[1] + c2 * bz[2] + c3 * bz[3]
+            wbb = bx[a] * by[b]
+            value += wbb * zb
+            if order >= 1:
+                zd = c0 * dz[0] + c1 * dz[1] + c2 * dz[2] + c3 * dz[3]
+                gx += dx[a] * by[b] * zb
+                gy += bx[a] * dy[b] * zb
+                gz += wbb * zd
+                if order >= 2:
+                    zs = c0 * sz[0] + c1 * sz[1] + c2 * sz[2] + c3 * sz[3]
+                    hxx += sx[a] * by[b] * zb
+                    hyy += bx[a] * sy[b] * zb
+                    hzz += wbb * zs
+                    hxy += dx[a] * dy[b] * zb
+                    hxz += dx[a] * by[b] * zd
+                    hyz += bx[a] * dy[b] * zd
+    return value, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz
+
+
 @_jit
 def _field_eval_into(
     coef: np.ndarray,
@@ -180,34 +221,8 @@ def _field_eval_into(
 ) -> float:
     """:func:`field_eval` with its basis weights in ``work`` (9, 4), allocated by the caller
     (once for the many evaluations of a chart's ray march)."""
-    bx, dx, sx = work[0], work[1], work[2]
-    by, dy, sy = work[3], work[4], work[5]
-    bz, dz, sz = work[6], work[7], work[8]
     outside, i0, j0, k0, o0, o1, o2 = _cell(coef, origin, h, p, work)
-    value = 0.0
-    gx = gy = gz = 0.0
-    hxx = hyy = hzz = hxy = hxz = hyz = 0.0
-    for a in range(4):
-        for b in range(4):
-            # the sums over z first: 4 numbers per (a, b) shared by every derivative
-            c0 = coef[i0 + a, j0 + b, k0]
-            c1 = coef[i0 + a, j0 + b, k0 + 1]
-            c2 = coef[i0 + a, j0 + b, k0 + 2]
-            c3 = coef[i0 + a, j0 + b, k0 + 3]
-            zb = c0 * bz[0] + c1 * bz[1] + c2 * bz[2] + c3 * bz[3]
-            zd = c0 * dz[0] + c1 * dz[1] + c2 * dz[2] + c3 * dz[3]
-            zs = c0 * sz[0] + c1 * sz[1] + c2 * sz[2] + c3 * sz[3]
-            wbb = bx[a] * by[b]
-            value += wbb * zb
-            gx += dx[a] * by[b] * zb
-            gy += bx[a] * dy[b] * zb
-            gz += wbb * zd
-            hxx += sx[a] * by[b] * zb
-            hyy += bx[a] * sy[b] * zb
-            hzz += wbb * zs
-            hxy += dx[a] * dy[b] * zb
-            hxz += dx[a] * by[b] * zd
-            hyz += bx[a] * dy[b] * zd
+    value, gx, gy, gz, hxx, hyy, hzz, hxy, hxz, hyz = _sums(coef, i0, j0, k0, work, 2)
     inv_h = 1.0 / h
     inv_h2 = inv_h * inv_h
     grad[0] = gx * inv_h
@@ -240,24 +255,8 @@ def _field_value_grad_into(
     """Φ(p) and ∇Φ(p) into grad, by the same operations in the same order as
     :func:`_field_eval_into` (the same bits) without the six Hessian sums: the Newton steps of
     a chart's ray need only Φ and its slope along the ray."""
-    bx, dx, by, dy, bz, dz = work[0], work[1], work[3], work[4], work[6], work[7]
     outside, i0, j0, k0, o0, o1, o2 = _cell(coef, origin, h, p, work)
-    value = 0.0
-    gx = gy = gz = 0.0
-    for a in range(4):
-        for b in range(4):
-            # the sums over z first: 4 numbers per (a, b) shared by every derivative
-            c0 = coef[i0 + a, j0 + b, k0]
-            c1 = coef[i0 + a, j0 + b, k0 + 1]
-            c2 = coef[i0 + a, j0 + b, k0 + 2]
-            c3 = coef[i0 + a, j0 + b, k0 + 3]
-            zb = c0 * bz[0] + c1 * bz[1] + c2 * bz[2] + c3 * bz[3]
-            zd = c0 * dz[0] + c1 * dz[1] + c2 * dz[2] + c3 * dz[3]
-            wbb = bx[a] * by[b]
-            value += wbb * zb
-            gx += dx[a] * by[b] * zb
-            gy += bx[a] * dy[b] * zb
-            gz += wbb * zd
+    value, gx, gy, gz = _sums(coef, i0, j0, k0, work, 1)[:4]
     inv_h = 1.0 / h
     grad[0] = gx * inv_h
     grad[1] = gy * inv_h
@@ -274,23 +273,9 @@ def _field_value_into(
     """Φ(p) alone, by the same operations in the same order as :func:`_field_eval_into` (the
     same bits): the ray march of a chart needs only the sign and size of Φ, and skipping the
     nine derivative sums saves most of an evaluation."""
-    bx, dx, by, dy, bz, dz = work[0], work[1], work[3], work[4], work[6], work[7]
     outside, i0, j0, k0, o0, o1, o2 = _cell(coef, origin, h, p, work)
-    value = 0.0
-    gx = gy = gz = 0.0
-    for a in range(4):
-        for b in range(4):
-            c0 = coef[i0 + a, j0 + b, k0]
-            c1 = coef[i0 + a, j0 + b, k0 + 1]
-            c2 = coef[i0 + a, j0 + b, k0 + 2]
-            c3 = coef[i0 + a, j0 + b, k0 + 3]
-            zb = c0 * bz[0] + c1 * bz[1] + c2 * bz[2] + c3 * bz[3]
-            value += bx[a] * by[b] * zb
-            if outside:  # the linear continuation needs ∇Φ at the box's nearest point
-                zd = c0 * dz[0] + c1 * dz[1] + c2 * dz[2] + c3 * dz[3]
-                gx += dx[a] * by[b] * zb
-                gy += bx[a] * dy[b] * zb
-                gz += bx[a] * by[b] * zd
+    # the linear continuation outside the box needs ∇Φ at its nearest point
+    value, gx, gy, gz = _sums(coef, i0, j0, k0, work, 1 if outside else 0)[:4]
     if outside:
         inv_h = 1.0 / h
         value += gx * inv_h * o0 + gy * inv_h * o1 + gz * inv_h * o2
