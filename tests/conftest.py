@@ -30,6 +30,15 @@ def rtr_urdf() -> Path:
     return REPO_ROOT / "robots" / "rtr.urdf"
 
 
+@pytest.fixture
+def field_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A fresh cache folder for mesh parts' distance fields ($HYBRID_FORCE_CACHE), so that a
+    test neither reads nor writes the user's cache."""
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("HYBRID_FORCE_CACHE", str(folder))
+    return folder
+
+
 # --- the arms most tests use: one load per test module (a Robot owns mutable Pinocchio data) ---
 @pytest.fixture(scope="module")
 def rtr() -> Robot:

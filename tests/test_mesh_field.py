@@ -26,9 +26,7 @@ from hybrid_force.geometry.mesh_surface import MeshSurface
 RADIUS = 0.3
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("HYBRID_FORCE_CACHE", str(tmp_path / "cache"))
+pytestmark = pytest.mark.usefixtures("field_cache")  # tests/conftest.py
 
 
 @pytest.fixture(scope="module")

@@ -37,9 +37,7 @@ REPO = Path(__file__).resolve().parents[1]
 RADIUS = 0.3
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("HYBRID_FORCE_CACHE", str(tmp_path / "cache"))
+pytestmark = pytest.mark.usefixtures("field_cache")  # tests/conftest.py
 
 
 @pytest.fixture(scope="module")
@@ -172,8 +170,8 @@ speed = 0.02
 
 def _with_start(path: Path) -> Path:
     """Put the path's start in ``initial.tip``."""
+    from hybrid_force._file_errors import _Context
     from hybrid_force.scenario._builders import _surfaces, _trajectory
-    from hybrid_force.scenario._tables import _Context
     from hybrid_force.scenario.loader import read_scenario_document
 
     text = path.read_text()

@@ -12,10 +12,7 @@ import trimesh
 
 from hybrid_force.cli import main
 
-
-@pytest.fixture(autouse=True)
-def _cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("HYBRID_FORCE_CACHE", str(tmp_path / "cache"))
+pytestmark = pytest.mark.usefixtures("field_cache")  # tests/conftest.py
 
 
 def _number(text: str, pattern: str) -> float:

@@ -86,20 +86,18 @@ MESH_PATHS = {
 
 
 @pytest.mark.parametrize("path", sorted(MESH_PATHS))
-def test_removed_volume_is_preston_integral_on_a_mesh_part(
-    path: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+@pytest.mark.usefixtures("field_cache")
+def test_removed_volume_is_preston_integral_on_a_mesh_part(path: str, tmp_path: Path) -> None:
     """The same identity on a mesh part (removal cells on its triangles, ∇Φ from its smooth
     field): a circle of latitude (world frame) and a raster in a projection chart on an
     icosphere, to 0.5 %; the cells lie on the mesh's triangles (trimesh's closest point) and
     the depth only within the patch radius of the tip's track."""
     import trimesh
 
+    from hybrid_force._file_errors import _Context
     from hybrid_force.geometry.mesh_surface import MeshSurface
     from hybrid_force.scenario._builders import _trajectory
-    from hybrid_force.scenario._tables import _Context
 
-    monkeypatch.setenv("HYBRID_FORCE_CACHE", str(tmp_path / "cache"))
     mesh = trimesh.creation.icosphere(subdivisions=5, radius=0.5)
     mesh.export(tmp_path / "sphere.stl")
     start = np.array([0.4, 0.0, 4.7])
