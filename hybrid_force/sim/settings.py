@@ -250,7 +250,8 @@ class Scenario:
     def _check_start_and_path(self) -> None:
         """The start and the path (class docstring); ``value`` for the loader: (surface
         index, OnSurfaceReport or None), (surface index, distance [m]) or the row indices."""
-        control, surfaces, k = self.control, self.tool_surfaces, len(self.tool_surfaces)
+        control, surfaces = self.control, self.tool_surfaces
+        k = len(surfaces)
         if k > 1 and control.supervisor:
             raise ScenarioError(
                 f"Scenario.surfaces: {k} stacked surfaces are supported only for a run that starts "
