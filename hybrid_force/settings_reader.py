@@ -331,8 +331,8 @@ def check_acting(
     run's recorded scenario then does not list it)."""
     for table, given in values.items():
         node: Any = doc  # the table as written
-        for part in table.split("."):
-            node = node.get(part, {})
+        for part in table.split("."):  # "surfaces.1": the second [[surfaces]] table
+            node = node[int(part)] if isinstance(node, list) else node.get(part, {})
         for key in list(given):
             spec = tables[table][key].param if key in tables[table] else None  # trajectory.type
             if spec is not None and spec.inert:

@@ -401,3 +401,22 @@ def test_a_chart_without_a_path_on_the_surface_is_refused(
     path.write_text(path.read_text().replace("TIP", "[0.46, 0.1, 0.3]"))
     err = _refusal(path, capsys, tmp_path / "out")
     assert "surface.chart = " in err and "has no effect" in err and "raster" in err
+
+
+@pytest.mark.parametrize("stacked", [False, True])
+def test_a_chart_without_a_path_in_surface_coordinates_is_refused(stacked: bool) -> None:
+    """``chart`` acts only with waypoints or a raster: given with a circle it is refused, under
+    [surface] and under [[surfaces]] alike, naming the table's own key."""
+    import tomllib
+
+    from hybrid_force.errors import ScenarioError
+    from hybrid_force.scenario.loader import scenario_from_document
+
+    doc = tomllib.loads((REPO / "scenarios" / "ur5_mesh_forearm.toml").read_text())
+    circle = {"center": [0.5, 0.1, 0.4], "radius": 0.01, "normal": [0, 0, 1], "omega": 0.5}
+    doc["trajectory"] = {"type": "circle", **circle}
+    if stacked:
+        doc["surfaces"] = [doc.pop("surface")]
+    key = r"surfaces\.0\.chart" if stacked else r"surface\.chart"
+    with pytest.raises(ScenarioError, match=rf"t\.toml: {key} = .*has no effect.*waypoints"):
+        scenario_from_document(doc, origin="t.toml", base_dir=REPO / "scenarios")

@@ -132,7 +132,7 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
         keys[f"control.{law}"] = law_keys(law)
         table = values["control"][law]
         values[f"control.{law}"] = check_table(ctx, f"control.{law}", table, keys[f"control.{law}"])
-    for table_name, given in surface_tables[:1] if "surface" in doc else ():  # [surface]'s
+    for table_name, given in surface_tables:  # [surface] or each [[surfaces]] table
         keys[table_name] = typed_tables()["surface"][given["type"]]
         values[table_name] = {k: v for k, v in given.items() if k != "type"}
     check_acting(ctx, doc, {**values, "trajectory": traj}, keys)
