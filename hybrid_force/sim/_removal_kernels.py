@@ -35,11 +35,49 @@ def _sliding_speed(
     return math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
 
 
+@_jit_inline
+def _slot(key: int, mask: int) -> int:
+    """The first slot of bucket id ``key`` ≥ 0 in a table of mask + 1 (a power of two) slots:
+    the bits of splitmix64's finaliser (the ids of neighbouring buckets spread out)."""
+    x = np.uint64(key)
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    x = x ^ (x >> np.uint64(31))
+    return np.int64(x & np.uint64(mask))
+
+
 @_jit
-def _bucket(keys: np.ndarray, key: int) -> int:
-    """The position of bucket id ``key`` in the sorted ``keys`` (B,), or −1 (no cell there)."""
-    b = int(np.searchsorted(keys, key))
-    return b if b < keys.shape[0] and keys[b] == key else -1
+def bucket_table(keys: np.ndarray) -> np.ndarray:
+    """The hash table (T, 2) int64 of the B bucket ids ``keys`` (B,) ≥ 0: slot [id, its
+    position in keys] or [−1, −1] empty; T the least power of two ≥ 2B (open addressing,
+    linear probing: about 1.5 slots read per lookup at that load)."""
+    size = 2
+    while size < 2 * keys.shape[0]:
+        size *= 2
+    table = np.full((size, 2), -1, dtype=np.int64)
+    mask = size - 1
+    for b in range(keys.shape[0]):
+        h = _slot(keys[b], mask)
+        while table[h, 0] >= 0:
+            h = (h + 1) & mask
+        table[h, 0] = keys[b]
+        table[h, 1] = b
+    return table
+
+
+@_jit_inline
+def _bucket(table: np.ndarray, key: int) -> int:
+    """The position of bucket id ``key`` among the grid's buckets (``table`` of
+    :func:`bucket_table`), or −1 (no cell there)."""
+    mask = table.shape[0] - 1
+    h = _slot(key, mask)
+    while True:
+        k = table[h, 0]
+        if k == key:
+            return table[h, 1]
+        if k < 0:
+            return -1
+        h = (h + 1) & mask
 
 
 @_jit_inline
@@ -77,9 +115,16 @@ def _bucket_box(
 
 
 @_jit_inline
+def _gap(x: float, start: float, size: float) -> float:
+    """The squared distance [m²] from x to the interval [start, start + size] [m]."""
+    d = start - x if x < start else x - start - size if x > start + size else 0.0
+    return d * d
+
+
+@_jit_inline
 def _cells_in_box(
     order: np.ndarray,
-    keys: np.ndarray,
+    table: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
@@ -87,18 +132,23 @@ def _cells_in_box(
     reach: float,
     out: np.ndarray,
 ) -> int:
-    """The cells (bucketed as in :func:`deposit`) of the buckets that the cube of half-side
-    ``reach`` [m] about centre (3,) [m] covers, bucket by bucket (x slowest, z fastest), in
+    """The cells (bucketed as in :func:`deposit`) of the buckets that the ball of radius
+    ``reach`` [m] about centre (3,) [m] meets, bucket by bucket (x slowest, z fastest), in
     out (M,) int64; returns their count (each cell is in one bucket: at most M)."""
     lo = np.empty(3, dtype=np.int64)
     hi = np.empty(3, dtype=np.int64)
     count = 0
     if _bucket_box(box, dims, centre, reach, lo, hi) == 0:
         return count
+    size, r2 = box[3], reach * reach
     for bx in range(lo[0], hi[0] + 1):
+        gx = _gap(centre[0], box[0] + bx * size, size)
         for by in range(lo[1], hi[1] + 1):
+            gy = gx + _gap(centre[1], box[1] + by * size, size)
             for bz in range(lo[2], hi[2] + 1):
-                b = _bucket(keys, (bx * dims[1] + by) * dims[2] + bz)
+                if gy + _gap(centre[2], box[2] + bz * size, size) > r2:
+                    continue  # the bucket is wholly farther than reach
+                b = _bucket(table, (bx * dims[1] + by) * dims[2] + bz)
                 if b < 0:
                     continue
                 for s in range(starts[b], starts[b + 1]):
@@ -112,14 +162,15 @@ def deposit(
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
-    keys: np.ndarray,
+    table: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
     depth: np.ndarray,
     centre: np.ndarray,
     normal: np.ndarray,
-    velocity: np.ndarray,
+    vt: np.ndarray,
+    feed: float,
     omega: float,
     a: float,
     shape: int,
@@ -130,15 +181,17 @@ def deposit(
 ) -> int:
     """Add one step's Preston depth k_p · p · |v| · dt to the cells under the patch.
 
-    points (M, 3) [m], areas (M,) [m²]: the cells; order (M,), keys (B,), starts (B + 1,):
-    the cells sorted by bucket, the sorted ids (bx · dims₁ + by) · dims₂ + bz of the B buckets
-    holding cells and where each one's cells start in ``order``; box = [origin (3), size] of
-    the buckets, dims (3,) their counts per axis;
-    depth (M,) [m], written. centre (3,) [m] and unit normal (3,) of the patch, velocity (3,)
-    [m/s] of the contact point (its tangential part slides), omega [rad/s] the spindle's rate
-    about the normal, a [m] the patch radius, shape HERTZ (p ∝ √(1 − ρ²/a²)) or FLAT
-    (uniform), force [N], factor = k_p · dt [m²/N · s]; index (M,) int64 and weight (M,):
-    scratch (the cells inside the patch and their p · |v| up to the scale).
+    points (M, 3) [m], areas (M,) [m²]: the cells; order (M,), table (T, 2), starts (B + 1,):
+    the cells sorted by bucket, the hash table of the ids (bx · dims₁ + by) · dims₂ + bz of
+    the B buckets holding cells (:func:`bucket_table`) and where each one's cells start in
+    ``order``; box = [origin (3), size] of the buckets, dims (3,) their counts per axis;
+    depth (M,) [m], written. centre (3,) [m] and unit normal (3,) of the patch, vt (3,) [m/s]
+    the tangential velocity of the contact point (it slides at |vt + ω n × r|), omega [rad/s]
+    the spindle's rate about the normal, feed [m/s] the slip where omega = 0 (|vt|, or a
+    group's force-weighted mean, :func:`flush`), a [m] the patch radius, shape HERTZ
+    (p ∝ √(1 − ρ²/a²)) or FLAT (uniform), force [N], factor = k_p · dt [m²/N · s]; index (M,)
+    int64 and weight (M,): scratch (the cells inside the patch and their p · |v| up to the
+    scale).
 
     The cells' pressures follow the profile and are scaled so that Σ p_i A_i = F exactly (the
     discrete form of ∫p dA = F); a patch with no cell centre inside it puts F on the nearest
@@ -147,10 +200,9 @@ def deposit(
     """
     if force <= 0.0 or a <= 0.0:
         return 0
-    vt0, vt1, vt2 = _tangential(velocity, normal)
-    feed = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2)  # the slip without a spindle
+    vt0, vt1, vt2 = vt[0], vt[1], vt[2]
     # the candidates in ``index``, compacted in place to the cells inside (inside ≤ c)
-    candidates = _cells_in_box(order, keys, starts, box, dims, centre, a, index)
+    candidates = _cells_in_box(order, table, starts, box, dims, centre, a, index)
     a2 = a * a
     total = 0.0
     inside = 0
@@ -183,7 +235,7 @@ def deposit(
     if nearest >= 0:
         # the patch falls between cell centres: all of F on the nearest cell
         r0, r1, r2 = _offset(points, nearest, centre)
-        speed = _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
+        speed = feed if omega == 0.0 else _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
         depth[nearest] += factor * force / areas[nearest] * speed
     return 0
 
@@ -246,6 +298,91 @@ def patch_on_part(
     return (3.0 * force * r_eff / (4.0 * modulus)) ** (1.0 / 3.0)
 
 
+GROUP = 26
+"""The length of a group's state (:func:`observe`, :func:`flush`)."""
+# the group's state: [0] samples, [1] Σ w, [2:5] Σ w c, [5:8] Σ w n, [8] Σ w a, [9] Σ F,
+# [10] Σ F |v_t|, [11:14] Σ F v_t, [14] Σ F ω; its first sample's [15:18] c, [18:21] n, [21] a,
+# [22:25] v_t, [25] ω (w = F |v_t| without a spindle, F with one)
+
+
+@_jit_inline
+def _fits(
+    group: np.ndarray,
+    centre: np.ndarray,
+    normal: np.ndarray,
+    vt: np.ndarray,
+    omega: float,
+    a: float,
+    merge: float,
+    spinning: bool,
+) -> bool:
+    """Whether a sample's patch (centre (3,) [m], unit normal (3,), tangential velocity vt
+    (3,) [m/s], spindle rate omega [rad/s], radius a [m]) may join the open group: its centre
+    and radius within ``merge`` [m] of the group's first sample's, its rim moved by the tilt
+    a₀ |n − n₀| ≤ merge, and with a spindle (``spinning``) its slip changed by
+    |Δv_t| + a₀ |Δω| ≤ (merge / a₀) (|v_t,0| + a₀ |ω₀|) (the relative change of the patch's
+    place)."""
+    if group[0] == 0.0:
+        return True
+    a0 = group[21]
+    dc = 0.0
+    dn = 0.0
+    for k in range(3):
+        dc += (centre[k] - group[15 + k]) ** 2
+        dn += (normal[k] - group[18 + k]) ** 2
+    m2 = merge * merge
+    if dc > m2 or a0 * a0 * dn > m2 or abs(a - a0) > merge:
+        return False
+    if not spinning:
+        return True  # the slip is one number, summed exactly (:func:`flush`)
+    dv = 0.0
+    v0 = 0.0
+    for k in range(3):
+        dv += (vt[k] - group[22 + k]) ** 2
+        v0 += group[22 + k] ** 2
+    change = math.sqrt(dv) + a0 * abs(omega - group[25])
+    return change <= merge / a0 * (math.sqrt(v0) + a0 * abs(group[25]))
+
+
+@_jit
+def flush(
+    group: np.ndarray,
+    shape: int,
+    factor: float,
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    table: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    depth: np.ndarray,
+    work: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
+) -> None:
+    """Deposit the open group of samples (``group`` (GROUP,), emptied) as one patch
+    (:func:`deposit`): at the w-weighted mean centre, normal and radius, with the summed
+    force ΣF, the feed ΣF|v_t| / ΣF (the volume k_p Σ F |v_t| dt, exactly) and, with a
+    spindle, the force-weighted mean v_t and ω. work (9,): scratch."""
+    if group[0] == 0.0:
+        return
+    w, total = group[1], group[9]
+    group[0] = 0.0
+    if not w > 0.0:
+        return  # no slip (a tool at rest, no spindle): nothing removed
+    centre, normal, vt = work[0:3], work[3:6], work[6:9]
+    g = math.sqrt(group[5] ** 2 + group[6] ** 2 + group[7] ** 2)
+    for k in range(3):
+        centre[k] = group[2 + k] / w
+        normal[k] = group[5 + k] / g
+        vt[k] = group[11 + k] / total
+    deposit(
+        points, areas, order, table, starts, box, dims, depth, centre, normal, vt,
+        group[10] / total, group[14] / total, group[8] / w, shape, total, factor, index, weight,
+    )  # fmt: skip
+
+
 @_jit
 def observe(
     desc: np.ndarray,
@@ -261,47 +398,72 @@ def observe(
     omega: float,
     v_ref: float,
     factor: float,
+    merge: float,
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
-    keys: np.ndarray,
+    table: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
     depth: np.ndarray,
+    group: np.ndarray,
     work: np.ndarray,
     index: np.ndarray,
     weight: np.ndarray,
 ) -> float:
     """One run step's removal: the patch at the tip p (3,) [m] with velocity (3,) [m/s]
-    pressed with ``force`` [N], deposited on the grid (:func:`deposit`).
+    pressed with ``force`` [N], joined to the open group of samples (``group`` (GROUP,)),
+    which is first deposited (:func:`flush`) when the patch has moved too far from it.
 
     desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
     distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
     caller's. The patch is centred at the tip's foot p − d n on the surface. v_ref > 0
     [m/s]: the spindle's schedule ω |v_t| / v_ref (the removal per unit length of a feed
-    |v_t| is then that of the feed v_ref at ω); 0: ω throughout. work (6,),
-    index (M,) int64 and weight (M,): scratch. Returns the patch radius a [m] (0: no force;
-    −1: Hertz does not apply, the part conforms; nothing is deposited then).
+    |v_t| is then that of the feed v_ref at ω); 0: ω throughout. merge [m]: the group's
+    reach (:func:`_fits`; docs/removal.md, "Cost"). work (18,), index (M,) int64 and
+    weight (M,): scratch. Returns the patch radius a [m] (0: no force; −1: Hertz does not
+    apply, the part conforms; nothing is deposited then).
     """
     if force <= 0.0:
         return 0.0
     if desc.shape[0] > 0:
         _, distance = _surface_eval(desc, p, grad, hess)
-    normal = work[0:3]
+    normal = work[9:12]
     a = patch_on_part(grad, hess, shape, radius, modulus, force, normal)
     if a <= 0.0:
         return a
-    centre = work[3:6]
+    centre, vt = work[12:15], work[15:18]
     for k in range(3):
         centre[k] = p[k] - distance * normal[k]
+    vt[0], vt[1], vt[2] = _tangential(velocity, normal)
+    feed = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2])
+    spinning = omega != 0.0
     if v_ref > 0.0:  # the spindle slows with the feed
-        vt0, vt1, vt2 = _tangential(velocity, normal)
-        omega = omega * math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2) / v_ref
-    deposit(
-        points, areas, order, keys, starts, box, dims, depth, centre, normal, velocity, omega, a,
-        shape, force, factor, index, weight,
-    )  # fmt: skip
+        omega = omega * feed / v_ref
+    if not _fits(group, centre, normal, vt, omega, a, merge, spinning):
+        flush(
+            group, shape, factor, points, areas, order, table, starts, box, dims, depth, work,
+            index, weight,
+        )  # fmt: skip
+    if group[0] == 0.0:
+        group[:] = 0.0
+        group[15:18] = centre
+        group[18:21] = normal
+        group[21] = a
+        group[22:25] = vt
+        group[25] = omega
+    w = force if spinning else force * feed
+    group[0] += 1.0
+    group[1] += w
+    for k in range(3):
+        group[2 + k] += w * centre[k]
+        group[5 + k] += w * normal[k]
+        group[11 + k] += force * vt[k]
+    group[8] += w * a
+    group[9] += force
+    group[10] += force * feed
+    group[14] += force * omega
     return a
 
 
@@ -309,7 +471,7 @@ def observe(
 def mark_near(
     points: np.ndarray,
     order: np.ndarray,
-    keys: np.ndarray,
+    table: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
@@ -323,7 +485,7 @@ def mark_near(
     cells = np.empty(points.shape[0], dtype=np.int64)
     for s in range(samples.shape[0]):
         sample = samples[s]
-        for c in range(_cells_in_box(order, keys, starts, box, dims, sample, reach, cells)):
+        for c in range(_cells_in_box(order, table, starts, box, dims, sample, reach, cells)):
             d0, d1, d2 = _offset(points, cells[c], sample)
             if d0 * d0 + d1 * d1 + d2 * d2 < r2:
                 out[cells[c]] = True
@@ -344,25 +506,28 @@ def observe_batch(
     omega: float,
     v_ref: float,
     factor: float,
+    merge: float,
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
-    keys: np.ndarray,
+    table: np.ndarray,
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
     depth: np.ndarray,
+    group: np.ndarray,
+    work: np.ndarray,
     index: np.ndarray,
     weight: np.ndarray,
     tally: np.ndarray,
 ) -> None:
     """:func:`observe` for samples first … first + count − 1 of a run on a built-in surface
     (``desc``): tips (N, 3) [m] and forces (N, k) [N] the run's recorded columns (the force of
-    surface ``column``), velocities (count, 3) [m/s] their J v. tally (2,): the samples that
+    surface ``column``), velocities (count, 3) [m/s] their J v; the open group carries over
+    to the next call (:func:`flush` deposits it at the end). tally (2,): the samples that
     deposited and those where the part conformed, incremented."""
     grad = np.zeros(3)
     hess = np.zeros((3, 3))
-    work = np.zeros(6)
     for s in range(count):
         i = first + s
         force = forces[i, column]
@@ -370,8 +535,8 @@ def observe_batch(
             continue
         a = observe(
             desc, tips[i], grad, hess, 0.0, velocities[s], force, shape, radius, modulus, omega,
-            v_ref, factor, points, areas, order, keys, starts, box, dims, depth, work, index,
-            weight,
+            v_ref, factor, merge, points, areas, order, table, starts, box, dims, depth, group,
+            work, index, weight,
         )  # fmt: skip
         if a < 0.0:
             tally[1] += 1

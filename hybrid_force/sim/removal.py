@@ -175,8 +175,8 @@ class RemovalGrid:
     """Cells on the surface: centres (M, 3) [m], areas (M,) [m²], and the depth (M,) [m].
 
     The cells are sorted into cubic buckets of side ``bucket`` [m] so that a step visits only
-    the buckets its patch overlaps; only the buckets holding cells are kept (``keys``, sorted,
-    looked up by bisection): a helix's box is mostly empty.
+    the buckets its patch overlaps; only the buckets holding cells are kept (in a hash table,
+    ``table``): a helix's box is mostly empty.
     """
 
     def __init__(self, points: np.ndarray, areas: np.ndarray, bucket: float) -> None:
@@ -195,8 +195,9 @@ class RemovalGrid:
         index = np.floor((self.points - origin) / bucket).astype(np.int64)
         flat = (index[:, 0] * dims[1] + index[:, 1]) * dims[2] + index[:, 2]
         self.order = np.argsort(flat, kind="stable").astype(np.int64)
-        self.keys, counts = np.unique(flat, return_counts=True)
-        self.keys = self.keys.astype(np.int64)
+        keys, counts = np.unique(flat, return_counts=True)
+        #: the hash table of the buckets holding cells (:func:`._removal_kernels.bucket_table`)
+        self.table = _K.bucket_table(keys.astype(np.int64))
         self.starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.box = np.array([*origin, bucket])
         self.dims = dims
@@ -335,19 +336,24 @@ class RemovalGrid:
         """One step of Preston removal (:func:`._removal_kernels.deposit`); the cells touched."""
         a, _ = pad.patch(force, *curvatures)
         shape = _HERTZ if isinstance(pad, HertzPad) else _FLAT
+        n = np.ascontiguousarray(normal, dtype=np.float64)
+        v = np.ascontiguousarray(velocity, dtype=np.float64)
+        vn = v[0] * n[0] + v[1] * n[1] + v[2] * n[2]
+        vt = v - vn * n  # the tangential part slides
         return int(
             _K.deposit(
                 self.points,
                 self.areas,
                 self.order,
-                self.keys,
+                self.table,
                 self.starts,
                 self.box,
                 self.dims,
                 self.depth,
                 np.ascontiguousarray(centre, dtype=np.float64),
-                np.ascontiguousarray(normal, dtype=np.float64),
-                np.ascontiguousarray(velocity, dtype=np.float64),
+                n,
+                vt,
+                math.sqrt(float(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2])),
                 float(omega),
                 float(a),
                 shape,

@@ -51,6 +51,10 @@ MAX_CELLS = 4_000_000
 """The most cells a removal grid may have (about 200 MB of arrays)."""
 BATCH = 256
 """Samples deposited by one compiled call on a built-in surface (RemovalObserver.observe)."""
+MERGE = 0.25
+"""Consecutive samples whose patches stay within MERGE · resolution of the first one's (centre,
+radius, the rim's tilt; with a spindle, the slip too) are deposited as one patch at their mean
+(docs/removal.md, "Cost": the profile's error is O(ℓ² p''/24), ℓ ≤ MERGE · resolution)."""
 _CHECK_SAMPLES = 64  # path samples at which a Hertz pad's contact is checked before the run
 
 
@@ -223,7 +227,7 @@ def _near(grid: RemovalGrid, samples: np.ndarray, reach: float, exact: bool = Fa
         reach *= 1.0 + 1.0 / 32.0
     out = np.zeros(grid.points.shape[0], dtype=bool)
     g = grid
-    _K.mark_near(g.points, g.order, g.keys, g.starts, g.box, g.dims, samples, float(reach), out)
+    _K.mark_near(g.points, g.order, g.table, g.starts, g.box, g.dims, samples, float(reach), out)
     return out
 
 
@@ -317,7 +321,10 @@ class RemovalObserver:
         quadric = isinstance(surface, Cylinder | Sphere | Plane)
         self._desc = np.asarray(surface._descriptor if quadric else np.zeros(0), dtype=float)
         self._python = not quadric  # ∇Φ, ∇²Φ from the surface's own methods
-        self._grad, self._hess, self._work = np.zeros(3), np.zeros((3, 3)), np.zeros(6)
+        self._grad, self._hess, self._work = np.zeros(3), np.zeros((3, 3)), np.zeros(18)
+        # consecutive samples whose patch moved less than MERGE cells: one deposit
+        self._merge = MERGE * removal.resolution
+        self._group = np.zeros(_K.GROUP)
         self._shape = _HERTZ if isinstance(pad, HertzPad) else _FLAT
         self._modulus = pad.modulus if isinstance(pad, HertzPad) else 0.0
         self._factor = removal.k_p * sc.sim.dt
@@ -407,9 +414,9 @@ class RemovalObserver:
             hess[:] = h
         a = _K.observe(
             self._desc, p, grad, hess, distance, pdot, force, self._shape, self.pad.radius,
-            self._modulus, self.settings.omega, self.v_ref, self._factor, grid.points, grid.areas,
-            grid.order, grid.keys, grid.starts, grid.box, grid.dims, grid.depth, self._work,
-            grid.index, grid.weight,
+            self._modulus, self.settings.omega, self.v_ref, self._factor, self._merge,
+            grid.points, grid.areas, grid.order, grid.table, grid.starts, grid.box, grid.dims,
+            grid.depth, self._group, self._work, grid.index, grid.weight,
         )  # fmt: skip
         if a < 0.0:
             self.conforming += 1
@@ -425,8 +432,9 @@ class RemovalObserver:
             _K.observe_batch(
                 self._desc, self._tips, self._forces, self.surface_index, self._velocities,
                 first, count, self._shape, self.pad.radius, self._modulus, self.settings.omega,
-                self.v_ref, self._factor, g.points, g.areas, g.order, g.keys, g.starts, g.box,
-                g.dims, g.depth, g.index, g.weight, tally,
+                self.v_ref, self._factor, self._merge, g.points, g.areas, g.order, g.table,
+                g.starts, g.box, g.dims, g.depth, self._group, self._work, g.index, g.weight,
+                tally,
             )  # fmt: skip
             self.steps += int(tally[0])
             self.conforming += int(tally[1])
@@ -437,6 +445,11 @@ class RemovalObserver:
         (the end of the run, or where it stopped)."""
         if self._tips is not None and not self._python and filled > self._first:
             self._flush(filled)
+        g = self.grid
+        _K.flush(
+            self._group, self._shape, self._factor, g.points, g.areas, g.order, g.table,
+            g.starts, g.box, g.dims, g.depth, self._work, g.index, g.weight,
+        )  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         """The removal metrics (docs/removal.md) and what they were measured on (JSON-able):
