@@ -36,7 +36,7 @@ def _sliding_speed(
 
 
 @_jit_inline
-def _slot(key: int, mask: int) -> int:
+def _slot(key: int, mask: int) -> np.int64:
     """The first slot of bucket id ``key`` ≥ 0 in a table of mask + 1 (a power of two) slots:
     the bits of splitmix64's finaliser (the ids of neighbouring buckets spread out)."""
     x = np.uint64(key)
@@ -157,6 +157,102 @@ def _cells_in_box(
     return count
 
 
+PLANE_ROWS = 1
+CYLINDER_ROWS = 2
+
+
+@_jit_inline
+def _row_cells(
+    rows: np.ndarray, col: np.ndarray, k: int, lo: int, hi: int, out: np.ndarray, count: int
+) -> int:
+    """Append to out (from ``count``) the cells of lattice row k whose column is in
+    [lo, hi] (rows (nu + 1,): where each row's cells start; col (M,): their columns, sorted
+    within a row); returns the new count."""
+    first, last = rows[k], rows[k + 1]
+    while first < last:  # bisection: the row's first cell of column ≥ lo
+        mid = (first + last) // 2
+        if col[mid] < lo:
+            first = mid + 1
+        else:
+            last = mid
+    for i in range(first, rows[k + 1]):
+        if col[i] > hi:
+            break
+        out[count] = i
+        count += 1
+    return count
+
+
+@_jit_inline
+def _cells_in_rows(
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
+    centre: np.ndarray,
+    reach: float,
+    out: np.ndarray,
+) -> int:
+    """The cells of a chart lattice (``RemovalGrid.lattice``, ``rows``, ``col``: a plane's or
+    a cylinder's (u, v) cells, sorted by row u then column v) that may lie within ``reach``
+    [m] of centre (3,) [m], in out (M,) int64; returns their count. Per row, the range of
+    columns where the distance from the centre to the row's line (the centre's height off
+    the surface and the row's chord, less half a cell) leaves room: a superset of the cells
+    within reach, each cell once, found by bisection (no search among buckets)."""
+    u0, du, v0, dv, nu, period = (
+        lattice[1],
+        lattice[2],
+        lattice[3],
+        lattice[4],
+        lattice[5],
+        lattice[6],
+    )
+    w0, w1, w2 = centre[0] - lattice[7], centre[1] - lattice[8], centre[2] - lattice[9]
+    x = w0 * lattice[10] + w1 * lattice[11] + w2 * lattice[12]
+    y = w0 * lattice[13] + w1 * lattice[14] + w2 * lattice[15]
+    z = w0 * lattice[16] + w1 * lattice[17] + w2 * lattice[18]
+    r2 = reach * reach
+    cylinder = lattice[0] == CYLINDER_ROWS
+    if cylinder:  # (θ, h): the chord 2 √(R ρ) |sin(Δθ/2)| to the row at R, off by ρ − R
+        radius = lattice[19]
+        rho = math.sqrt(x * x + y * y)
+        uc, vc, off2, ring = math.atan2(y, x), z, (rho - radius) ** 2, 4.0 * radius * rho
+        room = r2 - off2
+        if room <= 0.0:
+            return 0
+        span = math.pi if room >= ring else 2.0 * math.asin(math.sqrt(room / ring))
+    else:  # a plane's (u, v) [m] and the height off it
+        uc, vc, off2, ring = x, y, z * z, 0.0
+        room = r2 - off2
+        if room <= 0.0:
+            return 0
+        span = math.sqrt(room)
+    n = int(nu)
+    count = 0
+    # the rows within span (+ half a cell) of uc, once each: uc shifted by whole periods
+    # when the lattice is periodic (then uc − span … uc + span is less than one period)
+    whole = period > 0.0 and 2.0 * (span + du) >= period
+    shifts = 1 if period > 0.0 and not whole else 0
+    for shift in range(-shifts, shifts + 1):
+        us = uc + shift * period
+        k_lo, k_hi = 0, n - 1
+        if not whole:
+            k_lo = max(0, math.ceil((us - span - u0) / du - 1.0))
+            k_hi = min(n - 1, math.floor((us + span - u0) / du))
+        for k in range(k_lo, k_hi + 1):
+            d = u0 + (k + 0.5) * du - us
+            if whole:  # the periodic difference, in [−period/2, period/2)
+                d = (d + 0.5 * period) % period - 0.5 * period
+            d = max(abs(d) - 0.5 * du, 0.0)  # the nearest point of the row's cells
+            chord2 = ring * math.sin(0.5 * d) ** 2 if cylinder else d * d
+            if chord2 >= room:
+                continue
+            half = math.sqrt(room - chord2)
+            lo = math.ceil((vc - half - v0) / dv - 1.0)
+            hi = math.floor((vc + half - v0) / dv)
+            count = _row_cells(rows, col, k, lo, hi, out, count)
+    return count
+
+
 @_jit
 def deposit(
     points: np.ndarray,
@@ -166,6 +262,9 @@ def deposit(
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
     depth: np.ndarray,
     centre: np.ndarray,
     normal: np.ndarray,
@@ -182,16 +281,17 @@ def deposit(
     """Add one step's Preston depth k_p · p · |v| · dt to the cells under the patch.
 
     points (M, 3) [m], areas (M,) [m²]: the cells; order (M,), table (T, 2), starts (B + 1,):
-    the cells sorted by bucket, the hash table of the ids (bx · dims₁ + by) · dims₂ + bz of
-    the B buckets holding cells (:func:`bucket_table`) and where each one's cells start in
+    the cells sorted by bucket, the hash table of the ids (bx · dims₁ + by) · dims₂ + bz of the
+    B buckets holding cells (:func:`bucket_table`) and where each one's cells start in
     ``order``; box = [origin (3), size] of the buckets, dims (3,) their counts per axis;
+    lattice, rows, col: a plane's or a cylinder's chart lattice (``RemovalGrid.lattice``; the
+    cells are then found row by row, :func:`_cells_in_rows`), or lattice empty (by the buckets);
     depth (M,) [m], written. centre (3,) [m] and unit normal (3,) of the patch, vt (3,) [m/s]
     the tangential velocity of the contact point (it slides at |vt + ω n × r|), omega [rad/s]
-    the spindle's rate about the normal, feed [m/s] the slip where omega = 0 (|vt|, or a
-    group's force-weighted mean, :func:`flush`), a [m] the patch radius, shape HERTZ
-    (p ∝ √(1 − ρ²/a²)) or FLAT (uniform), force [N], factor = k_p · dt [m²/N · s]; index (M,)
-    int64 and weight (M,): scratch (the cells inside the patch and their p · |v| up to the
-    scale).
+    the spindle's rate about the normal, feed [m/s] the slip where omega = 0 (|vt|, or a group's
+    force-weighted mean, :func:`flush`), a [m] the patch radius, shape HERTZ (p ∝ √(1 − ρ²/a²))
+    or FLAT (uniform), force [N], factor = k_p · dt [m²/N · s]; index (M,) int64 and weight
+    (M,): scratch (the cells inside the patch and their p · |v| up to the scale).
 
     The cells' pressures follow the profile and are scaled so that Σ p_i A_i = F exactly (the
     discrete form of ∫p dA = F); a patch with no cell centre inside it puts F on the nearest
@@ -202,7 +302,10 @@ def deposit(
         return 0
     vt0, vt1, vt2 = vt[0], vt[1], vt[2]
     # the candidates in ``index``, compacted in place to the cells inside (inside ≤ c)
-    candidates = _cells_in_box(order, table, starts, box, dims, centre, a, index)
+    if lattice.shape[0] > 0:
+        candidates = _cells_in_rows(lattice, rows, col, centre, a, index)
+    else:
+        candidates = _cells_in_box(order, table, starts, box, dims, centre, a, index)
     a2 = a * a
     total = 0.0
     inside = 0
@@ -356,6 +459,9 @@ def flush(
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
     depth: np.ndarray,
     work: np.ndarray,
     index: np.ndarray,
@@ -378,8 +484,8 @@ def flush(
         normal[k] = group[5 + k] / g
         vt[k] = group[11 + k] / total
     deposit(
-        points, areas, order, table, starts, box, dims, depth, centre, normal, vt,
-        group[10] / total, group[14] / total, group[8] / w, shape, total, factor, index, weight,
+        points, areas, order, table, starts, box, dims, lattice, rows, col, depth, centre, normal,
+        vt, group[10] / total, group[14] / total, group[8] / w, shape, total, factor, index, weight,
     )  # fmt: skip
 
 
@@ -406,6 +512,9 @@ def observe(
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
     depth: np.ndarray,
     group: np.ndarray,
     work: np.ndarray,
@@ -443,8 +552,8 @@ def observe(
         omega = omega * feed / v_ref
     if not _fits(group, centre, normal, vt, omega, a, merge, spinning):
         flush(
-            group, shape, factor, points, areas, order, table, starts, box, dims, depth, work,
-            index, weight,
+            group, shape, factor, points, areas, order, table, starts, box, dims, lattice, rows,
+            col, depth, work, index, weight,
         )  # fmt: skip
     if group[0] == 0.0:
         group[:] = 0.0
@@ -514,6 +623,9 @@ def observe_batch(
     starts: np.ndarray,
     box: np.ndarray,
     dims: np.ndarray,
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
     depth: np.ndarray,
     group: np.ndarray,
     work: np.ndarray,
@@ -535,8 +647,8 @@ def observe_batch(
             continue
         a = observe(
             desc, tips[i], grad, hess, 0.0, velocities[s], force, shape, radius, modulus, omega,
-            v_ref, factor, merge, points, areas, order, table, starts, box, dims, depth, group,
-            work, index, weight,
+            v_ref, factor, merge, points, areas, order, table, starts, box, dims, lattice, rows,
+            col, depth, group, work, index, weight,
         )  # fmt: skip
         if a < 0.0:
             tally[1] += 1

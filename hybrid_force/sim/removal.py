@@ -28,6 +28,8 @@ import numpy as np
 
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import ScenarioError
+from hybrid_force.geometry.charts import CylinderChart, PlaneChart
+from hybrid_force.geometry.paths import axis_frame
 from hybrid_force.schema import check_fields, param
 
 __all__ = [
@@ -201,6 +203,15 @@ class RemovalGrid:
         self.starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.box = np.array([*origin, bucket])
         self.dims = dims
+        #: a plane's or a cylinder's chart lattice, where the cells are found row by row
+        #: (:func:`._removal_kernels.deposit`): [kind, u0, du, v0, dv, nu, period, the chart's
+        #: origin (3), its axes (3 × 3), radius], or empty (the buckets); rows (nu + 1,): where
+        #: each lattice row's cells start, col (M,): their columns
+        self.lattice = np.zeros(0)
+        self.rows = np.zeros(1, dtype=np.int64)
+        self.col = np.zeros(0, dtype=np.int64)
+        #: the cells' lattice indices (M, 2) (iu, iv), for a grid laid on a chart
+        self.ij: np.ndarray | None = None
 
     @classmethod
     def on_chart(
@@ -216,10 +227,9 @@ class RemovalGrid:
         area is |S_u × S_v| du dv at its centre (midpoint rule).
         """
         nu, nv, du, dv = _chart_lattice(chart, u_range, v_range, resolution)
-        u = u_range[0] + du * (np.arange(nu) + 0.5)
-        v = v_range[0] + dv * (np.arange(nv) + 0.5)
-        uu, vv = (x.ravel() for x in np.meshgrid(u, v, indexing="ij"))
-        return cls._of_chart_cells(chart, uu, vv, du, dv, 4.0 * resolution)
+        flat = np.arange(nu * nv, dtype=np.int64)
+        lattice = (u_range[0], du, v_range[0], dv, nu, nv)
+        return cls._of_chart_cells(chart, flat, lattice, 4.0 * resolution)
 
     @classmethod
     def on_chart_near(
@@ -283,29 +293,53 @@ class RemovalGrid:
                 inside &= (cells[:, 1] >= 0) & (cells[:, 1] < nv)
                 chosen.append(np.unique(cells[inside, 0] * nv + cells[inside, 1]))
             flat = np.unique(np.concatenate(chosen)) if chosen else np.zeros(0, dtype=np.int64)
-        uu = u_range[0] + du * (flat // nv + 0.5)
-        vv = v_range[0] + dv * (flat % nv + 0.5)
+        lattice = (u_range[0], du, v_range[0], dv, nu, nv)
         return cls._of_chart_cells(
-            chart, uu, vv, du, dv, 4.0 * resolution if bucket is None else bucket
+            chart, flat, lattice, 4.0 * resolution if bucket is None else bucket
         )
 
     @classmethod
     def _of_chart_cells(
         cls,
         chart: object,
-        uu: np.ndarray,
-        vv: np.ndarray,
-        du: float,
-        dv: float,
+        flat: np.ndarray,
+        lattice: tuple[float, float, float, float, int, int],
         bucket: float,
     ) -> RemovalGrid:
-        """The grid of the chart cells centred at (uu, vv) (M,) each, du × dv wide: the cell's
-        area |S_u × S_v| du dv at its centre [m²] (midpoint rule), buckets ``bucket`` [m]."""
+        """The grid of the chart cells iu · nv + iv (flat (M,), increasing) of the lattice
+        (u0, du, v0, dv, nu, nv): centred at (u0 + (iu + ½) du, v0 + (iv + ½) dv), of area
+        |S_u × S_v| du dv at the centre [m²] (midpoint rule), buckets ``bucket`` [m]."""
+        u0, du, v0, dv, nu, nv = lattice
+        ij = np.column_stack([flat // nv, flat % nv])
+        uu, vv = u0 + du * (ij[:, 0] + 0.5), v0 + dv * (ij[:, 1] + 0.5)
         d = chart.derivatives(uu, vv)  # type: ignore[attr-defined]
         areas = np.linalg.norm(np.cross(d[1], d[2]), axis=1) * du * dv
         grid = cls(d[0], areas, bucket=bucket)
         grid.uv = np.column_stack([uu, vv])
+        grid._set_lattice(chart, ij, (u0, du, v0, dv, nu))
         return grid
+
+    def _set_lattice(
+        self, chart: object, ij: np.ndarray, lattice: tuple[float, float, float, float, int]
+    ) -> None:
+        """Keep the cells' lattice indices ij (M, 2) (rows iu increasing, columns iv
+        increasing within a row) of (u0, du, v0, dv, nu); on a plane's or a cylinder's chart
+        also the lattice for the row-by-row search (:attr:`lattice`)."""
+        self.ij = ij
+        u0, du, v0, dv, nu = lattice
+        if isinstance(chart, PlaneChart):  # S = point + u e_u + v e_v
+            e_u, e_v = chart.axes
+            frame = [np.asarray(chart.surface.point, dtype=float), e_u, e_v, np.cross(e_u, e_v)]
+            kind, period, radius = _K.PLANE_ROWS, 0.0, 0.0
+        elif isinstance(chart, CylinderChart):  # S = c + h a + r (cos θ e1 + sin θ e2)
+            frame = [np.asarray(chart.surface.center, dtype=float), *axis_frame(chart.surface.axis)]
+            kind, period, radius = _K.CYLINDER_ROWS, 2.0 * math.pi, chart.surface.radius
+        else:
+            return
+        head = [kind, u0, du, v0, dv, nu, period]
+        self.lattice = np.array([*head, *np.concatenate(frame), radius], dtype=float)
+        self.rows = np.searchsorted(ij[:, 0], np.arange(nu + 1)).astype(np.int64)
+        self.col = np.ascontiguousarray(ij[:, 1], dtype=np.int64)
 
     @classmethod
     def on_mesh(cls, vertices: np.ndarray, faces: np.ndarray) -> RemovalGrid:
@@ -319,6 +353,14 @@ class RemovalGrid:
         """A grid of the cells ``keep`` (M,) bool of this one (their depth zero)."""
         grid = RemovalGrid(self.points[keep], self.areas[keep], bucket=float(self.box[3]))
         grid.uv = None if self.uv is None else self.uv[keep]
+        if self.ij is not None:
+            grid.ij = self.ij[keep]
+        if self.lattice.shape[0] > 0:
+            grid.lattice = self.lattice
+            assert grid.ij is not None
+            nu = self.rows.shape[0] - 1
+            grid.rows = np.searchsorted(grid.ij[:, 0], np.arange(nu + 1)).astype(np.int64)
+            grid.col = np.ascontiguousarray(grid.ij[:, 1], dtype=np.int64)
         return grid
 
     def add(
@@ -349,6 +391,9 @@ class RemovalGrid:
                 self.starts,
                 self.box,
                 self.dims,
+                self.lattice,
+                self.rows,
+                self.col,
                 self.depth,
                 np.ascontiguousarray(centre, dtype=np.float64),
                 n,

@@ -414,9 +414,9 @@ class RemovalObserver:
             hess[:] = h
         a = _K.observe(
             self._desc, p, grad, hess, distance, pdot, force, self._shape, self.pad.radius,
-            self._modulus, self.settings.omega, self.v_ref, self._factor, self._merge,
-            grid.points, grid.areas, grid.order, grid.table, grid.starts, grid.box, grid.dims,
-            grid.depth, self._group, self._work, grid.index, grid.weight,
+            self._modulus, self.settings.omega, self.v_ref, self._factor, self._merge, grid.points,
+            grid.areas, grid.order, grid.table, grid.starts, grid.box, grid.dims, grid.lattice,
+            grid.rows, grid.col, grid.depth, self._group, self._work, grid.index, grid.weight,
         )  # fmt: skip
         if a < 0.0:
             self.conforming += 1
@@ -430,11 +430,11 @@ class RemovalObserver:
         if count > 0 and self._tips is not None and self._forces is not None:
             g, tally = self.grid, np.zeros(2, dtype=np.int64)
             _K.observe_batch(
-                self._desc, self._tips, self._forces, self.surface_index, self._velocities,
-                first, count, self._shape, self.pad.radius, self._modulus, self.settings.omega,
-                self.v_ref, self._factor, self._merge, g.points, g.areas, g.order, g.table,
-                g.starts, g.box, g.dims, g.depth, self._group, self._work, g.index, g.weight,
-                tally,
+                self._desc, self._tips, self._forces, self.surface_index, self._velocities, first,
+                count, self._shape, self.pad.radius, self._modulus, self.settings.omega, self.v_ref,
+                self._factor, self._merge, g.points, g.areas, g.order, g.table, g.starts, g.box,
+                g.dims, g.lattice, g.rows, g.col, g.depth, self._group, self._work, g.index,
+                g.weight, tally,
             )  # fmt: skip
             self.steps += int(tally[0])
             self.conforming += int(tally[1])
@@ -447,8 +447,8 @@ class RemovalObserver:
             self._flush(filled)
         g = self.grid
         _K.flush(
-            self._group, self._shape, self._factor, g.points, g.areas, g.order, g.table,
-            g.starts, g.box, g.dims, g.depth, self._work, g.index, g.weight,
+            self._group, self._shape, self._factor, g.points, g.areas, g.order, g.table, g.starts,
+            g.box, g.dims, g.lattice, g.rows, g.col, g.depth, self._work, g.index, g.weight,
         )  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
