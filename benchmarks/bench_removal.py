@@ -2,7 +2,7 @@
 
 Run from the repository root:
 
-    python benchmarks/bench_removal.py [--repeats N] [--json PATH]
+    python benchmarks/bench_removal.py [--repeats N] [--json PATH] [--setups NAME ...]
 
 For each setup, the same scenario runs with removal off and on, alternating (off, on, off,
 on, ...) so that a change of the machine's load hits both alike; each run's loop is timed by
@@ -13,11 +13,12 @@ and the grid's set-up is timed alone (CPU seconds). Reported: the median over th
 
 * ``rtr_plane_pass``: the RTR arm (3 joints, the cheapest step, so the worst ratio) on
   rtr_plane's plane, a straight pass of 0.1 m at 0.01 m/s in contact (10 s), Hertz pad
-  (a = 3.1 mm at 10 N), 0.3 mm cells (a / 10: about 340 cells under the patch);
+  (a = 3.1 mm at 10 N), 0.3 mm cells (a / 10: about 340 cells under the patch; at 10 µm a
+  sample, about 8 samples are deposited as one, docs/removal.md "Cost");
 * ``rtr_plane_fine``: the same with 0.1 mm cells (a / 31: about 3,000 cells under the patch,
-  the resolution of the profile tests);
+  the resolution of the profile tests; about 3 samples deposited as one);
 * ``rtr_cylinder``: paper_contact's helix on the cylinder for 10 s (quadric: the compiled surface),
-  Hertz pad, 0.3 mm cells;
+  Hertz pad, 0.3 mm cells (0.41 mm a sample: each sample deposited alone);
 * ``ur5_plane``: the UR5 circle on a plane (6 joints) for 10 s, Hertz pad, 0.3 mm cells.
 
 Not part of the test suite; timings depend on the machine's load.
@@ -86,9 +87,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--setups", nargs="*", choices=sorted(SETUPS), default=list(SETUPS))
     args = parser.parse_args()
     report: dict[str, Any] = {}
-    for name, (file, overrides, resolution) in SETUPS.items():
+    for name in args.setups:
+        file, overrides, resolution = SETUPS[name]
         on = {**overrides, "tool.pad": PAD, "removal": {"k_p": 1e-13, "resolution": resolution}}
         _run(file, {**on, "sim.duration": 0.05})  # compile and load the kernels once
         _run(file, {**overrides, "sim.duration": 0.05})
