@@ -169,3 +169,41 @@ def test_a_patch_between_cell_centres_keeps_the_volume() -> None:
     )
     assert touched == 0
     assert grid.volume == pytest.approx(K_P * 10.0 * 0.01 * DT, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("surface", "u_range", "v_range"),
+    [
+        (Plane(point=[0, 0, 0.5], normal=[0, 0.6, 0.8]), (-0.01, 0.01), (-0.01, 0.01)),
+        (Cylinder(radius=0.4), (-math.pi, math.pi), (-0.01, 0.01)),  # the whole period: a seam
+        (Cylinder(radius=0.05), (2.9, 3.4), (-0.01, 0.01)),  # across θ = π, not wrapped
+    ],
+    ids=["plane", "cylinder-wrapped", "cylinder-arc"],
+)
+def test_the_lattice_rows_find_exactly_the_cells_within_the_patch(
+    surface: Plane | Cylinder, u_range: tuple, v_range: tuple
+) -> None:
+    """On a plane's and a cylinder's chart the patch's cells are found row by row of the (u, v)
+    lattice: the cells that receive depth are exactly those within a of the centre (brute
+    force over all cells), at centres on, above and below the surface, across a seam."""
+    pad = HertzPad(radius=0.02, modulus=5e6)
+    chart = chart_for(surface)
+    grid = RemovalGrid.on_chart(chart, u_range, v_range, 2e-4)
+    assert grid.lattice.shape[0] > 0  # the row-by-row search, not the buckets
+    rng = np.random.default_rng(7)
+    for u in [u_range[0] + 1e-4, -math.pi + 1e-5, math.pi - 1e-5, *rng.uniform(*u_range, 5)]:
+        if not u_range[0] <= u <= u_range[1]:
+            continue
+        v = float(rng.uniform(*v_range))
+        d = chart.derivatives(u, v)
+        normal = np.cross(d[1, 0], d[2, 0])
+        normal /= np.linalg.norm(normal)
+        centre = d[0, 0] + normal * float(rng.uniform(-5e-4, 5e-4))
+        force = float(rng.uniform(5.0, 30.0))
+        a, _ = pad.patch(force)
+        grid.depth[:] = 0.0
+        touched = grid.add(pad, K_P, DT, centre, normal, np.cross(normal, [0.3, 0.2, 0.1]), force)
+        inside = np.linalg.norm(grid.points - centre, axis=1) < a
+        assert inside.sum() > 100
+        assert touched == inside.sum()
+        assert np.array_equal(grid.depth > 0, inside)
