@@ -191,10 +191,15 @@ def test_the_lattice_rows_find_exactly_the_cells_within_the_patch(
     grid = RemovalGrid.on_chart(chart, u_range, v_range, 2e-4)
     assert grid.lattice.shape[0] > 0  # the row-by-row search, not the buckets
     rng = np.random.default_rng(7)
-    for u in [u_range[0] + 1e-4, -math.pi + 1e-5, math.pi - 1e-5, *rng.uniform(*u_range, 5)]:
+    for u in [
+        u_range[0] + 1e-4,
+        -math.pi + 1e-5,
+        math.pi - 1e-5,
+        *rng.uniform(u_range[0], u_range[1], 5),
+    ]:
         if not u_range[0] <= u <= u_range[1]:
             continue
-        v = float(rng.uniform(*v_range))
+        v = float(rng.uniform(v_range[0], v_range[1]))
         d = chart.derivatives(u, v)
         normal = np.cross(d[1, 0], d[2, 0])
         normal /= np.linalg.norm(normal)
