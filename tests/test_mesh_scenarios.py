@@ -1,6 +1,6 @@
 """Mesh parts in scenario files: ``[surface] type = "mesh"`` and its ``[surface.chart]``, the
 refusals (exit status 2 naming the key and the value), a sweep whose workers cannot see the
-mesh nor the cache, and the paper's 6.3 run on a 512-section cylinder mesh.
+mesh nor the cache (the paper's 6.3 run on a cylinder mesh: tests/test_mesh_convergence.py).
 
 References: the exact sphere and cylinder, central differences of the chart, the analytic
 CylinderChart, the built-in paper_contact run."""
@@ -342,47 +342,6 @@ def test_importing_and_running_an_analytic_scenario_loads_neither_igl_nor_trimes
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip().splitlines()[-1] == "[]"
-
-
-def _paper_contact(folder: Path, resolution: float) -> Path:
-    """paper_contact.toml with its cylinder as a 512-section mesh, started on the helix's
-    start (z = 10, 0.5 m above the mesh's end: the 6 s run rises by 0.6 m)."""
-    text = (REPO / "scenarios" / "paper_contact.toml").read_text()
-    text = text.replace(
-        'type = "cylinder"\nradius = 0.4\ncenter = [0.0, 0.0, 0.0]\naxis = [0.0, 0.0, 1.0]\n'
-        "inside = false          # the tool works outside the cylinder",
-        f'type = "mesh"\nfile = "cyl512.stl"\nresolution = {resolution}',
-    )
-    text = text.replace("tip = [0.4, 0.0, 7.0]", "tip = [0.4, 0.0, 10.0]")
-    text = text.replace("duration = 20.0", "duration = 6.0")
-    assert 'type = "mesh"' in text and "10.0]" in text
-    path = folder / f"paper_mesh_{resolution}.toml"
-    path.write_text(text)
-    return path
-
-
-def _settled(result: object) -> tuple[float, float]:
-    """max |p − p_d| [m] and max |f − f_d| [N] over the run's last 2 s."""
-    t, p, p_d, f = (getattr(result, k) for k in ("t", "p", "p_d", "f"))
-    last = t >= t[-1] - 2.0
-    return float(np.linalg.norm(p - p_d, axis=1)[last].max()), float(np.abs(f[last] - 10).max())
-
-
-def test_paper_contact_on_a_512_section_cylinder_mesh(folder: Path) -> None:
-    exact = simulate(
-        load_scenario(
-            REPO / "scenarios" / "paper_contact.toml",
-            {"initial.tip": [0.4, 0.0, 10.0], "sim.duration": 6.0},
-        )
-    )
-    assert max(_settled(exact)) <= 1e-9  # the analytic run settles to round-off
-    sagitta = 0.4 * (1 - math.cos(math.pi / 512))  # 7.5 µm: the faceting alone
-    for resolution in (0.04, 0.02):
-        result = simulate(load_scenario(_paper_contact(folder, resolution)))
-        position, force = _settled(result)
-        # the helix lies on the vertices' circle, the mesh's faces up to the sagitta inside
-        assert position <= 1e-5 and position <= 1.5 * sagitta, (resolution, position)
-        assert force <= 1e-3, (resolution, force)
 
 
 def test_a_chart_without_a_path_on_the_surface_is_refused(
