@@ -331,6 +331,76 @@ def test_a_sweep_worker_gets_the_field_not_the_file(folder: Path, tmp_path: Path
     assert len(pickle.dumps(tasks[0])) > tasks[0].surfaces["surface"][1].field.coefficients.nbytes
 
 
+def test_a_dask_sweep_of_a_mesh_scenario_is_the_serial_run_without_the_file(
+    folder: Path, tmp_path: Path
+) -> None:
+    """A sweep on a Dask cluster (local, one worker process) of a mesh scenario: each run is
+    bit-identical to the same run made serially here, and its worker never reads a mesh file
+    nor a field cache: read_mesh, build_field and load_field raise there, and its cache folder
+    is one that does not exist (the sweep would report any such read as a failed row)."""
+    pytest.importorskip("distributed")
+    from dask.distributed import Client, LocalCluster
+
+    from hybrid_force.result import load_result
+    from hybrid_force.studies.sweep import run_sweep
+    from hybrid_force.studies.table import read_sweep_csv
+    from hybrid_force.studies.variants import run_id
+
+    study = tmp_path / "study"
+    study.mkdir()
+    shutil.copy(folder / "sphere.stl", study / "sphere.stl")
+    path = _with_start(_scenario(study, _SURFACE, _RASTER, "dask_swept"))
+    variants = [{"control.f_d": 8.0}, {"control.f_d": 12.0}]
+    nowhere = str(tmp_path / "no" / "cache")
+
+    def refuse_mesh_reads() -> None:  # run in the worker (pickled by value: a local function)
+        import hybrid_force.geometry.mesh_field as mesh_field
+        import hybrid_force.geometry.mesh_surface as mesh_surface
+
+        def refused(*args: object, **kwargs: object) -> None:
+            raise AssertionError("a sweep worker read a mesh file or the field cache")
+
+        for module in (mesh_field, mesh_surface):
+            for name in ("read_mesh", "build_field", "load_field", "_fit"):
+                if hasattr(module, name):
+                    setattr(module, name, refused)
+        os.environ["HYBRID_FORCE_CACHE"] = nowhere
+
+    with (
+        LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        client.run(refuse_mesh_reads)
+        mesh_file = str(study / "sphere.stl")
+
+        def load_in_worker() -> object:
+            from hybrid_force.geometry.mesh_surface import MeshSurface as Loaded
+
+            return Loaded.from_file(mesh_file, resolution=0.0105)
+
+        # the control: a worker asked to load the part is refused
+        with pytest.raises(AssertionError, match="read a mesh file"):
+            client.submit(load_in_worker, pure=False).result()
+        csv_path = run_sweep(
+            path,
+            variants,
+            scheduler=cluster.scheduler_address,
+            out_dir=tmp_path / "sweep",
+            keep_results=True,
+            progress=False,
+        )
+    _, rows = read_sweep_csv(csv_path)
+    assert [r["status"] for r in rows] == ["ok", "ok"], rows
+    assert not (tmp_path / "no").exists()  # the worker built nothing
+    for variant in variants:
+        swept = load_result(tmp_path / "sweep" / "results" / f"{run_id(variant)}.npz")
+        serial = simulate(load_scenario(path, variant))
+        for key in ("q", "v", "u", "f"):
+            assert np.array_equal(getattr(swept, key), getattr(serial, key)), (variant, key)
+
+
 def test_importing_and_running_an_analytic_scenario_loads_neither_igl_nor_trimesh() -> None:
     code = (
         "import sys, hybrid_force\n"
