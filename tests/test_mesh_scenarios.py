@@ -253,11 +253,21 @@ def test_bad_mesh_input_is_exit_2_naming_the_key_and_value(
 ) -> None:
     (tmp_path / "empty.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     (tmp_path / "nan.obj").write_text("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
+    tetra = "v 0 0 0\nv {x} 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+    (tmp_path / "inf.obj").write_text(tetra.format(x="inf"))  # processing would drop it
+    (tmp_path / "flat.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0.2 0 0\nf 1 2 3\n")
+    (tmp_path / "index.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
+    (tmp_path / "garbage.stl").write_bytes(b"\x00\x01garbage" * 10)
     shutil.copy(folder / "sphere.stl", tmp_path / "sphere.stl")
     cases = {
         'file = "nowhere.stl"': r"surface\.file = .*nowhere\.stl.*cannot read",
         'file = "empty.obj"': r"surface\.file = .*empty\.obj.*no triangle faces",
         'file = "nan.obj"': r"surface\.file = .*nan\.obj.*(non-finite|no triangle)",
+        'file = "inf.obj"': r"surface\.file = .*inf\.obj.*non-finite vertices.*vertex 1 = \[inf",
+        'file = "flat.obj"': r"surface\.file = .*flat\.obj.*all 1 faces have zero area",
+        'file = "index.obj"': r"surface\.file = .*index\.obj.*not a readable OBJ mesh",
+        'file = "garbage.stl"': r"surface\.file = .*garbage\.stl.*no triangle faces",
+        "scale = 1e6": r"surface\.scale = 1000000\.0: .*placed part is 1\.04e\+06 m across",
         "resolution = 0.0001": r"surface\.resolution = 0\.0001 m: the grid would have",
         "scale = -1.0": r"surface\.scale = -1\.0: must be a positive number",
         "chart = 5": r"surface\.chart = 5: must be a table",
@@ -299,6 +309,24 @@ def test_an_open_mesh_loads_with_a_warning_naming_the_key(tmp_path: Path) -> Non
         m.startswith("surface.file = 'sphere.stl'") and "trusted only near the surface" in m
         for m in messages
     ), messages
+
+
+def test_zero_area_faces_are_left_out_with_a_warning(tmp_path: Path) -> None:
+    """A closed sphere with one zero-area face added (a repeated vertex): the face would make
+    its edge shared by three faces (not watertight, winding-number signs); it is left out with
+    a warning naming the count and the face, and the part is the closed sphere again."""
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=RADIUS)
+    faces = np.vstack([sphere.faces, [[0, 1, 1]]])
+    trimesh.Trimesh(sphere.vertices, faces, process=False).export(tmp_path / "flat.stl")
+    from hybrid_force.geometry.mesh_field import read_mesh
+
+    with pytest.warns(
+        ModelWarning,
+        match=r"surface\.file = .*flat\.stl.*1 of its 1281 faces "
+        r"have zero area \(the first: face \d+\); they are left out",
+    ):
+        part = read_mesh(tmp_path / "flat.stl")
+    assert part.watertight and len(part.faces) == len(sphere.faces)
 
 
 def _run_in_a_fresh_process(task: object) -> dict:
