@@ -284,6 +284,47 @@ def test_concave_radius_of_a_torus_hole(tmp_path: Path) -> None:
     assert convex.smallest_concave_radius() == math.inf
 
 
+def test_a_ball_larger_than_a_mesh_tube_warns_where_and_by_how_much(tmp_path: Path) -> None:
+    """The inside of a torus's tube (``inside = true``; ring radius 0.2 m, tube radius
+    a = 0.05 m) is concave across the tube everywhere, of radius a: a ball of r = 0.06 m cannot
+    reach its wall. The warning names the radius (a lower estimate of a, as the torus hole's
+    above), a point of the tube's wall in the world (the part placed by ``position``) and the
+    excess r − radius."""
+    from hybrid_force.errors import RunWarning
+    from hybrid_force.geometry.offset import tool_surfaces
+
+    ring, a, r = 0.2, 0.05, 0.06
+    mesh = trimesh.creation.torus(
+        major_radius=ring, minor_radius=a, major_sections=128, minor_sections=48
+    )
+    path = tmp_path / "torus.stl"
+    mesh.export(path)
+    centre = np.array([0.4, -0.1, 0.3])
+    tube = MeshSurface.from_file(path, position=(0.4, -0.1, 0.3), inside=True, cache=False)
+    smallest, where = tube.concave_radius()
+    assert where is not None
+    assert 0.7 * a <= smallest <= 1.02 * a
+    # on the tube's wall: at the distance a (to the vertices' polygon: 2 % here) from its
+    # centre circle, of radius 0.2 m about the z axis through the part's position
+    local = where - centre
+    wall = math.hypot(math.hypot(local[0], local[1]) - ring, local[2])
+    stl = 4 * float(np.finfo(np.float32).eps) * (ring + a)  # an STL's vertices are float32
+    assert a * math.cos(math.pi / 48) - stl <= wall <= a + stl
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        tool_surfaces([tube], r)
+    (warning,) = [w for w in caught if issubclass(w.category, RunWarning)]
+    message = str(warning.message)
+    assert f"tool.radius = {r:g} m exceeds the smallest concave radius" in message
+    assert f"{smallest:.6g} m at {np.round(where, 6).tolist()} m" in message
+    assert f"by {r - smallest:.3g} m" in message
+    # a ball that fits: no warning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        tool_surfaces([tube], 0.5 * smallest)
+    assert not [w for w in caught if issubclass(w.category, RunWarning)]
+
+
 def test_orientation_terms_match_the_hessian_difference(sphere: MeshSurface) -> None:
     """MeshSurface.orientation_terms (one compiled call) against its definition through the
     checked methods it replaces in the tool's orientation: ∇Φ, ∇²Φ at p (the same bits) and

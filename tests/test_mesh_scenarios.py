@@ -1,6 +1,6 @@
 """Mesh parts in scenario files: ``[surface] type = "mesh"`` and its ``[surface.chart]``, the
 refusals (exit status 2 naming the key and the value), a sweep whose workers cannot see the
-mesh nor the cache, and the paper's 6.3 run on a 512-section cylinder mesh.
+mesh nor the cache (the paper's 6.3 run on a cylinder mesh: tests/test_mesh_convergence.py).
 
 References: the exact sphere and cylinder, central differences of the chart, the analytic
 CylinderChart, the built-in paper_contact run."""
@@ -253,11 +253,21 @@ def test_bad_mesh_input_is_exit_2_naming_the_key_and_value(
 ) -> None:
     (tmp_path / "empty.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     (tmp_path / "nan.obj").write_text("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
+    tetra = "v 0 0 0\nv {x} 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+    (tmp_path / "inf.obj").write_text(tetra.format(x="inf"))  # processing would drop it
+    (tmp_path / "flat.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0.2 0 0\nf 1 2 3\n")
+    (tmp_path / "index.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
+    (tmp_path / "garbage.stl").write_bytes(b"\x00\x01garbage" * 10)
     shutil.copy(folder / "sphere.stl", tmp_path / "sphere.stl")
     cases = {
         'file = "nowhere.stl"': r"surface\.file = .*nowhere\.stl.*cannot read",
         'file = "empty.obj"': r"surface\.file = .*empty\.obj.*no triangle faces",
         'file = "nan.obj"': r"surface\.file = .*nan\.obj.*(non-finite|no triangle)",
+        'file = "inf.obj"': r"surface\.file = .*inf\.obj.*non-finite vertices.*vertex 1 = \[inf",
+        'file = "flat.obj"': r"surface\.file = .*flat\.obj.*all 1 faces have zero area",
+        'file = "index.obj"': r"surface\.file = .*index\.obj.*not a readable OBJ mesh",
+        'file = "garbage.stl"': r"surface\.file = .*garbage\.stl.*no triangle faces",
+        "scale = 1e6": r"surface\.scale = 1000000\.0: .*placed part is 1\.04e\+06 m across",
         "resolution = 0.0001": r"surface\.resolution = 0\.0001 m: the grid would have",
         "scale = -1.0": r"surface\.scale = -1\.0: must be a positive number",
         "chart = 5": r"surface\.chart = 5: must be a table",
@@ -301,6 +311,24 @@ def test_an_open_mesh_loads_with_a_warning_naming_the_key(tmp_path: Path) -> Non
     ), messages
 
 
+def test_zero_area_faces_are_left_out_with_a_warning(tmp_path: Path) -> None:
+    """A closed sphere with one zero-area face added (a repeated vertex): the face would make
+    its edge shared by three faces (not watertight, winding-number signs); it is left out with
+    a warning naming the count and the face, and the part is the closed sphere again."""
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=RADIUS)
+    faces = np.vstack([sphere.faces, [[0, 1, 1]]])
+    trimesh.Trimesh(sphere.vertices, faces, process=False).export(tmp_path / "flat.stl")
+    from hybrid_force.geometry.mesh_field import read_mesh
+
+    with pytest.warns(
+        ModelWarning,
+        match=r"surface\.file = .*flat\.stl.*1 of its 1281 faces "
+        r"have zero area \(the first: face \d+\); they are left out",
+    ):
+        part = read_mesh(tmp_path / "flat.stl")
+    assert part.watertight and len(part.faces) == len(sphere.faces)
+
+
 def _run_in_a_fresh_process(task: object) -> dict:
     from hybrid_force.studies.tasks import _execute
 
@@ -331,6 +359,76 @@ def test_a_sweep_worker_gets_the_field_not_the_file(folder: Path, tmp_path: Path
     assert len(pickle.dumps(tasks[0])) > tasks[0].surfaces["surface"][1].field.coefficients.nbytes
 
 
+def test_a_dask_sweep_of_a_mesh_scenario_is_the_serial_run_without_the_file(
+    folder: Path, tmp_path: Path
+) -> None:
+    """A sweep on a Dask cluster (local, one worker process) of a mesh scenario: each run is
+    bit-identical to the same run made serially here, and its worker never reads a mesh file
+    nor a field cache: read_mesh, build_field and load_field raise there, and its cache folder
+    is one that does not exist (the sweep would report any such read as a failed row)."""
+    pytest.importorskip("distributed")
+    from dask.distributed import Client, LocalCluster
+
+    from hybrid_force.result import load_result
+    from hybrid_force.studies.sweep import run_sweep
+    from hybrid_force.studies.table import read_sweep_csv
+    from hybrid_force.studies.variants import run_id
+
+    study = tmp_path / "study"
+    study.mkdir()
+    shutil.copy(folder / "sphere.stl", study / "sphere.stl")
+    path = _with_start(_scenario(study, _SURFACE, _RASTER, "dask_swept"))
+    variants = [{"control.f_d": 8.0}, {"control.f_d": 12.0}]
+    nowhere = str(tmp_path / "no" / "cache")
+
+    def refuse_mesh_reads() -> None:  # run in the worker (pickled by value: a local function)
+        import hybrid_force.geometry.mesh_field as mesh_field
+        import hybrid_force.geometry.mesh_surface as mesh_surface
+
+        def refused(*args: object, **kwargs: object) -> None:
+            raise AssertionError("a sweep worker read a mesh file or the field cache")
+
+        for module in (mesh_field, mesh_surface):
+            for name in ("read_mesh", "build_field", "load_field", "_fit"):
+                if hasattr(module, name):
+                    setattr(module, name, refused)
+        os.environ["HYBRID_FORCE_CACHE"] = nowhere
+
+    with (
+        LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        client.run(refuse_mesh_reads)
+        mesh_file = str(study / "sphere.stl")
+
+        def load_in_worker() -> object:
+            from hybrid_force.geometry.mesh_surface import MeshSurface as Loaded
+
+            return Loaded.from_file(mesh_file, resolution=0.0105)
+
+        # the control: a worker asked to load the part is refused
+        with pytest.raises(AssertionError, match="read a mesh file"):
+            client.submit(load_in_worker, pure=False).result()
+        csv_path = run_sweep(
+            path,
+            variants,
+            scheduler=cluster.scheduler_address,
+            out_dir=tmp_path / "sweep",
+            keep_results=True,
+            progress=False,
+        )
+    _, rows = read_sweep_csv(csv_path)
+    assert [r["status"] for r in rows] == ["ok", "ok"], rows
+    assert not (tmp_path / "no").exists()  # the worker built nothing
+    for variant in variants:
+        swept = load_result(tmp_path / "sweep" / "results" / f"{run_id(variant)}.npz")
+        serial = simulate(load_scenario(path, variant))
+        for key in ("q", "v", "u", "f"):
+            assert np.array_equal(getattr(swept, key), getattr(serial, key)), (variant, key)
+
+
 def test_importing_and_running_an_analytic_scenario_loads_neither_igl_nor_trimesh() -> None:
     code = (
         "import sys, hybrid_force\n"
@@ -342,47 +440,6 @@ def test_importing_and_running_an_analytic_scenario_loads_neither_igl_nor_trimes
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip().splitlines()[-1] == "[]"
-
-
-def _paper_contact(folder: Path, resolution: float) -> Path:
-    """paper_contact.toml with its cylinder as a 512-section mesh, started on the helix's
-    start (z = 10, 0.5 m above the mesh's end: the 6 s run rises by 0.6 m)."""
-    text = (REPO / "scenarios" / "paper_contact.toml").read_text()
-    text = text.replace(
-        'type = "cylinder"\nradius = 0.4\ncenter = [0.0, 0.0, 0.0]\naxis = [0.0, 0.0, 1.0]\n'
-        "inside = false          # the tool works outside the cylinder",
-        f'type = "mesh"\nfile = "cyl512.stl"\nresolution = {resolution}',
-    )
-    text = text.replace("tip = [0.4, 0.0, 7.0]", "tip = [0.4, 0.0, 10.0]")
-    text = text.replace("duration = 20.0", "duration = 6.0")
-    assert 'type = "mesh"' in text and "10.0]" in text
-    path = folder / f"paper_mesh_{resolution}.toml"
-    path.write_text(text)
-    return path
-
-
-def _settled(result: object) -> tuple[float, float]:
-    """max |p − p_d| [m] and max |f − f_d| [N] over the run's last 2 s."""
-    t, p, p_d, f = (getattr(result, k) for k in ("t", "p", "p_d", "f"))
-    last = t >= t[-1] - 2.0
-    return float(np.linalg.norm(p - p_d, axis=1)[last].max()), float(np.abs(f[last] - 10).max())
-
-
-def test_paper_contact_on_a_512_section_cylinder_mesh(folder: Path) -> None:
-    exact = simulate(
-        load_scenario(
-            REPO / "scenarios" / "paper_contact.toml",
-            {"initial.tip": [0.4, 0.0, 10.0], "sim.duration": 6.0},
-        )
-    )
-    assert max(_settled(exact)) <= 1e-9  # the analytic run settles to round-off
-    sagitta = 0.4 * (1 - math.cos(math.pi / 512))  # 7.5 µm: the faceting alone
-    for resolution in (0.04, 0.02):
-        result = simulate(load_scenario(_paper_contact(folder, resolution)))
-        position, force = _settled(result)
-        # the helix lies on the vertices' circle, the mesh's faces up to the sagitta inside
-        assert position <= 1e-5 and position <= 1.5 * sagitta, (resolution, position)
-        assert force <= 1e-3, (resolution, force)
 
 
 def test_a_chart_without_a_path_on_the_surface_is_refused(

@@ -25,13 +25,14 @@ import io
 import math
 import os
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from hybrid_force._atomic import atomic_file
-from hybrid_force.errors import SurfaceError
+from hybrid_force.errors import ModelWarning, SurfaceError
 
 __all__ = [
     "MAX_NODES",
@@ -127,7 +128,20 @@ def read_mesh(
             f"{key} = '{file}': unknown mesh format '{path.suffix}'; valid: .stl, .obj, .ply"
         )
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
+        # unprocessed first: trimesh's processing drops non-finite vertices and their faces
+        # silently (a hole), which is refused here instead
+        loaded = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
+        raw = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+        if raw.size and not np.isfinite(raw).all():
+            first = int(np.nonzero(~np.isfinite(raw).all(axis=1))[0][0])
+            raise SurfaceError(
+                f"{key} = '{file}': the mesh has non-finite vertices (the first: vertex "
+                f"{first} = {raw[first].tolist()})"
+            )
+        if hasattr(loaded, "process"):
+            loaded.process()
+    except SurfaceError:
+        raise
     except Exception as exc:  # trimesh raises many types on a corrupt file
         why = " ".join(str(exc).split())[:200] or type(exc).__name__
         raise SurfaceError(
@@ -137,8 +151,22 @@ def read_mesh(
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     if faces.ndim != 2 or faces.shape[0] == 0 or faces.shape[1] != 3:
         raise SurfaceError(f"{key} = '{file}': the mesh has no triangle faces")
-    if not np.isfinite(vertices).all():
-        raise SurfaceError(f"{key} = '{file}': the mesh has non-finite vertices")
+    tri = vertices[faces]
+    flat = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) == 0
+    if flat.all():
+        raise SurfaceError(f"{key} = '{file}': all {len(faces)} faces have zero area")
+    if flat.any():
+        warnings.warn(
+            f"{key} = '{file}': {int(flat.sum())} of its {len(faces)} faces have zero area "
+            f"(the first: face {int(np.nonzero(flat)[0][0])}); they are left out",
+            ModelWarning,
+            stacklevel=2,
+        )
+        kept = trimesh.Trimesh(vertices, faces[~flat], process=False)
+        kept.remove_unreferenced_vertices()
+        loaded = kept  # its watertight test below is the kept faces'
+        vertices = np.asarray(kept.vertices, dtype=np.float64)
+        faces = np.asarray(kept.faces, dtype=np.int64)
     placed = vertices * float(scale) @ rpy_matrix(rpy).T + np.asarray(position, dtype=np.float64)
     size = float(np.linalg.norm(placed.max(axis=0) - placed.min(axis=0)))
     if not 1e-6 <= size <= 1e3:

@@ -276,8 +276,10 @@ class MeshSurface(Surface):
         }
 
     def concave_radius(self) -> tuple[float, np.ndarray | None]:
-        """(:meth:`smallest_concave_radius`, None): the hook a ball tool's check calls."""
-        return self.smallest_concave_radius(), None
+        """(the smallest concave radius of curvature [m] at the part's vertices, the vertex
+        (3,) [m] where it is found, in the world) or (inf, None) when the part is nowhere
+        concave: the hook a ball tool's check calls (:meth:`smallest_concave_radius`)."""
+        return self._most_concave()
 
     def triangles(
         self, points: np.ndarray | None = None, margin: float = 0.0, max_faces: int = 200_000
@@ -307,7 +309,12 @@ class MeshSurface(Surface):
         ripple at the facets' scale lowers it (by up to 25 % on a 128 × 48 torus, measured
         in tests/test_mesh_field.py), which errs on the side of a warning.
         """
-        smallest = math.inf
+        return self._most_concave()[0]
+
+    def _most_concave(self) -> tuple[float, np.ndarray | None]:
+        """(:meth:`smallest_concave_radius`, the vertex (3,) [m] where it is found, or None
+        when the part is nowhere concave)."""
+        smallest, where = math.inf, None
         for vertex in self.part.vertices:
             _, grad, hess = self.field.evaluate(np.ascontiguousarray(vertex))
             norm = float(np.linalg.norm(grad))
@@ -319,9 +326,9 @@ class MeshSurface(Surface):
             # the zero eigenvalue along n is not a curvature: drop the one nearest zero
             kappa = np.delete(kappa, int(np.argmin(np.abs(kappa))))
             most = float(kappa.min())
-            if most < 0:
-                smallest = min(smallest, 1.0 / -most)
-        return smallest
+            if most < 0 and 1.0 / -most < smallest:
+                smallest, where = 1.0 / -most, np.array(vertex)
+        return smallest, where
 
 
 def _warn_open(part: MeshPart, key: str, file: object) -> None:
@@ -358,7 +365,8 @@ class PartReport:
 
     Lengths in metres; ``fit_*``: max |Φ − d| against the mesh's exact signed distance d
     (libigl) at its vertices, at its face centres (d = 0 at both) and at ``band_points``
-    random points within 2 h of the surface; ``gradient_norm``: (min, max) of ‖∇Φ‖ there.
+    random points within 2 h of the surface; ``gradient_norm``: (min, max) of ‖∇Φ‖ there;
+    ``concave_point``: the vertex (3,) [m] of ``smallest_concave_radius``, None if none.
     """
 
     file: str
@@ -376,6 +384,7 @@ class PartReport:
     band_points: int
     gradient_norm: tuple[float, float]
     smallest_concave_radius: float
+    concave_point: tuple[float, float, float] | None
     build_seconds: float
     cache_file: str
 
@@ -403,7 +412,11 @@ class PartReport:
             f"({self.band_points} points) {self.fit_band:.3g}",
             f"‖∇Φ‖ in the band: {self.gradient_norm[0]:.4f} to {self.gradient_norm[1]:.4f}",
             "smallest concave radius of curvature: "
-            + (f"{concave:.4g} m" if math.isfinite(concave) else "none (no concave region)"),
+            + (
+                f"{concave:.4g} m at the vertex {[round(x, 6) for x in self.concave_point]} m"
+                if math.isfinite(concave) and self.concave_point is not None
+                else "none (no concave region)"
+            ),
             f"build time: {self.build_seconds:.3g} s"
             + (" (read from the cache)" if self.build_seconds == 0.0 else ""),
             f"cache file: {self.cache_file or '(none)'}",
@@ -448,6 +461,7 @@ def check_part(
     fit_band = float(np.abs(field.values(band) - sign * np.asarray(exact)).max())
     norms = np.array([np.linalg.norm(field.evaluate(np.ascontiguousarray(p))[1]) for p in band])
     nx, ny, nz = field.shape
+    concave, where = surface.concave_radius()
     return PartReport(
         file=str(file),
         faces=len(part.faces),
@@ -466,7 +480,10 @@ def check_part(
         fit_band=fit_band,
         band_points=len(band),
         gradient_norm=(float(norms.min()), float(norms.max())),
-        smallest_concave_radius=surface.smallest_concave_radius(),
+        smallest_concave_radius=concave,
+        concave_point=None
+        if where is None
+        else (float(where[0]), float(where[1]), float(where[2])),
         build_seconds=field.build_seconds,
         cache_file=field.cache_file,
     )
