@@ -110,3 +110,61 @@ def test_removal_under_a_ball_tool_on_a_cylinder_is_laid_on_the_part() -> None:
         n = np.array([*result.p[i, :2], 0.0]) / np.linalg.norm(result.p[i, :2])
         total += force * float(np.linalg.norm(v - (v @ n) * n)) * dt
     assert result.meta["removal"]["removal_volume"] == pytest.approx(1e-13 * total, rel=5e-3)
+
+
+def test_a_raster_on_a_mesh_part_targets_its_chart_rectangle(tmp_path: Path) -> None:
+    """The target region of a raster on a mesh part is the (u, v) rectangle, as on a built-in
+    surface: with a projection chart along n = −z with e_u = x, so e_v = n × e_u = −y, the cells
+    whose (x − x₀, y₀ − y) fall within it (computed here from the cells' positions alone)."""
+    from hybrid_force.sim.removal_run import RemovalObserver
+
+    trimesh.creation.icosphere(subdivisions=4, radius=0.1).export(tmp_path / "ball.ply")
+    text = """
+    name = "ur5_ball"
+    [robot]
+    model = "ur5"
+    tip = "tool0"
+    [surface]
+    type = "mesh"
+    file = "ball.ply"
+    position = [0.5, 0.1, 0.2]
+    [surface.chart]
+    type = "projection"
+    origin = [0.5, 0.1, 0.5]
+    normal = [0.0, 0.0, -1.0]
+    u_axis = [1.0, 0.0, 0.0]
+    [trajectory]
+    type = "raster"
+    origin = [-0.02, -0.02]
+    size = [0.04, 0.03]
+    spacing = 0.006
+    speed = 0.03
+    [initial]
+    tip = [0.48, 0.08, 0.33]
+    seed = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]
+    [tool]
+    radius = 0.005
+    [tool.pad]
+    type = "hertz"
+    radius = 0.02
+    modulus = 5e6
+    [removal]
+    k_p = 1e-13
+    resolution = 1e-3
+    [sim]
+    duration = 8.0
+    """
+    path = tmp_path / "ball.toml"
+    path.write_text("\n".join(line.strip() for line in text.splitlines()))
+    sc = load_scenario(path)
+    observer = RemovalObserver(sc, 101)
+    x = observer.grid.points[:, 0] - 0.5
+    y = 0.1 - observer.grid.points[:, 1]
+    tol = 1e-9  # cells exactly on an edge are not made by this grid
+    inside = (x >= -0.02 - tol) & (x <= 0.02 + tol) & (y >= -0.02 - tol) & (y <= 0.01 + tol)
+    assert observer.target_kind == "rectangle"
+    assert inside.sum() > 1000 and (~inside).sum() > 100  # the grid reaches beyond it
+    np.testing.assert_array_equal(observer.target, inside)
+    # the cells lie on the part (Φ = 0, not on the ball centre's Φ = r)
+    phi = np.array([sc.surfaces[0].phi(p) for p in observer.grid.points[::50]])
+    assert np.abs(phi).max() <= 2e-4

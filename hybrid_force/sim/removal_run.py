@@ -388,11 +388,15 @@ class RemovalObserver:
 
     def _target(self, sc: Any) -> np.ndarray:
         grid, path = self.grid, sc.path
-        if isinstance(path, RasterPath) and self.chart is not None and grid.uv is not None:
+        if isinstance(path, RasterPath):
+            chart = self.chart if self.chart is not None else chart_for(self.surface)
+            if grid.uv is not None:
+                uv = grid.uv.copy()
+            else:  # a mesh part's cells: their coordinates in its [surface.chart]
+                uv = np.array([chart.coordinates(x) for x in grid.points], dtype=float)
             lo = np.array(path.origin)
             hi = lo + np.array(path.size)
-            uv = grid.uv.copy()
-            for c, period in enumerate(self.chart.periods):
+            for c, period in enumerate(chart.periods):
                 if period:  # the cell's coordinate within half a period of the rectangle's
                     mid = 0.5 * (lo[c] + hi[c])
                     uv[:, c] += period * np.round((mid - uv[:, c]) / period)
