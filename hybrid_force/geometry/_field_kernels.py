@@ -326,14 +326,14 @@ def _ray_frame(mode: int, frame: np.ndarray, u: float, v: float, rows: np.ndarra
 @_jit
 def ray_chart_eval(coef: np.ndarray, params: np.ndarray, u: float, v: float) -> float:
     """:func:`ray_chart_of` with its settings and its output packed in params (38,): origin
-    (3) [m], h [m], mode, s_start, s_end [m], an unused slot, frame (4, 3) row by row, then
+    (3) [m], h [m], mode, s_start, s_end [m], the level c [m], frame (4, 3) row by row, then
     out (6, 3) row by row, written here (four arguments: each array costs the call about
     0.1 µs in Numba's dispatch, a tenth of a chart evaluation)."""
     origin = params[0:3]
     frame = params[8:20].reshape((4, 3))
     out = params[20:38].reshape((6, 3))
     return ray_chart_of(
-        coef, origin, params[3], int(params[4]), frame, u, v, params[5], params[6], out
+        coef, origin, params[3], int(params[4]), frame, u, v, params[5], params[6], params[7], out
     )
 
 
@@ -348,11 +348,14 @@ def ray_chart_of(
     v: float,
     s_start: float,
     s_end: float,
+    level: float,
     out: np.ndarray,
 ) -> float:
     """S(u, v) of a mesh chart: the first point where the ray P(s) = B + s·D, marched from
-    s_start towards s_end (on the free side, Φ > 0, at s_start), meets Φ = 0; and its
-    derivatives in (u, v) by implicit differentiation of Φ(B + s(u, v) D) = 0.
+    s_start towards s_end (on the free side, Φ > c, at s_start), meets the level set Φ = c
+    (c = ``level`` [m]: 0 for the part, r for the centre of a ball tool of radius r, whose
+    surface is Φ − r = 0); and its derivatives in (u, v) by implicit differentiation of
+    Φ(B + s(u, v) D) = c (the same equations: c is a constant).
 
     With G = ∇Φ(S), H = ∇²Φ(S), a = G·D and x, y ∈ {u, v}:
     s_x = −G·(B_x + s D_x)/a, S_x = B_x + s_x D + s D_x, and, from ∂_y(G·S_x) = 0,
@@ -379,7 +382,7 @@ def ray_chart_of(
     s = s_start
     for k in range(3):
         p[k] = rows[0, k] + s * rows[6, k]
-    phi = _field_value_into(coef, origin, h, p, work)
+    phi = _field_value_into(coef, origin, h, p, work) - level
     if not phi > 0.0:
         return math.nan
     lo = s
@@ -395,7 +398,7 @@ def ray_chart_of(
         s_new = s_start + direction * travelled
         for k in range(3):
             p[k] = rows[0, k] + s_new * rows[6, k]
-        phi_new = _field_value_into(coef, origin, h, p, work)
+        phi_new = _field_value_into(coef, origin, h, p, work) - level
         if phi_new <= 0.0:
             hi = s_new
             break
@@ -410,7 +413,7 @@ def ray_chart_of(
     for _ in range(200):
         for k in range(3):
             p[k] = rows[0, k] + s * rows[6, k]
-        phi = _field_value_grad_into(coef, origin, h, p, grad, work)
+        phi = _field_value_grad_into(coef, origin, h, p, grad, work) - level
         if abs(phi) <= 1e-14:
             break
         if phi > 0.0:

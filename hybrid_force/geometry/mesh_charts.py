@@ -119,7 +119,9 @@ def chart_settings(value: object) -> ChartSettings | None:
 
 
 class MeshChart(SurfaceChart):
-    """The chart of a :class:`~.mesh_surface.MeshSurface`, from its ``chart`` settings.
+    """The chart of a :class:`~.mesh_surface.MeshSurface`, from its ``chart`` settings, or of
+    its :class:`~.mesh_surface.MeshOffset` by a ball tool's radius r (``surface.base`` the
+    part, ``surface.radius`` r): the same rays, marched to Φ = r instead of Φ = 0.
 
     Raises:
         PathError: the surface has no chart settings, or a ``u_axis`` along the normal.
@@ -130,18 +132,20 @@ class MeshChart(SurfaceChart):
     periods: tuple[float, float]  # type: ignore[misc]
 
     def __init__(self, surface: Any) -> None:
-        settings = surface.chart
+        part = getattr(surface, "base", surface)
+        self._level = float(surface.radius) if part is not surface else 0.0
+        settings = part.chart
         if settings is None:
             raise PathError(
                 f"{surface!r} has no chart: a path in surface coordinates (a raster, or "
                 "waypoints) on a mesh part needs a [surface.chart] table (type = "
                 '"projection" or "cylindrical", docs/mesh_parts.md)',
                 key="surface",
-                value=surface.file,
+                value=part.file,
             )
-        self.surface = surface
+        self.surface, self._part = surface, part
         self.settings = settings
-        field = surface.field
+        field = part.field
         self._coef, self._origin, self._h = field.coefficients, field.origin, field.spacing
         corners = field.origin + field.spacing * (np.array(field.shape) - 1) * np.array(
             [[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=float
@@ -176,14 +180,14 @@ class MeshChart(SurfaceChart):
             w = corners - c
             radial = w - np.outer(w @ a, a)
             far = float(np.linalg.norm(radial, axis=1).max()) + 2.0 * field.spacing
-            self._start, self._end = (0.0, far) if surface.inside else (far, 0.0)
+            self._start, self._end = (0.0, far) if part.inside else (far, 0.0)
             self.names, self.units = ("angle", "height"), ("rad", "m")
             self.periods = (2.0 * math.pi, 0.0)
         # the kernel's settings, then its output S, S_u, S_v, S_uu, S_uv, S_vv (ray_chart_eval)
         self._params = np.concatenate(
             [
                 self._origin,
-                [self._h, self._mode, self._start, self._end, 0.0],
+                [self._h, self._mode, self._start, self._end, self._level],
                 self._frame.ravel(),
                 np.zeros(18),
             ]
@@ -220,8 +224,9 @@ class MeshChart(SurfaceChart):
             base, d = frame[0] + v * frame[3], math.cos(u) * frame[1] + math.sin(u) * frame[2]
         start = base + self._start * d
         kind = self.settings.kind
-        if self.surface.field.evaluate(start)[0] <= 0.0:
-            why = f"its ray starts at {np.round(start, 6).tolist()}, on the part's side (Φ ≤ 0)" + (
+        if self._part.field.evaluate(start)[0] <= self._level:
+            side = "(Φ ≤ 0)" if self._level == 0.0 else f"(Φ ≤ tool.radius = {self._level:g} m)"
+            why = f"its ray starts at {np.round(start, 6).tolist()}, on the part's side {side}" + (
                 ": put chart.origin in front of the part" if self._mode == 0 else ""
             )
         else:

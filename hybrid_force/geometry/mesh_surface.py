@@ -31,6 +31,7 @@ from hybrid_force.geometry.mesh_charts import (
     chart_settings,
 )
 from hybrid_force.geometry.mesh_field import DistanceField, MeshPart, build_field, read_mesh
+from hybrid_force.geometry.offset import PhiOffset
 from hybrid_force.geometry.surface_base import (
     Surface,
     Vec3,
@@ -39,10 +40,11 @@ from hybrid_force.geometry.surface_base import (
     _vector3,
     _xyz,
     register_surface,
+    tool_radius,
 )
 from hybrid_force.schema import param
 
-__all__ = ["MeshSurface", "PartReport", "check_part"]
+__all__ = ["MeshOffset", "MeshSurface", "PartReport", "check_part"]
 
 #: ‖∇Φ‖ below this: the normal is undefined (a distance field has ‖∇Φ‖ ≈ 1 near the surface).
 _SINGULAR_GRADIENT = 1e-6
@@ -275,6 +277,12 @@ class MeshSurface(Surface):
             "chart": None if self.chart is None else self.chart.to_dict(),
         }
 
+    def offset(self, radius: float) -> Surface:
+        """The surface Φ − r = 0 of a ball tool's centre, r = ``radius`` [m] (:class:`MeshOffset`,
+        with the part's chart laid on it); this very surface for r = 0."""
+        r = tool_radius(radius)
+        return self if r == 0.0 else MeshOffset(self, r)
+
     def concave_radius(self) -> tuple[float, np.ndarray | None]:
         """(the smallest concave radius of curvature [m] at the part's vertices, the vertex
         (3,) [m] where it is found, in the world) or (inf, None) when the part is nowhere
@@ -356,7 +364,22 @@ def _fit(
     return part, build_field(part, resolution, inside=bool(inside), cache=cache)
 
 
+class MeshOffset(PhiOffset):
+    """Φ − r = 0 over a mesh part (:class:`~.offset.PhiOffset`), the surface of the centre of a
+    ball tool of radius r, with the part's ``[surface.chart]`` laid on it directly: the ray of
+    (u, v) is marched to Φ = r, where the ball dropped along the ray first touches the part (as
+    a CAM tool drops a ball-end cutter). The part's point offset along its normal, S + r n̂, is
+    not used: Φ is a distance only to its fit (‖∇Φ‖ within about 1 %), so that point lies on
+    Φ = r only to about 1e-2 r."""
+
+    @property
+    def chart(self) -> ProjectionChartSettings | CylindricalChartSettings | None:
+        """The part's chart settings."""
+        return self.base.chart  # type: ignore[attr-defined]
+
+
 register_chart(MeshSurface)(MeshChart)
+register_chart(MeshOffset)(MeshChart)
 
 
 @dataclass(frozen=True)

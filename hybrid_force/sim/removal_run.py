@@ -33,7 +33,8 @@ import numpy as np
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import ScenarioError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
-from hybrid_force.geometry.charts import SurfaceChart, chart_for
+from hybrid_force.geometry.charts import PlaneChart, SurfaceChart, chart_for
+from hybrid_force.geometry.offset import OffsetChart, contact_points
 from hybrid_force.geometry.raster import RasterPath
 from hybrid_force.geometry.surface_path import SurfacePath
 from hybrid_force.sim.removal import HertzPad, Pad, RemovalGrid, RemovalSettings
@@ -60,13 +61,26 @@ _CHECK_SAMPLES = 64  # path samples at which a Hertz pad's contact is checked be
 
 def removal_surface_index(sc: Any) -> int:
     """The index of the surface the removal is recorded on: the path's own surface (a path on
-    a surface), else 0."""
+    a surface; with a ball tool the path is on the part's offset, ``sc.tool_surfaces``), else
+    0."""
     path = sc.path
     if isinstance(path, SurfacePath):
-        for i, s in enumerate(sc.surfaces):
-            if s is path.surface:
+        for i, (part, centre) in enumerate(zip(sc.surfaces, sc.tool_surfaces, strict=True)):
+            if path.surface is part or path.surface == centre:
                 return i
     return 0
+
+
+def _on_part(sc: Any, surface: Any, centres: np.ndarray) -> np.ndarray:
+    """Where the tool touches the part ``surface`` when its centre is at each of ``centres``
+    (S, 3) [m]: the centres themselves for a point tool, else their feet c − r n̂ (a ball of
+    radius r = ``tool.radius``, :func:`~hybrid_force.geometry.offset.contact_points`), the rows
+    without a normal left out."""
+    r = float(sc.tool.radius)
+    if r == 0.0:
+        return centres
+    feet = contact_points(surface, r, centres)
+    return feet[np.all(np.isfinite(feet), axis=1)]
 
 
 def principal_curvatures(grad: np.ndarray, hess: np.ndarray) -> tuple[float, float]:
@@ -92,7 +106,14 @@ def _mesh_part(surface: Any) -> Any:
 def _chart(sc: Any, surface: Any) -> SurfaceChart | None:
     if isinstance(sc.path, SurfacePath):
         chart: SurfaceChart = sc.path.chart
-        return chart
+        if sc.path.surface is surface:
+            return chart
+        # a ball tool's path is on the part's offset (geometry/offset): the grid goes on the
+        # part's own chart, in the same coordinates (an offset's chart is S + r n̂ of the
+        # part's; a built-in offset, R + r or a shifted plane, has the part's frame and axes)
+        if isinstance(chart, OffsetChart):
+            return chart.part
+        return chart_for(surface, chart.axes[0] if isinstance(chart, PlaneChart) else None)
     try:
         return chart_for(surface)
     except Exception:  # no chart registered for the surface's type
@@ -135,8 +156,13 @@ def check_removal(sc: Any) -> None:
         )
     if not isinstance(pad, HertzPad):
         return
-    for t in np.linspace(0.0, sc.sim.duration, _CHECK_SAMPLES):
-        _, grad, hess = surface.evaluate(np.asarray(sc.path.position(float(t)), dtype=float))
+    times = np.linspace(0.0, sc.sim.duration, _CHECK_SAMPLES)
+    centres = np.array([sc.path.position(float(t)) for t in times], dtype=float)
+    feet = contact_points(surface, float(sc.tool.radius), centres)
+    for t, foot in zip(times, feet, strict=True):
+        if not np.all(np.isfinite(foot)):
+            continue
+        _, grad, hess = surface.evaluate(np.ascontiguousarray(foot))
         k1, k2 = principal_curvatures(np.asarray(grad), np.asarray(hess))
         if not min(k1, k2) > -1.0 / pad.radius:
             raise ScenarioError(
@@ -292,14 +318,14 @@ class RemovalObserver:
         j = self.surface_index = removal_surface_index(sc)
         surface = self.surface = sc.surfaces[j]
         f_d = float(abs(sc.control.f_d_for(len(sc.surfaces))[j]))
-        p0 = np.asarray(sc.path.position(0.0), dtype=float)
-        _, g0, h0 = surface.evaluate(p0)
+        p0 = _on_part(sc, surface, np.asarray([sc.path.position(0.0)], dtype=float))[0]
+        _, g0, h0 = surface.evaluate(np.ascontiguousarray(p0))
         a0 = self.contact_radius = nominal_radius(pad, f_d if f_d > 0 else 1.0, g0, h0)
         # the patch under 3× the desired force (a ∝ F^(1/3) for Hertz) stays on the grid
         a_max = nominal_radius(pad, 3.0 * f_d if f_d > 0 else 3.0, g0, h0)
         margin = 1.5 * a_max + 2.0 * removal.resolution
-        samples = _path_samples(sc, min(removal.resolution, 0.25 * a0))
-        self.samples = samples
+        samples = _on_part(sc, surface, _path_samples(sc, min(removal.resolution, 0.25 * a0)))
+        self.samples = samples  # the desired contact points on the part
         part = _mesh_part(surface)
         self.chart: SurfaceChart | None = None
         if part is not None:
@@ -369,11 +395,15 @@ class RemovalObserver:
 
     def _target(self, sc: Any) -> np.ndarray:
         grid, path = self.grid, sc.path
-        if isinstance(path, RasterPath) and self.chart is not None and grid.uv is not None:
+        if isinstance(path, RasterPath):
+            chart = self.chart if self.chart is not None else chart_for(self.surface)
+            if grid.uv is not None:
+                uv = grid.uv.copy()
+            else:  # a mesh part's cells: their coordinates in its [surface.chart]
+                uv = np.array([chart.coordinates(x) for x in grid.points], dtype=float)
             lo = np.array(path.origin)
             hi = lo + np.array(path.size)
-            uv = grid.uv.copy()
-            for c, period in enumerate(self.chart.periods):
+            for c, period in enumerate(chart.periods):
                 if period:  # the cell's coordinate within half a period of the rectangle's
                     mid = 0.5 * (lo[c] + hi[c])
                     uv[:, c] += period * np.round((mid - uv[:, c]) / period)

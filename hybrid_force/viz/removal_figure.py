@@ -137,11 +137,17 @@ def removal_figure(result: Any, name: str = "") -> Figure | None:
                    linestyles="--")  # fmt: skip
         ax.plot([], [], color="w", ls="--", lw=1.0, label="target region")
     phase = np.asarray(result.phase)
-    tip = np.asarray(result.p)[phase == 2]
-    if tip.shape[0]:
-        stride = max(1, tip.shape[0] // 4000)
-        path = unroll(tip[::stride])
-        ax.plot(path[:, 0], path[:, 1], color="tab:red", lw=0.8, label="tip in contact")
+    # a ball tool's centre is r off the part: draw where it touches (the patch's centre)
+    ball = getattr(result, "contact_point", None)
+    if ball is not None and np.ndim(ball) == 3:  # stacked surfaces: the removal surface's
+        ball = np.asarray(ball)[:, int((meta.get("removal") or {}).get("surface", 0))]
+    touch = np.asarray(result.p if ball is None else ball)[phase == 2]
+    touch = touch[np.all(np.isfinite(touch), axis=1)]
+    if touch.shape[0]:
+        stride = max(1, touch.shape[0] // 4000)
+        path = unroll(touch[::stride])
+        label = "tip in contact" if ball is None else "contact point"
+        ax.plot(path[:, 0], path[:, 1], color="tab:red", lw=0.8, label=label)
     else:
         _note(ax, "the tool never touched the surface")
     ax.set_xlim(lo[0], hi[0])

@@ -151,7 +151,9 @@ def _column_label(base: str, j: int, k: int) -> str:
 def _fig_path3d(run: _Run) -> Figure:
     """Fig. 2a / 3a: desired and actual tip paths in 3D with the surfaces as wireframes."""
     fig = _new_figure(7.5, 6.5)
-    ax = fig.add_subplot(projection="3d")
+    # the paths drawn over the surfaces: matplotlib's depth sort of a part's many triangles
+    # against a few long lines hides a path lying on the part
+    ax = fig.add_subplot(projection="3d", computed_zorder=False)
     pts = _finite_points(run.p, run.p_d)
     skipped: list[str] = []
     for i, s in enumerate(run.surfaces):
