@@ -160,7 +160,7 @@ def _load_caches_without_registries() -> None:
         return data if data is not None else full(self, sig, target_context)
 
     load_overload._without_registries = True  # type: ignore[attr-defined]
-    caching.Cache.load_overload = load_overload
+    caching.Cache.load_overload = load_overload  # type: ignore[method-assign]
 
 
 def _skip_extension_scan() -> None:
