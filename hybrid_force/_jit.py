@@ -41,6 +41,7 @@ def jit(func: F) -> F:
             _load_numpy_support_without_scipy()
             _load_typing_without_cffi()
             _skip_extension_scan()
+            _load_caches_without_registries()
         _decorator = numba.njit(cache=True, error_model="numpy")
     compiled: F = _decorator(func)
     return compiled
@@ -67,7 +68,7 @@ def _no_op() -> None:
 def own_kernels_only() -> Iterator[None]:
     """While open, Numba is loaded (by the first :func:`jit`) for the kernels alone.
 
-    For processes that compile no other code than the kernels: the command line's. Two things
+    For processes that compile no other code than the kernels: the command line's. Four things
     Numba does by default are then skipped, each at most a change to code no kernel has:
 
     * its NumPy support checks at its import whether SciPy's BLAS is there, by importing
@@ -80,7 +81,13 @@ def own_kernels_only() -> Iterator[None]:
       kernel takes one (their arguments are arrays and numbers);
     * on its first compilation or cache load it reads the entry points of every installed
       package for Numba extensions (support for other libraries' types; about 0.02 s here,
-      more where more packages are installed).
+      more where more packages are installed);
+    * before each cache load it refreshes its target context: it imports and installs the
+      lowering of all of Python's and NumPy's operations it supports (about 130 modules,
+      0.1 to 0.2 s, the largest part of a short command after the imports), which only a
+      compilation uses: code loaded from the cache is already machine code. A load then
+      starts Numba's runtime (NRT, which that code calls) alone; a miss refreshes as before,
+      then compiles.
 
     A Python program that imports hybrid_force keeps Numba's defaults.
     """
@@ -131,6 +138,29 @@ def _load_typing_without_cffi() -> None:
     available" (``cffi_utils.SUPPORTED = False``), as on an installation without CFFI, instead
     of importing CFFI and pycparser (see :func:`own_kernels_only`)."""
     _block_import("cffi", "numba.core.typing.cffi_utils")
+
+
+def _load_caches_without_registries() -> None:
+    """Let a cache load skip Numba's target refresh (see :func:`own_kernels_only`): the
+    pinned 0.68 series' ``Cache.load_overload`` refreshes, then loads; here the runtime is
+    started, the load tried, and only a miss goes through Numba's own method (refresh, load
+    again, then compile). Once per process."""
+    from numba.core import caching
+    from numba.core.runtime import rtsys
+
+    full = caching.Cache.load_overload
+    if getattr(full, "_without_registries", False):
+        return
+
+    def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
+        rtsys.initialize(target_context)
+        data = None
+        with self._guard_against_spurious_io_errors():
+            data = self._load_overload(sig, target_context)
+        return data if data is not None else full(self, sig, target_context)
+
+    load_overload._without_registries = True  # type: ignore[attr-defined]
+    caching.Cache.load_overload = load_overload  # type: ignore[method-assign]
 
 
 def _skip_extension_scan() -> None:

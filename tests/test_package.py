@@ -81,6 +81,35 @@ def test_a_command_loads_numba_without_scipy_and_runs_the_same(tmp_path) -> None
         assert np.array_equal(getattr(there, name), getattr(here, name)), name
 
 
+def test_a_command_loads_cached_kernels_without_numbas_lowering(tmp_path: Path) -> None:
+    # Under own_kernels_only a kernel found in Numba's cache is loaded without the lowering
+    # registries (numba.cpython.listobj is one of their modules), and a kernel not in the
+    # cache still compiles (Numba's own load: refresh, then compile): the same answer,
+    # 3·2 + 1 = 7, both times.
+    import os
+
+    (tmp_path / "tiny_kernel.py").write_text(
+        "from hybrid_force._jit import jit\n\n\n@jit\ndef f(x, y):\n    return x * y + 1.0\n"
+    )
+    code = (
+        f"import sys\nsys.path.insert(0, {str(tmp_path)!r})\n"
+        "from hybrid_force._jit import own_kernels_only\n"
+        "with own_kernels_only():\n"
+        "    import tiny_kernel\n"
+        "    print(tiny_kernel.f(3.0, 2.0))\n"
+        "print('numba.cpython.listobj' in sys.modules)\n"
+    )
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    runs = [
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+        for _ in range(2)
+    ]
+    for run in runs:
+        assert run.returncode == 0, run.stderr
+    assert runs[0].stdout.split() == ["7.0", "True"]  # compiled: Numba's registries loaded
+    assert runs[1].stdout.split() == ["7.0", "False"]  # loaded from the cache without them
+
+
 def test_module_paths_of_before_the_layers_are_gone() -> None:
     # no alias of a 0.1 module path (hybrid_force.robot, hybrid_force.simulate, ...) is kept
     code = (
