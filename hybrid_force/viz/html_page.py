@@ -49,9 +49,35 @@ def _meshcat_js() -> str:
     return _MAIN_JS[0]
 
 
+def _legend_html(scale: dict[str, Any] | None) -> str:
+    """The removal layer's colour bar (an overlay, ``id="removal-legend"``), or "" without one.
+
+    ``scale``: ``title``, ``low_um`` and ``high_um`` (the colour scale's ends [µm]), ``colors``
+    (CSS colours from the low end) and ``note`` (:func:`~hybrid_force.viz.scene_removal.legend`).
+    """
+    if not scale:
+        return ""
+    gradient = ", ".join(html_lib.escape(str(c)) for c in scale["colors"])
+    low, high = float(scale["low_um"]), float(scale["high_um"])
+    return f"""<div id="removal-legend" style="position: absolute; left: 12px; bottom: 12px;
+ padding: 6px 10px; background: rgba(255, 255, 255, 0.85); font: 12px sans-serif;
+ border-radius: 4px; pointer-events: none; z-index: 10">
+<div id="removal-legend-title">{html_lib.escape(str(scale["title"]))}</div>
+<div style="width: 240px; height: 12px; margin: 4px 0;
+ background: linear-gradient(to right, {gradient})"></div>
+<div style="display: flex; justify-content: space-between; width: 240px">
+<span id="removal-legend-low">{low:.4g}</span><span id="removal-legend-high">{high:.4g}</span>
+</div>
+<div style="color: #555">{html_lib.escape(str(scale["note"]))}</div>
+</div>
+"""
+
+
 def _static_page(commands: list[bytes], info: dict[str, Any]) -> str:
-    """A complete HTML page that builds the scene from ``commands`` without any request."""
+    """A complete HTML page that builds the scene from ``commands`` without any request (with
+    the removal layer's colour bar when ``info["removal"]`` holds its scale)."""
     js = _meshcat_js().replace("</script", "<\\/script")
+    legend = _legend_html(info.get("removal"))
     blobs = ",\n".join(f'"{base64.b64encode(c).decode("ascii")}"' for c in commands)
     info_json = json.dumps(info).replace("</", "<\\/")
     title = html_lib.escape(f"hybrid_force replay: {info.get('name') or 'run'}")
@@ -67,7 +93,7 @@ body {{ margin: 0; }}
 </head>
 <body>
 <div id="meshcat-pane"></div>
-<script>
+{legend}<script>
 {js}
 </script>
 <script>

@@ -19,7 +19,12 @@ meshcat scene:
   f = 0;
 * for a run with ``[tool] orientation = "normal"``, the tool axis ``/meshcat/replay/tool_axis``:
   a rod of ``tool_length`` from the tip back along the actual tool axis a = R(q) â (the tool's
-  shaft, its tip on the surface).
+  shaft, its tip on the surface);
+* for a run with ``[removal]``, the depth removed by the end of the run,
+  ``/meshcat/replay/removal``: a point at each cell of the removal grid coloured by its depth
+  (viridis, the colormap of ``removal.png``, from the least depth to the greatest; at most
+  ``max_removal_points`` points, a larger grid averaged into voxels), with its colour scale in
+  µm in the page's legend (printed by :func:`serve`); see :mod:`.scene_removal`.
 
 Time runs at real speed: the run is resampled at ``fps`` frames per second (linear interpolation
 of q, p and f between samples; the phase of the latest sample) into a
@@ -59,6 +64,7 @@ from hybrid_force.run_output import RunOutput
 from hybrid_force.viz.live_server import _serve_replay
 from hybrid_force.viz.replay_view import ReplaySettings
 from hybrid_force.viz.scene import Replay
+from hybrid_force.viz.scene_removal import legend
 
 __all__ = ["html", "replay_command", "serve", "show", "write_html"]
 
@@ -110,6 +116,13 @@ def serve(
             is already in use.
     """
     replay = Replay(result_or_path, ReplaySettings(fps=fps))
+    if replay.removal is not None:  # the live viewer has no legend: the scale is printed
+        scale = legend(replay.removal)
+        print(
+            f"removal colours: {scale['title']}, viridis from {scale['low_um']:.4g} (dark "
+            f"violet) to {scale['high_um']:.4g} (yellow)",
+            flush=True,
+        )
     _serve_replay(replay, port=port, loop=loop, browser_timeout=browser_timeout)
 
 

@@ -33,6 +33,8 @@ class ReplaySettings:
         tip_radius: radius of the tip marker sphere [m].
         tool_length: length of the tool axis drawn for a run with ``[tool] orientation =
             "normal"``: a rod from the tip back along the axis [m].
+        max_removal_points: at most this many points in the removal layer of a run with
+            ``[removal]`` (a larger grid is averaged into voxels; docs/replay.md).
     """
 
     fps: float = 30.0
@@ -43,6 +45,7 @@ class ReplaySettings:
     margin: float = 0.2
     tip_radius: float = 0.045
     tool_length: float = 0.15
+    max_removal_points: int = 40_000
 
     def __post_init__(self) -> None:
         for name in ("fps", "force_scale", "force_cap", "margin", "tip_radius", "tool_length"):
@@ -57,14 +60,12 @@ class ReplaySettings:
             raise BadInputError(
                 f"ReplaySettings.surface_opacity must be in (0, 1], got {self.surface_opacity!r}"
             )
-        if isinstance(self.max_path_points, bool) or not isinstance(self.max_path_points, int):
-            raise BadInputError(
-                f"ReplaySettings.max_path_points must be an int, got {self.max_path_points!r}"
-            )
-        if self.max_path_points < 2:
-            raise BadInputError(
-                f"ReplaySettings.max_path_points must be >= 2, got {self.max_path_points}"
-            )
+        for name, least in (("max_path_points", 2), ("max_removal_points", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise BadInputError(f"ReplaySettings.{name} must be an int, got {value!r}")
+            if value < least:
+                raise BadInputError(f"ReplaySettings.{name} must be >= {least}, got {value}")
 
 
 class ReplayView(Protocol):

@@ -37,6 +37,13 @@ from hybrid_force.viz.scene_objects import (
     motion_points,
     set_camera,
 )
+from hybrid_force.viz.scene_removal import (
+    REMOVAL_NODE,
+    RemovalLayer,
+    draw_removal,
+    legend,
+    removal_layer,
+)
 
 __all__ = ["Replay"]
 
@@ -76,6 +83,8 @@ class Replay:
         frame_p: (F, 3) tip positions at the frames [m].
         frame_f: (F, k) contact forces at the frames [N].
         frame_phase: (F,) phase at the frames (of the latest sample at or before the frame).
+        removal: the removal layer of a run with ``[removal]`` (the final depth as coloured
+            points, :mod:`.scene_removal`), or None.
     """
 
     def __init__(
@@ -89,6 +98,9 @@ class Replay:
         self.robot = self._load_robot()
         self.surfaces = self._load_surfaces()
         self._resample()
+        self.removal: RemovalLayer | None = removal_layer(
+            self.result, self.settings.max_removal_points
+        )
 
     # ------------------------------------------------------------------ loading
     def _load_robot(self) -> Any:
@@ -224,6 +236,7 @@ class Replay:
                 f"/meshcat/{ROOT}/force/arrow_{i}" for i in range(self.frame_f.shape[1])
             ],
             "tool_axis": None if self.tool_axis is None else f"/meshcat/{ROOT}/tool_axis",
+            "removal": None if self.removal is None else f"/meshcat/{ROOT}/{REMOVAL_NODE}",
         }
 
     @property
@@ -267,6 +280,8 @@ class Replay:
         viz.initViewer(viewer=vis)
         viz.loadViewerModel(rootNodeName=ROBOT_ROOT)
         draw_static(vis, self)
+        if self.removal is not None:
+            draw_removal(vis[ROOT], self.removal)
         set_camera(vis, self.view_center(), self.result.p_d)
         animate(vis, viz, self, play=play, repetitions=repetitions)
 
@@ -302,6 +317,7 @@ class Replay:
             "n_frames": self.n_frames,
             "scene_offset": (-self.view_center()).tolist(),
             "nodes": self.node_paths(),
+            "removal": None if self.removal is None else legend(self.removal),
         }
 
     def write_html(self, path: str | os.PathLike[str]) -> Path:

@@ -97,10 +97,10 @@ def draw_static(vis: Any, replay: ReplayView) -> None:
         if surface is None:
             continue
         color = _SURFACE_COLORS[i % len(_SURFACE_COLORS)]
+        # depthWrite as a keyword: meshcat sends only its own and the keyword properties
         material = mg.MeshLambertMaterial(
-            color=color, opacity=s.surface_opacity, transparent=True, side=2
+            color=color, opacity=s.surface_opacity, transparent=True, side=2, depthWrite=False
         )
-        material.depthWrite = False
         geometry, transform = _surface_geometry(surface, pts, s.margin)
         node = root["surfaces"][f"surface_{i}"]
         node.set_object(mg.Mesh(geometry, material))
