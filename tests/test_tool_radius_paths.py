@@ -168,3 +168,37 @@ def test_a_raster_on_a_mesh_part_targets_its_chart_rectangle(tmp_path: Path) -> 
     # the cells lie on the part (Φ = 0, not on the ball centre's Φ = r)
     phi = np.array([sc.surfaces[0].phi(p) for p in observer.grid.points[::50]])
     assert np.abs(phi).max() <= 2e-4
+
+
+def test_a_ball_tools_patch_takes_the_parts_curvature_at_the_foot() -> None:
+    """A ball of radius r on a sphere of radius R: the Hertz patch is sized by the part's
+    curvature 1/R at the contact (R_eff = 1/(1/R_pad + 1/R)), not by the curvature 1/(R + r)
+    of the sphere through the ball's centre: the cells that receive depth reach a(1/R) to a
+    cell, and a(1/(R + r)) lies more than a cell beyond."""
+    from hybrid_force.sim.removal import HertzPad
+    from hybrid_force.sim.removal_run import RemovalObserver
+
+    R, r, cell, force = 0.5, 0.05, 5e-5, 10.0
+    pad = {"type": "hertz", "radius": 1.0, "modulus": 5e6}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sc = load_scenario(
+            REPO / "scenarios" / "rtr_sphere.toml",
+            {
+                "sim.duration": 0.1, "tool.radius": r, "initial.tip": [0.44, 0.0, 4.67],
+                "trajectory.center": [0.0, 0.0, 4.67], "trajectory.radius": 0.44,
+                "tool.pad": pad, "removal": {"k_p": 1e-13, "resolution": cell},
+            },
+        )  # fmt: skip
+    observer = RemovalObserver(sc, 101)
+    centre = np.array([0.0, 0.0, 5.0])
+    u = np.array([0.8, 0.0, -0.6])  # the path's start, seen from the sphere's centre
+    foot, tip = centre + R * u, centre + (R + r) * u
+    observer.observe(0, tip, np.array([0.0, 0.1, 0.0]), np.array([force]))
+    observer.finish(1)
+    touched = observer.grid.points[observer.grid.depth > 0.0]
+    reach = float(np.linalg.norm(touched - foot, axis=1).max())
+    at_foot = HertzPad(1.0, 5e6).patch(force, 1.0 / R, 1.0 / R)[0]
+    at_tip = HertzPad(1.0, 5e6).patch(force, 1.0 / (R + r), 1.0 / (R + r))[0]
+    assert at_foot - 2 * cell <= reach <= at_foot
+    assert at_tip - at_foot > 2 * cell

@@ -15,6 +15,8 @@ from hybrid_force.geometry._kernels import surface_eval as _surface_eval
 
 HERTZ = 0
 FLAT = 1
+#: |d| [m] of a tip beyond which its patch's curvature is evaluated at its foot p − d n.
+FOOT_TOL = 1e-9
 
 
 @_jit
@@ -527,7 +529,8 @@ def observe(
 
     desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
     distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
-    caller's. The patch is centred at the tip's foot p − d n on the surface. v_ref > 0
+    caller's, at the foot. The patch is centred at the tip's foot p − d n on the surface, and
+    its curvature (∇²Φ) is the part's there (for |d| > FOOT_TOL). v_ref > 0
     [m/s]: the spindle's schedule ω |v_t| / v_ref (the removal per unit length of a feed
     |v_t| is then that of the feed v_ref at ω); 0: ω throughout. merge [m]: the group's
     reach (:func:`_fits`; docs/removal.md, "Cost"). work (18,), index (M,) int64 and
@@ -538,6 +541,15 @@ def observe(
         return 0.0
     if desc.shape[0] > 0:
         _, distance = _surface_eval(desc, p, grad, hess)
+        if abs(distance) > FOOT_TOL:
+            # the part's curvature at the foot, not at p: off the part (a ball tool's centre
+            # r away, a compliant contact's penetration) the level set through p has the
+            # principal curvatures κ / (1 + d κ)
+            g = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+            foot = work[12:15]
+            for k in range(3):
+                foot[k] = p[k] - distance * grad[k] / g
+            _surface_eval(desc, foot, grad, hess)
     normal = work[9:12]
     a = patch_on_part(grad, hess, shape, radius, modulus, force, normal)
     if a <= 0.0:

@@ -440,6 +440,9 @@ class RemovalObserver:
         grid, grad, hess, distance = self.grid, self._grad, self._hess, 0.0
         if self._python:
             _, g, h, distance = self.surface.evaluate_with_distance(p)
+            if abs(distance) > _K.FOOT_TOL:  # the part's curvature at the foot (the kernel's)
+                foot = p - distance * np.asarray(g) / float(np.linalg.norm(g))
+                _, g, h = self.surface.evaluate(np.ascontiguousarray(foot))
             grad[:] = g
             hess[:] = h
         a = _K.observe(
