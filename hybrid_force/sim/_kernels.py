@@ -129,6 +129,21 @@ def loop_resolve(
     return True
 
 
+@_jit
+def exceeds_effort(u0: np.ndarray, B: np.ndarray, f: np.ndarray, effort: np.ndarray) -> bool:
+    """True when some |u_i| > effort_i for the command u = u0 + B f: u0, effort (n,) [N·m or
+    N], B (n, k) (k = 0: u = u0), f (k,) [N]. A NaN in u is not beyond (as numpy's
+    comparison); the saturated path of ``sim.rigid_contact`` runs only when this is True."""
+    n, k = B.shape
+    for i in range(n):
+        u = u0[i]
+        for m in range(k):
+            u += B[i, m] * f[m]
+        if abs(u) > effort[i]:
+            return True
+    return False
+
+
 # --- simulate (hybrid_force.sim.loop: semi-implicit Euler and post-stabilisation, k = 1) ----------
 @_jit
 def _put(row: np.ndarray, start: int, x: np.ndarray) -> int:
