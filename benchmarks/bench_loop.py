@@ -553,7 +553,7 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
     ddq, f = solver.solve(terms.nle, cmd.u0, cmd.B, cons.A, gamma)
     plant = Plant(robot, constraint, sim, sc.control.contact_tol)
     plant.in_contact = True
-    log = Record(sc, plant, build_control_side(sc, None, sc.q0, False), 2)
+    log = Record(sc, plant, build_control_side(sc, None, sc.q0), 2)
     parts: dict[str, Callable[[], object]] = {
         "robot terms (6 Pinocchio calls + 1 kernel)": lambda: robot.terms(q, v, data, out=terms),
         "constraint rows, Q, drift (1 kernel)": lambda: constraint.evaluate(terms, v, out=cbuf),

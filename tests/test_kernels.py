@@ -803,8 +803,10 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     def field(row: int, index: int) -> np.ndarray:  # the column view of field ``index``
         return table[row, starts[index] : starts[index + 1]]
 
+    none, no_u_cmd = np.zeros(0), np.zeros((0, nv))
+
     def record(i: int, t: float, *args: object) -> bool:
-        return bool(record_row(table, i, t, *args, 5.0, 100.0))
+        return bool(record_row(table, i, t, *args, 5.0, 100.0, none, no_u_cmd))
 
     q, v, q_d, u0 = rng.standard_normal((4, nq))
     B = rng.standard_normal((nv, k))
@@ -823,3 +825,10 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     fast_v[1] = -5.5
     assert not record(0, 0.0, q, fast_v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
     assert not record(0, 0.0, q, v, q_d, u0, B, np.array([0.0, 101.0]), p, p_d, f_d, phi, 0, 0)
+    # effort limits: the applied torque in the u column, the command u0 + B f in u_cmd's row
+    applied, u_cmd = rng.standard_normal(nv), np.zeros((3, nv))
+    args = (q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2, 5.0, 100.0, applied, u_cmd)
+    assert record_row(table, 2, 0.5, *args)
+    assert np.array_equal(field(2, 4), applied)
+    assert np.abs(u_cmd[2] - (u0 + B @ f)).max() <= 1e-15 * float(np.abs(u0 + B @ f).max())
+    assert not np.any(u_cmd[[0, 1]])

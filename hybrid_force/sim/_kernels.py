@@ -129,6 +129,21 @@ def loop_resolve(
     return True
 
 
+@_jit
+def exceeds_effort(u0: np.ndarray, B: np.ndarray, f: np.ndarray, effort: np.ndarray) -> bool:
+    """True when some |u_i| > effort_i for the command u = u0 + B f: u0, effort (n,) [N·m or
+    N], B (n, k) (k = 0: u = u0), f (k,) [N]. A NaN in u is not beyond (as numpy's
+    comparison); the saturated path of ``sim.rigid_contact`` runs only when this is True."""
+    n, k = B.shape
+    for i in range(n):
+        u = u0[i]
+        for m in range(k):
+            u += B[i, m] * f[m]
+        if abs(u) > effort[i]:
+            return True
+    return False
+
+
 # --- simulate (hybrid_force.sim.loop: semi-implicit Euler and post-stabilisation, k = 1) ----------
 @_jit
 def _put(row: np.ndarray, start: int, x: np.ndarray) -> int:
@@ -156,11 +171,16 @@ def record_row(
     phase: int,
     max_velocity: float,
     max_force: float,
+    applied: np.ndarray,
+    u_cmd: np.ndarray,
 ) -> bool:
     """Write one sample into row i of the run's table (fields in the order of simulate._Log).
 
-    The command column is u = u0 + B f (B: (n, k)). Returns True when q, v, f are finite,
-    every |v_i| ≤ max_velocity and every |f_m| ≤ max_force.
+    The command column is the applied torque: ``applied`` (n,) when the effort limits changed
+    it, else (size 0) the command u = u0 + B f (B: (n, k)); u_cmd (N, n), the commanded
+    torques' table of a run with effort limits, gets u0 + B f in its row i (0 rows: none).
+    Returns True when q, v, f are finite, every |v_i| ≤ max_velocity and every |f_m| ≤
+    max_force.
     """
     row = table[i]
     row[0] = t
@@ -168,11 +188,15 @@ def record_row(
     c = _put(row, c, v)
     c = _put(row, c, q_d)
     n = u0.shape[0]
+    limited = applied.shape[0] != 0
+    commanded = u_cmd.shape[0] != 0
     for j in range(n):
         acc = u0[j]
         for m in range(f.shape[0]):
             acc += B[j, m] * f[m]
-        row[c + j] = acc
+        row[c + j] = applied[j] if limited else acc
+        if commanded:
+            u_cmd[i, j] = acc
     c = _put(row, c + n, p)
     c = _put(row, c, p_d)
     c = _put(row, c, f)

@@ -79,6 +79,8 @@ class Record:
         self.f_meas: np.ndarray | None = np.zeros((N, k)) if ctrl.measured else None
         # the commanded torque (N, n), when effort limits may make it differ from the applied
         self.u_cmd: np.ndarray | None = np.zeros((N, nv)) if plant.effort is not None else None
+        self._u_cmd = self.u_cmd if self.u_cmd is not None else np.zeros((0, nv))
+        self._no_u = np.zeros(0)  # no applied torque of the limits: the command is applied
         # the law's own signals (N, m), when it logs some (Law.log_names)
         m = len(self.law_signals)
         self.law_log: np.ndarray | None = np.zeros((N, m)) if m else None
@@ -125,9 +127,8 @@ class Record:
         ok = _K.record_row(
             self.table, i, t, q, v,
             clik.q if clik is not None else self._no_q_d,
-            # the applied torque: the command u0 + B f, or what the effort limits pass
-            cmd.u0 if applied is None else applied,
-            self._no_B if cmd.B is None or applied is not None else cmd.B,
+            # the command u0 + B f: the applied torque unless the effort limits changed it
+            cmd.u0, self._no_B if cmd.B is None else cmd.B,
             f, terms.p,
             # sampled: the desired point now, not the one of the last tick (held 1/rate s)
             clik.p_d if clik is not None and not ctrl.measured else self._path.position(t),
@@ -137,11 +138,12 @@ class Record:
             # the plant's contact state: a tool off the surface is never logged in contact
             CONTACT if plant.in_contact else ctrl.phase(distance),
             self.max_velocity, self.max_force,
+            self._no_u if applied is None else applied,
+            # the commanded torque, before the limits (row i; no rows: no limits)
+            self._u_cmd,
         )  # fmt: skip
         if self.f_meas is not None:
             self.f_meas[i] = ctrl.f_meas
-        if self.u_cmd is not None:  # the commanded torque, before the limits
-            self.u_cmd[i] = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
         if self._log_law is not None:
             assert self.law_log is not None
             self._log_law(self.law_log[i])

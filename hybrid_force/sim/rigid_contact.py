@@ -76,6 +76,7 @@ class RigidContact(SurfaceContact):
         self._tmp = (np.zeros(n), np.zeros(n))
         self._grad = np.zeros(3)
         self._row = np.zeros((1, n))  # the compiled step's constraint row
+        self._no_B = np.zeros((n, 0))  # B of a command that does not depend on f
         self._compiled_step = (
             self.compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
         )
@@ -137,9 +138,12 @@ class RigidContact(SurfaceContact):
         arm = self.arm
         effort = arm.effort
         assert effort is not None
+        # the cheap path, one compiled test: nothing to hold, q̈ and f as solved
+        if not _K.exceeds_effort(cmd.u0, self._no_B if cmd.B is None else cmd.B, f, effort):
+            return ddq, f
         u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
         over = np.abs(u) > effort
-        if not over.any():  # the cheap path: nothing to hold, q̈ and f as solved
+        if not over.any():  # beyond only in the kernel's rounding of u (k > 1)
             return ddq, f
         if cmd.B is None:  # u does not depend on f: the joints beyond are the held set
             signs = np.sign(u) * over
