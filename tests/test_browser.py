@@ -22,7 +22,6 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,15 +36,6 @@ from hybrid_force.result import Result
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = Path("/usr/bin/chromium")
-BROWSER_ARGS = [
-    "--no-sandbox",
-    "--enable-unsafe-swiftshader",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
 FPS = 30.0
 L2, L3 = 0.9, 1.0  # RTR link lengths [m] (robots/rtr.urdf)
 
@@ -82,33 +72,6 @@ JS_DESCRIBE = (
 }
 """
 )
-
-
-def _unavailable_reason() -> str | None:
-    if not CHROMIUM.exists():
-        return f"no browser at {CHROMIUM} (Debian: apt-get install chromium)"
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        return "Playwright's Python package is not installed (pip install playwright)"
-    return None
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    reason = _unavailable_reason()
-    if reason is not None:
-        if os.environ.get("HYBRID_FORCE_CI") == "1":
-            pytest.fail(f"browser tests must run in CI (HYBRID_FORCE_CI=1): {reason}")
-        pytest.skip(reason)
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=BROWSER_ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
 
 
 @pytest.fixture(scope="module")

@@ -10,13 +10,11 @@ from __future__ import annotations
 
 import io
 import math
-from collections.abc import Iterator
 from typing import Any
 
 import matplotlib
 import numpy as np
 import pytest
-from test_browser import BROWSER_ARGS, CHROMIUM, _unavailable_reason
 from test_replay import embedded_commands, synthetic_result
 
 from hybrid_force.geometry.builtin_surfaces import Plane
@@ -166,25 +164,6 @@ def test_bad_bound() -> None:
 
 
 # --------------------------------------------------------------------------- in a browser
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    import os
-
-    reason = _unavailable_reason()
-    if reason is not None:
-        if os.environ.get("HYBRID_FORCE_CI") == "1":
-            pytest.fail(f"browser tests must run in CI (HYBRID_FORCE_CI=1): {reason}")
-        pytest.skip(reason)
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=BROWSER_ARGS)
-        try:
-            yield b
-        finally:
-            b.close()
-
-
 # Everything but the removal layer and the translucent plane over it hidden, the camera above
 # the grid's centre, the cells' screen positions (pixels from the top left) returned.
 JS_PROJECT = """
