@@ -64,6 +64,7 @@ from hybrid_force.errors import (
     RunFailedError,
     RunWarning,
 )
+from hybrid_force.geometry.mesh_field import CREASE_ANGLE, FACETS
 from hybrid_force.geometry.mesh_surface import check_part
 from hybrid_force.model.loading import load_robot
 from hybrid_force.model.registry import known_robots
@@ -109,7 +110,13 @@ def _cmd_schema(args: argparse.Namespace) -> int:
 def _cmd_part(args: argparse.Namespace) -> int:
     """``part --check FILE``: read and fit a mesh part as ``[surface] type = "mesh"`` would
     and print what :func:`~hybrid_force.geometry.mesh_surface.check_part` measures."""
-    report = check_part(args.check, resolution=args.resolution, scale=args.scale)
+    report = check_part(
+        args.check,
+        resolution=args.resolution,
+        scale=args.scale,
+        facets=args.facets,
+        crease_angle=args.crease_angle,
+    )
     for line in report.lines():
         print(line)
     return 0
@@ -501,7 +508,8 @@ def build_parser(
         help="check a mesh part (STL, OBJ, PLY) and its smooth distance field",
         description='Read a mesh part as [surface] type = "mesh" does, fit (or read from the '
         "cache) its smooth signed-distance field and print: faces, watertight or not, the "
-        "bounding box, the grid and its memory, the fit error max |Φ − d_mesh| at the "
+        "bounding box, how far the curved patches bend off the faces, the grid and its memory, "
+        "the fit error max |Φ − d| at the "
         "vertices, the face centres and over the band, the smallest concave radius of "
         "curvature, the build time and the cache file (docs/mesh_parts.md); exit status 2 "
         "with one error line for a file that cannot be used.",
@@ -516,6 +524,19 @@ def build_parser(
     )
     part.add_argument(
         "--scale", metavar="S", type=float, default=1.0, help="the file's units in metres"
+    )
+    part.add_argument(
+        "--facets",
+        choices=FACETS,
+        default="curved",
+        help="curved: the patches through the vertices (default); flat: the faces themselves",
+    )
+    part.add_argument(
+        "--crease-angle",
+        metavar="DEG",
+        type=float,
+        default=CREASE_ANGLE,
+        help=f"faces meeting at more than this keep a sharp edge (default {CREASE_ANGLE:g})",
     )
     part.set_defaults(handler=_cmd_part)
     _add_run(sub)

@@ -39,8 +39,16 @@ def sphere_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def sphere(sphere_file: Path, tmp_path_factory: pytest.TempPathFactory) -> MeshSurface:
+def sphere(sphere_file: Path) -> MeshSurface:
+    """The icosphere with curved facets (the default): Φ = 0 on the patches through its
+    vertices, which lie on the true sphere."""
     return MeshSurface.from_file(sphere_file, resolution=0.0105, cache=False)
+
+
+@pytest.fixture(scope="module")
+def flat_sphere(sphere_file: Path) -> MeshSurface:
+    """The icosphere with flat facets: Φ = 0 on its faces."""
+    return MeshSurface.from_file(sphere_file, resolution=0.0105, facets="flat", cache=False)
 
 
 def _near_surface(rng: np.random.Generator, count: int, band: float) -> tuple[np.ndarray, ...]:
@@ -63,36 +71,60 @@ def _sagitta(part_file: Path) -> float:
     return float(RADIUS - np.sqrt(RADIUS**2 - rc.max() ** 2))
 
 
-def test_sphere_field_is_the_mesh_distance_within_a_tenth_of_a_millimetre(
-    sphere: MeshSurface, sphere_file: Path
+def test_flat_sphere_field_is_the_mesh_distance_within_a_tenth_of_a_millimetre(
+    flat_sphere: MeshSurface, sphere_file: Path
 ) -> None:
     rng = np.random.default_rng(1)
     points, _, r = _near_surface(rng, 1500, 0.005)
     exact = -trimesh.proximity.signed_distance(trimesh.load(sphere_file), points)  # >0 outside
-    phi = sphere.field.values(points)
+    phi = flat_sphere.field.values(points)
     assert np.abs(phi - exact).max() <= 1e-4
     # against the true sphere: the fit plus the mesh's own faceting (its inscribed faces)
     assert np.abs(phi - (r - RADIUS)).max() <= 1e-4 + _sagitta(sphere_file)
 
 
-def test_sphere_field_normal_gradient_norm_and_smoothness(sphere: MeshSurface) -> None:
+def test_curved_sphere_field_is_the_true_sphere_far_below_the_sagitta(
+    sphere: MeshSurface, sphere_file: Path
+) -> None:
+    """The patches through the vertices are the sphere to the accuracy of the corner normals
+    (angle-weighted face normals, off the radial by O(L²/R²) on the icosphere's uneven
+    faces): measured 2.3e-6 m max within 5 mm, 0.3 µm mean near the surface, against the
+    faces' sagitta of 8.9e-5 m."""
+    rng = np.random.default_rng(1)
+    points, _, r = _near_surface(rng, 1500, 0.005)
+    error = np.abs(sphere.field.values(points) - (r - RADIUS))
+    assert error.max() <= _sagitta(sphere_file) / 20
+    near, _, r_near = _near_surface(rng, 1500, 1e-4)
+    assert (
+        np.abs(sphere.field.values(near) - (r_near - RADIUS)).mean() <= _sagitta(sphere_file) / 100
+    )
+
+
+@pytest.mark.parametrize("facets", ["flat", "curved"])
+def test_sphere_field_normal_gradient_norm_and_smoothness(
+    facets: str, sphere: MeshSurface, flat_sphere: MeshSurface
+) -> None:
+    surface = sphere if facets == "curved" else flat_sphere
     rng = np.random.default_rng(2)
     points, directions, _ = _near_surface(rng, 1500, 0.005)
     worst_angle = worst_turn = 0.0
     norms = []
     for p, n in zip(points, directions, strict=True):
-        _, g, _ = sphere.evaluate(p)
+        _, g, _ = surface.evaluate(p)
         norms.append(np.linalg.norm(g))
         worst_angle = max(worst_angle, math.degrees(math.acos(min(1.0, g @ n / norms[-1]))))
         tangent = np.cross(n, rng.normal(size=3))
         tangent /= np.linalg.norm(tangent)
-        _, g2, _ = sphere.evaluate(p + 1e-4 * tangent)  # 0.1 mm along the surface
+        _, g2, _ = surface.evaluate(p + 1e-4 * tangent)  # 0.1 mm along the surface
         cos = g @ g2 / (np.linalg.norm(g) * np.linalg.norm(g2))
         worst_turn = max(worst_turn, math.degrees(math.acos(min(1.0, cos))))
-    assert worst_angle <= 0.5
-    # the true normal turns by 0.1 mm / 0.3 m = 0.019°; the facets add at most this much
-    assert worst_turn <= 0.05
+    # the issue's targets; the curved facets' normal is the sphere's to ~0.03°, and turns by
+    # the true 0.1 mm / 0.3 m = 0.0191° plus 0.0005° (measured)
+    assert worst_angle <= (0.5 if facets == "flat" else 0.05)
+    assert worst_turn <= (0.05 if facets == "flat" else 0.021)
     assert min(norms) >= 0.98 and max(norms) <= 1.02
+    if facets == "curved":
+        assert min(norms) >= 0.999 and max(norms) <= 1.001
 
 
 def test_gradient_and_hessian_are_central_differences(sphere: MeshSurface) -> None:
@@ -112,10 +144,11 @@ def test_gradient_and_hessian_are_central_differences(sphere: MeshSurface) -> No
 
 
 def test_field_interpolates_its_samples_and_is_continuous_out_of_its_box(
-    sphere: MeshSurface,
+    flat_sphere: MeshSurface,
 ) -> None:
     import igl
 
+    sphere = flat_sphere
     field = sphere.field
     rng = np.random.default_rng(4)
     idx = rng.integers(0, np.array(field.shape), size=(20000, 3))
@@ -137,12 +170,16 @@ def test_field_interpolates_its_samples_and_is_continuous_out_of_its_box(
     assert far == pytest.approx(inside + g_in[0] * 1.0, abs=1e-8)
 
 
-def test_cylinder_mesh_matches_the_exact_cylinder(tmp_path: Path) -> None:
+@pytest.mark.parametrize("facets", ["flat", "curved"])
+def test_cylinder_mesh_matches_the_exact_cylinder(facets: str, tmp_path: Path) -> None:
+    """Flat facets lie up to the sagitta inside the cylinder; the curved patches are the
+    cylinder itself (its corner normals are radial by symmetry, its caps kept flat by the
+    crease), so the field's own fit error alone remains."""
     radius, sections = 0.4, 512
     mesh = trimesh.creation.cylinder(radius=radius, height=0.2, sections=sections)
     path = tmp_path / "cyl.obj"
     mesh.export(path)
-    surface = MeshSurface.from_file(path, cache=False)
+    surface = MeshSurface.from_file(path, facets=facets, cache=False)
     rng = np.random.default_rng(5)
     angle = rng.uniform(0, 2 * np.pi, 500)
     rho = radius + rng.uniform(-0.005, 0.005, 500)
@@ -150,6 +187,8 @@ def test_cylinder_mesh_matches_the_exact_cylinder(tmp_path: Path) -> None:
         [rho * np.cos(angle), rho * np.sin(angle), rng.uniform(-0.05, 0.05, 500)]
     )
     sagitta = radius * (1 - math.cos(math.pi / sections))  # faces inside the vertices' circle
+    if facets == "curved":
+        sagitta = 0.0
     phi = surface.field.values(points)
     assert np.abs(phi - (rho - radius)).max() <= sagitta + 2e-5
     for p, a in zip(points[:40], angle[:40], strict=True):

@@ -8,6 +8,12 @@ on an open one; exact within a band of the surface, :func:`_signed_samples`), in
 by the tricubic B-spline through those values: C² everywhere, with ∇Φ and ∇²Φ in closed
 form (:mod:`._field_kernels`).
 
+With ``facets = "curved"`` (the default) d is the distance to the curved patches through the
+mesh's vertices (:mod:`.mesh_patches`), not to its flat facets: the field then converges to the
+smooth part the mesh was cut from as h is refined, not to its chords (on a cylinder of N
+sections, the facets are up to R(1 − cos π/N) inside it). ``facets = "flat"``: the facets
+themselves (a part that is faceted by design).
+
 The grid spacing h smooths the facets: a spline interpolating d on a grid finer than the
 facets follows their ripple, and the normal with it. The default h is therefore twice the
 median of each face's shortest edge (the faceting scale: the chord of a cylinder's sections,
@@ -20,6 +26,7 @@ a hash of both; folder ``$HYBRID_FORCE_CACHE`` or ``~/.cache/hybrid_force/fields
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import math
@@ -33,8 +40,11 @@ import numpy as np
 
 from hybrid_force._atomic import atomic_file
 from hybrid_force.errors import ModelWarning, SurfaceError
+from hybrid_force.geometry.mesh_patches import CurvedPatches, curved_patches
 
 __all__ = [
+    "CREASE_ANGLE",
+    "FACETS",
     "MAX_NODES",
     "DistanceField",
     "MeshPart",
@@ -44,10 +54,14 @@ __all__ = [
     "read_mesh",
 ]
 
+#: How a mesh's faces are read: bent into patches through the vertices, or flat.
+FACETS = ("curved", "flat")
+#: Faces meeting at more than this [deg] keep the sharp edge between them (curved facets).
+CREASE_ANGLE = 30.0
 #: Largest grid the field may have [nodes]: 8 bytes each, 3 arrays of it at most while
 #: building (about 400 MB at this bound); a finer ``resolution`` is refused naming it.
 MAX_NODES = 16_000_000
-_FORMAT = 1  # version of the cached file's layout: a change invalidates old caches
+_FORMAT = 2  # version of the cached file's layout: a change invalidates old caches
 
 
 @dataclass(frozen=True, eq=False)
@@ -196,8 +210,8 @@ def default_resolution(part: MeshPart) -> float:
 class DistanceField:
     """A tricubic B-spline Φ: coefficients (nx + 2, ny + 2, nz + 2) of nodes origin + i·h.
 
-    ``sign`` is +1 when Φ is the mesh's signed distance (positive on the side the face normals
-    point to) and −1 for ``inside`` (the tool works inside a closed part).
+    Φ is the mesh's signed distance, positive on the side the face normals point to, or
+    on the other for ``inside`` (the tool works inside a closed part).
     """
 
     coefficients: np.ndarray
@@ -205,6 +219,9 @@ class DistanceField:
     spacing: float
     build_seconds: float = 0.0
     cache_file: str = ""
+    #: max |Φ| at the part's vertices plus max |Φ| at its faces' centres and edges' middles
+    #: (on the curved patches, or the flat faces): how far Φ = 0 may lie from the part [m]
+    tolerance: float = 0.0
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -362,8 +379,11 @@ _STRIDE = 4
 _BAND = 4.0
 
 
-def _exact_signed(part: MeshPart, nodes: np.ndarray, inside: bool) -> np.ndarray:
-    """The mesh's signed distance at nodes (m, 3) [m]: > 0 on the free side."""
+def _exact_signed(
+    part: MeshPart, nodes: np.ndarray, inside: bool, patches: CurvedPatches | None
+) -> np.ndarray:
+    """The part's signed distance at nodes (m, 3) [m]: > 0 on the free side; to the curved
+    ``patches`` when given (d − h at the foot on the facets, :mod:`.mesh_patches`)."""
     import igl
 
     # A watertight mesh: the sign of the angle-weighted pseudonormal at the closest feature
@@ -373,17 +393,21 @@ def _exact_signed(part: MeshPart, nodes: np.ndarray, inside: bool) -> np.ndarray
     # mode of signed_distance: its magnitudes were up to 1.7 mm off the exact distance on a
     # 0.3 m sphere (measured).
     if part.watertight:
-        signed, *_ = igl.signed_distance(
+        signed, face, foot, _ = igl.signed_distance(
             nodes, part.vertices, part.faces, sign_type=igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL
         )
         signed = np.asarray(signed, dtype=np.float64)
-        return -signed if inside else signed
-    unsigned, *_ = igl.signed_distance(
-        nodes, part.vertices, part.faces, sign_type=igl.SIGNED_DISTANCE_TYPE_UNSIGNED
-    )
-    winding = igl.winding_number(part.vertices, part.faces, nodes)
-    outside = (np.asarray(winding) < 0.5) != inside
-    return np.where(outside, 1.0, -1.0) * np.abs(np.asarray(unsigned, dtype=np.float64))
+    else:
+        unsigned, face, foot, _ = igl.signed_distance(
+            nodes, part.vertices, part.faces, sign_type=igl.SIGNED_DISTANCE_TYPE_UNSIGNED
+        )
+        winding = igl.winding_number(part.vertices, part.faces, nodes)
+        signed = np.where(np.asarray(winding) < 0.5, 1.0, -1.0) * np.abs(
+            np.asarray(unsigned, dtype=np.float64)
+        )
+    if patches is not None:
+        signed = signed - patches.height(np.asarray(face, dtype=np.int64), np.asarray(foot))
+    return -signed if inside else signed
 
 
 def _axis_nodes(origin: np.ndarray, h: float, counts: tuple[int, ...], stride: int) -> list:
@@ -396,7 +420,12 @@ def _lattice(axes: list) -> np.ndarray:
 
 
 def _signed_samples(
-    part: MeshPart, origin: np.ndarray, counts: tuple[int, int, int], h: float, inside: bool
+    part: MeshPart,
+    origin: np.ndarray,
+    counts: tuple[int, int, int],
+    h: float,
+    inside: bool,
+    patches: CurvedPatches | None = None,
 ) -> np.ndarray:
     """Signed distances at the grid's nodes (nx, ny, nz): exact within a band of the surface.
 
@@ -409,10 +438,10 @@ def _signed_samples(
     stride = _STRIDE
     coarse_counts = tuple(-(-(n - 1) // stride) + 1 for n in counts)
     if min(counts) <= 4 * stride:
-        return _exact_signed(part, _lattice(_axis_nodes(origin, h, counts, 1)), inside).reshape(
-            counts
-        )
-    coarse = _exact_signed(part, _lattice(_axis_nodes(origin, h, coarse_counts, stride)), inside)
+        nodes = _lattice(_axis_nodes(origin, h, counts, 1))
+        return _exact_signed(part, nodes, inside, patches).reshape(counts)
+    coarse_nodes = _lattice(_axis_nodes(origin, h, coarse_counts, stride))
+    coarse = _exact_signed(part, coarse_nodes, inside, patches)
     coarse = coarse.reshape(coarse_counts)
     # the coarse spline at every fine node, axis by axis (a tensor product: 3 small matrices)
     upsampled = _interpolation_coefficients(coarse)
@@ -434,7 +463,9 @@ def _signed_samples(
         + offsets[1][None, :, None] ** 2
         + offsets[2][None, None, :] ** 2
     )
-    bound = np.abs(coarse[np.ix_(*nearest)]) - gap
+    # the patches lie within their largest height of the facets: d − h is 1-Lipschitz to that
+    bend = 0.0 if patches is None else patches.largest
+    bound = np.abs(coarse[np.ix_(*nearest)]) - gap - 2.0 * bend
     near = bound <= _BAND * h
     samples = upsampled
     # the nodes of the coarse grid already hold their exact distance
@@ -444,7 +475,7 @@ def _signed_samples(
     index = np.nonzero(near)
     if index[0].size:
         points = np.column_stack([origin[k] + h * index[k] for k in range(3)])
-        samples[index] = _exact_signed(part, points, inside)
+        samples[index] = _exact_signed(part, points, inside, patches)
     return samples
 
 
@@ -472,12 +503,16 @@ def build_field(
     resolution: float | None = None,
     *,
     inside: bool = False,
+    facets: str = "curved",
+    crease_angle: float = CREASE_ANGLE,
     key: str = "surface.resolution",
     cache: bool = True,
 ) -> DistanceField:
     """The smooth field of ``part`` at grid spacing ``resolution`` [m] (None: the default).
 
     Φ > 0 on the side the face normals point to (``inside = False``), else on the other.
+    ``facets``: "curved" (Φ = 0 on the patches through the vertices, faces bent within
+    ``crease_angle`` [deg] of each other, :mod:`.mesh_patches`) or "flat" (on the faces).
     Read from the cache when a file of the same mesh, placement and settings is there.
 
     Raises:
@@ -489,9 +524,18 @@ def build_field(
         math.isfinite(h) and h > 0
     ):
         raise SurfaceError(f"{key}: must be a finite number > 0 [m], got {resolution!r}")
+    if facets not in FACETS:
+        raise SurfaceError(
+            f"{key.rsplit('.', 1)[0]}.facets: must be one of {', '.join(FACETS)}, got {facets!r}",
+            key=f"{key.rsplit('.', 1)[0]}.facets",
+            value=facets,
+            choices=FACETS,
+        )
     h = float(h)
+    crease = float(crease_angle) if facets == "curved" else 0.0
     origin, counts = _grid(part, h, key)
-    name = hashlib.sha256(f"{_FORMAT}|{part.digest}|{h!r}|{inside}".encode()).hexdigest()[:32]
+    settings = f"{_FORMAT}|{part.digest}|{h!r}|{inside}|{facets}|{crease!r}"
+    name = hashlib.sha256(settings.encode()).hexdigest()[:32]
     target = _cache_folder() / f"{name}.npz"
     if cache:
         loaded = load_field(target)
@@ -499,23 +543,45 @@ def build_field(
             return loaded
 
     start = time.perf_counter()
-    samples = _signed_samples(part, origin, counts, h, inside)
+    patches = curved_patches(part.vertices, part.faces, crease) if facets == "curved" else None
+    samples = _signed_samples(part, origin, counts, h, inside, patches)
     coefficients = _interpolation_coefficients(samples)
-    field = DistanceField(
-        coefficients=coefficients,
-        origin=origin,
-        spacing=h,
-        build_seconds=time.perf_counter() - start,
-        cache_file=str(target) if cache else "",
-    )
+    fitted = DistanceField(coefficients=coefficients, origin=origin, spacing=h)
+    tolerance = _tolerance(part, fitted, patches)
+    seconds = time.perf_counter() - start
+    field = DistanceField(coefficients, origin, h, seconds, str(target) if cache else "", tolerance)
     if cache:
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             with atomic_file(target) as fh:
-                np.savez(fh, coefficients=coefficients, origin=origin, spacing=np.float64(h))
+                np.savez(
+                    fh,
+                    coefficients=coefficients,
+                    origin=origin,
+                    spacing=np.float64(h),
+                    tolerance=np.float64(tolerance),
+                )
         except OSError:
-            field = DistanceField(coefficients, origin, h, field.build_seconds, "")
+            field = dataclasses.replace(field, cache_file="")
     return field
+
+
+def _tolerance(part: MeshPart, field: DistanceField, patches: CurvedPatches | None) -> float:
+    """:attr:`DistanceField.tolerance`: max |Φ| at the vertices plus max |Φ| at the faces'
+    centres and edges' middles, on the patches (or the faces, ``patches`` None)."""
+    third, half = 1.0 / 3.0, 0.5
+    bary = np.array(
+        [[third, third, third], [half, half, 0.0], [0.0, half, half], [half, 0.0, half]]
+    )
+    count = len(part.faces)
+    face = np.repeat(np.arange(count), len(bary))
+    weights = np.tile(bary, (count, 1))
+    if patches is None:
+        points = np.einsum("mk,mkj->mj", weights, part.vertices[part.faces[face]])
+    else:
+        points = patches.points(face, weights)
+    on_vertices = float(np.abs(field.values(part.vertices)).max())
+    return on_vertices + float(np.abs(field.values(points)).max())
 
 
 def load_field(path: str | os.PathLike[str]) -> DistanceField | None:
@@ -525,6 +591,7 @@ def load_field(path: str | os.PathLike[str]) -> DistanceField | None:
             coefficients = np.ascontiguousarray(data["coefficients"], dtype=np.float64)
             origin = np.ascontiguousarray(data["origin"], dtype=np.float64)
             spacing = float(data["spacing"])
+            tolerance = float(data["tolerance"])
     except (OSError, KeyError, ValueError, EOFError):
         return None
     ok = (
@@ -533,6 +600,8 @@ def load_field(path: str | os.PathLike[str]) -> DistanceField | None:
         and origin.shape == (3,)
         and math.isfinite(spacing)
         and spacing > 0
+        and math.isfinite(tolerance)
+        and tolerance >= 0
         and np.isfinite(coefficients).all()
     )
-    return DistanceField(coefficients, origin, spacing, 0.0, str(path)) if ok else None
+    return DistanceField(coefficients, origin, spacing, 0.0, str(path), tolerance) if ok else None

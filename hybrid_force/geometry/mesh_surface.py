@@ -30,7 +30,15 @@ from hybrid_force.geometry.mesh_charts import (
     ProjectionChartSettings,
     chart_settings,
 )
-from hybrid_force.geometry.mesh_field import DistanceField, MeshPart, build_field, read_mesh
+from hybrid_force.geometry.mesh_field import (
+    CREASE_ANGLE,
+    FACETS,
+    DistanceField,
+    MeshPart,
+    build_field,
+    read_mesh,
+)
+from hybrid_force.geometry.mesh_patches import curved_patches
 from hybrid_force.geometry.offset import PhiOffset
 from hybrid_force.geometry.surface_base import (
     Surface,
@@ -80,6 +88,20 @@ class MeshSurface(Surface):
         doc="grid spacing of the smooth distance field (default: twice the facets' size, "
         "docs/mesh_parts.md)",
     )
+    facets: str = param(
+        "curved",
+        choices=FACETS,
+        doc="curved: Φ = 0 on patches bent through the vertices along their normals, the "
+        "smooth part the mesh was cut from; flat: on the faces themselves (docs/mesh_parts.md)",
+    )
+    crease_angle: float = param(
+        CREASE_ANGLE,
+        unit="deg",
+        minimum=0.0,
+        maximum=180.0,
+        acts_when=("facets", "curved"),
+        doc="faces meeting at a larger angle keep a sharp edge between them",
+    )
     chart: ProjectionChartSettings | CylindricalChartSettings | None = param(
         None,
         doc="[surface.chart]: the (u, v) of paths in surface coordinates",
@@ -101,17 +123,20 @@ class MeshSurface(Surface):
             object.__setattr__(self, name, value)
         if self.part is None or self.field is None:
             part, fitted = _fit(
-                self.file, self.scale, self.position, self.rpy, self.inside, self.resolution
+                self.file,
+                self.scale,
+                self.position,
+                self.rpy,
+                self.inside,
+                self.resolution,
+                self.facets,
+                self.crease_angle,
             )
             object.__setattr__(self, "part", part)
             object.__setattr__(self, "field", fitted)
         object.__setattr__(self, "scale", float(self.scale))
-        tri = self.part.vertices[self.part.faces]
-        edges = 0.5 * (tri + np.roll(tri, 1, axis=1))  # (F, 3, 3): the 3 edges' midpoints
-        mids = np.concatenate([tri.mean(axis=1), edges.reshape(-1, 3)])
-        e_v = float(np.abs(self.field.values(self.part.vertices)).max())
-        e_c = float(np.abs(self.field.values(mids)).max())
-        object.__setattr__(self, "path_tolerance", e_v + e_c)
+        object.__setattr__(self, "crease_angle", float(self.crease_angle))
+        object.__setattr__(self, "path_tolerance", self.field.tolerance)
 
     @classmethod
     def from_file(
@@ -123,13 +148,16 @@ class MeshSurface(Surface):
         rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
         inside: bool = False,
         resolution: float | None = None,
+        facets: str = "curved",
+        crease_angle: float = CREASE_ANGLE,
         chart: Any = None,
         cache: bool = True,
     ) -> MeshSurface:
         """Read, place and fit the mesh in ``file`` (``cache``: read and write the field's
         cache file, :func:`.build_field`)."""
-        part, fitted = _fit(file, scale, position, rpy, inside, resolution, cache=cache)
-        return cls._of_part(file, scale, position, rpy, inside, resolution, chart, part, fitted)
+        settings = (file, scale, position, rpy, inside, resolution, facets, crease_angle)
+        part, fitted = _fit(*settings, cache=cache)
+        return cls._of_part(*settings, chart, part, fitted)
 
     @classmethod
     def _of_part(
@@ -140,6 +168,8 @@ class MeshSurface(Surface):
         rpy: Vec3,
         inside: bool,
         resolution: float | None,
+        facets: str,
+        crease_angle: float,
         chart: Any,
         part: MeshPart,
         fitted: DistanceField,
@@ -152,6 +182,8 @@ class MeshSurface(Surface):
             rpy=rpy,
             inside=inside,
             resolution=resolution,
+            facets=facets,
+            crease_angle=crease_angle,
             chart=chart,
             part=part,
             field=fitted,
@@ -163,11 +195,14 @@ class MeshSurface(Surface):
         ``file`` relative to the scenario's ``folder``; refusals name ``table.key``."""
         file = Path(values["file"])
         target = file if file.is_absolute() else folder / file
-        scale = values.get("scale", 1.0)
-        position = tuple(values.get("position", _ORIGIN))
-        rpy = tuple(values.get("rpy", _ORIGIN))
-        inside = values.get("inside", False)
-        resolution = values.get("resolution")
+        values = {f.name: f.default for f in dataclasses.fields(cls) if f.init} | values
+        scale = values["scale"]
+        position = tuple(values["position"])
+        rpy = tuple(values["rpy"])
+        inside = values["inside"]
+        resolution = values["resolution"]
+        facets = values["facets"]
+        crease_angle = values["crease_angle"]
         part = read_mesh(
             target,
             scale=scale,
@@ -176,13 +211,21 @@ class MeshSurface(Surface):
             key=f"{table}.file",
         )
         _warn_open(part, f"{table}.file", values["file"])
-        fitted = build_field(part, resolution, inside=inside, key=f"{table}.resolution")
+        fitted = build_field(
+            part,
+            resolution,
+            inside=inside,
+            facets=facets,
+            crease_angle=crease_angle,
+            key=f"{table}.resolution",
+        )
         try:
             chart = chart_settings(values.get("chart"))
         except SurfaceError as exc:
             message = str(exc).replace("surface.chart", f"{table}.chart", 1)
             raise SurfaceError(message, key=f"{table}.chart", value=values.get("chart")) from None
-        return cls._of_part(target, scale, position, rpy, inside, resolution, chart, part, fitted)
+        settings = (target, scale, position, rpy, inside, resolution, facets, crease_angle)
+        return cls._of_part(*settings, chart, part, fitted)
 
     def __repr__(self) -> str:
         return f"MeshSurface('{self.file}', h={self.field.spacing:.4g} m)"
@@ -265,7 +308,8 @@ class MeshSurface(Surface):
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type": "mesh", "file", "scale", "position", "rpy", "inside", "resolution",
-        "chart"}`` (``resolution``: the spacing used; ``chart``: None or its settings)."""
+        "facets", "crease_angle", "chart"}`` (``resolution``: the spacing used; ``chart``: None
+        or its settings)."""
         return {
             "type": self.kind,
             "file": self.file,
@@ -274,6 +318,8 @@ class MeshSurface(Surface):
             "rpy": list(self.rpy),
             "inside": self.inside,
             "resolution": self.field.spacing,
+            "facets": self.facets,
+            "crease_angle": self.crease_angle,
             "chart": None if self.chart is None else self.chart.to_dict(),
         }
 
@@ -356,12 +402,22 @@ def _fit(
     rpy: tuple[float, ...],
     inside: bool,
     resolution: float | None,
+    facets: str,
+    crease_angle: float,
     *,
     cache: bool = True,
 ) -> tuple[MeshPart, DistanceField]:
     part = read_mesh(file, scale=scale, position=position, rpy=rpy)  # type: ignore[arg-type]
     _warn_open(part, "surface.file", file)
-    return part, build_field(part, resolution, inside=bool(inside), cache=cache)
+    field = build_field(
+        part,
+        resolution,
+        inside=bool(inside),
+        facets=facets,
+        crease_angle=crease_angle,
+        cache=cache,
+    )
+    return part, field
 
 
 class MeshOffset(PhiOffset):
@@ -386,10 +442,13 @@ register_chart(MeshOffset)(MeshChart)
 class PartReport:
     """What ``hybrid-force part --check`` prints about a mesh part and its fitted field.
 
-    Lengths in metres; ``fit_*``: max |Φ − d| against the mesh's exact signed distance d
-    (libigl) at its vertices, at its face centres (d = 0 at both) and at ``band_points``
-    random points within 2 h of the surface; ``gradient_norm``: (min, max) of ‖∇Φ‖ there;
-    ``concave_point``: the vertex (3,) [m] of ``smallest_concave_radius``, None if none.
+    Lengths in metres; ``fit_*``: max |Φ − d| against the part's signed distance d at its
+    vertices, at its face centres (d = 0 at both; the centres of the curved patches for
+    ``facets = "curved"``) and at ``band_points`` random points within 2 h of the surface; d
+    is the mesh's exact distance (libigl), less the patch's height at its foot when curved
+    (:mod:`.mesh_patches`); ``bend``: the largest height of a patch over its face (0 when
+    flat); ``gradient_norm``: (min, max) of ‖∇Φ‖ in the band; ``concave_point``: the vertex
+    (3,) [m] of ``smallest_concave_radius``, None if none.
     """
 
     file: str
@@ -399,6 +458,8 @@ class PartReport:
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]]
     resolution: float
     default_resolution: bool
+    facets: str
+    bend: float
     grid: tuple[int, int, int]
     memory_bytes: int
     fit_vertices: float
@@ -428,9 +489,11 @@ class PartReport:
             f"({x1 - x0:.4g} x {y1 - y0:.4g} x {z1 - z0:.4g})",
             f"resolution: {self.resolution:.4g} m"
             + (" (default: twice the facets' size, clamped)" if self.default_resolution else ""),
+            f"facets: {self.facets}"
+            + (f" (patches up to {self.bend:.3g} m off the faces)" if self.bend > 0 else ""),
             f"grid: {nx} x {ny} x {nz} = {nx * ny * nz:,} nodes, "
             f"{self.memory_bytes / 1e6:.3g} MB of coefficients",
-            f"fit error max |Φ − d_mesh| [m]: vertices {self.fit_vertices:.3g}, face centres "
+            f"fit error max |Φ − d| [m]: vertices {self.fit_vertices:.3g}, face centres "
             f"{self.fit_face_centres:.3g}, band ±{2 * self.resolution:.3g} m "
             f"({self.band_points} points) {self.fit_band:.3g}",
             f"‖∇Φ‖ in the band: {self.gradient_norm[0]:.4f} to {self.gradient_norm[1]:.4f}",
@@ -451,6 +514,8 @@ def check_part(
     *,
     resolution: float | None = None,
     scale: float = 1.0,
+    facets: str = "curved",
+    crease_angle: float = CREASE_ANGLE,
     band_points: int = 2000,
     seed: int = 0,
 ) -> PartReport:
@@ -458,14 +523,22 @@ def check_part(
 
     The band's points: random face points (uniform in the barycentric square, folded) moved
     along the face normal by a uniform offset in [−2h, 2h]; their exact signed distance is
-    libigl's (the same library the field's samples come from, but at points off the grid).
+    libigl's (the same library the field's samples come from, but at points off the grid),
+    less the patch height at the foot for curved facets.
     """
     import igl
 
-    surface = MeshSurface.from_file(file, scale=scale, resolution=resolution)
+    surface = MeshSurface.from_file(
+        file, scale=scale, resolution=resolution, facets=facets, crease_angle=crease_angle
+    )
     part, field = surface.part, surface.field
+    curved = facets == "curved"
+    patches = curved_patches(part.vertices, part.faces, crease_angle) if curved else None
     tri = part.vertices[part.faces]
     centres = tri.mean(axis=1)
+    if patches is not None:
+        everyone = np.arange(len(part.faces))
+        centres = patches.points(everyone, np.full((len(everyone), 3), 1.0 / 3.0))
     rng = np.random.default_rng(seed)
     a, b = rng.uniform(size=(2, band_points))
     fold = a + b > 1.0
@@ -480,8 +553,11 @@ def check_part(
     offsets = rng.uniform(-2.0, 2.0, int(keep.sum())) * field.spacing
     band = on_face[keep] + offsets[:, None] * normals
     sign = -1.0 if surface.inside else 1.0
-    exact, *_ = igl.signed_distance(band, part.vertices, part.faces)
-    fit_band = float(np.abs(field.values(band) - sign * np.asarray(exact)).max())
+    exact, foot_face, foot, _ = igl.signed_distance(band, part.vertices, part.faces)
+    exact = np.asarray(exact, dtype=np.float64)
+    if patches is not None:
+        exact = exact - patches.height(np.asarray(foot_face, dtype=np.int64), np.asarray(foot))
+    fit_band = float(np.abs(field.values(band) - sign * exact).max())
     norms = np.array([np.linalg.norm(field.evaluate(np.ascontiguousarray(p))[1]) for p in band])
     nx, ny, nz = field.shape
     concave, where = surface.concave_radius()
@@ -496,6 +572,8 @@ def check_part(
         ),
         resolution=field.spacing,
         default_resolution=resolution is None,
+        facets=facets,
+        bend=0.0 if patches is None else patches.largest,
         grid=(nx, ny, nz),
         memory_bytes=int(field.coefficients.nbytes),
         fit_vertices=float(np.abs(field.values(part.vertices)).max()),
