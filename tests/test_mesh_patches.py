@@ -25,7 +25,10 @@ def _side_faces(mesh: trimesh.Trimesh) -> np.ndarray:
 
 def test_corner_normals_of_a_prism_are_radial_and_its_caps_stay_flat() -> None:
     mesh = _cylinder(24)
-    normals, face_normals = corner_normals(mesh.vertices, mesh.faces, 30.0)
+    normals, face_normals, smooth = corner_normals(mesh.vertices, mesh.faces, 30.0)
+    # every vertex of trimesh's prism but the caps' centres is on a rim (a crease)
+    centre = np.hypot(mesh.vertices[:, 0], mesh.vertices[:, 1]) < 1e-12
+    np.testing.assert_array_equal(smooth, centre[mesh.faces])
     side = _side_faces(mesh)
     corners = mesh.vertices[mesh.faces[side]]  # (S, 3, 3)
     radial = corners.copy()
@@ -63,9 +66,10 @@ def test_cylinder_patches_are_its_arcs(sections: int) -> None:
     np.testing.assert_array_equal(patches.edges[caps], 0.0)
 
 
-def test_distance_less_the_height_is_the_cylinder_distance_to_first_order() -> None:
-    """d − h(foot), d libigl's exact distance to the faces, against the cylinder's |p| − R:
-    off by at most |d| φ² / 2 with φ = π/N the facets' half-turn (the module docstring)."""
+def test_the_patches_distance_is_the_cylinder_distance_to_second_order() -> None:
+    """Φ from libigl's feet on the faces against the cylinder's |p| − R: off by O(d² φ² / R)
+    plus the patches' own R φ⁴/8 (the module docstring), where d − h, the first-order term,
+    is off by up to |d| φ²/2."""
     import igl
 
     sections = 128
@@ -75,17 +79,40 @@ def test_distance_less_the_height_is_the_cylinder_distance_to_first_order() -> N
     theta = rng.uniform(0, 2 * math.pi, 3000)
     offset = rng.uniform(-0.01, 0.01, 3000)
     rho = RADIUS + offset
-    points = np.column_stack(
-        [rho * np.cos(theta), rho * np.sin(theta), rng.uniform(-0.2, 0.2, 3000)]
-    )
+    z = rng.uniform(-0.2, 0.2, 3000)
+    points = np.column_stack([rho * np.cos(theta), rho * np.sin(theta), z])
     d, face, foot, _ = igl.signed_distance(points, mesh.vertices, mesh.faces)
-    curved = np.asarray(d) - patches.height(np.asarray(face, dtype=np.int64), np.asarray(foot))
+    face = np.asarray(face, dtype=np.int64)
+    phi_part = patches.signed_distance(face, np.asarray(foot), points, np.asarray(d))
     phi = math.pi / sections
-    # plus the patch's own R φ⁴/8 (above), at the surface
-    bound = np.abs(offset) * phi**2 / 2 * 1.05 + RADIUS * phi**4 / 4
-    assert np.all(np.abs(curved - offset) <= bound)
-    # the flat faces are up to the sagitta off
-    assert np.abs(np.asarray(d) - offset).max() >= 0.9 * RADIUS * (1 - math.cos(phi))
+    bound = offset**2 * phi**2 / RADIUS + RADIUS * phi**4 / 4
+    assert np.all(np.abs(phi_part - offset) <= bound)
+    # the first-order term alone reaches a sizeable part of |d| φ²/2
+    height = np.linalg.norm(patches.points(face, patches.barycentric(face, foot)) - foot, axis=1)
+    first = np.abs(np.asarray(d) - height - offset)
+    assert first.max() >= 10 * np.abs(phi_part - offset).max()
+
+
+def test_a_box_edge_keeps_its_exact_distance() -> None:
+    """Outside a box's edge (a crease) the distance is to the edge itself; the projection on
+    a face normal would shorten it by the cosine of the angle."""
+    import igl
+
+    half = 0.1
+    box = trimesh.creation.box(extents=(2 * half, 2 * half, 2 * half))
+    patches = curved_patches(box.vertices, box.faces, 30.0)
+    assert not patches.smooth.any()
+    rng = np.random.default_rng(10)
+    angle = rng.uniform(0.05, math.pi / 2 - 0.05, 500)  # round the edge x = y = half
+    r = rng.uniform(1e-4, 0.05, 500)
+    points = np.column_stack(
+        [half + r * np.cos(angle), half + r * np.sin(angle), rng.uniform(-0.08, 0.08, 500)]
+    )
+    d, face, foot, _ = igl.signed_distance(points, box.vertices, box.faces)
+    face = np.asarray(face, dtype=np.int64)
+    np.testing.assert_allclose(
+        patches.signed_distance(face, np.asarray(foot), points, np.asarray(d)), r, atol=1e-12
+    )
 
 
 def test_sphere_patches_are_far_closer_to_the_sphere_than_its_faces() -> None:
@@ -122,6 +149,23 @@ def test_neighbouring_patches_meet_on_their_shared_edges() -> None:
             heights.append(float(np.linalg.norm(points[-1] - flat)))
         assert heights[0] == pytest.approx(heights[1], rel=turn**2)
         assert np.linalg.norm(points[0] - points[1]) <= max(heights) * turn * 1.01
+
+
+def test_smooth_edges_are_the_faces_within_the_crease_angle() -> None:
+    mesh = _cylinder(24)
+    patches = curved_patches(mesh.vertices, mesh.faces, 30.0)
+    tri = mesh.vertices[mesh.faces]
+    nxt = np.roll(tri, -1, axis=1)
+    on_circle = (np.abs(np.hypot(tri[..., 0], tri[..., 1]) - RADIUS) < 1e-12) & (
+        np.abs(np.hypot(nxt[..., 0], nxt[..., 1]) - RADIUS) < 1e-12
+    )
+    rim = on_circle & (np.abs(tri[..., 2] - nxt[..., 2]) < 1e-12)  # edge k → k+1 on a rim
+    assert rim.sum() == 2 * 2 * 24  # each rim edge seen from its side face and its cap face
+    np.testing.assert_array_equal(patches.smooth_edges, ~rim)
+    side = np.abs(patches.normals[:, 2]) < 1e-9
+    open_part = trimesh.Trimesh(mesh.vertices, mesh.faces[side], process=False)  # no caps
+    open_edges = curved_patches(open_part.vertices, open_part.faces, 30.0).smooth_edges
+    np.testing.assert_array_equal(open_edges, ~rim[side])  # an open rim is a crease too
 
 
 def test_a_cube_keeps_its_edges_and_the_crease_angle_acts() -> None:

@@ -383,7 +383,7 @@ def _exact_signed(
     part: MeshPart, nodes: np.ndarray, inside: bool, patches: CurvedPatches | None
 ) -> np.ndarray:
     """The part's signed distance at nodes (m, 3) [m]: > 0 on the free side; to the curved
-    ``patches`` when given (d − h at the foot on the facets, :mod:`.mesh_patches`)."""
+    ``patches`` when given (:meth:`.CurvedPatches.signed_distance`)."""
     import igl
 
     # A watertight mesh: the sign of the angle-weighted pseudonormal at the closest feature
@@ -406,7 +406,8 @@ def _exact_signed(
             np.asarray(unsigned, dtype=np.float64)
         )
     if patches is not None:
-        signed = signed - patches.height(np.asarray(face, dtype=np.int64), np.asarray(foot))
+        face = np.asarray(face, dtype=np.int64)
+        signed = patches.signed_distance(face, np.asarray(foot), nodes, signed)
     return -signed if inside else signed
 
 

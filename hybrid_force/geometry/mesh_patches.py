@@ -21,9 +21,19 @@ The corner normal m_i of face f at vertex i: the angle-weighted mean (Thürmer &
 of the normals of the faces at i whose normal is within ``crease_angle`` of n_f. A sharp edge
 (a cylinder's rim, a box's edges) is kept sharp: its faces do not bend towards each other.
 
-The signed distance to the curved part is taken as d − h(foot), d the distance to the facets:
-the first-order term of the distance to a surface tilted by at most the facets' turn φ from
-them, off by at most |d| φ²/2 (2e-8 m at 1 mm from the 512-section cylinder).
+The signed distance to the curved part at p (:meth:`CurvedPatches.signed_distance`), from
+libigl's foot x on the facets: q = x + h(b) n_f the patch point over it, m̂ the corner normals
+interpolated at b and normalised, and
+
+    Φ = (p − q) · m̂          where the corners around x are smooth,
+    Φ = sign(d − h) ‖p − q‖   where x lies on a crease: an edge whose faces turn by more
+                              than the crease angle, or a vertex with such an edge (a box's
+                              edge: the distance to the edge, which projection would shorten).
+
+On a smooth part m̂ is the patch's normal to O(φ²) and q is the true foot's neighbour to O(|d|
+φ), so the first is off by O(d² φ² / R) (R the radius of curvature): 2e-11 m at 1 mm from the
+512-section cylinder. (d − h alone, the first-order term, is off by |d| φ²/2: the spline then
+carries the nodes' error at a few h from the surface onto Φ = 0, O(h φ²).)
 """
 
 from __future__ import annotations
@@ -36,15 +46,26 @@ import numpy as np
 __all__ = ["CurvedPatches", "corner_normals", "curved_patches"]
 
 
+#: A barycentric coordinate below this puts the foot on the opposite edge (libigl's feet on an
+#: edge or vertex are exact to round-off).
+_ON_EDGE = 1e-9
+
+
 @dataclass(frozen=True, eq=False)
 class CurvedPatches:
-    """Each face's height coefficients ``edges`` (F, 3) [m] (c of edges 01, 12, 20) and its
-    unit normal ``normals`` (F, 3), for the mesh ``vertices`` (V, 3) [m], ``faces`` (F, 3)."""
+    """Each face's height coefficients ``edges`` (F, 3) [m] (c of edges 01, 12, 20), its unit
+    normal ``normals`` (F, 3), its corner normals ``corners`` (F, 3, 3), ``smooth`` (F, 3): no
+    crease at the corner's vertex, and ``smooth_edges`` (F, 3): the edges 01, 12, 20 are
+    shared with a face within the crease angle, for the mesh ``vertices`` (V, 3) [m],
+    ``faces`` (F, 3)."""
 
     vertices: np.ndarray
     faces: np.ndarray
     normals: np.ndarray
     edges: np.ndarray
+    corners: np.ndarray
+    smooth: np.ndarray
+    smooth_edges: np.ndarray
 
     @property
     def largest(self) -> float:
@@ -64,18 +85,42 @@ class CurvedPatches:
         b2 = (d11 * w2 - d12 * w1) / det
         return np.column_stack([1.0 - b1 - b2, b1, b2])
 
-    def height(self, face: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """h (m,) [m] of the patches of ``face`` (m,) at the feet ``points`` (m, 3) [m] on them,
-        along each face's normal (> 0: the patch lies on the side the normal points to)."""
-        if len(face) == 0:
-            return np.zeros(0)
-        return self._height(face, np.clip(self.barycentric(face, points), 0.0, 1.0))
-
     def _height(self, face: np.ndarray, b: np.ndarray) -> np.ndarray:
         """h = 4 Σ c_ij b_i b_j (m,) [m] at barycentric coordinates b (m, 3) of ``face``."""
         c = self.edges[face]
         pairs = b * np.roll(b, -1, axis=1)  # b0 b1, b1 b2, b2 b0: the edges 01, 12, 20
         return 4.0 * (c * pairs).sum(axis=1)
+
+    def signed_distance(
+        self, face: np.ndarray, foot: np.ndarray, points: np.ndarray, signed: np.ndarray
+    ) -> np.ndarray:
+        """Φ (m,) [m] at ``points`` (m, 3) [m] of the curved part, > 0 on the side the face
+        normals point to, from their feet (m, 3) [m] on the faces of indices ``face`` (m,) and
+        their signed distances ``signed`` (m,) [m] to the faces (the module docstring)."""
+        if len(face) == 0:
+            return np.zeros(0)
+        b = np.clip(self.barycentric(face, foot), 0.0, 1.0)
+        q = self.points(face, b)
+        m = np.einsum("mk,mkj->mj", b, self.corners[face])
+        m /= np.linalg.norm(m, axis=1)[:, None]
+        offset = points - q
+        along = (offset * m).sum(axis=1)
+        # a foot on an edge (one b is 0: the edge opposite) or at a vertex (two are) of a crease
+        zero = b <= _ON_EDGE
+        count = zero.sum(axis=1)
+        opposite = np.argmax(zero, axis=1)
+        on_crease_edge = (count == 1) & ~self.smooth_edges[face, (opposite + 1) % 3]
+        vertex = np.argmax(~zero, axis=1)
+        at_crease_vertex = (count == 2) & ~self.smooth[face, vertex]
+        sharp = on_crease_edge | at_crease_vertex
+
+        if not sharp.any():
+            return along
+        height = self._height(face[sharp], b[sharp])
+        direct = np.sign(signed[sharp] - height) * np.linalg.norm(offset[sharp], axis=1)
+        out = along.copy()
+        out[sharp] = direct
+        return out
 
     def points(self, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
         """The patch points (m, 3) [m] over the barycentric coordinates ``bary`` (m, 3) of
@@ -100,8 +145,9 @@ def _face_geometry(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray,
 
 def corner_normals(
     vertices: np.ndarray, faces: np.ndarray, crease_angle: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """(corner normals (F, 3, 3): face f's normal at its k-th vertex, face normals (F, 3)).
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(corner normals (F, 3, 3): face f's normal at its k-th vertex, face normals (F, 3),
+    smooth (F, 3): every two faces at the corner's vertex are within the crease angle).
 
     m = the angle-weighted mean of the normals of the faces at the vertex within
     ``crease_angle`` [deg] of face f's own (module docstring), unit length.
@@ -127,14 +173,16 @@ def corner_normals(
     length = np.linalg.norm(sums, axis=1)
     own = np.repeat(normals, 3, axis=0)
     unit = np.where(length[:, None] > 0, sums / np.where(length > 0, length, 1.0)[:, None], own)
-    return unit.reshape(-1, 3, 3), normals
+    creased = np.bincount(corners[order[a]], weights=~alike, minlength=len(vertices)) > 0
+    return unit.reshape(-1, 3, 3), normals, ~creased[faces]
 
 
 def curved_patches(vertices: np.ndarray, faces: np.ndarray, crease_angle: float) -> CurvedPatches:
     """The patches of the mesh (module docstring), corners bent within ``crease_angle`` [deg]."""
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
-    m, n = corner_normals(vertices, faces, crease_angle)
+    m, n, smooth = corner_normals(vertices, faces, crease_angle)
+    smooth_edges = _smooth_edges(faces, n, crease_angle)
     tri = vertices[faces]
     edges = np.empty((len(faces), 3))
     for k in range(3):
@@ -148,4 +196,26 @@ def curved_patches(vertices: np.ndarray, faces: np.ndarray, crease_angle: float)
         slope_i = -(m[:, i] * e).sum(1) / mi_n
         slope_j = (m[:, j] * e).sum(1) / mj_n
         edges[:, k] = length * (slope_i + slope_j) / 8.0
-    return CurvedPatches(vertices=vertices, faces=faces, normals=n, edges=edges)
+    return CurvedPatches(vertices, faces, n, edges, m, smooth, smooth_edges)
+
+
+def _smooth_edges(faces: np.ndarray, normals: np.ndarray, crease_angle: float) -> np.ndarray:
+    """(F, 3): edge k → k+1 of each face is shared with exactly one other face whose normal
+    is within ``crease_angle`` [deg] of its own (an open or non-manifold edge is a crease)."""
+    pairs = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    _, group, counts = np.unique(pairs, axis=0, return_inverse=True, return_counts=True)
+    group = group.ravel()
+    order = np.argsort(group, kind="stable")
+    shared = counts[group] == 2
+    # the two half-edges of a shared edge are adjacent in ``order``
+    partner = np.full(len(group), -1)
+    first = order[np.concatenate([[True], group[order][1:] != group[order][:-1]])]
+    for_pairs = shared[first]
+    a = first[for_pairs]
+    b = order[np.searchsorted(group[order], group[a]) + 1]
+    partner[a], partner[b] = b, a
+    cos_crease = math.cos(math.radians(crease_angle))
+    own = normals[np.arange(len(group)) // 3]
+    other = normals[np.maximum(partner, 0) // 3]
+    alike = shared & ((own * other).sum(axis=1) >= cos_crease)
+    return alike.reshape(-1, 3)

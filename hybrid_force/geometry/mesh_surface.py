@@ -445,7 +445,7 @@ class PartReport:
     Lengths in metres; ``fit_*``: max |Φ − d| against the part's signed distance d at its
     vertices, at its face centres (d = 0 at both; the centres of the curved patches for
     ``facets = "curved"``) and at ``band_points`` random points within 2 h of the surface; d
-    is the mesh's exact distance (libigl), less the patch's height at its foot when curved
+    is the mesh's exact distance (libigl), or the patches' over its foot when curved
     (:mod:`.mesh_patches`); ``bend``: the largest height of a patch over its face (0 when
     flat); ``gradient_norm``: (min, max) of ‖∇Φ‖ in the band; ``concave_point``: the vertex
     (3,) [m] of ``smallest_concave_radius``, None if none.
@@ -524,7 +524,7 @@ def check_part(
     The band's points: random face points (uniform in the barycentric square, folded) moved
     along the face normal by a uniform offset in [−2h, 2h]; their exact signed distance is
     libigl's (the same library the field's samples come from, but at points off the grid),
-    less the patch height at the foot for curved facets.
+    to the patches over its feet for curved facets (:meth:`.CurvedPatches.signed_distance`).
     """
     import igl
 
@@ -556,7 +556,8 @@ def check_part(
     exact, foot_face, foot, _ = igl.signed_distance(band, part.vertices, part.faces)
     exact = np.asarray(exact, dtype=np.float64)
     if patches is not None:
-        exact = exact - patches.height(np.asarray(foot_face, dtype=np.int64), np.asarray(foot))
+        foot_face = np.asarray(foot_face, dtype=np.int64)
+        exact = patches.signed_distance(foot_face, np.asarray(foot), band, exact)
     fit_band = float(np.abs(field.values(band) - sign * exact).max())
     norms = np.array([np.linalg.norm(field.evaluate(np.ascontiguousarray(p))[1]) for p in band])
     nx, ny, nz = field.shape
