@@ -4,10 +4,11 @@ refined (docs/mesh_parts.md, "Convergence on a faceted part"; the larger study:
 benchmarks/study_mesh_convergence.py, which imports the helpers below).
 
 **Curved facets (the default).** Φ = 0 lies on the patches through the vertices
-(geometry/mesh_patches), which are the cylinder to R φ⁴/8 (φ = π/N; 1e-10 m at N = 512). The
-field's samples are d − h, off the patches' distance by at most |d| φ²/2, and the spline
-through them carries the nodes' error within about h of the surface to Φ = 0: the tip's
-radial error is predicted O(h φ²/2), order 1 in h, with no faceting floor.
+(geometry/mesh_patches), which are the cylinder to R φ⁴/8 (φ = π/N; 7e-11 m at N = 512), and
+the field's samples are their distance to O(d² φ² / R): no faceting floor is left, and what
+remains is the spline's fit of the cylinder's distance, which shrinks with h (measured in the
+study: orders 0.6 to 2.9 between h = 40 and 2.45 mm; not a clean power, the narrow band's
+coarse nodes beyond 4 h enter it too).
 
 **Flat facets.** The tip stays on Φ = 0 (rigid contact), the desired helix lies on the true
 cylinder of radius R (on the mesh's vertices), so at the tip p the radial error splits exactly
@@ -211,23 +212,22 @@ def test_paper_contact_on_a_512_section_curved_mesh_converges_to_the_cylinder(
 ) -> None:
     """The issue's target on the 512-section mesh with curved facets (the default): settled
     position error ≤ 1e-5 m and |f − f_d| ≤ 1e-3 N, and the error shrinks as h is refined:
-    far below the faces' sagitta s, at the predicted order 1 (module docstring; measured
-    1.1e-6, 4.5e-7, 3.0e-7 m at h = 40, 20, 10 mm; the study goes on to 2.45 mm, 2.4e-8 m).
-    The force error stays at the rigid contact's round-off (~1e-10 N) throughout."""
+    far below the faces' sagitta s (module docstring; measured 9.4e-7, 4.1e-7, 2.8e-7 m at
+    h = 40, 20, 10 mm; the study goes on to 2.45 mm, 1.7e-8 m). The asserted overall order is
+    0.5 (measured 0.89 from 40 to 10 mm). The force error stays at the rigid contact's
+    round-off (~1e-10 N) throughout."""
     sections = 512
-    s, phi = sagitta(sections), math.pi / sections
+    s = sagitta(sections)
     errors = []
     for resolution in (0.04, 0.02, 0.01):
         result, mesh = run_on(tmp_path, sections, resolution, DURATION, False, "curved")
         parts = settled_parts(result, mesh, SETTLED)
         assert parts["position"] <= 1e-5, parts
         assert parts["force"] <= 1e-3, parts
-        # the predicted amplitude: the nodes' error |d| φ²/2 at a few h from the surface
-        assert parts["radial"] <= 4.0 * resolution * phi**2 / 2, (resolution, parts)
         errors.append(parts["radial"])
     assert errors[0] > errors[1] > errors[2], errors
     assert errors[-1] <= s / 10
-    assert math.log2(errors[0] / errors[2]) / 2 >= 1.0 - 0.5, errors
+    assert math.log2(errors[0] / errors[2]) / 2 >= 0.5, errors
 
 
 def test_paper_contact_on_a_512_section_flat_mesh(tmp_path: Path) -> None:
