@@ -47,6 +47,7 @@ from hybrid_force.geometry.surface_base import (
     _point3,
     _vector3,
     _xyz,
+    principal_curvatures,
     register_surface,
     tool_radius,
 )
@@ -371,15 +372,9 @@ class MeshSurface(Surface):
         smallest, where = math.inf, None
         for vertex in self.part.vertices:
             _, grad, hess = self.field.evaluate(np.ascontiguousarray(vertex))
-            norm = float(np.linalg.norm(grad))
-            if norm < _SINGULAR_GRADIENT:
+            if float(np.linalg.norm(grad)) < _SINGULAR_GRADIENT:
                 continue
-            n = grad / norm
-            tangent = np.eye(3) - np.outer(n, n)
-            kappa = np.linalg.eigvalsh(tangent @ (hess / norm) @ tangent)
-            # the zero eigenvalue along n is not a curvature: drop the one nearest zero
-            kappa = np.delete(kappa, int(np.argmin(np.abs(kappa))))
-            most = float(kappa.min())
+            most = principal_curvatures(grad, hess)[1]
             if most < 0 and 1.0 / -most < smallest:
                 smallest, where = 1.0 / -most, np.array(vertex)
         return smallest, where

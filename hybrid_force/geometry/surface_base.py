@@ -34,6 +34,7 @@ __all__ = [
     "MAX_LENGTH",
     "Surface",
     "plane_basis",
+    "principal_curvatures",
     "register_offset",
     "register_surface",
     "surface_parameters",
@@ -284,6 +285,20 @@ class Surface(abc.ABC):
         columns joined as a quad mesh (the replay and the run figures draw it). None: this
         surface cannot be drawn (the default)."""
         return None
+
+
+def principal_curvatures(grad: np.ndarray, hess: np.ndarray) -> tuple[float, float]:
+    """(κ₁ ≥ κ₂) [1/m] of the level set of Φ with gradient (3,) and Hessian (3, 3) [1/m]: the
+    eigenvalues of Tᵀ ∇²Φ T / ‖∇Φ‖ (T an orthonormal tangent basis); > 0 convex seen from
+    the free side (where ∇Φ points)."""
+    g = float(np.linalg.norm(grad))
+    n = grad / g
+    e = np.eye(3)[int(np.argmin(np.abs(n)))]
+    t1 = np.cross(n, e)
+    t1 /= np.linalg.norm(t1)
+    t = np.stack([t1, np.cross(n, t1)])
+    k = np.linalg.eigvalsh(t @ hess @ t.T / g)
+    return float(k[1]), float(k[0])
 
 
 def tool_radius(radius: object) -> float:
