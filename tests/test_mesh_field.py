@@ -263,6 +263,14 @@ def test_bad_mesh_files_are_refused_naming_key_and_file(tmp_path: Path) -> None:
     other.write_text("ISO-10303-21;")
     with pytest.raises(SurfaceError, match=r"valid: \.stl, \.obj, \.ply"):
         read_mesh(other)
+    # one face wound against its neighbours: its three edges are traversed twice alike
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
+    faces = sphere.faces.copy()
+    faces[5] = faces[5, ::-1]
+    flipped = tmp_path / "flipped.obj"
+    trimesh.Trimesh(sphere.vertices, faces, process=False).export(flipped)
+    with pytest.raises(SurfaceError, match=r"flipped\.obj.*not consistently wound: 3 edges.*face"):
+        read_mesh(flipped)
     box = tmp_path / "box.stl"
     trimesh.creation.box(extents=(1.0, 1.0, 1.0)).export(box)
     with pytest.raises(SurfaceError, match="scale must be"):

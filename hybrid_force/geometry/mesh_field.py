@@ -122,8 +122,9 @@ def read_mesh(
 
     Raises:
         SurfaceError: naming ``key`` and the file: unreadable, not a triangle mesh,
-            no faces, non-finite vertices, a scale that is not a finite number > 0, or a part
-            whose size is not between 1e-6 m and 1e3 m.
+            no faces, non-finite vertices, faces not consistently wound (two faces traverse
+            an edge in the same direction: which side is free is then undefined), a scale that
+            is not a finite number > 0, or a part whose size is not between 1e-6 m and 1e3 m.
     """
     import trimesh
 
@@ -181,6 +182,8 @@ def read_mesh(
         loaded = kept  # its watertight test below is the kept faces'
         vertices = np.asarray(kept.vertices, dtype=np.float64)
         faces = np.asarray(kept.faces, dtype=np.int64)
+    if not bool(getattr(loaded, "is_winding_consistent", True)):
+        raise SurfaceError(f"{key} = '{file}': {_winding_report(faces)}")
     placed = vertices * float(scale) @ rpy_matrix(rpy).T + np.asarray(position, dtype=np.float64)
     size = float(np.linalg.norm(placed.max(axis=0) - placed.min(axis=0)))
     if not 1e-6 <= size <= 1e3:
@@ -196,6 +199,22 @@ def read_mesh(
         digest=digest.hexdigest(),
         watertight=bool(getattr(loaded, "is_watertight", False)),
         source=str(file),
+    )
+
+
+def _winding_report(faces: np.ndarray) -> str:
+    """Why a mesh's faces are not consistently wound: how many edges two faces traverse in
+    the same direction, and the first such pair of faces."""
+    directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)  # half-edge 3 f + k of face f
+    _, inverse, counts = np.unique(directed, axis=0, return_inverse=True, return_counts=True)
+    group = inverse.ravel()
+    twice = np.nonzero(counts[group] > 1)[0]
+    pair = sorted(int(i) // 3 for i in twice[group[twice] == group[twice[0]]])
+    return (
+        f"its faces are not consistently wound: {len(twice) // 2} edges are traversed in the "
+        f"same direction by two faces (the first: faces {pair[0]} and {pair[-1]}), so the side "
+        "their normals point to is not defined; orient them coherently first (e.g. trimesh's "
+        "repair.fix_winding, MeshLab's Re-Orient all faces coherently)"
     )
 
 
