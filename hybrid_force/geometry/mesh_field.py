@@ -398,11 +398,28 @@ _STRIDE = 4
 _BAND = 4.0
 
 
+#: Nodes per call of :func:`_signed_chunk`: bounds the temporaries (about 10 arrays of 3
+#: floats a node) to some 100 MB whatever the grid.
+_CHUNK = 500_000
+
+
 def _exact_signed(
     part: MeshPart, nodes: np.ndarray, inside: bool, patches: CurvedPatches | None
 ) -> np.ndarray:
     """The part's signed distance at nodes (m, 3) [m]: > 0 on the free side; to the curved
     ``patches`` when given (:meth:`.CurvedPatches.signed_distance`)."""
+    if len(nodes) <= _CHUNK:
+        return _signed_chunk(part, nodes, inside, patches)
+    parts = [
+        _signed_chunk(part, nodes[i : i + _CHUNK], inside, patches)
+        for i in range(0, len(nodes), _CHUNK)
+    ]
+    return np.concatenate(parts)
+
+
+def _signed_chunk(
+    part: MeshPart, nodes: np.ndarray, inside: bool, patches: CurvedPatches | None
+) -> np.ndarray:
     import igl
 
     # A watertight mesh: the sign of the angle-weighted pseudonormal at the closest feature
