@@ -325,8 +325,11 @@ def test_concave_radius_of_a_torus_hole(tmp_path: Path) -> None:
     path = tmp_path / "torus.stl"
     mesh.export(path)
     surface = MeshSurface.from_file(path, cache=False)  # h = 2 x the facets
-    # a lower estimate: the fit's facet ripple at the vertices lowers it (by 25 % here)
-    assert 0.7 * 0.15 <= surface.smallest_concave_radius() <= 1.02 * 0.15
+    # a lower estimate: the fit's ripple at the vertices lowers it (by 8 % here; 25 % with
+    # flat facets)
+    assert 0.85 * 0.15 <= surface.smallest_concave_radius() <= 1.02 * 0.15
+    flat = MeshSurface.from_file(path, facets="flat", cache=False)
+    assert 0.7 * 0.15 <= flat.smallest_concave_radius() <= 1.02 * 0.15
     convex = MeshSurface.from_file(_sphere(path.parent), cache=False)
     assert convex.smallest_concave_radius() == math.inf
 
