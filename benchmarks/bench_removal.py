@@ -9,7 +9,10 @@ on, ...) so that a change of the machine's load hits both alike; each run's loop
 its ``meta["wall_time"]`` (the stepping loop: it starts once the record and its removal grid
 are built; the last < 256 samples' deposit, after the loop, is left out: 16 of 10,000 here),
 and the grid's set-up is timed alone (CPU seconds). Reported: the median over the pairs of
-(loop time on) / (loop time off), the ratio of the best of each, and the set-up. Setups:
+(loop time on) / (loop time off), the ratio of the best of each, and the set-up; also the
+same median of the loop's CPU time (the process's, from the first ``progress`` call, after
+step 0, to the last, after the loop: the time the machine's other processes took is left
+out, which the wall time of a shared machine is not). Setups:
 
 * ``rtr_plane_pass``: the RTR arm (3 joints, the cheapest step, so the worst ratio) on
   rtr_plane's plane, a straight pass of 0.1 m at 0.01 m/s in contact (10 s), Hertz pad
@@ -67,9 +70,10 @@ SETUPS: dict[str, tuple[str, dict[str, Any], float]] = {
 }
 
 
-def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float]:
+def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float]:
     """(the loop's wall time [s], ``meta["wall_time"]``: it starts after the run's record and
-    its removal grid are built; the grid's set-up alone, in CPU seconds (0 without
+    its removal grid are built; the loop's CPU time [s] from step 0 on (the ``progress``
+    callback's first and last calls); the grid's set-up alone, in CPU seconds (0 without
     removal))."""
     sc = load_scenario(REPO / "scenarios" / file, overrides)
     setup = 0.0
@@ -77,10 +81,15 @@ def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float]:
         start = time.process_time()
         RemovalObserver(sc, round(sc.sim.duration / sc.sim.dt) + 1)
         setup = time.process_time() - start
+    marks: list[float] = []
+
+    def progress(_: float) -> None:
+        marks.append(time.process_time())
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = simulate(sc)
-    return float(result.meta["wall_time"]), setup
+        result = simulate(sc, progress=progress)
+    return float(result.meta["wall_time"]), marks[-1] - marks[0], setup
 
 
 def main() -> int:
@@ -95,26 +104,35 @@ def main() -> int:
         on = {**overrides, "tool.pad": PAD, "removal": {"k_p": 1e-13, "resolution": resolution}}
         _run(file, {**on, "sim.duration": 0.05})  # compile and load the kernels once
         _run(file, {**overrides, "sim.duration": 0.05})
-        offs, ons, setups = [], [], []
+        offs, ons, setups, cpu_offs, cpu_ons = [], [], [], [], []
         for _ in range(args.repeats):
-            offs.append(_run(file, overrides)[0])
-            loop, setup = _run(file, on)
+            loop, cpu, _ = _run(file, overrides)
+            offs.append(loop)
+            cpu_offs.append(cpu)
+            loop, cpu, setup = _run(file, on)
             ons.append(loop)
+            cpu_ons.append(cpu)
             setups.append(setup)
         pairs = [b / a for a, b in zip(offs, ons, strict=True)]
+        cpu_pairs = [b / a for a, b in zip(cpu_offs, cpu_ons, strict=True)]
         report[name] = {
             "ratio_median": statistics.median(pairs),
             "ratio_best": min(ons) / min(offs),
             "ratios": pairs,
+            "cpu_ratio_median": statistics.median(cpu_pairs),
+            "cpu_ratios": cpu_pairs,
             "off_loop_seconds": offs,
             "on_loop_seconds": ons,
+            "off_loop_cpu_seconds": cpu_offs,
+            "on_loop_cpu_seconds": cpu_ons,
             "setup_cpu_seconds_median": statistics.median(setups),
         }
         r = report[name]
         print(
             f"{name:16s} on/off loop time: median {r['ratio_median']:.3f} (best on / best off "
-            f"{r['ratio_best']:.3f}, {args.repeats} pairs); loop off {min(offs):.2f} s; grid "
-            f"set-up {r['setup_cpu_seconds_median']:.2f} s (before the loop)"
+            f"{r['ratio_best']:.3f}, {args.repeats} pairs; CPU time: median "
+            f"{r['cpu_ratio_median']:.3f}); loop off {min(offs):.2f} s; grid set-up "
+            f"{r['setup_cpu_seconds_median']:.2f} s (before the loop)"
         )
     if args.json is not None:
         args.json.write_text(json.dumps(report, indent=2))
