@@ -97,7 +97,7 @@ class _Timed:
             observe(self, *args)
             cls.spent += time.perf_counter() - start
 
-        RemovalObserver.observe = timed  # type: ignore[method-assign]
+        RemovalObserver.observe = timed  # type: ignore[method-assign, assignment]
 
 
 def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float, float]:

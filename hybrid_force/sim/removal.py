@@ -338,11 +338,11 @@ class RemovalGrid:
         else:
             return
         head = [kind, u0, du, v0, dv, nu, period]
-        lattice = [np.array([*head, *np.concatenate(frame), radius], dtype=float)]
+        parts = [np.array([*head, *np.concatenate(frame), radius], dtype=float)]
         if kind == _K.CYLINDER_ROWS:  # the rows' edges' half angles (_K.HALF_ANGLES)
             half = 0.5 * (u0 + du * np.arange(nu + 1))
-            lattice.append(np.column_stack([np.sin(half), np.cos(half)]).ravel())
-        self.lattice = np.concatenate(lattice)
+            parts.append(np.column_stack([np.sin(half), np.cos(half)]).ravel())
+        self.lattice = np.concatenate(parts)
         self.rows = np.searchsorted(ij[:, 0], np.arange(nu + 1)).astype(np.int64)
         self.col = np.ascontiguousarray(ij[:, 1], dtype=np.int64)
 
