@@ -3,13 +3,21 @@
 Run from the repository root:
 
     python benchmarks/bench_removal.py [--repeats N] [--json PATH] [--setups NAME ...]
+    python benchmarks/bench_removal.py --profile [--setups NAME ...]
 
 For each setup, the same scenario runs with removal off and on, alternating (off, on, off,
 on, ...) so that a change of the machine's load hits both alike; each run's loop is timed by
 its ``meta["wall_time"]`` (the stepping loop: it starts once the record and its removal grid
 are built; the last < 256 samples' deposit, after the loop, is left out: 16 of 10,000 here),
 and the grid's set-up is timed alone (CPU seconds). Reported: the median over the pairs of
-(loop time on) / (loop time off), the ratio of the best of each, and the set-up. Setups:
+(loop time on) / (loop time off), the ratio of the best of each, and the set-up; also the
+same median of the loop's CPU time (the process's, from the first ``progress`` call, after
+step 0, to the last, after the loop: the time the machine's other processes took is left
+out, which the wall time of a shared machine is not), and the removal's share measured
+inside each run with removal on: the loop's wall time over itself less the time spent in
+the removal's calls (``RemovalObserver.observe`` per sample, with the batches' compiled
+deposits, timed by ``time.perf_counter`` around each call; what removal costs the rest of
+the loop through the caches is not in it). Setups:
 
 * ``rtr_plane_pass``: the RTR arm (3 joints, the cheapest step, so the worst ratio) on
   rtr_plane's plane, a straight pass of 0.1 m at 0.01 m/s in contact (10 s), Hertz pad
@@ -21,6 +29,13 @@ and the grid's set-up is timed alone (CPU seconds). Reported: the median over th
   Hertz pad, 0.3 mm cells (0.41 mm a sample: each sample deposited alone);
 * ``ur5_plane``: the UR5 circle on a plane (6 joints) for 10 s, Hertz pad, 0.3 mm cells.
 
+``--profile``: per setup, one run with removal on, then its removal alone replayed from its
+record (the tip, the force, J v from the arm's Jacobian), CPU time per sample, best of 7:
+the batched deposit as the run does it (``observe_batch``), the same with no deposit (each
+sample's surface, patch and group: the merge's reach made infinite), and the search for the
+cells under each sample's patch alone (``_removal_kernels._candidates``); beside the loop's
+wall time per step (its steady rate, ``meta["steps_per_second"]``).
+
 Not part of the test suite; timings depend on the machine's load.
 """
 
@@ -28,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import sys
 import time
@@ -67,20 +83,113 @@ SETUPS: dict[str, tuple[str, dict[str, Any], float]] = {
 }
 
 
-def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float]:
+class _Timed:
+    """Wall time [s] spent inside ``RemovalObserver.observe`` (the calls of a run)."""
+
+    spent = 0.0
+
+    @classmethod
+    def install(cls) -> None:
+        observe = RemovalObserver.observe
+
+        def timed(self: RemovalObserver, *args: Any) -> None:
+            start = time.perf_counter()
+            observe(self, *args)
+            cls.spent += time.perf_counter() - start
+
+        RemovalObserver.observe = timed  # type: ignore[method-assign, assignment]
+
+
+def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float, float]:
     """(the loop's wall time [s], ``meta["wall_time"]``: it starts after the run's record and
-    its removal grid are built; the grid's set-up alone, in CPU seconds (0 without
-    removal))."""
+    its removal grid are built; the loop's CPU time [s] from step 0 on (the ``progress``
+    callback's first and last calls); the grid's set-up alone, in CPU seconds (0 without
+    removal); the wall time [s] the loop spent in the removal's calls)."""
     sc = load_scenario(REPO / "scenarios" / file, overrides)
     setup = 0.0
     if sc.removal is not None:
         start = time.process_time()
         RemovalObserver(sc, round(sc.sim.duration / sc.sim.dt) + 1)
         setup = time.process_time() - start
+    marks: list[float] = []
+
+    def progress(_: float) -> None:
+        marks.append(time.process_time())
+
+    _Timed.spent = 0.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = simulate(sc)
-    return float(result.meta["wall_time"]), setup
+        result = simulate(sc, progress=progress)
+    return float(result.meta["wall_time"]), marks[-1] - marks[0], setup, _Timed.spent
+
+
+def _profile(name: str) -> dict[str, float]:
+    """µs per sample of the removal's parts on setup ``name`` (module docstring, --profile)."""
+    import numba
+    import numpy as np
+
+    from hybrid_force.sim import _removal_kernels as K
+
+    file, overrides, resolution = SETUPS[name]
+    removal = {"k_p": 1e-13, "resolution": resolution}
+    sc = load_scenario(
+        REPO / "scenarios" / file, {**overrides, "tool.pad": PAD, "removal": removal}
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = simulate(sc)
+    n = r.n_samples
+    tips, forces = np.ascontiguousarray(r.p), np.ascontiguousarray(r.f.reshape(n, -1))
+    velocities = np.array([sc.robot.jacobian(r.q[i]) @ r.v[i] for i in range(n)])
+    obs = RemovalObserver(sc, n)
+    g = obs.grid
+
+    def batches(merge: float) -> float:
+        g.depth[:] = 0.0
+        obs._group[:] = 0.0
+        tally = np.zeros(2, dtype=np.int64)
+        start = time.process_time()
+        for first in range(0, n - 1, 256):
+            count = min(256, n - 1 - first)
+            K.observe_batch(
+                obs._desc, tips, forces, obs.surface_index, velocities[first : first + count],
+                first, count, obs._shape, obs.pad.radius, obs._modulus, obs.settings.omega,
+                obs.v_ref, obs._factor, merge, g.points, g.areas, g.order, g.table, g.starts,
+                g.box, g.dims, g.lattice, g.rows, g.col, g.depth, obs._group, obs._work, g.index,
+                g.weight, tally,
+            )  # fmt: skip
+        return time.process_time() - start
+
+    @numba.njit
+    def search(order, table, starts, box, dims, lattice, rows, col, centres, a, out):  # type: ignore[no-untyped-def]
+        total = 0
+        for s in range(centres.shape[0]):
+            c = centres[s]
+            total += K._candidates(order, table, starts, box, dims, lattice, rows, col, c, a, out)
+        return total
+
+    # the patches' centres: the tips' feet on the part (the nominal contact radius a₀)
+    feet = np.array([obs.surface.closest_point(t) for t in tips])
+    args = (g.order, g.table, g.starts, g.box, g.dims, g.lattice, g.rows, g.col, feet)
+
+    def searches() -> float:
+        start = time.process_time()
+        search(*args, obs.contact_radius, g.index)
+        return time.process_time() - start
+
+    batches(obs._merge), batches(math.inf), searches()  # compiled, caches warm
+    full = min(batches(obs._merge) for _ in range(7))
+    alone = min(batches(math.inf) for _ in range(7))
+    found = min(searches() for _ in range(7))
+    candidates = search(*args, obs.contact_radius, g.index) / n
+    us = 1e6 / n
+    return {
+        "loop_us_per_step": 1e6 / float(r.meta["steps_per_second"]),
+        "removal_us_per_sample": full * us,
+        "observe_us_per_sample": alone * us,
+        "search_us_per_sample": found * us,
+        "candidates_per_sample": candidates,
+    }
 
 
 def main() -> int:
@@ -88,33 +197,60 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--setups", nargs="*", choices=sorted(SETUPS), default=list(SETUPS))
+    parser.add_argument("--profile", action="store_true", help="the removal's parts (docstring)")
     args = parser.parse_args()
     report: dict[str, Any] = {}
+    if args.profile:
+        for name in args.setups:
+            report[name] = part = _profile(name)
+            print(
+                f"{name:16s} µs per sample: removal {part['removal_us_per_sample']:.2f} (of which "
+                f"observe {part['observe_us_per_sample']:.2f}, the search for the cells "
+                f"{part['search_us_per_sample']:.2f}: {part['candidates_per_sample']:.0f} "
+                f"candidates); the loop {part['loop_us_per_step']:.1f} µs a step"
+            )
+        if args.json is not None:
+            args.json.write_text(json.dumps(report, indent=2))
+        return 0
+    _Timed.install()
     for name in args.setups:
         file, overrides, resolution = SETUPS[name]
         on = {**overrides, "tool.pad": PAD, "removal": {"k_p": 1e-13, "resolution": resolution}}
         _run(file, {**on, "sim.duration": 0.05})  # compile and load the kernels once
         _run(file, {**overrides, "sim.duration": 0.05})
-        offs, ons, setups = [], [], []
+        offs, ons, setups, cpu_offs, cpu_ons, shares = [], [], [], [], [], []
         for _ in range(args.repeats):
-            offs.append(_run(file, overrides)[0])
-            loop, setup = _run(file, on)
+            loop, cpu, _, _ = _run(file, overrides)
+            offs.append(loop)
+            cpu_offs.append(cpu)
+            loop, cpu, setup, spent = _run(file, on)
             ons.append(loop)
+            cpu_ons.append(cpu)
             setups.append(setup)
+            shares.append(loop / (loop - spent))
         pairs = [b / a for a, b in zip(offs, ons, strict=True)]
+        cpu_pairs = [b / a for a, b in zip(cpu_offs, cpu_ons, strict=True)]
         report[name] = {
             "ratio_median": statistics.median(pairs),
             "ratio_best": min(ons) / min(offs),
             "ratios": pairs,
+            "cpu_ratio_median": statistics.median(cpu_pairs),
+            "cpu_ratios": cpu_pairs,
+            "inrun_ratio_median": statistics.median(shares),
+            "inrun_ratios": shares,
             "off_loop_seconds": offs,
             "on_loop_seconds": ons,
+            "off_loop_cpu_seconds": cpu_offs,
+            "on_loop_cpu_seconds": cpu_ons,
             "setup_cpu_seconds_median": statistics.median(setups),
         }
         r = report[name]
         print(
             f"{name:16s} on/off loop time: median {r['ratio_median']:.3f} (best on / best off "
-            f"{r['ratio_best']:.3f}, {args.repeats} pairs); loop off {min(offs):.2f} s; grid "
-            f"set-up {r['setup_cpu_seconds_median']:.2f} s (before the loop)"
+            f"{r['ratio_best']:.3f}, {args.repeats} pairs; CPU time: median "
+            f"{r['cpu_ratio_median']:.3f}; in the run: median {r['inrun_ratio_median']:.3f}); "
+            f"loop off {min(offs):.2f} s; grid set-up "
+            f"{r['setup_cpu_seconds_median']:.2f} s (before the loop)"
         )
     if args.json is not None:
         args.json.write_text(json.dumps(report, indent=2))

@@ -177,8 +177,10 @@ def test_a_patch_between_cell_centres_keeps_the_volume() -> None:
         (Plane(point=[0, 0, 0.5], normal=[0, 0.6, 0.8]), (-0.01, 0.01), (-0.01, 0.01)),
         (Cylinder(radius=0.4), (-math.pi, math.pi), (-0.01, 0.01)),  # the whole period: a seam
         (Cylinder(radius=0.05), (2.9, 3.4), (-0.01, 0.01)),  # across θ = π, not wrapped
+        # thinner than the patch: every row within its reach (the rows' half-angle table)
+        (Cylinder(radius=0.002), (-math.pi, math.pi), (-0.01, 0.01)),
     ],
-    ids=["plane", "cylinder-wrapped", "cylinder-arc"],
+    ids=["plane", "cylinder-wrapped", "cylinder-arc", "cylinder-thin"],
 )
 def test_the_lattice_rows_find_exactly_the_cells_within_the_patch(
     surface: Plane | Cylinder, u_range: tuple, v_range: tuple

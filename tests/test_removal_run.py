@@ -21,6 +21,7 @@ from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.schema_docs import json_schema
 from hybrid_force.sim.loop import simulate
 from hybrid_force.sim.removal import FlatPad, HertzPad, flat_profile, hertz_profile
+from hybrid_force.sim.removal_run import BATCH, RemovalObserver
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
@@ -72,6 +73,28 @@ def test_removed_volume_is_preston_integral_of_force_times_speed(
     # the file's arrays give the same volume: Σ h_i A_i with the grid's areas
     assert r.removal_depth is not None and r.removal_points is not None
     assert r.meta["removal"]["conforming_steps"] == 0
+
+
+def test_removal_never_changes_the_motion_and_batches_as_sample_by_sample() -> None:
+    """q, v, u, f of a run are bit-identical with removal on and off; the run's batched
+    deposit (J v kept per sample, deposited every BATCH samples) gives the depth of the same
+    samples deposited one by one, with J v from Pinocchio's Jacobian (to round-off)."""
+    overrides = {"sim.duration": 0.6, "initial.tip": [0.4, 0.0, 10.0]}
+    removal = {"k_p": K_P, "resolution": 4e-4}
+    _, off = _run("paper_contact.toml", overrides)
+    sc, on = _run("paper_contact.toml", {**overrides, "tool.pad": HERTZ, "removal": removal})
+    for name in ("q", "v", "u", "f"):
+        assert np.array_equal(getattr(on, name), getattr(off, name)), name
+    observer = RemovalObserver(sc, on.n_samples)  # not attached: one deposit per call
+    for i in range(on.n_samples):
+        pdot = sc.robot.jacobian(on.q[i]) @ on.v[i]
+        observer.observe(i, on.p[i], pdot, np.atleast_1d(on.f[i]))
+    observer.finish(on.n_samples)
+    assert on.removal_depth is not None and on.n_samples - 1 > BATCH
+    assert observer.steps == on.meta["removal"]["steps"] > BATCH
+    scale = float(on.removal_depth.max())
+    assert scale > 0
+    assert np.abs(observer.grid.depth - on.removal_depth).max() <= 1e-9 * scale
 
 
 # a sphere of radius 0.5 m as a 20,480-face mesh where rtr_sphere.toml has its sphere

@@ -164,25 +164,42 @@ CYLINDER_ROWS = 2
 
 
 @_jit_inline
+def _first_at_least(col: np.ndarray, first: int, last: int, value: int) -> int:
+    """The first position in [first, last) of lattice row cells (col: their columns, strictly
+    increasing integers) whose column is ≥ value, or last. The columns' spacing of at least 1
+    bounds it to [last − 1 + value − col[last − 1], first + value − col[first]] (one position
+    where the row has no gap), searched by bisection."""
+    if first >= last:
+        return last
+    lo = max(first, last - 1 + value - col[last - 1])
+    hi = min(last, first + max(value - col[first], 0))
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if col[mid] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@_jit_inline
 def _row_cells(
     rows: np.ndarray, col: np.ndarray, k: int, lo: int, hi: int, out: np.ndarray, count: int
 ) -> int:
     """Append to out (from ``count``) the cells of lattice row k whose column is in
     [lo, hi] (rows (nu + 1,): where each row's cells start; col (M,): their columns, sorted
     within a row); returns the new count."""
-    first, last = rows[k], rows[k + 1]
-    while first < last:  # bisection: the row's first cell of column ≥ lo
-        mid = (first + last) // 2
-        if col[mid] < lo:
-            first = mid + 1
-        else:
-            last = mid
-    for i in range(first, rows[k + 1]):
-        if col[i] > hi:
-            break
+    first = _first_at_least(col, rows[k], rows[k + 1], lo)
+    stop = _first_at_least(col, first, rows[k + 1], hi + 1)
+    for i in range(first, stop):
         out[count] = i
         count += 1
     return count
+
+
+#: where a cylinder's lattice holds sin(θ_e / 2), cos(θ_e / 2) of its row edges θ_e = u0 + e du
+#: (e = 0 … nu, interleaved; ``RemovalGrid.lattice``)
+HALF_ANGLES = 20
 
 
 @_jit_inline
@@ -199,7 +216,10 @@ def _cells_in_rows(
     [m] of centre (3,) [m], in out (M,) int64; returns their count. Per row, the range of
     columns where the distance from the centre to the row's line (the centre's height off
     the surface and the row's chord, less half a cell) leaves room: a superset of the cells
-    within reach, each cell once, found by bisection (no search among buckets)."""
+    within reach, each cell once, found by bisection (no search among buckets). On a
+    cylinder the chord to the row's edge θ_e nearest the centre's angle θ_c is
+    2 √(R ρ) |sin((θ_e − θ_c)/2)|, the sine by angle subtraction from the lattice's table of
+    the edges' half angles (:data:`HALF_ANGLES`): no sine per row."""
     u0, du, v0, dv, nu, period = (
         lattice[1],
         lattice[2],
@@ -214,6 +234,7 @@ def _cells_in_rows(
     z = w0 * lattice[16] + w1 * lattice[17] + w2 * lattice[18]
     r2 = reach * reach
     cylinder = lattice[0] == CYLINDER_ROWS
+    half_sin = half_cos = 0.0
     if cylinder:  # (θ, h): the chord 2 √(R ρ) |sin(Δθ/2)| to the row at R, off by ρ − R
         radius = lattice[19]
         rho = math.sqrt(x * x + y * y)
@@ -222,6 +243,7 @@ def _cells_in_rows(
         if room <= 0.0:
             return 0
         span = math.pi if room >= ring else 2.0 * math.asin(math.sqrt(room / ring))
+        half_sin, half_cos = math.sin(0.5 * uc), math.cos(0.5 * uc)
     else:  # a plane's (u, v) [m] and the height off it
         uc, vc, off2, ring = x, y, z * z, 0.0
         room = r2 - off2
@@ -244,8 +266,14 @@ def _cells_in_rows(
             d = u0 + (k + 0.5) * du - us
             if whole:  # the periodic difference, in [−period/2, period/2)
                 d = (d + 0.5 * period) % period - 0.5 * period
-            d = max(abs(d) - 0.5 * du, 0.0)  # the nearest point of the row's cells
-            chord2 = ring * math.sin(0.5 * d) ** 2 if cylinder else d * d
+            if abs(d) <= 0.5 * du:  # the row holds the centre's u
+                chord2 = 0.0
+            elif cylinder:  # the edge nearest θ_c: the row's first (d > 0) or its last
+                e = HALF_ANGLES + 2 * (k if d > 0.0 else k + 1)
+                s = lattice[e] * half_cos - lattice[e + 1] * half_sin  # ± sin((θ_e − θ_c)/2)
+                chord2 = ring * s * s
+            else:
+                chord2 = (abs(d) - 0.5 * du) ** 2  # to the nearest point of the row's cells
             if chord2 >= room:
                 continue
             half = math.sqrt(room - chord2)
@@ -253,6 +281,29 @@ def _cells_in_rows(
             hi = math.floor((vc + half - v0) / dv)
             count = _row_cells(rows, col, k, lo, hi, out, count)
     return count
+
+
+@_jit_inline
+def _candidates(
+    order: np.ndarray,
+    table: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
+    centre: np.ndarray,
+    reach: float,
+    out: np.ndarray,
+) -> int:
+    """The cells that may lie within ``reach`` [m] of centre (3,) [m] (the arguments as in
+    :func:`deposit`), in out (M,) int64: row by row on a chart lattice
+    (:func:`_cells_in_rows`), else by the buckets (:func:`_cells_in_box`); returns their
+    count."""
+    if lattice.shape[0] > 0:
+        return _cells_in_rows(lattice, rows, col, centre, reach, out)
+    return _cells_in_box(order, table, starts, box, dims, centre, reach, out)
 
 
 @_jit
@@ -304,26 +355,23 @@ def deposit(
         return 0
     vt0, vt1, vt2 = vt[0], vt[1], vt[2]
     # the candidates in ``index``, compacted in place to the cells inside (inside ≤ c)
-    if lattice.shape[0] > 0:
-        candidates = _cells_in_rows(lattice, rows, col, centre, a, index)
-    else:
-        candidates = _cells_in_box(order, table, starts, box, dims, centre, a, index)
+    candidates = _candidates(
+        order, table, starts, box, dims, lattice, rows, col, centre, a, index
+    )  # fmt: skip
     a2 = a * a
     total = 0.0
     inside = 0
-    nearest = -1
-    nearest_d2 = math.inf
-    # one scan of the buckets: the cells inside, their profile w and w · slip
+    # one scan of the candidates: the cells inside, their profile w and w · slip; without a
+    # branch (a candidate outside has w = 0, adds nothing and is overwritten by the next)
     for c in range(candidates):
         i = index[c]
         r0, r1, r2 = _offset(points, i, centre)
         d2 = r0 * r0 + r1 * r1 + r2 * r2
-        if d2 < nearest_d2:
-            nearest_d2 = d2
-            nearest = i
-        if d2 >= a2:
-            continue
-        w = math.sqrt(1.0 - d2 / a2) if shape == HERTZ else 1.0
+        within = d2 < a2
+        if shape == HERTZ:
+            w = math.sqrt(max(1.0 - d2 / a2, 0.0)) if within else 0.0
+        else:
+            w = 1.0 if within else 0.0
         total += w * areas[i]
         if omega != 0.0:
             w *= _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
@@ -331,14 +379,26 @@ def deposit(
             w *= feed
         index[inside] = i
         weight[inside] = w
-        inside += 1
+        inside += 1 if within else 0
     if total > 0.0:
         scale = factor * force / total
         for c in range(inside):
             depth[index[c]] += scale * weight[c]
         return inside
+    # the patch falls between cell centres: all of F on the nearest candidate (found again:
+    # the scan overwrote them)
+    nearest = -1
+    nearest_d2 = math.inf
+    candidates = _candidates(
+        order, table, starts, box, dims, lattice, rows, col, centre, a, index
+    )  # fmt: skip
+    for c in range(candidates):
+        r0, r1, r2 = _offset(points, index[c], centre)
+        d2 = r0 * r0 + r1 * r1 + r2 * r2
+        if d2 < nearest_d2:
+            nearest_d2 = d2
+            nearest = index[c]
     if nearest >= 0:
-        # the patch falls between cell centres: all of F on the nearest cell
         r0, r1, r2 = _offset(points, nearest, centre)
         speed = feed if omega == 0.0 else _sliding_speed(vt0, vt1, vt2, omega, normal, r0, r1, r2)
         depth[nearest] += factor * force / areas[nearest] * speed

@@ -205,8 +205,9 @@ class RemovalGrid:
         self.dims = dims
         #: a plane's or a cylinder's chart lattice, where the cells are found row by row
         #: (:func:`._removal_kernels.deposit`): [kind, u0, du, v0, dv, nu, period, the chart's
-        #: origin (3), its axes (3 × 3), radius], or empty (the buckets); rows (nu + 1,): where
-        #: each lattice row's cells start, col (M,): their columns
+        #: origin (3), its axes (3 × 3), radius] (a cylinder's then sin, cos of its rows' edges'
+        #: half angles, (nu + 1) pairs), or empty (the buckets); rows (nu + 1,): where each
+        #: lattice row's cells start, col (M,): their columns
         self.lattice = np.zeros(0)
         self.rows = np.zeros(1, dtype=np.int64)
         self.col = np.zeros(0, dtype=np.int64)
@@ -337,7 +338,11 @@ class RemovalGrid:
         else:
             return
         head = [kind, u0, du, v0, dv, nu, period]
-        self.lattice = np.array([*head, *np.concatenate(frame), radius], dtype=float)
+        parts = [np.array([*head, *np.concatenate(frame), radius], dtype=float)]
+        if kind == _K.CYLINDER_ROWS:  # the rows' edges' half angles (_K.HALF_ANGLES)
+            half = 0.5 * (u0 + du * np.arange(nu + 1))
+            parts.append(np.column_stack([np.sin(half), np.cos(half)]).ravel())
+        self.lattice = np.concatenate(parts)
         self.rows = np.searchsorted(ij[:, 0], np.arange(nu + 1)).astype(np.int64)
         self.col = np.ascontiguousarray(ij[:, 1], dtype=np.int64)
 

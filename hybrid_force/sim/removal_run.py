@@ -52,6 +52,7 @@ MAX_CELLS = 4_000_000
 """The most cells a removal grid may have (about 200 MB of arrays)."""
 BATCH = 256
 """Samples deposited by one compiled call on a built-in surface (RemovalObserver.observe)."""
+_BATCH_BYTES = 24 * BATCH  # their velocities' bytes
 MERGE = 0.25
 """Consecutive samples whose patches stay within MERGE · resolution of the first one's (centre,
 radius, the rim's tilt; with a spindle, the slip too) are deposited as one patch at their mean
@@ -359,10 +360,12 @@ class RemovalObserver:
         if removal.spindle_schedule == "feed":
             self.v_ref = _top_speed(sc)
         self._last = N - 1
-        # the batched deposit (:meth:`observe`): J v of the samples since ``_first``
+        # the batched deposit (:meth:`observe`): the bytes of J v (3 float64 each) of the
+        # samples since ``_first`` (appending bytes costs a third of writing a row of an array)
         self._tips: np.ndarray | None = None
         self._forces: np.ndarray | None = None
-        self._velocities = np.zeros((BATCH, 3))
+        self._batched = False
+        self._kept = bytearray()
         self._first = 0
         self.steps = 0  # samples that deposited
         self.conforming = 0  # samples where the part conformed to a Hertz pad (none deposited)
@@ -419,6 +422,7 @@ class RemovalObserver:
         """The run's record of the tip (N, 3) [m] and the forces (N, k) [N], which a run on a
         built-in surface reads in batches (:meth:`observe`)."""
         self._tips, self._forces = tips, forces
+        self._batched = not self._python
 
     def observe(self, i: int, p: np.ndarray, pdot: np.ndarray, f: np.ndarray) -> None:
         """Sample i's deposit: tip p (3,) [m], its velocity J v (3,) [m/s], the contact
@@ -428,10 +432,10 @@ class RemovalObserver:
         kept here, and every ``BATCH`` samples one compiled call deposits them all from the
         records (one call's fixed cost for many samples); :meth:`finish` deposits the rest.
         """
-        if self._tips is not None and not self._python:
-            s = i - self._first
-            self._velocities[s] = pdot
-            if s == BATCH - 1:
+        if self._batched:
+            kept = self._kept
+            kept += pdot.tobytes()
+            if len(kept) == _BATCH_BYTES:
                 self._flush(i + 1)
             return
         force = float(f[self.surface_index])
@@ -462,8 +466,9 @@ class RemovalObserver:
         count = min(stop, self._last) - first
         if count > 0 and self._tips is not None and self._forces is not None:
             g, tally = self.grid, np.zeros(2, dtype=np.int64)
+            velocities = np.frombuffer(self._kept, dtype=np.float64).reshape(-1, 3)
             _K.observe_batch(
-                self._desc, self._tips, self._forces, self.surface_index, self._velocities, first,
+                self._desc, self._tips, self._forces, self.surface_index, velocities, first,
                 count, self._shape, self.pad.radius, self._modulus, self.settings.omega, self.v_ref,
                 self._factor, self._merge, g.points, g.areas, g.order, g.table, g.starts, g.box,
                 g.dims, g.lattice, g.rows, g.col, g.depth, self._group, self._work, g.index,
@@ -471,12 +476,14 @@ class RemovalObserver:
             )  # fmt: skip
             self.steps += int(tally[0])
             self.conforming += int(tally[1])
+            del velocities  # the view of the bytes, before they are emptied
+        self._kept.clear()
         self._first = stop
 
     def finish(self, filled: int) -> None:
         """Deposit the samples kept and not yet deposited, up to the ``filled`` recorded
         (the end of the run, or where it stopped)."""
-        if self._tips is not None and not self._python and filled > self._first:
+        if self._batched and filled > self._first:
             self._flush(filled)
         g = self.grid
         _K.flush(
