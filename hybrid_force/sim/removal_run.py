@@ -36,13 +36,13 @@ from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.charts import PlaneChart, SurfaceChart, chart_for
 from hybrid_force.geometry.offset import OffsetChart, contact_points
 from hybrid_force.geometry.raster import RasterPath
+from hybrid_force.geometry.surface_base import principal_curvatures
 from hybrid_force.geometry.surface_path import SurfacePath
 from hybrid_force.sim.removal import HertzPad, Pad, RemovalGrid, RemovalSettings
 
 __all__ = [
     "RemovalObserver",
     "check_removal",
-    "principal_curvatures",
     "removal_surface_index",
 ]
 
@@ -82,20 +82,6 @@ def _on_part(sc: Any, surface: Any, centres: np.ndarray) -> np.ndarray:
         return centres
     feet = contact_points(surface, r, centres)
     return feet[np.all(np.isfinite(feet), axis=1)]
-
-
-def principal_curvatures(grad: np.ndarray, hess: np.ndarray) -> tuple[float, float]:
-    """(κ₁ ≥ κ₂) [1/m] of the level set of Φ with gradient (3,) and Hessian (3, 3): the
-    eigenvalues of Tᵀ ∇²Φ T / ‖∇Φ‖ (T an orthonormal tangent basis); > 0 convex seen from
-    the free side (where ∇Φ points)."""
-    g = float(np.linalg.norm(grad))
-    n = grad / g
-    e = np.eye(3)[int(np.argmin(np.abs(n)))]
-    t1 = np.cross(n, e)
-    t1 /= np.linalg.norm(t1)
-    t = np.stack([t1, np.cross(n, t1)])
-    k = np.linalg.eigvalsh(t @ hess @ t.T / g)
-    return float(k[1]), float(k[0])
 
 
 def _mesh_part(surface: Any) -> Any:
@@ -294,7 +280,7 @@ def _mesh_grid(part: Any, samples: np.ndarray, margin: float, resolution: float)
 
 def nominal_radius(pad: Pad, force: float, grad: np.ndarray, hess: np.ndarray) -> float:
     """The patch radius a₀ [m] at ``force`` [N] where the part has gradient (3,), Hessian
-    (3, 3) (its curvatures from :func:`principal_curvatures`)."""
+    (3, 3) (its curvatures from :func:`.principal_curvatures`)."""
     if isinstance(pad, HertzPad):
         return pad.patch(force, *principal_curvatures(grad, hess))[0]
     return pad.radius
@@ -319,7 +305,15 @@ class RemovalObserver:
         j = self.surface_index = removal_surface_index(sc)
         surface = self.surface = sc.surfaces[j]
         f_d = float(abs(sc.control.f_d_for(len(sc.surfaces))[j]))
-        p0 = _on_part(sc, surface, np.asarray([sc.path.position(0.0)], dtype=float))[0]
+        start = _on_part(sc, surface, np.asarray([sc.path.position(0.0)], dtype=float))
+        if len(start) == 0:
+            raise ScenarioError(
+                f"removal: surfaces[{j}] ({surface!r}) has no normal at the desired path's "
+                f"start {np.round(sc.path.position(0.0), 6).tolist()} m, where the contact "
+                "patch is laid",
+                key="removal",
+            )
+        p0 = start[0]
         _, g0, h0 = surface.evaluate(np.ascontiguousarray(p0))
         a0 = self.contact_radius = nominal_radius(pad, f_d if f_d > 0 else 1.0, g0, h0)
         # the patch under 3× the desired force (a ∝ F^(1/3) for Hertz) stays on the grid
