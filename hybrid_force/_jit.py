@@ -19,6 +19,8 @@ import sys
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
+import numpy as np
+
 __all__ = ["jit", "jit_inline", "own_kernels_only"]
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -186,7 +188,6 @@ def _type_plain_arrays_without_numpy_ma() -> None:
     ``np.ndarray`` is no masked array, and takes those last steps alone here. Anything else
     (a subclass, a masked array, a dtype Numba does not support) goes to Numba's own function
     with its own errors. Once per process."""
-    import numpy as np
     from numba.core import errors, types
     from numba.core.typing.typeof import typeof_impl
     from numba.np import numpy_support
