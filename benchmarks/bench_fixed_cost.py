@@ -9,8 +9,9 @@ Times, each in a fresh process, in turn (A B A B ...; one untimed run of each fi
 also fills the Numba cache):
 
 * A: ``hybrid-force run scenarios/paper_contact.toml --set sim.duration=0.01 --out TMP`` (the
-  console script's own two lines, ``from hybrid_force.cli import main; sys.exit(main())``,
-  with the code of each ``--tree``: default this checkout);
+  console script's own two lines, ``from hybrid_force.cli import console; sys.exit(console())``
+  with the function each ``--tree``'s pyproject.toml names, and its code; default this
+  checkout);
 * B: ``python -c "import numpy, pinocchio, numba"``,
 
 and prints, per tree, the wall and CPU (user + sys) seconds of each (best, median) and the
@@ -42,12 +43,12 @@ import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINE = [sys.executable, "-c", "import numpy, pinocchio, numba"]
-ENTRY = "import sys; from hybrid_force.cli import main; sys.exit(main())"
 
 
 def _timed(argv: list[str], env: dict[str, str], cwd: Path) -> tuple[float, float]:
@@ -116,24 +117,35 @@ timed(cli, "load_scenario", "load_scenario")
 timed(scenario_robot, "load_robot", "load_robot")
 timed(cli, "simulate", "simulate")
 timed(run_output.RunOutput, "save", "write result.npz, summary.json")
-t0 = time.perf_counter()
-status = cli.main(["run", "scenarios/paper_contact.toml", "--set", "sim.duration=0.01",
-                   "--out", sys.argv[1], "--quiet"])
-add("main", t0)
-import json
-acc["start to first statement"] = T["start"] - spawned
-acc["kernels loaded"] = loads[1]
-acc["main returned (wall clock)"] = time.time()
-print(json.dumps(acc))
-sys.exit(status)
+run = cli.main
+def timed_main(argv=None):
+    t0 = time.perf_counter()
+    status = run(["run", "scenarios/paper_contact.toml", "--set", "sim.duration=0.01",
+                  "--out", sys.argv[1], "--quiet"])
+    add("main", t0)
+    import json
+    acc["start to first statement"] = T["start"] - spawned
+    acc["kernels loaded"] = loads[1]
+    acc["main returned (wall clock)"] = time.time()
+    print(json.dumps(acc), flush=True)
+    return status
+cli.main = timed_main  # the console script's function (argv[3]) calls it
+sys.exit(getattr(cli, sys.argv[3])())
 """
+
+
+def console_script(tree: Path) -> tuple[str, str]:
+    """(module, function) of ``tree``'s ``hybrid-force`` console script (its pyproject.toml)."""
+    scripts = tomllib.loads((tree / "pyproject.toml").read_text())["project"]["scripts"]
+    module, _, function = scripts["hybrid-force"].partition(":")
+    return module, function
 
 
 def phases(tree: Path, out: Path, env: dict[str, str]) -> dict[str, float]:
     """One run of A with :data:`PHASES`' timers: seconds per phase (exclusive where nested)."""
     spawned = time.time()
     done = subprocess.run(
-        [sys.executable, "-c", PHASES, str(out), repr(spawned)],
+        [sys.executable, "-c", PHASES, str(out), repr(spawned), console_script(tree)[1]],
         env=env, cwd=tree, capture_output=True, text=True,
     )  # fmt: skip
     ended = time.time()
@@ -204,7 +216,9 @@ def measure(tree: Path, runs: int, bytecode: str = "cached") -> dict[str, Any]:
     """``runs`` pairs (command, baseline) in turn, after one untimed run of each."""
     env = _environment(tree, bytecode)
     with tempfile.TemporaryDirectory(prefix="bench_fixed_") as tmp:
-        command = [sys.executable, "-c", ENTRY, "run", str(tree / "scenarios/paper_contact.toml")]
+        module, function = console_script(tree)
+        entry = f"import sys; from {module} import {function}; sys.exit({function}())"
+        command = [sys.executable, "-c", entry, "run", str(tree / "scenarios/paper_contact.toml")]
         command += ["--set", "sim.duration=0.01", "--out", str(Path(tmp) / "out")]
         _timed(command, env, tree)
         _timed(BASELINE, env, tree)

@@ -295,3 +295,56 @@ def test_run_interrupted_before_its_first_sample_saves_an_empty_result(
     assert summary["n_samples"] == 0 and summary["t_end"] is None
     assert summary["reason"] == "interrupted" and summary["final_position_error"] is None
     assert Result.load(out / "result.npz").n_samples == 0
+
+
+_CONSOLE = """
+import atexit, sys, threading, time
+from pathlib import Path
+marks = Path(sys.argv[1])
+atexit.register(lambda: (marks / "atexit").write_text("ran"))  # a library's clean-up
+
+def later():
+    time.sleep(1.0)
+    (marks / "thread").write_text("ran")
+
+if sys.argv[2] == "thread":  # another thread alive when main returns
+    threading.Thread(target=later).start()
+from hybrid_force.cli import console
+sys.argv = ["hybrid-force", *sys.argv[3:]]
+sys.exit(console())
+"""
+
+
+@pytest.mark.parametrize("thread", [False, True])
+def test_the_console_script_runs_the_exit_handlers_and_waits_for_other_threads(
+    tmp_path: Path, thread: bool
+) -> None:
+    # hybrid-force (cli.console): the command's files and summary are out, the atexit handlers
+    # ran, and the exit status is main's; while another thread is alive the process exits as
+    # Python does, after that thread (which writes its mark a second after it started)
+    scenario = REPO_ROOT / "scenarios" / "paper_contact.toml"
+    for argv, status in (
+        (["run", str(scenario), "--set", "sim.duration=0.01", "--out", str(tmp_path / "o")], 0),
+        (["run", str(tmp_path / "missing.toml")], 2),
+    ):
+        for mark in ("atexit", "thread"):
+            (tmp_path / mark).unlink(missing_ok=True)
+        done = subprocess.run(
+            [sys.executable, "-c", _CONSOLE, str(tmp_path), "thread" if thread else "-", *argv],
+            capture_output=True, text=True, timeout=300, check=False,
+        )  # fmt: skip
+        assert done.returncode == status, done.stderr
+        assert (tmp_path / "atexit").read_text() == "ran"
+        assert (tmp_path / "thread").exists() is thread
+        if status == 0:
+            assert done.stdout.rstrip().endswith(f"{tmp_path / 'o' / 'summary.json'}")
+            assert Result.load(tmp_path / "o" / "result.npz").n_samples == 11
+        else:
+            assert done.stderr.startswith("error: ") and "missing.toml" in done.stderr
+
+
+def test_the_console_script_is_cli_console() -> None:
+    import tomllib
+
+    project = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]
+    assert project["scripts"]["hybrid-force"] == "hybrid_force.cli:console"
