@@ -315,6 +315,8 @@ def later():
 from hybrid_force import cli
 command = cli.main
 def command_then_thread():  # another thread alive when main returns (argv[2] "thread")
+    import gc
+    (marks / "frozen").write_text(f"{gc.get_freeze_count()} {len(gc.get_objects())}")
     status = command()
     if thread:
         threading.Thread(target=later).start()
@@ -330,7 +332,8 @@ sys.exit(cli.console())
 def test_the_console_script_runs_the_exit_handlers_and_waits_for_other_threads(
     tmp_path: Path, thread: bool
 ) -> None:
-    # hybrid-force (cli.console): the command's files and summary are out, the atexit handlers
+    # hybrid-force (cli.console): main starts with the imports' objects frozen (out of the
+    # garbage collector's walks); the command's files and summary are out, the atexit handlers
     # ran, the exit status is main's, and the process ended by os._exit (no teardown); while
     # another thread is alive it exits as Python does, after that thread (which writes its
     # mark half a second after main returned)
@@ -349,6 +352,8 @@ def test_the_console_script_runs_the_exit_handlers_and_waits_for_other_threads(
         assert (tmp_path / "atexit").read_text() == "ran"
         assert (tmp_path / "thread").exists() is thread
         assert (tmp_path / "fast").exists() is not thread
+        frozen, tracked = map(int, (tmp_path / "frozen").read_text().split())
+        assert frozen > 10_000 and tracked < frozen / 10  # the imports' objects: out of the walks
         if status == 0:
             assert done.stdout.rstrip().endswith(f"{tmp_path / 'o' / 'summary.json'}")
             assert Result.load(tmp_path / "o" / "result.npz").n_samples == 11
