@@ -3,7 +3,8 @@
 Run from the repository root:
 
     python benchmarks/bench_fixed_cost.py [--runs 10] [--tree PATH ...] [--json PATH]
-                                          [--bytecode cached|none] [--phases N]
+                                          [--bytecode cached|none] [--interleave]
+                                          [--phases N]
 
 Times, each in a fresh process, in turn (A B A B ...; one untimed run of each first, which
 also fills the Numba cache):
@@ -17,6 +18,10 @@ also fills the Numba cache):
 and prints, per tree, the wall and CPU (user + sys) seconds of each (best, median) and the
 ratio A/B of each pair (median, min, max), with the load average before and after. The issue's
 target: A/B ≤ 1.5. Not part of the test suite.
+
+``--interleave`` (with several ``--tree``): instead of a block of pairs per tree, ``--runs``
+rounds of A of each tree, each followed by a B (A1 B A2 B ...): the ratio A/B per tree as
+above, and each tree's A over the first tree's A of the same round, paired (median).
 
 ``--phases N``: instead, where A's time goes: N runs of A per tree (the trees in turn), each
 with a timer around its phases (wrappers set before ``main`` runs: the imports, ``load_scenario``
@@ -246,6 +251,58 @@ def measure(tree: Path, runs: int, bytecode: str = "cached") -> dict[str, Any]:
     }
 
 
+def measure_interleaved(trees: list[Path], runs: int, bytecode: str) -> dict[str, Any]:
+    """``runs`` rounds, each A of every tree followed by its B (A1 B A2 B ...), after one
+    untimed run of each: per tree the ratio A/B of each pair, and each tree's A over the first
+    tree's A of the same round (the trees paired, not only each against its baseline)."""
+    envs = {tree: _environment(tree, bytecode) for tree in trees}
+    with tempfile.TemporaryDirectory(prefix="bench_fixed_") as tmp:
+        commands = {}
+        for tree in trees:
+            module, function = console_script(tree)
+            entry = f"import sys; from {module} import {function}; sys.exit({function}())"
+            commands[tree] = [sys.executable, "-c", entry, "run"]
+            commands[tree] += [str(tree / "scenarios/paper_contact.toml"), "--set"]
+            commands[tree] += ["sim.duration=0.01", "--out", str(Path(tmp) / "out")]
+            _timed(commands[tree], envs[tree], tree)
+            _timed(BASELINE, envs[tree], tree)
+        load = [list(os.getloadavg())]
+        pairs: dict[Path, list[tuple[tuple[float, float], tuple[float, float]]]] = {
+            tree: [] for tree in trees
+        }
+        for _ in range(runs):
+            for tree in trees:
+                a = _timed(commands[tree], envs[tree], tree)
+                pairs[tree].append((a, _timed(BASELINE, envs[tree], tree)))
+        load.append(list(os.getloadavg()))
+    first = trees[0]
+    out: dict[str, Any] = {"runs": runs, "bytecode": bytecode, "loadavg": load, "trees": {}}
+    for tree in trees:
+        row: dict[str, Any] = {}
+        for k, kind in enumerate(("wall", "cpu")):
+            over_b = [a[k] / b[k] for a, b in pairs[tree]]
+            over_first = [p[0][k] / q[0][k] for p, q in zip(pairs[tree], pairs[first], strict=True)]
+            row[f"ratio_{kind}"] = [statistics.median(over_b), min(over_b), max(over_b)]
+            row[f"over_first_{kind}"] = statistics.median(over_first)
+            row[f"command_{kind}_s"] = [a[k] for a, _ in pairs[tree]]
+            row[f"baseline_{kind}_s"] = [b[k] for _, b in pairs[tree]]
+        out["trees"][str(tree)] = row
+    la, lb = load
+    print(
+        f"{runs} rounds, trees interleaved (load {la[0]:.2f} -> {lb[0]:.2f}), bytecode {bytecode}:"
+    )
+    for tree in trees:
+        row = out["trees"][str(tree)]
+        print(f"  {tree}:")
+        for kind in ("wall", "cpu"):
+            m, lo, hi = row[f"ratio_{kind}"]
+            print(
+                f"    command / baseline, {kind}: median {m:.2f} (min {lo:.2f}, max {hi:.2f});"
+                f" command / {first.name}'s command: median {row[f'over_first_{kind}']:.2f}"
+            )
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=10)
@@ -260,8 +317,18 @@ def main(argv: list[str] | None = None) -> int:
         "--phases", type=int, default=0, metavar="N",
         help="instead: N runs of the command per tree with a timer around each phase",
     )  # fmt: skip
+    parser.add_argument(
+        "--interleave", action="store_true",
+        help="with several --tree: every round runs each tree's command and a baseline in "
+        "turn (A1 B A2 B ...), and reports each tree's command over the first tree's, paired",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     trees = [t.resolve() for t in args.tree] if args.tree else [ROOT]
+    if args.interleave:
+        table = measure_interleaved(trees, args.runs, args.bytecode)
+        if args.json is not None:
+            args.json.write_text(json.dumps(table, indent=1) + "\n")
+        return 0
     if args.phases:
         table = measure_phases(trees, args.phases, args.bytecode)
         if args.json is not None:
