@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib
 
-from hybrid_force._version import installed_version
+from hybrid_force._version import VERSION as __version__
 from hybrid_force.control.clik import ClikSettings, inverse_kinematics
 from hybrid_force.control.controller import Controller, ControllerModel
 from hybrid_force.control.supervisor import ControlSettings
@@ -46,11 +46,9 @@ from hybrid_force.sim.loop import simulate
 from hybrid_force.sim.sensors import SensorSettings
 from hybrid_force.sim.settings import Scenario, SimSettings
 
-__version__: str  # the version in pyproject.toml, as installed: read on first use (below)
-
-# The edges (figures, 3D replay, sweeps, comparisons) and the version (importlib.metadata) load
-# on first use, so `import hybrid_force` and a plain `hybrid-force run` do not pay for them
-# (PEP 562 module __getattr__). Each name is read from the module that defines it.
+# The edges (figures, 3D replay, sweeps, comparisons) load on first use, so `import
+# hybrid_force` and a plain `hybrid-force run` do not pay for them (PEP 562 module
+# __getattr__). Each name is read from the module that defines it.
 _LAZY = {
     "plot_result": "hybrid_force.viz.run_figures",
     "plot_sweep": "hybrid_force.viz.sweep_plots",
@@ -62,20 +60,16 @@ _LAZY = {
 
 
 def __getattr__(name: str) -> object:
-    value: object
-    if name == "__version__":
-        value = installed_version()
-    else:
-        module = _LAZY.get(name)
-        if module is None:
-            raise AttributeError(f"module 'hybrid_force' has no attribute {name!r}")
-        value = getattr(importlib.import_module(module), name)
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hybrid_force' has no attribute {name!r}")
+    value: object = getattr(importlib.import_module(module), name)
     globals()[name] = value
     return value
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY) | {"__version__"})
+    return sorted(set(globals()) | set(_LAZY))
 
 
 __all__ = [

@@ -19,6 +19,8 @@ import sys
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
+import numpy as np
+
 __all__ = ["jit", "jit_inline", "own_kernels_only"]
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -42,6 +44,7 @@ def jit(func: F) -> F:
             _load_typing_without_cffi()
             _skip_extension_scan()
             _load_caches_without_registries()
+            _type_plain_arrays_without_numpy_ma()
         _decorator = numba.njit(cache=True, error_model="numpy")
     compiled: F = _decorator(func)
     return compiled
@@ -68,7 +71,7 @@ def _no_op() -> None:
 def own_kernels_only() -> Iterator[None]:
     """While open, Numba is loaded (by the first :func:`jit`) for the kernels alone.
 
-    For processes that compile no other code than the kernels: the command line's. Four things
+    For processes that compile no other code than the kernels: the command line's. Five things
     Numba does by default are then skipped, each at most a change to code no kernel has:
 
     * its NumPy support checks at its import whether SciPy's BLAS is there, by importing
@@ -87,7 +90,11 @@ def own_kernels_only() -> Iterator[None]:
       0.1 to 0.2 s, the largest part of a short command after the imports), which only a
       compilation uses: code loaded from the cache is already machine code. A load then
       starts Numba's runtime (NRT, which that code calls) alone; a miss refreshes as before,
-      then compiles.
+      then compiles;
+    * the first time it types an argument array of a kind (dtype, dimensions, layout), its
+      ``typeof`` asks whether the array is a ``numpy.ma.MaskedArray``, and numpy imports
+      ``numpy.ma`` for that question (about 0.01 s); a plain ``np.ndarray`` is none, and is
+      then typed without the question (the other steps as Numba's), any other array by Numba.
 
     A Python program that imports hybrid_force keeps Numba's defaults.
     """
@@ -171,3 +178,33 @@ def _skip_extension_scan() -> None:
 
     if getattr(entrypoints, "_already_initialized", None) is False:
         entrypoints._already_initialized = True
+
+
+def _type_plain_arrays_without_numpy_ma() -> None:
+    """Let Numba type a plain ``np.ndarray`` argument without importing ``numpy.ma`` (see
+    :func:`own_kernels_only`). The pinned 0.68 series' ``typeof`` of an ndarray refuses a
+    masked array (``isinstance(val, np.ma.MaskedArray)``: numpy imports numpy.ma on that first
+    access), then reads the dtype, layout and writeability; an array whose type is exactly
+    ``np.ndarray`` is no masked array, and takes those last steps alone here. Anything else
+    (a subclass, a masked array, a dtype Numba does not support) goes to Numba's own function
+    with its own errors. Once per process."""
+    from numba.core import errors, types
+    from numba.core.typing.typeof import typeof_impl
+    from numba.np import numpy_support
+
+    numbas = typeof_impl.dispatch(np.ndarray)
+    if getattr(numbas, "_plain_arrays_first", False):
+        return
+
+    def typeof_array(val: Any, c: Any) -> Any:
+        if type(val) is not np.ndarray:
+            return numbas(val, c)
+        try:
+            dtype = numpy_support.from_dtype(val.dtype)
+        except errors.NumbaNotImplementedError:
+            return numbas(val, c)
+        layout = numpy_support.map_layout(val)
+        return types.Array(dtype, val.ndim, layout, readonly=not val.flags.writeable)
+
+    typeof_array._plain_arrays_first = True  # type: ignore[attr-defined]
+    typeof_impl.register(np.ndarray)(typeof_array)

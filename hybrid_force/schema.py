@@ -135,7 +135,8 @@ def specs(cls: type) -> Iterator[tuple[dataclasses.Field[Any], Param]]:
 
 @functools.cache
 def _kinds(cls: type) -> dict[str, tuple[str, tuple[Any, ...]]]:
-    return {f.name: _kind(typing.get_type_hints(cls)[f.name]) for f in dataclasses.fields(cls)}
+    hints = typing.get_type_hints(cls)  # once per class: it evaluates every annotation
+    return {f.name: _kind(hints[f.name]) for f in dataclasses.fields(cls)}
 
 
 def value_kind(cls: type, f: dataclasses.Field[Any]) -> tuple[str, tuple[Any, ...]]:

@@ -295,3 +295,74 @@ def test_run_interrupted_before_its_first_sample_saves_an_empty_result(
     assert summary["n_samples"] == 0 and summary["t_end"] is None
     assert summary["reason"] == "interrupted" and summary["final_position_error"] is None
     assert Result.load(out / "result.npz").n_samples == 0
+
+
+_CONSOLE = """
+import atexit, os, sys, threading, time
+from pathlib import Path
+marks = Path(sys.argv[1])
+atexit.register(lambda: (marks / "atexit").write_text("ran"))  # a library's clean-up
+real_exit = os._exit
+def fast_exit(status):  # the exit without the teardown, marked
+    (marks / "fast").write_text(str(status))
+    real_exit(status)
+os._exit = fast_exit
+
+def later():
+    time.sleep(0.5)
+    (marks / "thread").write_text("ran")
+
+from hybrid_force import cli
+command = cli.main
+def command_then_thread():  # another thread alive when main returns (argv[2] "thread")
+    import gc
+    (marks / "frozen").write_text(f"{gc.get_freeze_count()} {len(gc.get_objects())}")
+    status = command()
+    if thread:
+        threading.Thread(target=later).start()
+    return status
+thread = sys.argv[2] == "thread"
+cli.main = command_then_thread
+sys.argv = ["hybrid-force", *sys.argv[3:]]
+sys.exit(cli.console())
+"""
+
+
+@pytest.mark.parametrize("thread", [False, True])
+def test_the_console_script_runs_the_exit_handlers_and_waits_for_other_threads(
+    tmp_path: Path, thread: bool
+) -> None:
+    # hybrid-force (cli.console): main starts with the imports' objects frozen (out of the
+    # garbage collector's walks); the command's files and summary are out, the atexit handlers
+    # ran, the exit status is main's, and the process ended by os._exit (no teardown); while
+    # another thread is alive it exits as Python does, after that thread (which writes its
+    # mark half a second after main returned)
+    scenario = REPO_ROOT / "scenarios" / "paper_contact.toml"
+    for argv, status in (
+        (["run", str(scenario), "--set", "sim.duration=0.01", "--out", str(tmp_path / "o")], 0),
+        (["run", str(tmp_path / "missing.toml")], 2),
+    ):
+        for mark in ("atexit", "thread", "fast"):
+            (tmp_path / mark).unlink(missing_ok=True)
+        done = subprocess.run(
+            [sys.executable, "-c", _CONSOLE, str(tmp_path), "thread" if thread else "-", *argv],
+            capture_output=True, text=True, timeout=300, check=False,
+        )  # fmt: skip
+        assert done.returncode == status, done.stderr
+        assert (tmp_path / "atexit").read_text() == "ran"
+        assert (tmp_path / "thread").exists() is thread
+        assert (tmp_path / "fast").exists() is not thread
+        frozen, tracked = map(int, (tmp_path / "frozen").read_text().split())
+        assert frozen > 10_000 and tracked < frozen / 10  # the imports' objects: out of the walks
+        if status == 0:
+            assert done.stdout.rstrip().endswith(f"{tmp_path / 'o' / 'summary.json'}")
+            assert Result.load(tmp_path / "o" / "result.npz").n_samples == 11
+        else:
+            assert done.stderr.startswith("error: ") and "missing.toml" in done.stderr
+
+
+def test_the_console_script_is_cli_console() -> None:
+    import tomllib
+
+    project = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]
+    assert project["scripts"]["hybrid-force"] == "hybrid_force.cli:console"

@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import ast
 import importlib
+import json
 import re
 import subprocess
 import sys
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 import hybrid_force
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_every_public_name_resolves() -> None:
@@ -110,6 +114,112 @@ def test_a_command_loads_cached_kernels_without_numbas_lowering(tmp_path: Path) 
     assert runs[1].stdout.split() == ["7.0", "False"]  # loaded from the cache without them
 
 
+#: A plain ``hybrid-force run`` of an analytic scenario with a bundled URDF arm imports none
+#: of these: numpy.ma (Numba's typeof asked for it, hybrid_force._jit), the figures', replay's
+#: and sweeps' libraries (matplotlib, meshcat, dask), the mesh parts' (trimesh, igl), the other
+#: model readers' (yourdfpy, xacro, mujoco), SciPy's linear algebra and CFFI (hybrid_force._jit).
+NOT_IMPORTED_BY_A_RUN = (
+    "numpy.ma", "matplotlib", "meshcat", "dask", "trimesh", "igl", "yourdfpy", "xacro",
+    "mujoco", "scipy.linalg", "cffi", "pycparser",
+)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def plain_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """What a command's process imported and looked up: ``hybrid-force run`` (its console
+    script's ``main``) of scenarios/paper_contact.toml for 0.01 s, each ``importlib.metadata``
+    look-up of a distribution recorded; with its output folder."""
+    out = tmp_path_factory.mktemp("plain_run")
+    code = (
+        "import json, sys, importlib.metadata as md\n"
+        "looked = []\n"
+        "def recorded(real):\n"
+        "    return lambda name, *a, **k: looked.append(name) or real(name, *a, **k)\n"
+        "md.version, md.distribution = recorded(md.version), recorded(md.distribution)\n"
+        "from hybrid_force.cli import main\n"
+        f"status = main(['run', {str(REPO / 'scenarios' / 'paper_contact.toml')!r}, "
+        f"'--set', 'sim.duration=0.01', '--out', {str(out)!r}, '--quiet'])\n"
+        "print(json.dumps({'status': status, 'modules': sorted(sys.modules), "
+        "'looked_up': looked}))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    report: dict[str, Any] = json.loads(done.stdout.splitlines()[-1])
+    report["out"] = out
+    return report
+
+
+@pytest.mark.parametrize("module", NOT_IMPORTED_BY_A_RUN)
+def test_a_plain_run_does_not_import(plain_run: dict[str, Any], module: str) -> None:
+    assert plain_run["status"] == 0
+    assert "numba" in plain_run["modules"]  # the kernels did load: the run is a real one
+    assert [m for m in plain_run["modules"] if m == module or m.startswith(module + ".")] == []
+
+
+def test_a_plain_run_reads_its_version_without_importlib_metadata(
+    plain_run: dict[str, Any],
+) -> None:
+    # the result's versions come from hybrid_force/_version.py (the test of its one source);
+    # the installed metadata says the same (importlib.metadata, read here, in this process)
+    import importlib.metadata
+
+    from hybrid_force.result import load_result
+
+    assert "hybrid_force" not in plain_run["looked_up"]
+    versions = load_result(plain_run["out"] / "result.npz").meta["versions"]
+    assert versions["hybrid_force"] == importlib.metadata.version("hybrid_force")
+
+
+def test_a_commands_typeof_of_plain_arrays_is_numbas() -> None:
+    # Under own_kernels_only a plain np.ndarray is typed without numpy.ma (hybrid_force._jit);
+    # its Numba type is the one Numba's own ndarray typeof gives (dtype, dimensions, layout,
+    # read-only), and every other array (a subclass, a masked array, an unsupported dtype)
+    # still goes to Numba's: the same type or the same error.
+    code = """
+import sys
+import numpy as np
+from hybrid_force import _jit
+with _jit.own_kernels_only():
+    _jit.jit(_jit._no_op)  # Numba set up as in a command
+import numba
+from numba.core.typing import typeof as nt
+base = np.arange(24.0).reshape(4, 6)
+frozen = np.ones(3)
+frozen.flags.writeable = False
+plain = [base, base.T, base[:, ::2], np.ones(()), frozen, np.zeros(5), np.zeros((2, 3), np.int32),
+         np.zeros(5, np.complex128), np.zeros(4, bool), np.zeros((2, 2, 2), np.float32, order="F")]
+ours = [numba.typeof(a) for a in plain]
+print("numpy.ma" in sys.modules)
+context = nt._TypeofContext(nt.Purpose.argument)
+print(all(t == nt._typeof_ndarray(a, context) for t, a in zip(ours, plain)))
+print(len(set(ours)))
+class Sub(np.ndarray):
+    pass
+others = [base.view(Sub), np.ma.masked_array([1.0, 2.0]), np.zeros(2, dtype="V8")]
+for a in others:
+    try:
+        mine = repr(numba.typeof(a))
+    except Exception as exc:
+        mine = type(exc).__name__ + " " + str(exc)
+    try:
+        theirs = repr(nt._typeof_ndarray(a, context))
+    except Exception as exc:
+        theirs = type(exc).__name__ + " " + str(exc)
+    print(mine == theirs, mine.split()[0])
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[:2] == ["False", "True"]
+    assert int(lines[2]) == 10  # ten different types: every case above is a distinct one
+    assert [line.split()[0] for line in lines[3:]] == ["True", "True", "True"]
+    assert [line.split()[1] for line in lines[3:]] == [
+        "Array(float64,",  # the subclass: typed as an array by Numba (repr)
+        "NumbaTypeError",  # the masked array: refused by Numba
+        "NumbaValueError",  # a dtype Numba has no type for
+    ]
+
+
 def test_module_paths_of_before_the_layers_are_gone() -> None:
     # no alias of a 0.1 module path (hybrid_force.robot, hybrid_force.simulate, ...) is kept
     code = (
@@ -128,11 +238,20 @@ def test_module_paths_of_before_the_layers_are_gone() -> None:
     assert out.stdout.strip() == "ok"
 
 
-def test_version_has_one_source_the_project_metadata() -> None:
-    import hybrid_force
+def test_version_has_one_source_which_the_installed_metadata_reads() -> None:
+    # written in hybrid_force/_version.py alone: pyproject.toml declares the version dynamic
+    # and hatchling reads that file, so the installed metadata (importlib.metadata) says the
+    # same as hybrid_force.__version__, which a command reads without importlib.metadata
+    import importlib.metadata
 
-    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
-    assert hybrid_force.__version__ == pyproject["project"]["version"]
+    from hybrid_force import _version
+
+    pyproject = tomllib.loads((REPO / "pyproject.toml").read_text())
+    assert "version" not in pyproject["project"] and "version" in pyproject["project"]["dynamic"]
+    assert pyproject["tool"]["hatch"]["version"]["path"] == "hybrid_force/_version.py"
+    assert re.fullmatch(r"\d+\.\d+\.\d+", _version.VERSION)
+    assert hybrid_force.__version__ == _version.VERSION
+    assert importlib.metadata.version("hybrid_force") == _version.VERSION
 
 
 def _defined_names(tree: ast.Module) -> set[str]:
@@ -175,9 +294,6 @@ def test_every_name_has_one_home() -> None:
         assert not hasattr(module, "__all__"), name
 
 
-REPO = Path(__file__).resolve().parents[1]
-
-
 def _project() -> dict:
     return tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
 
@@ -185,8 +301,7 @@ def _project() -> dict:
 def test_citation_file_and_changelog_name_the_version_of_the_metadata() -> None:
     import yaml  # PyYAML comes with mkdocs (the test extra)
 
-    version = _project()["version"]
-    assert hybrid_force.__version__ == version
+    version = hybrid_force.__version__  # the one source (the test above)
     citation = yaml.safe_load((REPO / "CITATION.cff").read_text())
     assert citation["cff-version"] == "1.2.0"
     assert citation["version"] == version

@@ -18,7 +18,7 @@ from hybrid_force.geometry.paths import path_types
 from hybrid_force.geometry.surface_base import surface_from_table, surface_types
 from hybrid_force.geometry.surface_path import SurfacePath
 from hybrid_force.model.scenario_robot import RobotTable, per_joint, robot_table
-from hybrid_force.scenario._tables import _INITIAL, _ROBOT, typed_tables
+from hybrid_force.scenario._tables import _INITIAL, _ROBOT, type_keys
 from hybrid_force.settings_reader import check_table, no_effect, typed_table
 
 
@@ -62,7 +62,7 @@ def _surfaces(
     surfaces: list[Any] = []
     checked: list[tuple[str, dict]] = []
     for name, table in _surface_tables(doc, ctx):
-        kind, values = typed_table(ctx, name, table, typed_tables()["surface"])
+        kind, values = typed_table(ctx, name, table, type_keys("surface"))
         try:
             surfaces.append(surface_from_table(surface_types()[kind], name, values, folder))
         except BadInputError as exc:
@@ -92,7 +92,7 @@ def file_surfaces(
 
 def _trajectory(table: object, surfaces: list[Any], ctx: _Context) -> tuple[Any, dict[str, Any]]:
     """[trajectory]: its registered path type built, and its checked table."""
-    kind, values = typed_table(ctx, "trajectory", table, typed_tables()["trajectory"])
+    kind, values = typed_table(ctx, "trajectory", table, type_keys("trajectory"))
     cls = path_types()[kind]
     if issubclass(cls, SurfacePath):
         raw = table if isinstance(table, dict) else {}

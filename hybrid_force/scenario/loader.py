@@ -27,7 +27,7 @@ from hybrid_force.scenario._tables import (
     check_nesting,
     law_keys,
     settings_tables,
-    typed_tables,
+    type_keys,
 )
 from hybrid_force.scenario.overrides import _apply_overrides
 from hybrid_force.settings_reader import check_acting, check_table, read_settings, suggest
@@ -126,14 +126,14 @@ def _build(doc: dict[str, Any], file: Path, ctx: _Context) -> Scenario:
     except BadInputError as exc:
         raise ctx.error("tool.radius", radius, " ".join(str(exc).split())) from None
     path, traj = build._trajectory(doc["trajectory"], surfaces, ctx)
-    keys = {**settings_tables(), "trajectory": typed_tables()["trajectory"][traj["type"]]}
+    keys = {**settings_tables(), "trajectory": type_keys("trajectory")[traj["type"]]}
     values = {t: check_table(ctx, t, doc.get(t, {}), keys[t]) for t in ("control", *SETTINGS)}
     for law in (law for law in law_names() if law in values["control"]):
         keys[f"control.{law}"] = law_keys(law)
         table = values["control"][law]
         values[f"control.{law}"] = check_table(ctx, f"control.{law}", table, keys[f"control.{law}"])
     for table_name, given in surface_tables:  # [surface] or each [[surfaces]] table
-        keys[table_name] = typed_tables()["surface"][given["type"]]
+        keys[table_name] = type_keys("surface")[given["type"]]
         values[table_name] = {k: v for k, v in given.items() if k != "type"}
     check_acting(ctx, doc, {**values, "trajectory": traj}, keys)
     control = build._control_settings(values, doc.get("control", {}), ctx)

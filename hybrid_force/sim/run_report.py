@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
-from hybrid_force._version import installed_version
+from hybrid_force._version import VERSION
 from hybrid_force.control.laws.base import law_spec
 from hybrid_force.control.supervisor import HybridController
 from hybrid_force.errors import (
@@ -57,7 +57,7 @@ __all__ = ["failed_run", "finish_result", "merge_events", "run_failure", "run_me
 def _versions() -> dict:
 
     return {
-        "hybrid_force": installed_version(),
+        "hybrid_force": VERSION,
         "pinocchio": pin.__version__,
         "numpy": np.__version__,
         "python": platform.python_version(),
