@@ -460,7 +460,10 @@ class RemovalObserver:
         count = min(stop, self._last) - first
         if count > 0 and self._tips is not None and self._forces is not None:
             g, tally = self.grid, np.zeros(2, dtype=np.int64)
-            velocities = np.frombuffer(self._kept, dtype=np.float64).reshape(-1, 3)
+            # a copy (6 kB a batch): a view would export the bytes, and a compiling first
+            # call may keep its arguments alive in a cycle past this call (a BufferError on
+            # the next resize, seen once in the tests)
+            velocities = np.frombuffer(self._kept, dtype=np.float64).reshape(-1, 3).copy()
             _K.observe_batch(
                 self._desc, self._tips, self._forces, self.surface_index, velocities, first,
                 count, self._shape, self.pad.radius, self._modulus, self.settings.omega, self.v_ref,
@@ -470,7 +473,6 @@ class RemovalObserver:
             )  # fmt: skip
             self.steps += int(tally[0])
             self.conforming += int(tally[1])
-            del velocities  # the view of the bytes, before they are emptied
         self._kept.clear()
         self._first = stop
 
