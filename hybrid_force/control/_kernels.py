@@ -242,6 +242,8 @@ def clik_velocity(
     p: np.ndarray,
     sample: np.ndarray,
     cfg: np.ndarray,
+    q: np.ndarray,
+    posture: np.ndarray,
     dq_post: np.ndarray,
     Jp: np.ndarray,
     W: np.ndarray,
@@ -252,13 +254,18 @@ def clik_velocity(
     """q̇_d of eq. 27 at the current q_d, as ``DesiredJointPath._derivatives`` (first half).
 
     J6: (6, n) tip Jacobian (rows 0..2 used). p: (3,) tip position. sample: (3, 3) rows
-    p_d, ṗ_d, p̈_d. cfg: (4,) γ, λ², redundant (0 or 1), k_n. dq_post: (n,) q_d ⊖ posture.
+    p_d, ṗ_d, p̈_d. cfg: (5,) γ, λ², redundant (0 or 1), k_n, and 1 when dq_post is to be
+    formed here as q − posture (q, posture: (nq,) = (n,), a Euclidean arm), else 0 (dq_post
+    given: (n,) q_d ⊖ posture, or unused without the posture term).
     Writes J⁻¹ or Jᵀ W into Jp (n, 3), W = (JJᵀ + λ²I)⁻¹ (redundant), N = I − JpJ,
     x = ṗ_d − γ(p − p_d) and q̇_d. Returns the cheap bound of cond(J Jᵀ) (inf if singular).
     """
     p_d, pdot_d = sample[0], sample[1]
     gamma, damping2, redundant, posture_gain = cfg[0], cfg[1], cfg[2] != 0.0, cfg[3]
     n = qd.shape[0]
+    if cfg[4] != 0.0:
+        for j in range(n):
+            dq_post[j] = q[j] - posture[j]
     for r in range(3):
         x[r] = pdot_d[r] - gamma * (p[r] - p_d[r])
     if not redundant:

@@ -374,10 +374,16 @@ class HybridController:
         self._supervised = s.supervisor
         self._exact_model = s.mass_factor == 1.0
         self._subtract = robot.euclidean  # e_q = q − q_d (else pin.difference)
+        # always in contact (no supervisor), the plant's terms as they are and e_q = q − q_d:
+        # after the first call, every step is :meth:`_contact_command`
+        self._steady_contact = not s.supervisor and self._exact_model and self._subtract
+        self._steady = False
         self._next_branch_check = -np.inf
         self._desired = self._sample_desired()
         # the law's input, its fields set at every step
         self._input = LawInput(self._scaled, self._e_q, self._e_q, self._desired)
+        # the law's update only when it has states of its own (Law.update does nothing)
+        self._law_update = None if type(self._law).update is Law.update else self._law.update
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -447,6 +453,8 @@ class HybridController:
             cons: constraint terms at (q, v), or None when they are undefined (free phase
                 far from the surface, e.g. the tip on the cylinder's axis).
         """
+        if self._steady and cons is not None:
+            return self._contact_command(t, q, v, terms, cons)
         if cons is None:
             if self.settings.supervisor is False:
                 raise ControlError(f"constraint undefined at t = {t:.6g} s, q = {q.tolist()}")
@@ -499,6 +507,26 @@ class HybridController:
         inp.cons, inp.e_F, inp.f_d, inp.approach = cons, e_F, st.f_d, approach
         command = law.hybrid(inp)
         self.V = law.V
+        # from now on the contact phase's inputs above stay as they are (same arrays)
+        self._steady = self._steady_contact
+        return command
+
+    def _contact_command(
+        self, t: float, q: np.ndarray, v: np.ndarray, terms: RobotTerms, cons: ConstraintTerms
+    ) -> Command:
+        """:meth:`command` of a run always in contact (no supervisor), once its first call
+        has set the law's input: e_q = q − q_d, the branch check, the law; the phase, f_d,
+        e_F's array and the approach term (none) are those of the first call."""
+        desired = self.desired
+        e_q = np.subtract(q, desired.q, out=self._e_q)
+        if t >= self._next_branch_check:
+            self._next_branch_check = t + _BRANCH_PERIOD
+            self._check_branch(t, terms, cons, e_q)
+        inp = self._input
+        inp.robot, inp.v, inp.desired, inp.cons = terms, v, desired, cons
+        law = self._law
+        command = law.hybrid(inp)
+        self.V = law.V
         return command
 
     def _check_branch(
@@ -539,12 +567,9 @@ class HybridController:
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """Advance the controller's integrators over one step with the force f (k,) [N]."""
-        if self.phase == CONTACT:
-            self._accumulate(f, dt)
-        self._law.update(dt, f)
+        if self.phase == CONTACT:  # F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3)
+            st = self._int
+            _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
+        if self._law_update is not None:
+            self._law_update(dt, f)
         self.clik.advance(dt)
-
-    def _accumulate(self, f: np.ndarray, dt: float) -> None:
-        """F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3), in one compiled call."""
-        st = self._int
-        _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
