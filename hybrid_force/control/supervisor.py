@@ -382,8 +382,6 @@ class HybridController:
         self._desired = self._sample_desired()
         # the law's input, its fields set at every step
         self._input = LawInput(self._scaled, self._e_q, self._e_q, self._desired)
-        # the law's update only when it has states of its own (Law.update does nothing)
-        self._law_update = None if type(self._law).update is Law.update else self._law.update
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -567,9 +565,12 @@ class HybridController:
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """Advance the controller's integrators over one step with the force f (k,) [N]."""
-        if self.phase == CONTACT:  # F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3)
-            st = self._int
-            _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
-        if self._law_update is not None:
-            self._law_update(dt, f)
+        if self.phase == CONTACT:
+            self._accumulate(f, dt)
+        self._law.update(dt, f)
         self.clik.advance(dt)
+
+    def _accumulate(self, f: np.ndarray, dt: float) -> None:
+        """F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3), in one compiled call."""
+        st = self._int
+        _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
