@@ -26,11 +26,13 @@ found by the toolkit's inverse kinematics).
   space, applied as ``qfrc_applied``; steps/s is the steps over the wall time of the
   stepping loop (the model and data made before).
 
-Reported per arm: steps/s of MuJoCo and of each law (best of the repetitions, each repetition
-running MuJoCo and every law in turn, so a slow spell of the machine hits them all), the ratio
-law / MuJoCo (of the best, and the median of the per-repetition ratios), RMS |f − f_d| and the
-RMS position error of the ball's centre (in the plane, and along the normal) over the run and
-after t ≥ 0.5 s, and the load average. Not part of the test suite.
+Reported per arm: steps/s of MuJoCo and of each law (best of the repetitions), the ratio
+law / MuJoCo (of the best, and the paired median: each run of a law is paired with a MuJoCo
+run right beside it, MuJoCo first in even repetitions and second in odd ones, so a slow spell
+of a shared machine hits both runs of a pair; the median of the pairs' ratios), RMS |f − f_d|
+and the RMS position error of the ball's centre (in the plane, and along the normal) over the
+run and after t ≥ 0.5 s, and the load average. MuJoCo's row: every one of its runs (one per
+law and repetition). Not part of the test suite.
 """
 
 from __future__ import annotations
@@ -278,14 +280,20 @@ def main(argv: list[str] | None = None) -> int:
         runs: dict[str, dict[str, list[dict]]] = {
             arm: {name: [] for name in ["mujoco", *laws]} for arm in arms
         }
-        for rep in range(reps):  # in turn: MuJoCo, then every law, per arm, per repetition
+        for rep in range(reps):  # each law beside a MuJoCo run of its own, in both orders
             for arm in arms:
-                runs[arm]["mujoco"].append(tasks[arm].run(duration))
                 for law in laws:
+                    if rep % 2 == 0:
+                        peer = tasks[arm].run(duration)
                     try:
-                        runs[arm][law].append(run_toolkit(arm, law, duration, folder))
+                        run = run_toolkit(arm, law, duration, folder)
                     except Exception as exc:  # a law refused on this arm: reported, not fatal
-                        runs[arm][law].append({"error": f"{type(exc).__name__}: {exc}"})
+                        run = {"error": f"{type(exc).__name__}: {exc}"}
+                    if rep % 2 == 1:
+                        peer = tasks[arm].run(duration)
+                    runs[arm]["mujoco"].append(peer)
+                    run["peer_steps_per_second"] = peer["steps_per_second"]
+                    runs[arm][law].append(run)
             print(f"repetition {rep + 1}/{reps} done (load {os.getloadavg()[0]:.2f})", flush=True)
     out["loadavg_end"] = list(os.getloadavg())
     for arm in arms:
@@ -298,10 +306,9 @@ def main(argv: list[str] | None = None) -> int:
                 rows[name] = {"error": rs[0]["error"]}
                 continue
             best = max(r["steps_per_second"] for r in ok)
-            per_rep = [
-                r["steps_per_second"] / p["steps_per_second"]
-                for r, p in zip(rs, peer, strict=True)
-                if "error" not in r
+            per_rep = [  # each run against its MuJoCo run (MuJoCo's own: 1)
+                r["steps_per_second"] / r.get("peer_steps_per_second", r["steps_per_second"])
+                for r in ok
             ]
             last = ok[-1]
             rows[name] = {
