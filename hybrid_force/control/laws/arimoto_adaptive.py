@@ -371,7 +371,9 @@ class AdaptiveArimotoWorkspace(base.Law):
 
     def log_values(self, out: np.ndarray) -> None:
         """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
-        np.take(self.theta, self._adapted, out=out)
+        # (the indices are the adapted columns', all in range: "clip" only skips the
+        # buffered bounds check of the default mode)
+        self.theta.take(self._adapted, out=out, mode="clip")
 
 
 def build(context: base.LawContext) -> AdaptiveArimotoWorkspace:
