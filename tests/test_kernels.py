@@ -736,6 +736,57 @@ def test_hybrid_controller_fast_equals_reference(
     assert [e.kind for e in fast.events] == [e.kind for e in ref.events]
 
 
+@pytest.mark.parametrize("arm", ARMS)
+def test_hybrid_controller_without_supervisor_steady_path(arms: dict[str, Robot], arm: str) -> None:
+    """``supervisor = false``: after the first call every command takes the steady contact path
+    (``HybridController._contact_command``, the law's input kept from the first call); at
+    random states its commands, V, traces, f_d and CLIK equal the general path's bit for bit
+    (the same controller with that path switched off) and the reference controller's to
+    round-off."""
+    robot, surface, path, q0, qs = _controller_case(arms, arm)
+    con = Constraint(surface)
+    settings = ControlSettings(supervisor=False)
+    fast = HybridController(robot, con, path, q0, settings, dt=DT)
+    general = HybridController(robot, con, path, q0, settings, dt=DT)
+    general._steady_contact = False  # every call through the phase logic of command()
+    ref = ReferenceController(robot, con, path, q0, settings, dt=DT)
+    rng = np.random.default_rng(111)
+    for i, q in enumerate(qs):
+        t = i * DT
+        v = rng.uniform(-0.3, 0.3, robot.nv)
+        terms = robot.terms(q, v, robot.new_data())
+        cons = constraint_terms(con, terms, v)
+        cmd = fast.command(t, q, v, terms, cons)
+        assert fast._steady and not general._steady
+        u0, B, V, trace = cmd.u0.copy(), cmd.B, fast.V, fast.trace
+        assert B is not None and trace is not None
+        B = B.copy()
+        other = general.command(t, q, v, terms, cons)
+        np.testing.assert_array_equal(u0, other.u0)
+        assert other.B is not None
+        np.testing.assert_array_equal(B, other.B)
+        assert V == general.V
+        other_trace = general.trace
+        assert other_trace is not None
+        for name in ("e_q", "s", "s0", "s1", "e_F", "qdot_r", "qddot_r0", "qddot_r_f", "f_d"):
+            np.testing.assert_array_equal(getattr(trace, name), getattr(other_trace, name))
+        ref_cmd = ref.command(t, q, v, terms, cons)
+        assert fast.phase == general.phase == ref.phase == CONTACT
+        assert ref.trace is not None
+        scale = _u0_scale(terms, ref.gains.Kd, ref.trace, ref_cmd.u0, 1.0)
+        _close("controller.u0", u0, ref_cmd.u0, scale)
+        assert ref_cmd.B is not None
+        _close("controller.B", B, ref_cmd.B)
+        _compare_trace(trace, ref.trace, terms.M)
+        np.testing.assert_array_equal(fast.f_d, ref.f_d)
+        f = rng.uniform(5, 15, 1)
+        for c in (fast, general, ref):
+            c.update(DT, f)
+        np.testing.assert_array_equal(fast.clik.q, general.clik.q)
+        _compare_clik(fast.clik, ref.clik)
+    assert [e.kind for e in fast.events] == [e.kind for e in general.events] == ["contact"]
+
+
 # --- 11. constrained dynamics with its factorisation, Baumgarte γ, the run's table -------------
 @pytest.mark.parametrize("k", [1, 2, 3])
 @pytest.mark.parametrize("arm", ["ur5", "panda"])

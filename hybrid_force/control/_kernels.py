@@ -136,6 +136,63 @@ def constraint_one(
 
 
 # --- control (hybrid_force.control.laws.arimoto.arimoto_law) --------------------------------------
+@_inline
+def reference(
+    Q: np.ndarray,
+    Qdot: np.ndarray,
+    Ap: np.ndarray,
+    Apd: np.ndarray,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray,
+    lam: float,
+    beta: float,
+    vectors: np.ndarray,
+    matrices: np.ndarray,
+) -> None:
+    """The reference motion of the modified Arimoto law, eq. 4 and 8 (the first part of
+    :func:`arimoto`, which the adaptive law shares): q̇_r, q̈_r at f = 0, s, s0, s1 and
+    q̈_r,f = β A⁺.
+
+    Q, Qdot: (n, n). v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). e_F, f_d, approach: (k,).
+    lam, beta: Λ, β. Writes rows 1..5 of vectors (≥ 6, n): s, s0, s1, q̇_r, q̈_r0, and
+    matrices[1] (n, k) = q̈_r,f.
+    """
+    s, s0, s1, qdot_r, qddot_r0 = vectors[1], vectors[2], vectors[3], vectors[4], vectors[5]
+    qddot_r_f = matrices[1]
+    n = v.shape[0]
+    k = e_F.shape[0]
+    x = np.empty(n)
+    xdot = np.empty(n)
+    for i in range(n):
+        x[i] = qd[i] - lam * e_q[i]
+        xdot[i] = qdd[i] - lam * (v[i] - qd[i])
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        c = 0.0
+        for j in range(n):
+            a += Q[i, j] * x[j]
+            b += Qdot[i, j] * x[j] + Q[i, j] * xdot[j]
+            c += Q[i, j] * (v[j] - x[j])
+        for m in range(k):
+            a += beta * Ap[i, m] * e_F[m] + Ap[i, m] * approach[m]
+            b += beta * Apd[i, m] * e_F[m] - beta * Ap[i, m] * f_d[m] + Apd[i, m] * approach[m]
+        s1i = 0.0
+        for m in range(k):
+            s1i -= beta * Ap[i, m] * e_F[m]
+            qddot_r_f[i, m] = beta * Ap[i, m]
+        s1[i] = s1i
+        qdot_r[i] = a
+        qddot_r0[i] = b
+        s0[i] = c
+        s[i] = v[i] - a
+
+
 @_jit
 def arimoto(
     M: np.ndarray,
@@ -167,37 +224,11 @@ def arimoto(
     Writes the rows of vectors (6, n): u0, s, s0, s1, q̇_r, q̈_r0, and of matrices (2, n, k):
     B = β M A⁺, q̈_r,f = β A⁺. Returns V = ½ sᵀMs + ½ β e_Fᵀe_F [J].
     """
-    u0, s, s0, s1, qdot_r, qddot_r0 = (
-        vectors[0], vectors[1], vectors[2], vectors[3], vectors[4], vectors[5]
-    )  # fmt: skip
-    B, qddot_r_f = matrices[0], matrices[1]
+    reference(Q, Qdot, Ap, Apd, v, e_q, qd, qdd, e_F, f_d, approach, lam, beta, vectors, matrices)
+    u0, s, qdot_r, qddot_r0 = vectors[0], vectors[1], vectors[4], vectors[5]
+    B = matrices[0]
     n = v.shape[0]
     k = e_F.shape[0]
-    x = np.empty(n)
-    xdot = np.empty(n)
-    for i in range(n):
-        x[i] = qd[i] - lam * e_q[i]
-        xdot[i] = qdd[i] - lam * (v[i] - qd[i])
-    for i in range(n):
-        a = 0.0
-        b = 0.0
-        c = 0.0
-        for j in range(n):
-            a += Q[i, j] * x[j]
-            b += Qdot[i, j] * x[j] + Q[i, j] * xdot[j]
-            c += Q[i, j] * (v[j] - x[j])
-        for m in range(k):
-            a += beta * Ap[i, m] * e_F[m] + Ap[i, m] * approach[m]
-            b += beta * Apd[i, m] * e_F[m] - beta * Ap[i, m] * f_d[m] + Apd[i, m] * approach[m]
-        s1i = 0.0
-        for m in range(k):
-            s1i -= beta * Ap[i, m] * e_F[m]
-            qddot_r_f[i, m] = beta * Ap[i, m]
-        s1[i] = s1i
-        qdot_r[i] = a
-        qddot_r0[i] = b
-        s0[i] = c
-        s[i] = v[i] - a
     for i in range(n):
         acc = g[i]
         for j in range(n):
@@ -242,6 +273,8 @@ def clik_velocity(
     p: np.ndarray,
     sample: np.ndarray,
     cfg: np.ndarray,
+    q: np.ndarray,
+    posture: np.ndarray,
     dq_post: np.ndarray,
     Jp: np.ndarray,
     W: np.ndarray,
@@ -252,13 +285,18 @@ def clik_velocity(
     """q̇_d of eq. 27 at the current q_d, as ``DesiredJointPath._derivatives`` (first half).
 
     J6: (6, n) tip Jacobian (rows 0..2 used). p: (3,) tip position. sample: (3, 3) rows
-    p_d, ṗ_d, p̈_d. cfg: (4,) γ, λ², redundant (0 or 1), k_n. dq_post: (n,) q_d ⊖ posture.
+    p_d, ṗ_d, p̈_d. cfg: (5,) γ, λ², redundant (0 or 1), k_n, and 1 when dq_post is to be
+    formed here as q − posture (q, posture: (nq,) = (n,), a Euclidean arm), else 0 (dq_post
+    given: (n,) q_d ⊖ posture, or unused without the posture term).
     Writes J⁻¹ or Jᵀ W into Jp (n, 3), W = (JJᵀ + λ²I)⁻¹ (redundant), N = I − JpJ,
     x = ṗ_d − γ(p − p_d) and q̇_d. Returns the cheap bound of cond(J Jᵀ) (inf if singular).
     """
     p_d, pdot_d = sample[0], sample[1]
     gamma, damping2, redundant, posture_gain = cfg[0], cfg[1], cfg[2] != 0.0, cfg[3]
     n = qd.shape[0]
+    if cfg[4] != 0.0:
+        for j in range(n):
+            dq_post[j] = q[j] - posture[j]
     for r in range(3):
         x[r] = pdot_d[r] - gamma * (p[r] - p_d[r])
     if not redundant:

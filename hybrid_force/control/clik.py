@@ -245,13 +245,19 @@ class DesiredJointPath:
         self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
         self.qd = np.zeros(n)
         self.qdd = np.zeros(n)
-        # settings and path sample as small arrays (fewer kernel arguments)
+        # settings and path sample as small arrays (fewer kernel arguments); the last entry
+        # of the settings: the kernel forms q_d − posture itself (a Euclidean arm's)
         cfg = self.settings
         gain = cfg.posture_gain if self._redundant else 0.0
-        self._cfg = np.array([cfg.gamma, cfg.damping**2, float(self._redundant), gain])
+        subtract = float(gain > 0.0 and robot.euclidean)
+        self._cfg = np.array([cfg.gamma, cfg.damping**2, float(self._redundant), gain, subtract])
         self._sample = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
         self._sample[:] = path.evaluate(self.t)
         self.p_d, self.pdot_d, self.pddot_d = self._sample
+        # q_d ⊖ posture by pin.difference in Python (a non-Euclidean arm with a posture term)
+        self._difference = gain > 0.0 and not robot.euclidean
+        # what each step passes to Pinocchio and the kernels, looked up once
+        self._step_args = (robot.model, self._data, robot.tip_id, robot.euclidean)
 
     def _tip_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         model, data, fid = self.robot.model, self._data, self.robot.tip_id
@@ -262,28 +268,23 @@ class DesiredJointPath:
     def _update_derivatives(self) -> None:
         """q̇_d (eq. 27) and q̈_d, its exact time derivative, at (t, q_d), written in place
         (the algebra of the module docstring, compiled)."""
-        robot, data, cfg = self.robot, self._data, self.settings
-        model, fid, q = robot.model, robot.tip_id, self.q
-        K = _K
+        model, data, fid, _ = self._step_args
+        q, qd, K = self.q, self.qd, _K
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacement(model, data, fid)
-        p = self._tip
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-        if self._redundant and cfg.posture_gain > 0.0:
-            if robot.euclidean:
-                np.subtract(q, self.posture, out=self._dq_post)
-            else:
-                self._dq_post[:] = pin.difference(model, self.posture, q)
+        if self._difference:  # (a Euclidean arm's q_d − posture is formed in the kernel)
+            self._dq_post[:] = pin.difference(model, self.posture, q)
         cond = K.clik_velocity(
-            J6, p, self._sample, self._cfg, self._dq_post, self._Jp, self._W, self._N, self._x,
-            self.qd,
+            J6, self._tip, self._sample, self._cfg, q, self.posture, self._dq_post, self._Jp,
+            self._W, self._N, self._x, qd,
         )  # fmt: skip
         if not cond < _COND_MAX:  # the cheap bound of cond(J Jᵀ); the SVD names the values
-            _check_conditioning(J6[:3], self.t, q, robot)
-        pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
+            _check_conditioning(J6[:3], self.t, q, self.robot)
+        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
         K.clik_acceleration(
             J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), self._Jp, self._W,
-            self._N, self._x, self.qd, self._sample, self._cfg, self._dq_post, self.qdd, q,
+            self._N, self._x, qd, self._sample, self._cfg, self._dq_post, self.qdd, q,
             self._dt_pred, self._q_pred,
         )  # fmt: skip
 
@@ -295,23 +296,22 @@ class DesiredJointPath:
 
     def _advance(self, dt: float) -> None:
         """:meth:`advance` once t is updated: path sample, predictor, Newton, derivatives."""
-        robot, data = self.robot, self._data
-        model, q_pred = robot.model, self._q_pred
-        K = _K
-        if robot.euclidean:
+        model, data, fid, euclidean = self._step_args
+        q_pred, K = self._q_pred, _K
+        if euclidean:
             if dt != self._dt_pred:  # otherwise the last step's kernel made the predictor
                 K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
                 self._dt_pred = dt
         else:
             q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
         pin.forwardKinematics(model, data, q_pred)
-        pin.updateFramePlacement(model, data, robot.tip_id)
+        pin.updateFramePlacement(model, data, fid)
         p = self._tip
         desc = self.path._descriptor
-        if desc.shape[0] == 0 or not robot.euclidean:  # the path sample in Python
+        if desc.shape[0] == 0 or not euclidean:  # the path sample in Python
             self.path.evaluate_into(self.t, self.p_d, self.pdot_d, self.pddot_d)
             desc = _NO_DESCRIPTOR
-        if robot.euclidean:
+        if euclidean:
             # (a path with a descriptor is sampled at t inside this call)
             K.newton_step(desc, self.t, self._sample, q_pred, self._Jp, p, self.q)
         else:

@@ -173,6 +173,7 @@ class Constraint:
         self._tip_scaling = normalization == "tip"
         # scratch ∇Φ and ∇²Φ written by the compiled evaluation (k = 1)
         self._grad, self._hess = np.zeros(3), np.zeros((3, 3))
+        self._one = len(self.surfaces) == 1  # evaluate() in one compiled call
 
     @property
     def k(self) -> int:
@@ -205,7 +206,7 @@ class Constraint:
             SurfaceError: ∇Φ vanishes at the tip, J_Φ is (near) zero, or the
                 stacked rows are dependent.
         """
-        if self.k == 1:
+        if self._one:
             return self._evaluate_one(terms, v, out)
         return self._evaluate_stacked(terms, v)
 
@@ -306,8 +307,10 @@ class Constraint:
             value, grad, hess, distance = surface.evaluate_with_distance(terms.p)
             scalars[0, 0] = value
             scalars[1, 0] = distance
-        packs = terms.packed()._packs
-        assert packs is not None  # packed() always returns terms with their packs
+        packs = terms._packs
+        if packs is None:  # terms not made by RobotTerms.zeros: a packed copy
+            packs = terms.packed()._packs
+            assert packs is not None  # packed() always returns terms with their packs
         _, _, jac, tip = packs
         grad_norm, row_norm, jmax = _K.constraint_one(
             desc, grad, hess, jac, tip, v, self._tip_scaling, rows, cols, squares, scalars

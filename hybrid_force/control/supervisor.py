@@ -374,6 +374,10 @@ class HybridController:
         self._supervised = s.supervisor
         self._exact_model = s.mass_factor == 1.0
         self._subtract = robot.euclidean  # e_q = q − q_d (else pin.difference)
+        # always in contact (no supervisor), the plant's terms as they are and e_q = q − q_d:
+        # after the first call, every step is :meth:`_contact_command`
+        self._steady_contact = not s.supervisor and self._exact_model and self._subtract
+        self._steady = False
         self._next_branch_check = -np.inf
         self._desired = self._sample_desired()
         # the law's input, its fields set at every step
@@ -447,6 +451,8 @@ class HybridController:
             cons: constraint terms at (q, v), or None when they are undefined (free phase
                 far from the surface, e.g. the tip on the cylinder's axis).
         """
+        if self._steady and cons is not None:
+            return self._contact_command(t, q, v, terms, cons)
         if cons is None:
             if self.settings.supervisor is False:
                 raise ControlError(f"constraint undefined at t = {t:.6g} s, q = {q.tolist()}")
@@ -497,6 +503,26 @@ class HybridController:
         e_F = self._e_F  # F − F_d, kept up to date by update()
         self._last = (e_q, e_F, st.f_d)
         inp.cons, inp.e_F, inp.f_d, inp.approach = cons, e_F, st.f_d, approach
+        command = law.hybrid(inp)
+        self.V = law.V
+        # from now on the contact phase's inputs above stay as they are (same arrays)
+        self._steady = self._steady_contact
+        return command
+
+    def _contact_command(
+        self, t: float, q: np.ndarray, v: np.ndarray, terms: RobotTerms, cons: ConstraintTerms
+    ) -> Command:
+        """:meth:`command` of a run always in contact (no supervisor), once its first call
+        has set the law's input: e_q = q − q_d, the branch check, the law; the phase, f_d,
+        e_F's array and the approach term (none) are those of the first call."""
+        desired = self.desired
+        e_q = np.subtract(q, desired.q, out=self._e_q)
+        if t >= self._next_branch_check:
+            self._next_branch_check = t + _BRANCH_PERIOD
+            self._check_branch(t, terms, cons, e_q)
+        inp = self._input
+        inp.robot, inp.v, inp.desired, inp.cons = terms, v, desired, cons
+        law = self._law
         command = law.hybrid(inp)
         self.V = law.V
         return command

@@ -11,6 +11,8 @@ direction for runs with a ``[tool]`` table.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
@@ -58,6 +60,12 @@ class ControlSide:
         self.period = period
         self.f_meas = np.zeros(len(sc.tool_surfaces))
         self.max_dist = sc.control.max_dist
+        #: update(dt, f): the integrators over one plant step of dt [s] with the force f (k,)
+        #: [N]; exact: the supervisor's own method (one Python call per step, not two);
+        #: sampled: nothing, a sampled controller advances its own at its ticks
+        self.update: Callable[[float, np.ndarray], None] = (
+            law.update if law is not None and not self.measured else _no_update
+        )
 
     @property
     def events(self) -> list[Event]:
@@ -92,10 +100,6 @@ class ControlSide:
         """A measured controller's command at plant step i (:class:`SampledControl`)."""
         raise NotImplementedError
 
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """The integrators over one plant step of dt [s] with the force f (k,) [N] (none by
-        default: a sampled controller advances its own at its ticks)."""
-
     def phase(self, distance: np.ndarray) -> int:
         """The phase logged off the surface: the supervisor's (free or near), or for a user's
         controller near when the tip's distances (k,) [m] are within ``control.max_dist``."""
@@ -107,13 +111,10 @@ class ControlSide:
 class ExactControl(ControlSide):
     """Ideal sensing at the plant's rate: the law's command is affine in the force the plant
     will produce (u = u0 + B f) and the plant resolves that loop exactly (the paper's runs;
-    :meth:`ControlSide.command`)."""
+    :meth:`ControlSide.command`); its ``update`` is the supervisor's integrators' (eq. 3, the
+    law's own states, the CLIK)."""
 
     law: HybridController
-
-    def update(self, dt: float, f: np.ndarray) -> None:
-        """The supervisor's integrators over one plant step with the plant's force f (k,)."""
-        self.law.update(dt, f)
 
 
 class SampledControl(ControlSide):
@@ -199,6 +200,10 @@ def build_control_side(sc: Scenario, user: Controller | None, q: np.ndarray) -> 
         return ExactControl(sc, law, None, own, model_robot, sim.dt)
     assert own is not None
     return SampledControl(sc, law, user, own, model_robot, per_tick)
+
+
+def _no_update(dt: float, f: np.ndarray) -> None:
+    """The update of a sampled control side at a plant step: nothing (see ControlSide)."""
 
 
 def _user_torque(

@@ -115,6 +115,9 @@ def simulate(
         meta[LAW_LOG_NAMES] = list(log.law_signals)
     f = np.zeros(k)  # the plant's force at the last step: what the force sensor reads
     report_every = max(1, N // 100)
+    # the step's methods, looked up once
+    evaluate, command, accelerate = plant.evaluate, ctrl.command, plant.accelerate
+    record, update, advance = log.record, ctrl.update, plant.advance
     wall0 = wall1 = time.perf_counter()
     t, i = 0.0, 0
     # the Python warnings raised inside the loop (a wrong branch, numpy's): recorded with the
@@ -122,26 +125,27 @@ def simulate(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         checks = SampleChecks(sc, caught)
+        check = checks.check
         try:
             for i in range(N):
                 t = i * dt
                 # 1. the plant's state: its terms and constraint rows (never seen by the controller)
-                terms, cons = plant.evaluate(q, v)
+                terms, cons = evaluate(q, v)
                 # 2. sense and control: u = u0 + B f (exact loop) or a held torque (sampled)
-                cmd = ctrl.command(i, t, q, v, terms, cons, f)
+                cmd = command(i, t, q, v, terms, cons, f)
                 # 3. the plant: q̈ and the contact force, together; release if it would pull
-                ddq, f = plant.accelerate(terms, cons, cmd, t)
+                ddq, f = accelerate(terms, cons, cmd, t)
                 # 4. record sample i, then check it
                 distance = cons.distance if cons is not None else plant.distance(q)
-                ok = log.record(i, t, q, v, terms, cmd, f, distance)
-                checks.check(t, ok, q, v, f)
+                ok = record(i, t, q, v, terms, cmd, f, distance)
+                check(t, ok, q, v, f)
                 if i == N - 1:
                     break
                 if i == 1:
                     wall1 = time.perf_counter()  # steps 0 and 1 loaded (or compiled) the kernels
                 # 5. integrate: the controller's integrators, then the plant's (q, v) at t + dt
-                ctrl.update(dt, f)
-                q, v = plant.advance(q, v, ddq, cmd, t, dt, distance)
+                update(dt, f)
+                q, v = advance(q, v, ddq, cmd, t, dt, distance)
                 if progress is not None and i % report_every == 0:
                     progress(i / N)
         except BaseException as exc:  # whatever stopped the run, keep what it computed

@@ -103,6 +103,15 @@ class Record:
         self.filled = 0
         if self.removal is not None:  # it reads the recorded tip and force in batches
             self.removal.attach(self.p, self.f)
+        # what a sample holds besides the table's row: decided once, not tested per sample
+        self._extras = (
+            self.f_meas is not None
+            or self._log_law is not None
+            or self._tool is not None
+            or self.removal is not None
+        )
+        # the desired point is the law's own CLIK sample (the law runs at every plant step)
+        self._own_p_d = self._clik is not None and not ctrl.measured
 
     def record(
         self,
@@ -122,26 +131,37 @@ class Record:
         Returns True when q, v, f are finite, |v_i| ≤ max_velocity and |f_m| ≤ max_force
         (otherwise :func:`~hybrid_force.sim.run_checks.check_finite` says which).
         """
-        plant, ctrl, law, clik = self._plant, self._ctrl, self._law, self._clik
-        applied = plant.applied
+        plant, law, clik = self._plant, self._law, self._clik
+        applied, B = plant.applied, cmd.B
         ok = _K.record_row(
             self.table, i, t, q, v,
             clik.q if clik is not None else self._no_q_d,
             # the command u0 + B f: the applied torque unless the effort limits changed it
-            cmd.u0, self._no_B if cmd.B is None else cmd.B,
+            cmd.u0, self._no_B if B is None else B,
             f, terms.p,
             # sampled: the desired point now, not the one of the last tick (held 1/rate s)
-            clik.p_d if clik is not None and not ctrl.measured else self._path.position(t),
+            clik.p_d if self._own_p_d and clik is not None else self._path.position(t),
             law.f_d if law is not None else self._task_f_d,
             distance,
             law.V if law is not None else np.nan,
             # the plant's contact state: a tool off the surface is never logged in contact
-            CONTACT if plant.in_contact else ctrl.phase(distance),
+            CONTACT if plant.in_contact else self._ctrl.phase(distance),
             self.max_velocity, self.max_force,
             self._no_u if applied is None else applied,
             # the commanded torque, before the limits (row i; no rows: no limits)
             self._u_cmd,
         )  # fmt: skip
+        if self._extras:
+            self._record_extras(i, t, q, terms, f)
+        self.filled = i + 1
+        return bool(ok)
+
+    def _record_extras(
+        self, i: int, t: float, q: np.ndarray, terms: RobotTerms, f: np.ndarray
+    ) -> None:
+        """Sample i of what the run keeps beside the table (measured force, the law's signals,
+        the tool's angle, the removal)."""
+        ctrl = self._ctrl
         if self.f_meas is not None:
             self.f_meas[i] = ctrl.f_meas
         if self._log_law is not None:
@@ -152,8 +172,6 @@ class Record:
             self.tool_angle[i] = self._tool.angle(t, q)
         if self.removal is not None:  # the tip, its velocity J v and the contact force
             self.removal.observe(i, terms.p, terms.pdot, f)
-        self.filled = i + 1
-        return bool(ok)
 
     def result(self, n: int, meta: dict, k: int) -> Result:
         """The first n samples as a Result with ``meta``; k: the constraint's rows."""

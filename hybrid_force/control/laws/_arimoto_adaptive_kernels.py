@@ -25,7 +25,7 @@ import numpy as np
 
 from hybrid_force._jit import jit as _jit
 from hybrid_force._jit import jit_inline as _inline
-from hybrid_force.control._kernels import arimoto
+from hybrid_force.control._kernels import reference
 from hybrid_force.control._linalg_kernels import dot
 
 #: Layout of the law's parameter vector ``params`` (7,): the gains, whether q = q_d + e_q, Z_ref,
@@ -35,15 +35,10 @@ LAMBDA, BETA, GAMMA, EUCLIDEAN, ENERGY, SIGMA, Z_MIN = range(7)
 
 @_jit
 def reference_velocities(
-    M: np.ndarray,
-    C: np.ndarray,
-    g: np.ndarray,
-    Kd: np.ndarray,
     Q: np.ndarray,
     Qdot: np.ndarray,
     Ap: np.ndarray,
     Apd: np.ndarray,
-    A: np.ndarray,
     v: np.ndarray,
     e_q: np.ndarray,
     q_d: np.ndarray,
@@ -57,20 +52,19 @@ def reference_velocities(
     matrices: np.ndarray,
     q: np.ndarray,
 ) -> None:
-    """The paper's law's q̇_r, q̈_r0, s, s0, s1 (its kernel ``control._kernels.arimoto``, whose
-    u0 with the model's M, C, g is overwritten by :func:`adaptive_command`) and the regressor's
-    inputs.
+    """The paper's law's q̇_r, q̈_r0, s, s0, s1 (its reference motion,
+    ``control._kernels.reference``) and the regressor's inputs.
 
-    M, C, Kd, Q, Qdot: (n, n). g, v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). A: (k, n). e_F, f_d,
-    approach: (k,) (the free-space law: Q = I, Q̇ = 0, k = 0). q_d: (nq,). params: (7,) (Λ, β, γ,
-    1.0 when q = q_d + e_q, …: the module's layout). Writes the rows of vectors (8, n): u0 (of
-    the model), s, s0, s1, q̇_r, q̈_r0 (``arimoto``'s six), (q̇ + q̇_r)/2, s/2 = (q̇ − q̇_r)/2; of
-    matrices (2, n, k): β M A⁺ (unused), q̈_r,f = β A⁺; and, when params[EUCLIDEAN] is 1,
-    q = q_d + e_q (nq = n; else q is left as is).
+    Q, Qdot: (n, n). v, e_q, qd, qdd: (n,). Ap, Apd: (n, k). e_F, f_d, approach: (k,) (the
+    free-space law: Q = I, Q̇ = 0, k = 0). q_d: (nq,). params: (7,) (Λ, β, γ, 1.0 when
+    q = q_d + e_q, …: the module's layout). Writes rows 1..7 of vectors (8, n): s, s0, s1,
+    q̇_r, q̈_r0 (the paper's law's rows), (q̇ + q̇_r)/2, s/2 = (q̇ − q̇_r)/2 (row 0, u0, is
+    :func:`adaptive_command`'s); matrices[1] (n, k) = q̈_r,f = β A⁺ (matrices[0] is not
+    used); and, when params[EUCLIDEAN] is 1, q = q_d + e_q (nq = n; else q is left as is).
     """
-    arimoto(
-        M, C, g, Kd, Q, Qdot, Ap, Apd, A, v, e_q, qd, qdd, e_F, f_d, approach, params[LAMBDA],
-        params[BETA], params[GAMMA], vectors[:6], matrices,
+    reference(
+        Q, Qdot, Ap, Apd, v, e_q, qd, qdd, e_F, f_d, approach, params[LAMBDA], params[BETA],
+        vectors, matrices,
     )  # fmt: skip
     s, qdot_r = vectors[1], vectors[4]
     w_plus, w_minus = vectors[6], vectors[7]

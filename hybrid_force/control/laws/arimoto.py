@@ -183,13 +183,13 @@ class LawWorkspace(base.Law):
         """Eq. 4, 8, 11 with the loop in f kept explicit (module docstring), plus A⁺·approach
         in q̇_r (and Ȧ⁺·approach in q̈_r) in the near phase."""
         approach = self._zeros_k if inp.approach is None else inp.approach
-        self._run(inp, (inp.rows, inp.e_F, inp.f_d, approach, self._matrices))
+        self._run(inp, inp.rows, inp.e_F, inp.f_d, approach, self._matrices)
         self.in_contact_law = True
         return self._hybrid
 
     def free_space(self, inp: base.LawInput) -> base.Command:
         """Eq. 29–30: q̇_r = q̇_d − Λ e_q, s = q̇ − q̇_r, u = M q̈_r + C q̇_r + g − K_d s."""
-        self._run(inp, self._free_rows)
+        self._run(inp, *self._free_rows)
         self.in_contact_law = False
         return self._free
 
@@ -198,8 +198,16 @@ class LawWorkspace(base.Law):
         g = self.gains
         return {"Kd": g.Kd.tolist(), "Lambda": g.Lambda, "beta": g.beta, "gamma": g.gamma}
 
-    def _run(self, inp: base.LawInput, rows: KernelRows) -> None:
-        cons, e_F, f_d, approach, matrices = rows
+    def _run(
+        self,
+        inp: base.LawInput,
+        cons: ConstraintTerms,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray,
+        matrices: np.ndarray,
+    ) -> None:
+        """One call of the kernel with the rows of :data:`KernelRows` (k = 0: free space)."""
         g, robot, desired = self.gains, inp.robot, inp.desired
         self.V = _K.arimoto(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,

@@ -109,12 +109,12 @@ _SIGMA = 5  # σ's place in the compiled law's parameters (_arimoto_adaptive_ker
 
 
 _AdaptiveRows = tuple[
-    ConstraintTerms, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-    np.ndarray,
+    ConstraintTerms, np.ndarray, np.ndarray, np.ndarray,
+    tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ]  # fmt: skip
 """What one call of the law reads besides its input: the constraint terms, e_F, f_d, the
-approach speeds (k,), and the buffers it writes: matrices (2, n, k), Y_A (k, n, p), B (n, k),
-gradients (1 + k, p); k = 0 in free space."""
+approach speeds (k,), and the buffers it writes (matrices (2, n, k), Y_A (k, n, p), B (n, k),
+gradients (1 + k, p)); k = 0 in free space."""
 
 
 @dataclass(frozen=True)
@@ -191,7 +191,7 @@ class AdaptiveArimotoWorkspace(base.Law):
     the law needs (three in free space) between two compiled calls, and one compiled update,
     all writing into arrays preallocated here.
 
-    Per call: :func:`~._arimoto_adaptive_kernels.reference_velocities` (the paper's kernel:
+    Per call: :func:`~._arimoto_adaptive_kernels.reference_velocities` (the paper's reference:
     q̇_r, q̈_r0, s, s0, s1, and the passes' inputs); Pinocchio's joint-torque regressor twice for
     Y (the two-pass polarisation of that module's docstring, not the oracle's three), once
     per constraint row for Y_M(q, A⁺_j), and its kinetic energy regressor at s for ½ sᵀ M̂ s;
@@ -243,9 +243,12 @@ class AdaptiveArimotoWorkspace(base.Law):
         )  # fmt: skip
         self._zeros_k = np.zeros(k)
         self._no_force = np.zeros(0)
+        # the buffers each law writes (matrices, Y_A, B, gradients), and the free-space law's
+        # inputs besides its LawInput (_AdaptiveRows)
+        self._hybrid_buffers = (self._matrices, self._Y_A, self.B, self._gradients)
         self._free_rows: _AdaptiveRows = (
             free_space_rows(n), self._no_force, self._no_force, self._no_force,
-            self._free_matrices, self._free_Y_A, self._free_B, self._free_gradients,
+            (self._free_matrices, self._free_Y_A, self._free_B, self._free_gradients),
         )  # fmt: skip
         self._hybrid = base.Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
         self._free = base.Command(u0=self.u0, B=None)
@@ -255,7 +258,8 @@ class AdaptiveArimotoWorkspace(base.Law):
         # same structure; each pass sets what it reads): less memory touched per step
         self._pin_args = (
             regressor.model, regressor.data, regressor.model0, pin.computeJointTorqueRegressor,
-            regressor.zeros, self._vectors[6], self._vectors[7],
+            regressor.zeros, self._vectors[6], self._vectors[7], self._qddot_r0, self._s,
+            gains.beta > 0,
         )  # fmt: skip
         self._Gamma, self._floor = adaptation.Gamma, adaptation.floor
 
@@ -266,7 +270,7 @@ class AdaptiveArimotoWorkspace(base.Law):
 
     def free_space(self, inp: base.LawInput) -> base.Command:
         """Eq. 29–30 adapted: u = Y(q, q̇, q̇_r, q̈_r) θ̂ − K_d s, q̇_r = q̇_d − Λ e_q."""
-        self.V = self._run(inp, self._free_rows)
+        self.V = self._run(inp, *self._free_rows)
         self.in_contact_law = False
         return self._free
 
@@ -274,41 +278,46 @@ class AdaptiveArimotoWorkspace(base.Law):
         """Eq. 4, 8, 11 adapted (module docstring): q̇_r, q̈_r (at f = 0) and s are the paper's
         law's own."""
         approach = self._zeros_k if inp.approach is None else inp.approach
-        self.V = self._run(
-            inp, (inp.rows, inp.e_F, inp.f_d, approach, self._matrices, self._Y_A, self.B,
-                  self._gradients),
-        )  # fmt: skip
+        self.V = self._run(inp, inp.rows, inp.e_F, inp.f_d, approach, self._hybrid_buffers)
         self.in_contact_law = True
         return self._hybrid
 
-    def _run(self, inp: base.LawInput, rows: _AdaptiveRows) -> float:
-        """One call of the law into the given buffers, returning V (k = 0: :meth:`free_space`)."""
-        cons, e_F, f_d, approach, matrices, Y_A, B, gradients = rows
-        robot, desired, v, e_q = inp.robot, inp.desired, inp.v, inp.e_q
-        g, q, vectors, params = self.gains, self._q, self._vectors, self._params
+    def _run(
+        self,
+        inp: base.LawInput,
+        cons: ConstraintTerms,
+        e_F: np.ndarray,
+        f_d: np.ndarray,
+        approach: np.ndarray,
+        buffers: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    ) -> float:
+        """One call of the law with the inputs and buffers of :data:`_AdaptiveRows`, returning V
+        (k = 0: :meth:`free_space`)."""
+        matrices, Y_A, B, gradients = buffers
+        desired, e_q, q = inp.desired, inp.e_q, self._q
         if not self._euclidean:
             q[:] = pin.integrate(self._model, desired.q, e_q)
+        vectors, params = self._vectors, self._params
         _K.reference_velocities(
-            robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
-            cons.A, v, e_q, desired.q, desired.qd, desired.qdd, e_F, f_d, approach, params,
-            vectors, matrices, q,
+            cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot, inp.v, e_q, desired.q, desired.qd,
+            desired.qdd, e_F, f_d, approach, params, vectors, matrices, q,
         )  # fmt: skip
-        model, data, model0, regress, zeros, w_plus, w_minus = self._pin_args
-        Y_plus = regress(model, data, q, w_plus, self._qddot_r0)
+        model, data, model0, regress, zeros, w_plus, w_minus, qddot_r0, s, beta = self._pin_args
+        Y_plus = regress(model, data, q, w_plus, qddot_r0)
         Y_minus = regress(model0, data, q, w_minus, zeros)
-        k = Y_A.shape[0]
-        if g.beta > 0:
+        if beta:
+            k = Y_A.shape[0]
             if k == 1:  # the pass's own array, seen as (1, n, p): no copy
                 Y_A = regress(model0, data, q, zeros, cons.A_pinv[:, 0])[None]
             else:
                 Ap = cons.A_pinv
                 for j in range(k):
                     Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
-        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, self._s)
+        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, s)
         self._called = True
         return _K.adaptive_command(
-            Y_plus, Y_minus, Y_A, kinetic, self.theta, g.Kd, robot.M, cons.A, desired.qd, e_F,
-            f_d, params, vectors, B, gradients,
+            Y_plus, Y_minus, Y_A, kinetic, self.theta, self.gains.Kd, inp.robot.M, cons.A,
+            desired.qd, e_F, f_d, params, vectors, B, gradients,
         )  # fmt: skip
 
     def update(self, dt: float, f: np.ndarray) -> None:
@@ -362,7 +371,9 @@ class AdaptiveArimotoWorkspace(base.Law):
 
     def log_values(self, out: np.ndarray) -> None:
         """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
-        out[:] = self.theta[self._adapted]
+        # (the indices are the adapted columns', all in range: "clip" only skips the
+        # buffered bounds check of the default mode)
+        self.theta.take(self._adapted, out=out, mode="clip")
 
 
 def build(context: base.LawContext) -> AdaptiveArimotoWorkspace:
