@@ -3,7 +3,7 @@ same run on the analytic surface, building a large part's field, reloading it fr
 
 Run from the repository root:
 
-    python benchmarks/bench_mesh.py [--quick] [--json PATH]
+    python benchmarks/bench_mesh.py [--quick] [--only build] [--json PATH]
 
 Reports, in one run on one machine:
 
@@ -15,7 +15,10 @@ Reports, in one run on one machine:
    1024-section cylinder mesh and a cylindrical chart (same coordinates), steps per second of
    the stepping loop (``meta["steps_per_second"]``), runs alternated, best of the repetitions;
 3. building the field of a 200,000-face part (a torus, R = 0.2 m, r = 0.05 m) at 2 mm, and
-   reloading it from the cache (the wall time of ``build_field`` with the file there).
+   reloading it from the cache (the wall time of ``build_field`` with the file there), with
+   curved facets (the default) and flat ones.
+
+``--only query,pipe,build`` runs some of the three.
 
 Not part of the test suite: timings depend on the machine's load.
 """
@@ -118,7 +121,7 @@ def _panda_pipe(repetitions: int, duration: float) -> dict[str, object]:
     }
 
 
-def _build_and_reload() -> dict[str, float]:
+def _build_and_reload(facets: str) -> dict[str, float]:
     from hybrid_force.geometry.mesh_field import build_field, read_mesh
 
     folder = Path(tempfile.mkdtemp())
@@ -129,10 +132,10 @@ def _build_and_reload() -> dict[str, float]:
     torus.export(folder / "torus.stl")
     part = read_mesh(folder / "torus.stl")
     start = time.perf_counter()
-    field = build_field(part, 0.002)
+    field = build_field(part, 0.002, facets=facets)
     build = time.perf_counter() - start
     start = time.perf_counter()
-    again = build_field(part, 0.002)
+    again = build_field(part, 0.002, facets=facets)
     reload = time.perf_counter() - start
     assert np.array_equal(again.coefficients, field.coefficients)
     nx, ny, nz = field.shape
@@ -149,15 +152,39 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions, shorter runs")
     parser.add_argument("--json", default=None, help="write the numbers to this file")
+    parser.add_argument("--only", default="query,pipe,build", help="which parts to run")
     args = parser.parse_args()
+    parts = set(args.only.split(","))
     out: dict[str, object] = {}
-    query = _query_cost(200_000 if args.quick else 1_000_000)
+    if "query" in parts:
+        _print_query(out, args.quick)
+    if "pipe" in parts:
+        _print_pipe(out, args.quick)
+    if "build" in parts:
+        for facets in ("curved", "flat"):
+            big = _build_and_reload(facets)
+            out[f"build_{facets}"] = big
+            print(
+                f"200k-face torus ({big['faces']:.0f} faces) at 2 mm, {facets} facets: "
+                f"{big['nodes']:,.0f} nodes, built in {big['build_s']:.1f} s, reloaded from the "
+                f"cache in {big['reload_s']:.3f} s ({big['cache_MB']:.0f} MB)",
+                flush=True,
+            )
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=2))
+
+
+def _print_query(out: dict[str, object], quick: bool) -> None:
+    query = _query_cost(200_000 if quick else 1_000_000)
     out["query"] = query
     print(
         f"Φ, ∇Φ, ∇²Φ per query: {query['compiled_us']:.3f} µs compiled, "
         f"{query['python_call_us']:.2f} µs per MeshSurface.evaluate call from Python"
     )
-    pipe = _panda_pipe(2 if args.quick else 4, 3.0 if args.quick else 6.0)
+
+
+def _print_pipe(out: dict[str, object], quick: bool) -> None:
+    pipe = _panda_pipe(2 if quick else 4, 3.0 if quick else 6.0)
     out["panda_pipe"] = pipe
     rates = pipe["steps_per_second"]
     assert isinstance(rates, dict)
@@ -166,15 +193,6 @@ def main() -> None:
         f"{rates['mesh']:.0f} steps/s: {100 * float(pipe['ratio']):.0f} % "  # type: ignore[arg-type]
         f"(force error after 1 s: {pipe['force_error_after_1s']})"
     )
-    big = _build_and_reload()
-    out["build"] = big
-    print(
-        f"200k-face torus ({big['faces']:.0f} faces) at 2 mm: {big['nodes']:,.0f} nodes, "
-        f"built in {big['build_s']:.1f} s, reloaded from the cache in {big['reload_s']:.3f} s "
-        f"({big['cache_MB']:.0f} MB)"
-    )
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=2))
 
 
 if __name__ == "__main__":
