@@ -279,6 +279,15 @@ def test_bad_mesh_files_are_refused_naming_key_and_file(tmp_path: Path) -> None:
         read_mesh(box, scale=1e6)
 
 
+def test_bad_facet_settings_are_refused_naming_the_key(sphere_file: Path) -> None:
+    part = read_mesh(sphere_file)
+    with pytest.raises(SurfaceError, match=r"surface\.facets: must be one of curved, flat"):
+        build_field(part, 0.05, facets="round", cache=False)
+    for bad in (-1.0, 181.0, float("nan"), "30", True):
+        with pytest.raises(SurfaceError, match=r"surface\.crease_angle: must be a number in"):
+            build_field(part, 0.05, crease_angle=bad, cache=False)  # type: ignore[arg-type]
+
+
 def test_a_grid_above_the_memory_bound_is_refused_with_the_finest_valid_spacing(
     tmp_path: Path,
 ) -> None:

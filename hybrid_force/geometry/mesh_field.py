@@ -554,19 +554,30 @@ def build_field(
 
     Raises:
         SurfaceError: ``key``: a resolution that is not a finite number > 0, or a
-            grid above :data:`MAX_NODES` (the message gives the finest valid spacing).
+            grid above :data:`MAX_NODES` (the message gives the finest valid spacing); the
+            table's ``facets`` not one of :data:`FACETS`, ``crease_angle`` not in [0, 180].
     """
     h = default_resolution(part) if resolution is None else resolution
     if not (isinstance(h, (int, float)) and not isinstance(h, bool)) or not (
         math.isfinite(h) and h > 0
     ):
         raise SurfaceError(f"{key}: must be a finite number > 0 [m], got {resolution!r}")
+    table = key.rsplit(".", 1)[0]
     if facets not in FACETS:
         raise SurfaceError(
-            f"{key.rsplit('.', 1)[0]}.facets: must be one of {', '.join(FACETS)}, got {facets!r}",
-            key=f"{key.rsplit('.', 1)[0]}.facets",
+            f"{table}.facets: must be one of {', '.join(FACETS)}, got {facets!r}",
+            key=f"{table}.facets",
             value=facets,
             choices=FACETS,
+        )
+    # the range the [surface] table's schema declares, for callers of the API too
+    if not (isinstance(crease_angle, (int, float)) and not isinstance(crease_angle, bool)) or not (
+        0.0 <= crease_angle <= 180.0
+    ):
+        raise SurfaceError(
+            f"{table}.crease_angle: must be a number in [0, 180] [deg], got {crease_angle!r}",
+            key=f"{table}.crease_angle",
+            value=crease_angle,
         )
     h = float(h)
     crease = float(crease_angle) if facets == "curved" else 0.0
