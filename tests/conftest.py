@@ -250,3 +250,12 @@ def assert_derivatives_are_differences(
         p_minus, v_minus, _ = path.evaluate(t - h)
         np.testing.assert_allclose(v, (p_plus - p_minus) / (2.0 * h), rtol=0, atol=tol)
         np.testing.assert_allclose(a, (v_plus - v_minus) / (2.0 * h), rtol=0, atol=tol)
+
+
+def point_segment_distances(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (P,) [m] of each of ``points`` (P, 3) to the nearest of the segments a–b
+    ((E, 3) each), by hand: the foot's parameter along each segment clamped to [0, 1]."""
+    ab = b - a
+    s = np.einsum("pij,ij->pi", points[:, None, :] - a, ab) / (ab * ab).sum(axis=1)
+    feet = a + np.clip(s, 0.0, 1.0)[..., None] * ab
+    return np.asarray(np.linalg.norm(points[:, None, :] - feet, axis=2).min(axis=1))

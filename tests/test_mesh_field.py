@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from conftest import point_segment_distances
 
 from hybrid_force.errors import ModelWarning, SurfaceError
 from hybrid_force.geometry.mesh_field import (
@@ -408,3 +409,54 @@ def test_orientation_terms_match_the_hessian_difference(sphere: MeshSurface) -> 
     assert terms is not None and not terms[2].any()  # at rest: no rate of ∇²Φ
     assert sphere.orientation_terms(np.full((3, 3), np.nan), step) is None
     assert sphere.orientation_terms([[0.3, 0.0, 0.0]] * 3, step) is None  # type: ignore[arg-type]
+
+
+def _sine_sheet(folder: Path, n: int = 40, half: float = 0.2, amplitude: float = 0.02) -> Path:
+    """An open sheet z = A sin(k x), k = 10 /m, over [−half, half]² as an n × n grid of
+    quads (two faces each, their normals along +z): its boundary is 4 n edges; its curvature
+    across the waves is z'' / (1 + z'²)^(3/2) = −A k² sin(kx) / (1 + (A k cos kx)²)^(3/2),
+    concave seen from +z where sin(kx) < 0, of smallest radius 1 / (A k²) = 0.5 m at the
+    valley's bottom x = −π / (2k) = −0.157 m."""
+    x = np.linspace(-half, half, n + 1)
+    gx, gy = np.meshgrid(x, x, indexing="ij")
+    vertices = np.column_stack([gx.ravel(), gy.ravel(), amplitude * np.sin(10.0 * gx.ravel())])
+    faces = []
+    for i in range(n):
+        for j in range(n):
+            a = i * (n + 1) + j
+            faces += [[a, a + n + 1, a + 1], [a + 1, a + n + 1, a + n + 2]]
+    path = folder / "sheet.stl"
+    trimesh.Trimesh(vertices, np.array(faces), process=False).export(path)
+    return path
+
+
+def test_open_edges_are_the_boundary_and_the_fit_is_trusted_away_from_them(
+    tmp_path: Path,
+) -> None:
+    """An open sheet: its open edges are its boundary (4 n edges, every end on the square's
+    border); a closed sphere has none. Away from the open edges (8 h) the field is the sheet
+    (|Φ| at its vertices below 1e-4 m, the level of a closed part) while near them it is not;
+    the smallest concave radius, found away from the edges, is the valley's 1/(A k²) to 10 %
+    (the border's fit jump, a few h across, would otherwise give a spurious hollow there)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelWarning)
+        sheet = MeshSurface.from_file(_sine_sheet(tmp_path), resolution=0.01, cache=False)
+    edges = sheet.part.open_edges
+    assert edges.shape == (4 * 40, 2)
+    ends = sheet.part.vertices[edges.ravel()]
+    assert np.all(np.isclose(np.abs(ends[:, :2]).max(axis=1), 0.2, atol=1e-7))
+    assert len(MeshSurface.from_file(_sphere(tmp_path), cache=False).part.open_edges) == 0
+    assert sheet.untrusted_width == pytest.approx(8 * 0.01)
+    vertices = sheet.part.vertices
+    far = sheet.open_edge_distance(vertices) >= sheet.untrusted_width
+    a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    by_hand = point_segment_distances(vertices, a, b)
+    np.testing.assert_allclose(sheet.open_edge_distance(vertices), by_hand, atol=1e-12)
+    error = np.abs(sheet.field.values(vertices))
+    assert error[far].max() < 1e-4
+    assert error[~far].max() > 10 * error[far].max()
+    smallest, where = sheet.concave_radius()
+    assert where is not None
+    assert sheet.open_edge_distance(where[None, :])[0] >= sheet.untrusted_width - 1e-6
+    assert 0.9 / (0.02 * 10.0**2) <= smallest <= 1.1 / (0.02 * 10.0**2)
+    assert math.sin(10.0 * where[0]) < -0.9  # in the valley

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from conftest import point_segment_distances
 
 from hybrid_force.cli import main
 from hybrid_force.errors import ModelWarning, PathError
@@ -477,3 +478,46 @@ def test_a_chart_without_a_path_in_surface_coordinates_is_refused(stacked: bool)
     key = r"surfaces\.0\.chart" if stacked else r"surface\.chart"
     with pytest.raises(ScenarioError, match=rf"t\.toml: {key} = .*has no effect.*waypoints"):
         scenario_from_document(doc, origin="t.toml", base_dir=REPO / "scenarios")
+
+
+def _sphere_with_a_hole_near(folder: Path, point: np.ndarray) -> Path:
+    """The raster's sphere (centre at the part's position) without the face nearest
+    ``point`` [m] in the world: an open part whose open edges are that face's three."""
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=RADIUS)
+    centre = np.array([0.45, 0.1, 0.0])
+    nearest = int(np.argmin(np.linalg.norm(mesh.triangles_center + centre - point, axis=1)))
+    mesh.update_faces(np.arange(len(mesh.faces)) != nearest)
+    mesh.export(folder / "sphere.stl")
+    return folder / "sphere.stl"
+
+
+@pytest.mark.parametrize("near", [True, False])
+def test_a_path_near_an_open_edge_warns_where(near: bool, tmp_path: Path) -> None:
+    """A hole 25 mm beside the raster (its v edge at y = 0.12 m) lies within 8 h = 84 mm of
+    it: the scenario warns, naming the time and the path's point nearest the hole's edges,
+    whose distance to them (libigl's, checked here by a point-segment distance written out)
+    is the one the message gives. A hole on the far side of the sphere gives no warning."""
+    from hybrid_force.errors import RunWarning
+
+    target = np.array([0.55, 0.145, 0.0]) if near else np.array([0.45, 0.1, -1.0])
+    target[2] = target[2] if not near else math.sqrt(RADIUS**2 - 0.1**2 - 0.045**2)
+    _sphere_with_a_hole_near(tmp_path, target)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scenario = load_scenario(_with_start(_scenario(tmp_path, _SURFACE, _RASTER, "hole")))
+    found = [str(w.message) for w in caught if issubclass(w.category, RunWarning)]
+    found = [m for m in found if "open edge" in m]
+    if not near:
+        assert found == []
+        return
+    (message,) = found
+    (surface,) = scenario.surfaces
+    part = surface.part
+    a, b = part.vertices[part.open_edges[:, 0]], part.vertices[part.open_edges[:, 1]]
+    times = np.linspace(0.0, scenario.sim.duration, 2001)
+    points = np.array([scenario.path.position(float(t)) for t in times])
+    gaps = point_segment_distances(points, a, b)
+    j = int(np.argmin(gaps))
+    assert gaps[j] < 8 * 0.0105
+    assert f"within {gaps[j]:.3g} m of an open edge" in message
+    assert f"t = {times[j]:.4g} s" in message

@@ -101,3 +101,35 @@ def test_part_check_refuses_bad_files_with_exit_status_2(
     assert main(["part", "--check", str(box), "--scale", "-2"]) == 2
     assert "scale must be a finite number > 0" in capsys.readouterr().err
     assert main(["part"]) == 2  # --check is required
+
+
+@pytest.mark.filterwarnings("ignore::hybrid_force.errors.ModelWarning")  # not watertight
+def test_part_check_of_an_open_sheet_reports_its_open_edges_and_the_fit_away_from_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A flat square sheet (z = 0, 10 × 10 quads over 0.4 m): 40 open edges, trimesh's count
+    of edges used by one face; Φ is not trusted within 8 h of them; away from them the field
+    is the plane z = 0 (within 2 h of it, |Φ − |z|| below 1e-5 m, where over the whole band
+    the border's jump makes it over 1 mm); no hollow is reported for the flat sheet."""
+    x = np.linspace(-0.2, 0.2, 11)
+    gx, gy = np.meshgrid(x, x, indexing="ij")
+    vertices = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    faces = [
+        f
+        for i in range(10)
+        for j in range(10)
+        for a in [i * 11 + j]
+        for f in ([a, a + 11, a + 1], [a + 1, a + 11, a + 12])
+    ]
+    mesh = trimesh.Trimesh(vertices, np.array(faces), process=False)
+    path = tmp_path / "sheet.obj"
+    mesh.export(path)
+    assert main(["part", "--check", str(path), "--resolution", "0.01"]) == 0
+    out = capsys.readouterr().out
+    single = int((np.bincount(mesh.edges_unique_inverse) == 1).sum())
+    assert single == 40
+    assert f"open edges: {single:,}; Φ is not trusted within 0.08 m (8 grid spacings)" in out
+    whole = _number(out, r"fit error max \|Φ − d\| \[m\]: .* points\) ([0-9.e+-]+)")
+    away = _number(out, r"fit error away from the open edges \[m\]: .*band ([0-9.e+-]+)")
+    assert away < 1e-5 and whole > 1e-3
+    assert "smallest concave radius of curvature (away from the open edges): none" in out

@@ -27,6 +27,7 @@ a hash of both; folder ``$HYBRID_FORCE_CACHE`` or ``~/.cache/hybrid_force/fields
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import io
 import math
@@ -82,6 +83,18 @@ class MeshPart:
     def diagonal(self) -> float:
         """Length of the bounding box's diagonal [m]."""
         return float(np.linalg.norm(self.vertices.max(axis=0) - self.vertices.min(axis=0)))
+
+    @functools.cached_property
+    def open_edges(self) -> np.ndarray:
+        """The edges (E, 2) vertex indices not shared by exactly two faces: the boundary of an
+        open mesh (one face) and its non-manifold edges (three or more); empty when the part
+        is watertight. Near them the signed distance jumps (its sign, from the winding
+        number, flips across the surface's extension past the edge) and Φ does not follow the
+        part (:meth:`.MeshSurface.open_edge_distance`)."""
+        f = np.asarray(self.faces, dtype=np.int64)
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        unique, counts = np.unique(edges, axis=0, return_counts=True)
+        return np.ascontiguousarray(unique[counts != 2], dtype=np.int64)
 
     def shortest_edges(self) -> np.ndarray:
         """Each face's shortest edge (F,) [m]."""

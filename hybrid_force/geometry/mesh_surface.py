@@ -57,6 +57,16 @@ __all__ = ["MeshOffset", "MeshSurface", "PartReport", "check_part"]
 
 #: ‖∇Φ‖ below this: the normal is undefined (a distance field has ‖∇Φ‖ ≈ 1 near the surface).
 _SINGULAR_GRADIENT = 1e-6
+#: Within this many grid spacings of an open edge Φ is not trusted: the signed distance it is
+#: fitted to jumps past the edge (its sign flips across the surface's extension), and the
+#: interpolating cubic B-spline rings after a jump, by a factor −(2 − √3) ≈ −0.27 a node;
+#: ∇²Φ, 1/h² more sensitive than Φ, is the last to settle. Measured on an open sine sheet
+#: (tests/test_mesh_field.py) at h = 10 and 5 mm: the curvature across the waves is 3.3 and
+#: 2.3 times the true one at 3 h and 4 h, within 4 % and 12 % at 6 h, within 0.5 % at 8 h.
+UNTRUSTED_SPACINGS = 8.0
+#: A concave radius of curvature beyond this many part diagonals is taken as flat (the fit's
+#: round-off: 2e7 m on a flat 0.4 m sheet, tests/test_part_cli.py), not reported as a hollow.
+FLAT_RADII = 1e4
 _ORIGIN: Vec3 = (0.0, 0.0, 0.0)
 _LARGEST = 1e150  # |coordinate| [m] of a point taken as it is (surface_base._MAX_POINT)
 
@@ -354,6 +364,37 @@ class MeshSurface(Surface):
         used, inverse = np.unique(kept, return_inverse=True)
         return vertices[used], inverse.reshape(-1, 3)
 
+    def open_edge_distance(self, points: ArrayLike) -> np.ndarray:
+        """The distance (N,) [m] of each of ``points`` (N, 3) [m] to the part's nearest open
+        edge (:attr:`.MeshPart.open_edges`, libigl's point–segment distance); inf for a
+        watertight part."""
+        x = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        edges = self.part.open_edges
+        if len(edges) == 0 or len(x) == 0:
+            return np.full(len(x), math.inf)
+        import igl
+
+        squared, _, _ = igl.point_mesh_squared_distance(
+            x, np.ascontiguousarray(self.part.vertices, dtype=np.float64), edges
+        )
+        return np.sqrt(np.asarray(squared, dtype=np.float64))
+
+    @property
+    def untrusted_width(self) -> float:
+        """How near [m] an open edge Φ is not trusted: :data:`UNTRUSTED_SPACINGS` grid
+        spacings (0 for a watertight part)."""
+        return 0.0 if len(self.part.open_edges) == 0 else UNTRUSTED_SPACINGS * self.field.spacing
+
+    def untrusted(self, points: ArrayLike) -> tuple[int, float] | None:
+        """(the index of the first of ``points`` (N, 3) [m] within :attr:`untrusted_width` of an
+        open edge, its distance to the edge [m]), or None: where a path comes that near, Φ
+        follows the fit's jump rather than the part (the scenario warns)."""
+        if self.untrusted_width == 0.0:
+            return None
+        distance = self.open_edge_distance(points)
+        near = np.flatnonzero(distance < self.untrusted_width)
+        return None if len(near) == 0 else (int(near[0]), float(distance[near[0]]))
+
     def smallest_concave_radius(self) -> float:
         """The smallest radius of curvature [m] of the part's concave regions, at its vertices.
 
@@ -363,7 +404,8 @@ class MeshSurface(Surface):
         radius r cannot reach the bottom where r exceeds it. A lower estimate: the fit's
         ripple at the facets' scale lowers it (on a 128 × 48 torus by 8 % with curved facets,
         25 % with flat ones, measured in tests/test_mesh_field.py), which errs on the side of
-        a warning.
+        a warning. Vertices within :attr:`untrusted_width` of an open edge are left out: the
+        fit's jump there is no hollow of the part.
         """
         return self._most_concave()[0]
 
@@ -371,12 +413,16 @@ class MeshSurface(Surface):
         """(:meth:`smallest_concave_radius`, the vertex (3,) [m] where it is found, or None
         when the part is nowhere concave)."""
         smallest, where = math.inf, None
-        for vertex in self.part.vertices:
+        vertices = self.part.vertices
+        if self.untrusted_width > 0.0:
+            vertices = vertices[self.open_edge_distance(vertices) >= self.untrusted_width]
+        for vertex in vertices:
             _, grad, hess = self.field.evaluate(np.ascontiguousarray(vertex))
             if float(np.linalg.norm(grad)) < _SINGULAR_GRADIENT:
                 continue
             most = principal_curvatures(grad, hess)[1]
-            if most < 0 and 1.0 / -most < smallest:
+            # a radius beyond FLAT_RADII part diagonals is the fit's round-off on a flat face
+            if most * self.part.diagonal * FLAT_RADII < -1.0 and 1.0 / -most < smallest:
                 smallest, where = 1.0 / -most, np.array(vertex)
         return smallest, where
 
@@ -444,7 +490,10 @@ class PartReport:
     is the mesh's exact distance (libigl), or the patches' over its foot when curved
     (:mod:`.mesh_patches`); ``bend``: the largest height of a patch over its face (0 when
     flat); ``gradient_norm``: (min, max) of ‖∇Φ‖ in the band; ``concave_point``: the vertex
-    (3,) [m] of ``smallest_concave_radius``, None if none.
+    (3,) [m] of ``smallest_concave_radius``, None if none. An open part: ``open_edges`` (how
+    many), ``untrusted_width`` (:attr:`MeshSurface.untrusted_width`) and ``fit_inner``, the
+    three fit errors over the points farther than that from every open edge (None when
+    watertight, or when no point is that far); the gradient norm is then theirs too.
     """
 
     file: str
@@ -467,6 +516,9 @@ class PartReport:
     concave_point: tuple[float, float, float] | None
     build_seconds: float
     cache_file: str
+    open_edges: int = 0
+    untrusted_width: float = 0.0
+    fit_inner: tuple[float, float, float] | None = None
 
     def lines(self) -> list[str]:
         """The report as text lines."""
@@ -492,8 +544,12 @@ class PartReport:
             f"fit error max |Φ − d| [m]: vertices {self.fit_vertices:.3g}, face centres "
             f"{self.fit_face_centres:.3g}, band ±{2 * self.resolution:.3g} m "
             f"({self.band_points} points) {self.fit_band:.3g}",
-            f"‖∇Φ‖ in the band: {self.gradient_norm[0]:.4f} to {self.gradient_norm[1]:.4f}",
-            "smallest concave radius of curvature: "
+            *self._open_lines(),
+            f"‖∇Φ‖ in the band{' (away from the open edges)' if self.fit_inner else ''}: "
+            f"{self.gradient_norm[0]:.4f} to {self.gradient_norm[1]:.4f}",
+            "smallest concave radius of curvature"
+            + (" (away from the open edges)" if self.open_edges else "")
+            + ": "
             + (
                 f"{concave:.4g} m at the vertex {[round(x, 6) for x in self.concave_point]} m"
                 if math.isfinite(concave) and self.concave_point is not None
@@ -502,6 +558,20 @@ class PartReport:
             f"build time: {self.build_seconds:.3g} s"
             + (" (read from the cache)" if self.build_seconds == 0.0 else ""),
             f"cache file: {self.cache_file or '(none)'}",
+        ]
+
+    def _open_lines(self) -> list[str]:
+        if not self.open_edges:
+            return []
+        near = f"within {self.untrusted_width:.3g} m ({UNTRUSTED_SPACINGS:g} grid spacings)"
+        line = f"open edges: {self.open_edges:,}; Φ is not trusted {near} of them"
+        if self.fit_inner is None:
+            return [line + " (no point of the part is farther)"]
+        v, c, b = self.fit_inner
+        return [
+            line,
+            f"fit error away from the open edges [m]: vertices {v:.3g}, face centres {c:.3g}, "
+            f"band {b:.3g}",
         ]
 
 
@@ -554,8 +624,19 @@ def check_part(
     if patches is not None:
         foot_face = np.asarray(foot_face, dtype=np.int64)
         exact = patches.signed_distance(foot_face, np.asarray(foot), band, exact)
-    fit_band = float(np.abs(field.values(band) - sign * exact).max())
+    band_error = np.abs(field.values(band) - sign * exact)
+    vertex_error = np.abs(field.values(part.vertices))
+    centre_error = np.abs(field.values(centres))
     norms = np.array([np.linalg.norm(field.evaluate(np.ascontiguousarray(p))[1]) for p in band])
+    width, fit_inner = surface.untrusted_width, None
+    if width > 0.0:  # an open part: the fit and the gradient away from its open edges too
+        far = [surface.open_edge_distance(x) >= width for x in (part.vertices, centres, band)]
+        if all(mask.any() for mask in far):
+            fit_inner = tuple(
+                float(e[mask].max())
+                for e, mask in zip((vertex_error, centre_error, band_error), far, strict=True)
+            )
+            norms = norms[far[2]]
     nx, ny, nz = field.shape
     concave, where = surface.concave_radius()
     return PartReport(
@@ -573,9 +654,9 @@ def check_part(
         bend=0.0 if patches is None else patches.largest,
         grid=(nx, ny, nz),
         memory_bytes=int(field.coefficients.nbytes),
-        fit_vertices=float(np.abs(field.values(part.vertices)).max()),
-        fit_face_centres=float(np.abs(field.values(centres)).max()),
-        fit_band=fit_band,
+        fit_vertices=float(vertex_error.max()),
+        fit_face_centres=float(centre_error.max()),
+        fit_band=float(band_error.max()),
         band_points=len(band),
         gradient_norm=(float(norms.min()), float(norms.max())),
         smallest_concave_radius=concave,
@@ -584,4 +665,7 @@ def check_part(
         else (float(where[0]), float(where[1]), float(where[2])),
         build_seconds=field.build_seconds,
         cache_file=field.cache_file,
+        open_edges=len(part.open_edges),
+        untrusted_width=width,
+        fit_inner=fit_inner,  # type: ignore[arg-type]
     )

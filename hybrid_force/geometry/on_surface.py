@@ -7,6 +7,7 @@ builds) refuses a path farther than :data:`ON_SURFACE_TOL` from a surface.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -19,7 +20,13 @@ from hybrid_force.errors import BadInputError, PathError, ScenarioError, Surface
 if TYPE_CHECKING:
     from hybrid_force.geometry.paths import Path
 
-__all__ = ["ON_SURFACE_TOL", "OnSurfaceReport", "check_on_surface", "check_path_on_surfaces"]
+__all__ = [
+    "ON_SURFACE_TOL",
+    "OnSurfaceReport",
+    "check_on_surface",
+    "check_path_on_surfaces",
+    "warn_untrusted_path",
+]
 
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 0.618...
 
@@ -187,4 +194,35 @@ def check_path_on_surfaces(path: Path, surfaces: Sequence[Any], duration: float)
                 f"[0, sim.duration = {duration:g} s]",
                 key="Scenario.path",
                 value=(i, report),
+            )
+
+
+def warn_untrusted_path(
+    path: Path, surfaces: Sequence[Any], radius: float, duration: float, samples: int = 2001
+) -> None:
+    """Warn (RunWarning) where the desired path comes near a part's open edge, where Φ follows
+    the fit's jump rather than the part (:meth:`.MeshSurface.untrusted`): the path's tool
+    centre at ``samples`` uniform times over [0, ``duration``] [s], within the part's
+    ``untrusted_width`` plus the tool ``radius`` [m] of an open edge. Parts without open edges
+    (every built-in surface, a watertight mesh) are skipped."""
+    from hybrid_force.errors import RunWarning
+
+    parts = [(i, s) for i, s in enumerate(surfaces) if getattr(s, "untrusted_width", 0.0) > 0.0]
+    if not parts:
+        return
+    times = np.linspace(0.0, duration, samples)
+    points = np.array([path.position(float(t)) for t in times])
+    for i, surface in parts:
+        distance = surface.open_edge_distance(points) - radius
+        j = int(np.argmin(distance))
+        if distance[j] < surface.untrusted_width:
+            warnings.warn(
+                RunWarning(
+                    f"the path comes within {max(distance[j], 0.0):.3g} m of an open edge of "
+                    f"surfaces[{i}] ({surface!r}) at t = {times[j]:.4g} s (p_d = "
+                    f"{np.round(points[j], 6).tolist()} m): within "
+                    f"{surface.untrusted_width:.3g} m of an open edge Φ is not trusted (the "
+                    "signed distance of an open mesh jumps past its edge; docs/mesh_parts.md)"
+                ),
+                stacklevel=3,
             )

@@ -18,7 +18,7 @@ from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import ControlError, ScenarioError
 from hybrid_force.geometry.offset import tool_surfaces as offset_surfaces
-from hybrid_force.geometry.on_surface import check_path_on_surfaces
+from hybrid_force.geometry.on_surface import check_path_on_surfaces, warn_untrusted_path
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.metrics import DEFAULT_SETTLE_TIME
@@ -224,6 +224,8 @@ class Scenario:
         self.tool.check_arm(robot)
         check_removal(self)  # with tool.pad, each only with the other; a grid it can lay
         self._check_start_and_path()
+        # a path near a mesh part's open edge, where Φ is not the part's
+        warn_untrusted_path(self.path, self.surfaces, self.tool.radius, self.sim.duration)
 
     @property
     def tool_surfaces(self) -> tuple[Surface, ...]:
