@@ -53,15 +53,21 @@ _HESSIAN_STEP = 1e-4
 
 
 def tool_surfaces(
-    surfaces: Sequence[Surface], radius: float, *, warn: bool = True
+    surfaces: Sequence[Surface],
+    radius: float,
+    *,
+    warn: bool = True,
+    along: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[Surface, ...]:
     """The surfaces the tool centre follows: each surface's :meth:`~Surface.offset` by
     ``radius`` [m] (the surfaces themselves for 0).
 
     With ``warn``, warns (RunWarning) where a part is concave with a smaller radius of
     curvature than the tool's (:meth:`~Surface.concave_radius`): the ball cannot reach the
-    bottom there, the contact point found from the offset lies off the part. Raises
-    SurfaceError (naming ``tool.radius``) where the offset does not exist."""
+    bottom there, the contact point found from the offset lies off the part. The warning names
+    the radius, the point and the excess r − radius; with ``along`` = (times (N,) [s], the tool
+    centre's path at them (N, 3) [m]) also the path's nearest approach to that point and its
+    time. Raises SurfaceError (naming ``tool.radius``) where the offset does not exist."""
     r = tool_radius(radius)
     if r == 0.0:
         return tuple(surfaces)
@@ -76,6 +82,7 @@ def tool_surfaces(
                 " (its smallest, found over the part)"
                 if where is None
                 else f" at {np.round(np.asarray(where), 6).tolist()} m"
+                + _nearest_approach(np.asarray(where, dtype=float), along)
             )
             warnings.warn(
                 RunWarning(
@@ -86,6 +93,19 @@ def tool_surfaces(
                 stacklevel=2,
             )
     return tuple(out)
+
+
+def _nearest_approach(point: np.ndarray, along: tuple[np.ndarray, np.ndarray] | None) -> str:
+    """' (the tool centre's path passes d m from it, nearest at t = T s)', or '' without a
+    path."""
+    if along is None or len(along[0]) == 0:
+        return ""
+    times, points = along
+    gaps = np.linalg.norm(np.asarray(points, dtype=float) - point, axis=1)
+    j = int(np.argmin(gaps))
+    return (
+        f" (the tool centre's path passes {gaps[j]:.3g} m from it, nearest at t = {times[j]:.4g} s)"
+    )
 
 
 def contact_points(surface: Surface, radius: float, centres: np.ndarray) -> np.ndarray:

@@ -25,6 +25,7 @@ __all__ = [
     "OnSurfaceReport",
     "check_on_surface",
     "check_path_on_surfaces",
+    "path_samples",
     "warn_untrusted_path",
 ]
 
@@ -197,22 +198,27 @@ def check_path_on_surfaces(path: Path, surfaces: Sequence[Any], duration: float)
             )
 
 
+def path_samples(path: Path, duration: float, samples: int = 2001) -> tuple[np.ndarray, np.ndarray]:
+    """(times (N,) [s], p_d at them (N, 3) [m]): ``samples`` uniform times over [0,
+    ``duration``], what the path warnings look at."""
+    times = np.linspace(0.0, duration, samples)
+    return times, np.array([path.position(float(t)) for t in times])
+
+
 def warn_untrusted_path(
-    path: Path, surfaces: Sequence[Any], radius: float, duration: float, samples: int = 2001
+    along: tuple[np.ndarray, np.ndarray], surfaces: Sequence[Any], radius: float
 ) -> None:
     """Warn (RunWarning) where the desired path comes near a part's open edge, where Φ follows
     the fit's jump rather than the part (:meth:`.MeshSurface.untrusted`): the path's tool
-    centre at ``samples`` uniform times over [0, ``duration``] [s], within the part's
-    ``untrusted_width`` plus the tool ``radius`` [m] of an open edge. Parts without open edges
-    (every built-in surface, a watertight mesh) are skipped."""
+    centre ``along`` = (times (N,) [s], points (N, 3) [m], :func:`path_samples`) within the
+    part's ``untrusted_width`` plus the tool ``radius`` [m] of an open edge. Parts without open
+    edges (every built-in surface, a watertight mesh) are skipped."""
     from hybrid_force.errors import RunWarning
 
-    parts = [(i, s) for i, s in enumerate(surfaces) if getattr(s, "untrusted_width", 0.0) > 0.0]
-    if not parts:
-        return
-    times = np.linspace(0.0, duration, samples)
-    points = np.array([path.position(float(t)) for t in times])
-    for i, surface in parts:
+    times, points = along
+    for i, surface in enumerate(surfaces):
+        if not getattr(surface, "untrusted_width", 0.0) > 0.0 or len(times) == 0:
+            continue
         distance = surface.open_edge_distance(points) - radius
         j = int(np.argmin(distance))
         if distance[j] < surface.untrusted_width:

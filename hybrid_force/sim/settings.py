@@ -18,7 +18,11 @@ from hybrid_force.control.supervisor import ControlSettings
 from hybrid_force.control.tool import ToolSettings
 from hybrid_force.errors import ControlError, ScenarioError
 from hybrid_force.geometry.offset import tool_surfaces as offset_surfaces
-from hybrid_force.geometry.on_surface import check_path_on_surfaces, warn_untrusted_path
+from hybrid_force.geometry.on_surface import (
+    check_path_on_surfaces,
+    path_samples,
+    warn_untrusted_path,
+)
 from hybrid_force.geometry.paths import Path
 from hybrid_force.geometry.surface_base import Surface
 from hybrid_force.metrics import DEFAULT_SETTLE_TIME
@@ -177,9 +181,8 @@ class Scenario:
                     f"Sphere, Plane, FunctionSurface), got {checks.shown(surface)}"
                 )
         object.__setattr__(self, "surfaces", tuple(surfaces))
-        # the offsets the tool centre follows exist (else SurfaceError naming tool.radius);
-        # a warning where a hollow is tighter than the ball
-        offset_surfaces(self.surfaces, self.tool.radius)
+        # the offsets the tool centre follows exist (else SurfaceError naming tool.radius)
+        offset_surfaces(self.surfaces, self.tool.radius, warn=False)
         for key, size in (("q0", robot.nq), ("v0", robot.nv)):
             if getattr(self, key) is None and key == "v0":
                 continue
@@ -224,8 +227,13 @@ class Scenario:
         self.tool.check_arm(robot)
         check_removal(self)  # with tool.pad, each only with the other; a grid it can lay
         self._check_start_and_path()
+        # warnings: a hollow tighter than the ball (with the path's nearest approach to it);
         # a path near a mesh part's open edge, where Φ is not the part's
-        warn_untrusted_path(self.path, self.surfaces, self.tool.radius, self.sim.duration)
+        # (sampled only for a ball or an open part: a command's fixed cost)
+        if self.tool.radius > 0.0 or any(getattr(s, "untrusted_width", 0) for s in self.surfaces):
+            along = path_samples(self.path, self.sim.duration)
+            offset_surfaces(self.surfaces, self.tool.radius, along=along)
+            warn_untrusted_path(along, self.surfaces, self.tool.radius)
 
     @property
     def tool_surfaces(self) -> tuple[Surface, ...]:
