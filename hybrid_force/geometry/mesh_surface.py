@@ -61,8 +61,8 @@ _SINGULAR_GRADIENT = 1e-6
 #: fitted to jumps past the edge (its sign flips across the surface's extension), and the
 #: interpolating cubic B-spline rings after a jump, by a factor −(2 − √3) ≈ −0.27 a node;
 #: ∇²Φ, 1/h² more sensitive than Φ, is the last to settle. Measured on an open sine sheet
-#: (tests/test_mesh_field.py) at h = 10 and 5 mm: the curvature across the waves is 3.3 and
-#: 2.3 times the true one at 3 h and 4 h, within 4 % and 12 % at 6 h, within 0.5 % at 8 h.
+#: (benchmarks/study_open_mesh.py) at h = 10 and 5 mm: the curvature across the waves is 3.2
+#: and 2.3 times the true one at 3 h and 4 h, within 4 % and 12 % at 6 h, within 1 % at 8 h.
 UNTRUSTED_SPACINGS = 8.0
 #: A concave radius of curvature beyond this many part diagonals is taken as flat (the fit's
 #: round-off: 2e7 m on a flat 0.4 m sheet, tests/test_part_cli.py), not reported as a hollow.
