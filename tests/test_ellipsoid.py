@@ -230,3 +230,25 @@ def test_a_bad_ellipsoid_table_names_the_key(tmp_path: Path) -> None:
     path.write_text(text)
     with pytest.raises(ScenarioError, match=r"surface\.semi_axes = \[0\.6, -0\.5, 0\.4\]"):
         load_scenario(path)
+
+
+@pytest.mark.parametrize("tiny", [1.44e-18, 1e-30, 5e-324])
+def test_a_point_a_rounding_error_off_a_principal_plane_has_its_foot(tiny: float) -> None:
+    """Inside, off the principal plane x2 = 0 by less than the bracket [z2 − 1, 0] resolves
+    (z2 − 1 rounds to −1: a point rotated onto the plane by a matrix product): the foot is the
+    plane's, on the surface, p − foot along the normal (it divided by s + 1 = 0); the same for
+    the ellipse and its axis."""
+    from hybrid_force.geometry.ellipsoid import ellipse_foot, ellipsoid_foot
+
+    e, y = (0.5, 0.3, 0.2), (0.3, 0.1, tiny)
+    x = np.array(ellipsoid_foot(*e, *y))
+    assert np.all(np.isfinite(x))
+    assert (x**2 / np.square(e)).sum() == pytest.approx(1.0, abs=1e-14)
+    normal = x / np.square(e)  # ∇ of Σ x_i²/e_i² / 2
+    np.testing.assert_allclose(np.cross(normal, np.array(y) - x), 0.0, atol=1e-14)
+    # the in-plane closed form of the y2 = 0 case: x_i = e_i² y_i / (e_i² − e2²), i = 0, 1
+    d = np.square(e[:2]) - e[2] ** 2
+    np.testing.assert_allclose(x[:2], np.square(e[:2]) * y[:2] / d, atol=1e-15)
+    x0, x1 = ellipse_foot(0.5, 0.3, 0.3, tiny)
+    assert x0 == pytest.approx(0.5**2 * 0.3 / (0.5**2 - 0.3**2), abs=1e-15)
+    assert (x0 / 0.5) ** 2 + (x1 / 0.3) ** 2 == pytest.approx(1.0, abs=1e-14)

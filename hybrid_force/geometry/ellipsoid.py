@@ -259,6 +259,8 @@ def ellipse_foot(e0: float, e1: float, y0: float, y1: float) -> tuple[float, flo
                 return y0, y1
             r0 = (e0 / e1) ** 2
             s = _bisect((r0, 1.0), (z0, z1), g)
+            if s + 1.0 == 0.0:  # z1 below the bracket's resolution: on the principal axis
+                return ellipse_foot(e0, e1, y0, 0.0)
             return r0 * y0 / (s + r0), y1 / (s + 1.0)
         return 0.0, e1
     numer, denom = e0 * y0, e0 * e0 - e1 * e1
@@ -282,6 +284,8 @@ def ellipsoid_foot(
                     return y0, y1, y2
                 r0, r1 = (e0 / e2) ** 2, (e1 / e2) ** 2
                 s = _bisect((r0, r1, 1.0), z, g)
+                if s + 1.0 == 0.0:  # z2 below the bracket's resolution: on the principal plane
+                    return ellipsoid_foot(e0, e1, e2, y0, y1, 0.0)
                 return r0 * y0 / (s + r0), r1 * y1 / (s + r1), y2 / (s + 1.0)
             x1, x2 = ellipse_foot(e1, e2, y1, y2)
             return 0.0, x1, x2
