@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hybrid_force import _checks as checks
-from hybrid_force.errors import BadInputError, PathError, ScenarioError, SurfaceError
+from hybrid_force.errors import BadInputError, PathError, RunWarning, ScenarioError, SurfaceError
 
 if TYPE_CHECKING:
     from hybrid_force.geometry.paths import Path
@@ -213,8 +213,6 @@ def warn_untrusted_path(
     centre ``along`` = (times (N,) [s], points (N, 3) [m], :func:`path_samples`) within the
     part's ``untrusted_width`` plus the tool ``radius`` [m] of an open edge. Parts without open
     edges (every built-in surface, a watertight mesh) are skipped."""
-    from hybrid_force.errors import RunWarning
-
     times, points = along
     for i, surface in enumerate(surfaces):
         if not getattr(surface, "untrusted_width", 0.0) > 0.0 or len(times) == 0:
