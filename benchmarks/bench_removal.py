@@ -44,6 +44,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import sys
 import time
@@ -100,11 +101,29 @@ class _Timed:
         RemovalObserver.observe = timed  # type: ignore[method-assign, assignment]
 
 
-def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float, float]:
+BLOCK = 26
+"""Progress intervals (of N // 100 = 100 steps in a 10 s run) in a block: 2,600 steps, 10 or 11
+of the deposit's batches of 256 samples."""
+
+
+def _block_rate(stamps: list[tuple[int, float]]) -> float:
+    """The fastest rate [steps/s] over BLOCK consecutive progress intervals (the first
+    interval left out: the kernels' first calls; the last stamp is after the loop)."""
+    marks = stamps[1:-1]
+    rates = [
+        (i1 - i0) / (t1 - t0)
+        for (i0, t0), (i1, t1) in zip(marks, marks[BLOCK:], strict=False)
+        if i1 > i0 and t1 > t0
+    ]
+    return max(rates) if rates else math.nan
+
+
+def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float, float, float]:
     """(the loop's wall time [s], ``meta["wall_time"]``: it starts after the run's record and
     its removal grid are built; the loop's CPU time [s] from step 0 on (the ``progress``
     callback's first and last calls); the grid's set-up alone, in CPU seconds (0 without
-    removal); the wall time [s] the loop spent in the removal's calls)."""
+    removal); the wall time [s] the loop spent in the removal's calls; the block rate
+    [steps/s], :func:`_block_rate`)."""
     sc = load_scenario(REPO / "scenarios" / file, overrides)
     setup = 0.0
     if sc.removal is not None:
@@ -112,20 +131,28 @@ def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float, flo
         RemovalObserver(sc, round(sc.sim.duration / sc.sim.dt) + 1)
         setup = time.process_time() - start
     marks: list[float] = []
+    stamps: list[tuple[int, float]] = []
+    steps = round(sc.sim.duration / sc.sim.dt) + 1
 
-    def progress(_: float) -> None:
+    def progress(fraction: float) -> None:
         marks.append(time.process_time())
+        stamps.append((round(fraction * steps), time.perf_counter()))
 
     _Timed.spent = 0.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = simulate(sc, progress=progress)
-    return float(result.meta["wall_time"]), marks[-1] - marks[0], setup, _Timed.spent
+    return (
+        float(result.meta["wall_time"]),
+        marks[-1] - marks[0],
+        setup,
+        _Timed.spent,
+        _block_rate(stamps),
+    )
 
 
 def _profile(name: str) -> dict[str, float]:
-    """µs per sample of the removal's parts on setup ``name`` (module docstring, --profile)."""
-    import numba
+    """µs per sample of the removal on setup ``name`` (module docstring, --profile)."""
     import numpy as np
 
     from hybrid_force.sim import _removal_kernels as K
@@ -144,7 +171,7 @@ def _profile(name: str) -> dict[str, float]:
     obs = RemovalObserver(sc, n)
     g = obs.grid
 
-    def batches(merge: float) -> float:
+    def batches(deviation: float, factor: float) -> float:
         g.depth[:] = 0.0
         obs._group[:] = 0.0
         tally = np.zeros(2, dtype=np.int64)
@@ -154,41 +181,37 @@ def _profile(name: str) -> dict[str, float]:
             K.observe_batch(
                 obs._desc, tips, forces, obs.surface_index, velocities[first : first + count],
                 first, count, obs._shape, obs.pad.radius, obs._modulus, obs.settings.omega,
-                obs.v_ref, obs._factor, merge, g.points, g.areas, g.order, g.table, g.starts,
-                g.box, g.dims, g.lattice, g.rows, g.col, g.depth, obs._group, obs._work, g.index,
-                g.weight, tally,
+                obs.v_ref, factor, obs._merge, deviation, obs._dt, g.points, g.areas, g.order,
+                g.table, g.starts, g.box, g.dims, g.lattice, g.rows, g.col, g.depth, obs._group,
+                obs._work, g.index, g.weight, tally,
             )  # fmt: skip
+        K.flush(
+            obs._group, obs._shape, factor, g.points, g.areas, g.order, g.table, g.starts, g.box,
+            g.dims, g.lattice, g.rows, g.col, g.depth, obs._work, g.index, g.weight,
+        )  # fmt: skip
         return time.process_time() - start
 
-    @numba.njit
-    def search(order, table, starts, box, dims, lattice, rows, col, centres, a, out):  # type: ignore[no-untyped-def]
-        total = 0
-        for s in range(centres.shape[0]):
-            c = centres[s]
-            total += K._candidates(order, table, starts, box, dims, lattice, rows, col, c, a, out)
-        return total
-
-    # the patches' centres: the tips' feet on the part (the nominal contact radius a₀)
-    feet = np.array([obs.surface.closest_point(t) for t in tips])
-    args = (g.order, g.table, g.starts, g.box, g.dims, g.lattice, g.rows, g.col, feet)
-
-    def searches() -> float:
-        start = time.process_time()
-        search(*args, obs.contact_radius, g.index)
-        return time.process_time() - start
-
-    batches(obs._merge), batches(math.inf), searches()  # compiled, caches warm
-    full = min(batches(obs._merge) for _ in range(7))
-    alone = min(batches(math.inf) for _ in range(7))
-    found = min(searches() for _ in range(7))
-    candidates = search(*args, obs.contact_radius, g.index) / n
+    dev, factor = obs._deviation, obs._factor
+    batches(dev, factor), batches(0.0, factor)  # compiled, caches warm
+    segments = min(batches(dev, factor) for _ in range(7))
+    h_segments = g.depth.copy()
+    points = min(batches(0.0, factor) for _ in range(7))
+    h_points = g.depth.copy()
+    # the samples' own work alone: no slip to deposit (a factor of 0 still runs the deposits;
+    # a zero velocity leaves the groups empty of weight, so nothing is deposited)
+    saved = velocities.copy()
+    velocities[:] = 0.0
+    alone = min(batches(dev, factor) for _ in range(7))
+    velocities[:] = saved
     us = 1e6 / n
+    peak = float(h_points.max())
     return {
         "loop_us_per_step": 1e6 / float(r.meta["steps_per_second"]),
-        "removal_us_per_sample": full * us,
+        "removal_us_per_sample": segments * us,
+        "points_us_per_sample": points * us,
         "observe_us_per_sample": alone * us,
-        "search_us_per_sample": found * us,
-        "candidates_per_sample": candidates,
+        "segments_vs_points_max_over_peak": float(np.abs(h_segments - h_points).max()) / peak,
+        "segments": float(dev > 0.0),
     }
 
 
@@ -205,9 +228,10 @@ def main() -> int:
             report[name] = part = _profile(name)
             print(
                 f"{name:16s} µs per sample: removal {part['removal_us_per_sample']:.2f} (of which "
-                f"observe {part['observe_us_per_sample']:.2f}, the search for the cells "
-                f"{part['search_us_per_sample']:.2f}: {part['candidates_per_sample']:.0f} "
-                f"candidates); the loop {part['loop_us_per_step']:.1f} µs a step"
+                f"the samples without a deposit {part['observe_us_per_sample']:.2f}); merged "
+                f"points instead of segments {part['points_us_per_sample']:.2f} (their depths "
+                f"differ by {100 * part['segments_vs_points_max_over_peak']:.3f} % of the peak "
+                f"at most); the loop {part['loop_us_per_step']:.1f} µs a step"
             )
         if args.json is not None:
             args.json.write_text(json.dumps(report, indent=2))
@@ -219,23 +243,33 @@ def main() -> int:
         _run(file, {**on, "sim.duration": 0.05})  # compile and load the kernels once
         _run(file, {**overrides, "sim.duration": 0.05})
         offs, ons, setups, cpu_offs, cpu_ons, shares = [], [], [], [], [], []
-        for _ in range(args.repeats):
-            loop, cpu, _, _ = _run(file, overrides)
-            offs.append(loop)
-            cpu_offs.append(cpu)
-            loop, cpu, setup, spent = _run(file, on)
-            ons.append(loop)
-            cpu_ons.append(cpu)
-            setups.append(setup)
-            shares.append(loop / (loop - spent))
+        block_offs, block_ons = [], []
+        for rep in range(args.repeats):
+            # off first in even pairs, on first in odd ones (a drift of the load cancels)
+            for removal_on in (False, True) if rep % 2 == 0 else (True, False):
+                loop, cpu, setup, spent, block = _run(file, on if removal_on else overrides)
+                if removal_on:
+                    ons.append(loop)
+                    cpu_ons.append(cpu)
+                    setups.append(setup)
+                    shares.append(loop / (loop - spent))
+                    block_ons.append(block)
+                else:
+                    offs.append(loop)
+                    cpu_offs.append(cpu)
+                    block_offs.append(block)
         pairs = [b / a for a, b in zip(offs, ons, strict=True)]
         cpu_pairs = [b / a for a, b in zip(cpu_offs, cpu_ons, strict=True)]
+        block_pairs = [a / b for a, b in zip(block_offs, block_ons, strict=True)]
         report[name] = {
             "ratio_median": statistics.median(pairs),
             "ratio_best": min(ons) / min(offs),
             "ratios": pairs,
             "cpu_ratio_median": statistics.median(cpu_pairs),
             "cpu_ratios": cpu_pairs,
+            "block_ratio_median": statistics.median(block_pairs),
+            "block_ratio_best": max(block_offs) / max(block_ons),
+            "block_ratios": block_pairs,
             "inrun_ratio_median": statistics.median(shares),
             "inrun_ratios": shares,
             "off_loop_seconds": offs,
@@ -246,11 +280,15 @@ def main() -> int:
         }
         r = report[name]
         print(
-            f"{name:16s} on/off loop time: median {r['ratio_median']:.3f} (best on / best off "
-            f"{r['ratio_best']:.3f}, {args.repeats} pairs; CPU time: median "
-            f"{r['cpu_ratio_median']:.3f}; in the run: median {r['inrun_ratio_median']:.3f}); "
-            f"loop off {min(offs):.2f} s; grid set-up "
-            f"{r['setup_cpu_seconds_median']:.2f} s (before the loop)"
+            f"{name:16s} on/off, medians of {args.repeats} pairs: wall {r['ratio_median']:.3f} "
+            f"(best on / best off {r['ratio_best']:.3f}; pairs {min(pairs):.2f}-"
+            f"{max(pairs):.2f}), CPU {r['cpu_ratio_median']:.3f} ({min(cpu_pairs):.2f}-"
+            f"{max(cpu_pairs):.2f}), block {r['block_ratio_median']:.3f} (best "
+            f"{r['block_ratio_best']:.3f}; {min(block_pairs):.2f}-{max(block_pairs):.2f}), in "
+            f"the run {r['inrun_ratio_median']:.3f}; loop off {min(offs):.2f} s; grid set-up "
+            f"{r['setup_cpu_seconds_median']:.2f} s (before the loop); load "
+            f"{os.getloadavg()[0]:.1f}",
+            flush=True,
         )
     if args.json is not None:
         args.json.write_text(json.dumps(report, indent=2))
