@@ -839,8 +839,8 @@ def _segment_sample(
     group[10] += w
 
 
-@_jit
-def observe(
+@_jit_inline
+def _observe(
     desc: np.ndarray,
     p: np.ndarray,
     grad: np.ndarray,
@@ -848,15 +848,7 @@ def observe(
     distance: float,
     velocity: np.ndarray,
     force: float,
-    shape: int,
-    radius: float,
-    modulus: float,
-    omega: float,
-    v_ref: float,
-    factor: float,
-    merge: float,
-    deviation: float,
-    dt: float,
+    knobs: tuple[int, float, float, float, float, float, float, float, float],
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
@@ -873,24 +865,10 @@ def observe(
     index: np.ndarray,
     weight: np.ndarray,
 ) -> float:
-    """One run step's removal: the patch at the tip p (3,) [m] with velocity (3,) [m/s]
-    pressed with ``force`` [N], joined to the open group of samples (``group`` (GROUP,)),
-    which is first deposited (:func:`flush`) when the patch has moved too far from it.
-
-    desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
-    distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
-    caller's, at the foot. The patch is centred at the tip's foot p − d n on the surface, and
-    its curvature (∇²Φ) is the part's there (for |d| > FOOT_TOL). v_ref > 0
-    [m/s]: the spindle's schedule ω |v_t| / v_ref (the removal per unit length of a feed
-    |v_t| is then that of the feed v_ref at ω); 0: ω throughout. merge [m]: the group's
-    reach (:func:`_fits`; docs/removal.md, "Cost"). deviation [m] > 0 (a tool that does not
-    spin, on a plane's or a cylinder's lattice): the samples are grouped into straight
-    segments instead, within ``deviation`` of their line (:func:`_fits_segment`), each
-    deposited as the patch slid along it (:func:`deposit_segment`); dt [s] the sample's
-    span (where the last one heads). work (18,), index (M,) int64 and weight (M,): scratch.
-    Returns the patch radius a [m] (0: no force; −1: Hertz does not apply, the part
-    conforms; nothing is deposited then).
-    """
+    """:func:`observe`, inlined into its callers (no call, no reference counting of its
+    arrays: a third of a sample's cost), its scalars in ``knobs`` (shape, radius, modulus,
+    omega, v_ref, factor, merge, deviation, dt)."""
+    shape, radius, modulus, omega, v_ref, factor, merge, deviation, dt = knobs
     if force <= 0.0:
         return 0.0
     if desc.shape[0] > 0:
@@ -946,6 +924,65 @@ def observe(
     group[10] += force * feed
     group[14] += force * omega
     return a
+
+
+@_jit
+def observe(
+    desc: np.ndarray,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    distance: float,
+    velocity: np.ndarray,
+    force: float,
+    shape: int,
+    radius: float,
+    modulus: float,
+    omega: float,
+    v_ref: float,
+    factor: float,
+    merge: float,
+    deviation: float,
+    dt: float,
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    table: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
+    depth: np.ndarray,
+    group: np.ndarray,
+    work: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
+) -> float:
+    """One run step's removal: the patch at the tip p (3,) [m] with velocity (3,) [m/s]
+    pressed with ``force`` [N], joined to the open group of samples (``group`` (GROUP,)),
+    which is first deposited (:func:`flush`) when the patch has moved too far from it.
+
+    desc: a built-in surface's descriptor (``Surface._descriptor``, whose ∇Φ, ∇²Φ and
+    distance are evaluated here), or empty: grad (3,), hess (3, 3) and distance [m] are the
+    caller's, at the foot. The patch is centred at the tip's foot p − d n on the surface, and
+    its curvature (∇²Φ) is the part's there (for |d| > FOOT_TOL). v_ref > 0
+    [m/s]: the spindle's schedule ω |v_t| / v_ref (the removal per unit length of a feed
+    |v_t| is then that of the feed v_ref at ω); 0: ω throughout. merge [m]: the group's
+    reach (:func:`_fits`; docs/removal.md, "Cost"). deviation [m] > 0 (a tool that does not
+    spin, on a plane's or a cylinder's lattice): the samples are grouped into straight
+    segments instead, within ``deviation`` of their line (:func:`_fits_segment`), each
+    deposited as the patch slid along it (:func:`deposit_segment`); dt [s] the sample's
+    span (where the last one heads). work (18,), index (M,) int64 and weight (M,): scratch.
+    Returns the patch radius a [m] (0: no force; −1: Hertz does not apply, the part
+    conforms; nothing is deposited then).
+    """
+    knobs = (shape, radius, modulus, omega, v_ref, factor, merge, deviation, dt)
+    return _observe(
+        desc, p, grad, hess, distance, velocity, force, knobs, points, areas, order, table,
+        starts, box, dims, lattice, rows, col, depth, group, work, index, weight,
+    )  # fmt: skip
 
 
 @_jit
@@ -1014,15 +1051,17 @@ def observe_batch(
     deposited and those where the part conformed, incremented."""
     grad = np.zeros(3)
     hess = np.zeros((3, 3))
+    # the scalars as one tuple: a call of more than 30 arguments is compiled as f(*args),
+    # which Numba cannot inline
+    knobs = (shape, radius, modulus, omega, v_ref, factor, merge, deviation, dt)
     for s in range(count):
         i = first + s
         force = forces[i, column]
         if not force > 0.0:
             continue
-        a = observe(
-            desc, tips[i], grad, hess, 0.0, velocities[s], force, shape, radius, modulus, omega,
-            v_ref, factor, merge, deviation, dt, points, areas, order, table, starts, box, dims,
-            lattice, rows, col, depth, group, work, index, weight,
+        a = _observe(
+            desc, tips[i], grad, hess, 0.0, velocities[s], force, knobs, points, areas, order,
+            table, starts, box, dims, lattice, rows, col, depth, group, work, index, weight,
         )  # fmt: skip
         if a < 0.0:
             tally[1] += 1
