@@ -620,7 +620,7 @@ GROUP = 36
 SEGMENT_FORCE = 0.005
 """A segment's samples' forces stay within SEGMENT_FORCE of its first sample's (relative): the
 deposit spreads their force evenly along it (docs/removal.md, "Cost")."""
-SEGMENT_LENGTH = 8.0
+SEGMENT_LENGTH = 16.0
 """A segment is at most SEGMENT_LENGTH patch radii long (longer ones cost no less a sample)."""
 
 
@@ -1054,7 +1054,7 @@ def observe_batch(
     # the scalars as one tuple: a call of more than 30 arguments is compiled as f(*args),
     # which Numba cannot inline
     knobs = (shape, radius, modulus, omega, v_ref, factor, merge, deviation, dt)
-    for s in range(count):
+    for s in range(min(count, velocities.shape[0])):  # (never more samples than J v rows)
         i = first + s
         force = forces[i, column]
         if not force > 0.0:
