@@ -5,36 +5,51 @@ Run from the repository root:
     python benchmarks/bench_removal.py [--repeats N] [--json PATH] [--setups NAME ...]
     python benchmarks/bench_removal.py --profile [--setups NAME ...]
 
-For each setup, the same scenario runs with removal off and on, alternating (off, on, off,
-on, ...) so that a change of the machine's load hits both alike; each run's loop is timed by
-its ``meta["wall_time"]`` (the stepping loop: it starts once the record and its removal grid
-are built; the last < 256 samples' deposit, after the loop, is left out: 16 of 10,000 here),
-and the grid's set-up is timed alone (CPU seconds). Reported: the median over the pairs of
-(loop time on) / (loop time off), the ratio of the best of each, and the set-up; also the
-same median of the loop's CPU time (the process's, from the first ``progress`` call, after
-step 0, to the last, after the loop: the time the machine's other processes took is left
-out, which the wall time of a shared machine is not), and the removal's share measured
-inside each run with removal on: the loop's wall time over itself less the time spent in
-the removal's calls (``RemovalObserver.observe`` per sample, with the batches' compiled
-deposits, timed by ``time.perf_counter`` around each call; what removal costs the rest of
-the loop through the caches is not in it). Setups:
+For each setup, the same scenario runs with removal off and on, in pairs (off first in even
+pairs, on first in odd ones, so that a change of the machine's load hits both alike); each
+run's loop is timed by its ``meta["wall_time"]`` (the stepping loop: it starts once the record
+and its removal grid are built; the last < 256 samples' deposit, after the loop, is left out:
+16 of 10,000 here), and the grid's set-up is timed alone (CPU seconds). Reported, each as the
+median over the pairs of on / off, with the pairs' range:
+
+* **wall**: the loop's wall time (and the ratio of the best of each);
+* **CPU**: the loop's CPU time (the process's, from the first ``progress`` call, after step 0,
+  to the last, after the loop: the time the machine's other processes took is left out, which
+  the wall time of a shared machine is not);
+* **block**: the loop's rate over its fastest block of 2,600 steps (26 of ``simulate``'s
+  progress intervals, the first left out; each block holds 10 or 11 of the deposit's batches
+  of 256 samples), off over on: the rate when the process had the core (bench_peer.py's block
+  rates); also the best block of all the off runs over the best of all the on runs;
+* **in the run**: a third run per pair with removal on, its loop's wall time over itself
+  less the time spent in the removal's calls (``RemovalObserver.observe`` per sample, with
+  the batches' compiled deposits, timed by ``time.perf_counter`` around each call, the
+  timer's own cost counted in; what removal costs the rest of the loop through the caches is
+  not in it). The pairs' runs are not timed so.
+
+Setups:
 
 * ``rtr_plane_pass``: the RTR arm (3 joints, the cheapest step, so the worst ratio) on
   rtr_plane's plane, a straight pass of 0.1 m at 0.01 m/s in contact (10 s), Hertz pad
-  (a = 3.1 mm at 10 N), 0.3 mm cells (a / 10: about 340 cells under the patch; at 10 µm a
-  sample, about 8 samples are deposited as one, docs/removal.md "Cost");
+  (a = 3.1 mm at 10 N), 0.3 mm cells (a / 10: about 340 cells under the patch; 10 µm a
+  sample: a straight segment of many samples is deposited as one, docs/removal.md "Cost");
 * ``rtr_plane_fine``: the same with 0.1 mm cells (a / 31: about 3,000 cells under the patch,
-  the resolution of the profile tests; about 3 samples deposited as one);
+  the resolution of the profile tests);
 * ``rtr_cylinder``: paper_contact's helix on the cylinder for 10 s (quadric: the compiled surface),
-  Hertz pad, 0.3 mm cells (0.41 mm a sample: each sample deposited alone);
-* ``ur5_plane``: the UR5 circle on a plane (6 joints) for 10 s, Hertz pad, 0.3 mm cells.
+  Hertz pad, 0.3 mm cells (0.41 mm a sample, a straight line on the unrolled cylinder);
+* ``ur5_plane``: the UR5 circle on a plane (6 joints) for 10 s, Hertz pad, 0.3 mm cells;
+* ``ur5_plane_polish`` (``--profile`` only): the shipped example as it is (a raster, removal
+  on).
 
 ``--profile``: per setup, one run with removal on, then its removal alone replayed from its
-record (the tip, the force, J v from the arm's Jacobian), CPU time per sample, best of 7:
-the batched deposit as the run does it (``observe_batch``), the same with no deposit (each
-sample's surface, patch and group: the merge's reach made infinite), and the search for the
-cells under each sample's patch alone (``_removal_kernels._candidates``); beside the loop's
-wall time per step (its steady rate, ``meta["steps_per_second"]``).
+record (the tip, the force, J v from the arm's Jacobian), CPU time per sample, best of 7: the
+batched deposit as the run does it (``observe_batch``: straight segments of samples, the
+setups' tool does not spin), the same with the merged point deposits instead (the deposit of a
+spinning tool, and of every tool before the segments), and the samples' own work with nothing
+to deposit (the merged points' reach made infinite); beside the loop's wall time per step
+(``meta["steps_per_second"]``). And the accuracy of both against a reference: each sample's
+span [t_i, t_i + dt) cut into 20 point deposits (the tip moved linearly from p_i to p_{i+1},
+the force and J v of sample i held), none merged: the largest and the RMS difference over the
+grid, relative to the peak.
 
 Not part of the test suite; timings depend on the machine's load.
 """
@@ -82,6 +97,10 @@ SETUPS: dict[str, tuple[str, dict[str, Any], float]] = {
     ),
     "ur5_plane": ("ur5_plane.toml", {"sim.duration": 10.0}, 3e-4),
 }
+PROFILE_ONLY: dict[str, tuple[str, dict[str, Any], float]] = {
+    # the shipped example (its own pad and removal, the same as PAD's and 0.3 mm cells)
+    "ur5_plane_polish": ("ur5_plane_polish.toml", {}, 3e-4),
+}
 
 
 class _Timed:
@@ -106,6 +125,8 @@ class _Timed:
         RemovalObserver.observe = timed  # type: ignore[method-assign, assignment]
 
 
+SUB = 20
+"""--profile: the reference depth cuts each sample's span into SUB point deposits."""
 BLOCK = 26
 """Progress intervals (of N // 100 = 100 steps in a 10 s run) in a block: 2,600 steps, 10 or 11
 of the deposit's batches of 256 samples."""
@@ -164,7 +185,7 @@ def _profile(name: str) -> dict[str, float]:
 
     from hybrid_force.sim import _removal_kernels as K
 
-    file, overrides, resolution = SETUPS[name]
+    file, overrides, resolution = {**SETUPS, **PROFILE_ONLY}[name]
     removal = {"k_p": 1e-13, "resolution": resolution}
     sc = load_scenario(
         REPO / "scenarios" / file, {**overrides, "tool.pad": PAD, "removal": removal}
@@ -204,20 +225,36 @@ def _profile(name: str) -> dict[str, float]:
     h_segments = g.depth.copy()
     points = min(batches(0.0, factor) for _ in range(7))
     h_points = g.depth.copy()
-    # the samples' own work alone: no slip to deposit (a factor of 0 still runs the deposits;
-    # a zero velocity leaves the groups empty of weight, so nothing is deposited)
-    saved = velocities.copy()
-    velocities[:] = 0.0
-    alone = min(batches(dev, factor) for _ in range(7))
-    velocities[:] = saved
-    us = 1e6 / n
-    peak = float(h_points.max())
+    # the samples' own work alone (surface, patch, group): the point groups' reach made
+    # infinite, one deposit at the end
+    merge, obs._merge = obs._merge, math.inf
+    alone = min(batches(0.0, factor) for _ in range(7))
+    obs._merge = merge
+    # the reference: each sample's span [t_i, t_i + dt) cut into SUB point deposits (the tip
+    # moved linearly from p_i to p_{i+1}, the force and J v of sample i held), none merged
+    w = (np.arange(SUB) / SUB)[None, :, None]
+    fine = (tips[:-1, None, :] * (1 - w) + tips[1:, None, :] * w).reshape(-1, 3)
+    tips = np.ascontiguousarray(np.vstack([fine, tips[-1:]]))
+    forces = np.ascontiguousarray(np.vstack([np.repeat(forces[:-1], SUB, axis=0), forces[-1:]]))
+    velocities = np.repeat(velocities[:-1], SUB, axis=0)
+    n, dt = tips.shape[0], obs._dt
+    obs._dt = dt / SUB
+    merge, obs._merge = obs._merge, 0.0
+    batches(0.0, factor / SUB)
+    obs._dt, obs._merge = dt, merge
+    reference = g.depth.copy()
+    peak = float(reference.max())
+    us = 1e6 / (r.n_samples)
     return {
         "loop_us_per_step": 1e6 / float(r.meta["steps_per_second"]),
         "removal_us_per_sample": segments * us,
         "points_us_per_sample": points * us,
         "observe_us_per_sample": alone * us,
-        "segments_vs_points_max_over_peak": float(np.abs(h_segments - h_points).max()) / peak,
+        "segments_error_max_over_peak": float(np.abs(h_segments - reference).max()) / peak,
+        "points_error_max_over_peak": float(np.abs(h_points - reference).max()) / peak,
+        "segments_error_rms_over_peak": float(np.sqrt(np.mean((h_segments - reference) ** 2)))
+        / peak,
+        "points_error_rms_over_peak": float(np.sqrt(np.mean((h_points - reference) ** 2))) / peak,
         "segments": float(dev > 0.0),
     }
 
@@ -226,19 +263,30 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--json", type=Path, default=None)
-    parser.add_argument("--setups", nargs="*", choices=sorted(SETUPS), default=list(SETUPS))
+    parser.add_argument(
+        "--setups", nargs="*", choices=sorted({**SETUPS, **PROFILE_ONLY}), default=None
+    )
     parser.add_argument("--profile", action="store_true", help="the removal's parts (docstring)")
     args = parser.parse_args()
     report: dict[str, Any] = {}
+    if args.setups is None:
+        args.setups = list(SETUPS) + (list(PROFILE_ONLY) if args.profile else [])
+    if not args.profile and set(args.setups) & set(PROFILE_ONLY):
+        parser.error(f"{sorted(PROFILE_ONLY)}: with --profile only (its removal is always on)")
     if args.profile:
         for name in args.setups:
             report[name] = part = _profile(name)
             print(
                 f"{name:16s} µs per sample: removal {part['removal_us_per_sample']:.2f} (of which "
-                f"the samples without a deposit {part['observe_us_per_sample']:.2f}); merged "
-                f"points instead of segments {part['points_us_per_sample']:.2f} (their depths "
-                f"differ by {100 * part['segments_vs_points_max_over_peak']:.3f} % of the peak "
-                f"at most); the loop {part['loop_us_per_step']:.1f} µs a step"
+                f"the samples without a deposit {part['observe_us_per_sample']:.2f}), merged "
+                f"points instead {part['points_us_per_sample']:.2f}; the loop "
+                f"{part['loop_us_per_step']:.1f} µs a step. Depth against {SUB} point deposits "
+                f"a sample, max (RMS) / peak: segments "
+                f"{100 * part['segments_error_max_over_peak']:.3f} % "
+                f"({100 * part['segments_error_rms_over_peak']:.4f} %), merged points "
+                f"{100 * part['points_error_max_over_peak']:.3f} % "
+                f"({100 * part['points_error_rms_over_peak']:.4f} %)",
+                flush=True,
             )
         if args.json is not None:
             args.json.write_text(json.dumps(report, indent=2))
