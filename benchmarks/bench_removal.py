@@ -5,36 +5,51 @@ Run from the repository root:
     python benchmarks/bench_removal.py [--repeats N] [--json PATH] [--setups NAME ...]
     python benchmarks/bench_removal.py --profile [--setups NAME ...]
 
-For each setup, the same scenario runs with removal off and on, alternating (off, on, off,
-on, ...) so that a change of the machine's load hits both alike; each run's loop is timed by
-its ``meta["wall_time"]`` (the stepping loop: it starts once the record and its removal grid
-are built; the last < 256 samples' deposit, after the loop, is left out: 16 of 10,000 here),
-and the grid's set-up is timed alone (CPU seconds). Reported: the median over the pairs of
-(loop time on) / (loop time off), the ratio of the best of each, and the set-up; also the
-same median of the loop's CPU time (the process's, from the first ``progress`` call, after
-step 0, to the last, after the loop: the time the machine's other processes took is left
-out, which the wall time of a shared machine is not), and the removal's share measured
-inside each run with removal on: the loop's wall time over itself less the time spent in
-the removal's calls (``RemovalObserver.observe`` per sample, with the batches' compiled
-deposits, timed by ``time.perf_counter`` around each call; what removal costs the rest of
-the loop through the caches is not in it). Setups:
+For each setup, the same scenario runs with removal off and on, in pairs (off first in even
+pairs, on first in odd ones, so that a change of the machine's load hits both alike); each
+run's loop is timed by its ``meta["wall_time"]`` (the stepping loop: it starts once the record
+and its removal grid are built; the last < 256 samples' deposit, after the loop, is left out:
+16 of 10,000 here), and the grid's set-up is timed alone (CPU seconds). Reported, each as the
+median over the pairs of on / off, with the pairs' range:
+
+* **wall**: the loop's wall time (and the ratio of the best of each);
+* **CPU**: the loop's CPU time (the process's, from the first ``progress`` call, after step 0,
+  to the last, after the loop: the time the machine's other processes took is left out, which
+  the wall time of a shared machine is not);
+* **block**: the loop's rate over its fastest block of 2,600 steps (26 of ``simulate``'s
+  progress intervals, the first left out; each block holds 10 or 11 of the deposit's batches
+  of 256 samples), off over on: the rate when the process had the core (bench_peer.py's block
+  rates); also the best block of all the off runs over the best of all the on runs;
+* **in the run**: a third run per pair with removal on, its loop's wall time over itself
+  less the time spent in the removal's calls (``RemovalObserver.observe`` per sample, with
+  the batches' compiled deposits, timed by ``time.perf_counter`` around each call, the
+  timer's own cost counted in; what removal costs the rest of the loop through the caches is
+  not in it). The pairs' runs are not timed so.
+
+Setups:
 
 * ``rtr_plane_pass``: the RTR arm (3 joints, the cheapest step, so the worst ratio) on
   rtr_plane's plane, a straight pass of 0.1 m at 0.01 m/s in contact (10 s), Hertz pad
-  (a = 3.1 mm at 10 N), 0.3 mm cells (a / 10: about 340 cells under the patch; at 10 µm a
-  sample, about 8 samples are deposited as one, docs/removal.md "Cost");
+  (a = 3.1 mm at 10 N), 0.3 mm cells (a / 10: about 340 cells under the patch; 10 µm a
+  sample: a straight segment of many samples is deposited as one, docs/removal.md "Cost");
 * ``rtr_plane_fine``: the same with 0.1 mm cells (a / 31: about 3,000 cells under the patch,
-  the resolution of the profile tests; about 3 samples deposited as one);
+  the resolution of the profile tests);
 * ``rtr_cylinder``: paper_contact's helix on the cylinder for 10 s (quadric: the compiled surface),
-  Hertz pad, 0.3 mm cells (0.41 mm a sample: each sample deposited alone);
-* ``ur5_plane``: the UR5 circle on a plane (6 joints) for 10 s, Hertz pad, 0.3 mm cells.
+  Hertz pad, 0.3 mm cells (0.41 mm a sample, a straight line on the unrolled cylinder);
+* ``ur5_plane``: the UR5 circle on a plane (6 joints) for 10 s, Hertz pad, 0.3 mm cells;
+* ``ur5_plane_polish`` (``--profile`` only): the shipped example as it is (a raster, removal
+  on).
 
 ``--profile``: per setup, one run with removal on, then its removal alone replayed from its
-record (the tip, the force, J v from the arm's Jacobian), CPU time per sample, best of 7:
-the batched deposit as the run does it (``observe_batch``), the same with no deposit (each
-sample's surface, patch and group: the merge's reach made infinite), and the search for the
-cells under each sample's patch alone (``_removal_kernels._candidates``); beside the loop's
-wall time per step (its steady rate, ``meta["steps_per_second"]``).
+record (the tip, the force, J v from the arm's Jacobian), CPU time per sample, best of 7: the
+batched deposit as the run does it (``observe_batch``: straight segments of samples, the
+setups' tool does not spin), the same with the merged point deposits instead (the deposit of a
+spinning tool, and of every tool before the segments), and the samples' own work with nothing
+to deposit (the merged points' reach made infinite); beside the loop's wall time per step
+(``meta["steps_per_second"]``). And the accuracy of both against a reference: each sample's
+span [t_i, t_i + dt) cut into 20 point deposits (the tip moved linearly from p_i to p_{i+1},
+the force and J v of sample i held), none merged: the largest and the RMS difference over the
+grid, relative to the peak.
 
 Not part of the test suite; timings depend on the machine's load.
 """
@@ -44,6 +59,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import sys
 import time
@@ -81,18 +97,27 @@ SETUPS: dict[str, tuple[str, dict[str, Any], float]] = {
     ),
     "ur5_plane": ("ur5_plane.toml", {"sim.duration": 10.0}, 3e-4),
 }
+PROFILE_ONLY: dict[str, tuple[str, dict[str, Any], float]] = {
+    # the shipped example (its own pad and removal, the same as PAD's and 0.3 mm cells)
+    "ur5_plane_polish": ("ur5_plane_polish.toml", {}, 3e-4),
+}
 
 
 class _Timed:
-    """Wall time [s] spent inside ``RemovalObserver.observe`` (the calls of a run)."""
+    """Wall time [s] spent inside ``RemovalObserver.observe`` (the calls of a run), while
+    ``on`` (the runs that measure the removal's share; the pairs' runs are not timed so)."""
 
     spent = 0.0
+    on = False
 
     @classmethod
     def install(cls) -> None:
         observe = RemovalObserver.observe
 
         def timed(self: RemovalObserver, *args: Any) -> None:
+            if not cls.on:
+                observe(self, *args)
+                return
             start = time.perf_counter()
             observe(self, *args)
             cls.spent += time.perf_counter() - start
@@ -100,11 +125,33 @@ class _Timed:
         RemovalObserver.observe = timed  # type: ignore[method-assign, assignment]
 
 
-def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float, float]:
+SUB = 20
+"""--profile: the reference depth cuts each sample's span into SUB point deposits."""
+BLOCK = 26
+"""Progress intervals (of N // 100 = 100 steps in a 10 s run) in a block: 2,600 steps, 10 or 11
+of the deposit's batches of 256 samples."""
+
+
+def _block_rate(stamps: list[tuple[int, float]]) -> float:
+    """The fastest rate [steps/s] over BLOCK consecutive progress intervals (the first
+    interval left out: the kernels' first calls; the last stamp is after the loop)."""
+    marks = stamps[1:-1]
+    rates = [
+        (i1 - i0) / (t1 - t0)
+        for (i0, t0), (i1, t1) in zip(marks, marks[BLOCK:], strict=False)
+        if i1 > i0 and t1 > t0
+    ]
+    return max(rates) if rates else math.nan
+
+
+def _run(
+    file: str, overrides: dict[str, Any], timed: bool = False
+) -> tuple[float, float, float, float, float]:
     """(the loop's wall time [s], ``meta["wall_time"]``: it starts after the run's record and
     its removal grid are built; the loop's CPU time [s] from step 0 on (the ``progress``
     callback's first and last calls); the grid's set-up alone, in CPU seconds (0 without
-    removal); the wall time [s] the loop spent in the removal's calls)."""
+    removal); the wall time [s] the loop spent in the removal's calls (``timed``, else 0);
+    the block rate [steps/s], :func:`_block_rate`)."""
     sc = load_scenario(REPO / "scenarios" / file, overrides)
     setup = 0.0
     if sc.removal is not None:
@@ -112,25 +159,33 @@ def _run(file: str, overrides: dict[str, Any]) -> tuple[float, float, float, flo
         RemovalObserver(sc, round(sc.sim.duration / sc.sim.dt) + 1)
         setup = time.process_time() - start
     marks: list[float] = []
+    stamps: list[tuple[int, float]] = []
+    steps = round(sc.sim.duration / sc.sim.dt) + 1
 
-    def progress(_: float) -> None:
+    def progress(fraction: float) -> None:
         marks.append(time.process_time())
+        stamps.append((round(fraction * steps), time.perf_counter()))
 
-    _Timed.spent = 0.0
+    _Timed.spent, _Timed.on = 0.0, timed
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = simulate(sc, progress=progress)
-    return float(result.meta["wall_time"]), marks[-1] - marks[0], setup, _Timed.spent
+    return (
+        float(result.meta["wall_time"]),
+        marks[-1] - marks[0],
+        setup,
+        _Timed.spent,
+        _block_rate(stamps),
+    )
 
 
 def _profile(name: str) -> dict[str, float]:
-    """µs per sample of the removal's parts on setup ``name`` (module docstring, --profile)."""
-    import numba
+    """µs per sample of the removal on setup ``name`` (module docstring, --profile)."""
     import numpy as np
 
     from hybrid_force.sim import _removal_kernels as K
 
-    file, overrides, resolution = SETUPS[name]
+    file, overrides, resolution = {**SETUPS, **PROFILE_ONLY}[name]
     removal = {"k_p": 1e-13, "resolution": resolution}
     sc = load_scenario(
         REPO / "scenarios" / file, {**overrides, "tool.pad": PAD, "removal": removal}
@@ -144,7 +199,7 @@ def _profile(name: str) -> dict[str, float]:
     obs = RemovalObserver(sc, n)
     g = obs.grid
 
-    def batches(merge: float) -> float:
+    def batches(deviation: float, factor: float) -> float:
         g.depth[:] = 0.0
         obs._group[:] = 0.0
         tally = np.zeros(2, dtype=np.int64)
@@ -154,41 +209,53 @@ def _profile(name: str) -> dict[str, float]:
             K.observe_batch(
                 obs._desc, tips, forces, obs.surface_index, velocities[first : first + count],
                 first, count, obs._shape, obs.pad.radius, obs._modulus, obs.settings.omega,
-                obs.v_ref, obs._factor, merge, g.points, g.areas, g.order, g.table, g.starts,
-                g.box, g.dims, g.lattice, g.rows, g.col, g.depth, obs._group, obs._work, g.index,
-                g.weight, tally,
+                obs.v_ref, factor, obs._merge, deviation, obs._dt, g.points, g.areas, g.order,
+                g.table, g.starts, g.box, g.dims, g.lattice, g.rows, g.col, g.depth, obs._group,
+                obs._work, g.index, g.weight, tally,
             )  # fmt: skip
+        K.flush(
+            obs._group, obs._shape, factor, g.points, g.areas, g.order, g.table, g.starts, g.box,
+            g.dims, g.lattice, g.rows, g.col, g.depth, obs._work, g.index, g.weight,
+        )  # fmt: skip
         return time.process_time() - start
 
-    @numba.njit
-    def search(order, table, starts, box, dims, lattice, rows, col, centres, a, out):  # type: ignore[no-untyped-def]
-        total = 0
-        for s in range(centres.shape[0]):
-            c = centres[s]
-            total += K._candidates(order, table, starts, box, dims, lattice, rows, col, c, a, out)
-        return total
-
-    # the patches' centres: the tips' feet on the part (the nominal contact radius a₀)
-    feet = np.array([obs.surface.closest_point(t) for t in tips])
-    args = (g.order, g.table, g.starts, g.box, g.dims, g.lattice, g.rows, g.col, feet)
-
-    def searches() -> float:
-        start = time.process_time()
-        search(*args, obs.contact_radius, g.index)
-        return time.process_time() - start
-
-    batches(obs._merge), batches(math.inf), searches()  # compiled, caches warm
-    full = min(batches(obs._merge) for _ in range(7))
-    alone = min(batches(math.inf) for _ in range(7))
-    found = min(searches() for _ in range(7))
-    candidates = search(*args, obs.contact_radius, g.index) / n
-    us = 1e6 / n
+    dev, factor = obs._deviation, obs._factor
+    batches(dev, factor), batches(0.0, factor)  # compiled, caches warm
+    segments = min(batches(dev, factor) for _ in range(7))
+    h_segments = g.depth.copy()
+    points = min(batches(0.0, factor) for _ in range(7))
+    h_points = g.depth.copy()
+    # the samples' own work alone (surface, patch, group): the point groups' reach made
+    # infinite, one deposit at the end
+    merge, obs._merge = obs._merge, math.inf
+    alone = min(batches(0.0, factor) for _ in range(7))
+    obs._merge = merge
+    # the reference: each sample's span [t_i, t_i + dt) cut into SUB point deposits (the tip
+    # moved linearly from p_i to p_{i+1}, the force and J v of sample i held), none merged
+    w = (np.arange(SUB) / SUB)[None, :, None]
+    fine = (tips[:-1, None, :] * (1 - w) + tips[1:, None, :] * w).reshape(-1, 3)
+    tips = np.ascontiguousarray(np.vstack([fine, tips[-1:]]))
+    forces = np.ascontiguousarray(np.vstack([np.repeat(forces[:-1], SUB, axis=0), forces[-1:]]))
+    velocities = np.repeat(velocities[:-1], SUB, axis=0)
+    n, dt = tips.shape[0], obs._dt
+    obs._dt = dt / SUB
+    merge, obs._merge = obs._merge, 0.0
+    batches(0.0, factor / SUB)
+    obs._dt, obs._merge = dt, merge
+    reference = g.depth.copy()
+    peak = float(reference.max())
+    us = 1e6 / (r.n_samples)
     return {
         "loop_us_per_step": 1e6 / float(r.meta["steps_per_second"]),
-        "removal_us_per_sample": full * us,
+        "removal_us_per_sample": segments * us,
+        "points_us_per_sample": points * us,
         "observe_us_per_sample": alone * us,
-        "search_us_per_sample": found * us,
-        "candidates_per_sample": candidates,
+        "segments_error_max_over_peak": float(np.abs(h_segments - reference).max()) / peak,
+        "points_error_max_over_peak": float(np.abs(h_points - reference).max()) / peak,
+        "segments_error_rms_over_peak": float(np.sqrt(np.mean((h_segments - reference) ** 2)))
+        / peak,
+        "points_error_rms_over_peak": float(np.sqrt(np.mean((h_points - reference) ** 2))) / peak,
+        "segments": float(dev > 0.0),
     }
 
 
@@ -196,18 +263,30 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--json", type=Path, default=None)
-    parser.add_argument("--setups", nargs="*", choices=sorted(SETUPS), default=list(SETUPS))
+    parser.add_argument(
+        "--setups", nargs="*", choices=sorted({**SETUPS, **PROFILE_ONLY}), default=None
+    )
     parser.add_argument("--profile", action="store_true", help="the removal's parts (docstring)")
     args = parser.parse_args()
     report: dict[str, Any] = {}
+    if args.setups is None:
+        args.setups = list(SETUPS) + (list(PROFILE_ONLY) if args.profile else [])
+    if not args.profile and set(args.setups) & set(PROFILE_ONLY):
+        parser.error(f"{sorted(PROFILE_ONLY)}: with --profile only (its removal is always on)")
     if args.profile:
         for name in args.setups:
             report[name] = part = _profile(name)
             print(
                 f"{name:16s} µs per sample: removal {part['removal_us_per_sample']:.2f} (of which "
-                f"observe {part['observe_us_per_sample']:.2f}, the search for the cells "
-                f"{part['search_us_per_sample']:.2f}: {part['candidates_per_sample']:.0f} "
-                f"candidates); the loop {part['loop_us_per_step']:.1f} µs a step"
+                f"the samples without a deposit {part['observe_us_per_sample']:.2f}), merged "
+                f"points instead {part['points_us_per_sample']:.2f}; the loop "
+                f"{part['loop_us_per_step']:.1f} µs a step. Depth against {SUB} point deposits "
+                f"a sample, max (RMS) / peak: segments "
+                f"{100 * part['segments_error_max_over_peak']:.3f} % "
+                f"({100 * part['segments_error_rms_over_peak']:.4f} %), merged points "
+                f"{100 * part['points_error_max_over_peak']:.3f} % "
+                f"({100 * part['points_error_rms_over_peak']:.4f} %)",
+                flush=True,
             )
         if args.json is not None:
             args.json.write_text(json.dumps(report, indent=2))
@@ -219,23 +298,35 @@ def main() -> int:
         _run(file, {**on, "sim.duration": 0.05})  # compile and load the kernels once
         _run(file, {**overrides, "sim.duration": 0.05})
         offs, ons, setups, cpu_offs, cpu_ons, shares = [], [], [], [], [], []
-        for _ in range(args.repeats):
-            loop, cpu, _, _ = _run(file, overrides)
-            offs.append(loop)
-            cpu_offs.append(cpu)
-            loop, cpu, setup, spent = _run(file, on)
-            ons.append(loop)
-            cpu_ons.append(cpu)
-            setups.append(setup)
+        block_offs, block_ons = [], []
+        for rep in range(args.repeats):
+            # off first in even pairs, on first in odd ones (a drift of the load cancels)
+            for removal_on in (False, True) if rep % 2 == 0 else (True, False):
+                loop, cpu, setup, spent, block = _run(file, on if removal_on else overrides)
+                if removal_on:
+                    ons.append(loop)
+                    cpu_ons.append(cpu)
+                    setups.append(setup)
+                    block_ons.append(block)
+                else:
+                    offs.append(loop)
+                    cpu_offs.append(cpu)
+                    block_offs.append(block)
+            # the removal's share: a third run, its calls timed (the timer's cost counted in)
+            loop, _, _, spent, _ = _run(file, on, timed=True)
             shares.append(loop / (loop - spent))
         pairs = [b / a for a, b in zip(offs, ons, strict=True)]
         cpu_pairs = [b / a for a, b in zip(cpu_offs, cpu_ons, strict=True)]
+        block_pairs = [a / b for a, b in zip(block_offs, block_ons, strict=True)]
         report[name] = {
             "ratio_median": statistics.median(pairs),
             "ratio_best": min(ons) / min(offs),
             "ratios": pairs,
             "cpu_ratio_median": statistics.median(cpu_pairs),
             "cpu_ratios": cpu_pairs,
+            "block_ratio_median": statistics.median(block_pairs),
+            "block_ratio_best": max(block_offs) / max(block_ons),
+            "block_ratios": block_pairs,
             "inrun_ratio_median": statistics.median(shares),
             "inrun_ratios": shares,
             "off_loop_seconds": offs,
@@ -246,11 +337,15 @@ def main() -> int:
         }
         r = report[name]
         print(
-            f"{name:16s} on/off loop time: median {r['ratio_median']:.3f} (best on / best off "
-            f"{r['ratio_best']:.3f}, {args.repeats} pairs; CPU time: median "
-            f"{r['cpu_ratio_median']:.3f}; in the run: median {r['inrun_ratio_median']:.3f}); "
-            f"loop off {min(offs):.2f} s; grid set-up "
-            f"{r['setup_cpu_seconds_median']:.2f} s (before the loop)"
+            f"{name:16s} on/off, medians of {args.repeats} pairs: wall {r['ratio_median']:.3f} "
+            f"(best on / best off {r['ratio_best']:.3f}; pairs {min(pairs):.2f}-"
+            f"{max(pairs):.2f}), CPU {r['cpu_ratio_median']:.3f} ({min(cpu_pairs):.2f}-"
+            f"{max(cpu_pairs):.2f}), block {r['block_ratio_median']:.3f} (best "
+            f"{r['block_ratio_best']:.3f}; {min(block_pairs):.2f}-{max(block_pairs):.2f}), in "
+            f"the run {r['inrun_ratio_median']:.3f}; loop off {min(offs):.2f} s; grid set-up "
+            f"{r['setup_cpu_seconds_median']:.2f} s (before the loop); load "
+            f"{os.getloadavg()[0]:.1f}",
+            flush=True,
         )
     if args.json is not None:
         args.json.write_text(json.dumps(report, indent=2))

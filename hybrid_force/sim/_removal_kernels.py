@@ -306,6 +306,151 @@ def _candidates(
     return _cells_in_box(order, table, starts, box, dims, centre, reach, out)
 
 
+@_jit_inline
+def _between(alpha: float, beta: float, lo: float, hi: float) -> tuple[float, float]:
+    """The interval of y with lo ≤ α y + β ≤ hi: (−inf, inf) or empty (inf, −inf) for α ≈ 0."""
+    if abs(alpha) < 1e-12:
+        if lo <= beta <= hi:
+            return -math.inf, math.inf
+        return math.inf, -math.inf
+    y1, y2 = (lo - beta) / alpha, (hi - beta) / alpha
+    return (y1, y2) if y1 <= y2 else (y2, y1)
+
+
+@_jit_inline
+def _capsule_chord(
+    x: float, xe: float, ye: float, ex: float, ey: float, length: float, a: float
+) -> tuple[float, float]:
+    """The interval of y [m] where the line at x [m] crosses the capsule of radius a [m] about
+    the segment (0, 0)–(xe, ye) (unit direction (ex, ey), ``length`` [m]): the hull of its
+    crossings of the two end discs and of the band between them (the capsule is convex, so
+    their union is one interval); empty (lo > hi) if it misses."""
+    lo, hi = math.inf, -math.inf
+    a2 = a * a
+    r = a2 - x * x
+    if r >= 0.0:
+        h = math.sqrt(r)
+        lo, hi = -h, h
+    r = a2 - (x - xe) ** 2
+    if r >= 0.0:
+        h = math.sqrt(r)
+        lo, hi = min(lo, ye - h), max(hi, ye + h)
+    # the band: |−x ey + y ex| ≤ a and 0 ≤ x ex + y ey ≤ length
+    b_lo, b_hi = _between(ex, -x * ey, -a, a)
+    s_lo, s_hi = _between(ey, x * ex, 0.0, length)
+    b_lo, b_hi = max(b_lo, s_lo), min(b_hi, s_hi)
+    if b_lo <= b_hi:
+        lo, hi = min(lo, b_lo), max(hi, b_hi)
+    return lo, hi
+
+
+@_jit_inline
+def _half_disc_area(tau: float, c: float, c2: float) -> float:
+    """∫₀^τ √(c² − t²) dt = (τ √(c² − τ²) + c² asin(τ/c)) / 2 for |τ| ≤ c."""
+    q = min(max(tau / c, -1.0), 1.0)
+    return 0.5 * (tau * math.sqrt(max(c2 - tau * tau, 0.0)) + c2 * math.asin(q))
+
+
+@_jit_inline
+def _line_integral(t: float, length: float, c2: float, shape: int) -> float:
+    """∫₀^length w(s) ds of the patch's profile along a segment, at a cell whose distance
+    from the segment's line leaves the half chord c = √c2 [m] and whose foot on the line is
+    at t [m] from the segment's start: the profile w = √(c² − (s − t)²) (Hertz, p/p₀ times
+    a) or 1 (flat) where |s − t| < c. A zero length: the profile at the cell (a point)."""
+    if length == 0.0:
+        r = c2 - t * t
+        if shape == HERTZ:
+            return math.sqrt(r) if r > 0.0 else 0.0
+        return 1.0 if r > 0.0 else 0.0
+    c = math.sqrt(c2)
+    lo, hi = -t, length - t
+    if shape == HERTZ:
+        if lo <= -c and hi >= c:  # the whole chord: no arcsine
+            return 0.5 * math.pi * c2
+        lo, hi = max(lo, -c), min(hi, c)
+        if lo >= hi:
+            return 0.0
+        return _half_disc_area(hi, c, c2) - _half_disc_area(lo, c, c2)
+    return max(min(hi, c) - max(lo, -c), 0.0)
+
+
+@_jit
+def deposit_segment(
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
+    areas: np.ndarray,
+    depth: np.ndarray,
+    us: float,
+    vs: float,
+    xe: float,
+    ye: float,
+    a: float,
+    shape: int,
+    amount: float,
+    index: np.ndarray,
+    weight: np.ndarray,
+) -> int:
+    """Add the depth of a patch of radius a [m] slid along a straight segment of a plane's or
+    a cylinder's chart lattice (``RemovalGrid.lattice``, ``rows``, ``col``; areas (M,) [m²],
+    depth (M,) [m], written): from the chart point (us, vs) (u [m] or θ [rad], v [m]) by
+    (xe, ye) [m] in the unrolled surface (x = u or R θ, y = v), with ``amount`` [m³]
+    = k_p Σ F |v_t| dt of the samples it stands for. Each cell gets the line integral of the
+    profile across its centre (:func:`_line_integral`, exact for a straight segment at a
+    constant force), scaled so that Σ h_i A_i = amount exactly. index, weight (M,): scratch.
+    The cylinder's capsule must span less than half its circumference. Returns the cells
+    that received depth (0: none inside, nothing added)."""
+    u0, du, v0, dv, nu, period = (
+        lattice[1],
+        lattice[2],
+        lattice[3],
+        lattice[4],
+        lattice[5],
+        lattice[6],
+    )
+    metric = lattice[19] if lattice[0] == CYLINDER_ROWS else 1.0
+    length = math.sqrt(xe * xe + ye * ye)
+    if length > 1e-9 * a:
+        ex, ey = xe / length, ye / length
+    else:
+        length, ex, ey = 0.0, 1.0, 0.0
+    a2 = a * a
+    x_lo, x_hi = min(0.0, xe) - a, max(0.0, xe) + a
+    n = int(nu)
+    shifts = 1 if period > 0.0 else 0
+    count = 0
+    total = 0.0
+    for shift in range(-shifts, shifts + 1):
+        base = us + shift * period
+        k_lo = max(0, math.ceil((base + x_lo / metric - u0) / du - 0.5))
+        k_hi = min(n - 1, math.floor((base + x_hi / metric - u0) / du - 0.5))
+        for k in range(k_lo, k_hi + 1):
+            x = metric * (u0 + (k + 0.5) * du - base)  # the row's centre line
+            lo, hi = _capsule_chord(x, xe, ye, ex, ey, length, a)
+            if lo > hi:
+                continue
+            first = _first_at_least(col, rows[k], rows[k + 1], math.ceil((vs + lo - v0) / dv - 0.5))
+            stop = _first_at_least(
+                col, first, rows[k + 1], math.floor((vs + hi - v0) / dv - 0.5) + 1
+            )
+            tx, lx = x * ex, -x * ey
+            for i in range(first, stop):
+                y = v0 + (col[i] + 0.5) * dv - vs
+                lateral = lx + y * ex
+                c2 = a2 - lateral * lateral
+                w = _line_integral(tx + y * ey, length, c2, shape) if c2 > 0.0 else 0.0
+                total += w * areas[i]
+                index[count] = i
+                weight[count] = w
+                count += 1 if w > 0.0 else 0
+    if not total > 0.0:
+        return 0
+    scale = amount / total
+    for c in range(count):
+        depth[index[c]] += scale * weight[c]
+    return count
+
+
 @_jit
 def deposit(
     points: np.ndarray,
@@ -463,11 +608,77 @@ def patch_on_part(
     return (3.0 * force * r_eff / (4.0 * modulus)) ** (1.0 / 3.0)
 
 
-GROUP = 26
+GROUP = 36
 """The length of a group's state (:func:`observe`, :func:`flush`)."""
 # the group's state: [0] samples, [1] Σ w, [2:5] Σ w c, [5:8] Σ w n, [8] Σ w a, [9] Σ F,
 # [10] Σ F |v_t|, [11:14] Σ F v_t, [14] Σ F ω; its first sample's [15:18] c, [18:21] n, [21] a,
-# [22:25] v_t, [25] ω (w = F |v_t| without a spindle, F with one)
+# [22:25] v_t, [25] ω (w = F |v_t| without a spindle, F with one); a segment (:func:`observe`
+# with a deviation > 0): [26] 1, the start's chart point [27] u, [28] v, the direction
+# [29:31] (ex, ey) in the unrolled surface, [31] the first sample's F, [32] the last sample's
+# place s along (ex, ey) [m], [33:35] the segment's end (x, y) [m] from the start (the last
+# sample's foot moved on by v_t dt), [35] the end's place s [m]
+SEGMENT_FORCE = 0.005
+"""A segment's samples' forces stay within SEGMENT_FORCE of its first sample's (relative): the
+deposit spreads their force evenly along it (docs/removal.md, "Cost")."""
+SEGMENT_LENGTH = 16.0
+"""A segment is at most SEGMENT_LENGTH patch radii long (longer ones cost no less a sample)."""
+
+
+@_jit_inline
+def _chart_point(
+    lattice: np.ndarray, centre: np.ndarray, vt: np.ndarray
+) -> tuple[float, float, float, float]:
+    """The chart point (u, v) of a foot centre (3,) [m] on a plane's or a cylinder's lattice
+    (``RemovalGrid.lattice``: u [m] or θ [rad] in (−π, π], v [m]) and the velocity vt (3,)
+    [m/s] in the unrolled surface (along x = u or R θ, along y = v)."""
+    w0, w1, w2 = centre[0] - lattice[7], centre[1] - lattice[8], centre[2] - lattice[9]
+    x = w0 * lattice[10] + w1 * lattice[11] + w2 * lattice[12]
+    y = w0 * lattice[13] + w1 * lattice[14] + w2 * lattice[15]
+    z = w0 * lattice[16] + w1 * lattice[17] + w2 * lattice[18]
+    ax = vt[0] * lattice[10] + vt[1] * lattice[11] + vt[2] * lattice[12]
+    ay = vt[0] * lattice[13] + vt[1] * lattice[14] + vt[2] * lattice[15]
+    if lattice[0] == CYLINDER_ROWS:  # e_θ = −sin θ e1 + cos θ e2, along the axis
+        theta = math.atan2(y, x)
+        az = vt[0] * lattice[16] + vt[1] * lattice[17] + vt[2] * lattice[18]
+        return theta, z, -math.sin(theta) * ax + math.cos(theta) * ay, az
+    return x, y, ax, ay
+
+
+@_jit_inline
+def _segment_offset(
+    group: np.ndarray, lattice: np.ndarray, u: float, v: float
+) -> tuple[float, float]:
+    """The chart point (u, v) from the open segment's start, in the unrolled surface [m] (a
+    cylinder's angle taken within half a turn of the start's)."""
+    du = u - group[27]
+    if lattice[0] == CYLINDER_ROWS:
+        du -= 2.0 * math.pi * round(du / (2.0 * math.pi))
+        return lattice[19] * du, v - group[28]
+    return du, v - group[28]
+
+
+@_jit_inline
+def _fits_segment(group: np.ndarray, x: float, y: float, force: float, deviation: float) -> bool:
+    """Whether a sample whose foot is (x, y) [m] from the open segment's start (unrolled) and
+    whose force is ``force`` [N] may join it: within ``deviation`` [m] of the line through the
+    start along its first sample's direction, not behind the last sample by more than
+    ``deviation`` nor ahead of where the last one was heading (v_t dt) by more than
+    ``deviation`` and a quarter of its step (a path lost and found again farther on starts a
+    new segment), within SEGMENT_LENGTH radii of the start, and its force within
+    SEGMENT_FORCE of the first sample's."""
+    if group[0] == 0.0:
+        return True
+    ex, ey = group[29], group[30]
+    s = x * ex + y * ey
+    lateral = -x * ey + y * ex
+    last, end = group[32], group[35]
+    return (
+        abs(lateral) <= deviation
+        and s >= last - deviation
+        and s <= end + deviation + 0.25 * abs(end - last)
+        and s <= SEGMENT_LENGTH * group[21]
+        and abs(force - group[31]) <= SEGMENT_FORCE * group[31]
+    )
 
 
 @_jit_inline
@@ -532,13 +743,24 @@ def flush(
     """Deposit the open group of samples (``group`` (GROUP,), emptied) as one patch
     (:func:`deposit`): at the w-weighted mean centre, normal and radius, with the summed
     force ΣF, the feed ΣF|v_t| / ΣF (the volume k_p Σ F |v_t| dt, exactly) and, with a
-    spindle, the force-weighted mean v_t and ω. work (9,): scratch."""
+    spindle, the force-weighted mean v_t and ω; a segment (:func:`observe`) as the patch of
+    the w-weighted mean radius slid along it (:func:`deposit_segment`), the same volume.
+    work (9,): scratch."""
     if group[0] == 0.0:
         return
     w, total = group[1], group[9]
     group[0] = 0.0
     if not w > 0.0:
         return  # no slip (a tool at rest, no spindle): nothing removed
+    if group[26] == 1.0:  # a segment: its line integral (no spindle: w = F |v_t|)
+        inside = deposit_segment(
+            lattice, rows, col, areas, depth, group[27], group[28], group[33], group[34],
+            group[8] / w, shape, factor * group[10], index, weight,
+        )  # fmt: skip
+        if inside > 0:
+            return
+        # no cell centre within the patch anywhere along it: the point deposit at its mean
+        # (all on the nearest cell)
     centre, normal, vt = work[0:3], work[3:6], work[6:9]
     g = math.sqrt(group[5] ** 2 + group[6] ** 2 + group[7] ** 2)
     for k in range(3):
@@ -549,6 +771,159 @@ def flush(
         points, areas, order, table, starts, box, dims, lattice, rows, col, depth, centre, normal,
         vt, group[10] / total, group[14] / total, group[8] / w, shape, total, factor, index, weight,
     )  # fmt: skip
+
+
+@_jit_inline
+def _segment_sample(
+    group: np.ndarray,
+    lattice: np.ndarray,
+    centre: np.ndarray,
+    normal: np.ndarray,
+    vt: np.ndarray,
+    feed: float,
+    a: float,
+    force: float,
+    deviation: float,
+    dt: float,
+    shape: int,
+    factor: float,
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    table: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
+    depth: np.ndarray,
+    work: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
+) -> None:
+    """A sample of a tool that does not spin (:func:`observe`'s arguments) joined to the open
+    segment (``group``), which is first deposited (:func:`flush`) if the sample does not fit
+    it (:func:`_fits_segment`)."""
+    u, v, vx, vy = _chart_point(lattice, centre, vt)
+    x, y = _segment_offset(group, lattice, u, v) if group[0] > 0.0 else (0.0, 0.0)
+    if not _fits_segment(group, x, y, force, deviation):
+        flush(
+            group, shape, factor, points, areas, order, table, starts, box, dims, lattice, rows,
+            col, depth, work, index, weight,
+        )  # fmt: skip
+    if group[0] == 0.0:
+        group[:] = 0.0
+        group[15:18] = centre
+        group[18:21] = normal
+        group[21] = a
+        group[22:25] = vt
+        group[26] = 1.0
+        group[27], group[28] = u, v
+        speed = math.sqrt(vx * vx + vy * vy)
+        group[29], group[30] = (vx / speed, vy / speed) if speed > 0.0 else (1.0, 0.0)
+        group[31] = force
+        x = y = 0.0
+    ex, ey = group[29], group[30]
+    group[32] = x * ex + y * ey
+    group[33], group[34] = x + vx * dt, y + vy * dt
+    group[35] = group[33] * ex + group[34] * ey
+    w = force * feed
+    group[0] += 1.0
+    group[1] += w
+    for k in range(3):
+        group[2 + k] += w * centre[k]
+        group[5 + k] += w * normal[k]
+        group[11 + k] += force * vt[k]
+    group[8] += w * a
+    group[9] += force
+    group[10] += w
+
+
+@_jit_inline
+def _observe(
+    desc: np.ndarray,
+    p: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    distance: float,
+    velocity: np.ndarray,
+    force: float,
+    knobs: tuple[int, float, float, float, float, float, float, float, float],
+    points: np.ndarray,
+    areas: np.ndarray,
+    order: np.ndarray,
+    table: np.ndarray,
+    starts: np.ndarray,
+    box: np.ndarray,
+    dims: np.ndarray,
+    lattice: np.ndarray,
+    rows: np.ndarray,
+    col: np.ndarray,
+    depth: np.ndarray,
+    group: np.ndarray,
+    work: np.ndarray,
+    index: np.ndarray,
+    weight: np.ndarray,
+) -> float:
+    """:func:`observe`, inlined into its callers (no call, no reference counting of its
+    arrays: a third of a sample's cost), its scalars in ``knobs`` (shape, radius, modulus,
+    omega, v_ref, factor, merge, deviation, dt)."""
+    shape, radius, modulus, omega, v_ref, factor, merge, deviation, dt = knobs
+    if force <= 0.0:
+        return 0.0
+    if desc.shape[0] > 0:
+        _, distance = _surface_eval(desc, p, grad, hess)
+        if abs(distance) > FOOT_TOL:
+            # the part's curvature at the foot, not at p: off the part (a ball tool's centre
+            # r away, a compliant contact's penetration) the level set through p has the
+            # principal curvatures κ / (1 + d κ)
+            g = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+            foot = work[12:15]
+            for k in range(3):
+                foot[k] = p[k] - distance * grad[k] / g
+            _surface_eval(desc, foot, grad, hess)
+    normal = work[9:12]
+    a = patch_on_part(grad, hess, shape, radius, modulus, force, normal)
+    if a <= 0.0:
+        return a
+    centre, vt = work[12:15], work[15:18]
+    for k in range(3):
+        centre[k] = p[k] - distance * normal[k]
+    vt[0], vt[1], vt[2] = _tangential(velocity, normal)
+    feed = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2])
+    spinning = omega != 0.0
+    if v_ref > 0.0:  # the spindle slows with the feed
+        omega = omega * feed / v_ref
+    if deviation > 0.0 and not spinning and lattice.shape[0] > 0:
+        _segment_sample(
+            group, lattice, centre, normal, vt, feed, a, force, deviation, dt, shape, factor,
+            points, areas, order, table, starts, box, dims, rows, col, depth, work, index, weight,
+        )  # fmt: skip
+        return a
+    if not _fits(group, centre, normal, vt, omega, a, merge, spinning):
+        flush(
+            group, shape, factor, points, areas, order, table, starts, box, dims, lattice, rows,
+            col, depth, work, index, weight,
+        )  # fmt: skip
+    if group[0] == 0.0:
+        group[:] = 0.0
+        group[15:18] = centre
+        group[18:21] = normal
+        group[21] = a
+        group[22:25] = vt
+        group[25] = omega
+    w = force if spinning else force * feed
+    group[0] += 1.0
+    group[1] += w
+    for k in range(3):
+        group[2 + k] += w * centre[k]
+        group[5 + k] += w * normal[k]
+        group[11 + k] += force * vt[k]
+    group[8] += w * a
+    group[9] += force
+    group[10] += force * feed
+    group[14] += force * omega
+    return a
 
 
 @_jit
@@ -567,6 +942,8 @@ def observe(
     v_ref: float,
     factor: float,
     merge: float,
+    deviation: float,
+    dt: float,
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
@@ -593,59 +970,19 @@ def observe(
     its curvature (∇²Φ) is the part's there (for |d| > FOOT_TOL). v_ref > 0
     [m/s]: the spindle's schedule ω |v_t| / v_ref (the removal per unit length of a feed
     |v_t| is then that of the feed v_ref at ω); 0: ω throughout. merge [m]: the group's
-    reach (:func:`_fits`; docs/removal.md, "Cost"). work (18,), index (M,) int64 and
-    weight (M,): scratch. Returns the patch radius a [m] (0: no force; −1: Hertz does not
-    apply, the part conforms; nothing is deposited then).
+    reach (:func:`_fits`; docs/removal.md, "Cost"). deviation [m] > 0 (a tool that does not
+    spin, on a plane's or a cylinder's lattice): the samples are grouped into straight
+    segments instead, within ``deviation`` of their line (:func:`_fits_segment`), each
+    deposited as the patch slid along it (:func:`deposit_segment`); dt [s] the sample's
+    span (where the last one heads). work (18,), index (M,) int64 and weight (M,): scratch.
+    Returns the patch radius a [m] (0: no force; −1: Hertz does not apply, the part
+    conforms; nothing is deposited then).
     """
-    if force <= 0.0:
-        return 0.0
-    if desc.shape[0] > 0:
-        _, distance = _surface_eval(desc, p, grad, hess)
-        if abs(distance) > FOOT_TOL:
-            # the part's curvature at the foot, not at p: off the part (a ball tool's centre
-            # r away, a compliant contact's penetration) the level set through p has the
-            # principal curvatures κ / (1 + d κ)
-            g = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
-            foot = work[12:15]
-            for k in range(3):
-                foot[k] = p[k] - distance * grad[k] / g
-            _surface_eval(desc, foot, grad, hess)
-    normal = work[9:12]
-    a = patch_on_part(grad, hess, shape, radius, modulus, force, normal)
-    if a <= 0.0:
-        return a
-    centre, vt = work[12:15], work[15:18]
-    for k in range(3):
-        centre[k] = p[k] - distance * normal[k]
-    vt[0], vt[1], vt[2] = _tangential(velocity, normal)
-    feed = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2])
-    spinning = omega != 0.0
-    if v_ref > 0.0:  # the spindle slows with the feed
-        omega = omega * feed / v_ref
-    if not _fits(group, centre, normal, vt, omega, a, merge, spinning):
-        flush(
-            group, shape, factor, points, areas, order, table, starts, box, dims, lattice, rows,
-            col, depth, work, index, weight,
-        )  # fmt: skip
-    if group[0] == 0.0:
-        group[:] = 0.0
-        group[15:18] = centre
-        group[18:21] = normal
-        group[21] = a
-        group[22:25] = vt
-        group[25] = omega
-    w = force if spinning else force * feed
-    group[0] += 1.0
-    group[1] += w
-    for k in range(3):
-        group[2 + k] += w * centre[k]
-        group[5 + k] += w * normal[k]
-        group[11 + k] += force * vt[k]
-    group[8] += w * a
-    group[9] += force
-    group[10] += force * feed
-    group[14] += force * omega
-    return a
+    knobs = (shape, radius, modulus, omega, v_ref, factor, merge, deviation, dt)
+    return _observe(
+        desc, p, grad, hess, distance, velocity, force, knobs, points, areas, order, table,
+        starts, box, dims, lattice, rows, col, depth, group, work, index, weight,
+    )  # fmt: skip
 
 
 @_jit
@@ -688,6 +1025,8 @@ def observe_batch(
     v_ref: float,
     factor: float,
     merge: float,
+    deviation: float,
+    dt: float,
     points: np.ndarray,
     areas: np.ndarray,
     order: np.ndarray,
@@ -712,15 +1051,17 @@ def observe_batch(
     deposited and those where the part conformed, incremented."""
     grad = np.zeros(3)
     hess = np.zeros((3, 3))
-    for s in range(count):
+    # the scalars as one tuple: a call of more than 30 arguments is compiled as f(*args),
+    # which Numba cannot inline
+    knobs = (shape, radius, modulus, omega, v_ref, factor, merge, deviation, dt)
+    for s in range(min(count, velocities.shape[0])):  # (never more samples than J v rows)
         i = first + s
         force = forces[i, column]
         if not force > 0.0:
             continue
-        a = observe(
-            desc, tips[i], grad, hess, 0.0, velocities[s], force, shape, radius, modulus, omega,
-            v_ref, factor, merge, points, areas, order, table, starts, box, dims, lattice, rows,
-            col, depth, group, work, index, weight,
+        a = _observe(
+            desc, tips[i], grad, hess, 0.0, velocities[s], force, knobs, points, areas, order,
+            table, starts, box, dims, lattice, rows, col, depth, group, work, index, weight,
         )  # fmt: skip
         if a < 0.0:
             tally[1] += 1

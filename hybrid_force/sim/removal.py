@@ -3,7 +3,8 @@
 Preston (1927): the removal rate is ḣ = k_p · p · v, pressure p [Pa] times sliding speed v
 [m/s], with Preston's coefficient k_p [m²/N]. The depth accumulates on a grid of cells laid on
 the surface (:class:`RemovalGrid`), each step adding k_p p_i |v_i| dt to the cells under the
-patch only (:func:`._removal_kernels.deposit`).
+patch only (:func:`._removal_kernels.deposit`; a tool that does not spin, on a plane's or a
+cylinder's chart, in straight segments of samples, :func:`._removal_kernels.deposit_segment`).
 
 Pads:
 

@@ -57,6 +57,10 @@ MERGE = 0.25
 """Consecutive samples whose patches stay within MERGE · resolution of the first one's (centre,
 radius, the rim's tilt; with a spindle, the slip too) are deposited as one patch at their mean
 (docs/removal.md, "Cost": the profile's error is O(ℓ² p''/24), ℓ ≤ MERGE · resolution)."""
+DEVIATION = 0.02
+"""A tool that does not spin, on a plane's or a cylinder's chart: consecutive samples whose feet
+stay within DEVIATION · resolution of a straight line (and whose force stays within 0.5 %) are
+deposited as one segment, the patch slid along it (docs/removal.md, "Cost")."""
 _CHECK_SAMPLES = 64  # path samples at which a Hertz pad's contact is checked before the run
 
 
@@ -345,6 +349,15 @@ class RemovalObserver:
         self._grad, self._hess, self._work = np.zeros(3), np.zeros((3, 3)), np.zeros(18)
         # consecutive samples whose patch moved less than MERGE cells: one deposit
         self._merge = MERGE * removal.resolution
+        # a tool that does not spin on a plane's or a cylinder's lattice: straight segments
+        # (a cylinder's segment and its patch within a quarter turn: the rows' periodic shift)
+        self._deviation = 0.0
+        lattice = self.grid.lattice
+        if lattice.shape[0] > 0 and removal.omega == 0.0:
+            reach = (_K.SEGMENT_LENGTH + 2.0) * a_max + 4.0 * removal.resolution
+            if lattice[0] == _K.PLANE_ROWS or reach < 0.5 * math.pi * lattice[19]:
+                self._deviation = DEVIATION * removal.resolution
+        self._dt = sc.sim.dt
         self._group = np.zeros(_K.GROUP)
         self._shape = _HERTZ if isinstance(pad, HertzPad) else _FLAT
         self._modulus = pad.modulus if isinstance(pad, HertzPad) else 0.0
@@ -445,7 +458,8 @@ class RemovalObserver:
             hess[:] = h
         a = _K.observe(
             self._desc, p, grad, hess, distance, pdot, force, self._shape, self.pad.radius,
-            self._modulus, self.settings.omega, self.v_ref, self._factor, self._merge, grid.points,
+            self._modulus, self.settings.omega, self.v_ref, self._factor, self._merge,
+            self._deviation, self._dt, grid.points,
             grid.areas, grid.order, grid.table, grid.starts, grid.box, grid.dims, grid.lattice,
             grid.rows, grid.col, grid.depth, self._group, self._work, grid.index, grid.weight,
         )  # fmt: skip
@@ -467,7 +481,8 @@ class RemovalObserver:
             _K.observe_batch(
                 self._desc, self._tips, self._forces, self.surface_index, velocities, first,
                 count, self._shape, self.pad.radius, self._modulus, self.settings.omega, self.v_ref,
-                self._factor, self._merge, g.points, g.areas, g.order, g.table, g.starts, g.box,
+                self._factor, self._merge, self._deviation, self._dt, g.points, g.areas, g.order,
+                g.table, g.starts, g.box,
                 g.dims, g.lattice, g.rows, g.col, g.depth, self._group, self._work, g.index,
                 g.weight, tally,
             )  # fmt: skip
