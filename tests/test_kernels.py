@@ -823,6 +823,58 @@ def test_constrained_dynamics_solver_equals_dense_kkt(
         )
 
 
+@pytest.mark.parametrize("k", [1, 2])
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_checked_solve_equals_dense_kkt_and_the_limit_test(
+    arms: dict[str, Robot], arm: str, k: int
+) -> None:
+    """ConstrainedDynamics.solve_checked (γ formed in its first kernel, the effort limits
+    checked in its second) against the dense KKT solve with γ by hand (section 6.2) and the
+    limits by numpy: |u0 + B f| > e, for B = None and B (n, k), limits none, loose and tight;
+    and bit for bit the path of solve + gamma_into it replaces in the plant."""
+    from hybrid_force.sim.dynamics import Baumgarte, ConstrainedDynamics
+
+    robot = arms[arm]
+    rng = np.random.default_rng(57 + k)
+    data = robot.new_data()
+    solver = ConstrainedDynamics(robot.model, data, k)
+    other = ConstrainedDynamics(robot.model, robot.new_data(), k)
+    baum = Baumgarte(alpha=37.0, beta=12.5)
+    n = robot.nv
+    for trial in range(6):
+        q, v = _random_state(robot, rng)
+        terms = robot.terms(q, v, data)
+        robot.terms(q, v, other.data)
+        A = rng.standard_normal((k, n))
+        drift, rate, value = rng.standard_normal((3, k))
+        scale = rng.uniform(0.5, 2.0, k)
+        u0 = 10.0 * rng.standard_normal(n)
+        B = None if trial % 2 == 0 else 0.1 * rng.standard_normal((n, k))
+        gamma = np.full(k, np.nan)
+        _, f_free = kkt(terms.M, terms.nle, u0, B, A, drift + 74.0 * rate + 156.25 * value / scale)
+        u_free = u0 + (0.0 if B is None else B @ f_free)
+        effort = [np.zeros(0), np.abs(u_free) + 1.0, np.abs(u_free) * rng.uniform(0.5, 1.5, n)]
+        for e in effort:
+            beyond = solver.solve_checked(
+                terms.nle, u0, np.zeros((n, 0)) if B is None else B, A, drift, rate, value,
+                scale, (2.0 * baum.alpha, baum.beta**2), gamma, e,
+            )  # fmt: skip
+            ref_gamma = drift + 2 * 37.0 * rate + 12.5**2 * (value / scale)
+            assert np.abs(gamma - ref_gamma).max() <= 1e-14 * float(np.abs(ref_gamma).max() + 1)
+            ddq_ref, f_ref = kkt(terms.M, terms.nle, u0, B, A, ref_gamma)
+            scale_q = float(np.abs(ddq_ref).max() + np.abs(terms.nle).max())
+            assert np.abs(solver.ddq - ddq_ref).max() <= 1e-9 * scale_q
+            assert np.abs(solver.f - f_ref).max() <= 1e-9 * float(np.abs(f_ref).max() + 1.0)
+            u = u0 + (0.0 if B is None else B @ solver.f)
+            assert beyond == bool(e.size and np.any(np.abs(u) > e))
+            # the same numbers as the readable path: gamma_into, then solve
+            g2 = baum.gamma_into(drift, rate, value, scale, np.zeros(k))
+            np.testing.assert_array_equal(gamma, g2)
+            ddq2, f2 = other.solve(terms.nle, u0, B, A, g2)
+            np.testing.assert_array_equal(solver.ddq, ddq2)
+            np.testing.assert_array_equal(solver.f, f2)
+
+
 def test_baumgarte_gamma_into_equals_gamma() -> None:
     from hybrid_force.sim.dynamics import Baumgarte
 

@@ -80,6 +80,12 @@ class RigidContact(SurfaceContact):
         self._compiled_step = (
             self.compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
         )
+        # the constrained solve of accelerate() in two compiled calls around forwardDynamics
+        # (ConstrainedDynamics.solve_checked): γ's gains, the limits' array of none
+        baum = sim.baumgarte
+        self._gains = (2.0 * baum.alpha, baum.beta * baum.beta)  # as Baumgarte.gamma_into's
+        self._no_effort = np.zeros(0)
+        self._one = k == 1
 
     # ------------------------------------------------------------------ accelerate
     def accelerate(
@@ -94,11 +100,25 @@ class RigidContact(SurfaceContact):
         assert cons is not None  # in contact, evaluate() raised instead
         if arm.contact.friction > 0.0:
             self._friction, speed = arm.friction_at(terms)
-        ddq, f = self._constrained(terms, cons, cmd)  # 2. constrained
-        if arm.effort is not None:  # 3. saturated (unchanged when no limit is reached)
+        if self.compiles and self._friction is None:
+            # 2. constrained, the limits checked in the same compiled call
+            Dv, B, solver, effort = arm._joint_Dv, cmd.B, self._solver, arm.effort
+            beyond = solver.solve_checked(
+                terms.nle if Dv is None else terms.nle + Dv,  # Arm._nle
+                cmd.u0, self._no_B if B is None else B, cons.A,
+                cons.drift, cons.rate, cons.phi, cons.scale, self._gains, self._gamma,
+                self._no_effort if effort is None else effort,
+            )  # fmt: skip
+            ddq, f = solver.ddq, solver.f
+        else:  # with friction in the loop's B (the limits bound the command's), or readable
+            ddq, f = self._constrained(terms, cons, cmd)
+            beyond = arm.effort is not None and bool(
+                _K.exceeds_effort(cmd.u0, self._no_B if cmd.B is None else cmd.B, f, arm.effort)
+            )
+        if beyond:  # 3. saturated: some limit reached
             ddq, f = self._saturated(terms, cons, cmd, ddq, f)
         # 4. released; f[0]: one surface, without numpy's reduction overhead (µs per step)
-        if self.unilateral and float(f[0] if f.shape[0] == 1 else f.min()) < -self.release_tol:
+        if self.unilateral and (f[0] if self._one else f.min()) < -self.release_tol:
             arm.events.append(Release(t, float(f.min())))
             arm.in_contact = False
             arm.applied = None  # the contact's saturated torque no longer applies
@@ -134,13 +154,11 @@ class RigidContact(SurfaceContact):
         f: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
         """q̈ and f under τ = sat(u0 + B f): the consistent held set
-        (:mod:`hybrid_force.sim.saturation`), then one solve with it held."""
+        (:mod:`hybrid_force.sim.saturation`), then one solve with it held. Called when the
+        compiled test (``exceeds_effort``) found the command u0 + B f beyond a limit."""
         arm = self.arm
         effort = arm.effort
         assert effort is not None
-        # the cheap path, one compiled test: nothing to hold, q̈ and f as solved
-        if not _K.exceeds_effort(cmd.u0, self._no_B if cmd.B is None else cmd.B, f, effort):
-            return ddq, f
         u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
         over = np.abs(u) > effort
         if not over.any():  # beyond only in the kernel's rounding of u (k > 1)
