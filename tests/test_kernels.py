@@ -50,7 +50,7 @@ from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import LawWorkspace, make_gains
 from hybrid_force.control.laws.base import Command, ControlTrace, Desired, Gains, LawInput
 from hybrid_force.control.supervisor import ControlSettings, HybridController
-from hybrid_force.errors import SurfaceError
+from hybrid_force.errors import BadInputError, SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
@@ -176,6 +176,28 @@ def test_robot_terms_fill_the_given_buffer_completely(arms: dict[str, Robot], ar
     q2, v2 = _random_state(robot, rng)
     robot.terms(q1, v1, data, out=buf)
     _check_robot_terms(robot, robot.terms(q2, v2, data, out=buf), q2, v2)
+
+
+@pytest.mark.parametrize("arm", ARMS)
+def test_bound_robot_terms_equal_the_oracle_and_terms(arms: dict[str, Robot], arm: str) -> None:
+    """Robot.terms_into(data, out)(q, v): the oracle's terms (one public method per term), in
+    out's arrays, and bit for bit Robot.terms at the same state, state after state."""
+    robot = arms[arm]
+    rng = np.random.default_rng(103)
+    buf = RobotTerms.zeros(robot.nv)
+    arrays = {name: getattr(buf, name) for name in ROBOT_FIELDS}
+    terms_at = robot.terms_into(robot.new_data(), buf)
+    for _ in range(4):
+        q, v = _random_state(robot, rng)
+        _fill_nan(buf)
+        out = terms_at(q, v)
+        assert out is buf and all(getattr(out, n) is arrays[n] for n in ROBOT_FIELDS)
+        _check_robot_terms(robot, out, q, v)
+        fresh = robot.terms(q, v, robot.new_data())
+        for name in ROBOT_FIELDS:
+            np.testing.assert_array_equal(getattr(out, name), getattr(fresh, name))
+    with pytest.raises(BadInputError, match=r"RobotTerms\.zeros"):
+        robot.terms_into(robot.new_data(), robot_terms(robot, q, v))
 
 
 # --- 2. euclidean configuration spaces -----------------------------------------------------------

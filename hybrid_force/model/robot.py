@@ -33,7 +33,7 @@ This module holds the arm (:class:`Robot`, :class:`RobotTerms`); the loading ste
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,6 +65,8 @@ _LWA = LWA
 # Joints whose configuration space is R (revolute with one coordinate, bounded or not, and
 # prismatic): for them
 # pinocchio.integrate(q, dq) is exactly q + dq and difference(q0, q1) is q1 − q0.
+Vector = np.ndarray
+"""A float64 (nq,) or (nv,) array."""
 _VECTOR_SPACE_JOINTS = frozenset(
     f"JointModel{kind}"
     for kind in ("RX", "RY", "RZ", "PX", "PY", "PZ", "RevoluteUnaligned", "PrismaticUnaligned")
@@ -468,6 +470,39 @@ class Robot:
             pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), v, mats, vecs, jac, tip,
         )  # fmt: skip
         return out
+
+    def terms_into(self, data: pin.Data, out: RobotTerms) -> Callable[[Vector, Vector], RobotTerms]:
+        """:meth:`terms` with ``data`` and ``out`` bound: ``terms_into(data, out)(q, v)`` is
+        ``terms(q, v, data, out)``, the same Pinocchio calls in the same order and the same
+        kernel, with every lookup but q and v made here once (the plant's step, issue 32).
+
+        The tip position is read from a view of ``data.oMf`` (which updateFramePlacement
+        writes in place) instead of a copy of the placement it returns: the same numbers.
+
+        Args:
+            data: the Pinocchio data the calls fill. out: terms from :meth:`RobotTerms.zeros`.
+        """
+        if out._packs is None:
+            raise BadInputError("out must come from RobotTerms.zeros(n)")
+        model, fid, frame = self.model, self.tip_id, _LWA
+        mats, vecs, jac, tip = out._packs
+        crba, gravity, coriolis = pin.crba, pin.computeGeneralizedGravity, pin.computeCoriolisMatrix
+        place, jacobian = pin.updateFramePlacement, pin.getFrameJacobian
+        variation, kernel = pin.getFrameJacobianTimeVariation, _K.robot_terms
+        p = data.oMf[fid].translation  # a view: data's placement of the tip, updated in place
+
+        def terms(q: Vector, v: Vector) -> RobotTerms:
+            Mu = crba(model, data, q)
+            g = gravity(model, data, q)
+            C = coriolis(model, data, q, v)
+            place(model, data, fid)
+            kernel(
+                Mu, C, g, p, jacobian(model, data, fid, frame),
+                variation(model, data, fid, frame), v, mats, vecs, jac, tip,
+            )  # fmt: skip
+            return out
+
+        return terms
 
     def _full(self, M_upper: np.ndarray) -> np.ndarray:
         """A copy of crba's result with its upper triangle mirrored onto the lower one."""

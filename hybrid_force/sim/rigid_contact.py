@@ -71,15 +71,23 @@ class RigidContact(SurfaceContact):
         self._solver = ConstrainedDynamics(robot.model, arm.data, k)
         self._friction: np.ndarray | None = None  # (n, k) friction torque per N, this step
         self._gamma = np.zeros(k)
-        # two (q, v) pairs for the compiled contact step: its output is never its input
-        self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
+        # two q buffers for the compiled contact step: its output is never its input (its
+        # velocity is impulseDynamics' new array)
+        self._q_out = (np.zeros(n), np.zeros(n))
         self._tmp = (np.zeros(n), np.zeros(n))
         self._grad = np.zeros(3)
         self._row = np.zeros((1, n))  # the compiled step's constraint row
+        self._row0 = self._row[0]
         self._no_B = np.zeros((n, 0))  # B of a command that does not depend on f
         self._compiled_step = (
             self.compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
         )
+        # what the compiled contact step reads, looked up once (a surface's descriptor is
+        # fixed when it is made)
+        surface = arm.constraint.surfaces[0]
+        self._step_args = (
+            robot.model, arm._geo, arm._imp, robot.tip_id, arm._tip, surface, surface._descriptor,
+        )  # fmt: skip
         # the constrained solve of accelerate() in two compiled calls around forwardDynamics
         # (ConstrainedDynamics.solve_checked): γ's gains, the limits' array of none
         baum = sim.baumgarte
@@ -218,24 +226,26 @@ class RigidContact(SurfaceContact):
         """Semi-implicit Euler then :meth:`Arm.project <hybrid_force.sim.arm.Arm.project>`,
         for one surface and a Euclidean arm: two compiled calls and the impulse in
         ``pin.impulseDynamics``."""
-        arm = self.arm
-        model, data, fid = arm.robot.model, arm._geo, arm.robot.tip_id
+        model, data, imp, fid, tip, surface, desc = self._step_args
         q_tmp, v_tmp = self._tmp
         _K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
         pin.computeJointJacobians(model, data, q_tmp)
-        pin.updateFramePlacement(model, data, fid)
-        surface = arm.constraint.surfaces[0]
-        desc, grad, phi = surface._descriptor, self._grad, 0.0
+        pin.updateFramePlacement(model, data, fid)  # the tip, in the view ``tip``
+        grad, phi = self._grad, 0.0
         if desc.shape[0] == 0:  # no closed form: evaluate in Python
-            phi, grad, _ = surface.evaluate(arm._tip)
-        q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
-        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+            phi, grad, _ = surface.evaluate(tip)
+        q_out = self._q_out[0]
+        if q is q_out:
+            q_out = self._q_out[1]
         row = self._row
-        gn = _K.project_one(desc, arm._tip, grad, phi, J6, q_tmp, q_out, row[0])
+        gn = _K.project_one(
+            desc, tip, grad, phi, pin.getFrameJacobian(model, data, fid, _LWA), q_tmp, q_out,
+            self._row0,
+        )  # fmt: skip
         if not gn >= _GRAD_TOL:
-            arm._rows(q_tmp)  # raises the precise SurfaceError
-        v_out[:] = pin.impulseDynamics(model, arm._imp, q_out, v_tmp, row, 0.0, 0.0)
-        return q_out, v_out
+            self.arm._rows(q_tmp)  # raises the precise SurfaceError
+        # v⁺: impulseDynamics' own new array (the next step reads it, never writes it)
+        return q_out, pin.impulseDynamics(model, imp, q_out, v_tmp, row, 0.0, 0.0)
 
     def touch(self, q: Vector, v: Vector, t: float) -> State:
         """A plastic impact if the tip moves into the surface (an "impact" event)."""
