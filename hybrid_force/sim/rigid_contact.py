@@ -94,6 +94,7 @@ class RigidContact(SurfaceContact):
         self._gains = (2.0 * baum.alpha, baum.beta * baum.beta)  # as Baumgarte.gamma_into's
         self._no_effort = np.zeros(0)
         self._one = k == 1
+        self._rubs = arm.contact.friction > 0.0  # the tip's friction (arm.contact is fixed)
 
     # ------------------------------------------------------------------ accelerate
     def accelerate(
@@ -106,7 +107,7 @@ class RigidContact(SurfaceContact):
         if not arm.in_contact:  # 1. free
             return arm.free(terms, cmd.u0), arm._zeros_k
         assert cons is not None  # in contact, evaluate() raised instead
-        if arm.contact.friction > 0.0:
+        if self._rubs:
             self._friction, speed = arm.friction_at(terms)
         if self.compiles and self._friction is None:
             # 2. constrained, the limits checked in the same compiled call
