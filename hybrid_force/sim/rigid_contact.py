@@ -95,6 +95,9 @@ class RigidContact(SurfaceContact):
         self._no_effort = np.zeros(0)
         self._one = k == 1
         self._rubs = arm.contact.friction > 0.0  # the tip's friction (arm.contact is fixed)
+        # the step dissipates only through the tip's friction and the joints' own damping and
+        # friction (Arm.account has nothing to add otherwise)
+        self._accounts = self._rubs or arm._dissipates
 
     # ------------------------------------------------------------------ accelerate
     def accelerate(
@@ -206,7 +209,8 @@ class RigidContact(SurfaceContact):
         """The arm's integrator, then on the surface the projection, off it a touch
         (module docstring)."""
         arm = self.arm
-        arm.account(v, ddq, dt)
+        if self._accounts:
+            arm.account(v, ddq, dt)
         if arm.in_contact and self._compiled_step:
             return self._contact_step(q, v, ddq, dt)
         if arm.applied is not None:  # RK4's stages hold the torque applied at t
