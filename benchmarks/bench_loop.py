@@ -75,7 +75,8 @@ _ROOT = Path(__file__).resolve().parents[1]
 #                computeJointJacobians + updateFramePlacement + getFrameJacobian (q̇_d),
 #                computeJointJacobiansTimeVariation + getFrameJacobianTimeVariation (q̈_d)
 #   Plant.advance in contact: computeJointJacobians + updateFramePlacement + getFrameJacobian
-#                (projection rows at the Euler-integrated q)
+#                (projection rows at the Euler-integrated q), impulseDynamics (the velocity's
+#                constraint impulse at the projected q)
 _EXPECTED = {
     "crba": 1,
     "computeGeneralizedGravity": 1,
@@ -87,6 +88,7 @@ _EXPECTED = {
     "forwardKinematics": 1,
     "computeJointJacobians": 2,
     "computeJointJacobiansTimeVariation": 1,
+    "impulseDynamics": 1,
 }
 
 
@@ -318,6 +320,7 @@ def _floor_step(robot: Robot) -> Callable[[], None]:
     qd = 0.2 * rng.standard_normal(n)
     tau = rng.standard_normal(n)
     d_plant, d_clik, d_proj = model.createData(), model.createData(), model.createData()
+    d_imp = model.createData()  # the plant's velocity correction has its own data
     pin.computeJointJacobians(model, d_plant, q)
     A = pin.getFrameJacobian(model, d_plant, fid, _LWA)[2:3].copy()  # a plane row n̂ᵀJ (1, n)
     gamma = np.array([0.01])
@@ -345,6 +348,8 @@ def _floor_step(robot: Robot) -> Callable[[], None]:
         pin.computeJointJacobians(model, d_proj, q)
         pin.updateFramePlacement(model, d_proj, fid)
         pin.getFrameJacobian(model, d_proj, fid, _LWA)
+        # plant: the velocity's constraint impulse at the projected q (crba inside)
+        pin.impulseDynamics(model, d_imp, q, v, A, 0.0, 0.0)
 
     return step
 
@@ -396,6 +401,7 @@ def _time_each_call(robot: Robot, iters: int) -> dict[str, float]:
         "updateFramePlacement": lambda: pin.updateFramePlacement(model, data, fid),
         "getFrameJacobian": lambda: pin.getFrameJacobian(model, data, fid, _LWA),
         "forwardKinematics": lambda: pin.forwardKinematics(model, data, q),
+        "impulseDynamics": lambda: pin.impulseDynamics(model, data, q, v, A, 0.0, 0.0),
     }
     return {name: _best_us(call, 100, iters, 3) for name, call in calls.items()}
 
@@ -571,7 +577,7 @@ def _parts(setup: Setup, iters: int, batches: int) -> dict[str, float]:
         "controller update (momenta + CLIK: 7 Pinocchio calls + 4 kernels)": lambda: ctrl.update(
             1e-9, f
         ),
-        "plant Euler + projection (3 Pinocchio calls + 2 kernels)": lambda: plant.advance(
+        "plant Euler + projection (4 Pinocchio calls + 2 kernels)": lambda: plant.advance(
             q, v, ddq, cmd, 0.0, 0.0, cons.distance
         ),
     }

@@ -50,7 +50,7 @@ from hybrid_force.control.constraint import Constraint, ConstraintTerms
 from hybrid_force.control.laws.arimoto import LawWorkspace, make_gains
 from hybrid_force.control.laws.base import Command, ControlTrace, Desired, Gains, LawInput
 from hybrid_force.control.supervisor import ControlSettings, HybridController
-from hybrid_force.errors import SurfaceError
+from hybrid_force.errors import BadInputError, SurfaceError
 from hybrid_force.geometry.builtin_surfaces import Cylinder, Plane, Sphere
 from hybrid_force.geometry.function_surface import FunctionSurface
 from hybrid_force.geometry.paths import Circle, FunctionPath, Helix, paper_helix
@@ -176,6 +176,28 @@ def test_robot_terms_fill_the_given_buffer_completely(arms: dict[str, Robot], ar
     q2, v2 = _random_state(robot, rng)
     robot.terms(q1, v1, data, out=buf)
     _check_robot_terms(robot, robot.terms(q2, v2, data, out=buf), q2, v2)
+
+
+@pytest.mark.parametrize("arm", ARMS)
+def test_bound_robot_terms_equal_the_oracle_and_terms(arms: dict[str, Robot], arm: str) -> None:
+    """Robot.terms_into(data, out)(q, v): the oracle's terms (one public method per term), in
+    out's arrays, and bit for bit Robot.terms at the same state, state after state."""
+    robot = arms[arm]
+    rng = np.random.default_rng(103)
+    buf = RobotTerms.zeros(robot.nv)
+    arrays = {name: getattr(buf, name) for name in ROBOT_FIELDS}
+    terms_at = robot.terms_into(robot.new_data(), buf)
+    for _ in range(4):
+        q, v = _random_state(robot, rng)
+        _fill_nan(buf)
+        out = terms_at(q, v)
+        assert out is buf and all(getattr(out, n) is arrays[n] for n in ROBOT_FIELDS)
+        _check_robot_terms(robot, out, q, v)
+        fresh = robot.terms(q, v, robot.new_data())
+        for name in ROBOT_FIELDS:
+            np.testing.assert_array_equal(getattr(out, name), getattr(fresh, name))
+    with pytest.raises(BadInputError, match=r"RobotTerms\.zeros"):
+        robot.terms_into(robot.new_data(), robot_terms(robot, q, v))
 
 
 # --- 2. euclidean configuration spaces -----------------------------------------------------------
@@ -821,6 +843,58 @@ def test_constrained_dynamics_solver_equals_dense_kkt(
         assert np.abs(terms.M @ ddq + terms.nle - tau).max() <= 1e-9 * float(
             np.abs(tau).max() + np.abs(terms.nle).max()
         )
+
+
+@pytest.mark.parametrize("k", [1, 2])
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_checked_solve_equals_dense_kkt_and_the_limit_test(
+    arms: dict[str, Robot], arm: str, k: int
+) -> None:
+    """ConstrainedDynamics.solve_checked (γ formed in its first kernel, the effort limits
+    checked in its second) against the dense KKT solve with γ by hand (section 6.2) and the
+    limits by numpy: |u0 + B f| > e, for B = None and B (n, k), limits none, loose and tight;
+    and bit for bit the path of solve + gamma_into it replaces in the plant."""
+    from hybrid_force.sim.dynamics import Baumgarte, ConstrainedDynamics
+
+    robot = arms[arm]
+    rng = np.random.default_rng(57 + k)
+    data = robot.new_data()
+    solver = ConstrainedDynamics(robot.model, data, k)
+    other = ConstrainedDynamics(robot.model, robot.new_data(), k)
+    baum = Baumgarte(alpha=37.0, beta=12.5)
+    n = robot.nv
+    for trial in range(6):
+        q, v = _random_state(robot, rng)
+        terms = robot.terms(q, v, data)
+        robot.terms(q, v, other.data)
+        A = rng.standard_normal((k, n))
+        drift, rate, value = rng.standard_normal((3, k))
+        scale = rng.uniform(0.5, 2.0, k)
+        u0 = 10.0 * rng.standard_normal(n)
+        B = None if trial % 2 == 0 else 0.1 * rng.standard_normal((n, k))
+        gamma = np.full(k, np.nan)
+        _, f_free = kkt(terms.M, terms.nle, u0, B, A, drift + 74.0 * rate + 156.25 * value / scale)
+        u_free = u0 + (0.0 if B is None else B @ f_free)
+        effort = [np.zeros(0), np.abs(u_free) + 1.0, np.abs(u_free) * rng.uniform(0.5, 1.5, n)]
+        for e in effort:
+            beyond = solver.solve_checked(
+                terms.nle, u0, np.zeros((n, 0)) if B is None else B, A, drift, rate, value,
+                scale, (2.0 * baum.alpha, baum.beta**2), gamma, e,
+            )  # fmt: skip
+            ref_gamma = drift + 2 * 37.0 * rate + 12.5**2 * (value / scale)
+            assert np.abs(gamma - ref_gamma).max() <= 1e-14 * float(np.abs(ref_gamma).max() + 1)
+            ddq_ref, f_ref = kkt(terms.M, terms.nle, u0, B, A, ref_gamma)
+            scale_q = float(np.abs(ddq_ref).max() + np.abs(terms.nle).max())
+            assert np.abs(solver.ddq - ddq_ref).max() <= 1e-9 * scale_q
+            assert np.abs(solver.f - f_ref).max() <= 1e-9 * float(np.abs(f_ref).max() + 1.0)
+            u = u0 + (0.0 if B is None else B @ solver.f)
+            assert beyond == bool(e.size and np.any(np.abs(u) > e))
+            # the same numbers as the readable path: gamma_into, then solve
+            g2 = baum.gamma_into(drift, rate, value, scale, np.zeros(k))
+            np.testing.assert_array_equal(gamma, g2)
+            ddq2, f2 = other.solve(terms.nle, u0, B, A, g2)
+            np.testing.assert_array_equal(solver.ddq, ddq2)
+            np.testing.assert_array_equal(solver.f, f2)
 
 
 def test_baumgarte_gamma_into_equals_gamma() -> None:

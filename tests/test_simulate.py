@@ -537,3 +537,37 @@ def test_a_control_rate_that_is_not_whole_plant_steps_is_refused() -> None:
     for rate in (300.0, 2000.0):
         with pytest.raises(BadInputError, match=r"control\.rate"):
             dataclasses.replace(sc, control=dataclasses.replace(sc.control, rate=rate))
+
+
+def test_the_loop_calling_the_law_directly_equals_the_control_sides_command(
+    rtr, monkeypatch
+) -> None:
+    """Exact control on the plant's model: the loop calls the supervisor's command itself
+    (ControlSide.law_command), the same run bit for bit as through ControlSide.command; a
+    sampled control side has no such shortcut."""
+    import hybrid_force.sim.control_side as control_side
+    from hybrid_force.sim.control_side import build_control_side
+
+    sc = _contact_scenario(rtr, 0.3)
+    exact = build_control_side(sc, None, sc.q0)
+    assert exact.law_command is not None and not exact.measured
+    import dataclasses
+
+    from hybrid_force.sim.sensors import SensorSettings
+
+    sampled = build_control_side(
+        dataclasses.replace(sc, sensor=SensorSettings(force_delay=1)), None, sc.q0
+    )
+    assert sampled.measured and sampled.law_command is None
+    direct = simulate(sc)
+    built = control_side.build_control_side
+
+    def without_shortcut(*args: object) -> control_side.ControlSide:
+        side = built(*args)
+        side.law_command = None
+        return side
+
+    monkeypatch.setattr("hybrid_force.sim.loop.build_control_side", without_shortcut)
+    through = simulate(sc)
+    for name in ("q", "v", "u", "f", "V", "q_d", "p_d"):
+        np.testing.assert_array_equal(getattr(direct, name), getattr(through, name))

@@ -24,41 +24,40 @@ def robot_terms(
     J6: np.ndarray,
     Jd6: np.ndarray,
     v: np.ndarray,
-    mats: np.ndarray,
-    vecs: np.ndarray,
-    jac: np.ndarray,
-    tip: np.ndarray,
+    flat: np.ndarray,
 ) -> None:
-    """Copy one step's Pinocchio outputs into the terms' arrays and derive the rest.
+    """Copy one step's Pinocchio outputs into the terms' buffer and derive the rest.
 
     Mu: (n, n) crba output (upper triangle valid). C_in: (n, n). g_in: (n,). p_in: (3,) tip
     position. J6, Jd6: (6, n) frame Jacobian and its time variation (rows 0..2 used). v: (n,).
-    Writes (``RobotTerms.zeros``) mats = [M (symmetric), C], vecs = [g, nle = C v + g],
-    jac = [J, J̇] (3, n), tip = [p, J̇ v, J v].
+    Writes the buffer of ``RobotTerms.zeros`` (2n² + 8n + 9,), row-major in the order of its
+    packs: M (symmetric), C, g, nle = C v + g, J, J̇ (3, n), p, J̇ v, J v.
     """
-    M, C, g, nle = mats[0], mats[1], vecs[0], vecs[1]
-    J, Jdot, p, Jdot_v, pdot = jac[0], jac[1], tip[0], tip[1], tip[2]
     n = v.shape[0]
+    nn = n * n
+    o_C, o_g, o_nle = nn, 2 * nn, 2 * nn + n  # offsets of C, g, nle, J, J̇, p, J̇ v, J v
+    o_J, o_Jd = 2 * nn + 2 * n, 2 * nn + 5 * n
+    o_p, o_Jdv, o_pd = 2 * nn + 8 * n, 2 * nn + 8 * n + 3, 2 * nn + 8 * n + 6
     for r in range(3):
-        p[r] = p_in[r]
+        flat[o_p + r] = p_in[r]
     for i in range(n):
         acc = g_in[i]
         for j in range(n):
-            M[i, j] = Mu[i, j] if i <= j else Mu[j, i]
+            flat[i * n + j] = Mu[i, j] if i <= j else Mu[j, i]
             c = C_in[i, j]
-            C[i, j] = c
+            flat[o_C + i * n + j] = c
             acc += c * v[j]
-        g[i] = g_in[i]
-        nle[i] = acc
+        flat[o_g + i] = g_in[i]
+        flat[o_nle + i] = acc
     for r in range(3):
         a = 0.0
         b = 0.0
         for j in range(n):
             x = J6[r, j]
             y = Jd6[r, j]
-            J[r, j] = x
-            Jdot[r, j] = y
+            flat[o_J + r * n + j] = x
+            flat[o_Jd + r * n + j] = y
             a += x * v[j]
             b += y * v[j]
-        pdot[r] = a
-        Jdot_v[r] = b
+        flat[o_pd + r] = a
+        flat[o_Jdv + r] = b

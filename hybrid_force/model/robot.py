@@ -33,7 +33,7 @@ This module holds the arm (:class:`Robot`, :class:`RobotTerms`); the loading ste
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,6 +65,8 @@ _LWA = LWA
 # Joints whose configuration space is R (revolute with one coordinate, bounded or not, and
 # prismatic): for them
 # pinocchio.integrate(q, dq) is exactly q + dq and difference(q0, q1) is q1 − q0.
+Vector = np.ndarray
+"""A float64 (nq,) or (nv,) array."""
 _VECTOR_SPACE_JOINTS = frozenset(
     f"JointModel{kind}"
     for kind in ("RX", "RY", "RZ", "PX", "PY", "PZ", "RevoluteUnaligned", "PrismaticUnaligned")
@@ -99,19 +101,24 @@ class RobotTerms:
     # (mats (2, n, n), vecs (2, n), jac (2, 3, n), tip (3, 3)) whose slices are the fields
     # above, when made by zeros(): what the compiled code reads and writes
     _packs: tuple[np.ndarray, ...] | None = field(default=None, repr=False, compare=False)
+    # the packs' one buffer (2n² + 8n + 9,), in their order, when made by zeros(): what
+    # Robot.terms's kernel writes (one argument instead of four)
+    _flat: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def zeros(cls, n: int) -> RobotTerms:
         """Terms of an n-joint arm with every array zero (a buffer for :meth:`Robot.terms`).
 
         The fields are views of four arrays: mats = [M, C], vecs = [g, nle], jac = [J, J̇],
-        tip = [p, J̇ v, J v].
+        tip = [p, J̇ v, J v], themselves consecutive views of one buffer.
         """
+        flat = np.zeros(2 * n * n + 2 * n + 6 * n + 9)
+        a, b, c = 2 * n * n, 2 * n * n + 2 * n, 2 * n * n + 8 * n
         mats, vecs, jac, tip = (
-            np.zeros((2, n, n)),
-            np.zeros((2, n)),
-            np.zeros((2, 3, n)),
-            np.zeros((3, 3)),
+            flat[:a].reshape(2, n, n),
+            flat[a:b].reshape(2, n),
+            flat[b:c].reshape(2, 3, n),
+            flat[c:].reshape(3, 3),
         )
         return cls(
             M=mats[0],
@@ -124,6 +131,7 @@ class RobotTerms:
             Jdot_v=tip[1],
             pdot=tip[2],
             _packs=(mats, vecs, jac, tip),
+            _flat=flat,
         )
 
     def packed(self) -> RobotTerms:
@@ -456,18 +464,51 @@ class Robot:
         data = self.data if data is None else data
         if out is None:
             out = RobotTerms.zeros(model.nv)
-        if out._packs is None:
+        flat = out._flat
+        if flat is None:
             raise BadInputError("out must come from RobotTerms.zeros(n)")
-        mats, vecs, jac, tip = out._packs
         Mu = pin.crba(model, data, q)
         g = pin.computeGeneralizedGravity(model, data, q)
         C = pin.computeCoriolisMatrix(model, data, q, v)
         _K.robot_terms(
             Mu, C, g, pin.updateFramePlacement(model, data, fid).translation,
             pin.getFrameJacobian(model, data, fid, _LWA),
-            pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), v, mats, vecs, jac, tip,
+            pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), v, flat,
         )  # fmt: skip
         return out
+
+    def terms_into(self, data: pin.Data, out: RobotTerms) -> Callable[[Vector, Vector], RobotTerms]:
+        """:meth:`terms` with ``data`` and ``out`` bound: ``terms_into(data, out)(q, v)`` is
+        ``terms(q, v, data, out)``, the same Pinocchio calls in the same order and the same
+        kernel, with every lookup but q and v made here once (the plant's step, issue 32).
+
+        The tip position is read from a view of ``data.oMf`` (which updateFramePlacement
+        writes in place) instead of a copy of the placement it returns: the same numbers.
+
+        Args:
+            data: the Pinocchio data the calls fill. out: terms from :meth:`RobotTerms.zeros`.
+        """
+        flat = out._flat
+        if flat is None:
+            raise BadInputError("out must come from RobotTerms.zeros(n)")
+        model, fid, frame = self.model, self.tip_id, _LWA
+        crba, gravity, coriolis = pin.crba, pin.computeGeneralizedGravity, pin.computeCoriolisMatrix
+        place, jacobian = pin.updateFramePlacement, pin.getFrameJacobian
+        variation, kernel = pin.getFrameJacobianTimeVariation, _K.robot_terms
+        p = data.oMf[fid].translation  # a view: data's placement of the tip, updated in place
+
+        def terms(q: Vector, v: Vector) -> RobotTerms:
+            Mu = crba(model, data, q)
+            g = gravity(model, data, q)
+            C = coriolis(model, data, q, v)
+            place(model, data, fid)
+            kernel(
+                Mu, C, g, p, jacobian(model, data, fid, frame),
+                variation(model, data, fid, frame), v, flat,
+            )  # fmt: skip
+            return out
+
+        return terms
 
     def _full(self, M_upper: np.ndarray) -> np.ndarray:
         """A copy of crba's result with its upper triangle mirrored onto the lower one."""

@@ -36,6 +36,26 @@ def baumgarte(
 
 
 @_jit
+def kkt_inputs(
+    drift: np.ndarray,
+    rate: np.ndarray,
+    value: np.ndarray,
+    scale: np.ndarray,
+    two_alpha: float,
+    beta_sq: float,
+    gamma: np.ndarray,
+    nle: np.ndarray,
+    data_nle: np.ndarray,
+) -> None:
+    """The inputs of ``pin.forwardDynamics`` in one call: γ (k,) as :func:`baumgarte` (written
+    into gamma) and C q̇ + g (n,) copied into data_nle (the view of ``data.nle`` it reads)."""
+    for m in range(gamma.shape[0]):
+        gamma[m] = drift[m] + two_alpha * rate[m] + beta_sq * (value[m] / scale[m])
+    for i in range(nle.shape[0]):
+        data_nle[i] = nle[i]
+
+
+@_jit
 def _solve_udut(U: np.ndarray, D: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
     """x = (U D Uᵀ)⁻¹ b with U (n, n) unit upper triangular and D (n,): Pinocchio's M."""
     n = b.shape[0]
@@ -142,6 +162,38 @@ def exceeds_effort(u0: np.ndarray, B: np.ndarray, f: np.ndarray, effort: np.ndar
         if abs(u) > effort[i]:
             return True
     return False
+
+
+@_jit
+def loop_checked(
+    U: np.ndarray,
+    D: np.ndarray,
+    A: np.ndarray,
+    B: np.ndarray,
+    ddq0: np.ndarray,
+    f0: np.ndarray,
+    u0: np.ndarray,
+    effort: np.ndarray,
+    ddq: np.ndarray,
+    f: np.ndarray,
+) -> int:
+    """:func:`loop_resolve` and :func:`exceeds_effort` in one call, after forwardDynamics.
+
+    B (n, k) as in :func:`loop_resolve`; B with no column (the command does not depend on f):
+    q̈ = q̈0 and f = f0, copied. effort (n,) [N·m or N], or no entry: no limit checked.
+    Writes q̈ (n,) and f (k,) [N]. Returns −1 when the loop has no unique solution (nothing
+    checked), 1 when some |u_i| > effort_i for u = u0 + B f, else 0.
+    """
+    if B.shape[1] == 0:
+        for i in range(ddq0.shape[0]):
+            ddq[i] = ddq0[i]
+        for m in range(f0.shape[0]):
+            f[m] = f0[m]
+    elif not loop_resolve(U, D, A, B, ddq0, f0, ddq, f):
+        return -1
+    if effort.shape[0] != 0 and exceeds_effort(u0, B, f, effort):
+        return 1
+    return 0
 
 
 # --- simulate (hybrid_force.sim.loop: semi-implicit Euler and post-stabilisation, k = 1) ----------

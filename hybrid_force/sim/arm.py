@@ -90,6 +90,9 @@ class Arm:
         self.data = robot.new_data()
         self._terms = RobotTerms.zeros(n)
         self._cons = ConstraintTerms.zeros(k, n)
+        # the step's terms and rows, their arguments bound once (evaluate)
+        self._terms_at = robot.terms_into(self.data, self._terms)
+        self._rows_at = constraint.evaluate
         self._zeros_k = np.zeros(k)
         # geometry helpers' own data (projection, distances)
         self._geo = robot.new_data()
@@ -105,21 +108,15 @@ class Arm:
         Raises:
             SurfaceError: the rows are undefined while in contact.
         """
-        terms = self.robot.terms(q, v, self.data, out=self._terms)
+        terms = self._terms_at(q, v)  # Robot.terms(q, v, self.data, self._terms)
         if self._dissipates:  # pin.forwardDynamics reads data.M, which crba just filled
             self._joints_at(v, self.data.M)
-        return terms, self._rows_or_none(terms, v)
-
-    def _rows_or_none(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms | None:
         try:
-            return self._constraint_terms(terms, v)
+            return terms, self._rows_at(terms, v, self._cons)
         except SurfaceError:
             if self.in_contact:
                 raise
-            return None
-
-    def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
-        return self.constraint.evaluate(terms, v, out=self._cons)
+            return terms, None
 
     # ------------------------------------------------------------------ joint dissipation
     def _init_joints(self, robot: Robot, sim: SimSettings) -> None:

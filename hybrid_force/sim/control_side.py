@@ -66,6 +66,12 @@ class ControlSide:
         self.update: Callable[[float, np.ndarray], None] = (
             law.update if law is not None and not self.measured else _no_update
         )
+        #: the supervisor's own command(t, q, v, terms, cons) when :meth:`command` would only
+        #: pass the plant's terms on to it (exact, on the plant's own model: one Python call
+        #: per step, not two), else None
+        self.law_command: Callable[..., Command] | None = (
+            law.command if law is not None and not self.measured and own is None else None
+        )
 
     @property
     def events(self) -> list[Event]:

@@ -144,6 +144,48 @@ class ConstrainedDynamics:
             )
         return self.ddq, self.f
 
+    def solve_checked(
+        self,
+        nle: np.ndarray,
+        u0: np.ndarray,
+        B: np.ndarray,
+        A: np.ndarray,
+        drift: np.ndarray,
+        rate: np.ndarray,
+        value: np.ndarray,
+        scale: np.ndarray,
+        gains: tuple[float, float],
+        gamma: np.ndarray,
+        effort: np.ndarray,
+    ) -> bool:
+        """:meth:`solve` with γ formed here and the effort limits checked, in two compiled
+        calls around forwardDynamics (the plant's step: the same numbers as
+        :meth:`Baumgarte.gamma_into`, :meth:`solve` and ``exceeds_effort``).
+
+        Args:
+            nle, u0, A: as in :meth:`solve`. B: (n, k), or (n, 0) for a command that does not
+                depend on f. drift, rate, value, scale: (k,) the constraint's drift, A q̇,
+                Φ and s (φ = Φ / s). gains: (2α, β²) [1/s, 1/s²]. gamma: (k,) written with
+                γ. effort: (n,) effort limits [N·m or N], or (0,): none.
+
+        Returns:
+            True when the command u0 + B f is beyond some effort limit; q̈ and f in
+            :attr:`ddq` and :attr:`f` (overwritten by the next call).
+
+        Raises:
+            numpy.linalg.LinAlgError: the loop has no unique solution (as :meth:`solve`).
+        """
+        _K.kkt_inputs(drift, rate, value, scale, gains[0], gains[1], gamma, nle, self._nle)
+        ddq0 = pin.forwardDynamics(self.model, self.data, u0, A, gamma)
+        status = _K.loop_checked(
+            self._U, self._D, A, B, ddq0, self.data.lambda_c, u0, effort, self.ddq, self.f
+        )
+        if status < 0:
+            raise np.linalg.LinAlgError(
+                "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
+            )
+        return status > 0
+
 
 def plastic_impact(
     model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarray, A: np.ndarray

@@ -118,6 +118,7 @@ def simulate(
     # the step's methods, looked up once
     evaluate, command, accelerate = plant.evaluate, ctrl.command, plant.accelerate
     record, update, advance = log.record, ctrl.update, plant.advance
+    law_command = ctrl.law_command  # ctrl.command's own callee, when it only forwards
     wall0 = wall1 = time.perf_counter()
     t, i = 0.0, 0
     # the Python warnings raised inside the loop (a wrong branch, numpy's): recorded with the
@@ -125,20 +126,26 @@ def simulate(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         checks = SampleChecks(sc, caught)
-        check = checks.check
+        # a sample that is ok, in a run that stops at no limit and has caught no warning, has
+        # nothing to check: check() is called for the others only
+        check, stops = checks.check, checks.stop_at is not None
         try:
             for i in range(N):
                 t = i * dt
                 # 1. the plant's state: its terms and constraint rows (never seen by the controller)
                 terms, cons = evaluate(q, v)
                 # 2. sense and control: u = u0 + B f (exact loop) or a held torque (sampled)
-                cmd = command(i, t, q, v, terms, cons, f)
+                if law_command is not None:
+                    cmd = law_command(t, q, v, terms, cons)
+                else:
+                    cmd = command(i, t, q, v, terms, cons, f)
                 # 3. the plant: q̈ and the contact force, together; release if it would pull
                 ddq, f = accelerate(terms, cons, cmd, t)
                 # 4. record sample i, then check it
                 distance = cons.distance if cons is not None else plant.distance(q)
                 ok = record(i, t, q, v, terms, cmd, f, distance)
-                check(t, ok, q, v, f)
+                if not ok or stops or caught:
+                    check(t, ok, q, v, f)
                 if i == N - 1:
                     break
                 if i == 1:

@@ -71,15 +71,33 @@ class RigidContact(SurfaceContact):
         self._solver = ConstrainedDynamics(robot.model, arm.data, k)
         self._friction: np.ndarray | None = None  # (n, k) friction torque per N, this step
         self._gamma = np.zeros(k)
-        # two (q, v) pairs for the compiled contact step: its output is never its input
-        self._pairs = ((np.zeros(n), np.zeros(n)), (np.zeros(n), np.zeros(n)))
+        # two q buffers for the compiled contact step: its output is never its input (its
+        # velocity is impulseDynamics' new array)
+        self._q_out = (np.zeros(n), np.zeros(n))
         self._tmp = (np.zeros(n), np.zeros(n))
         self._grad = np.zeros(3)
         self._row = np.zeros((1, n))  # the compiled step's constraint row
+        self._row0 = self._row[0]
         self._no_B = np.zeros((n, 0))  # B of a command that does not depend on f
         self._compiled_step = (
             self.compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
         )
+        # what the compiled contact step reads, looked up once (a surface's descriptor is
+        # fixed when it is made)
+        surface = arm.constraint.surfaces[0]
+        self._step_args = (
+            robot.model, arm._geo, arm._imp, robot.tip_id, arm._tip, surface, surface._descriptor,
+        )  # fmt: skip
+        # the constrained solve of accelerate() in two compiled calls around forwardDynamics
+        # (ConstrainedDynamics.solve_checked): γ's gains, the limits' array of none
+        baum = sim.baumgarte
+        self._gains = (2.0 * baum.alpha, baum.beta * baum.beta)  # as Baumgarte.gamma_into's
+        self._no_effort = np.zeros(0)
+        self._one = k == 1
+        self._rubs = arm.contact.friction > 0.0  # the tip's friction (arm.contact is fixed)
+        # the step dissipates only through the tip's friction and the joints' own damping and
+        # friction (Arm.account has nothing to add otherwise)
+        self._accounts = self._rubs or arm._dissipates
 
     # ------------------------------------------------------------------ accelerate
     def accelerate(
@@ -92,13 +110,27 @@ class RigidContact(SurfaceContact):
         if not arm.in_contact:  # 1. free
             return arm.free(terms, cmd.u0), arm._zeros_k
         assert cons is not None  # in contact, evaluate() raised instead
-        if arm.contact.friction > 0.0:
+        if self._rubs:
             self._friction, speed = arm.friction_at(terms)
-        ddq, f = self._constrained(terms, cons, cmd)  # 2. constrained
-        if arm.effort is not None:  # 3. saturated (unchanged when no limit is reached)
+        if self.compiles and self._friction is None:
+            # 2. constrained, the limits checked in the same compiled call
+            Dv, B, solver, effort = arm._joint_Dv, cmd.B, self._solver, arm.effort
+            beyond = solver.solve_checked(
+                terms.nle if Dv is None else terms.nle + Dv,  # Arm._nle
+                cmd.u0, self._no_B if B is None else B, cons.A,
+                cons.drift, cons.rate, cons.phi, cons.scale, self._gains, self._gamma,
+                self._no_effort if effort is None else effort,
+            )  # fmt: skip
+            ddq, f = solver.ddq, solver.f
+        else:  # with friction in the loop's B (the limits bound the command's), or readable
+            ddq, f = self._constrained(terms, cons, cmd)
+            beyond = arm.effort is not None and bool(
+                _K.exceeds_effort(cmd.u0, self._no_B if cmd.B is None else cmd.B, f, arm.effort)
+            )
+        if beyond:  # 3. saturated: some limit reached
             ddq, f = self._saturated(terms, cons, cmd, ddq, f)
         # 4. released; f[0]: one surface, without numpy's reduction overhead (µs per step)
-        if self.unilateral and float(f[0] if f.shape[0] == 1 else f.min()) < -self.release_tol:
+        if self.unilateral and (f[0] if self._one else f.min()) < -self.release_tol:
             arm.events.append(Release(t, float(f.min())))
             arm.in_contact = False
             arm.applied = None  # the contact's saturated torque no longer applies
@@ -134,13 +166,11 @@ class RigidContact(SurfaceContact):
         f: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
         """q̈ and f under τ = sat(u0 + B f): the consistent held set
-        (:mod:`hybrid_force.sim.saturation`), then one solve with it held."""
+        (:mod:`hybrid_force.sim.saturation`), then one solve with it held. Called when the
+        compiled test (``exceeds_effort``) found the command u0 + B f beyond a limit."""
         arm = self.arm
         effort = arm.effort
         assert effort is not None
-        # the cheap path, one compiled test: nothing to hold, q̈ and f as solved
-        if not _K.exceeds_effort(cmd.u0, self._no_B if cmd.B is None else cmd.B, f, effort):
-            return ddq, f
         u = cmd.u0 if cmd.B is None else cmd.u0 + cmd.B @ f
         over = np.abs(u) > effort
         if not over.any():  # beyond only in the kernel's rounding of u (k > 1)
@@ -179,7 +209,8 @@ class RigidContact(SurfaceContact):
         """The arm's integrator, then on the surface the projection, off it a touch
         (module docstring)."""
         arm = self.arm
-        arm.account(v, ddq, dt)
+        if self._accounts:
+            arm.account(v, ddq, dt)
         if arm.in_contact and self._compiled_step:
             return self._contact_step(q, v, ddq, dt)
         if arm.applied is not None:  # RK4's stages hold the torque applied at t
@@ -200,24 +231,26 @@ class RigidContact(SurfaceContact):
         """Semi-implicit Euler then :meth:`Arm.project <hybrid_force.sim.arm.Arm.project>`,
         for one surface and a Euclidean arm: two compiled calls and the impulse in
         ``pin.impulseDynamics``."""
-        arm = self.arm
-        model, data, fid = arm.robot.model, arm._geo, arm.robot.tip_id
+        model, data, imp, fid, tip, surface, desc = self._step_args
         q_tmp, v_tmp = self._tmp
         _K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
         pin.computeJointJacobians(model, data, q_tmp)
-        pin.updateFramePlacement(model, data, fid)
-        surface = arm.constraint.surfaces[0]
-        desc, grad, phi = surface._descriptor, self._grad, 0.0
+        pin.updateFramePlacement(model, data, fid)  # the tip, in the view ``tip``
+        grad, phi = self._grad, 0.0
         if desc.shape[0] == 0:  # no closed form: evaluate in Python
-            phi, grad, _ = surface.evaluate(arm._tip)
-        q_out, v_out = self._pairs[0] if q is not self._pairs[0][0] else self._pairs[1]
-        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+            phi, grad, _ = surface.evaluate(tip)
+        q_out = self._q_out[0]
+        if q is q_out:
+            q_out = self._q_out[1]
         row = self._row
-        gn = _K.project_one(desc, arm._tip, grad, phi, J6, q_tmp, q_out, row[0])
+        gn = _K.project_one(
+            desc, tip, grad, phi, pin.getFrameJacobian(model, data, fid, _LWA), q_tmp, q_out,
+            self._row0,
+        )  # fmt: skip
         if not gn >= _GRAD_TOL:
-            arm._rows(q_tmp)  # raises the precise SurfaceError
-        v_out[:] = pin.impulseDynamics(model, arm._imp, q_out, v_tmp, row, 0.0, 0.0)
-        return q_out, v_out
+            self.arm._rows(q_tmp)  # raises the precise SurfaceError
+        # v⁺: impulseDynamics' own new array (the next step reads it, never writes it)
+        return q_out, pin.impulseDynamics(model, imp, q_out, v_tmp, row, 0.0, 0.0)
 
     def touch(self, q: Vector, v: Vector, t: float) -> State:
         """A plastic impact if the tip moves into the surface (an "impact" event)."""

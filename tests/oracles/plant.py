@@ -17,6 +17,7 @@ import pytest
 import hybrid_force.sim.loop as loop
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws.base import Command
+from hybrid_force.errors import SurfaceError
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.sim.plant import Plant
 from hybrid_force.sim.rigid_contact import RigidContact
@@ -71,10 +72,12 @@ class OraclePlant(Plant):
     def evaluate(self, q: np.ndarray, v: np.ndarray) -> tuple[RobotTerms, ConstraintTerms | None]:
         terms = robot_terms(self.robot, q, v)
         self._joints_at(v, None)  # the dense solves read _M(terms)
-        return terms, self._rows_or_none(terms, v)
-
-    def _constraint_terms(self, terms: RobotTerms, v: np.ndarray) -> ConstraintTerms:
-        return constraint_terms(self.constraint, terms, v)
+        try:
+            return terms, constraint_terms(self.constraint, terms, v)
+        except SurfaceError:  # undefined rows: an error in contact, none off the surface
+            if self.in_contact:
+                raise
+            return terms, None
 
     def _impulse(self, q: np.ndarray, v: np.ndarray, A: np.ndarray) -> np.ndarray:
         """v⁺ = v − M⁻¹Aᵀ (A M⁻¹ Aᵀ)⁻¹ A v with M = M(q), by dense solves."""
