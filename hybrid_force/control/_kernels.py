@@ -267,7 +267,7 @@ def _inv3_into(a: np.ndarray, out: np.ndarray) -> float:
     return det
 
 
-@_jit
+@_inline
 def clik_velocity(
     J6: np.ndarray,
     p: np.ndarray,
@@ -338,7 +338,7 @@ def add_posture(
     add_matvec_scaled(N, dq_post, -gain, qd)
 
 
-@_jit
+@_inline
 def clik_acceleration(
     J6: np.ndarray,
     Jd6: np.ndarray,
@@ -436,7 +436,7 @@ def taylor_step(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, dt: float, out: 
         out[i] = q[i] + (qd[i] * dt + qdd[i] * h)
 
 
-@_jit
+@_inline
 def newton_step(
     desc: np.ndarray,
     t: float,
@@ -458,6 +458,80 @@ def newton_step(
     e0, e1, e2 = target[0] - p[0], target[1] - p[1], target[2] - p[2]
     for i in range(q.shape[0]):
         out[i] = q[i] + (Jp[i, 0] * e0 + Jp[i, 1] * e1 + Jp[i, 2] * e2)
+
+
+# the CLIK's workspace: one flat buffer that holds its arrays, so that each of its three
+# kernels of a step takes 3 or 4 arguments instead of 7 to 14 (Numba's call costs about 0.1 µs
+# per array argument, more than these kernels' arithmetic)
+CLIK_HEADER = 3  # n, nq, dt_pred
+
+
+def clik_workspace_size(n: int, nq: int) -> int:
+    """Length of the flat CLIK buffer of :func:`clik_parts` for n velocities, nq positions."""
+    return CLIK_HEADER + 3 * nq + 3 * n + 3 * n + n * n + 9 + 3 + 9 + 5
+
+
+@_inline
+def clik_parts(
+    ws: np.ndarray,
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+]:  # fmt: skip
+    """Views of the CLIK buffer ws (:func:`clik_workspace_size`): ws[0] = n, ws[1] = nq,
+    ws[2] = dt_pred [s], then q, posture, q_pred (nq,), qd, qdd, dq_post (n,), Jp (n, 3),
+    N (n, n), W (3, 3), x (3,), sample (3, 3), cfg (5,) (the arguments of
+    :func:`clik_velocity` and :func:`clik_acceleration`, in that order in the buffer)."""
+    n, nq = int(ws[0]), int(ws[1])
+    o = CLIK_HEADER
+    q = ws[o : o + nq]
+    o += nq
+    posture = ws[o : o + nq]
+    o += nq
+    q_pred = ws[o : o + nq]
+    o += nq
+    qd = ws[o : o + n]
+    o += n
+    qdd = ws[o : o + n]
+    o += n
+    dq_post = ws[o : o + n]
+    o += n
+    Jp = ws[o : o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    N = ws[o : o + n * n].reshape((n, n))
+    o += n * n
+    W = ws[o : o + 9].reshape((3, 3))
+    o += 9
+    x = ws[o : o + 3]
+    o += 3
+    sample = ws[o : o + 9].reshape((3, 3))
+    o += 9
+    cfg = ws[o : o + 5]
+    return q, posture, q_pred, qd, qdd, dq_post, Jp, N, W, x, sample, cfg
+
+
+@_jit
+def clik_velocity_ws(J6: np.ndarray, p: np.ndarray, ws: np.ndarray) -> float:
+    """:func:`clik_velocity` on the arrays of the CLIK buffer ws (:func:`clik_parts`);
+    J6 (6, n) the tip Jacobian, p (3,) the tip at q_d. Returns its condition bound."""
+    q, posture, _, qd, _, dq_post, Jp, N, W, x, sample, cfg = clik_parts(ws)
+    return clik_velocity(J6, p, sample, cfg, q, posture, dq_post, Jp, W, N, x, qd)
+
+
+@_jit
+def clik_acceleration_ws(J6: np.ndarray, Jd6: np.ndarray, ws: np.ndarray) -> None:
+    """:func:`clik_acceleration` on the arrays of the CLIK buffer ws, with its predictor's
+    dt = ws[2] (0: none); J6, Jd6 (6, n) the tip Jacobian and its time derivative."""
+    q, _, q_pred, qd, qdd, dq_post, Jp, N, W, x, sample, cfg = clik_parts(ws)
+    clik_acceleration(J6, Jd6, Jp, W, N, x, qd, sample, cfg, dq_post, qdd, q, ws[2], q_pred)
+
+
+@_jit
+def newton_step_ws(desc: np.ndarray, t: float, p: np.ndarray, ws: np.ndarray) -> None:
+    """:func:`newton_step` from the buffer's predictor: q = q_pred + Jp (p_d − p), the path
+    sampled at t [s] first when desc is not empty; p (3,) the tip at q_pred."""
+    q, _, q_pred, _, _, _, Jp, _, _, _, sample, _ = clik_parts(ws)
+    newton_step(desc, t, sample, q_pred, Jp, p, q)
 
 
 # --- controller momenta ---------------------------------------------------------------------------
