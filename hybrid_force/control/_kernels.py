@@ -193,7 +193,7 @@ def reference(
         s[i] = v[i] - a
 
 
-@_jit
+@_inline
 def arimoto(
     M: np.ndarray,
     C: np.ndarray,
@@ -242,6 +242,38 @@ def arimoto(
                 b += M[i, j] * Ap[j, m]
             B[i, m] = beta * b
     return 0.5 * quad_form(M, s) + 0.5 * beta * dot(e_F, e_F)
+
+
+@_jit
+def arimoto_packed(
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    Kd: np.ndarray,
+    squares: np.ndarray,
+    cols: np.ndarray,
+    rows: np.ndarray,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray,
+    gains: np.ndarray,
+    vectors: np.ndarray,
+    matrices: np.ndarray,
+) -> float:
+    """:func:`arimoto` on the packs of the robot and constraint terms (16 arguments, not 21:
+    Numba's call costs about 0.1 µs per array argument).
+
+    mats (2, n, n) = [M, C] and vecs (2, n) = [g, nle] (``RobotTerms.zeros``); squares
+    (2, n, n) = [Q, Q̇], cols (2, n, k) = [A⁺, Ȧ⁺], rows (4, k, n) with A = rows[2]
+    (``ConstraintTerms.zeros``); gains (3,) = Λ, β, γ. The rest as :func:`arimoto`.
+    """
+    return arimoto(
+        mats[0], mats[1], vecs[0], Kd, squares[0], squares[1], cols[0], cols[1], rows[2], v,
+        e_q, qd, qdd, e_F, f_d, approach, gains[0], gains[1], gains[2], vectors, matrices,
+    )  # fmt: skip
 
 
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------

@@ -174,6 +174,7 @@ class LawWorkspace(base.Law):
         self.V = 0.0
         self.in_contact_law = False
         self._zeros_k = np.zeros(k)
+        self._gain_values = np.array([gains.Lambda, gains.beta, gains.gamma])  # Λ, β, γ
         none = np.zeros(0)
         self._free_rows: KernelRows = (free_space_rows(n), none, none, none, self._free_matrices)
         self._hybrid = base.Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
@@ -207,8 +208,19 @@ class LawWorkspace(base.Law):
         approach: np.ndarray,
         matrices: np.ndarray,
     ) -> None:
-        """One call of the kernel with the rows of :data:`KernelRows` (k = 0: free space)."""
-        g, robot, desired = self.gains, inp.robot, inp.desired
+        """One call of the kernel with the rows of :data:`KernelRows` (k = 0: free space):
+        on the terms' packs when both have them (``RobotTerms.zeros``,
+        ``ConstraintTerms.zeros``: fewer arguments), else on their fields."""
+        robot, desired = inp.robot, inp.desired
+        r_packs, c_packs = robot._packs, cons._packs
+        if r_packs is not None and c_packs is not None:
+            self.V = _K.arimoto_packed(
+                r_packs[0], r_packs[1], self.gains.Kd, c_packs[2], c_packs[1], c_packs[0],
+                inp.v, inp.e_q, desired.qd, desired.qdd, e_F, f_d, approach, self._gain_values,
+                self._vectors, matrices,
+            )  # fmt: skip
+            return
+        g = self.gains
         self.V = _K.arimoto(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
             cons.A, inp.v, inp.e_q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda,
