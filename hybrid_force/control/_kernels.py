@@ -29,7 +29,7 @@ from hybrid_force.geometry._kernels import path_sample, surface_eval
 
 
 # --- constraint (hybrid_force.control.constraint.Constraint, k = 1) -------------------------------
-@_jit
+@_inline
 def constraint_one(
     desc: np.ndarray,
     grad: np.ndarray,
@@ -133,6 +133,39 @@ def constraint_one(
     scalars[4, 0] = raw_drift
     scalars[5, 0] = raw_drift / scale
     return grad_norm, row_norm, jmax
+
+
+@_inline
+def constraint_parts(
+    flat: np.ndarray, k: int, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The packs rows (4, k, n), cols (2, n, k), squares (2, n, n), scalars (6, k) of a
+    ``ConstraintTerms.zeros(k, n)``, as views of its one flat array (in that order)."""
+    a = 4 * k * n
+    b = a + 2 * n * k
+    c = b + 2 * n * n
+    rows = flat[:a].reshape((4, k, n))
+    cols = flat[a:b].reshape((2, n, k))
+    squares = flat[b:c].reshape((2, n, n))
+    scalars = flat[c : c + 6 * k].reshape((6, k))
+    return rows, cols, squares, scalars
+
+
+@_jit
+def constraint_one_flat(
+    desc: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+    v: np.ndarray,
+    tip_scaling: bool,
+    flat: np.ndarray,
+) -> tuple[float, float, float]:
+    """:func:`constraint_one` writing the terms' flat array (:func:`constraint_parts`, k = 1,
+    n = v.shape[0]): 8 arguments instead of 11 (Numba's call costs ~0.1 µs per array)."""
+    rows, cols, squares, scalars = constraint_parts(flat, 1, v.shape[0])
+    return constraint_one(desc, grad, hess, jac, tip, v, tip_scaling, rows, cols, squares, scalars)
 
 
 # --- control (hybrid_force.control.laws.arimoto.arimoto_law) --------------------------------------
@@ -249,9 +282,7 @@ def arimoto_packed(
     mats: np.ndarray,
     vecs: np.ndarray,
     Kd: np.ndarray,
-    squares: np.ndarray,
-    cols: np.ndarray,
-    rows: np.ndarray,
+    flat: np.ndarray,
     v: np.ndarray,
     e_q: np.ndarray,
     qd: np.ndarray,
@@ -263,13 +294,14 @@ def arimoto_packed(
     vectors: np.ndarray,
     matrices: np.ndarray,
 ) -> float:
-    """:func:`arimoto` on the packs of the robot and constraint terms (16 arguments, not 21:
-    Numba's call costs about 0.1 µs per array argument).
+    """:func:`arimoto` on the packs of the robot terms and the constraint terms' flat array
+    (14 arguments, not 21: Numba's call costs about 0.1 µs per array argument).
 
-    mats (2, n, n) = [M, C] and vecs (2, n) = [g, nle] (``RobotTerms.zeros``); squares
-    (2, n, n) = [Q, Q̇], cols (2, n, k) = [A⁺, Ȧ⁺], rows (4, k, n) with A = rows[2]
-    (``ConstraintTerms.zeros``); gains (3,) = Λ, β, γ. The rest as :func:`arimoto`.
+    mats (2, n, n) = [M, C] and vecs (2, n) = [g, nle] (``RobotTerms.zeros``); flat: the
+    ``ConstraintTerms.zeros(k, n)`` array (:func:`constraint_parts`; k = e_F.shape[0],
+    n = v.shape[0]); gains (3,) = Λ, β, γ. The rest as :func:`arimoto`.
     """
+    rows, cols, squares, _ = constraint_parts(flat, e_F.shape[0], v.shape[0])
     return arimoto(
         mats[0], mats[1], vecs[0], Kd, squares[0], squares[1], cols[0], cols[1], rows[2], v,
         e_q, qd, qdd, e_F, f_d, approach, gains[0], gains[1], gains[2], vectors, matrices,

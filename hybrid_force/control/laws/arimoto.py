@@ -209,15 +209,15 @@ class LawWorkspace(base.Law):
         matrices: np.ndarray,
     ) -> None:
         """One call of the kernel with the rows of :data:`KernelRows` (k = 0: free space):
-        on the terms' packs when both have them (``RobotTerms.zeros``,
-        ``ConstraintTerms.zeros``: fewer arguments), else on their fields."""
+        on the robot terms' packs and the constraint terms' flat array when they have them
+        (``RobotTerms.zeros``, ``ConstraintTerms.zeros``: fewer arguments), else on their
+        fields."""
         robot, desired = inp.robot, inp.desired
-        r_packs, c_packs = robot._packs, cons._packs
-        if r_packs is not None and c_packs is not None:
+        r_packs, flat = robot._packs, cons._flat
+        if r_packs is not None and flat is not None:
             self.V = _K.arimoto_packed(
-                r_packs[0], r_packs[1], self.gains.Kd, c_packs[2], c_packs[1], c_packs[0],
-                inp.v, inp.e_q, desired.qd, desired.qdd, e_F, f_d, approach, self._gain_values,
-                self._vectors, matrices,
+                r_packs[0], r_packs[1], self.gains.Kd, flat, inp.v, inp.e_q, desired.qd,
+                desired.qdd, e_F, f_d, approach, self._gain_values, self._vectors, matrices,
             )  # fmt: skip
             return
         g = self.gains
