@@ -368,8 +368,6 @@ class HybridController:
         self._e_q = np.zeros(n)
         self._e_F = np.zeros(k)
         self._law: Law = law_spec(s.law).factory(start.context)  # checked by check_controller
-        # the law's update, None for a law without states of its own (Law.update does nothing)
-        self._law_update = None if type(self._law).update is Law.update else self._law.update
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._scaled = RobotTerms.zeros(n)
         # per-step tests, decided once
@@ -566,12 +564,13 @@ class HybridController:
             warnings.warn(RunWarning(msg), stacklevel=2)
 
     def update(self, dt: float, f: np.ndarray) -> None:
-        """Advance the controller's integrators over one step with the force f (k,) [N]:
-        in contact F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3, one compiled call), the
-        law's own states (for a law that has any), the CLIK."""
+        """Advance the controller's integrators over one step with the force f (k,) [N]."""
         if self.phase == CONTACT:
-            st = self._int
-            _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
-        if self._law_update is not None:
-            self._law_update(dt, f)
+            self._accumulate(f, dt)
+        self._law.update(dt, f)
         self.clik.advance(dt)
+
+    def _accumulate(self, f: np.ndarray, dt: float) -> None:
+        """F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3), in one compiled call."""
+        st = self._int
+        _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
