@@ -308,6 +308,36 @@ def arimoto_packed(
     )  # fmt: skip
 
 
+@_jit
+def arimoto_contact(
+    q: np.ndarray,
+    q_d: np.ndarray,
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    Kd: np.ndarray,
+    flat: np.ndarray,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray,
+    gains: np.ndarray,
+    vectors: np.ndarray,
+    matrices: np.ndarray,
+) -> float:
+    """e_q = q − q_d written (q, q_d: (n,), a Euclidean arm), then :func:`arimoto_packed`:
+    the supervisor's contact step in one call instead of a numpy subtraction and a call."""
+    for i in range(e_q.shape[0]):
+        e_q[i] = q[i] - q_d[i]
+    rows, cols, squares, _ = constraint_parts(flat, e_F.shape[0], v.shape[0])
+    return arimoto(
+        mats[0], mats[1], vecs[0], Kd, squares[0], squares[1], cols[0], cols[1], rows[2], v,
+        e_q, qd, qdd, e_F, f_d, approach, gains[0], gains[1], gains[2], vectors, matrices,
+    )  # fmt: skip
+
+
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------
 @_jit
 def _inv3_into(a: np.ndarray, out: np.ndarray) -> float:

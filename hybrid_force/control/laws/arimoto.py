@@ -188,6 +188,23 @@ class LawWorkspace(base.Law):
         self.in_contact_law = True
         return self._hybrid
 
+    def hybrid_at(self, inp: base.LawInput, q: np.ndarray) -> base.Command:
+        """:meth:`hybrid` with e_q = q − q_d formed inside the same compiled call (the
+        supervisor's contact step; terms with packs, else as :meth:`Law.hybrid_at`)."""
+        cons = inp.rows
+        r_packs, flat = inp.robot._packs, cons._flat
+        if r_packs is None or flat is None:
+            return super().hybrid_at(inp, q)
+        desired = inp.desired
+        approach = self._zeros_k if inp.approach is None else inp.approach
+        self.V = _K.arimoto_contact(
+            q, desired.q, r_packs[0], r_packs[1], self.gains.Kd, flat, inp.v, inp.e_q,
+            desired.qd, desired.qdd, inp.e_F, inp.f_d, approach, self._gain_values,
+            self._vectors, self._matrices,
+        )  # fmt: skip
+        self.in_contact_law = True
+        return self._hybrid
+
     def free_space(self, inp: base.LawInput) -> base.Command:
         """Eq. 29–30: q̇_r = q̇_d − Λ e_q, s = q̇ − q̇_r, u = M q̈_r + C q̇_r + g − K_d s."""
         self._run(inp, *self._free_rows)
