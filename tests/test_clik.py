@@ -212,3 +212,25 @@ def test_the_path_time_is_i_dt_not_a_sum_of_steps(rtr: Robot) -> None:
         des.advance(DT)
     assert des.t == 2000 * DT
     np.testing.assert_array_equal(des.p_d, path.position(2000 * DT))
+
+
+@pytest.mark.parametrize("arm", ["rtr", "ur5", "panda"])
+def test_frame_jacobian_sets_the_frame_placement(arm: str, request: pytest.FixtureRequest) -> None:
+    """The CLIKs read the tip at q_d from data.oMf after getFrameJacobian alone (no
+    updateFramePlacement): Pinocchio's getFrameJacobian by frame id sets data.oMf[frame] with
+    the same product. Checked bit for bit against updateFramePlacement on another Data."""
+    import pinocchio as pin
+
+    robot: Robot = request.getfixturevalue(arm)
+    model, fid = robot.model, robot.tip_id
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = robot.neutral() + rng.uniform(-1.0, 1.0, robot.nq)  # (Euclidean arms)
+        ref, got = model.createData(), model.createData()
+        pin.computeJointJacobians(model, ref, q)
+        pin.updateFramePlacement(model, ref, fid)
+        pin.computeJointJacobians(model, got, q)
+        got.oMf[fid] = pin.SE3(pin.Quaternion(rng.standard_normal(4)).normalized().matrix(),
+                               rng.standard_normal(3))  # fmt: skip
+        pin.getFrameJacobian(model, got, fid, pin.LOCAL_WORLD_ALIGNED)
+        np.testing.assert_array_equal(got.oMf[fid].homogeneous, ref.oMf[fid].homogeneous)

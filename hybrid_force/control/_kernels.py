@@ -29,7 +29,7 @@ from hybrid_force.geometry._kernels import path_sample, surface_eval
 
 
 # --- constraint (hybrid_force.control.constraint.Constraint, k = 1) -------------------------------
-@_jit
+@_inline
 def constraint_one(
     desc: np.ndarray,
     grad: np.ndarray,
@@ -135,6 +135,39 @@ def constraint_one(
     return grad_norm, row_norm, jmax
 
 
+@_inline
+def constraint_parts(
+    flat: np.ndarray, k: int, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The packs rows (4, k, n), cols (2, n, k), squares (2, n, n), scalars (6, k) of a
+    ``ConstraintTerms.zeros(k, n)``, as views of its one flat array (in that order)."""
+    a = 4 * k * n
+    b = a + 2 * n * k
+    c = b + 2 * n * n
+    rows = flat[:a].reshape((4, k, n))
+    cols = flat[a:b].reshape((2, n, k))
+    squares = flat[b:c].reshape((2, n, n))
+    scalars = flat[c : c + 6 * k].reshape((6, k))
+    return rows, cols, squares, scalars
+
+
+@_jit
+def constraint_one_flat(
+    desc: np.ndarray,
+    grad: np.ndarray,
+    hess: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+    v: np.ndarray,
+    tip_scaling: bool,
+    flat: np.ndarray,
+) -> tuple[float, float, float]:
+    """:func:`constraint_one` writing the terms' flat array (:func:`constraint_parts`, k = 1,
+    n = v.shape[0]): 8 arguments instead of 11 (Numba's call costs ~0.1 µs per array)."""
+    rows, cols, squares, scalars = constraint_parts(flat, 1, v.shape[0])
+    return constraint_one(desc, grad, hess, jac, tip, v, tip_scaling, rows, cols, squares, scalars)
+
+
 # --- control (hybrid_force.control.laws.arimoto.arimoto_law) --------------------------------------
 @_inline
 def reference(
@@ -193,7 +226,7 @@ def reference(
         s[i] = v[i] - a
 
 
-@_jit
+@_inline
 def arimoto(
     M: np.ndarray,
     C: np.ndarray,
@@ -244,6 +277,67 @@ def arimoto(
     return 0.5 * quad_form(M, s) + 0.5 * beta * dot(e_F, e_F)
 
 
+@_jit
+def arimoto_packed(
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    Kd: np.ndarray,
+    flat: np.ndarray,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray,
+    gains: np.ndarray,
+    vectors: np.ndarray,
+    matrices: np.ndarray,
+) -> float:
+    """:func:`arimoto` on the packs of the robot terms and the constraint terms' flat array
+    (14 arguments, not 21: Numba's call costs about 0.1 µs per array argument).
+
+    mats (2, n, n) = [M, C] and vecs (2, n) = [g, nle] (``RobotTerms.zeros``); flat: the
+    ``ConstraintTerms.zeros(k, n)`` array (:func:`constraint_parts`; k = e_F.shape[0],
+    n = v.shape[0]); gains (3,) = Λ, β, γ. The rest as :func:`arimoto`.
+    """
+    rows, cols, squares, _ = constraint_parts(flat, e_F.shape[0], v.shape[0])
+    return arimoto(
+        mats[0], mats[1], vecs[0], Kd, squares[0], squares[1], cols[0], cols[1], rows[2], v,
+        e_q, qd, qdd, e_F, f_d, approach, gains[0], gains[1], gains[2], vectors, matrices,
+    )  # fmt: skip
+
+
+@_jit
+def arimoto_contact(
+    q: np.ndarray,
+    q_d: np.ndarray,
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    Kd: np.ndarray,
+    flat: np.ndarray,
+    v: np.ndarray,
+    e_q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    e_F: np.ndarray,
+    f_d: np.ndarray,
+    approach: np.ndarray,
+    gains: np.ndarray,
+    vectors: np.ndarray,
+    matrices: np.ndarray,
+) -> float:
+    """e_q = q − q_d written (q, q_d: (n,), a Euclidean arm), then :func:`arimoto_packed`:
+    the supervisor's contact step in one call instead of a numpy subtraction and a call."""
+    for i in range(e_q.shape[0]):
+        e_q[i] = q[i] - q_d[i]
+    rows, cols, squares, _ = constraint_parts(flat, e_F.shape[0], v.shape[0])
+    return arimoto(
+        mats[0], mats[1], vecs[0], Kd, squares[0], squares[1], cols[0], cols[1], rows[2], v,
+        e_q, qd, qdd, e_F, f_d, approach, gains[0], gains[1], gains[2], vectors, matrices,
+    )  # fmt: skip
+
+
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------
 @_jit
 def _inv3_into(a: np.ndarray, out: np.ndarray) -> float:
@@ -267,7 +361,7 @@ def _inv3_into(a: np.ndarray, out: np.ndarray) -> float:
     return det
 
 
-@_jit
+@_inline
 def clik_velocity(
     J6: np.ndarray,
     p: np.ndarray,
@@ -338,7 +432,7 @@ def add_posture(
     add_matvec_scaled(N, dq_post, -gain, qd)
 
 
-@_jit
+@_inline
 def clik_acceleration(
     J6: np.ndarray,
     Jd6: np.ndarray,
@@ -436,7 +530,7 @@ def taylor_step(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, dt: float, out: 
         out[i] = q[i] + (qd[i] * dt + qdd[i] * h)
 
 
-@_jit
+@_inline
 def newton_step(
     desc: np.ndarray,
     t: float,
@@ -458,6 +552,80 @@ def newton_step(
     e0, e1, e2 = target[0] - p[0], target[1] - p[1], target[2] - p[2]
     for i in range(q.shape[0]):
         out[i] = q[i] + (Jp[i, 0] * e0 + Jp[i, 1] * e1 + Jp[i, 2] * e2)
+
+
+# the CLIK's workspace: one flat buffer that holds its arrays, so that each of its three
+# kernels of a step takes 3 or 4 arguments instead of 7 to 14 (Numba's call costs about 0.1 µs
+# per array argument, more than these kernels' arithmetic)
+CLIK_HEADER = 3  # n, nq, dt_pred
+
+
+def clik_workspace_size(n: int, nq: int) -> int:
+    """Length of the flat CLIK buffer of :func:`clik_parts` for n velocities, nq positions."""
+    return CLIK_HEADER + 3 * nq + 3 * n + 3 * n + n * n + 9 + 3 + 9 + 5
+
+
+@_inline
+def clik_parts(
+    ws: np.ndarray,
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+]:  # fmt: skip
+    """Views of the CLIK buffer ws (:func:`clik_workspace_size`): ws[0] = n, ws[1] = nq,
+    ws[2] = dt_pred [s], then q, posture, q_pred (nq,), qd, qdd, dq_post (n,), Jp (n, 3),
+    N (n, n), W (3, 3), x (3,), sample (3, 3), cfg (5,) (the arguments of
+    :func:`clik_velocity` and :func:`clik_acceleration`, in that order in the buffer)."""
+    n, nq = int(ws[0]), int(ws[1])
+    o = CLIK_HEADER
+    q = ws[o : o + nq]
+    o += nq
+    posture = ws[o : o + nq]
+    o += nq
+    q_pred = ws[o : o + nq]
+    o += nq
+    qd = ws[o : o + n]
+    o += n
+    qdd = ws[o : o + n]
+    o += n
+    dq_post = ws[o : o + n]
+    o += n
+    Jp = ws[o : o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    N = ws[o : o + n * n].reshape((n, n))
+    o += n * n
+    W = ws[o : o + 9].reshape((3, 3))
+    o += 9
+    x = ws[o : o + 3]
+    o += 3
+    sample = ws[o : o + 9].reshape((3, 3))
+    o += 9
+    cfg = ws[o : o + 5]
+    return q, posture, q_pred, qd, qdd, dq_post, Jp, N, W, x, sample, cfg
+
+
+@_jit
+def clik_velocity_ws(J6: np.ndarray, p: np.ndarray, ws: np.ndarray) -> float:
+    """:func:`clik_velocity` on the arrays of the CLIK buffer ws (:func:`clik_parts`);
+    J6 (6, n) the tip Jacobian, p (3,) the tip at q_d. Returns its condition bound."""
+    q, posture, _, qd, _, dq_post, Jp, N, W, x, sample, cfg = clik_parts(ws)
+    return clik_velocity(J6, p, sample, cfg, q, posture, dq_post, Jp, W, N, x, qd)
+
+
+@_jit
+def clik_acceleration_ws(J6: np.ndarray, Jd6: np.ndarray, ws: np.ndarray) -> None:
+    """:func:`clik_acceleration` on the arrays of the CLIK buffer ws, with its predictor's
+    dt = ws[2] (0: none); J6, Jd6 (6, n) the tip Jacobian and its time derivative."""
+    q, _, q_pred, qd, qdd, dq_post, Jp, N, W, x, sample, cfg = clik_parts(ws)
+    clik_acceleration(J6, Jd6, Jp, W, N, x, qd, sample, cfg, dq_post, qdd, q, ws[2], q_pred)
+
+
+@_jit
+def newton_step_ws(desc: np.ndarray, t: float, p: np.ndarray, ws: np.ndarray) -> None:
+    """:func:`newton_step` from the buffer's predictor: q = q_pred + Jp (p_d − p), the path
+    sampled at t [s] first when desc is not empty; p (3,) the tip at q_pred."""
+    q, _, q_pred, _, _, _, Jp, _, _, _, sample, _ = clik_parts(ws)
+    newton_step(desc, t, sample, q_pred, Jp, p, q)
 
 
 # --- controller momenta ---------------------------------------------------------------------------

@@ -196,8 +196,9 @@ class DesiredJointPath:
         t0: start time [s].
 
     The algebra of each step is compiled (:mod:`hybrid_force.control._kernels`:
-    ``newton_step``, ``clik_velocity``, ``clik_acceleration``; a helix or circle is sampled
-    inside the first), and q, qd, qdd, p_d, pdot_d, pddot_d are updated in place: keep a copy
+    ``newton_step``, ``clik_velocity``, ``clik_acceleration``, called through their ``_ws``
+    forms on one flat buffer that holds the arrays; a helix or circle is sampled inside the
+    first), and q, qd, qdd, p_d, pdot_d, pddot_d are updated in place: keep a copy
     to remember a value. Its readable numpy version is the oracle of ``tests/oracles/control.py``.
     """
 
@@ -213,7 +214,8 @@ class DesiredJointPath:
         self.path = path
         self.settings = settings or ClikSettings()
         self._data = robot.new_data()
-        # a view of the tip translation in self._data (updated in place by updateFramePlacement)
+        # a view of the tip translation in self._data (updated in place by updateFramePlacement
+        # and getFrameJacobian)
         self._tip = self._data.oMf[robot.tip_id].translation
         n = robot.nv
         self._redundant = n > 3
@@ -234,25 +236,28 @@ class DesiredJointPath:
         self._update_derivatives()
 
     def _start(self) -> None:
-        """Buffers written in place by the kernels, and the path sample at t0."""
-        n, robot, path = self.robot.nv, self.robot, self.path
-        self._Jp = np.zeros((n, 3))
-        self._W = np.zeros((3, 3))
-        self._N = np.zeros((n, n))
-        self._x = np.zeros(3)
-        self._dq_post = np.zeros(n)
-        self._q_pred = np.zeros(robot.nq)
-        self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
-        self.qd = np.zeros(n)
-        self.qdd = np.zeros(n)
+        """Buffers written in place by the kernels, and the path sample at t0.
+
+        The kernels' arrays are views of one flat buffer (``_kernels.clik_parts``), so each
+        kernel of a step takes the buffer instead of up to 14 arrays."""
+        n, nq, robot, path = self.robot.nv, self.robot.nq, self.robot, self.path
+        K = _K
+        self._ws = np.zeros(K.clik_workspace_size(n, nq))
+        self._ws[0], self._ws[1] = n, nq
+        (
+            q, posture, self._q_pred, self.qd, self.qdd, self._dq_post, self._Jp, self._N,
+            self._W, self._x, self._sample, self._cfg,
+        ) = K.clik_parts(self._ws)  # fmt: skip
+        q[:], posture[:] = self.q, self.posture
+        self.q, self.posture = q, posture
+        self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none), also in ws[2]
         # settings and path sample as small arrays (fewer kernel arguments); the last entry
         # of the settings: the kernel forms q_d − posture itself (a Euclidean arm's)
         cfg = self.settings
         gain = cfg.posture_gain if self._redundant else 0.0
         subtract = float(gain > 0.0 and robot.euclidean)
-        self._cfg = np.array([cfg.gamma, cfg.damping**2, float(self._redundant), gain, subtract])
-        self._sample = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
-        self._sample[:] = path.evaluate(self.t)
+        self._cfg[:] = [cfg.gamma, cfg.damping**2, float(self._redundant), gain, subtract]
+        self._sample[:] = path.evaluate(self.t)  # rows p_d, ṗ_d, p̈_d
         self.p_d, self.pdot_d, self.pddot_d = self._sample
         # q_d ⊖ posture by pin.difference in Python (a non-Euclidean arm with a posture term)
         self._difference = gain > 0.0 and not robot.euclidean
@@ -269,24 +274,19 @@ class DesiredJointPath:
         """q̇_d (eq. 27) and q̈_d, its exact time derivative, at (t, q_d), written in place
         (the algebra of the module docstring, compiled)."""
         model, data, fid, _ = self._step_args
-        q, qd, K = self.q, self.qd, _K
+        q, ws = self.q, self._ws
         pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, fid)
+        # getFrameJacobian(model, data, frame_id, rf) also sets data.oMf[frame_id] =
+        # data.oMi[parent] · placement, the product updateFramePlacement forms (Pinocchio's
+        # frames.hpp), so self._tip is the tip at q_d without that call
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
         if self._difference:  # (a Euclidean arm's q_d − posture is formed in the kernel)
             self._dq_post[:] = pin.difference(model, self.posture, q)
-        cond = K.clik_velocity(
-            J6, self._tip, self._sample, self._cfg, q, self.posture, self._dq_post, self._Jp,
-            self._W, self._N, self._x, qd,
-        )  # fmt: skip
+        cond = _K.clik_velocity_ws(J6, self._tip, ws)
         if not cond < _COND_MAX:  # the cheap bound of cond(J Jᵀ); the SVD names the values
             _check_conditioning(J6[:3], self.t, q, self.robot)
-        pin.computeJointJacobiansTimeVariation(model, data, q, qd)
-        K.clik_acceleration(
-            J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), self._Jp, self._W,
-            self._N, self._x, qd, self._sample, self._cfg, self._dq_post, self.qdd, q,
-            self._dt_pred, self._q_pred,
-        )  # fmt: skip
+        pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
+        _K.clik_acceleration_ws(J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), ws)
 
     def advance(self, dt: float) -> None:
         """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction); t = t0 + i·dt
@@ -301,7 +301,7 @@ class DesiredJointPath:
         if euclidean:
             if dt != self._dt_pred:  # otherwise the last step's kernel made the predictor
                 K.taylor_step(self.q, self.qd, self.qdd, dt, q_pred)
-                self._dt_pred = dt
+                self._dt_pred = self._ws[2] = dt
         else:
             q_pred[:] = pin.integrate(model, self.q, self.qd * dt + self.qdd * (0.5 * dt * dt))
         pin.forwardKinematics(model, data, q_pred)
@@ -313,7 +313,7 @@ class DesiredJointPath:
             desc = _NO_DESCRIPTOR
         if euclidean:
             # (a path with a descriptor is sampled at t inside this call)
-            K.newton_step(desc, self.t, self._sample, q_pred, self._Jp, p, self.q)
+            K.newton_step_ws(desc, self.t, p, self._ws)
         else:
             self.q[:] = pin.integrate(model, q_pred, self._Jp @ (self.p_d - p))
         self._update_derivatives()

@@ -92,16 +92,24 @@ class ConstraintTerms:
     # (rows (4, k, n), cols (2, n, k), squares (2, n, n), scalars (6, k)) whose slices are
     # the fields above, when made by zeros(): what the compiled evaluation writes
     _packs: tuple[np.ndarray, ...] | None = field(default=None, repr=False, compare=False)
+    # the one flat array the four packs are views of, in that order (zeros() only): the
+    # kernels take it as one argument (``_kernels.constraint_parts``)
+    _flat: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def zeros(cls, k: int, n: int) -> ConstraintTerms:
         """Terms of k rows and n joints, every array zero (a buffer for ``evaluate``).
 
         The fields are views of four arrays: rows = [J_Φ, J_Φn, A, Ȧ], cols = [A⁺, Ȧ⁺],
-        squares = [Q, Q̇], scalars = [Φ, d, s, A v, raw drift, drift].
+        squares = [Q, Q̇], scalars = [Φ, d, s, A v, raw drift, drift], themselves views of
+        one flat array in that order.
         """
-        rows, cols = np.zeros((4, k, n)), np.zeros((2, n, k))
-        squares, scalars = np.zeros((2, n, n)), np.zeros((6, k))
+        sizes = np.cumsum([4 * k * n, 2 * n * k, 2 * n * n, 6 * k])
+        flat = np.zeros(int(sizes[-1]))
+        rows = flat[: sizes[0]].reshape((4, k, n))
+        cols = flat[sizes[0] : sizes[1]].reshape((2, n, k))
+        squares = flat[sizes[1] : sizes[2]].reshape((2, n, n))
+        scalars = flat[sizes[2] :].reshape((6, k))
         return cls(
             phi=scalars[0],
             distance=scalars[1],
@@ -118,6 +126,7 @@ class ConstraintTerms:
             raw_drift=scalars[4],
             drift=scalars[5],
             _packs=(rows, cols, squares, scalars),
+            _flat=flat,
         )
 
 
@@ -298,22 +307,22 @@ class Constraint:
         """
         surface = self.surfaces[0]
         c = ConstraintTerms.zeros(1, terms.J.shape[1]) if out is None else out
-        if c._packs is None:
+        flat = c._flat
+        if flat is None:
             raise SurfaceError("out must come from ConstraintTerms.zeros(k, n)")
-        rows, cols, squares, scalars = c._packs
         desc = surface._descriptor
         grad, hess = self._grad, self._hess
         if desc.shape[0] == 0:
             value, grad, hess, distance = surface.evaluate_with_distance(terms.p)
-            scalars[0, 0] = value
-            scalars[1, 0] = distance
+            c.phi[0] = value
+            c.distance[0] = distance
         packs = terms._packs
         if packs is None:  # terms not made by RobotTerms.zeros: a packed copy
             packs = terms.packed()._packs
             assert packs is not None  # packed() always returns terms with their packs
         _, _, jac, tip = packs
-        grad_norm, row_norm, jmax = _K.constraint_one(
-            desc, grad, hess, jac, tip, v, self._tip_scaling, rows, cols, squares, scalars
+        grad_norm, row_norm, jmax = _K.constraint_one_flat(
+            desc, grad, hess, jac, tip, v, self._tip_scaling, flat
         )
         if not grad_norm >= _GRAD_TOL or not row_norm >= _ROW_TOL * grad_norm * (1.0 + jmax):
             self._row(0, surface, terms)  # raises the precise SurfaceError

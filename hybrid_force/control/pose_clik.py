@@ -387,7 +387,9 @@ class PoseJointPath:
         robot, data = self.robot, self._data
         model, fid, q = robot.model, robot.tip_id, self.q
         pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacement(model, data, fid)
+        # getFrameJacobian(model, data, frame_id, rf) also sets data.oMf[frame_id] =
+        # data.oMi[parent] · placement, the product updateFramePlacement forms (Pinocchio's
+        # frames.hpp), so self._tip and self._rot are the tip's at q_d without that call
         J6 = pin.getFrameJacobian(model, data, fid, LWA)
         if self._cfg[2]:
             if robot.euclidean:

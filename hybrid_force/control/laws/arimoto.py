@@ -174,6 +174,7 @@ class LawWorkspace(base.Law):
         self.V = 0.0
         self.in_contact_law = False
         self._zeros_k = np.zeros(k)
+        self._gain_values = np.array([gains.Lambda, gains.beta, gains.gamma])  # Λ, β, γ
         none = np.zeros(0)
         self._free_rows: KernelRows = (free_space_rows(n), none, none, none, self._free_matrices)
         self._hybrid = base.Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
@@ -184,6 +185,23 @@ class LawWorkspace(base.Law):
         in q̇_r (and Ȧ⁺·approach in q̈_r) in the near phase."""
         approach = self._zeros_k if inp.approach is None else inp.approach
         self._run(inp, inp.rows, inp.e_F, inp.f_d, approach, self._matrices)
+        self.in_contact_law = True
+        return self._hybrid
+
+    def hybrid_at(self, inp: base.LawInput, q: np.ndarray) -> base.Command:
+        """:meth:`hybrid` with e_q = q − q_d formed inside the same compiled call (the
+        supervisor's contact step; terms with packs, else as :meth:`Law.hybrid_at`)."""
+        cons = inp.rows
+        r_packs, flat = inp.robot._packs, cons._flat
+        if r_packs is None or flat is None:
+            return super().hybrid_at(inp, q)
+        desired = inp.desired
+        approach = self._zeros_k if inp.approach is None else inp.approach
+        self.V = _K.arimoto_contact(
+            q, desired.q, r_packs[0], r_packs[1], self.gains.Kd, flat, inp.v, inp.e_q,
+            desired.qd, desired.qdd, inp.e_F, inp.f_d, approach, self._gain_values,
+            self._vectors, self._matrices,
+        )  # fmt: skip
         self.in_contact_law = True
         return self._hybrid
 
@@ -207,8 +225,19 @@ class LawWorkspace(base.Law):
         approach: np.ndarray,
         matrices: np.ndarray,
     ) -> None:
-        """One call of the kernel with the rows of :data:`KernelRows` (k = 0: free space)."""
-        g, robot, desired = self.gains, inp.robot, inp.desired
+        """One call of the kernel with the rows of :data:`KernelRows` (k = 0: free space):
+        on the robot terms' packs and the constraint terms' flat array when they have them
+        (``RobotTerms.zeros``, ``ConstraintTerms.zeros``: fewer arguments), else on their
+        fields."""
+        robot, desired = inp.robot, inp.desired
+        r_packs, flat = robot._packs, cons._flat
+        if r_packs is not None and flat is not None:
+            self.V = _K.arimoto_packed(
+                r_packs[0], r_packs[1], self.gains.Kd, flat, inp.v, inp.e_q, desired.qd,
+                desired.qdd, e_F, f_d, approach, self._gain_values, self._vectors, matrices,
+            )  # fmt: skip
+            return
+        g = self.gains
         self.V = _K.arimoto(
             robot.M, robot.C, robot.g, g.Kd, cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot,
             cons.A, inp.v, inp.e_q, desired.qd, desired.qdd, e_F, f_d, approach, g.Lambda,

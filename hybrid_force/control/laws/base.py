@@ -209,6 +209,13 @@ class Law:
         """Torques near and on the surface: track the path along it and f_d across it."""
         raise NotImplementedError
 
+    def hybrid_at(self, inp: LawInput, q: np.ndarray) -> Command:
+        """:meth:`hybrid` at the measured q (nq,) of a Euclidean arm, with inp.e_q (n,) the
+        array to write e_q = q − q_d (= inp.desired.q) into first (the supervisor's contact
+        step). A law may form e_q inside its own compiled call; by default numpy does."""
+        np.subtract(q, inp.desired.q, out=inp.e_q)
+        return self.hybrid(inp)
+
     def update(self, dt: float, f: np.ndarray) -> None:
         """Advance the law's own states over dt [s] with the measured force f (k,) [N]
         (nothing to advance by default: the force integral e_F is the supervisor's)."""
