@@ -285,8 +285,10 @@ def test_run_interrupted_before_its_first_sample_saves_an_empty_result(
     def interrupt(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    # the first thing the loop does is ask the plant's terms: Ctrl-C lands there
+    # the first thing the loop does is ask the plant's terms (bound once, Robot.terms_into):
+    # Ctrl-C lands there
     monkeypatch.setattr(Robot, "terms", interrupt)
+    monkeypatch.setattr(Robot, "terms_into", lambda self, data, out: interrupt)
     out = tmp_path / "empty"
     code = main(["run", str(REPO_ROOT / "scenarios" / "paper_contact.toml"), "--out", str(out)])
     err = capsys.readouterr().err
