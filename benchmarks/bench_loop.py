@@ -72,7 +72,8 @@ _ROOT = Path(__file__).resolve().parents[1]
 #   ConstrainedDynamics.solve: forwardDynamics × 1 (the algebraic loop u = u0 + B f is resolved
 #                with the factorisation it leaves in data.U, data.D)
 #   DesiredJointPath.advance: forwardKinematics(q) + updateFramePlacement (Newton residual),
-#                computeJointJacobians + updateFramePlacement + getFrameJacobian (q̇_d),
+#                computeJointJacobians + getFrameJacobian (q̇_d; getFrameJacobian by frame id
+#                sets data.oMf[frame] itself, so no updateFramePlacement),
 #                computeJointJacobiansTimeVariation + getFrameJacobianTimeVariation (q̈_d)
 #   Plant.advance in contact: computeJointJacobians + updateFramePlacement + getFrameJacobian
 #                (projection rows at the Euler-integrated q), impulseDynamics (the velocity's
@@ -81,7 +82,7 @@ _EXPECTED = {
     "crba": 1,
     "computeGeneralizedGravity": 1,
     "computeCoriolisMatrix": 1,
-    "updateFramePlacement": 4,
+    "updateFramePlacement": 3,
     "getFrameJacobian": 3,
     "getFrameJacobianTimeVariation": 2,
     "forwardDynamics": 1,
@@ -340,7 +341,6 @@ def _floor_step(robot: Robot) -> Callable[[], None]:
         pin.forwardKinematics(model, d_clik, q)
         pin.updateFramePlacement(model, d_clik, fid)
         pin.computeJointJacobians(model, d_clik, q)
-        pin.updateFramePlacement(model, d_clik, fid)
         pin.getFrameJacobian(model, d_clik, fid, _LWA)
         pin.computeJointJacobiansTimeVariation(model, d_clik, q, qd)
         pin.getFrameJacobianTimeVariation(model, d_clik, fid, _LWA)
