@@ -411,7 +411,15 @@ class MeshSurface(Surface):
 
     def _most_concave(self) -> tuple[float, np.ndarray | None]:
         """(:meth:`smallest_concave_radius`, the vertex (3,) [m] where it is found, or None
-        when the part is nowhere concave)."""
+        when the part is nowhere concave); found once (the part and its field are fixed)."""
+        found: tuple[float, np.ndarray | None] = self.__dict__.get("_concave_found") or (
+            self._search_concave()
+        )
+        self.__dict__["_concave_found"] = found  # a frozen dataclass: its own memo
+        smallest, where = found
+        return smallest, None if where is None else where.copy()
+
+    def _search_concave(self) -> tuple[float, np.ndarray | None]:
         smallest, where = math.inf, None
         vertices = self.part.vertices
         if self.untrusted_width > 0.0:
