@@ -331,11 +331,9 @@ def arimoto_contact(
     the supervisor's contact step in one call instead of a numpy subtraction and a call."""
     for i in range(e_q.shape[0]):
         e_q[i] = q[i] - q_d[i]
-    rows, cols, squares, _ = constraint_parts(flat, e_F.shape[0], v.shape[0])
-    return arimoto(
-        mats[0], mats[1], vecs[0], Kd, squares[0], squares[1], cols[0], cols[1], rows[2], v,
-        e_q, qd, qdd, e_F, f_d, approach, gains[0], gains[1], gains[2], vectors, matrices,
-    )  # fmt: skip
+    return arimoto_packed(
+        mats, vecs, Kd, flat, v, e_q, qd, qdd, e_F, f_d, approach, gains, vectors, matrices
+    )
 
 
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------

@@ -49,8 +49,7 @@ def kkt_inputs(
 ) -> None:
     """The inputs of ``pin.forwardDynamics`` in one call: γ (k,) as :func:`baumgarte` (written
     into gamma) and C q̇ + g (n,) copied into data_nle (the view of ``data.nle`` it reads)."""
-    for m in range(gamma.shape[0]):
-        gamma[m] = drift[m] + two_alpha * rate[m] + beta_sq * (value[m] / scale[m])
+    baumgarte(drift, rate, value, scale, two_alpha, beta_sq, gamma)
     for i in range(nle.shape[0]):
         data_nle[i] = nle[i]
 
