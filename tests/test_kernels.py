@@ -780,6 +780,9 @@ def test_hybrid_controller_without_supervisor_steady_path(arms: dict[str, Robot]
         cons = constraint_terms(con, terms, v)
         cmd = fast.command(t, q, v, terms, cons)
         assert fast._steady and not general._steady
+        # the law takes the packs (one argument each for e_q, e_F, f_d and for q_d, …)
+        assert fast._input.steady is not None and fast._input.desired.pack is not None
+        assert general._input.steady is None
         u0, B, V, trace = cmd.u0.copy(), cmd.B, fast.V, fast.trace
         assert B is not None and trace is not None
         B = B.copy()

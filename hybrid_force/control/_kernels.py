@@ -168,6 +168,25 @@ def constraint_one_flat(
     return constraint_one(desc, grad, hess, jac, tip, v, tip_scaling, rows, cols, squares, scalars)
 
 
+@_jit
+def constraint_one_ws(
+    desc: np.ndarray,
+    scratch: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+    v: np.ndarray,
+    flat: np.ndarray,
+) -> tuple[float, float, float]:
+    """:func:`constraint_one_flat` for a surface with a closed form (desc not empty), with
+    scratch (13,) = [1.0 when the rows are scaled at the tip, ∇Φ (3,), ∇²Φ (3, 3)]: 6
+    arguments instead of 8."""
+    grad, hess = scratch[1:4], scratch[4:13].reshape((3, 3))
+    rows, cols, squares, scalars = constraint_parts(flat, 1, v.shape[0])
+    return constraint_one(
+        desc, grad, hess, jac, tip, v, scratch[0] != 0.0, rows, cols, squares, scalars
+    )
+
+
 # --- control (hybrid_force.control.laws.arimoto.arimoto_law) --------------------------------------
 @_inline
 def reference(
@@ -334,6 +353,90 @@ def arimoto_contact(
     return arimoto_packed(
         mats, vecs, Kd, flat, v, e_q, qd, qdd, e_F, f_d, approach, gains, vectors, matrices
     )
+
+
+# --- the steady contact step's packs (Law.hybrid_at) ----------------------------------------------
+# Numba's dispatcher costs about 0.13 µs per array argument of a call from Python (a no-op
+# kernel: 0.35 µs with 2 arrays, 1.2 µs with 8, 2.6 µs with 16), more than most of these
+# kernels' arithmetic. So the arrays that persist from step to step are views of a few flat
+# buffers, each kept by its owner, and a law's steady-contact kernel takes the buffers:
+# the desired motion's (the CLIK's), the supervisor's [e_q, e_F, f_d] and the law's own.
+def desired_pack_size(n: int, nq: int) -> int:
+    """Length of a desired-motion pack (:func:`desired_parts`)."""
+    return nq + 2 * n + 9
+
+
+@_inline
+def desired_parts(
+    pack: np.ndarray, n: int, nq: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Views q_d (nq,), q̇_d, q̈_d (n,) and the path sample (3, 3) = [p_d, ṗ_d, p̈_d] of a
+    desired-motion pack (``Desired.pack``: at least :func:`desired_pack_size` long)."""
+    q = pack[0:nq]
+    qd = pack[nq : nq + n]
+    qdd = pack[nq + n : nq + 2 * n]
+    o = nq + 2 * n
+    sample = pack[o : o + 9].reshape((3, 3))
+    return q, qd, qdd, sample
+
+
+@_inline
+def steady_parts(pack: np.ndarray, n: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Views e_q (n,), e_F (k,), f_d (k,) of the supervisor's steady-contact pack
+    (``LawInput.steady``: [e_q, e_F, f_d, F, F_d], n + 4k long)."""
+    return pack[0:n], pack[n : n + k], pack[n + k : n + 2 * k]
+
+
+def arimoto_workspace_size(n: int, k: int) -> int:
+    """Length of the paper's law's own flat buffer (:func:`arimoto_parts`)."""
+    return 1 + n * n + 3 + 6 * n + 2 * n * k + k
+
+
+@_inline
+def arimoto_parts(
+    ws: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Views of the paper's law's own buffer ws (:func:`arimoto_workspace_size`): ws[0] = k,
+    then K_d (n, n), the gains (3,) = Λ, β, γ, the output vectors (6, n) and matrices
+    (2, n, k) of :func:`arimoto`, and zeros (k,) (the approach term in contact)."""
+    k = int(ws[0])
+    o = 1
+    Kd = ws[o : o + n * n].reshape((n, n))
+    o += n * n
+    gains = ws[o : o + 3]
+    o += 3
+    vectors = ws[o : o + 6 * n].reshape((6, n))
+    o += 6 * n
+    matrices = ws[o : o + 2 * n * k].reshape((2, n, k))
+    o += 2 * n * k
+    return Kd, gains, vectors, matrices, ws[o : o + k]
+
+
+@_jit
+def arimoto_steady(
+    q: np.ndarray,
+    v: np.ndarray,
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    flat: np.ndarray,
+    desired: np.ndarray,
+    steady: np.ndarray,
+    ws: np.ndarray,
+) -> float:
+    """:func:`arimoto_contact` on packs (8 arguments, not 16): the supervisor's steady
+    contact step. q, v: (n,) measured (a Euclidean arm); mats, vecs: the robot terms' packs;
+    flat: the constraint terms' array; desired: the desired motion's pack
+    (:func:`desired_parts`); steady: [e_q, e_F, f_d] (:func:`steady_parts`; e_q written
+    here); ws: the law's own buffer (:func:`arimoto_parts`)."""
+    n = v.shape[0]
+    Kd, gains, vectors, matrices, zeros = arimoto_parts(ws, n)
+    k = zeros.shape[0]
+    q_d, qd, qdd, _ = desired_parts(desired, n, n)
+    e_q, e_F, f_d = steady_parts(steady, n, k)
+    return arimoto_contact(
+        q, q_d, mats, vecs, Kd, flat, v, e_q, qd, qdd, e_F, f_d, zeros, gains, vectors,
+        matrices,
+    )  # fmt: skip
 
 
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------
@@ -560,7 +663,7 @@ CLIK_HEADER = 3  # n, nq, dt_pred
 
 def clik_workspace_size(n: int, nq: int) -> int:
     """Length of the flat CLIK buffer of :func:`clik_parts` for n velocities, nq positions."""
-    return CLIK_HEADER + 3 * nq + 3 * n + 3 * n + n * n + 9 + 3 + 9 + 5
+    return CLIK_HEADER + desired_pack_size(n, nq) + 2 * nq + n + 3 * n + n * n + 9 + 3 + 5
 
 
 @_inline
@@ -571,21 +674,18 @@ def clik_parts(
     np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
 ]:  # fmt: skip
     """Views of the CLIK buffer ws (:func:`clik_workspace_size`): ws[0] = n, ws[1] = nq,
-    ws[2] = dt_pred [s], then q, posture, q_pred (nq,), qd, qdd, dq_post (n,), Jp (n, 3),
-    N (n, n), W (3, 3), x (3,), sample (3, 3), cfg (5,) (the arguments of
-    :func:`clik_velocity` and :func:`clik_acceleration`, in that order in the buffer)."""
+    ws[2] = dt_pred [s], then q (nq,), qd, qdd (n,), sample (3, 3) (the desired motion's
+    pack, :func:`desired_parts`, which a law's steady-contact kernel takes as one argument),
+    posture, q_pred (nq,), dq_post (n,), Jp (n, 3), N (n, n), W (3, 3), x (3,), cfg (5,).
+    Returned as q, posture, q_pred, qd, qdd, dq_post, Jp, N, W, x, sample, cfg (the
+    arguments of :func:`clik_velocity` and :func:`clik_acceleration`)."""
     n, nq = int(ws[0]), int(ws[1])
-    o = CLIK_HEADER
-    q = ws[o : o + nq]
-    o += nq
+    q, qd, qdd, sample = desired_parts(ws[CLIK_HEADER:], n, nq)
+    o = CLIK_HEADER + nq + 2 * n + 9  # desired_pack_size(n, nq)
     posture = ws[o : o + nq]
     o += nq
     q_pred = ws[o : o + nq]
     o += nq
-    qd = ws[o : o + n]
-    o += n
-    qdd = ws[o : o + n]
-    o += n
     dq_post = ws[o : o + n]
     o += n
     Jp = ws[o : o + 3 * n].reshape((n, 3))
@@ -596,8 +696,6 @@ def clik_parts(
     o += 9
     x = ws[o : o + 3]
     o += 3
-    sample = ws[o : o + 9].reshape((3, 3))
-    o += 9
     cfg = ws[o : o + 5]
     return q, posture, q_pred, qd, qdd, dq_post, Jp, N, W, x, sample, cfg
 
@@ -627,6 +725,17 @@ def newton_step_ws(desc: np.ndarray, t: float, p: np.ndarray, ws: np.ndarray) ->
 
 
 # --- controller momenta ---------------------------------------------------------------------------
+@_jit
+def accumulate_steady(pack: np.ndarray, f: np.ndarray, dt: float) -> None:
+    """:func:`accumulate` on the supervisor's steady pack [e_q, e_F, f_d, F, F_d] (n + 4k,;
+    :func:`steady_parts`): F += f dt, F_d += f_d dt, e_F = F − F_d. f: (k,) [N]; dt [s]."""
+    k = f.shape[0]
+    n = pack.shape[0] - 4 * k
+    o = n + 2 * k
+    accumulate(pack[o : o + k], f, pack[o + k : o + 2 * k], pack[n + k : n + 2 * k], dt,
+               pack[n : n + k])  # fmt: skip
+
+
 @_jit
 def accumulate(
     x: np.ndarray, dx: np.ndarray, y: np.ndarray, dy: np.ndarray, dt: float, diff: np.ndarray

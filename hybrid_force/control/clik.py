@@ -150,6 +150,16 @@ def newton_ik(
     return q, err
 
 
+def desired_views(
+    pack: np.ndarray, n: int, nq: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Views q_d (nq,), q̇_d, q̈_d (n,) and the path sample (3, 3) = [p_d, ṗ_d, p̈_d] of a
+    desired-motion pack (nq + 2n + 9,): the layout of ``_kernels.desired_parts``, which a
+    law's steady-contact kernel unpacks (a CLIK keeps its desired motion in one)."""
+    o = nq + 2 * n
+    return pack[:nq], pack[nq : nq + n], pack[nq + n : o], pack[o : o + 9].reshape(3, 3)
+
+
 class StepClock:
     """The path time t = t0 + i·dt from an integer step count i (issue 28 item 6).
 
@@ -250,6 +260,8 @@ class DesiredJointPath:
         ) = K.clik_parts(self._ws)  # fmt: skip
         q[:], posture[:] = self.q, self.posture
         self.q, self.posture = q, posture
+        #: q_d, q̇_d, q̈_d, p_d, ṗ_d, p̈_d as one flat view (``_kernels.desired_parts``)
+        self.desired_pack = self._ws[K.CLIK_HEADER : K.CLIK_HEADER + K.desired_pack_size(n, nq)]
         self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none), also in ws[2]
         # settings and path sample as small arrays (fewer kernel arguments); the last entry
         # of the settings: the kernel forms q_d − posture itself (a Euclidean arm's)

@@ -180,8 +180,11 @@ class Constraint:
         self.surfaces: tuple[Surface, ...] = tuple(checked)
         self.normalization: Normalization = normalization
         self._tip_scaling = normalization == "tip"
-        # scratch ∇Φ and ∇²Φ written by the compiled evaluation (k = 1)
-        self._grad, self._hess = np.zeros(3), np.zeros((3, 3))
+        # scratch ∇Φ and ∇²Φ written by the compiled evaluation (k = 1), after the flag
+        # "tip": one array argument for three (_kernels.constraint_one_ws)
+        self._scratch = np.zeros(13)
+        self._scratch[0] = float(self._tip_scaling)
+        self._grad, self._hess = self._scratch[1:4], self._scratch[4:].reshape(3, 3)
         self._one = len(self.surfaces) == 1  # evaluate() in one compiled call
 
     @property
@@ -321,9 +324,12 @@ class Constraint:
             packs = terms.packed()._packs
             assert packs is not None  # packed() always returns terms with their packs
         _, _, jac, tip = packs
-        grad_norm, row_norm, jmax = _K.constraint_one_flat(
-            desc, grad, hess, jac, tip, v, self._tip_scaling, flat
-        )
+        if grad is self._grad:  # a closed form: ∇Φ, ∇²Φ written into the scratch
+            grad_norm, row_norm, jmax = _K.constraint_one_ws(desc, self._scratch, jac, tip, v, flat)
+        else:
+            grad_norm, row_norm, jmax = _K.constraint_one_flat(
+                desc, grad, hess, jac, tip, v, self._tip_scaling, flat
+            )
         if not grad_norm >= _GRAD_TOL or not row_norm >= _ROW_TOL * grad_norm * (1.0 + jmax):
             self._row(0, surface, terms)  # raises the precise SurfaceError
         return c

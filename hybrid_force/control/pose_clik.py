@@ -49,7 +49,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.clik import _COND_MAX, ClikSettings, StepClock
+from hybrid_force.control.clik import _COND_MAX, ClikSettings, StepClock, desired_views
 from hybrid_force.control.tool import ToolTarget, axis_angle, cross3
 from hybrid_force.errors import ReachError
 from hybrid_force.geometry.paths import Path
@@ -300,7 +300,12 @@ class PoseJointPath:
     def _start(self) -> None:
         """Buffers written in place by the kernels (module ``_pose_kernels``' names)."""
         n, m, task, cfg = self.robot.nv, self._task.m, self._task, self.settings
-        self._smp = np.zeros((3, 3))  # rows p_d, ṗ_d, p̈_d
+        nq = self.robot.nq
+        # q_d, q̇_d, q̈_d and the path sample as views of one flat pack, which a law's
+        # steady-contact kernel takes as one argument (``control._kernels.desired_parts``)
+        self.desired_pack = np.zeros(nq + 2 * n + 9)
+        self.q, self.qd, self.qdd, self._smp = desired_views(self.desired_pack, n, nq)
+        self.q[:] = self.posture
         self.p_d, self.pdot_d, self.pddot_d = self._smp
         self._goal = np.zeros((4, 3))  # rows a_d, ȧ_d, ω_d, ω̇_d
         self._a_d = self._goal[0]  # one view: a_d is updated in place
@@ -327,8 +332,6 @@ class PoseJointPath:
         self._zeros = np.zeros(n)
         self._q_pred = np.zeros(self.robot.nq)
         self._dt_pred = 0.0  # the dt of the predictor made ahead (0: none)
-        self.qd = np.zeros(n)
-        self.qdd = np.zeros(n)
         # views of the tip in self._data (updated in place by updateFramePlacement)
         tip = self._data.oMf[self.robot.tip_id]
         self._tip, self._rot = tip.translation, tip.rotation

@@ -358,15 +358,22 @@ class HybridController:
             self.clik = self._joint_path(robot, path, start.qd0, clik, t0=t0)
         self.gains: Gains = start.gains
         self.stiffness = start.stiffness
-        self.f_d_contact = start.f_d
+        # e_q, e_F, the contact's f_d and the momenta F, F_d as views of one flat array,
+        # which the steady contact step hands to the law as one argument (LawInput.steady)
+        # and the momenta's update takes whole (_kernels.steady_parts, accumulate_steady)
+        self._steady_pack = pack = np.zeros(n + 4 * k)
+        self.f_d_contact = pack[n + k : n + 2 * k]
+        self.f_d_contact[:] = start.f_d
         self.approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
-        self._int = _Integrators(F=np.zeros(k), F_d=np.zeros(k), f_d=np.zeros(k))
+        self._int = _Integrators(
+            F=pack[n + 2 * k : n + 3 * k], F_d=pack[n + 3 * k :], f_d=np.zeros(k)
+        )
         self.phase = FREE
         self.V = 0.0  # V of the last step [J] (section 5.1)
         self._first = True
         self._zeros_k = np.zeros(k)
-        self._e_q = np.zeros(n)
-        self._e_F = np.zeros(k)
+        self._e_q = self._steady_pack[:n]
+        self._e_F = self._steady_pack[n : n + k]
         self._law: Law = law_spec(s.law).factory(start.context)  # checked by check_controller
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._scaled = RobotTerms.zeros(n)
@@ -402,7 +409,10 @@ class HybridController:
 
     def _sample_desired(self) -> Desired:
         c = self.clik
-        return Desired(q=c.q, qd=c.qd, qdd=c.qdd, p=c.p_d, pd=c.pdot_d, pdd=c.pddot_d)
+        return Desired(
+            q=c.q, qd=c.qd, qdd=c.qdd, p=c.p_d, pd=c.pdot_d, pdd=c.pddot_d,
+            pack=getattr(c, "desired_pack", None),
+        )  # fmt: skip
 
     @property
     def law(self) -> Law:
@@ -508,8 +518,11 @@ class HybridController:
         inp.cons, inp.e_F, inp.f_d, inp.approach = cons, e_F, st.f_d, approach
         command = law.hybrid(inp)
         self.V = law.V
-        # from now on the contact phase's inputs above stay as they are (same arrays)
+        # from now on the contact phase's inputs above stay as they are (same arrays), views
+        # of the steady pack the law may take whole (Law.hybrid_at)
         self._steady = self._steady_contact
+        if self._steady and inp.e_F is self._e_F and inp.f_d is self.f_d_contact:
+            inp.steady = self._steady_pack
         return command
 
     def _contact_command(
@@ -583,4 +596,7 @@ class HybridController:
     def _accumulate(self, f: np.ndarray, dt: float) -> None:
         """F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3), in one compiled call."""
         st = self._int
-        _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)
+        if st.f_d is self.f_d_contact:  # all four in the steady pack: one argument
+            _K.accumulate_steady(self._steady_pack, f, dt)
+        else:
+            _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)

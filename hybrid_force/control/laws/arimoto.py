@@ -165,16 +165,26 @@ class LawWorkspace(base.Law):
 
     def __init__(self, n: int, k: int, gains: base.Gains) -> None:
         self.gains = gains
-        # the outputs as rows of two arrays, so the kernel takes two arguments, not eight
-        self._vectors = np.zeros((6, n))
-        self._matrices = np.zeros((2, n, k))
+        # the law's own arrays as views of one flat buffer (_kernels.arimoto_parts), so the
+        # steady contact kernel takes one argument for five; the outputs are rows of two
+        self._ws = np.zeros(_K.arimoto_workspace_size(n, k))
+        self._ws[0] = k
+        o = 1
+        Kd = self._ws[o : o + n * n].reshape(n, n)
+        Kd[:] = gains.Kd
+        o += n * n
+        self._gain_values = self._ws[o : o + 3]  # Λ, β, γ
+        self._gain_values[:] = [gains.Lambda, gains.beta, gains.gamma]
+        o += 3
+        self._vectors = self._ws[o : o + 6 * n].reshape(6, n)
+        o += 6 * n
+        self._matrices = self._ws[o : o + 2 * n * k].reshape(2, n, k)
+        self._zeros_k = self._ws[o + 2 * n * k :]
         self._free_matrices = np.zeros((2, n, 0))
         self.u0, self.s, self.s0, self.s1, self.qdot_r, self.qddot_r0 = self._vectors
         self.B, self.qddot_r_f = self._matrices
         self.V = 0.0
         self.in_contact_law = False
-        self._zeros_k = np.zeros(k)
-        self._gain_values = np.array([gains.Lambda, gains.beta, gains.gamma])  # Λ, β, γ
         none = np.zeros(0)
         self._free_rows: KernelRows = (free_space_rows(n), none, none, none, self._free_matrices)
         self._hybrid = base.Command(u0=self.u0, B=self.B if gains.beta > 0 else None)
@@ -196,6 +206,13 @@ class LawWorkspace(base.Law):
         if r_packs is None or flat is None:
             return super().hybrid_at(inp, q)
         desired = inp.desired
+        steady, pack = inp.steady, desired.pack
+        if steady is not None and pack is not None and inp.approach is None:
+            self.V = _K.arimoto_steady(
+                q, inp.v, r_packs[0], r_packs[1], flat, pack, steady, self._ws
+            )
+            self.in_contact_law = True
+            return self._hybrid
         approach = self._zeros_k if inp.approach is None else inp.approach
         self.V = _K.arimoto_contact(
             q, desired.q, r_packs[0], r_packs[1], self.gains.Kd, flat, inp.v, inp.e_q,

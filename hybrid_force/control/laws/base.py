@@ -95,6 +95,10 @@ class Gains:
 class Desired:
     """Desired motion at one instant: q_d, q̇_d, q̈_d, each (n,) [rad or m, /s, /s²], and the
     task-space path it follows, p_d, ṗ_d, p̈_d, each (3,) [m, m/s, m/s²] (None when not given).
+
+    ``pack``: when q, qd, qdd, p, pd, pdd are views of one flat array (a CLIK's, laid out as
+    ``control._kernels.desired_parts``), that array, so a compiled law takes one argument
+    for six (:meth:`Law.hybrid_at`); None otherwise.
     """
 
     q: np.ndarray
@@ -103,6 +107,7 @@ class Desired:
     p: np.ndarray | None = None
     pd: np.ndarray | None = None
     pdd: np.ndarray | None = None
+    pack: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -173,6 +178,10 @@ class LawInput:
         f_d: (k,) desired force [N]; 0 in the near phase.
         approach: (k,) normal reference velocity [m/s per row scaling] of the near phase,
             which brings the tool onto the surface slowly; None in contact.
+        steady: (n + 4k,) in the supervisor's steady contact step (:meth:`Law.hybrid_at`),
+            the flat array whose views e_q, e_F and f_d are, then the supervisor's momenta F,
+            F_d (``control._kernels.steady_parts``),
+            so a compiled law takes one argument for three; None otherwise.
     """
 
     robot: RobotTerms
@@ -183,6 +192,7 @@ class LawInput:
     e_F: np.ndarray = field(default_factory=lambda: np.zeros(0))
     f_d: np.ndarray = field(default_factory=lambda: np.zeros(0))
     approach: np.ndarray | None = None
+    steady: np.ndarray | None = None
 
     @property
     def rows(self) -> ConstraintTerms:
@@ -212,7 +222,9 @@ class Law:
     def hybrid_at(self, inp: LawInput, q: np.ndarray) -> Command:
         """:meth:`hybrid` at the measured q (nq,) of a Euclidean arm, with inp.e_q (n,) the
         array to write e_q = q − q_d (= inp.desired.q) into first (the supervisor's contact
-        step). A law may form e_q inside its own compiled call; by default numpy does."""
+        step: inp.approach is None, and inp.steady and inp.desired.pack are set when the
+        arrays are views of them). A law may form e_q inside its own compiled call, on those
+        packs; by default numpy does."""
         np.subtract(q, inp.desired.q, out=inp.e_q)
         return self.hybrid(inp)
 
