@@ -812,6 +812,51 @@ def test_hybrid_controller_without_supervisor_steady_path(arms: dict[str, Robot]
     assert [e.kind for e in fast.events] == [e.kind for e in general.events] == ["contact"]
 
 
+@pytest.mark.parametrize(
+    "law", ["arimoto", "arimoto_adaptive", "osc_hybrid", "impedance", "raibert_craig"]
+)
+@pytest.mark.parametrize("arm", ["rtr", "ur5"])
+def test_every_law_steady_path_equals_the_general_path(
+    arms: dict[str, Robot], arm: str, law: str
+) -> None:
+    """Each law's steady contact step (``Law.hybrid_at`` on the supervisor's, the CLIK's and
+    its own packs) gives the commands, V and, after each update, the law's logged states of
+    the general path (``hybrid`` on the separate arrays) bit for bit, over a run of states."""
+    robot, surface, path, q0, qs = _controller_case(arms, arm)
+    con = Constraint(surface)
+    settings = ControlSettings(supervisor=False, law=law)
+    fast = HybridController(robot, con, path, q0, settings, dt=DT)
+    general = HybridController(robot, con, path, q0, settings, dt=DT)
+    general._steady_contact = False
+    rng = np.random.default_rng(112)
+    m = len(fast.law.log_names())
+    for i, q in enumerate(qs):
+        t = i * DT
+        v = rng.uniform(-0.3, 0.3, robot.nv)
+        terms = robot.terms(q, v, robot.new_data())
+        cons = constraint_terms(con, terms, v)
+        cmd = fast.command(t, q, v, terms, cons)
+        u0, B, V = cmd.u0.copy(), None if cmd.B is None else cmd.B.copy(), fast.V
+        other = general.command(t, q, v, terms, cons)
+        if i > 0:  # the first call sets the steady path up
+            assert fast._input.steady is not None
+        np.testing.assert_array_equal(u0, other.u0)
+        if B is None:
+            assert other.B is None
+        else:
+            assert other.B is not None
+            np.testing.assert_array_equal(B, other.B)
+        assert V == general.V or (math.isnan(V) and math.isnan(general.V))
+        f = rng.uniform(5, 15, 1)
+        fast.update(DT, f)
+        general.update(DT, f)
+        a, b = np.zeros(m), np.zeros(m)
+        fast.law.log_values(a)
+        general.law.log_values(b)
+        np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(fast.clik.q, general.clik.q)
+
+
 # --- 11. constrained dynamics with its factorisation, Baumgarte γ, the run's table -------------
 @pytest.mark.parametrize("k", [1, 2, 3])
 @pytest.mark.parametrize("arm", ["ur5", "panda"])

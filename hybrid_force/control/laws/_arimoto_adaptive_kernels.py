@@ -25,7 +25,12 @@ import numpy as np
 
 from hybrid_force._jit import jit as _jit
 from hybrid_force._jit import jit_inline as _inline
-from hybrid_force.control._kernels import reference
+from hybrid_force.control._kernels import (
+    constraint_parts,
+    desired_parts,
+    reference,
+    steady_parts,
+)
 from hybrid_force.control._linalg_kernels import dot
 
 #: Layout of the law's parameter vector ``params`` (7,): the gains, whether q = q_d + e_q, Z_ref,
@@ -188,3 +193,106 @@ def adaptive_update(
             y += f[m] * gradients[1 + m, j]
         t = theta[j] - step * Gamma[j] * y
         theta[j] = floor[j] if t < floor[j] else t  # a NaN stays NaN, as np.maximum
+
+
+# --- the steady contact step on packs (Law.hybrid_at; control._kernels "packs") -------------
+def workspace_size(n: int, nq: int, k: int, p: int) -> int:
+    """Length of the law's own flat buffer (:func:`workspace_parts`)."""
+    return 3 + 7 + 8 * n + 2 * n * k + n * k + (1 + k) * p + 3 * p + n * n + k + nq
+
+
+@_inline
+def workspace_parts(
+    ws: np.ndarray, n: int
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+]:  # fmt: skip
+    """Views of the law's own buffer ws (:func:`workspace_size`): ws[0] = k, ws[1] = p,
+    ws[2] = nq, then params (7,), vectors (8, n), matrices (2, n, k), B (n, k), gradients
+    (1 + k, p), θ̂, Γ₀, floor (p,), K_d (n, n), zeros (k,) and the configuration buffer q
+    (nq,) of the passes, returned in that order."""
+    k, p, nq = int(ws[0]), int(ws[1]), int(ws[2])
+    o = 3
+    params = ws[o : o + 7]
+    o += 7
+    vectors = ws[o : o + 8 * n].reshape((8, n))
+    o += 8 * n
+    matrices = ws[o : o + 2 * n * k].reshape((2, n, k))
+    o += 2 * n * k
+    B = ws[o : o + n * k].reshape((n, k))
+    o += n * k
+    gradients = ws[o : o + (1 + k) * p].reshape((1 + k, p))
+    o += (1 + k) * p
+    theta = ws[o : o + p]
+    o += p
+    Gamma = ws[o : o + p]
+    o += p
+    floor = ws[o : o + p]
+    o += p
+    Kd = ws[o : o + n * n].reshape((n, n))
+    o += n * n
+    zeros = ws[o : o + k]
+    o += k
+    return params, vectors, matrices, B, gradients, theta, Gamma, floor, Kd, zeros, ws[o : o + nq]
+
+
+@_jit
+def reference_steady(
+    q: np.ndarray,
+    v: np.ndarray,
+    flat: np.ndarray,
+    desired: np.ndarray,
+    steady: np.ndarray,
+    ws: np.ndarray,
+) -> None:
+    """e_q = q − q_d into the supervisor's steady pack, then :func:`reference_velocities`
+    (6 arguments, not 16). q, v: (n,) measured (a Euclidean arm); flat: the constraint
+    terms' array (``control._kernels.constraint_parts``); desired: the desired motion's pack
+    (``desired_parts``); steady: [e_q, e_F, f_d, …] (``steady_parts``); ws: the law's buffer
+    (:func:`workspace_parts`; its q becomes q_d + e_q, as on the general path)."""
+    n = v.shape[0]
+    params, vectors, matrices, _, _, _, _, _, _, zeros, q_pass = workspace_parts(ws, n)
+    k = zeros.shape[0]
+    _, cols, squares, _ = constraint_parts(flat, k, n)
+    q_d, qd, qdd, _ = desired_parts(desired, n, n)
+    e_q, e_F, f_d = steady_parts(steady, n, k)
+    for i in range(n):
+        e_q[i] = q[i] - q_d[i]
+    reference_velocities(
+        squares[0], squares[1], cols[0], cols[1], v, e_q, q_d, qd, qdd, e_F, f_d, zeros,
+        params, vectors, matrices, q_pass,
+    )  # fmt: skip
+
+
+@_jit
+def command_steady(
+    Y_plus: np.ndarray,
+    Y_minus: np.ndarray,
+    Y_A: np.ndarray,
+    kinetic: np.ndarray,
+    mats: np.ndarray,
+    flat: np.ndarray,
+    desired: np.ndarray,
+    steady: np.ndarray,
+    ws: np.ndarray,
+) -> float:
+    """:func:`adaptive_command` on packs (9 arguments, not 15): the passes as there, mats
+    (2, n, n) = [M, C] the robot terms' pack, the rest as :func:`reference_steady`."""
+    n = Y_plus.shape[0]
+    params, vectors, _, B, gradients, theta, _, _, Kd, zeros, _ = workspace_parts(ws, n)
+    k = zeros.shape[0]
+    rows, _, _, _ = constraint_parts(flat, k, n)
+    _, qd, _, _ = desired_parts(desired, n, n)
+    _, e_F, f_d = steady_parts(steady, n, k)
+    return adaptive_command(
+        Y_plus, Y_minus, Y_A, kinetic, theta, Kd, mats[0], rows[2], qd, e_F, f_d, params,
+        vectors, B, gradients,
+    )  # fmt: skip
+
+
+@_jit
+def update_steady(ws: np.ndarray, n: int, f: np.ndarray, dt: float) -> None:
+    """:func:`adaptive_update` after the hybrid law, on the law's buffer (3 arrays fewer)."""
+    params, _, _, _, gradients, theta, Gamma, floor, _, _, _ = workspace_parts(ws, n)
+    adaptive_update(gradients, f, dt, params, Gamma, floor, theta)

@@ -216,32 +216,38 @@ class AdaptiveArimotoWorkspace(base.Law):
         self.gains = gains
         self.adaptation = adaptation
         self.regressor = regressor = SlotineLiRegressor(robot.model)
-        self.theta = adaptation.theta0.copy()
         self.V = 0.0
         self._model = robot.model
         self._euclidean = robot.euclidean
         self._adapted = np.flatnonzero(adaptation.adapted)
         n, p = robot.nv, regressor.size
-        # rows: u0, s, s0, s1, q̇_r, q̈_r0, (q̇ + q̇_r)/2, s/2 (the kernels' layout)
-        self._vectors = np.zeros((8, n))
+        # the law's own arrays as views of one flat buffer (_arimoto_adaptive_kernels.
+        # workspace_parts), which the steady contact step's kernels take as one argument:
+        # the parameters (the kernels' layout LAMBDA … Z_MIN: Λ, β, γ, 1.0 when q = q_d + e_q,
+        # Z_ref, then the schedule's σ and min Z, σ = 0 before the first call); the vectors
+        # u0, s, s0, s1, q̇_r, q̈_r0, (q̇ + q̇_r)/2, s/2; the matrices β M A⁺ of the model
+        # (unused) and q̈_r,f; B; the gradients Yᵀ s, then β Y_M(q, A⁺_j)ᵀ s; θ̂, Γ₀, floor;
+        # K_d; zeros (k,); the passes' q
+        self._ws = ws = np.zeros(_K.workspace_size(n, robot.nq, k, p))
+        ws[0], ws[1], ws[2] = k, p, robot.nq
+        (
+            self._params, self._vectors, self._matrices, self.B, self._gradients, self.theta,
+            self._Gamma, self._floor, Kd, self._zeros_k, self._q,
+        ) = _K.workspace_parts(ws, n)  # fmt: skip
+        self._params[:] = [
+            gains.Lambda, gains.beta, gains.gamma, float(robot.euclidean), adaptation.energy,
+            0.0, np.inf,
+        ]  # fmt: skip
+        self.theta[:] = adaptation.theta0
+        self._Gamma[:], self._floor[:], Kd[:] = adaptation.Gamma, adaptation.floor, gains.Kd
+        self._n = n
         self.u0 = self._vectors[0]
         self._s, self._qddot_r0 = self._vectors[1], self._vectors[5]
-        self._matrices = np.zeros((2, n, k))  # β M A⁺ of the model (unused), q̈_r,f
         self._free_matrices = np.zeros((2, n, 0))
-        self._q = np.zeros(robot.nq)
-        self.B = np.zeros((n, k))
         self._free_B = np.zeros((n, 0))
         self._Y_A = np.zeros((k, n, p))
         self._free_Y_A = np.zeros((0, n, p))
-        self._gradients = np.zeros((1 + k, p))  # Yᵀ s, then β Y_M(q, A⁺_j)ᵀ s
         self._free_gradients = np.zeros((1, p))
-        # the kernels' layout (_arimoto_adaptive_kernels.LAMBDA … Z_MIN): Λ, β, γ, 1.0 when
-        # q = q_d + e_q, Z_ref, then the schedule's σ and min Z (σ = 0 before the first call)
-        self._params = np.array(
-            [gains.Lambda, gains.beta, gains.gamma, float(robot.euclidean), adaptation.energy,
-             0.0, np.inf]
-        )  # fmt: skip
-        self._zeros_k = np.zeros(k)
         self._no_force = np.zeros(0)
         # the buffers each law writes (matrices, Y_A, B, gradients), and the free-space law's
         # inputs besides its LawInput (_AdaptiveRows)
@@ -261,7 +267,6 @@ class AdaptiveArimotoWorkspace(base.Law):
             regressor.zeros, self._vectors[6], self._vectors[7], self._qddot_r0, self._s,
             gains.beta > 0,
         )  # fmt: skip
-        self._Gamma, self._floor = adaptation.Gamma, adaptation.floor
 
     @property
     def sigma(self) -> float:
@@ -280,6 +285,34 @@ class AdaptiveArimotoWorkspace(base.Law):
         approach = self._zeros_k if inp.approach is None else inp.approach
         self.V = self._run(inp, inp.rows, inp.e_F, inp.f_d, approach, self._hybrid_buffers)
         self.in_contact_law = True
+        return self._hybrid
+
+    def hybrid_at(self, inp: base.LawInput, q: np.ndarray) -> base.Command:
+        """:meth:`hybrid` at the measured q of a Euclidean arm (:meth:`Law.hybrid_at`): on
+        the supervisor's, the CLIK's, the terms' and this law's packs, the two compiled calls
+        take 6 and 9 arguments instead of 16 and 15 (the same operations)."""
+        steady, pack, cons = inp.steady, inp.desired.pack, inp.rows
+        r_packs, flat = inp.robot._packs, cons._flat
+        if steady is None or pack is None or r_packs is None or flat is None:
+            return super().hybrid_at(inp, q)
+        ws, v = self._ws, inp.v
+        _K.reference_steady(q, v, flat, pack, steady, ws)
+        model, data, model0, regress, zeros, w_plus, w_minus, qddot_r0, s, beta = self._pin_args
+        q = self._q
+        Y_plus = regress(model, data, q, w_plus, qddot_r0)
+        Y_minus = regress(model0, data, q, w_minus, zeros)
+        Y_A = self._Y_A
+        if beta:
+            if Y_A.shape[0] == 1:  # the pass's own array, seen as (1, n, p): no copy
+                Y_A = regress(model0, data, q, zeros, cons.A_pinv[:, 0])[None]
+            else:
+                Ap = cons.A_pinv
+                for j in range(Y_A.shape[0]):
+                    Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
+        kinetic = pin.computeKineticEnergyRegressor(model0, data, q, s)
+        self._called = self.in_contact_law = True
+        mats = r_packs[0]
+        self.V = _K.command_steady(Y_plus, Y_minus, Y_A, kinetic, mats, flat, pack, steady, ws)
         return self._hybrid
 
     def _run(
@@ -326,11 +359,13 @@ class AdaptiveArimotoWorkspace(base.Law):
         law)."""
         if not self._called:
             return
-        if self.in_contact_law:
-            gradients = self._gradients
+        if self.in_contact_law:  # the gradients in the law's buffer: one argument
+            _K.update_steady(self._ws, self._n, f, dt)
         else:
-            gradients, f = self._free_gradients, self._no_force
-        _K.adaptive_update(gradients, f, dt, self._params, self._Gamma, self._floor, self.theta)
+            _K.adaptive_update(
+                self._free_gradients, self._no_force, dt, self._params, self._Gamma,
+                self._floor, self.theta,
+            )  # fmt: skip
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> base.ControlTrace:
         """The :class:`ControlTrace` of the last call (copies of the buffers), V = ½ sᵀ M̂ s
