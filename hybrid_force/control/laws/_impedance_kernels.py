@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._kernels import constraint_parts, desired_parts, steady_parts
 from hybrid_force.control._linalg_kernels import (
     cholesky,
     cholesky_solve_column,
@@ -188,3 +189,55 @@ def advance_preload(preload: np.ndarray, f_d: np.ndarray, f: np.ndarray, step: f
     """Force tracking: φ += step (f_d − f), step = dt κ_f; each (k,)."""
     for i in range(preload.shape[0]):
         preload[i] += step * (f_d[i] - f[i])
+
+
+# --- the steady contact step on packs (Law.hybrid_at; control._kernels "packs") -------------
+def workspace_size(n: int, k: int) -> int:
+    """Length of the law's own flat buffer of the steady contact step (:func:`impedance_steady`)."""
+    return 5 + 2 * k + 27 + n + n * (n + 3 + k) + 6 * k
+
+
+@_jit
+def impedance_steady(
+    q: np.ndarray,
+    v: np.ndarray,
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+    flat: np.ndarray,
+    desired: np.ndarray,
+    steady: np.ndarray,
+    ws: np.ndarray,
+) -> int:
+    """:func:`impedance` in CONTACT on packs (10 arguments, not 25): e_q = q − q_d written
+    into the supervisor's steady pack, then the law. q, v: (n,) measured (a Euclidean arm);
+    mats, vecs, jac, tip: the robot terms' packs; flat: the constraint terms' array; desired:
+    the desired motion's pack; steady: [e_q, e_F, f_d, …]; ws: the law's buffer, ws[0] = k,
+    ws[1] = n, ws[2:5] = ω, ζ, 1.0 with the feed-forward, then preload, offset (k,), the
+    gains (3, 3, 3), u (n,), work (n, n + 3 + k), normals (3, k), along (k, 3)."""
+    n = v.shape[0]
+    k = int(ws[0])
+    o = 5
+    preload = ws[o : o + k]
+    offset = ws[o + k : o + 2 * k]
+    o += 2 * k
+    gains = ws[o : o + 27].reshape((3, 3, 3))
+    o += 27
+    u = ws[o : o + n]
+    o += n
+    work = ws[o : o + n * (n + 3 + k)].reshape((n, n + 3 + k))
+    o += n * (n + 3 + k)
+    normals = ws[o : o + 3 * k].reshape((3, k))
+    along = ws[o + 3 * k : o + 6 * k].reshape((k, 3))
+    rows, _, _, _ = constraint_parts(flat, k, n)
+    q_d, qd, qdd, sample = desired_parts(desired, n, n)
+    e_q, _, _ = steady_parts(steady, n, k)
+    for i in range(n):
+        e_q[i] = q[i] - q_d[i]
+    none = ws[0:0]
+    return impedance(
+        mats, vecs, jac, tip, v, e_q, qd, qdd, sample[0], sample[1], rows[2], normals, along,
+        none, none, preload, CONTACT, False, ws[2], ws[3], ws[4] != 0.0, u, gains, offset,
+        work,
+    )  # fmt: skip
