@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force.control._kernels import constraint_parts, desired_parts, steady_parts
 from hybrid_force.control._linalg_kernels import (
     cholesky,
     cholesky_solve_column,
@@ -203,3 +204,67 @@ def osc_hybrid(
     for i in range(n):
         u0[i] = (J[0, i] * F[0] + J[1, i] * F[1] + J[2, i] * F[2]) + nle[i] + null_torque[i]
     return cond
+
+
+# --- the steady contact step on packs (Law.hybrid_at; control._kernels "packs") -------------
+def workspace_size(n: int, k: int, width: int) -> int:
+    """Length of the law's own flat buffer (:func:`osc_steady`; width: the descriptors')."""
+    return 3 + k * width + 3 * k + 8 + n * n + 2 * n + 6 + 9 + 3 * n + 3 * k + k + n * k + k
+
+
+@_jit
+def osc_steady(
+    q: np.ndarray,
+    v: np.ndarray,
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+    flat: np.ndarray,
+    desired: np.ndarray,
+    steady: np.ndarray,
+    ws: np.ndarray,
+) -> float:
+    """:func:`osc_hybrid` in CONTACT on packs (10 arguments, not 30): e_q = q − q_d written
+    into the supervisor's steady pack, then the law. q, v: (n,) measured (a Euclidean arm);
+    mats, vecs, jac, tip: the robot terms' packs; flat: the constraint terms' array (s, A q̇,
+    drift, A); desired: the desired motion's pack; steady: [e_q, e_F, f_d, …]; ws: the law's
+    buffer, ws[0:3] = k, n, the descriptors' width w, then descs (k, w), grads (3, k), gains
+    (8,), work (n, n), vectors (2, n), task (2, 3), Λ (3, 3), J̄ (n, 3), W (3, k), φ (k,),
+    B (n, k), zeros (k,)."""
+    n = v.shape[0]
+    k, w = int(ws[0]), int(ws[2])
+    o = 3
+    descs = ws[o : o + k * w].reshape((k, w))
+    o += k * w
+    grads = ws[o : o + 3 * k].reshape((3, k))
+    o += 3 * k
+    gains = ws[o : o + 8]
+    o += 8
+    work = ws[o : o + n * n].reshape((n, n))
+    o += n * n
+    vectors = ws[o : o + 2 * n].reshape((2, n))
+    o += 2 * n
+    task = ws[o : o + 6].reshape((2, 3))
+    o += 6
+    Lambda = ws[o : o + 9].reshape((3, 3))
+    o += 9
+    Jbar = ws[o : o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    W = ws[o : o + 3 * k].reshape((3, k))
+    o += 3 * k
+    phi = ws[o : o + k]
+    o += k
+    B = ws[o : o + n * k].reshape((n, k))
+    o += n * k
+    zeros = ws[o : o + k]
+    rows, _, _, scalars = constraint_parts(flat, k, n)
+    q_d, qd, qdd, sample = desired_parts(desired, n, n)
+    e_q, e_F, f_d = steady_parts(steady, n, k)
+    for i in range(n):
+        e_q[i] = q[i] - q_d[i]
+    return osc_hybrid(
+        mats, vecs, jac, tip, v, e_q, qd, qdd, sample[0], sample[1], sample[2], descs, grads,
+        scalars[2], scalars[3], scalars[5], rows[2], e_F, f_d, zeros, CONTACT, gains, work,
+        vectors, task, Lambda, Jbar, W, phi, B,
+    )  # fmt: skip
