@@ -26,6 +26,7 @@ import numpy as np
 
 from hybrid_force._jit import jit as _jit
 from hybrid_force._jit import jit_inline as _inline
+from hybrid_force.control._kernels import constraint_parts, desired_parts, steady_parts
 from hybrid_force.control._linalg_kernels import (
     eye_minus,
     lu_factor,
@@ -361,3 +362,63 @@ def hybrid(
         for a in range(k):
             B[i, a] = kp * A[a, i]
     return OK
+
+
+# --- the steady contact step on packs (Law.hybrid_at; control._kernels "packs") -------------
+def workspace_size(n: int, k: int, width: int) -> int:
+    """Length of the law's own flat buffer (:func:`hybrid_steady`; width: the descriptors')."""
+    return 3 + k * width + 3 * k + 2 * n * n + 18 + 5 + 4 + 2 * n + n * k + k
+
+
+@_jit
+def hybrid_steady(
+    q: np.ndarray,
+    v: np.ndarray,
+    mats: np.ndarray,
+    vecs: np.ndarray,
+    jac: np.ndarray,
+    tip: np.ndarray,
+    flat: np.ndarray,
+    desired: np.ndarray,
+    steady: np.ndarray,
+    ws: np.ndarray,
+) -> int:
+    """:func:`hybrid` in contact on packs (10 arguments, not 26): e_q = q − q_d written into
+    the supervisor's steady pack, then the law. q, v: (n,) measured (a Euclidean arm); mats,
+    vecs, jac, tip: the robot terms' packs; flat: the constraint terms' array (A, Ȧ, A q̇);
+    desired: the desired motion's pack; steady: [e_q, e_F, f_d, …]; ws: the law's buffer,
+    ws[0:3] = k, n, the descriptors' width w, then descs (k, w), grads (k, 3), the joint
+    gains (2, n, n), the task gains (2, 3, 3), params (5,), flags (4,) as 0.0 / 1.0, vectors
+    (2, n), B (n, k), zeros (k,)."""
+    n = v.shape[0]
+    k, w = int(ws[0]), int(ws[2])
+    o = 3
+    descs = ws[o : o + k * w].reshape((k, w))
+    o += k * w
+    grads = ws[o : o + 3 * k].reshape((k, 3))
+    o += 3 * k
+    joint_gains = ws[o : o + 2 * n * n].reshape((2, n, n))
+    o += 2 * n * n
+    task_gains = ws[o : o + 18].reshape((2, 3, 3))
+    o += 18
+    params = ws[o : o + 5]
+    o += 5
+    flags = np.empty(4, np.int64)
+    for i in range(4):
+        flags[i] = int(ws[o + i])
+    o += 4
+    vectors = ws[o : o + 2 * n].reshape((2, n))
+    o += 2 * n
+    B = ws[o : o + n * k].reshape((n, k))
+    o += n * k
+    zeros = ws[o : o + k]
+    rows, _, _, scalars = constraint_parts(flat, k, n)
+    q_d, qd, qdd, sample = desired_parts(desired, n, n)
+    e_q, e_F, f_d = steady_parts(steady, n, k)
+    for i in range(n):
+        e_q[i] = q[i] - q_d[i]
+    return hybrid(
+        mats, vecs, jac, tip, rows[2], rows[3], scalars[3], v, e_q, qd, qdd, sample[0],
+        sample[1], sample[2], e_F, f_d, zeros, False, descs, grads, joint_gains, task_gains,
+        params, flags, vectors, B,
+    )  # fmt: skip

@@ -302,27 +302,44 @@ class RaibertCraigWorkspace(base.Law):
         self.original = gains.form == "original"
         self.model_feedforward = gains.feedforward == "model"
         n, k = gains.Kq.shape[0], len(surfaces)
-        self._joint_gains = np.array([gains.Kq, gains.Dq], dtype=float)
-        self._task_gains = np.array([gains.Kx, gains.Dx], dtype=float)
-        self._params = np.array(
-            [gains.position_rate, gains.damping_rate, gains.kp, gains.ki, approach_rate]
-        )
         descriptors = [np.asarray(s._descriptor, dtype=float) for s in surfaces]
         # ∇Φ in Python when a surface has no closed form (FunctionSurface, meshes)
         self._python_gradients = any(d.shape[0] == 0 for d in descriptors)
-        self._descs = np.zeros((k, max(10, *(d.shape[0] for d in descriptors))))
+        width = max(10, *(d.shape[0] for d in descriptors))
+        # the law's own arrays as views of one flat buffer, which the steady contact step's
+        # kernel takes whole (_raibert_craig_kernels.hybrid_steady, its layout)
+        self._ws = ws = np.zeros(_K.workspace_size(n, k, width))
+        ws[:3] = [k, n, width]
+        o = 3
+
+        def take(*shape: int) -> np.ndarray:
+            nonlocal o
+            size = math.prod(shape)
+            view = ws[o : o + size].reshape(shape)
+            o += size
+            return view
+
+        self._descs = take(k, width)
         for i, d in enumerate(descriptors):
             self._descs[i, : d.shape[0]] = d
-        self._grads = np.zeros((k, 3))
-        self._flags = np.array(
-            [self.original, self.model_feedforward, gains.decouple, self._python_gradients],
-            dtype=np.int64,
-        )
-        self._vectors = np.zeros((2, n))
+        self._grads = take(k, 3)
+        self._joint_gains = take(2, n, n)
+        self._joint_gains[:] = [gains.Kq, gains.Dq]
+        self._task_gains = take(2, 3, 3)
+        self._task_gains[:] = [gains.Kx, gains.Dx]
+        self._params = take(5)
+        self._params[:] = [
+            gains.position_rate, gains.damping_rate, gains.kp, gains.ki, approach_rate
+        ]  # fmt: skip
+        flags = [self.original, self.model_feedforward, gains.decouple, self._python_gradients]
+        take(4)[:] = flags  # (hybrid_steady's copy; the other calls take the int array)
+        self._flags = np.array(flags, dtype=np.int64)
+        self._vectors = take(2, n)
         self._u0, self._u_pos = self._vectors
         self.last_u_pos = self._u_pos
-        self._B = np.zeros((n, k))
-        self._zeros_k = np.zeros(k)
+        self._B = take(n, k)
+        self._zeros_k = take(k)
+        assert o == ws.shape[0]
         self._plain = base.Command(u0=self._u0, B=None)
         self._contact = base.Command(u0=self._u0, B=self._B if gains.kp > 0 else None)
 
@@ -339,6 +356,22 @@ class RaibertCraigWorkspace(base.Law):
             self.model_feedforward, self._vectors,
         )  # fmt: skip
         return self._plain
+
+    def hybrid_at(self, inp: base.LawInput, q: np.ndarray) -> base.Command:
+        """:meth:`hybrid` in contact at the measured q of a Euclidean arm (:meth:`Law.hybrid_at`):
+        on the supervisor's, the CLIK's, the terms' and this law's packs, one compiled call of
+        10 arguments instead of 26 (the same operations)."""
+        steady, pack, cons, robot = inp.steady, inp.desired.pack, inp.rows, inp.robot
+        r_packs, flat = robot._packs, cons._flat
+        if steady is None or pack is None or r_packs is None or flat is None:
+            return super().hybrid_at(inp, q)
+        mats, vecs, jac, tip = r_packs
+        if self._python_gradients:
+            for i, surface in enumerate(self.surfaces):
+                self._grads[i] = surface.evaluate(tip[0])[1]
+        if _K.hybrid_steady(q, inp.v, mats, vecs, jac, tip, flat, pack, steady, self._ws) != 0:
+            raise np.linalg.LinAlgError("Singular matrix")  # an exactly singular solve
+        return self._contact
 
     def hybrid(self, inp: base.LawInput) -> base.Command:
         """Near (approach given): position along the surface, v_a across it. Contact: eq. 1–3."""
