@@ -2,7 +2,8 @@
 
 Run from the repository root:
 
-    python benchmarks/bench_removal.py [--repeats N] [--json PATH] [--setups NAME ...]
+    python benchmarks/bench_removal.py [--repeats N] [--duration S] [--json PATH]
+        [--setups NAME ...]
     python benchmarks/bench_removal.py --profile [--setups NAME ...]
 
 For each setup, the same scenario runs with removal off and on, in pairs (off first in even
@@ -16,10 +17,11 @@ median over the pairs of on / off, with the pairs' range:
 * **CPU**: the loop's CPU time (the process's, from the first ``progress`` call, after step 0,
   to the last, after the loop: the time the machine's other processes took is left out, which
   the wall time of a shared machine is not);
-* **block**: the loop's rate over its fastest block of 2,600 steps (26 of ``simulate``'s
-  progress intervals, the first left out; each block holds 10 or 11 of the deposit's batches
-  of 256 samples), off over on: the rate when the process had the core (bench_peer.py's block
-  rates); also the best block of all the off runs over the best of all the on runs;
+* **block**: the loop's rate over its fastest block of 2,600 steps in a 10 s run (26 of
+  ``simulate``'s progress intervals, the first left out; each block holds 10 or 11 of the
+  deposit's batches of 256 samples), off over on: the rate when the process had the core
+  (bench_peer.py's block rates); also the best block of all the off runs over the best of all
+  the on runs;
 * **in the run**: a third run per pair with removal on, its loop's wall time over itself
   less the time spent in the removal's calls (``RemovalObserver.observe`` per sample, with
   the batches' compiled deposits, timed by ``time.perf_counter`` around each call, the
@@ -50,6 +52,10 @@ to deposit (the merged points' reach made infinite); beside the loop's wall time
 span [t_i, t_i + dt) cut into 20 point deposits (the tip moved linearly from p_i to p_{i+1},
 the force and J v of sample i held), none merged: the largest and the RMS difference over the
 grid, relative to the peak.
+
+``--duration S`` runs each setup for S simulated seconds instead (the block is then 26 % of
+the run): shorter runs put a pair's two runs closer in time, so that more pairs see the same
+load on a shared machine.
 
 Not part of the test suite; timings depend on the machine's load.
 """
@@ -262,6 +268,11 @@ def _profile(name: str) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument(
+        "--duration", type=float, default=10.0,
+        help="simulated seconds of each run (10: the setups' own; shorter runs put a pair's "
+        "two runs closer in time, so more pairs see the same load of a shared machine)",
+    )  # fmt: skip
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument(
         "--setups", nargs="*", choices=sorted({**SETUPS, **PROFILE_ONLY}), default=None
@@ -294,6 +305,7 @@ def main() -> int:
     _Timed.install()
     for name in args.setups:
         file, overrides, resolution = SETUPS[name]
+        overrides = {**overrides, "sim.duration": args.duration}
         on = {**overrides, "tool.pad": PAD, "removal": {"k_p": 1e-13, "resolution": resolution}}
         _run(file, {**on, "sim.duration": 0.05})  # compile and load the kernels once
         _run(file, {**overrides, "sim.duration": 0.05})
@@ -319,6 +331,7 @@ def main() -> int:
         cpu_pairs = [b / a for a, b in zip(cpu_offs, cpu_ons, strict=True)]
         block_pairs = [a / b for a, b in zip(block_offs, block_ons, strict=True)]
         report[name] = {
+            "duration_s": args.duration,
             "ratio_median": statistics.median(pairs),
             "ratio_best": min(ons) / min(offs),
             "ratios": pairs,
