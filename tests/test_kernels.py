@@ -851,15 +851,19 @@ def test_checked_solve_equals_dense_kkt_and_the_limit_test(
     arms: dict[str, Robot], arm: str, k: int
 ) -> None:
     """ConstrainedDynamics.solve_checked (γ formed in its first kernel, the effort limits
-    checked in its second) against the dense KKT solve with γ by hand (section 6.2) and the
-    limits by numpy: |u0 + B f| > e, for B = None and B (n, k), limits none, loose and tight;
-    and bit for bit the path of solve + gamma_into it replaces in the plant."""
+    checked in its second, both reading the solver's buffer and the constraint's flat array)
+    against the dense KKT solve with γ by hand (section 6.2) and the limits by numpy:
+    |u0 + B f| > e, for B = None and B (n, k), limits none, loose and tight, with the terms'
+    own flat array and without one (stacked rows: copied into the solver's); and bit for bit
+    the path of solve + gamma_into it replaces in the plant."""
+    import dataclasses
+
+    from hybrid_force.control.constraint import ConstraintTerms
     from hybrid_force.sim.dynamics import Baumgarte, ConstrainedDynamics
 
     robot = arms[arm]
     rng = np.random.default_rng(57 + k)
     data = robot.new_data()
-    solver = ConstrainedDynamics(robot.model, data, k)
     other = ConstrainedDynamics(robot.model, robot.new_data(), k)
     baum = Baumgarte(alpha=37.0, beta=12.5)
     n = robot.nv
@@ -867,20 +871,24 @@ def test_checked_solve_equals_dense_kkt_and_the_limit_test(
         q, v = _random_state(robot, rng)
         terms = robot.terms(q, v, data)
         robot.terms(q, v, other.data)
-        A = rng.standard_normal((k, n))
-        drift, rate, value = rng.standard_normal((3, k))
-        scale = rng.uniform(0.5, 2.0, k)
+        cons = ConstraintTerms.zeros(k, n)
+        A = cons.A
+        A[...] = rng.standard_normal((k, n))
+        drift, rate, value = cons.drift, cons.rate, cons.phi
+        drift[...], rate[...], value[...] = rng.standard_normal((3, k))
+        scale = cons.scale
+        scale[...] = rng.uniform(0.5, 2.0, k)
+        if trial % 3 == 2:  # fields only, as the stacked rows' terms
+            cons = dataclasses.replace(cons, _packs=None, _flat=None)
         u0 = 10.0 * rng.standard_normal(n)
         B = None if trial % 2 == 0 else 0.1 * rng.standard_normal((n, k))
-        gamma = np.full(k, np.nan)
         _, f_free = kkt(terms.M, terms.nle, u0, B, A, drift + 74.0 * rate + 156.25 * value / scale)
         u_free = u0 + (0.0 if B is None else B @ f_free)
         effort = [np.zeros(0), np.abs(u_free) + 1.0, np.abs(u_free) * rng.uniform(0.5, 1.5, n)]
         for e in effort:
-            beyond = solver.solve_checked(
-                terms.nle, u0, np.zeros((n, 0)) if B is None else B, A, drift, rate, value,
-                scale, (2.0 * baum.alpha, baum.beta**2), gamma, e,
-            )  # fmt: skip
+            solver = ConstrainedDynamics(robot.model, data, k, baum, e if e.size else None)
+            beyond = solver.solve_checked(terms.nle, u0, np.zeros((n, 0)) if B is None else B, cons)
+            gamma = solver.gamma
             ref_gamma = drift + 2 * 37.0 * rate + 12.5**2 * (value / scale)
             assert np.abs(gamma - ref_gamma).max() <= 1e-14 * float(np.abs(ref_gamma).max() + 1)
             ddq_ref, f_ref = kkt(terms.M, terms.nle, u0, B, A, ref_gamma)
