@@ -922,7 +922,9 @@ def test_baumgarte_gamma_into_equals_gamma() -> None:
 
 def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     """record_row writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] in the columns
-    of Record.widths and reports NaN in q, |v_i| above max_velocity and |f| above max_force."""
+    of Record.widths and reports NaN in q, |v_i| above max_velocity and |f| above max_force;
+    the table, u_cmd and the limits are read from the record's buffer (header [max_velocity,
+    max_force, N, W, u_cmd's columns], then the table's rows, then u_cmd's)."""
     from hybrid_force.sim._kernels import record_row
     from hybrid_force.sim.record import Record
 
@@ -930,16 +932,23 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     nq = nv = 4
     k = 2
     widths = Record.widths(nq, nv, k)
-    table = np.zeros((3, Record.width(nq, nv, k)))
+    W = Record.width(nq, nv, k)
+
+    def buffer(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # (buf, table, u_cmd)
+        buf = np.zeros(5 + 3 * W + 3 * m)
+        buf[:5] = (5.0, 100.0, 3, W, m)
+        return buf, buf[5 : 5 + 3 * W].reshape(3, W), buf[5 + 3 * W :].reshape(3, m)
+
+    buf, table, _ = buffer(0)
     starts = np.concatenate([[0], np.cumsum(widths)])
 
-    def field(row: int, index: int) -> np.ndarray:  # the column view of field ``index``
+    def field(row: int, index: int, table: np.ndarray = table) -> np.ndarray:  # field ``index``
         return table[row, starts[index] : starts[index + 1]]
 
-    none, no_u_cmd = np.zeros(0), np.zeros((0, nv))
+    none = np.zeros(0)
 
     def record(i: int, t: float, *args: object) -> bool:
-        return bool(record_row(table, i, t, *args, 5.0, 100.0, none, no_u_cmd))
+        return bool(record_row(buf, i, t, *args, none))
 
     q, v, q_d, u0 = rng.standard_normal((4, nq))
     B = rng.standard_normal((nv, k))
@@ -959,9 +968,10 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     assert not record(0, 0.0, q, fast_v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
     assert not record(0, 0.0, q, v, q_d, u0, B, np.array([0.0, 101.0]), p, p_d, f_d, phi, 0, 0)
     # effort limits: the applied torque in the u column, the command u0 + B f in u_cmd's row
-    applied, u_cmd = rng.standard_normal(nv), np.zeros((3, nv))
-    args = (q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2, 5.0, 100.0, applied, u_cmd)
-    assert record_row(table, 2, 0.5, *args)
-    assert np.array_equal(field(2, 4), applied)
+    applied = rng.standard_normal(nv)
+    buf2, table2, u_cmd = buffer(nv)
+    args = (q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2, applied)
+    assert record_row(buf2, 2, 0.5, *args)
+    assert np.array_equal(field(2, 4, table2), applied)
     assert np.abs(u_cmd[2] - (u0 + B @ f)).max() <= 1e-15 * float(np.abs(u0 + B @ f).max())
     assert not np.any(u_cmd[[0, 1]])
