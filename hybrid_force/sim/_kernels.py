@@ -42,10 +42,10 @@ def solver_parts(
     ws: np.ndarray, n: int
 ) -> tuple[int, float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """k, 2α [1/s], β² [1/s²] and the views q̈ (n,), f (k,), γ (k,), effort (n,) or (0,) of
-    the constrained solve's buffer ws (``ConstrainedDynamics._ws``, 4 + n + 2k + n or
-    4 + n + 2k): ws[0] = k, ws[1] = the effort limits' count, ws[2] = 2α, ws[3] = β², then
-    q̈, f, γ, effort in that order. One buffer, one argument: Numba's call costs ~0.14 µs
-    per array argument."""
+    the constrained solve's buffer ws (``ConstrainedDynamics._ws``, 4 + 2n + 2k): ws[0] = k,
+    ws[1] = the effort limits' count (n, or 0: none), ws[2] = 2α, ws[3] = β², then q̈, f, γ
+    and n entries for the limits, in that order. One buffer, one argument: Numba's call
+    costs ~0.14 µs per array argument."""
     k, ne = int(ws[0]), int(ws[1])
     o = 4
     ddq = ws[o : o + n]

@@ -115,7 +115,7 @@ class ConstrainedDynamics:
         k: number of constraint rows.
         baumgarte: the gains :meth:`solve_checked` forms γ with (default: both 0).
         effort: (n,) the effort limits :meth:`solve_checked` checks [N·m or N] (default:
-            none).
+            none; :meth:`set_limits` changes them).
     """
 
     def __init__(
@@ -129,18 +129,26 @@ class ConstrainedDynamics:
         self.model, self.data = model, data
         self._nle, self._U, self._D = data.nle, data.U, data.D
         n = model.nv
-        limits = 0 if effort is None else n
-        ws = np.zeros(_SOLVER_HEADER + n + 2 * k + limits)
+        ws = np.zeros(_SOLVER_HEADER + n + 2 * k + n)
         gains = baumgarte if baumgarte is not None else Baumgarte(0.0, 0.0)
         # the same products as Baumgarte.gamma_into's, made once
-        ws[:4] = (k, limits, 2.0 * gains.alpha, gains.beta * gains.beta)
+        ws[:4] = (k, 0, 2.0 * gains.alpha, gains.beta * gains.beta)
         self._ws = ws
         o = _SOLVER_HEADER  # the layout of _kernels.solver_parts
         self.ddq, self.f = ws[o : o + n], ws[o + n : o + n + k]
         self.gamma = ws[o + n + k : o + n + 2 * k]
-        if effort is not None:
-            ws[o + n + 2 * k :] = effort
+        self._effort = ws[o + n + 2 * k :]
+        self.limits: np.ndarray | None = None
+        self.set_limits(effort)
         self._stacked: ConstraintTerms | None = None  # the copy of k > 1 rows (_flat_of)
+
+    def set_limits(self, effort: np.ndarray | None) -> None:
+        """The effort limits (n,) [N·m or N] :meth:`solve_checked` checks from now on (None:
+        none), copied into the buffer; :attr:`limits` is the array given."""
+        self.limits = effort
+        self._ws[1] = 0 if effort is None else effort.shape[0]
+        if effort is not None:
+            self._effort[:] = effort
 
     def solve(
         self,
@@ -185,7 +193,7 @@ class ConstrainedDynamics:
             nle, u0: as in :meth:`solve`. B: (n, k), or (n, 0) for a command that does not
                 depend on f. cons: the constraint's terms (its rows A, drift, A q̇, Φ and s;
                 φ = Φ / s). γ is written into :attr:`gamma`, with the constructor's gains;
-                the constructor's effort limits are checked.
+                the limits of :meth:`set_limits` are checked.
 
         Returns:
             True when the command u0 + B f is beyond some effort limit; q̈ and f in

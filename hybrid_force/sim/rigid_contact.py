@@ -120,6 +120,8 @@ class RigidContact(SurfaceContact):
         if self.compiles and self._friction is None:
             # 2. constrained, the limits checked in the same compiled call
             Dv, B, solver = arm._joint_Dv, cmd.B, self._solver
+            if solver.limits is not arm.effort:  # the arm's limits were replaced
+                solver.set_limits(arm.effort)
             beyond = solver.solve_checked(
                 terms.nle if Dv is None else terms.nle + Dv,  # Arm._nle
                 cmd.u0, self._no_B if B is None else B, cons,
