@@ -17,7 +17,6 @@ import numpy as np
 
 from hybrid_force._jit import jit as _jit
 from hybrid_force._jit import jit_inline as _inline
-from hybrid_force.control._kernels import constraint_parts
 from hybrid_force.geometry._kernels import surface_eval
 
 
@@ -55,6 +54,15 @@ def solver_parts(
     return k, ws[2], ws[3], ddq, f, gamma, effort
 
 
+@_inline
+def _scalars_at(k: int, n: int) -> int:
+    """Where the scalars (6, k) start in the flat array of ``ConstraintTerms.zeros(k, n)``
+    (the layout of ``control._kernels.constraint_parts``: rows (4, k, n), cols (2, n, k),
+    squares (2, n, n), scalars): the kernels here slice the few fields they read instead of
+    building the four packs (each reshape costs a call)."""
+    return 6 * k * n + 2 * n * n
+
+
 @_jit
 def kkt_inputs(cons: np.ndarray, ws: np.ndarray, nle: np.ndarray, data_nle: np.ndarray) -> None:
     """The inputs of ``pin.forwardDynamics`` in one call: γ (k,) as :func:`baumgarte` from the
@@ -63,8 +71,9 @@ def kkt_inputs(cons: np.ndarray, ws: np.ndarray, nle: np.ndarray, data_nle: np.n
     C q̇ + g (n,) copied into data_nle (the view of ``data.nle`` it reads)."""
     n = nle.shape[0]
     k, two_alpha, beta_sq, _, _, gamma, _ = solver_parts(ws, n)
-    _, _, _, scalars = constraint_parts(cons, k, n)
-    baumgarte(scalars[5], scalars[3], scalars[0], scalars[2], two_alpha, beta_sq, gamma)
+    c = _scalars_at(k, n)  # Φ, d, s, A q̇, raw drift, drift: (k,) each
+    drift, rate = cons[c + 5 * k : c + 6 * k], cons[c + 3 * k : c + 4 * k]
+    baumgarte(drift, rate, cons[c : c + k], cons[c + 2 * k : c + 3 * k], two_alpha, beta_sq, gamma)
     for i in range(n):
         data_nle[i] = nle[i]
 
@@ -200,7 +209,7 @@ def loop_checked(
     """
     n = u0.shape[0]
     k, _, _, ddq, f, _, effort = solver_parts(ws, n)
-    A = constraint_parts(cons, k, n)[0][2]
+    A = cons[2 * k * n : 3 * k * n].reshape((k, n))  # rows = [J_Φ, J_Φn, A, Ȧ] (k, n) each
     if B.shape[1] == 0:
         for i in range(ddq0.shape[0]):
             ddq[i] = ddq0[i]
@@ -226,17 +235,18 @@ RECORD_HEADER = 5
 
 
 @_inline
-def record_parts(buf: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
-    """max_velocity, max_force and the views table (N, W) and u_cmd (N, n) or (0, n) of the
-    record's buffer (``Record._buf``): buf[0] = max_velocity, buf[1] = max_force, buf[2] = N,
-    buf[3] = W, buf[4] = the columns of u_cmd (n, or 0 when the run has no effort limits),
-    then the table's and u_cmd's rows. One buffer, one argument: Numba's call costs
-    ~0.14 µs per array argument."""
+def record_parts(buf: np.ndarray, i: int) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """max_velocity, max_force and the views of row i of the table (W,) and of u_cmd (n,),
+    or (0,) when the run has no effort limits, in the record's buffer (``Record._buf``):
+    buf[0] = max_velocity, buf[1] = max_force, buf[2] = N, buf[3] = W, buf[4] = the columns
+    of u_cmd (n, or 0), then the table's N rows and u_cmd's N rows (none when 0). One buffer,
+    one argument: Numba's call costs ~0.14 µs per array argument."""
     N, W, m = int(buf[2]), int(buf[3]), int(buf[4])
     o = RECORD_HEADER
-    table = buf[o : o + N * W].reshape((N, W))
-    u_cmd = buf[o + N * W : o + N * W + N * m].reshape((N if m else 0, m))
-    return buf[0], buf[1], table, u_cmd
+    # row i's slices, not (N, W) and (N, n) views: a reshape costs a call per sample
+    row = buf[o + i * W : o + (i + 1) * W]
+    u_cmd = buf[o + N * W + i * m : o + N * W + (i + 1) * m]
+    return buf[0], buf[1], row, u_cmd
 
 
 @_jit
@@ -267,22 +277,21 @@ def record_row(
     row i (0 rows: none). Returns True when q, v, f are finite, every |v_i| ≤ max_velocity
     and every |f_m| ≤ max_force.
     """
-    max_velocity, max_force, table, u_cmd = record_parts(buf)
-    row = table[i]
+    max_velocity, max_force, row, u_cmd_row = record_parts(buf, i)
     row[0] = t
     c = _put(row, 1, q)
     c = _put(row, c, v)
     c = _put(row, c, q_d)
     n = u0.shape[0]
     limited = applied.shape[0] != 0
-    commanded = u_cmd.shape[0] != 0
+    commanded = u_cmd_row.shape[0] != 0
     for j in range(n):
         acc = u0[j]
         for m in range(f.shape[0]):
             acc += B[j, m] * f[m]
         row[c + j] = applied[j] if limited else acc
         if commanded:
-            u_cmd[i, j] = acc
+            u_cmd_row[j] = acc
     c = _put(row, c + n, p)
     c = _put(row, c, p_d)
     c = _put(row, c, f)
@@ -311,15 +320,15 @@ def step_parts(
     """Views of the compiled contact step's buffer ws (``RigidContact._ws``,
     5 + 5n + len(desc)): ws[0] = the descriptor's length, ws[1] = Φ and ws[2:5] = ∇Φ (3,)
     given by a surface with no descriptor, then q_tmp, v_tmp (n,) (the Euler step's
-    outputs), the two q_out (2, n) (the projection's, used alternately), the constraint
-    row (n,) and the surface's descriptor, in that order. Returns (grad, q_tmp, v_tmp,
-    q_out, row, desc, ws[1:2]). One buffer, one argument: Numba's call costs ~0.14 µs per
-    array argument."""
+    outputs), the two q_out (n,) (the projection's, used alternately), the constraint row
+    (n,) and the surface's descriptor, in that order. Returns (grad, q_tmp, v_tmp, both
+    q_out as one (2n,) slice, row, desc, ws[1:2]). One buffer, one argument: Numba's call
+    costs ~0.14 µs per array argument."""
     nd = int(ws[0])
     o = STEP_HEADER
     q_tmp = ws[o : o + n]
     v_tmp = ws[o + n : o + 2 * n]
-    q_out = ws[o + 2 * n : o + 4 * n].reshape((2, n))
+    q_out = ws[o + 2 * n : o + 4 * n]  # the two q_out one after the other (no reshape: a call)
     row = ws[o + 4 * n : o + 5 * n]
     desc = ws[o + 5 * n : o + 5 * n + nd]
     return ws[2:5], q_tmp, v_tmp, q_out, row, desc, ws[1:2]
@@ -351,7 +360,7 @@ def project_one(p: np.ndarray, J6: np.ndarray, ws: np.ndarray, slot: int) -> flo
     """
     n = J6.shape[1]
     grad, q, _, outs, row_out, desc, given = step_parts(ws, n)
-    q_out = outs[slot]
+    q_out = outs[slot * n : (slot + 1) * n]
     phi = given[0]
     if desc.shape[0] > 0:
         phi, _ = surface_eval(desc, p, grad, np.zeros((0, 0)))
