@@ -899,15 +899,19 @@ def test_checked_solve_equals_dense_kkt_and_the_limit_test(
     arms: dict[str, Robot], arm: str, k: int
 ) -> None:
     """ConstrainedDynamics.solve_checked (γ formed in its first kernel, the effort limits
-    checked in its second) against the dense KKT solve with γ by hand (section 6.2) and the
-    limits by numpy: |u0 + B f| > e, for B = None and B (n, k), limits none, loose and tight;
-    and bit for bit the path of solve + gamma_into it replaces in the plant."""
+    checked in its second, both reading the solver's buffer and the constraint's flat array)
+    against the dense KKT solve with γ by hand (section 6.2) and the limits by numpy:
+    |u0 + B f| > e, for B = None and B (n, k), limits none, loose and tight, with the terms'
+    own flat array and without one (stacked rows: copied into the solver's); and bit for bit
+    the path of solve + gamma_into it replaces in the plant."""
+    import dataclasses
+
+    from hybrid_force.control.constraint import ConstraintTerms
     from hybrid_force.sim.dynamics import Baumgarte, ConstrainedDynamics
 
     robot = arms[arm]
     rng = np.random.default_rng(57 + k)
     data = robot.new_data()
-    solver = ConstrainedDynamics(robot.model, data, k)
     other = ConstrainedDynamics(robot.model, robot.new_data(), k)
     baum = Baumgarte(alpha=37.0, beta=12.5)
     n = robot.nv
@@ -915,20 +919,24 @@ def test_checked_solve_equals_dense_kkt_and_the_limit_test(
         q, v = _random_state(robot, rng)
         terms = robot.terms(q, v, data)
         robot.terms(q, v, other.data)
-        A = rng.standard_normal((k, n))
-        drift, rate, value = rng.standard_normal((3, k))
-        scale = rng.uniform(0.5, 2.0, k)
+        cons = ConstraintTerms.zeros(k, n)
+        A = cons.A
+        A[...] = rng.standard_normal((k, n))
+        drift, rate, value = cons.drift, cons.rate, cons.phi
+        drift[...], rate[...], value[...] = rng.standard_normal((3, k))
+        scale = cons.scale
+        scale[...] = rng.uniform(0.5, 2.0, k)
+        if trial % 3 == 2:  # fields only, as the stacked rows' terms
+            cons = dataclasses.replace(cons, _packs=None, _flat=None)
         u0 = 10.0 * rng.standard_normal(n)
         B = None if trial % 2 == 0 else 0.1 * rng.standard_normal((n, k))
-        gamma = np.full(k, np.nan)
         _, f_free = kkt(terms.M, terms.nle, u0, B, A, drift + 74.0 * rate + 156.25 * value / scale)
         u_free = u0 + (0.0 if B is None else B @ f_free)
         effort = [np.zeros(0), np.abs(u_free) + 1.0, np.abs(u_free) * rng.uniform(0.5, 1.5, n)]
         for e in effort:
-            beyond = solver.solve_checked(
-                terms.nle, u0, np.zeros((n, 0)) if B is None else B, A, drift, rate, value,
-                scale, (2.0 * baum.alpha, baum.beta**2), gamma, e,
-            )  # fmt: skip
+            solver = ConstrainedDynamics(robot.model, data, k, baum, e if e.size else None)
+            beyond = solver.solve_checked(terms.nle, u0, np.zeros((n, 0)) if B is None else B, cons)
+            gamma = solver.gamma
             ref_gamma = drift + 2 * 37.0 * rate + 12.5**2 * (value / scale)
             assert np.abs(gamma - ref_gamma).max() <= 1e-14 * float(np.abs(ref_gamma).max() + 1)
             ddq_ref, f_ref = kkt(terms.M, terms.nle, u0, B, A, ref_gamma)
@@ -962,7 +970,9 @@ def test_baumgarte_gamma_into_equals_gamma() -> None:
 
 def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     """record_row writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] in the columns
-    of Record.widths and reports NaN in q, |v_i| above max_velocity and |f| above max_force."""
+    of Record.widths and reports NaN in q, |v_i| above max_velocity and |f| above max_force;
+    the table, u_cmd and the limits are read from the record's buffer (header [max_velocity,
+    max_force, N, W, u_cmd's columns], then the table's rows, then u_cmd's)."""
     from hybrid_force.sim._kernels import record_row
     from hybrid_force.sim.record import Record
 
@@ -970,16 +980,23 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     nq = nv = 4
     k = 2
     widths = Record.widths(nq, nv, k)
-    table = np.zeros((3, Record.width(nq, nv, k)))
+    W = Record.width(nq, nv, k)
+
+    def buffer(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # (buf, table, u_cmd)
+        buf = np.zeros(5 + 3 * W + 3 * m)
+        buf[:5] = (5.0, 100.0, 3, W, m)
+        return buf, buf[5 : 5 + 3 * W].reshape(3, W), buf[5 + 3 * W :].reshape(3, m)
+
+    buf, table, _ = buffer(0)
     starts = np.concatenate([[0], np.cumsum(widths)])
 
-    def field(row: int, index: int) -> np.ndarray:  # the column view of field ``index``
+    def field(row: int, index: int, table: np.ndarray = table) -> np.ndarray:  # field ``index``
         return table[row, starts[index] : starts[index + 1]]
 
-    none, no_u_cmd = np.zeros(0), np.zeros((0, nv))
+    none = np.zeros(0)
 
     def record(i: int, t: float, *args: object) -> bool:
-        return bool(record_row(table, i, t, *args, 5.0, 100.0, none, no_u_cmd))
+        return bool(record_row(buf, i, t, *args, none))
 
     q, v, q_d, u0 = rng.standard_normal((4, nq))
     B = rng.standard_normal((nv, k))
@@ -999,9 +1016,10 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     assert not record(0, 0.0, q, fast_v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
     assert not record(0, 0.0, q, v, q_d, u0, B, np.array([0.0, 101.0]), p, p_d, f_d, phi, 0, 0)
     # effort limits: the applied torque in the u column, the command u0 + B f in u_cmd's row
-    applied, u_cmd = rng.standard_normal(nv), np.zeros((3, nv))
-    args = (q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2, 5.0, 100.0, applied, u_cmd)
-    assert record_row(table, 2, 0.5, *args)
-    assert np.array_equal(field(2, 4), applied)
+    applied = rng.standard_normal(nv)
+    buf2, table2, u_cmd = buffer(nv)
+    args = (q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2, applied)
+    assert record_row(buf2, 2, 0.5, *args)
+    assert np.array_equal(field(2, 4, table2), applied)
     assert np.abs(u_cmd[2] - (u0 + B @ f)).max() <= 1e-15 * float(np.abs(u0 + B @ f).max())
     assert not np.any(u_cmd[[0, 1]])

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
+from hybrid_force._jit import jit_inline as _inline
 from hybrid_force.geometry._kernels import surface_eval
 
 
@@ -35,22 +36,45 @@ def baumgarte(
         out[m] = drift[m] + two_alpha * rate[m] + beta_sq * (value[m] / scale[m])
 
 
+@_inline
+def solver_parts(
+    ws: np.ndarray, n: int
+) -> tuple[int, float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """k, 2α [1/s], β² [1/s²] and the views q̈ (n,), f (k,), γ (k,), effort (n,) or (0,) of
+    the constrained solve's buffer ws (``ConstrainedDynamics._ws``, 4 + 2n + 2k): ws[0] = k,
+    ws[1] = the effort limits' count (n, or 0: none), ws[2] = 2α, ws[3] = β², then q̈, f, γ
+    and n entries for the limits, in that order. One buffer, one argument: Numba's call
+    costs ~0.14 µs per array argument."""
+    k, ne = int(ws[0]), int(ws[1])
+    o = 4
+    ddq = ws[o : o + n]
+    f = ws[o + n : o + n + k]
+    gamma = ws[o + n + k : o + n + 2 * k]
+    effort = ws[o + n + 2 * k : o + n + 2 * k + ne]
+    return k, ws[2], ws[3], ddq, f, gamma, effort
+
+
+@_inline
+def _scalars_at(k: int, n: int) -> int:
+    """Where the scalars (6, k) start in the flat array of ``ConstraintTerms.zeros(k, n)``
+    (the layout of ``control._kernels.constraint_parts``: rows (4, k, n), cols (2, n, k),
+    squares (2, n, n), scalars): the kernels here slice the few fields they read instead of
+    building the four packs (each reshape costs a call)."""
+    return 6 * k * n + 2 * n * n
+
+
 @_jit
-def kkt_inputs(
-    drift: np.ndarray,
-    rate: np.ndarray,
-    value: np.ndarray,
-    scale: np.ndarray,
-    two_alpha: float,
-    beta_sq: float,
-    gamma: np.ndarray,
-    nle: np.ndarray,
-    data_nle: np.ndarray,
-) -> None:
-    """The inputs of ``pin.forwardDynamics`` in one call: γ (k,) as :func:`baumgarte` (written
-    into gamma) and C q̇ + g (n,) copied into data_nle (the view of ``data.nle`` it reads)."""
-    baumgarte(drift, rate, value, scale, two_alpha, beta_sq, gamma)
-    for i in range(nle.shape[0]):
+def kkt_inputs(cons: np.ndarray, ws: np.ndarray, nle: np.ndarray, data_nle: np.ndarray) -> None:
+    """The inputs of ``pin.forwardDynamics`` in one call: γ (k,) as :func:`baumgarte` from the
+    constraint's flat array cons (``ConstraintTerms._flat``: its drift, A q̇, Φ and s), with
+    the gains of the solver's buffer ws (:func:`solver_parts`), written into its γ; and
+    C q̇ + g (n,) copied into data_nle (the view of ``data.nle`` it reads)."""
+    n = nle.shape[0]
+    k, two_alpha, beta_sq, _, _, gamma, _ = solver_parts(ws, n)
+    c = _scalars_at(k, n)  # Φ, d, s, A q̇, raw drift, drift: (k,) each
+    drift, rate = cons[c + 5 * k : c + 6 * k], cons[c + 3 * k : c + 4 * k]
+    baumgarte(drift, rate, cons[c : c + k], cons[c + 2 * k : c + 3 * k], two_alpha, beta_sq, gamma)
+    for i in range(n):
         data_nle[i] = nle[i]
 
 
@@ -167,22 +191,25 @@ def exceeds_effort(u0: np.ndarray, B: np.ndarray, f: np.ndarray, effort: np.ndar
 def loop_checked(
     U: np.ndarray,
     D: np.ndarray,
-    A: np.ndarray,
+    cons: np.ndarray,
     B: np.ndarray,
     ddq0: np.ndarray,
     f0: np.ndarray,
     u0: np.ndarray,
-    effort: np.ndarray,
-    ddq: np.ndarray,
-    f: np.ndarray,
+    ws: np.ndarray,
 ) -> int:
     """:func:`loop_resolve` and :func:`exceeds_effort` in one call, after forwardDynamics.
 
+    cons: the constraint's flat array (``ConstraintTerms._flat``), whose A (k, n) is read.
     B (n, k) as in :func:`loop_resolve`; B with no column (the command does not depend on f):
-    q̈ = q̈0 and f = f0, copied. effort (n,) [N·m or N], or no entry: no limit checked.
-    Writes q̈ (n,) and f (k,) [N]. Returns −1 when the loop has no unique solution (nothing
+    q̈ = q̈0 and f = f0, copied. ws: the solver's buffer (:func:`solver_parts`), whose q̈ (n,)
+    and f (k,) [N] are written and whose effort limits (n,) [N·m or N] are checked (none
+    held: no limit checked). Returns −1 when the loop has no unique solution (nothing
     checked), 1 when some |u_i| > effort_i for u = u0 + B f, else 0.
     """
+    n = u0.shape[0]
+    k, _, _, ddq, f, _, effort = solver_parts(ws, n)
+    A = cons[2 * k * n : 3 * k * n].reshape((k, n))  # rows = [J_Φ, J_Φn, A, Ȧ] (k, n) each
     if B.shape[1] == 0:
         for i in range(ddq0.shape[0]):
             ddq[i] = ddq0[i]
@@ -203,9 +230,28 @@ def _put(row: np.ndarray, start: int, x: np.ndarray) -> int:
     return start + x.shape[0]
 
 
+#: entries of the record's buffer before its table (:func:`record_parts`)
+RECORD_HEADER = 5
+
+
+@_inline
+def record_parts(buf: np.ndarray, i: int) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """max_velocity, max_force and the views of row i of the table (W,) and of u_cmd (n,),
+    or (0,) when the run has no effort limits, in the record's buffer (``Record._buf``):
+    buf[0] = max_velocity, buf[1] = max_force, buf[2] = N, buf[3] = W, buf[4] = the columns
+    of u_cmd (n, or 0), then the table's N rows and u_cmd's N rows (none when 0). One buffer,
+    one argument: Numba's call costs ~0.14 µs per array argument."""
+    N, W, m = int(buf[2]), int(buf[3]), int(buf[4])
+    o = RECORD_HEADER
+    # row i's slices, not (N, W) and (N, n) views: a reshape costs a call per sample
+    row = buf[o + i * W : o + (i + 1) * W]
+    u_cmd = buf[o + N * W + i * m : o + N * W + (i + 1) * m]
+    return buf[0], buf[1], row, u_cmd
+
+
 @_jit
 def record_row(
-    table: np.ndarray,
+    buf: np.ndarray,
     i: int,
     t: float,
     q: np.ndarray,
@@ -220,34 +266,32 @@ def record_row(
     phi: np.ndarray,
     V: float,
     phase: int,
-    max_velocity: float,
-    max_force: float,
     applied: np.ndarray,
-    u_cmd: np.ndarray,
 ) -> bool:
     """Write one sample into row i of the run's table (fields in the order of simulate._Log).
 
-    The command column is the applied torque: ``applied`` (n,) when the effort limits changed
-    it, else (size 0) the command u = u0 + B f (B: (n, k)); u_cmd (N, n), the commanded
-    torques' table of a run with effort limits, gets u0 + B f in its row i (0 rows: none).
-    Returns True when q, v, f are finite, every |v_i| ≤ max_velocity and every |f_m| ≤
-    max_force.
+    buf: the record's buffer (:func:`record_parts`: the table, the commanded torques' table
+    and the limits checked). The command column is the applied torque: ``applied`` (n,) when
+    the effort limits changed it, else (size 0) the command u = u0 + B f (B: (n, k)); u_cmd
+    (N, n), the commanded torques' table of a run with effort limits, gets u0 + B f in its
+    row i (0 rows: none). Returns True when q, v, f are finite, every |v_i| ≤ max_velocity
+    and every |f_m| ≤ max_force.
     """
-    row = table[i]
+    max_velocity, max_force, row, u_cmd_row = record_parts(buf, i)
     row[0] = t
     c = _put(row, 1, q)
     c = _put(row, c, v)
     c = _put(row, c, q_d)
     n = u0.shape[0]
     limited = applied.shape[0] != 0
-    commanded = u_cmd.shape[0] != 0
+    commanded = u_cmd_row.shape[0] != 0
     for j in range(n):
         acc = u0[j]
         for m in range(f.shape[0]):
             acc += B[j, m] * f[m]
         row[c + j] = applied[j] if limited else acc
         if commanded:
-            u_cmd[i, j] = acc
+            u_cmd_row[j] = acc
     c = _put(row, c + n, p)
     c = _put(row, c, p_d)
     c = _put(row, c, f)
@@ -265,16 +309,37 @@ def record_row(
     return ok
 
 
+#: entries of the contact step's buffer before its arrays (:func:`step_parts`)
+STEP_HEADER = 5
+
+
+@_inline
+def step_parts(
+    ws: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Views of the compiled contact step's buffer ws (``RigidContact._ws``,
+    5 + 5n + len(desc)): ws[0] = the descriptor's length, ws[1] = Φ and ws[2:5] = ∇Φ (3,)
+    given by a surface with no descriptor, then q_tmp, v_tmp (n,) (the Euler step's
+    outputs), the two q_out (n,) (the projection's, used alternately), the constraint row
+    (n,) and the surface's descriptor, in that order. Returns (grad, q_tmp, v_tmp, both
+    q_out as one (2n,) slice, row, desc, ws[1:2]). One buffer, one argument: Numba's call
+    costs ~0.14 µs per array argument."""
+    nd = int(ws[0])
+    o = STEP_HEADER
+    q_tmp = ws[o : o + n]
+    v_tmp = ws[o + n : o + 2 * n]
+    q_out = ws[o + 2 * n : o + 4 * n]  # the two q_out one after the other (no reshape: a call)
+    row = ws[o + 4 * n : o + 5 * n]
+    desc = ws[o + 5 * n : o + 5 * n + nd]
+    return ws[2:5], q_tmp, v_tmp, q_out, row, desc, ws[1:2]
+
+
 @_jit
-def euler_step(
-    q: np.ndarray,
-    v: np.ndarray,
-    ddq: np.ndarray,
-    dt: float,
-    v_out: np.ndarray,
-    q_out: np.ndarray,
-) -> None:
-    """Semi-implicit Euler v⁺ = v + q̈ dt, q⁺ = q + v⁺ dt (Euclidean configuration spaces)."""
+def euler_step(q: np.ndarray, v: np.ndarray, ddq: np.ndarray, dt: float, ws: np.ndarray) -> None:
+    """Semi-implicit Euler v⁺ = v + q̈ dt, q⁺ = q + v⁺ dt (Euclidean configuration spaces),
+    written into the v_tmp and q_tmp (n,) of the contact step's buffer ws
+    (:func:`step_parts`)."""
+    _, q_out, v_out, _, _, _, _ = step_parts(ws, v.shape[0])
     for i in range(v.shape[0]):
         vi = v[i] + ddq[i] * dt
         v_out[i] = vi
@@ -282,28 +347,23 @@ def euler_step(
 
 
 @_jit
-def project_one(
-    desc: np.ndarray,
-    p: np.ndarray,
-    grad: np.ndarray,
-    phi: float,
-    J6: np.ndarray,
-    q: np.ndarray,
-    q_out: np.ndarray,
-    row_out: np.ndarray,
-) -> float:
+def project_one(p: np.ndarray, J6: np.ndarray, ws: np.ndarray, slot: int) -> float:
     """One Gauss–Newton step onto a surface, k = 1, and the constraint row it used.
 
-    desc: the surface's descriptor (:func:`surface_eval`), evaluated here at the tip p (3,);
-    when empty, grad (3,) = ∇Φ and phi = Φ are given. J6: (6, n) tip Jacobian (rows 0..2).
+    ws: the contact step's buffer (:func:`step_parts`): its surface descriptor
+    (:func:`surface_eval`) is evaluated here at the tip p (3,), or when empty its ∇Φ (3,) and
+    Φ are read; the step starts from its q_tmp (n,). J6: (6, n) tip Jacobian (rows 0..2).
     The row is A = n̂ᵀJ with n̂ = ∇Φ/‖∇Φ‖, the step length Φ/‖∇Φ‖ [m], A⁺ = Aᵀ/‖A‖² (as
-    ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out = q − A⁺ Φ/‖∇Φ‖
-    (Euclidean configuration spaces) and row_out (n,) = A, for the velocity's constraint
-    impulse (``Plant._impulse``). Returns ‖∇Φ‖ (the caller checks it is not zero).
+    ``Constraint.normal_rows`` and ``_Plant.project``). Writes q_out[slot] = q − A⁺ Φ/‖∇Φ‖
+    (Euclidean configuration spaces) and the row (n,) = A of ws, for the velocity's
+    constraint impulse (``Plant._impulse``). Returns ‖∇Φ‖ (the caller checks it is not zero).
     """
+    n = J6.shape[1]
+    grad, q, _, outs, row_out, desc, given = step_parts(ws, n)
+    q_out = outs[slot * n : (slot + 1) * n]
+    phi = given[0]
     if desc.shape[0] > 0:
         phi, _ = surface_eval(desc, p, grad, np.zeros((0, 0)))
-    n = q.shape[0]
     gn = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
     n0, n1, n2 = grad[0] / gn, grad[1] / gn, grad[2] / gn
     dist = phi / gn

@@ -34,10 +34,14 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force._lazy import LazyKernels
+from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.errors import ScenarioError
 from hybrid_force.schema import check_fields, param
 
 _K = LazyKernels("hybrid_force.sim._kernels")
+
+# entries of the solver's buffer before its arrays (_kernels.solver_parts)
+_SOLVER_HEADER = 4
 
 __all__ = [
     "Baumgarte",
@@ -101,16 +105,50 @@ class ConstrainedDynamics:
     keeps them across calls builds one instance per call). The multiplier ``data.lambda_c``
     is read at every call (forwardDynamics resizes it).
 
+    The outputs :attr:`ddq` (n,), :attr:`f` (k,), the Baumgarte γ (k,) (:attr:`gamma`), the
+    gains and the effort limits of :meth:`solve_checked` are views of one buffer
+    (:func:`~hybrid_force.sim._kernels.solver_parts`): its two compiled calls take that
+    buffer as one argument instead of six (Numba's call costs ~0.14 µs per array argument).
+
     Args:
         model, data: the Pinocchio model and the data that ``pin.crba`` fills each step.
         k: number of constraint rows.
+        baumgarte: the gains :meth:`solve_checked` forms γ with (default: both 0).
+        effort: (n,) the effort limits :meth:`solve_checked` checks [N·m or N] (default:
+            none; :meth:`set_limits` changes them).
     """
 
-    def __init__(self, model: pin.Model, data: pin.Data, k: int) -> None:
+    def __init__(
+        self,
+        model: pin.Model,
+        data: pin.Data,
+        k: int,
+        baumgarte: Baumgarte | None = None,
+        effort: np.ndarray | None = None,
+    ) -> None:
         self.model, self.data = model, data
         self._nle, self._U, self._D = data.nle, data.U, data.D
-        self.ddq = np.zeros(model.nv)
-        self.f = np.zeros(k)
+        n = model.nv
+        ws = np.zeros(_SOLVER_HEADER + n + 2 * k + n)
+        gains = baumgarte if baumgarte is not None else Baumgarte(0.0, 0.0)
+        # the same products as Baumgarte.gamma_into's, made once
+        ws[:4] = (k, 0, 2.0 * gains.alpha, gains.beta * gains.beta)
+        self._ws = ws
+        o = _SOLVER_HEADER  # the layout of _kernels.solver_parts
+        self.ddq, self.f = ws[o : o + n], ws[o + n : o + n + k]
+        self.gamma = ws[o + n + k : o + n + 2 * k]
+        self._effort = ws[o + n + 2 * k :]
+        self.limits: np.ndarray | None = None
+        self.set_limits(effort)
+        self._stacked: ConstraintTerms | None = None  # the copy of k > 1 rows (_flat_of)
+
+    def set_limits(self, effort: np.ndarray | None) -> None:
+        """The effort limits (n,) [N·m or N] :meth:`solve_checked` checks from now on (None:
+        none), copied into the buffer; :attr:`limits` is the array given."""
+        self.limits = effort
+        self._ws[1] = 0 if effort is None else effort.shape[0]
+        if effort is not None:
+            self._effort[:] = effort
 
     def solve(
         self,
@@ -145,28 +183,17 @@ class ConstrainedDynamics:
         return self.ddq, self.f
 
     def solve_checked(
-        self,
-        nle: np.ndarray,
-        u0: np.ndarray,
-        B: np.ndarray,
-        A: np.ndarray,
-        drift: np.ndarray,
-        rate: np.ndarray,
-        value: np.ndarray,
-        scale: np.ndarray,
-        gains: tuple[float, float],
-        gamma: np.ndarray,
-        effort: np.ndarray,
+        self, nle: np.ndarray, u0: np.ndarray, B: np.ndarray, cons: ConstraintTerms
     ) -> bool:
         """:meth:`solve` with γ formed here and the effort limits checked, in two compiled
         calls around forwardDynamics (the plant's step: the same numbers as
         :meth:`Baumgarte.gamma_into`, :meth:`solve` and ``exceeds_effort``).
 
         Args:
-            nle, u0, A: as in :meth:`solve`. B: (n, k), or (n, 0) for a command that does not
-                depend on f. drift, rate, value, scale: (k,) the constraint's drift, A q̇,
-                Φ and s (φ = Φ / s). gains: (2α, β²) [1/s, 1/s²]. gamma: (k,) written with
-                γ. effort: (n,) effort limits [N·m or N], or (0,): none.
+            nle, u0: as in :meth:`solve`. B: (n, k), or (n, 0) for a command that does not
+                depend on f. cons: the constraint's terms (its rows A, drift, A q̇, Φ and s;
+                φ = Φ / s). γ is written into :attr:`gamma`, with the constructor's gains;
+                the limits of :meth:`set_limits` are checked.
 
         Returns:
             True when the command u0 + B f is beyond some effort limit; q̈ and f in
@@ -175,16 +202,30 @@ class ConstrainedDynamics:
         Raises:
             numpy.linalg.LinAlgError: the loop has no unique solution (as :meth:`solve`).
         """
-        _K.kkt_inputs(drift, rate, value, scale, gains[0], gains[1], gamma, nle, self._nle)
-        ddq0 = pin.forwardDynamics(self.model, self.data, u0, A, gamma)
-        status = _K.loop_checked(
-            self._U, self._D, A, B, ddq0, self.data.lambda_c, u0, effort, self.ddq, self.f
-        )
+        flat, ws = self._flat_of(cons), self._ws
+        _K.kkt_inputs(flat, ws, nle, self._nle)
+        ddq0 = pin.forwardDynamics(self.model, self.data, u0, cons.A, self.gamma)
+        status = _K.loop_checked(self._U, self._D, flat, B, ddq0, self.data.lambda_c, u0, ws)
         if status < 0:
             raise np.linalg.LinAlgError(
                 "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"
             )
         return status > 0
+
+    def _flat_of(self, cons: ConstraintTerms) -> np.ndarray:
+        """The flat array of ``ConstraintTerms.zeros`` that the kernels read: the terms' own
+        (one surface), or for stacked rows (k > 1, made without one) a copy of the fields
+        read (A, Φ, s, A q̇, drift) into this solver's own."""
+        flat = cons._flat
+        if flat is not None:
+            return flat
+        if self._stacked is None:
+            self._stacked = ConstraintTerms.zeros(*cons.A.shape)
+        own = self._stacked
+        for name in ("A", "phi", "scale", "rate", "drift"):
+            getattr(own, name)[...] = getattr(cons, name)
+        assert own._flat is not None  # zeros() always makes its flat array
+        return own._flat
 
 
 def plastic_impact(

@@ -48,6 +48,9 @@ _K = LazyKernels("hybrid_force.sim._kernels")
 
 __all__ = ["RigidContact"]
 
+# entries of the contact step's buffer before its arrays (_kernels.STEP_HEADER)
+_STEP_HEADER = 5
+
 
 class RigidContact(SurfaceContact):
     """The rigid contact of one arm (module docstring: its paths).
@@ -68,16 +71,11 @@ class RigidContact(SurfaceContact):
         self.unilateral, self.release_tol = sim.unilateral, sim.release_tol
         self.touch_tol = touch_tol
         robot, k, n = arm.robot, arm.constraint.k, arm.robot.nv
-        self._solver = ConstrainedDynamics(robot.model, arm.data, k)
+        # the constrained solve of accelerate() in two compiled calls around forwardDynamics
+        # (ConstrainedDynamics.solve_checked), γ's gains and the limits held in its buffer
+        self._solver = ConstrainedDynamics(robot.model, arm.data, k, sim.baumgarte, arm.effort)
         self._friction: np.ndarray | None = None  # (n, k) friction torque per N, this step
-        self._gamma = np.zeros(k)
-        # two q buffers for the compiled contact step: its output is never its input (its
-        # velocity is impulseDynamics' new array)
-        self._q_out = (np.zeros(n), np.zeros(n))
-        self._tmp = (np.zeros(n), np.zeros(n))
-        self._grad = np.zeros(3)
-        self._row = np.zeros((1, n))  # the compiled step's constraint row
-        self._row0 = self._row[0]
+        self._gamma = self._solver.gamma
         self._no_B = np.zeros((n, 0))  # B of a command that does not depend on f
         self._compiled_step = (
             self.compiles and k == 1 and robot.euclidean and sim.integrator == "euler"
@@ -85,14 +83,21 @@ class RigidContact(SurfaceContact):
         # what the compiled contact step reads, looked up once (a surface's descriptor is
         # fixed when it is made)
         surface = arm.constraint.surfaces[0]
-        self._step_args = (
-            robot.model, arm._geo, arm._imp, robot.tip_id, arm._tip, surface, surface._descriptor,
-        )  # fmt: skip
-        # the constrained solve of accelerate() in two compiled calls around forwardDynamics
-        # (ConstrainedDynamics.solve_checked): γ's gains, the limits' array of none
-        baum = sim.baumgarte
-        self._gains = (2.0 * baum.alpha, baum.beta * baum.beta)  # as Baumgarte.gamma_into's
-        self._no_effort = np.zeros(0)
+        self._step_args = (robot.model, arm._geo, arm._imp, robot.tip_id, arm._tip, surface)
+        # the compiled contact step's buffer (_kernels.step_parts): its two calls take it as
+        # one argument (Numba's call costs ~0.14 µs per array argument); the surface's
+        # descriptor copied in once. Two q outputs: the step's output is never its input (its
+        # velocity is impulseDynamics' new array)
+        desc = surface._descriptor
+        o = _STEP_HEADER
+        ws = np.zeros(o + 5 * n + desc.shape[0])
+        ws[0] = desc.shape[0]
+        ws[o + 5 * n :] = desc
+        self._ws, self._no_desc = ws, desc.shape[0] == 0
+        self._given = (ws[1:2], ws[2:5])  # Φ and ∇Φ of a surface without a descriptor
+        self._tmp = (ws[o : o + n], ws[o + n : o + 2 * n])  # q_tmp, v_tmp
+        self._q_out = (ws[o + 2 * n : o + 3 * n], ws[o + 3 * n : o + 4 * n])
+        self._row = ws[o + 4 * n : o + 5 * n].reshape(1, n)  # the step's constraint row
         self._one = k == 1
         self._rubs = arm.contact.friction > 0.0  # the tip's friction (arm.contact is fixed)
         # the step dissipates only through the tip's friction and the joints' own damping and
@@ -114,12 +119,12 @@ class RigidContact(SurfaceContact):
             self._friction, speed = arm.friction_at(terms)
         if self.compiles and self._friction is None:
             # 2. constrained, the limits checked in the same compiled call
-            Dv, B, solver, effort = arm._joint_Dv, cmd.B, self._solver, arm.effort
+            Dv, B, solver = arm._joint_Dv, cmd.B, self._solver
+            if solver.limits is not arm.effort:  # the arm's limits were replaced
+                solver.set_limits(arm.effort)
             beyond = solver.solve_checked(
                 terms.nle if Dv is None else terms.nle + Dv,  # Arm._nle
-                cmd.u0, self._no_B if B is None else B, cons.A,
-                cons.drift, cons.rate, cons.phi, cons.scale, self._gains, self._gamma,
-                self._no_effort if effort is None else effort,
+                cmd.u0, self._no_B if B is None else B, cons,
             )  # fmt: skip
             ddq, f = solver.ddq, solver.f
         else:  # with friction in the loop's B (the limits bound the command's), or readable
@@ -231,26 +236,22 @@ class RigidContact(SurfaceContact):
         """Semi-implicit Euler then :meth:`Arm.project <hybrid_force.sim.arm.Arm.project>`,
         for one surface and a Euclidean arm: two compiled calls and the impulse in
         ``pin.impulseDynamics``."""
-        model, data, imp, fid, tip, surface, desc = self._step_args
+        model, data, imp, fid, tip, surface = self._step_args
+        ws = self._ws
         q_tmp, v_tmp = self._tmp
-        _K.euler_step(q, v, ddq, dt, v_tmp, q_tmp)
+        _K.euler_step(q, v, ddq, dt, ws)
         pin.computeJointJacobians(model, data, q_tmp)
         pin.updateFramePlacement(model, data, fid)  # the tip, in the view ``tip``
-        grad, phi = self._grad, 0.0
-        if desc.shape[0] == 0:  # no closed form: evaluate in Python
-            phi, grad, _ = surface.evaluate(tip)
-        q_out = self._q_out[0]
-        if q is q_out:
-            q_out = self._q_out[1]
-        row = self._row
-        gn = _K.project_one(
-            desc, tip, grad, phi, pin.getFrameJacobian(model, data, fid, _LWA), q_tmp, q_out,
-            self._row0,
-        )  # fmt: skip
+        if self._no_desc:  # no closed form: evaluate in Python, into the buffer
+            phi_given, grad_given = self._given
+            phi_given[0], grad_given[:], _ = surface.evaluate(tip)
+        slot = 1 if q is self._q_out[0] else 0
+        gn = _K.project_one(tip, pin.getFrameJacobian(model, data, fid, _LWA), ws, slot)
         if not gn >= _GRAD_TOL:
             self.arm._rows(q_tmp)  # raises the precise SurfaceError
         # v⁺: impulseDynamics' own new array (the next step reads it, never writes it)
-        return q_out, pin.impulseDynamics(model, imp, q_out, v_tmp, row, 0.0, 0.0)
+        q_out = self._q_out[slot]
+        return q_out, pin.impulseDynamics(model, imp, q_out, v_tmp, self._row, 0.0, 0.0)
 
     def touch(self, q: Vector, v: Vector, t: float) -> State:
         """A plastic impact if the tip moves into the surface (an "impact" event)."""
