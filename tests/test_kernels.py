@@ -1023,3 +1023,22 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     assert np.array_equal(field(2, 4, table2), applied)
     assert np.abs(u_cmd[2] - (u0 + B @ f)).max() <= 1e-15 * float(np.abs(u0 + B @ f).max())
     assert not np.any(u_cmd[[0, 1]])
+
+
+def test_carver_gives_consecutive_views_and_checks_the_layout() -> None:
+    """A law's buffer carved into views (base.Carver): each view is the next slice, shares
+    the buffer's memory, and done() refuses a layout that does not fill the buffer."""
+    from hybrid_force.control.laws.base import Carver
+
+    buffer = np.arange(10.0)
+    carver = Carver(buffer, 1)
+    a, b = carver.take(2, 3), carver.take(3)
+    np.testing.assert_array_equal(a, [[1, 2, 3], [4, 5, 6]])
+    np.testing.assert_array_equal(b, [7, 8, 9])
+    a[1, 2] = -1.0
+    assert buffer[6] == -1.0
+    carver.done()
+    with pytest.raises(AssertionError, match="views end at 4 of 10"):
+        short = Carver(buffer, 1)
+        short.take(3)
+        short.done()

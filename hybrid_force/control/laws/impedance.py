@@ -233,14 +233,14 @@ class ImpedanceWorkspace(base.Law):
         n, k, g = self._u.shape[0], self.preload.shape[0], self.gains
         ws = np.zeros(_K.workspace_size(n, k))
         ws[:5] = [k, n, g.omega, g.zeta, float(g.feedforward)]
-        o = 5
+        carver = base.Carver(ws, 5)
         parts: list[Any] = []  # (views of the shapes of the arrays they replace)
         for a in (self.preload, self.offset, self._gains, self._u, self._work, self._normals,
                   self._along):  # fmt: skip
-            view = ws[o : o + a.size].reshape(a.shape)
+            view = carver.take(*a.shape)
             view[...] = a
             parts.append(view)
-            o += a.size
+        carver.done()
         (self.preload, self.offset, self._gains, self._u, self._work, self._normals,
          self._along) = parts  # fmt: skip
         self.stiffness, self.damping = self._gains[1], self._gains[2]

@@ -318,15 +318,8 @@ class OscHybridWorkspace(base.Law):
         # kernel takes whole (_osc_hybrid_kernels.osc_steady, its layout)
         self._ws = ws = np.zeros(_K.workspace_size(n, k, width))
         ws[:3] = [k, n, width]
-        o = 3
-
-        def take(*shape: int) -> np.ndarray:
-            nonlocal o
-            size = math.prod(shape)
-            view = ws[o : o + size].reshape(shape)
-            o += size
-            return view
-
+        carver = base.Carver(ws, 3)
+        take = carver.take
         self._descs = take(k, width)
         self._grads = take(3, k)
         self._gains = take(8)
@@ -353,7 +346,7 @@ class OscHybridWorkspace(base.Law):
         self.phi = take(k)
         self.B = take(n, k)
         self._zeros_k = take(k)
-        assert o == ws.shape[0]
+        carver.done()
         z = self._zeros_k
         self._free_rows: _KernelRows = (z, z, z, np.zeros((k, n)), z, z, z)
         self._free = base.Command(u0=self.u0, B=None)

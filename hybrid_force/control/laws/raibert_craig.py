@@ -310,15 +310,8 @@ class RaibertCraigWorkspace(base.Law):
         # kernel takes whole (_raibert_craig_kernels.hybrid_steady, its layout)
         self._ws = ws = np.zeros(_K.workspace_size(n, k, width))
         ws[:3] = [k, n, width]
-        o = 3
-
-        def take(*shape: int) -> np.ndarray:
-            nonlocal o
-            size = math.prod(shape)
-            view = ws[o : o + size].reshape(shape)
-            o += size
-            return view
-
+        carver = base.Carver(ws, 3)
+        take = carver.take
         self._descs = take(k, width)
         for i, d in enumerate(descriptors):
             self._descs[i, : d.shape[0]] = d
@@ -339,7 +332,7 @@ class RaibertCraigWorkspace(base.Law):
         self.last_u_pos = self._u_pos
         self._B = take(n, k)
         self._zeros_k = take(k)
-        assert o == ws.shape[0]
+        carver.done()
         self._plain = base.Command(u0=self._u0, B=None)
         self._contact = base.Command(u0=self._u0, B=self._B if gains.kp > 0 else None)
 
