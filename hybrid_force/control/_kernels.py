@@ -387,6 +387,22 @@ def steady_parts(pack: np.ndarray, n: int, k: int) -> tuple[np.ndarray, np.ndarr
     return pack[0:n], pack[n : n + k], pack[n + k : n + 2 * k]
 
 
+@_inline
+def steady_inputs(
+    q: np.ndarray, desired: np.ndarray, steady: np.ndarray, n: int, k: int
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
+]:  # fmt: skip
+    """What every law's steady contact kernel starts with: e_q = q − q_d (q: (n,) measured, a
+    Euclidean arm) written into the supervisor's steady pack, and the views e_q, e_F, f_d
+    (:func:`steady_parts`), q_d, q̇_d, q̈_d and the path sample (:func:`desired_parts`)."""
+    q_d, qd, qdd, sample = desired_parts(desired, n, n)
+    e_q, e_F, f_d = steady_parts(steady, n, k)
+    for i in range(n):
+        e_q[i] = q[i] - q_d[i]
+    return e_q, e_F, f_d, q_d, qd, qdd, sample
+
+
 def arimoto_workspace_size(n: int, k: int) -> int:
     """Length of the paper's law's own flat buffer (:func:`arimoto_parts`)."""
     return 1 + n * n + 3 + 6 * n + 2 * n * k + k
@@ -431,12 +447,10 @@ def arimoto_steady(
     n = v.shape[0]
     Kd, gains, vectors, matrices, zeros = arimoto_parts(ws, n)
     k = zeros.shape[0]
-    q_d, qd, qdd, _ = desired_parts(desired, n, n)
-    e_q, e_F, f_d = steady_parts(steady, n, k)
-    return arimoto_contact(
-        q, q_d, mats, vecs, Kd, flat, v, e_q, qd, qdd, e_F, f_d, zeros, gains, vectors,
-        matrices,
-    )  # fmt: skip
+    e_q, e_F, f_d, _, qd, qdd, _ = steady_inputs(q, desired, steady, n, k)
+    return arimoto_packed(
+        mats, vecs, Kd, flat, v, e_q, qd, qdd, e_F, f_d, zeros, gains, vectors, matrices
+    )
 
 
 # --- clik (hybrid_force.control.clik.DesiredJointPath) --------------------------------------------

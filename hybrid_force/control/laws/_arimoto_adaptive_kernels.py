@@ -29,6 +29,7 @@ from hybrid_force.control._kernels import (
     constraint_parts,
     desired_parts,
     reference,
+    steady_inputs,
     steady_parts,
 )
 from hybrid_force.control._linalg_kernels import dot
@@ -255,10 +256,7 @@ def reference_steady(
     params, vectors, matrices, _, _, _, _, _, _, zeros, q_pass = workspace_parts(ws, n)
     k = zeros.shape[0]
     _, cols, squares, _ = constraint_parts(flat, k, n)
-    q_d, qd, qdd, _ = desired_parts(desired, n, n)
-    e_q, e_F, f_d = steady_parts(steady, n, k)
-    for i in range(n):
-        e_q[i] = q[i] - q_d[i]
+    e_q, e_F, f_d, q_d, qd, qdd, _ = steady_inputs(q, desired, steady, n, k)
     reference_velocities(
         squares[0], squares[1], cols[0], cols[1], v, e_q, q_d, qd, qdd, e_F, f_d, zeros,
         params, vectors, matrices, q_pass,

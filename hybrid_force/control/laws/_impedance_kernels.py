@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._kernels import constraint_parts, desired_parts, steady_parts
+from hybrid_force.control._kernels import constraint_parts, steady_inputs
 from hybrid_force.control._linalg_kernels import (
     cholesky,
     cholesky_solve_column,
@@ -231,10 +231,7 @@ def impedance_steady(
     normals = ws[o : o + 3 * k].reshape((3, k))
     along = ws[o + 3 * k : o + 6 * k].reshape((k, 3))
     rows, _, _, _ = constraint_parts(flat, k, n)
-    q_d, qd, qdd, sample = desired_parts(desired, n, n)
-    e_q, _, _ = steady_parts(steady, n, k)
-    for i in range(n):
-        e_q[i] = q[i] - q_d[i]
+    e_q, _, _, _, qd, qdd, sample = steady_inputs(q, desired, steady, n, k)
     none = ws[0:0]
     return impedance(
         mats, vecs, jac, tip, v, e_q, qd, qdd, sample[0], sample[1], rows[2], normals, along,

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from hybrid_force._jit import jit as _jit
-from hybrid_force.control._kernels import constraint_parts, desired_parts, steady_parts
+from hybrid_force.control._kernels import constraint_parts, steady_inputs
 from hybrid_force.control._linalg_kernels import (
     cholesky,
     cholesky_solve_column,
@@ -259,10 +259,7 @@ def osc_steady(
     o += n * k
     zeros = ws[o : o + k]
     rows, _, _, scalars = constraint_parts(flat, k, n)
-    q_d, qd, qdd, sample = desired_parts(desired, n, n)
-    e_q, e_F, f_d = steady_parts(steady, n, k)
-    for i in range(n):
-        e_q[i] = q[i] - q_d[i]
+    e_q, e_F, f_d, _, qd, qdd, sample = steady_inputs(q, desired, steady, n, k)
     return osc_hybrid(
         mats, vecs, jac, tip, v, e_q, qd, qdd, sample[0], sample[1], sample[2], descs, grads,
         scalars[2], scalars[3], scalars[5], rows[2], e_F, f_d, zeros, CONTACT, gains, work,
