@@ -15,6 +15,10 @@ if TYPE_CHECKING:
     from hybrid_force.model.robot import Robot
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+
+# every kernel bound for its call site's argument types checks them at every call
+# (hybrid_force._jit.entry), in this process and in the CLI's processes the tests start
+os.environ["HYBRID_FORCE_CHECK_ENTRIES"] = "1"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 # --- the browser tests: Debian's Chromium through Playwright (never `playwright install`) ---

@@ -24,6 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force import _checks as checks
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import BadInputError, ControlError, ReachError
 from hybrid_force.geometry.paths import Path
@@ -38,6 +39,7 @@ _START_TOL = 1e-9  # [m] accepted ‖k(q_d(0)) − p_d(0)‖
 _COND_MAX = 1e8  # condition number of J J^T beyond which J is treated as singular
 _TARGET = "3 finite real numbers [m] (a tip position)"
 _NO_DESCRIPTOR = np.zeros(0)  # "the path sample is already there" for the Newton kernel
+_NO_DESCRIPTOR.flags.writeable = False  # as the paths' own descriptors: one type (entry)
 
 
 @dataclass(frozen=True)
@@ -275,6 +277,14 @@ class DesiredJointPath:
         self._difference = gain > 0.0 and not robot.euclidean
         # what each step passes to Pinocchio and the kernels, looked up once
         self._step_args = (robot.model, self._data, robot.tip_id, robot.euclidean)
+        # the step's kernels for their arguments' types (hybrid_force._jit.entry): this
+        # buffer's views, the view of the tip, Pinocchio's (6, n) Jacobians, a descriptor
+        model, data, fid, _ = self._step_args
+        pin.computeJointJacobians(model, data, self.q)
+        J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+        self._velocity_ws = entry(K.clik_velocity_ws, J6, self._tip, self._ws)
+        self._acceleration_ws = entry(K.clik_acceleration_ws, J6, J6, self._ws)
+        self._newton_ws = entry(K.newton_step_ws, _NO_DESCRIPTOR, 0.0, self._tip, self._ws)
 
     def _tip_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         model, data, fid = self.robot.model, self._data, self.robot.tip_id
@@ -294,11 +304,11 @@ class DesiredJointPath:
         J6 = pin.getFrameJacobian(model, data, fid, _LWA)
         if self._difference:  # (a Euclidean arm's q_d − posture is formed in the kernel)
             self._dq_post[:] = pin.difference(model, self.posture, q)
-        cond = _K.clik_velocity_ws(J6, self._tip, ws)
+        cond = self._velocity_ws(J6, self._tip, ws)
         if not cond < _COND_MAX:  # the cheap bound of cond(J Jᵀ); the SVD names the values
             _check_conditioning(J6[:3], self.t, q, self.robot)
         pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
-        _K.clik_acceleration_ws(J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), ws)
+        self._acceleration_ws(J6, pin.getFrameJacobianTimeVariation(model, data, fid, _LWA), ws)
 
     def advance(self, dt: float) -> None:
         """Move q_d, q̇_d, q̈_d to t + dt (predictor + one Newton correction); t = t0 + i·dt
@@ -325,7 +335,7 @@ class DesiredJointPath:
             desc = _NO_DESCRIPTOR
         if euclidean:
             # (a path with a descriptor is sampled at t inside this call)
-            K.newton_step_ws(desc, self.t, p, self._ws)
+            self._newton_ws(desc, self.t, p, self._ws)
         else:
             self.q[:] = pin.integrate(model, q_pred, self._Jp @ (self.p_d - p))
         self._update_derivatives()

@@ -28,12 +28,13 @@ The acceleration-level constraint used by the simulator is the exact second time
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 import numpy as np
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import SurfaceError
 from hybrid_force.geometry.surface_base import Surface
@@ -186,6 +187,7 @@ class Constraint:
         self._scratch[0] = float(self._tip_scaling)
         self._grad, self._hess = self._scratch[1:4], self._scratch[4:].reshape(3, 3)
         self._one = len(self.surfaces) == 1  # evaluate() in one compiled call
+        self._one_ws: Callable[..., tuple[float, float, float]] | None = None  # its entry
 
     @property
     def k(self) -> int:
@@ -325,7 +327,13 @@ class Constraint:
             assert packs is not None  # packed() always returns terms with their packs
         _, _, jac, tip = packs
         if grad is self._grad:  # a closed form: ∇Φ, ∇²Φ written into the scratch
-            grad_norm, row_norm, jmax = _K.constraint_one_ws(desc, self._scratch, jac, tip, v, flat)
+            kernel = self._one_ws
+            if kernel is None:  # bound at the first call: the packs of any terms and rows
+                # made by zeros(), an (n,) velocity, the surface's own descriptor
+                kernel = self._one_ws = entry(
+                    _K.constraint_one_ws, desc, self._scratch, jac, tip, v, flat
+                )
+            grad_norm, row_norm, jmax = kernel(desc, self._scratch, jac, tip, v, flat)
         else:
             grad_norm, row_norm, jmax = _K.constraint_one_flat(
                 desc, grad, hess, jac, tip, v, self._tip_scaling, flat

@@ -44,10 +44,13 @@ its numpy oracle.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.clik import _COND_MAX, ClikSettings, StepClock, desired_views
 from hybrid_force.control.tool import ToolTarget, axis_angle, cross3
@@ -303,6 +306,7 @@ class PoseJointPath:
         nq = self.robot.nq
         # q_d, q̇_d, q̈_d and the path sample as views of one flat pack, which a law's
         # steady-contact kernel takes as one argument (``control._kernels.desired_parts``)
+        self._kernels: dict[str, Callable[..., Any]] = {}  # the step's kernels (_bind)
         self.desired_pack = np.zeros(nq + 2 * n + 9)
         self.q, self.qd, self.qdd, self._smp = desired_views(self.desired_pack, n, nq)
         self.q[:] = self.posture
@@ -347,10 +351,12 @@ class PoseJointPath:
         if self._desc.shape[0] == 0:
             self._grad[:], self._hess[:], self._third[:] = self.target.surface_terms(smp)
         R_fix = self._R_fix if self._R_fix is not None else self._eye3
-        status = _PK.pose_goal(
+        args = (
             self._desc, smp, self._grad, self._hess, self._third, self._tilt_axis,
             self._travel, self._tool, R_fix, self._goal, self._Rd,
         )  # fmt: skip
+        goal = self._kernels.get("goal") or self._bind("goal", _PK.pose_goal, args)
+        status = goal(*args)
         if status:  # an undefined direction (∇Φ = 0, the lean or the held roll)
             raise self.target.undefined(status, t, smp[0])
         self.a_d = self._a_d
@@ -377,7 +383,8 @@ class PoseJointPath:
         pin.updateFramePlacement(model, data, robot.tip_id)
         args = (self._tip, self._rot, self._smp, self._goal, self._Rd, self._frame, self._cfg)
         if robot.euclidean:
-            _PK.pose_newton(*args, self._S, self._Ap, q_pred, self.q)
+            a = (*args, self._S, self._Ap, q_pred, self.q)
+            (self._kernels.get("newton") or self._bind("newton", _PK.pose_newton, a))(*a)
         else:
             step = np.zeros(robot.nv)
             _PK.pose_newton(*args, self._S, self._Ap, self._zeros, step)
@@ -401,14 +408,28 @@ class PoseJointPath:
                 self._dq_post[:] = pin.difference(model, self.posture, q)
         head = (self._rot, self._smp, self._goal, self._Rd, self._frame, self._cfg, self._dq_post)
         bufs = (self._S, self._A, self._Ap, self._W, self._N, self._y, self._w, self.qd)
-        cond = _PK.pose_velocity(J6, self._tip, *head, *bufs)
+        v_args = (J6, self._tip, *head, *bufs)
+        velocity = self._kernels.get("velocity") or self._bind(
+            "velocity", _PK.pose_velocity, v_args
+        )
+        cond = velocity(*v_args)
         if not cond < _COND_MAX:  # the cheap bound; the SVD names the values
             self._check_conditioning(self._A.copy(), q)
         pin.computeJointJacobiansTimeVariation(model, data, q, self.qd)
         Jd6 = pin.getFrameJacobianTimeVariation(model, data, fid, LWA)
-        _PK.pose_acceleration(
-            J6, Jd6, *head, *bufs, q, self._dt_pred, self.qdd, self._q_pred
-        )  # fmt: skip
+        a = (J6, Jd6, *head, *bufs, q, self._dt_pred, self.qdd, self._q_pred)
+        acceleration = self._kernels.get("acceleration")
+        if acceleration is None:  # (for a float dt, whatever the first one was)
+            b = (*a[:-3], float(a[-3]), *a[-2:])
+            acceleration = self._bind("acceleration", _PK.pose_acceleration, b)
+        acceleration(*a)
+
+    def _bind(self, name: str, kernel: Callable[..., Any], args: tuple) -> Callable[..., Any]:
+        """``kernel`` for the types of ``args`` (:func:`hybrid_force._jit.entry`), kept as
+        ``name`` for the later calls: this object's buffers and views, Pinocchio's (6, n)
+        Jacobians, a Euclidean arm's q."""
+        bound = self._kernels[name] = entry(kernel, *args)
+        return bound
 
     def _check_conditioning(self, A: np.ndarray, q: np.ndarray) -> None:
         """ReachError naming t, q_d and the singular values when cond(AAᵀ + λ²I) ≥ the limit."""

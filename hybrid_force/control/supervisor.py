@@ -41,6 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from hybrid_force import _checks as checks
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.clik import (
     ClikSettings,
@@ -362,6 +363,7 @@ class HybridController:
         # which the steady contact step hands to the law as one argument (LawInput.steady)
         # and the momenta's update takes whole (_kernels.steady_parts, accumulate_steady)
         self._steady_pack = pack = np.zeros(n + 4 * k)
+        self._accumulate_steady: Callable[..., None] | None = None  # (_accumulate)
         self.f_d_contact = pack[n + k : n + 2 * k]
         self.f_d_contact[:] = start.f_d
         self.approach_rate = s.Lambda if s.approach_rate is None else s.approach_rate
@@ -597,6 +599,11 @@ class HybridController:
         """F += f dt, F_d += f_d dt, e_F = F − F_d (eq. 3), in one compiled call."""
         st = self._int
         if st.f_d is self.f_d_contact:  # all four in the steady pack: one argument
-            _K.accumulate_steady(self._steady_pack, f, dt)
+            kernel = self._accumulate_steady
+            if kernel is None:  # bound at the first call (entry): the force's (k,) array
+                kernel = self._accumulate_steady = entry(
+                    _K.accumulate_steady, self._steady_pack, f, float(dt)
+                )
+            kernel(self._steady_pack, f, dt)
         else:
             _K.accumulate(st.F, f, st.F_d, st.f_d, dt, self._e_F)

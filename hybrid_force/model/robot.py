@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.errors import BadInputError, ControlError, RobotError
 from hybrid_force.model.urdf_check import check_mass_matrix
@@ -494,8 +495,15 @@ class Robot:
         model, fid, frame = self.model, self.tip_id, _LWA
         crba, gravity, coriolis = pin.crba, pin.computeGeneralizedGravity, pin.computeCoriolisMatrix
         place, jacobian = pin.updateFramePlacement, pin.getFrameJacobian
-        variation, kernel = pin.getFrameJacobianTimeVariation, _K.robot_terms
+        variation = pin.getFrameJacobianTimeVariation
         p = data.oMf[fid].translation  # a view: data's placement of the tip, updated in place
+        # the kernel for the argument types of every call (entry): Pinocchio's results of
+        # this model (fixed shapes, whatever q), the view p, an (n,) velocity and out's pack
+        q0, v0 = pin.neutral(model), np.zeros(model.nv)
+        Mu, g, C = crba(model, data, q0), gravity(model, data, q0), coriolis(model, data, q0, v0)
+        place(model, data, fid)
+        J, dJ = jacobian(model, data, fid, frame), variation(model, data, fid, frame)
+        kernel = entry(_K.robot_terms, Mu, C, g, p, J, dJ, v0, flat)
 
         def terms(q: Vector, v: Vector) -> RobotTerms:
             Mu = crba(model, data, q)

@@ -28,11 +28,13 @@ sets A q̇⁺ = 0 with ``pin.impulseDynamics``; the impulse [N·s] is in the sam
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.errors import ScenarioError
@@ -141,6 +143,9 @@ class ConstrainedDynamics:
         self.limits: np.ndarray | None = None
         self.set_limits(effort)
         self._stacked: ConstraintTerms | None = None  # the copy of k > 1 rows (_flat_of)
+        # solve_checked's two kernels, bound at its first call (hybrid_force._jit.entry)
+        self._kkt: Callable[..., None] | None = None
+        self._loop: Callable[..., int] | None = None
 
     def set_limits(self, effort: np.ndarray | None) -> None:
         """The effort limits (n,) [N·m or N] :meth:`solve_checked` checks from now on (None:
@@ -203,9 +208,15 @@ class ConstrainedDynamics:
             numpy.linalg.LinAlgError: the loop has no unique solution (as :meth:`solve`).
         """
         flat, ws = self._flat_of(cons), self._ws
-        _K.kkt_inputs(flat, ws, nle, self._nle)
+        kkt, loop = self._kkt, self._loop
+        if kkt is None:  # bound at the first call (entry): packs, (n,) and (n, k) arrays
+            kkt = self._kkt = entry(_K.kkt_inputs, flat, ws, nle, self._nle)
+        kkt(flat, ws, nle, self._nle)
         ddq0 = pin.forwardDynamics(self.model, self.data, u0, cons.A, self.gamma)
-        status = _K.loop_checked(self._U, self._D, flat, B, ddq0, self.data.lambda_c, u0, ws)
+        lam = self.data.lambda_c
+        if loop is None:
+            loop = self._loop = entry(_K.loop_checked, self._U, self._D, flat, B, ddq0, lam, u0, ws)
+        status = loop(self._U, self._D, flat, B, ddq0, lam, u0, ws)
         if status < 0:
             raise np.linalg.LinAlgError(
                 "the loop u = u0 + B f has no unique solution: A M⁻¹ (Aᵀ + B) is singular"

@@ -10,8 +10,12 @@ measured force, the tool's angle and the phase. The column layout is defined her
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 import numpy as np
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.laws.base import Command, law_log_names
 from hybrid_force.geometry.offset import contact_points
@@ -73,6 +77,8 @@ class Record:
         self._clik = law.clik if law is not None else None
         self._task_f_d = sc.control.f_d_for(k)
         self._no_q_d, self._no_B = np.full(nq, np.nan), np.zeros((nv, k))
+        self._p_d = np.zeros(3)  # the path's point, when it is not the CLIK's
+        self._row: Callable[..., bool] | None = None  # record_row's entry, at the first sample
         # the law's own signals (its optional log hook), recorded at every sample
         self._log_law = (
             getattr(law.law, "log_values", None) if law is not None and self.law_signals else None
@@ -143,22 +149,31 @@ class Record:
         """
         plant, law, clik = self._plant, self._law, self._clik
         applied, B = plant.applied, cmd.B
-        ok = _K.record_row(
+        if self._own_p_d and clik is not None:
+            p_d = clik.p_d
+        else:  # sampled: the desired point now, not the one of the last tick (held 1/rate s)
+            p_d = self._p_d
+            p_d[:] = self._path.position(t)  # (into this buffer: any path's array)
+        args = (
             self._buf, i, t, q, v,
             clik.q if clik is not None else self._no_q_d,
             # the command u0 + B f: the applied torque unless the effort limits changed it
             cmd.u0, self._no_B if B is None else B,
-            f, terms.p,
-            # sampled: the desired point now, not the one of the last tick (held 1/rate s)
-            clik.p_d if self._own_p_d and clik is not None else self._path.position(t),
+            f, terms.p, p_d,
             law.f_d if law is not None else self._task_f_d,
             distance,
-            law.V if law is not None else np.nan,
+            law.V if law is not None else math.nan,
             # the plant's contact state: a tool off the surface is never logged in contact
             CONTACT if plant.in_contact else self._ctrl.phase(distance),
             # the applied torque (the commanded torque, before the limits, goes to u_cmd)
             self._no_u if applied is None else applied,
         )  # fmt: skip
+        row = self._row
+        if row is None:  # bound at the first sample (entry): the arrays of later ones,
+            # t and V as floats (a Python int given later is converted, not the reverse)
+            row = self._row = entry(_K.record_row, *args[:2], float(t), *args[3:13],
+                                    float(args[13]), *args[14:])  # fmt: skip
+        ok = row(*args)
         if self._extras:
             self._record_extras(i, t, q, terms, f)
         self.filled = i + 1

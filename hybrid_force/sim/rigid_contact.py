@@ -29,9 +29,12 @@ One step of :class:`RigidContact`, on the arm of :class:`~hybrid_force.sim.arm.A
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import _GRAD_TOL, ConstraintTerms
 from hybrid_force.control.laws.base import Command
@@ -94,6 +97,9 @@ class RigidContact(SurfaceContact):
         ws[0] = desc.shape[0]
         ws[o + 5 * n :] = desc
         self._ws, self._no_desc = ws, desc.shape[0] == 0
+        # the contact step's two kernels, bound at its first call (hybrid_force._jit.entry)
+        self._euler: Callable[..., None] | None = None
+        self._project: Callable[..., float] | None = None
         self._given = (ws[1:2], ws[2:5])  # Φ and ∇Φ of a surface without a descriptor
         self._tmp = (ws[o : o + n], ws[o + n : o + 2 * n])  # q_tmp, v_tmp
         self._q_out = (ws[o + 2 * n : o + 3 * n], ws[o + 3 * n : o + 4 * n])
@@ -239,14 +245,20 @@ class RigidContact(SurfaceContact):
         model, data, imp, fid, tip, surface = self._step_args
         ws = self._ws
         q_tmp, v_tmp = self._tmp
-        _K.euler_step(q, v, ddq, dt, ws)
+        euler, project = self._euler, self._project
+        if euler is None:  # (n,) states, the solver's q̈, this buffer
+            euler = self._euler = entry(_K.euler_step, q, v, ddq, float(dt), ws)
+        euler(q, v, ddq, dt, ws)
         pin.computeJointJacobians(model, data, q_tmp)
         pin.updateFramePlacement(model, data, fid)  # the tip, in the view ``tip``
         if self._no_desc:  # no closed form: evaluate in Python, into the buffer
             phi_given, grad_given = self._given
             phi_given[0], grad_given[:], _ = surface.evaluate(tip)
         slot = 1 if q is self._q_out[0] else 0
-        gn = _K.project_one(tip, pin.getFrameJacobian(model, data, fid, _LWA), ws, slot)
+        J = pin.getFrameJacobian(model, data, fid, _LWA)
+        if project is None:  # the view of the tip, Pinocchio's (6, n) Jacobian
+            project = self._project = entry(_K.project_one, tip, J, ws, slot)
+        gn = project(tip, J, ws, slot)
         if not gn >= _GRAD_TOL:
             self.arm._rows(q_tmp)  # raises the precise SurfaceError
         # v⁺: impulseDynamics' own new array (the next step reads it, never writes it)

@@ -29,6 +29,7 @@ import math
 import numpy as np
 
 from hybrid_force import _checks as checks
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control import force_loop
 from hybrid_force.control.constraint import ConstraintTerms
@@ -208,9 +209,11 @@ class LawWorkspace(base.Law):
         desired = inp.desired
         steady, pack = inp.steady, desired.pack
         if steady is not None and pack is not None and inp.approach is None:
-            self.V = _K.arimoto_steady(
-                q, inp.v, r_packs[0], r_packs[1], flat, pack, steady, self._ws
-            )
+            args = (q, inp.v, r_packs[0], r_packs[1], flat, pack, steady, self._ws)
+            kernel = self._steady_kernel
+            if kernel is None:
+                kernel = self._steady_kernel = entry(_K.arimoto_steady, *args)
+            self.V = kernel(*args)
             self.in_contact_law = True
             return self._hybrid
         approach = self._zeros_k if inp.approach is None else inp.approach

@@ -67,12 +67,14 @@ instead of three, ½ sᵀ M̂ s from the kinetic energy regressor, into prealloc
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 import pinocchio as pin
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control.constraint import ConstraintTerms
 from hybrid_force.control.laws import base
@@ -260,6 +262,9 @@ class AdaptiveArimotoWorkspace(base.Law):
         self._free = base.Command(u0=self.u0, B=None)
         self.in_contact_law = False
         self._called = False
+        self._command_steady: Callable[..., float] | None = None  # (hybrid_at, entry)
+        self._update_steady: Callable[..., None] | None = None  # (update)
+        self._take: Callable[..., None] | None = None  # (log_values)
         # one Data for all the passes (the model with gravity and its copy without have the
         # same structure; each pass sets what it reads): less memory touched per step
         self._pin_args = (
@@ -296,7 +301,14 @@ class AdaptiveArimotoWorkspace(base.Law):
         if steady is None or pack is None or r_packs is None or flat is None:
             return super().hybrid_at(inp, q)
         ws, v = self._ws, inp.v
-        _K.reference_steady(q, v, flat, pack, steady, ws)
+        # the three steady kernels, each bound at its first call for its arguments' types
+        # (hybrid_force._jit.entry): the packs, the state, the passes' results
+        reference = self._steady_kernel
+        if reference is None:
+            reference = self._steady_kernel = entry(
+                _K.reference_steady, q, v, flat, pack, steady, ws
+            )
+        reference(q, v, flat, pack, steady, ws)
         model, data, model0, regress, zeros, w_plus, w_minus, qddot_r0, s, beta = self._pin_args
         q = self._q
         Y_plus = regress(model, data, q, w_plus, qddot_r0)
@@ -312,7 +324,12 @@ class AdaptiveArimotoWorkspace(base.Law):
         kinetic = pin.computeKineticEnergyRegressor(model0, data, q, s)
         self._called = self.in_contact_law = True
         mats = r_packs[0]
-        self.V = _K.command_steady(Y_plus, Y_minus, Y_A, kinetic, mats, flat, pack, steady, ws)
+        command = self._command_steady
+        if command is None:
+            command = self._command_steady = entry(
+                _K.command_steady, Y_plus, Y_minus, Y_A, kinetic, mats, flat, pack, steady, ws
+            )
+        self.V = command(Y_plus, Y_minus, Y_A, kinetic, mats, flat, pack, steady, ws)
         return self._hybrid
 
     def _run(
@@ -360,7 +377,12 @@ class AdaptiveArimotoWorkspace(base.Law):
         if not self._called:
             return
         if self.in_contact_law:  # the gradients in the law's buffer: one argument
-            _K.update_steady(self._ws, self._n, f, dt)
+            update = self._update_steady
+            if update is None:
+                update = self._update_steady = entry(
+                    _K.update_steady, self._ws, self._n, f, float(dt)
+                )
+            update(self._ws, self._n, f, dt)
         else:
             _K.adaptive_update(
                 self._free_gradients, self._no_force, dt, self._params, self._Gamma,
@@ -406,9 +428,10 @@ class AdaptiveArimotoWorkspace(base.Law):
 
     def log_values(self, out: np.ndarray) -> None:
         """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
-        # (the indices are the adapted columns', all in range: "clip" only skips the
-        # buffered bounds check of the default mode)
-        self.theta.take(self._adapted, out=out, mode="clip")
+        take = self._take
+        if take is None:  # bound at the first call (entry): a row of the record's log
+            take = self._take = entry(_K.take_into, self.theta, self._adapted, out)
+        take(self.theta, self._adapted, out)  # (the adapted columns: all in range)
 
 
 def build(context: base.LawContext) -> AdaptiveArimotoWorkspace:

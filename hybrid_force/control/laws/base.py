@@ -112,10 +112,29 @@ class Desired:
 
 @dataclass(frozen=True)
 class Command:
-    """Joint command u = u0 + B f (u0: (n,) [N or N·m]; B: (n, k) or None when u ignores f)."""
+    """Joint command u = u0 + B f (u0: (n,) [N or N·m]; B: (n, k) or None when u ignores f).
+
+    Made C-contiguous, writeable float64 here (the same arrays when they are, as a law's
+    buffers are): the plant's and the record's kernels are bound for those types
+    (:func:`hybrid_force._jit.entry`), so any law's command reaches them so.
+
+    Raises:
+        ControlError: u0 is not one-dimensional or B not two-dimensional.
+    """
 
     u0: np.ndarray
     B: np.ndarray | None
+
+    def __post_init__(self) -> None:
+        u0 = np.require(self.u0, dtype=float, requirements=("C", "W"))
+        if u0.ndim != 1:
+            raise ControlError(f"a command's u0 must be an (n,) array, got shape {u0.shape}")
+        object.__setattr__(self, "u0", u0)
+        if self.B is not None:
+            B = np.require(self.B, dtype=float, requirements=("C", "W"))
+            if B.ndim != 2:
+                raise ControlError(f"a command's B must be an (n, k) array, got shape {B.shape}")
+            object.__setattr__(self, "B", B)
 
 
 @dataclass(frozen=True)
@@ -231,6 +250,9 @@ class Law:
     """
 
     V: float = math.nan
+    #: the steady contact kernel of :meth:`hybrid_at`, bound at its first call for its
+    #: arguments' types (:func:`hybrid_force._jit.entry`); None until then
+    _steady_kernel: Callable[..., Any] | None = None
 
     def free_space(self, inp: LawInput) -> Command:
         """Torques away from the surface: track q_d (or p_d); ``inp.cons`` is None."""

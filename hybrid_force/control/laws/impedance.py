@@ -80,6 +80,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control import force_loop
 from hybrid_force.control.constraint import Constraint, ConstraintTerms
@@ -218,7 +219,12 @@ class ImpedanceWorkspace(base.Law):
             return super().hybrid_at(inp, q)
         self._touch(inp.f_d)
         mats, vecs, jac, tip = r_packs
-        if _K.impedance_steady(q, inp.v, mats, vecs, jac, tip, flat, pack, steady, ws) != 0:
+        kernel = self._steady_kernel
+        if kernel is None:
+            kernel = self._steady_kernel = entry(
+                _K.impedance_steady, q, inp.v, mats, vecs, jac, tip, flat, pack, steady, ws
+            )
+        if kernel(q, inp.v, mats, vecs, jac, tip, flat, pack, steady, ws) != 0:
             raise _singular(inp.robot)
         assert self._command is not None  # (made with the buffers)
         return self._command

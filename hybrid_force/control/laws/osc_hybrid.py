@@ -84,6 +84,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control import force_loop
 from hybrid_force.control.constraint import Constraint
@@ -387,7 +388,12 @@ class OscHybridWorkspace(base.Law):
             self._grads[:, i] = surface.evaluate(robot.p)[1]
         mats, vecs, jac, tip = r_packs
         self._mode, self._J = _CONTACT, robot.J
-        cond = _K.osc_steady(q, inp.v, mats, vecs, jac, tip, flat, pack, steady, self._ws)
+        kernel = self._steady_kernel
+        if kernel is None:
+            kernel = self._steady_kernel = entry(
+                _K.osc_steady, q, inp.v, mats, vecs, jac, tip, flat, pack, steady, self._ws
+            )
+        cond = kernel(q, inp.v, mats, vecs, jac, tip, flat, pack, steady, self._ws)
         if not 0.0 <= cond < _COND_MAX:
             self._refuse(cond, robot)
         return self._contact

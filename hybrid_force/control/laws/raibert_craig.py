@@ -104,6 +104,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
 from hybrid_force.control import force_loop
 from hybrid_force.control.laws import base
@@ -362,7 +363,12 @@ class RaibertCraigWorkspace(base.Law):
         if self._python_gradients:
             for i, surface in enumerate(self.surfaces):
                 self._grads[i] = surface.evaluate(tip[0])[1]
-        if _K.hybrid_steady(q, inp.v, mats, vecs, jac, tip, flat, pack, steady, self._ws) != 0:
+        kernel = self._steady_kernel
+        if kernel is None:
+            kernel = self._steady_kernel = entry(
+                _K.hybrid_steady, q, inp.v, mats, vecs, jac, tip, flat, pack, steady, self._ws
+            )
+        if kernel(q, inp.v, mats, vecs, jac, tip, flat, pack, steady, self._ws) != 0:
             raise np.linalg.LinAlgError("Singular matrix")  # an exactly singular solve
         return self._contact
 
