@@ -214,6 +214,12 @@ class AdaptiveArimotoWorkspace(base.Law):
         u0: (n,), B: (n, k) of the last command. in_contact_law: True after :meth:`hybrid`.
     """
 
+    # the kernels of hybrid_at (after the passes), update and log_values, each bound at its
+    # first call (hybrid_force._jit.entry; hybrid_at's first: Law._steady_kernel)
+    _command_steady: Callable[..., float] | None = None
+    _update_steady: Callable[..., None] | None = None
+    _take: Callable[..., None] | None = None
+
     def __init__(self, robot: Robot, k: int, gains: base.Gains, adaptation: Adaptation) -> None:
         self.gains = gains
         self.adaptation = adaptation
@@ -262,9 +268,6 @@ class AdaptiveArimotoWorkspace(base.Law):
         self._free = base.Command(u0=self.u0, B=None)
         self.in_contact_law = False
         self._called = False
-        self._command_steady: Callable[..., float] | None = None  # (hybrid_at, entry)
-        self._update_steady: Callable[..., None] | None = None  # (update)
-        self._take: Callable[..., None] | None = None  # (log_values)
         # one Data for all the passes (the model with gravity and its copy without have the
         # same structure; each pass sets what it reads): less memory touched per step
         self._pin_args = (
