@@ -23,23 +23,33 @@ from pathlib import Path
 
 _CHILD = """
 import sys, warnings
+import hybrid_force
 from hybrid_force.scenario.loader import load_scenario
 from hybrid_force.sim.loop import simulate
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     sc = load_scenario(sys.argv[1], {"sim.duration": float(sys.argv[2])})
     simulate(sc)  # warm: the kernels load (or compile) once per process
-    print(simulate(sc).meta["steps_per_second"])
+    print(hybrid_force.__file__, simulate(sc).meta["steps_per_second"])
 """
 
 
 def _rate(tree: Path, scenario: Path, duration: float) -> float:
+    """steps/s of one run in a fresh process importing the package of ``tree``.
+
+    The child runs in ``tree``: ``python -c`` puts its working directory first on sys.path,
+    before PYTHONPATH, so a child started in another checkout would import that one's package
+    (and an editable install's path comes after both). The child names the package it ran.
+    """
     env = dict(os.environ, PYTHONPATH=str(tree))
     out = subprocess.run(
         [sys.executable, "-c", _CHILD, str(scenario), str(duration)],
-        env=env, capture_output=True, text=True, check=True,
+        env=env, cwd=tree, capture_output=True, text=True, check=True,
     )  # fmt: skip
-    return float(out.stdout.split()[-1])
+    package, rate = out.stdout.split()[-2:]
+    if not Path(package).resolve().is_relative_to(tree.resolve()):
+        raise SystemExit(f"the run for {tree} imported {package}, not the tree's package")
+    return float(rate)
 
 
 def main() -> None:
