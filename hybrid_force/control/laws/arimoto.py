@@ -25,7 +25,6 @@ one finds V̇ = −sᵀK_d s − βγ e_Fᵀe_F (eq. 16) for any row scaling, be
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
@@ -165,10 +164,6 @@ class LawWorkspace(base.Law):
         in_contact_law: True when the last call was the hybrid law.
     """
 
-    #: the kernel of the law on packs (free space, near, the supervisor's contact), bound at
-    #: its first call (hybrid_force._jit.entry)
-    _packed_kernel: Callable[..., float] | None = None
-
     def __init__(self, n: int, k: int, gains: base.Gains) -> None:
         self.gains = gains
         # the law's own arrays as views of one flat buffer (_kernels.arimoto_parts), so the
@@ -261,11 +256,8 @@ class LawWorkspace(base.Law):
                 r_packs[0], r_packs[1], self.gains.Kd, flat, inp.v, inp.e_q, desired.qd,
                 desired.qdd, e_F, f_d, approach, self._gain_values, self._vectors, matrices,
             )  # fmt: skip
-            kernel = self._packed_kernel
-            if kernel is None:  # bound at the first call (entry): free space's arrays of
-                # k = 0 have the types of the contact law's
-                kernel = self._packed_kernel = entry(_K.arimoto_packed, *args)
-            self.V = kernel(*args)
+            free = matrices is self._free_matrices  # one entry per law
+            self.V = self._entry(free, _K.arimoto_packed, args)(*args)
             return
         g = self.gains
         self.V = _K.arimoto(

@@ -351,10 +351,12 @@ class AdaptiveArimotoWorkspace(base.Law):
         if not self._euclidean:
             q[:] = pin.integrate(self._model, desired.q, e_q)
         vectors, params = self._vectors, self._params
-        _K.reference_velocities(
+        args = (
             cons.Q, cons.Qdot, cons.A_pinv, cons.A_pinv_dot, inp.v, e_q, desired.q, desired.qd,
             desired.qdd, e_F, f_d, approach, params, vectors, matrices, q,
         )  # fmt: skip
+        free = buffers is not self._hybrid_buffers  # one entry per law (their layouts differ)
+        self._entry((free, "reference"), _K.reference_velocities, args)(*args)
         model, data, model0, regress, zeros, w_plus, w_minus, qddot_r0, s, beta = self._pin_args
         Y_plus = regress(model, data, q, w_plus, qddot_r0)
         Y_minus = regress(model0, data, q, w_minus, zeros)
@@ -368,10 +370,12 @@ class AdaptiveArimotoWorkspace(base.Law):
                     Y_A[j] = regress(model0, data, q, zeros, Ap[:, j])
         kinetic = pin.computeKineticEnergyRegressor(model0, data, q, s)
         self._called = True
-        return _K.adaptive_command(
+        c_args = (
             Y_plus, Y_minus, Y_A, kinetic, self.theta, self.gains.Kd, inp.robot.M, cons.A,
             desired.qd, e_F, f_d, params, vectors, B, gradients,
         )  # fmt: skip
+        command: float = self._entry((free, "command"), _K.adaptive_command, c_args)(*c_args)
+        return command
 
     def update(self, dt: float, f: np.ndarray) -> None:
         """θ̂ += dt · (−σ Γ₀ Yᵀ s) at the force f (k,) [N] met, then the masses' floor, as
@@ -387,10 +391,11 @@ class AdaptiveArimotoWorkspace(base.Law):
                 )
             update(self._ws, self._n, f, dt)
         else:
-            _K.adaptive_update(
-                self._free_gradients, self._no_force, dt, self._params, self._Gamma,
+            args = (
+                self._free_gradients, self._no_force, float(dt), self._params, self._Gamma,
                 self._floor, self.theta,
             )  # fmt: skip
+            self._entry("update", _K.adaptive_update, args)(*args)
 
     def trace(self, e_q: np.ndarray, e_F: np.ndarray, f_d: np.ndarray) -> base.ControlTrace:
         """The :class:`ControlTrace` of the last call (copies of the buffers), V = ½ sᵀ M̂ s

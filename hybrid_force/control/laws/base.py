@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
+from hybrid_force._jit import entry
 from hybrid_force.control.constraint import Constraint
 from hybrid_force.errors import ControlError, did_you_mean
 from hybrid_force.schema import check_fields, specs
@@ -253,6 +254,21 @@ class Law:
     #: the steady contact kernel of :meth:`hybrid_at`, bound at its first call for its
     #: arguments' types (:func:`hybrid_force._jit.entry`); None until then
     _steady_kernel: Callable[..., Any] | None = None
+
+    def _entry(
+        self, key: object, kernel: Callable[..., Any], args: tuple[Any, ...]
+    ) -> Callable[..., Any]:
+        """``kernel`` bound for the types of ``args`` (:func:`hybrid_force._jit.entry`) the
+        first time ``key`` is asked for, then the same: one key per call site and phase (the
+        phases' arrays may differ in layout: a pass's own array seen as (1, n, p) is
+        Fortran-ordered, free space's (0, n, p) buffer is not)."""
+        entries: dict[object, Callable[..., Any]] | None = self.__dict__.get("_entries")
+        if entries is None:
+            entries = self.__dict__["_entries"] = {}
+        bound = entries.get(key)
+        if bound is None:
+            bound = entries[key] = entry(kernel, *args)
+        return bound
 
     def free_space(self, inp: LawInput) -> Command:
         """Torques away from the surface: track q_d (or p_d); ``inp.cons`` is None."""

@@ -287,12 +287,13 @@ class ImpedanceWorkspace(base.Law):
         A = self._no_rows if cons is None else cons.A
         assert A is not None
         none = self._none
-        status = _K.impedance(
+        args = (
             mats, vecs, jac, tip, inp.v, inp.e_q, desired.qd, desired.qdd, p_d, pd_d, A,
             self._normals, self._along, none if approach is None else approach,
             none if cons is None else cons.distance, self.preload, mode, along_given,
             g.omega, g.zeta, g.feedforward, self._u, self._gains, self.offset, self._work,
         )  # fmt: skip
+        status = self._entry((mode, along_given), _K.impedance, args)(*args)  # per phase
         if status != 0:
             raise _singular(robot)
         return self._command
@@ -304,7 +305,8 @@ class ImpedanceWorkspace(base.Law):
         is how the law takes back a push the model does not know of (a gravity over-estimate).
         """
         if self._in_contact and self.gains.force_tracking:
-            _K.advance_preload(self.preload, self._f_d, f, dt * self.gains.force_rate)
+            args = (self.preload, self._f_d, f, float(dt * self.gains.force_rate))
+            self._entry("preload", _K.advance_preload, args)(*args)
 
     def info(self) -> dict[str, Any]:
         """The settings as JSON-able data."""

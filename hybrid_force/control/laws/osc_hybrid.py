@@ -418,12 +418,13 @@ class OscHybridWorkspace(base.Law):
         mats, vecs, jac, tip = packs  # type: ignore[misc]
         self._mode = mode
         self._J = robot.J
-        cond = _K.osc_hybrid(
+        args = (
             mats, vecs, jac, tip, v, e_q, desired.qd, desired.qdd, p_d, pd_d, pdd_d,
             self._descs, self._grads, scale, rate, drift, A, e_F, f_d, approach, mode,
             self._gains, self._work, self._vectors, self._task, self.Lambda, self.Jbar, self.W,
             self.phi, self.B,
         )  # fmt: skip
+        cond = self._entry(mode, _K.osc_hybrid, args)(*args)  # one per phase
         if cond < 0.0:  # M or WᵀW exactly singular: numpy's solve would refuse it
             raise np.linalg.LinAlgError("Singular matrix")
         if not cond < _COND_MAX:  # the error names cond as task_space estimates it (numpy)

@@ -345,10 +345,11 @@ class RaibertCraigWorkspace(base.Law):
         robot, desired = inp.robot, inp.desired
         packs = robot._packs if robot._packs is not None else robot.packed()._packs
         assert packs is not None
-        _K.free_space(
+        args = (
             packs[0], packs[1], self._joint_gains, inp.v, inp.e_q, desired.qd, desired.qdd,
             self.model_feedforward, self._vectors,
         )  # fmt: skip
+        self._entry("free", _K.free_space, args)(*args)
         return self._plain
 
     def hybrid_at(self, inp: base.LawInput, q: np.ndarray) -> base.Command:
@@ -383,13 +384,14 @@ class RaibertCraigWorkspace(base.Law):
             for i, surface in enumerate(self.surfaces):
                 self._grads[i] = surface.evaluate(tip[0])[1]
         near = approach is not None
-        status = _K.hybrid(
+        args = (
             mats, vecs, jac, tip, cons.A, cons.Adot, cons.rate, inp.v, inp.e_q, desired.qd,
             desired.qdd, desired.p, desired.pd, desired.pdd, inp.e_F, inp.f_d,
             self._zeros_k if approach is None else approach, near, self._descs, self._grads,
             self._joint_gains, self._task_gains, self._params, self._flags, self._vectors,
             self._B,
         )  # fmt: skip
+        status = self._entry(near, _K.hybrid, args)(*args)  # one for near, one for contact
         if status != 0:  # an exactly singular solve: numpy's error
             raise np.linalg.LinAlgError("Singular matrix")
         return self._plain if near else self._contact
