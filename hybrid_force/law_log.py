@@ -2,9 +2,9 @@
 
 A law may log signals of its own at every sample (parameter estimates, an admittance state)
 through the optional hook of :class:`~hybrid_force.control.laws.base.Law`: ``log_names()`` and
-``log_values(out)``. The simulator stores them as ``Result.law_log`` (N, m) and their names as
-``meta["law_log_names"]``; a law without the hook logs nothing (m = 0), and so does a result
-file written before the log existed.
+``log_source()`` (the law's own array and where its signals are in it). The simulator stores
+them as ``Result.law_log`` (N, m) and their names as ``meta["law_log_names"]``; a law without
+the hook logs nothing (m = 0), and so does a result file written before the log existed.
 """
 
 from __future__ import annotations

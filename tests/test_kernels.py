@@ -850,10 +850,9 @@ def test_every_law_steady_path_equals_the_general_path(
         f = rng.uniform(5, 15, 1)
         fast.update(DT, f)
         general.update(DT, f)
-        a, b = np.zeros(m), np.zeros(m)
-        fast.law.log_values(a)
-        general.law.log_values(b)
-        np.testing.assert_array_equal(a, b)
+        (a, ia), (b, ib) = fast.law.log_source(), general.law.log_source()
+        assert ia.shape == ib.shape == (m,)
+        np.testing.assert_array_equal(a[ia], b[ib])
         np.testing.assert_array_equal(fast.clik.q, general.clik.q)
 
 
@@ -971,9 +970,10 @@ def test_baumgarte_gamma_into_equals_gamma() -> None:
 def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     """record_row writes [t, q, v, q_d, u0 + B f, p, p_d, f, f_d, phi, V, phase] in the columns
     of Record.widths and reports NaN in q, |v_i| above max_velocity and |f| above max_force;
-    the table, u_cmd and the limits are read from the record's buffer (header [max_velocity,
-    max_force, N, W, u_cmd's columns], then the table's rows, then u_cmd's)."""
-    from hybrid_force.sim._kernels import record_row
+    the table, u_cmd, the law's log and the limits are read from the record's buffer (header
+    [max_velocity, max_force, N, W, u_cmd's columns, the log's columns], then the table's
+    rows, u_cmd's and the log's); the log's row is the law's values at its index."""
+    from hybrid_force.sim._kernels import RECORD_HEADER, record_row
     from hybrid_force.sim.record import Record
 
     rng = np.random.default_rng(9)
@@ -981,22 +981,26 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     k = 2
     widths = Record.widths(nq, nv, k)
     W = Record.width(nq, nv, k)
+    h = RECORD_HEADER
+    assert h == 6
 
-    def buffer(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # (buf, table, u_cmd)
-        buf = np.zeros(5 + 3 * W + 3 * m)
-        buf[:5] = (5.0, 100.0, 3, W, m)
-        return buf, buf[5 : 5 + 3 * W].reshape(3, W), buf[5 + 3 * W :].reshape(3, m)
+    def buffer(m: int, m_log: int = 0) -> tuple[np.ndarray, ...]:  # buf, table, u_cmd, log
+        buf = np.zeros(h + 3 * (W + m + m_log))
+        buf[:h] = (5.0, 100.0, 3, W, m, m_log)
+        o = h + 3 * W
+        table, u_cmd = buf[h:o].reshape(3, W), buf[o : o + 3 * m].reshape(3, m)
+        return buf, table, u_cmd, buf[o + 3 * m :].reshape(3, m_log)
 
-    buf, table, _ = buffer(0)
+    buf, table, _, _ = buffer(0)
     starts = np.concatenate([[0], np.cumsum(widths)])
 
     def field(row: int, index: int, table: np.ndarray = table) -> np.ndarray:  # field ``index``
         return table[row, starts[index] : starts[index + 1]]
 
-    none = np.zeros(0)
+    none, no_index = np.zeros(0), np.zeros(0, dtype=np.int64)
 
     def record(i: int, t: float, *args: object) -> bool:
-        return bool(record_row(buf, i, t, *args, none))
+        return bool(record_row(buf, i, t, *args, none, none, no_index))
 
     q, v, q_d, u0 = rng.standard_normal((4, nq))
     B = rng.standard_normal((nv, k))
@@ -1015,14 +1019,17 @@ def test_log_row_holds_the_fields_and_the_applied_command() -> None:
     fast_v[1] = -5.5
     assert not record(0, 0.0, q, fast_v, q_d, u0, B, f, p, p_d, f_d, phi, 0.0, 0)
     assert not record(0, 0.0, q, v, q_d, u0, B, np.array([0.0, 101.0]), p, p_d, f_d, phi, 0, 0)
-    # effort limits: the applied torque in the u column, the command u0 + B f in u_cmd's row
+    # effort limits: the applied torque in the u column, the command u0 + B f in u_cmd's row;
+    # a law logging 3 of its 7 values: values[index] in the log's row
     applied = rng.standard_normal(nv)
-    buf2, table2, u_cmd = buffer(nv)
-    args = (q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2, applied)
+    values, index = rng.standard_normal(7), np.array([6, 0, 3])
+    buf2, table2, u_cmd, log = buffer(nv, index.size)
+    args = (q, v, q_d, u0, B, f, p, p_d, f_d, phi, 3.5, 2, applied, values, index)
     assert record_row(buf2, 2, 0.5, *args)
     assert np.array_equal(field(2, 4, table2), applied)
     assert np.abs(u_cmd[2] - (u0 + B @ f)).max() <= 1e-15 * float(np.abs(u0 + B @ f).max())
     assert not np.any(u_cmd[[0, 1]])
+    assert np.array_equal(log[2], values[index]) and not np.any(log[[0, 1]])
 
 
 def test_carver_gives_consecutive_views_and_checks_the_layout() -> None:

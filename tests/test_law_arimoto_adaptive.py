@@ -313,6 +313,10 @@ def test_the_estimates_are_logged_and_start_at_the_model(adaptive_run) -> None:
     assert r.meta["law_log_names"] == info["adapted"]
     assert r.law_log.shape == (r.n_samples, len(info["adapted"]))
     np.testing.assert_array_equal(r.law_log[0], info["theta0"])
+    # every sample: the estimates its command used, as the law held them then
+    names = list(parameter_names(adaptive_run[2].robot.model))
+    adapted = [names.index(x) for x in info["adapted"]]
+    np.testing.assert_array_equal(r.law_log, [c["theta"][adapted] for c in adaptive_run[1]])
     # the gravity the model missed is found: the masses end at the plant's (θ_model / 0.9)
     for name in ("link2.m", "link3.m"):
         j = info["adapted"].index(name)

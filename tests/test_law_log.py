@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from conftest import png_size
 
-from hybrid_force.control.laws.base import law_log_names
-from hybrid_force.errors import BadInputError
+from hybrid_force.control.laws.base import check_log_source, law_log_names
+from hybrid_force.errors import BadInputError, ControlError
 from hybrid_force.result import Result
 from hybrid_force.result_file import ARRAY_NAMES
 from hybrid_force.run_output import RunOutput
@@ -52,8 +52,8 @@ def test_hook_detection() -> None:
         def log_names(self) -> tuple[str, ...]:
             return ("a", "b")
 
-        def log_values(self, out: np.ndarray) -> None:
-            out[:] = (1.0, 2.0)
+        def log_source(self) -> tuple[np.ndarray, np.ndarray]:
+            return np.array([1.0, 2.0]), np.array([0, 1])
 
     class HalfHook:  # names without values: no log
         def log_names(self) -> tuple[str, ...]:
@@ -63,6 +63,38 @@ def test_hook_detection() -> None:
     assert law_log_names(HalfHook()) == ()
     assert law_log_names(None) == ()
     assert law_log_names(Logging()) == ("a", "b")
+
+
+class _Source:
+    """A law's log hook giving ``values`` and ``index``."""
+
+    def __init__(self, values: object, index: object) -> None:
+        self.values, self.index = values, index
+
+    def log_source(self) -> tuple[object, object]:
+        return self.values, self.index
+
+
+def test_the_log_source_is_the_laws_own_array_and_an_index_within_it() -> None:
+    values = np.arange(5.0)
+    got, index = check_log_source(_Source(values, [4, 0]), 2)
+    assert got is values  # not a copy: the record reads it at every sample
+    assert index.dtype == np.int64 and index.tolist() == [4, 0]
+    bad: list[tuple[object, object, str]] = [
+        (values.astype(np.float32), [0, 1], "float64"),
+        (values[::2], [0, 1], "C-contiguous"),
+        (values.reshape(5, 1), [0, 1], "1-D"),
+        (values.tolist(), [0, 1], "list"),
+        (values, [0, 1, 2], r"index of 2 integers"),
+        (values, [0.0, 1.0], r"index of 2 integers"),
+        (values, [0, 5], r"0\.\.4"),
+        (values, [-1, 0], r"0\.\.4"),
+    ]
+    for v, i, message in bad:
+        with pytest.raises(ControlError, match=message) as err:
+            check_log_source(_Source(v, i), 2)
+        assert "_Source.log_source()" in str(err.value)
+        assert err.value.key in ("log_source.values", "log_source.index")
 
 
 def test_a_result_without_a_log_has_an_empty_one_and_no_names() -> None:

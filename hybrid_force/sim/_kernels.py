@@ -231,22 +231,27 @@ def _put(row: np.ndarray, start: int, x: np.ndarray) -> int:
 
 
 #: entries of the record's buffer before its table (:func:`record_parts`)
-RECORD_HEADER = 5
+RECORD_HEADER = 6
 
 
 @_inline
-def record_parts(buf: np.ndarray, i: int) -> tuple[float, float, np.ndarray, np.ndarray]:
-    """max_velocity, max_force and the views of row i of the table (W,) and of u_cmd (n,),
-    or (0,) when the run has no effort limits, in the record's buffer (``Record._buf``):
-    buf[0] = max_velocity, buf[1] = max_force, buf[2] = N, buf[3] = W, buf[4] = the columns
-    of u_cmd (n, or 0), then the table's N rows and u_cmd's N rows (none when 0). One buffer,
-    one argument: Numba's call costs ~0.14 µs per array argument."""
-    N, W, m = int(buf[2]), int(buf[3]), int(buf[4])
+def record_parts(
+    buf: np.ndarray, i: int
+) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray]:
+    """max_velocity, max_force and the views of row i of the table (W,), of u_cmd (n,), or
+    (0,) when the run has no effort limits, and of the law's log (m,), or (0,), in the
+    record's buffer (``Record._buf``): buf[0] = max_velocity, buf[1] = max_force, buf[2] = N,
+    buf[3] = W, buf[4] = the columns of u_cmd (n, or 0), buf[5] = the law's signals m, then
+    the table's N rows, u_cmd's N rows and the log's N rows (none when 0). One buffer, one
+    argument: Numba's call costs ~0.14 µs per array argument."""
+    N, W, m, m_log = int(buf[2]), int(buf[3]), int(buf[4]), int(buf[5])
     o = RECORD_HEADER
     # row i's slices, not (N, W) and (N, n) views: a reshape costs a call per sample
     row = buf[o + i * W : o + (i + 1) * W]
-    u_cmd = buf[o + N * W + i * m : o + N * W + (i + 1) * m]
-    return buf[0], buf[1], row, u_cmd
+    o += N * W
+    u_cmd = buf[o + i * m : o + (i + 1) * m]
+    o += N * m
+    return buf[0], buf[1], row, u_cmd, buf[o + i * m_log : o + (i + 1) * m_log]
 
 
 @_jit
@@ -267,17 +272,21 @@ def record_row(
     V: float,
     phase: int,
     applied: np.ndarray,
+    log_values: np.ndarray,
+    log_index: np.ndarray,
 ) -> bool:
     """Write one sample into row i of the run's table (fields in the order of simulate._Log).
 
-    buf: the record's buffer (:func:`record_parts`: the table, the commanded torques' table
-    and the limits checked). The command column is the applied torque: ``applied`` (n,) when
-    the effort limits changed it, else (size 0) the command u = u0 + B f (B: (n, k)); u_cmd
-    (N, n), the commanded torques' table of a run with effort limits, gets u0 + B f in its
-    row i (0 rows: none). Returns True when q, v, f are finite, every |v_i| ≤ max_velocity
-    and every |f_m| ≤ max_force.
+    buf: the record's buffer (:func:`record_parts`: the table, the commanded torques' table,
+    the law's log and the limits checked). The command column is the applied torque:
+    ``applied`` (n,) when the effort limits changed it, else (size 0) the command
+    u = u0 + B f (B: (n, k)); u_cmd (N, n), the commanded torques' table of a run with effort
+    limits, gets u0 + B f in its row i (0 rows: none). The law's log (N, m) gets
+    log_values[log_index] (log_index (m,) int64 within log_values: ``Law.log_source``,
+    checked by the record). Returns True when q, v, f are finite, every |v_i| ≤
+    max_velocity and every |f_m| ≤ max_force.
     """
-    max_velocity, max_force, row, u_cmd_row = record_parts(buf, i)
+    max_velocity, max_force, row, u_cmd_row, log_row = record_parts(buf, i)
     row[0] = t
     c = _put(row, 1, q)
     c = _put(row, c, v)
@@ -299,6 +308,8 @@ def record_row(
     c = _put(row, c, phi)
     row[c] = V
     row[c + 1] = phase
+    for j in range(log_row.shape[0]):
+        log_row[j] = log_values[log_index[j]]
     ok = True
     for j in range(q.shape[0]):
         ok = ok and math.isfinite(q[j])

@@ -17,7 +17,7 @@ import numpy as np
 
 from hybrid_force._jit import entry
 from hybrid_force._lazy import LazyKernels
-from hybrid_force.control.laws.base import Command, law_log_names
+from hybrid_force.control.laws.base import Command, check_log_source, law_log_names
 from hybrid_force.geometry.offset import contact_points
 from hybrid_force.model.robot import RobotTerms
 from hybrid_force.phases import CONTACT
@@ -33,7 +33,7 @@ _K = LazyKernels("hybrid_force.sim._kernels")
 __all__ = ["Record"]
 
 # entries of the record's buffer before its table (_kernels.RECORD_HEADER)
-_RECORD_HEADER = 5
+_RECORD_HEADER = 6
 
 
 class Record:
@@ -79,19 +79,21 @@ class Record:
         self._no_q_d, self._no_B = np.full(nq, np.nan), np.zeros((nv, k))
         self._p_d = np.zeros(3)  # the path's point, when it is not the CLIK's
         self._row: Callable[..., bool] | None = None  # record_row's entry, at the first sample
-        # the law's own signals (its optional log hook), recorded at every sample
-        self._log_law = (
-            getattr(law.law, "log_values", None) if law is not None and self.law_signals else None
+        # the law's own signals (its optional log hook): gathered by record_row at every
+        # sample from the law's own array
+        m = len(self.law_signals)
+        source: tuple[np.ndarray, np.ndarray] = (
+            check_log_source(law.law, m)
+            if law is not None and m
+            else (np.zeros(0), np.zeros(0, dtype=np.int64))
         )
+        self._log_values, self._log_index = source
         self._tool = ToolLog(sc, law, ctrl.measured) if sc.tool.controlled else None
         # the measured force (N, k), when it is not the plant's force (sampled sensing)
         self.f_meas: np.ndarray | None = np.zeros((N, k)) if ctrl.measured else None
         # the commanded torque (N, n), when effort limits may make it differ from the applied
         m_cmd = nv if plant.effort is not None else 0
         self._no_u = np.zeros(0)  # no applied torque of the limits: the command is applied
-        # the law's own signals (N, m), when it logs some (Law.log_names)
-        m = len(self.law_signals)
-        self.law_log: np.ndarray | None = np.zeros((N, m)) if m else None
         # the tool axis' angle from its desired direction (N,) [rad], when the run controls it
         self.tool_angle: np.ndarray | None = np.zeros(N) if self._tool is not None else None
         # a ball-end tool: its contact points, found from the centres p after the run
@@ -100,14 +102,19 @@ class Record:
         self.removal = RemovalObserver(sc, N) if sc.removal is not None else None
         widths = self.widths(nq, nv, k)
         W = sum(widths)
-        # the table and u_cmd as views of one buffer, with the limits record_row checks: its
-        # one argument instead of four (Numba's call costs ~0.14 µs per array argument); the
-        # layout of _kernels.record_parts
+        # the table, u_cmd and the law's signals (N, m) as views of one buffer, with the
+        # limits record_row checks: its one argument instead of five (Numba's call costs
+        # ~0.14 µs per array argument); the layout of _kernels.record_parts
         o = _RECORD_HEADER
-        self._buf = np.zeros(o + N * W + N * m_cmd)
-        self._buf[:o] = (sim.max_velocity, sim.max_force, N, W, m_cmd)
+        self._buf = np.zeros(o + N * (W + m_cmd + m))
+        self._buf[:o] = (sim.max_velocity, sim.max_force, N, W, m_cmd, m)
         self.table = self._buf[o : o + N * W].reshape(N, W)
-        self.u_cmd: np.ndarray | None = self._buf[o + N * W :].reshape(N, m_cmd) if m_cmd else None
+        o += N * W
+        self.u_cmd: np.ndarray | None = (
+            self._buf[o : o + N * m_cmd].reshape(N, m_cmd) if m_cmd else None
+        )
+        o += N * m_cmd
+        self.law_log: np.ndarray | None = self._buf[o:].reshape(N, m) if m else None
         views = []
         start = 0
         for w in widths:
@@ -120,12 +127,7 @@ class Record:
         if self.removal is not None:  # it reads the recorded tip and force in batches
             self.removal.attach(self.p, self.f)
         # what a sample holds besides the table's row: decided once, not tested per sample
-        self._extras = (
-            self.f_meas is not None
-            or self._log_law is not None
-            or self._tool is not None
-            or self.removal is not None
-        )
+        self._extras = self.f_meas is not None or self._tool is not None or self.removal is not None
         # the desired point is the law's own CLIK sample (the law runs at every plant step)
         self._own_p_d = self._clik is not None and not ctrl.measured
 
@@ -167,6 +169,7 @@ class Record:
             CONTACT if plant.in_contact else self._ctrl.phase(distance),
             # the applied torque (the commanded torque, before the limits, goes to u_cmd)
             self._no_u if applied is None else applied,
+            self._log_values, self._log_index,
         )  # fmt: skip
         row = self._row
         if row is None:  # bound at the first sample (entry): the arrays of later ones,
@@ -182,14 +185,11 @@ class Record:
     def _record_extras(
         self, i: int, t: float, q: np.ndarray, terms: RobotTerms, f: np.ndarray
     ) -> None:
-        """Sample i of what the run keeps beside the table (measured force, the law's signals,
-        the tool's angle, the removal)."""
+        """Sample i of what the run keeps beside the table and its buffer (measured force, the
+        tool's angle, the removal)."""
         ctrl = self._ctrl
         if self.f_meas is not None:
             self.f_meas[i] = ctrl.f_meas
-        if self._log_law is not None:
-            assert self.law_log is not None
-            self._log_law(self.law_log[i])
         if self._tool is not None:
             assert self.tool_angle is not None
             self.tool_angle[i] = self._tool.angle(t, q)

@@ -196,20 +196,6 @@ def adaptive_update(
         theta[j] = floor[j] if t < floor[j] else t  # a NaN stays NaN, as np.maximum
 
 
-@_jit
-def take_into(values: np.ndarray, index: np.ndarray, out: np.ndarray) -> None:
-    """out[j] = values[index[j]]: the logged estimates (values (p,), index (m,) in range,
-    out (m,)); numpy's ``take`` costs about 1 µs a call here.
-
-    Raises:
-        ValueError: out is not (m,).
-    """
-    if out.shape[0] != index.shape[0]:
-        raise ValueError("the log row has the wrong length")
-    for j in range(index.shape[0]):
-        out[j] = values[index[j]]
-
-
 # --- the steady contact step on packs (Law.hybrid_at; control._kernels "packs") -------------
 def workspace_size(n: int, nq: int, k: int, p: int) -> int:
     """Length of the law's own flat buffer (:func:`workspace_parts`)."""

@@ -214,11 +214,10 @@ class AdaptiveArimotoWorkspace(base.Law):
         u0: (n,), B: (n, k) of the last command. in_contact_law: True after :meth:`hybrid`.
     """
 
-    # the kernels of hybrid_at (after the passes), update and log_values, each bound at its
-    # first call (hybrid_force._jit.entry; hybrid_at's first: Law._steady_kernel)
+    # the kernels of hybrid_at (after the passes) and update, each bound at its first call
+    # (hybrid_force._jit.entry; hybrid_at's first: Law._steady_kernel)
     _command_steady: Callable[..., float] | None = None
     _update_steady: Callable[..., None] | None = None
-    _take: Callable[..., None] | None = None
 
     def __init__(self, robot: Robot, k: int, gains: base.Gains, adaptation: Adaptation) -> None:
         self.gains = gains
@@ -434,12 +433,10 @@ class AdaptiveArimotoWorkspace(base.Law):
         """The estimates this law logs at every sample: the adapted parameters' names."""
         return tuple(self.adaptation.names[j] for j in self._adapted)
 
-    def log_values(self, out: np.ndarray) -> None:
-        """Write the adapted estimates θ̂ (m,) [kg, kg·m, kg·m²] into ``out``."""
-        take = self._take
-        if take is None:  # bound at the first call (entry): a row of the record's log
-            take = self._take = entry(_K.take_into, self.theta, self._adapted, out)
-        take(self.theta, self._adapted, out)  # (the adapted columns: all in range)
+    def log_source(self) -> tuple[np.ndarray, np.ndarray]:
+        """The adapted estimates: θ̂ (p,) [kg, kg·m, kg·m²], updated in place by
+        :meth:`update`, at the adapted columns (m,)."""
+        return self.theta, self._adapted
 
 
 def build(context: base.LawContext) -> AdaptiveArimotoWorkspace:

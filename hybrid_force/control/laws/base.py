@@ -65,6 +65,7 @@ __all__ = [
     "below",
     "build_law",
     "check_law",
+    "check_log_source",
     "check_options",
     "law_log_names",
     "law_loop_bounds",
@@ -305,8 +306,13 @@ class Law:
         (:mod:`hybrid_force.law_log`). None by default."""
         return ()
 
-    def log_values(self, out: np.ndarray) -> None:
-        """Write the m current values of :meth:`log_names` into ``out`` (m,)."""
+    def log_source(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where a run reads the m signals of :meth:`log_names` at every sample: (values (p,)
+        float64, index (m,) int64), signal j being ``values[index[j]]`` when the sample is
+        taken. ``values`` is the law's own array, which it updates in place and never
+        replaces: the run's record keeps it and gathers from it in its compiled row, without
+        a call to the law per sample (:func:`check_log_source`). Nothing by default."""
+        return np.zeros(0), np.zeros(0, dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -559,12 +565,50 @@ def register(spec: LawSpec) -> LawSpec:
 
 def law_log_names(law: object) -> tuple[str, ...]:
     """The names of the signals ``law`` logs at every sample: its ``log_names()`` when it has
-    the optional hook of :class:`Law` (with ``log_values``), else none."""
+    the optional hook of :class:`Law` (with ``log_source``), else none."""
     if not (
-        callable(getattr(law, "log_names", None)) and callable(getattr(law, "log_values", None))
+        callable(getattr(law, "log_names", None)) and callable(getattr(law, "log_source", None))
     ):
         return ()
     return tuple(str(name) for name in law.log_names())  # type: ignore[attr-defined]
+
+
+def check_log_source(law: object, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """``law.log_source()`` (:meth:`Law.log_source`) checked for its m signals: the law's own
+    values array as it is (a copy would log frozen values) and its index as int64.
+
+    Raises:
+        ControlError: values is not a 1-D C-contiguous float64 array, or the index is not m
+            integers within it.
+    """
+    name = type(law).__name__
+    values, index = law.log_source()  # type: ignore[attr-defined]
+    if not (
+        isinstance(values, np.ndarray)
+        and values.dtype == np.float64
+        and values.ndim == 1
+        and values.flags.c_contiguous
+    ):
+        raise ControlError(
+            f"{name}.log_source() must give its own 1-D C-contiguous float64 array of values "
+            f"(updated in place), got {type(values).__name__} "
+            f"{getattr(values, 'dtype', '')}{getattr(values, 'shape', '')}",
+            key="log_source.values", value=values,
+        )  # fmt: skip
+    idx = np.asarray(index)
+    if idx.shape != (m,) or (m and idx.dtype.kind not in "iu"):
+        raise ControlError(
+            f"{name}.log_source() must give an index of {m} integers (one per name of "
+            f"log_names()), got {idx.dtype}{idx.shape}",
+            key="log_source.index", value=index,
+        )  # fmt: skip
+    if m and (int(idx.min()) < 0 or int(idx.max()) >= values.size):
+        raise ControlError(
+            f"{name}.log_source()'s index must lie in 0..{values.size - 1} (its values' "
+            f"length), got {idx.min()}..{idx.max()}",
+            key="log_source.index", value=index,
+        )  # fmt: skip
+    return values, np.ascontiguousarray(idx, dtype=np.int64)
 
 
 def law_names() -> tuple[str, ...]:
