@@ -74,7 +74,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {label:34s}  {1e3 * total[label]:7.1f} ms ({count[label]} calls)")
     print("per kernel: ms, object code kB, shared bitcode kB")
     for dt, name, obj, bitcode in sorted(loads, reverse=True):
-        print(f"  {1e3 * dt:6.1f} {obj / 1e3:7.1f} {bitcode / 1e3:7.1f}  {name.split('.')[-1][:60]}")
+        kernel = name.split(".")[-1][:60]
+        print(f"  {1e3 * dt:6.1f} {obj / 1e3:7.1f} {bitcode / 1e3:7.1f}  {kernel}")
     return 0
 
 
