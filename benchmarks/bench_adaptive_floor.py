@@ -22,8 +22,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -32,19 +30,6 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
-
-
-def best_us(call: Callable[[], object], n: int = 20_000, batches: int = 15) -> float:
-    """The best time of one call [µs] over ``batches`` batches of ``n`` calls."""
-    for _ in range(500):
-        call()
-    best = float("inf")
-    for _ in range(batches):
-        t0 = time.perf_counter()
-        for _ in range(n):
-            call()
-        best = min(best, (time.perf_counter() - t0) / n)
-    return 1e6 * best
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -88,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         "forwardKinematics (q, v, a)": lambda: pin.forwardKinematics(model, data, q, v, a),
         f"the {model.njoints - 1} links' inertias from θ̂": write_inertias,
     }
-    times = {label: best_us(call) for label, call in rows.items()}
+    # best of 15 batches of 20,000 calls, after 500 (bench_loop's timer)
+    times = {label: bench_loop._best_us(call, 500, 20_000, 15) for label, call in rows.items()}
     passes = (
         times["computeJointTorqueRegressor (gravity)"]
         + 2 * times["computeJointTorqueRegressor (no gravity)"]
